@@ -1,0 +1,33 @@
+"""ebb_model — axially loaded Euler–Bernoulli beam as a discrete state-space system.
+
+Data flow: :func:`load_config` → :func:`discretise` (finite differences with
+ghost nodes) → :func:`discretise_time` / :func:`assemble` (three-level θ-scheme,
+state space Φ, Γ, C, D) → :func:`simulate` (compiled recursion; modal fast
+path :func:`fast_model`) ; analysis with :func:`modes`,
+:func:`frequency_response` and :func:`analyse_stability` (Bistritz test of the
+dispersion relation).
+"""
+from .assemble import assemble, check_stable, field_matrix
+from .beam import PARAMETER_NAMES, Actuator, End, PointMass, Sensor
+from .config import BeamConfig, ParameterSpec, config_from_dict, load_config
+from .discretisation import SemiDiscreteBeam, discretise
+from .errors import ConfigError, DataError, EbbError, FmuError, ParameterError, StabilityError
+from .modal import FrequencyResponse, ModalAnalysis, discrete_frequencies, frequency_response, modes
+from .modal_form import ModalStateSpace
+from .simulate import SimulationResult, fast_model, simulate, simulate_batch, simulate_config
+from .stability import StabilityReport, analyse_stability, bistritz, max_growth_factor, stability_bounds
+from .statespace import DiscreteStateSpace
+from .theta_scheme import discretise_time
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "PARAMETER_NAMES", "Actuator", "End", "PointMass", "Sensor",
+    "BeamConfig", "ParameterSpec", "config_from_dict", "load_config",
+    "SemiDiscreteBeam", "discretise", "discretise_time", "DiscreteStateSpace", "ModalStateSpace",
+    "assemble", "check_stable", "field_matrix",
+    "simulate", "simulate_config", "simulate_batch", "fast_model", "SimulationResult",
+    "modes", "ModalAnalysis", "frequency_response", "FrequencyResponse", "discrete_frequencies",
+    "analyse_stability", "StabilityReport", "bistritz", "max_growth_factor", "stability_bounds",
+    "EbbError", "ConfigError", "ParameterError", "StabilityError", "DataError", "FmuError",
+]

@@ -1,0 +1,88 @@
+"""From a config and parameter values to a validated, stable discrete system.
+
+The data flow Beam → Discretisation → StateSpace in one call:
+:func:`~ebb_model.discretisation.discretise` (finite differences in space),
+:func:`~ebb_model.theta_scheme.discretise_time` (θ-scheme in time), then the
+stability check of the *finite* beam (spectral radius of Φ), whose error
+message names the parameters that violate the Bistritz bounds of the
+dispersion relation (:mod:`ebb_model.stability.dispersion`).
+"""
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from .config import BeamConfig, check_parameter_values
+from .discretisation import discretise
+from .errors import StabilityError
+from .statespace import DiscreteStateSpace
+from .theta_scheme import discretise_time
+
+__all__ = ["assemble", "field_matrix", "check_stable"]
+
+
+def check_stable(config: BeamConfig, params: Mapping[str, float], spectral_radius: float,
+                 *, tol: float = 1e-9) -> None:
+    """Raise :class:`StabilityError` if ``spectral_radius > 1 + tol``, naming the culprits."""
+    if spectral_radius <= 1.0 + tol:
+        return
+    from .stability.dispersion import stability_bounds
+
+    p = check_parameter_values(config.parameter_values() | dict(params))
+    bounds = stability_bounds(config, p)
+    culprits = [f"{k} = {p[k]:g} lies outside the Bistritz bounds [{lo:g}, {hi:g}]"
+                for k, (lo, hi) in bounds.items() if lo == lo and not lo <= p[k] <= hi]
+    if not culprits and p["N"] < 0:
+        culprits = [f"N = {p['N']:g} N is beyond the buckling load of the discretised beam"]
+    why = "; ".join(culprits) if culprits else "no single parameter is out of its bounds"
+    raise StabilityError(f"unstable scheme (spectral radius of Phi {spectral_radius:.9g} > 1): {why}")
+
+
+def assemble(config: BeamConfig, params: Mapping[str, float] | None = None, *,
+             check_stability: bool = True) -> DiscreteStateSpace:
+    """The beam as a discrete state-space system (Φ, Γ, C, D, dt).
+
+    Parameters
+    ----------
+    config
+        The validated set-up.
+    params
+        Parameter values overriding the config's nominal ones.
+    check_stability
+        Raise :class:`~ebb_model.errors.StabilityError` when the finite beam's
+        scheme is unstable (spectral radius of Φ above one).
+
+    Returns
+    -------
+    DiscreteStateSpace
+        State ``x[k] = (q^{mk}, q^{mk-1})`` of nodal unknowns; inputs named
+        after the actuators, outputs after the sensors.
+
+    Raises
+    ------
+    ParameterError, StabilityError
+    """
+    p = config.parameter_values() | dict(params or {})
+    beam = discretise(config, p)
+    ts = config.time
+    sys = discretise_time(beam, ts.dt, ts.theta, ts.substeps)
+    if check_stability:
+        check_stable(config, p, sys.spectral_radius())
+    return sys
+
+
+def field_matrix(config: BeamConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Grid node positions and the matrix mapping the state to the deflection at every node.
+
+    Returns
+    -------
+    x : numpy.ndarray
+        Positions of all ``nodes + 2`` grid points [m].
+    Cf : numpy.ndarray
+        Shape (nodes + 2, n_states); boundary nodes that cannot move have zero rows.
+    """
+    beam = discretise(config)
+    P = beam.field_rows()
+    Cf = np.hstack([P, np.zeros_like(P)])
+    return beam.x.copy(), Cf

@@ -1,0 +1,172 @@
+"""Real block-diagonal (modal) form of the θ-scheme — the fast simulation path.
+
+A discrete system similar to (Φ, Γ, C, D) whose state matrix is block
+diagonal with 2×2 real blocks ``T_b``:
+
+.. math::
+
+    z_b[k+1] = T_b z_b[k] + G_b u[k], \\qquad y[k] = \\sum_b C_b z_b[k] + D u[k].
+
+Two routes lead here:
+
+* **Proportional damping** (the damping matrix is diagonal in the undamped
+  modes, e.g. ``eta = 0``, or ``N = 0`` without springs): the θ-scheme
+  decouples *exactly* in the mass-normalised modes ``q = Ψ ξ`` of
+  ``K Ψ = M Ψ Ω²``.  Mode ``i`` obeys the scalar three-level recursion
+
+  .. math::
+
+     \\xi^{j+1} = a_{1,i}\\xi^j + a_{2,i}\\xi^{j-1} + b_i f^j,\\quad
+     \\ell_i = \\tfrac{1}{\\tau^2} + \\tfrac{d_i}{2\\tau} + \\theta\\omega_i^2,\\;
+     a_{1,i} = (\\tfrac{2}{\\tau^2} - (1-2\\theta)\\omega_i^2)/\\ell_i,\\;
+     a_{2,i} = (-\\tfrac{1}{\\tau^2} + \\tfrac{d_i}{2\\tau} - \\theta\\omega_i^2)/\\ell_i,
+
+  whose 2×2 companion matrix (raised to the number of sub-steps) is the
+  block.  Cost: one symmetric generalised eigenproblem of size n.
+* **General damping**: the eigen-decomposition of Φ; complex pairs
+  ``σ ± iω`` become blocks ``[[σ, ω], [-ω, σ]]`` in the real basis
+  ``[Re v, Im v]``; real eigenvalues are paired in diagonal blocks.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from .discretisation import SemiDiscreteBeam
+from .statespace import DiscreteStateSpace
+from .theta_scheme import output_matrices
+
+__all__ = ["ModalStateSpace", "modal_from_beam", "modal_from_statespace", "is_proportional"]
+
+
+@dataclass(frozen=True, eq=False)
+class ModalStateSpace:
+    """Block-diagonal real form: blocks ``T`` (nb, 2, 2), ``G`` (nb, 2, m), ``Cm`` (p, nb, 2), ``D`` (p, m)."""
+
+    T: np.ndarray
+    G: np.ndarray
+    Cm: np.ndarray
+    D: np.ndarray
+    dt: float
+    input_names: tuple[str, ...]
+    output_names: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        for name in ("T", "G", "Cm", "D"):
+            a = np.ascontiguousarray(getattr(self, name), dtype=float)
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+
+    @property
+    def nblocks(self) -> int:
+        """Number of 2×2 blocks (half the state dimension)."""
+        return self.T.shape[0]
+
+    def to_statespace(self) -> DiscreteStateSpace:
+        """The equivalent dense :class:`DiscreteStateSpace` (block-diagonal A)."""
+        nb = self.nblocks
+        A = sla.block_diag(*self.T) if nb else np.zeros((0, 0))
+        B = self.G.reshape(2 * nb, -1)
+        C = self.Cm.reshape(self.Cm.shape[0], 2 * nb)
+        names = tuple(f"z{b}_{j}" for b in range(nb) for j in range(2))
+        return DiscreteStateSpace(A, B, C, self.D, self.dt, self.input_names, self.output_names, names)
+
+    def spectral_radius(self) -> float:
+        """Largest modulus of the block eigenvalues (closed form for 2×2 blocks)."""
+        if self.nblocks == 0:
+            return 0.0
+        tr = self.T[:, 0, 0] + self.T[:, 1, 1]
+        det = self.T[:, 0, 0] * self.T[:, 1, 1] - self.T[:, 0, 1] * self.T[:, 1, 0]
+        disc = np.sqrt((tr * tr / 4 - det).astype(complex))
+        return float(np.max(np.maximum(np.abs(tr / 2 + disc), np.abs(tr / 2 - disc))))
+
+
+def is_proportional(Psi: np.ndarray, C: np.ndarray, *, rtol: float = 1e-10) -> tuple[bool, np.ndarray]:
+    """Whether ``Ψᵀ C Ψ`` is diagonal (to ``rtol``); returns the flag and its diagonal."""
+    Cd = Psi.T @ C @ Psi
+    diag = np.diag(Cd).copy()
+    off = Cd - np.diag(diag)
+    scale = max(float(np.max(np.abs(diag))), 1e-300)
+    return bool(np.max(np.abs(off), initial=0.0) <= rtol * scale), diag
+
+
+def modal_from_beam(beam: SemiDiscreteBeam, dt: float, theta: float = 0.25,
+                    substeps: int = 1) -> ModalStateSpace | None:
+    """Exact modal form via the undamped modes, or ``None`` if damping is not proportional."""
+    w2, Psi = sla.eigh(beam.K, beam.M)
+    prop, d = is_proportional(Psi, beam.C)
+    if not prop:
+        return None
+    tau = dt / substeps
+    ell = 1.0 / tau ** 2 + d / (2 * tau) + theta * w2
+    a1 = (2.0 / tau ** 2 - (1 - 2 * theta) * w2) / ell
+    a2 = (-1.0 / tau ** 2 + d / (2 * tau) - theta * w2) / ell
+    b = (Psi.T @ beam.F) / ell[:, None]  # (nb, m)
+    nb, m = b.shape
+    # one-step companion blocks and their powers
+    S = np.zeros((nb, 2, 2))
+    S[:, 0, 0] = a1
+    S[:, 0, 1] = a2
+    S[:, 1, 0] = 1.0
+    g = np.zeros((nb, 2, m))
+    g[:, 0, :] = b
+    T, G = S.copy(), g.copy()
+    for _ in range(substeps - 1):
+        G = np.einsum("bij,bjm->bim", S, G) + g
+        T = np.einsum("bij,bjk->bik", S, T)
+    # outputs in modal coordinates: P Ψ, with diagonal update matrices
+    PPsi = beam.S @ Psi
+    C2, D = output_matrices(PPsi, beam.sensor_kinds, np.diag(a1), np.diag(a2), b, tau)
+    Cm = np.stack([C2[:, :nb], C2[:, nb:]], axis=2)  # (p, nb, 2)
+    return ModalStateSpace(T, G, Cm, D, dt, beam.input_names, beam.output_names)
+
+
+def modal_from_statespace(sys: DiscreteStateSpace) -> ModalStateSpace:
+    """Real block-diagonal form of a general system via the eigen-decomposition of A.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        If ``A`` is numerically defective (eigenvector matrix singular).
+    """
+    lam, V = np.linalg.eig(sys.A)
+    n = lam.size
+    used = np.zeros(n, dtype=bool)
+    cols: list[np.ndarray] = []
+    blocks: list[np.ndarray] = []
+    reals: list[int] = []
+    tol = 1e-13 * max(1.0, float(np.max(np.abs(lam), initial=0.0)))
+    for i in range(n):
+        if used[i]:
+            continue
+        if abs(lam[i].imag) <= tol:
+            reals.append(i)
+            used[i] = True
+            continue
+        # find its conjugate partner
+        cand = np.where(~used & (np.abs(lam - np.conj(lam[i])) <= 1e3 * tol))[0]
+        cand = cand[cand != i]
+        if cand.size == 0:
+            raise np.linalg.LinAlgError("complex eigenvalue without conjugate partner")
+        j = cand[0]
+        used[i] = used[j] = True
+        lr = lam[i] if lam[i].imag > 0 else lam[j]
+        v = V[:, i] if lam[i].imag > 0 else V[:, j]
+        cols += [v.real, v.imag]
+        blocks.append(np.array([[lr.real, lr.imag], [-lr.imag, lr.real]]))
+    if len(reals) % 2:
+        raise np.linalg.LinAlgError("odd number of real eigenvalues in an even-dimensional system")
+    for a, b in zip(reals[0::2], reals[1::2]):
+        cols += [V[:, a].real, V[:, b].real]
+        blocks.append(np.diag([lam[a].real, lam[b].real]))
+    W = np.column_stack(cols) if cols else np.zeros((n, 0))
+    if n and np.linalg.cond(W) > 1e10:
+        raise np.linalg.LinAlgError("eigenvector matrix is ill-conditioned; use the dense simulation")
+    Wi = np.linalg.inv(W)
+    nb = len(blocks)
+    T = np.array(blocks).reshape(nb, 2, 2)
+    G = (Wi @ sys.B).reshape(nb, 2, -1)
+    Cm = (sys.C @ W).reshape(sys.noutputs, nb, 2)
+    return ModalStateSpace(T, G, Cm, sys.D, sys.dt, sys.input_names, sys.output_names)

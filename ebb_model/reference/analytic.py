@@ -1,0 +1,523 @@
+r"""Analytic natural frequencies of an axially loaded Euler–Bernoulli beam.
+
+This module is an *independent truth* for the project's finite-difference
+model: it never discretises the beam, it solves the exact characteristic
+equations of the continuous problem.
+
+Model
+-----
+Free vibration of the undamped beam
+
+.. math::
+
+    \rho A\, w_{tt} + EI\, w_{xxxx} - N\, w_{xx} = 0, \qquad 0 \le x \le L,
+
+with a constant axial force :math:`N` (:math:`N > 0` tension, :math:`N < 0`
+compression).  With :math:`w = W(\xi) e^{i\omega t}`, :math:`\xi = x/L`,
+
+.. math::
+
+    W'''' - U\, W'' - \Omega^2 W = 0, \qquad
+    U = \frac{N L^2}{EI}, \qquad
+    \Omega = \omega L^2 \sqrt{\rho A / EI}.
+
+The characteristic roots :math:`s` satisfy :math:`s^4 - U s^2 - \Omega^2 = 0`,
+i.e. :math:`s = \pm\alpha` and :math:`s = \pm i\beta` with
+
+.. math::
+
+    \alpha^2 - \beta^2 = U, \qquad \alpha\beta = \Omega, \qquad
+    \alpha^2 = \tfrac12\bigl(U + \sqrt{U^2 + 4\Omega^2}\bigr), \qquad
+    \beta^2 = \tfrac12\bigl(-U + \sqrt{U^2 + 4\Omega^2}\bigr),
+
+both real for any real :math:`U` and :math:`\Omega > 0`, so that
+:math:`W = A\cosh\alpha\xi + B\sinh\alpha\xi + C\cos\beta\xi + D\sin\beta\xi`.
+The boundary conditions are
+
+* clamped: :math:`W = W' = 0`,
+* pinned:  :math:`W = W'' = 0`,
+* free:    :math:`W'' = 0,\; W''' - U W' = 0` (zero bending moment and zero
+  transverse shear force for an axial force of fixed direction).
+
+Characteristic equations (non-trivial solutions of the 4 x 4 system):
+
+* pinned–pinned: :math:`\sinh\alpha \sin\beta = 0`, closed form
+  :math:`\Omega_n = n\pi\sqrt{n^2\pi^2 + U}`;
+* clamped–clamped:
+  :math:`2\alpha\beta(1 - \cosh\alpha\cos\beta) + (\alpha^2-\beta^2)\sinh\alpha\sin\beta = 0`;
+* clamped–pinned: :math:`\alpha\sin\beta\cosh\alpha - \beta\cos\beta\sinh\alpha = 0`
+  (the pole-free form of :math:`\alpha\tan\beta = \beta\tanh\alpha`);
+* clamped–free:
+  :math:`2\alpha^2\beta^2 + (\alpha^4+\beta^4)\cos\beta\cosh\alpha
+  + \alpha\beta(\alpha^2-\beta^2)\sin\beta\sinh\alpha = 0`.
+
+Numerical strategy
+------------------
+The roots are searched in the variable :math:`\beta` rather than
+:math:`\Omega`.  Along the branch :math:`\beta \ge \beta_0 = \sqrt{\max(-U, 0)}`,
+:math:`\alpha = \sqrt{\beta^2 + U}` and :math:`\Omega = \alpha\beta` grows
+monotonically from 0, and consecutive eigenvalues are separated by roughly
+:math:`\pi` in :math:`\beta` for *every* :math:`U` (string-like and beam-like
+regimes alike), so a uniform grid of step :math:`\pi/128` cannot step over
+a root.
+
+Each characteristic function is
+
+1. divided by :math:`\alpha\beta` where this removes the trivial root
+   :math:`\Omega = 0` (using the entire functions
+   :math:`\operatorname{sinc}\beta = \sin\beta/\beta` and
+   :math:`\tanh\alpha/\alpha`), and
+2. divided by :math:`\cosh\alpha` so that nothing overflows (only
+   :math:`\tanh\alpha` and :math:`\operatorname{sech}\alpha` remain);
+
+the clamped–free function is further divided by :math:`\alpha^4 + \beta^4`.
+The scaled functions are smooth and pole-free; sign changes on the grid are
+refined with :func:`scipy.optimize.brentq`, and any bracket whose refined
+residual is not small compared with the bracketing values (the signature of
+a pole) is rejected.
+"""
+from __future__ import annotations
+
+import math
+from types import MappingProxyType
+from typing import Callable, Mapping
+
+import numpy as np
+from scipy.optimize import brentq
+
+from ..errors import ConfigError, ParameterError
+
+__all__ = [
+    "analytic_omegas",
+    "analytic_frequencies_hz",
+    "critical_buckling_U",
+    "characteristic_function",
+    "solve_characteristic",
+    "U_MAX",
+]
+
+#: Largest nondimensional tension ``U = N L^2 / EI`` accepted.
+U_MAX: float = 1.0e4
+
+# Read-only alias table: accepted spellings -> canonical boundary condition.
+_BC_ALIASES: Mapping[str, str] = MappingProxyType(
+    {
+        "clamped": "clamped",
+        "fixed": "clamped",
+        "built-in": "clamped",
+        "pinned": "pinned",
+        "hinged": "pinned",
+        "simply-supported": "pinned",
+        "simply_supported": "pinned",
+        "free": "free",
+    }
+)
+_BC_RANK: Mapping[str, int] = MappingProxyType({"clamped": 0, "pinned": 1, "free": 2})
+_SUPPORTED_PAIRS: tuple[tuple[str, str], ...] = (
+    ("pinned", "pinned"),
+    ("clamped", "clamped"),
+    ("clamped", "pinned"),
+    ("clamped", "free"),
+)
+
+# Root scan step in beta (eigenvalues are ~pi apart in beta).
+_BETA_STEP: float = math.pi / 128.0
+
+CharFun = Callable[[np.ndarray, np.ndarray, float], np.ndarray]
+
+
+# --------------------------------------------------------------------------
+# boundary-condition handling
+# --------------------------------------------------------------------------
+def _canonical_bc(name: str) -> str:
+    """Return the canonical name (``clamped``/``pinned``/``free``) of ``name``."""
+    if not isinstance(name, str):
+        raise ConfigError(f"boundary condition must be a string, got {name!r}")
+    key = name.strip().lower().replace(" ", "-")
+    try:
+        return _BC_ALIASES[key]
+    except KeyError:
+        raise ConfigError(
+            f"unknown boundary condition {name!r}; expected one of "
+            "'clamped', 'pinned', 'free'"
+        ) from None
+
+
+def _canonical_pair(left: str, right: str) -> tuple[str, str]:
+    """Order-independent canonical boundary pair, validated.
+
+    The eigenvalues of the beam do not depend on which end is called *left*,
+    so the pair is sorted clamped < pinned < free.
+
+    Raises
+    ------
+    ConfigError
+        (a :class:`ValueError`) for unknown names or unsupported pairs.
+    """
+    a, b = sorted((_canonical_bc(left), _canonical_bc(right)), key=_BC_RANK.__getitem__)
+    pair = (a, b)
+    if pair not in _SUPPORTED_PAIRS:
+        supported = ", ".join(f"{p}-{q}" for p, q in _SUPPORTED_PAIRS)
+        raise ConfigError(
+            f"boundary-condition pair {left!r}-{right!r} is not supported by the "
+            f"analytic reference (pairs with a rigid-body mode, such as free-free "
+            f"or pinned-free, are excluded); supported pairs: {supported}"
+        )
+    return pair
+
+
+# --------------------------------------------------------------------------
+# overflow-safe elementary functions
+# --------------------------------------------------------------------------
+def _sech(a: np.ndarray) -> np.ndarray:
+    r""":math:`\operatorname{sech} a = 2e^{-a}/(1 + e^{-2a})` for :math:`a \ge 0` (no overflow)."""
+    e = np.exp(-a)
+    return 2.0 * e / (1.0 + e * e)
+
+
+def _tanhc(a: np.ndarray) -> np.ndarray:
+    r""":math:`\tanh(a)/a`, continued by 1 at :math:`a = 0` (series for small ``a``)."""
+    a = np.asarray(a, dtype=float)
+    small = np.abs(a) < 1e-4
+    safe = np.where(small, 1.0, a)
+    a2 = a * a
+    return np.where(small, 1.0 - a2 / 3.0 + 2.0 * a2 * a2 / 15.0, np.tanh(safe) / safe)
+
+
+def _sinc(b: np.ndarray) -> np.ndarray:
+    r""":math:`\sin(b)/b`, continued by 1 at :math:`b = 0`."""
+    return np.sinc(np.asarray(b, dtype=float) / np.pi)
+
+
+def _alpha_from_beta(beta: np.ndarray, U: float) -> np.ndarray:
+    r""":math:`\alpha = \sqrt{\beta^2 + U}` (clipped at 0 against round-off)."""
+    return np.sqrt(np.maximum(beta * beta + U, 0.0))
+
+
+# --------------------------------------------------------------------------
+# scaled characteristic functions g(alpha, beta, U)
+# --------------------------------------------------------------------------
+def _g_pinned_pinned(alpha: np.ndarray, beta: np.ndarray, U: float) -> np.ndarray:
+    r"""Scaled pinned–pinned determinant.
+
+    The determinant is proportional to
+    :math:`(\alpha^2+\beta^2)\sinh\alpha\sin\beta`; divided by
+    :math:`(\alpha^2+\beta^2)\,\alpha\beta\cosh\alpha` it becomes
+    :math:`(\tanh\alpha/\alpha)\,\operatorname{sinc}\beta`.
+    """
+    return _tanhc(alpha) * _sinc(beta)
+
+
+def _g_clamped_clamped(alpha: np.ndarray, beta: np.ndarray, U: float) -> np.ndarray:
+    r"""Scaled clamped–clamped function.
+
+    .. math::
+
+        \frac{2\alpha\beta(1-\cosh\alpha\cos\beta)
+              + (\alpha^2-\beta^2)\sinh\alpha\sin\beta}{\alpha\beta\cosh\alpha}
+        = 2(\operatorname{sech}\alpha - \cos\beta)
+          + U\,\frac{\tanh\alpha}{\alpha}\,\operatorname{sinc}\beta .
+    """
+    return 2.0 * (_sech(alpha) - np.cos(beta)) + U * _tanhc(alpha) * _sinc(beta)
+
+
+def _g_clamped_pinned(alpha: np.ndarray, beta: np.ndarray, U: float) -> np.ndarray:
+    r"""Scaled clamped–pinned function.
+
+    .. math::
+
+        \frac{\alpha\sin\beta\cosh\alpha - \beta\cos\beta\sinh\alpha}
+             {\alpha\beta\cosh\alpha}
+        = \operatorname{sinc}\beta - \cos\beta\,\frac{\tanh\alpha}{\alpha}.
+    """
+    return _sinc(beta) - np.cos(beta) * _tanhc(alpha)
+
+
+def _g_clamped_free(alpha: np.ndarray, beta: np.ndarray, U: float) -> np.ndarray:
+    r"""Scaled clamped–free function.
+
+    .. math::
+
+        \frac{2\alpha^2\beta^2 + (\alpha^4+\beta^4)\cos\beta\cosh\alpha
+              + \alpha\beta(\alpha^2-\beta^2)\sin\beta\sinh\alpha}
+             {(\alpha^4+\beta^4)\cosh\alpha}
+        = \cos\beta + \frac{2\alpha^2\beta^2\operatorname{sech}\alpha
+              + \alpha\beta\,U\sin\beta\tanh\alpha}{\alpha^4+\beta^4}.
+
+    (:math:`\Omega = 0` is not a root here, so no division by
+    :math:`\alpha\beta` is needed.)
+    """
+    a2 = alpha * alpha
+    b2 = beta * beta
+    den = a2 * a2 + b2 * b2
+    den = np.where(den > 0.0, den, 1.0)
+    return np.cos(beta) + (
+        2.0 * a2 * b2 * _sech(alpha) + alpha * beta * U * np.sin(beta) * np.tanh(alpha)
+    ) / den
+
+
+_CHAR_FUNS: Mapping[tuple[str, str], CharFun] = MappingProxyType(
+    {
+        ("pinned", "pinned"): _g_pinned_pinned,
+        ("clamped", "clamped"): _g_clamped_clamped,
+        ("clamped", "pinned"): _g_clamped_pinned,
+        ("clamped", "free"): _g_clamped_free,
+    }
+)
+
+
+def characteristic_function(left: str, right: str, U: float, Omega: np.ndarray | float) -> np.ndarray:
+    r"""Evaluate the scaled characteristic function at nondimensional ``Omega``.
+
+    Parameters
+    ----------
+    left, right
+        Boundary conditions (``"clamped"``, ``"pinned"``, ``"free"``).
+    U
+        Nondimensional axial force :math:`N L^2 / EI`.
+    Omega
+        Nondimensional circular frequency/frequencies :math:`\Omega > 0`.
+
+    Returns
+    -------
+    numpy.ndarray
+        :math:`g(\alpha(\Omega), \beta(\Omega))`; its zeros for
+        :math:`\Omega > 0` are the eigenvalues.  See the module docstring for
+        the scaling.
+    """
+    g = _CHAR_FUNS[_canonical_pair(left, right)]
+    Om = np.asarray(Omega, dtype=float)
+    root = np.sqrt(U * U + 4.0 * Om * Om)
+    alpha = np.sqrt(np.maximum(0.5 * (U + root), 0.0))
+    beta = np.sqrt(np.maximum(0.5 * (-U + root), 0.0))
+    return g(alpha, beta, float(U))
+
+
+# --------------------------------------------------------------------------
+# root finding
+# --------------------------------------------------------------------------
+def _validate_U(U: float, U_cr: float) -> float:
+    try:
+        U = float(U)
+    except (TypeError, ValueError):
+        raise ParameterError(f"U must be a real number, got {U!r}") from None
+    if not math.isfinite(U):
+        raise ParameterError(f"U must be finite, got {U!r}")
+    if U <= -U_cr:
+        raise ParameterError(
+            f"U = {U:g} is at or beyond the critical buckling load -U_cr = {-U_cr:g}; "
+            "the straight beam is unstable and has no real natural frequencies"
+        )
+    if U > U_MAX:
+        raise ParameterError(f"U = {U:g} exceeds the supported maximum {U_MAX:g}")
+    return U
+
+
+def _validate_n_modes(n_modes: int) -> int:
+    if isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
+        raise ParameterError(f"n_modes must be an integer >= 1, got {n_modes!r}")
+    return int(n_modes)
+
+
+def _roots_in_beta(g: CharFun, U: float, n_modes: int) -> np.ndarray:
+    r"""First ``n_modes`` roots :math:`\beta_k > \beta_0` of ``g`` along the branch.
+
+    Scans :math:`\beta \in [\beta_0, \infty)` on a grid of step
+    :math:`\pi/128` in chunks, brackets sign changes, refines each with
+    :func:`~scipy.optimize.brentq` and rejects brackets where the refined
+    residual is not small compared with the end values (a pole, not a root).
+    """
+    beta0 = math.sqrt(max(-U, 0.0))
+    step = _BETA_STEP
+    per_chunk = 128 * (n_modes + 2)
+    roots: list[float] = []
+
+    def gs(b: float) -> float:
+        return float(g(_alpha_from_beta(np.float64(b), U), np.float64(b), U))
+
+    # At U = 0 the point beta0 = 0 is a (double) trivial zero; for |U| tiny
+    # its computed sign is round-off, so begin one step further: no
+    # eigenvalue can lie that close to zero unless U is near -U_cr.
+    start_index = 1 if abs(U) < 1e-6 else 0
+    chunk = 0
+    while len(roots) < n_modes:
+        if chunk > 64:  # pragma: no cover - defensive
+            raise RuntimeError("analytic root scan did not find enough roots")
+        k = np.arange(chunk * per_chunk + (start_index if chunk == 0 else 0),
+                      (chunk + 1) * per_chunk + 1)
+        b = beta0 + step * k
+        vals = g(_alpha_from_beta(b, U), b, U)
+        for i in range(len(b) - 1):
+            fa, fb = vals[i], vals[i + 1]
+            if fa == 0.0:
+                # exact zero on a grid point (counted once: as left end)
+                if b[i] > beta0 and (not roots or b[i] > roots[-1]):
+                    roots.append(float(b[i]))
+                continue
+            if fa * fb >= 0.0:
+                continue
+            r = brentq(gs, b[i], b[i + 1], xtol=1e-15, rtol=4.0 * np.finfo(float).eps,
+                       maxiter=200)
+            scale = max(abs(fa), abs(fb))
+            if abs(gs(r)) > 1e-6 * scale + 1e-13:
+                continue  # sign change through a pole, not a root
+            if r <= beta0:
+                continue
+            roots.append(float(r))
+            if len(roots) >= n_modes:
+                break
+        chunk += 1
+    return np.asarray(roots[:n_modes])
+
+
+def solve_characteristic(left: str, right: str, U: float, n_modes: int) -> np.ndarray:
+    r"""Solve the (scaled) characteristic equation numerically.
+
+    Unlike :func:`analytic_omegas`, this uses root finding for *every*
+    supported pair, including pinned–pinned (from its determinant
+    :math:`\sinh\alpha\sin\beta = 0`), which makes it possible to validate the
+    root finder against the closed form.
+
+    Parameters
+    ----------
+    left, right
+        Boundary conditions.
+    U
+        Nondimensional axial force, :math:`-U_{cr} < U \le 10^4`.
+    n_modes
+        Number of modes.
+
+    Returns
+    -------
+    numpy.ndarray
+        :math:`\Omega_1 < \dots < \Omega_n`.
+    """
+    pair = _canonical_pair(left, right)
+    U = _validate_U(U, critical_buckling_U(*pair))
+    n_modes = _validate_n_modes(n_modes)
+    beta = _roots_in_beta(_CHAR_FUNS[pair], U, n_modes)
+    alpha = _alpha_from_beta(beta, U)
+    return alpha * beta
+
+
+def analytic_omegas(left: str, right: str, U: float, n_modes: int) -> np.ndarray:
+    r"""Nondimensional natural frequencies :math:`\Omega_1, \dots, \Omega_n`.
+
+    Parameters
+    ----------
+    left, right
+        Boundary conditions, ``"clamped"``, ``"pinned"`` or ``"free"``, in
+        either order.  Supported pairs: pinned–pinned, clamped–clamped,
+        clamped–pinned, clamped–free.
+    U
+        Nondimensional axial force :math:`U = N L^2/EI` (tension positive),
+        :math:`-U_{cr} < U \le 10^4`.
+    n_modes
+        Number of modes wanted (>= 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        Ascending :math:`\Omega_n = \omega_n L^2 \sqrt{\rho A / EI}`.
+
+    Raises
+    ------
+    ValueError
+        (:class:`~ebb_model.errors.ConfigError` /
+        :class:`~ebb_model.errors.ParameterError`) for unknown or unsupported
+        boundary conditions, ``U`` out of range, or bad ``n_modes``.
+
+    Notes
+    -----
+    Pinned–pinned uses the closed form
+    :math:`\Omega_n = n\pi\sqrt{n^2\pi^2 + U}`; the other pairs use
+    :func:`solve_characteristic`.
+    """
+    pair = _canonical_pair(left, right)
+    U = _validate_U(U, critical_buckling_U(*pair))
+    n_modes = _validate_n_modes(n_modes)
+    if pair == ("pinned", "pinned"):
+        npi = np.pi * np.arange(1, n_modes + 1)
+        return npi * np.sqrt(npi * npi + U)
+    return solve_characteristic(pair[0], pair[1], U, n_modes)
+
+
+def analytic_frequencies_hz(
+    left: str,
+    right: str,
+    *,
+    length: float,
+    EI: float,
+    rhoA: float,
+    N: float,
+    n_modes: int,
+) -> np.ndarray:
+    r"""Natural frequencies in Hz of the dimensional beam.
+
+    .. math::
+
+        U = \frac{N L^2}{EI}, \qquad
+        f_n = \frac{\Omega_n(U)}{2\pi L^2}\sqrt{\frac{EI}{\rho A}} .
+
+    Parameters
+    ----------
+    left, right
+        Boundary conditions (see :func:`analytic_omegas`).
+    length
+        Beam length :math:`L > 0` [m].
+    EI
+        Bending stiffness [N m^2], > 0.
+    rhoA
+        Mass per unit length [kg/m], > 0.
+    N
+        Axial force [N], tension positive.
+    n_modes
+        Number of modes.
+
+    Returns
+    -------
+    numpy.ndarray
+        Ascending frequencies in Hz.
+    """
+    for name, val in (("length", length), ("EI", EI), ("rhoA", rhoA)):
+        if not (isinstance(val, (int, float, np.floating, np.integer)) and math.isfinite(val) and val > 0):
+            raise ParameterError(f"{name} must be a finite number > 0, got {val!r}")
+    if not math.isfinite(N):
+        raise ParameterError(f"N must be finite, got {N!r}")
+    U = N * length**2 / EI
+    Om = analytic_omegas(left, right, U, n_modes)
+    return Om / (2.0 * np.pi * length**2) * math.sqrt(EI / rhoA)
+
+
+def critical_buckling_U(left: str, right: str) -> float:
+    r"""Critical nondimensional compression :math:`U_{cr} > 0`.
+
+    The straight beam buckles at :math:`U = -U_{cr}` (i.e.
+    :math:`N = -U_{cr} EI / L^2`), where :math:`\Omega_1 \to 0`.
+
+    ============== =========================================
+    pair           :math:`U_{cr}`
+    ============== =========================================
+    pinned–pinned  :math:`\pi^2`
+    clamped–clamped :math:`4\pi^2`
+    clamped–pinned :math:`\beta^2` with :math:`\tan\beta = \beta`,
+                   :math:`\beta \approx 4.4934`, so :math:`\approx 20.19`
+    clamped–free   :math:`\pi^2/4`
+    ============== =========================================
+
+    Raises
+    ------
+    ValueError
+        For unknown/unsupported boundary conditions.
+    """
+    pair = _canonical_pair(left, right)
+    if pair == ("pinned", "pinned"):
+        return math.pi**2
+    if pair == ("clamped", "clamped"):
+        return 4.0 * math.pi**2
+    if pair == ("clamped", "free"):
+        return math.pi**2 / 4.0
+    # clamped-pinned: sin(b) - b cos(b) = 0 (pole-free tan b = b), first root > 0
+    b = brentq(lambda t: math.sin(t) - t * math.cos(t), math.pi + 0.1, 1.5 * math.pi - 1e-9,
+               xtol=1e-15, rtol=4.0 * np.finfo(float).eps)
+    return b * b

@@ -1,0 +1,235 @@
+"""Simulation of discrete systems: a compiled recursion over arrays.
+
+Two kernels, both compiled with numba (cached on disk after the first call):
+
+* the **modal** kernel for :class:`~ebb_model.modal_form.ModalStateSpace`:
+  2×2 real blocks, ``O(n)`` work per sample — the fast path;
+* the **dense** kernel for a general :class:`~ebb_model.statespace.DiscreteStateSpace`
+  (``O(n²)`` per sample), used when no modal form is available.
+
+numba earns its place here: the recursion ``x[k+1] = A x[k] + B u[k]`` is
+inherently sequential, so NumPy cannot vectorise it, and a Python loop over
+20,000 samples costs ~100 ms (``scipy.signal.dlsim``) against ~1 ms compiled.
+"""
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numba
+import numpy as np
+
+from .config import BeamConfig
+from .discretisation import discretise
+from .errors import DataError
+from .modal_form import ModalStateSpace, modal_from_beam, modal_from_statespace
+from .statespace import DiscreteStateSpace
+from .theta_scheme import discretise_time
+
+__all__ = ["SimulationResult", "simulate", "fast_model", "simulate_config", "simulate_batch"]
+
+
+@numba.njit(cache=True, nogil=True)
+def _modal_kernel(t00, t01, t10, t11, g0, g1, c0, c1, D, u, y):  # pragma: no cover - compiled
+    nb = t00.shape[0]
+    ns, ni = u.shape
+    no = D.shape[0]
+    z0 = np.zeros(nb)
+    z1 = np.zeros(nb)
+    for k in range(ns):
+        for o in range(no):
+            acc = 0.0
+            for i in range(ni):
+                acc += D[o, i] * u[k, i]
+            for b in range(nb):
+                acc += c0[o, b] * z0[b] + c1[o, b] * z1[b]
+            y[k, o] = acc
+        if ni == 1:
+            uk = u[k, 0]
+            for b in range(nb):
+                a0 = t00[b] * z0[b] + t01[b] * z1[b] + g0[0, b] * uk
+                a1 = t10[b] * z0[b] + t11[b] * z1[b] + g1[0, b] * uk
+                z0[b] = a0
+                z1[b] = a1
+        else:
+            for b in range(nb):
+                a0 = t00[b] * z0[b] + t01[b] * z1[b]
+                a1 = t10[b] * z0[b] + t11[b] * z1[b]
+                for i in range(ni):
+                    a0 += g0[i, b] * u[k, i]
+                    a1 += g1[i, b] * u[k, i]
+                z0[b] = a0
+                z1[b] = a1
+
+
+@numba.njit(cache=True, nogil=True)
+def _dense_kernel(A, B, C, D, x0, u, y):  # pragma: no cover - compiled
+    n = A.shape[0]
+    ns, ni = u.shape
+    no = C.shape[0]
+    x = x0.copy()
+    xn = np.empty(n)
+    for k in range(ns):
+        for o in range(no):
+            acc = 0.0
+            for j in range(n):
+                acc += C[o, j] * x[j]
+            for i in range(ni):
+                acc += D[o, i] * u[k, i]
+            y[k, o] = acc
+        for r in range(n):
+            acc = 0.0
+            for j in range(n):
+                acc += A[r, j] * x[j]
+            for i in range(ni):
+                acc += B[r, i] * u[k, i]
+            xn[r] = acc
+        x[:] = xn
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationResult:
+    """Sampled outputs of a simulation.
+
+    Attributes
+    ----------
+    time
+        Sample times ``k dt`` [s], shape (n_samples,).
+    outputs
+        Outputs, shape (n_samples, n_outputs).
+    output_names
+        Names of the output columns.
+    """
+
+    time: np.ndarray
+    outputs: np.ndarray
+    output_names: tuple[str, ...]
+
+    def __iter__(self):
+        """Unpack as ``t, y = result``."""
+        return iter((self.time, self.outputs))
+
+    def to_dict(self) -> dict[str, np.ndarray]:
+        """Columns by name, ``time`` first."""
+        return {"time": self.time} | {n: self.outputs[:, i] for i, n in enumerate(self.output_names)}
+
+    def to_csv(self, path: str | Path) -> None:
+        """Write ``time`` and one column per output (written atomically)."""
+        path = Path(path)
+        tmp = path.with_name(path.name + ".part")
+        with tmp.open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["time", *self.output_names])
+            for t, row in zip(self.time, self.outputs):
+                w.writerow([repr(float(t)), *(repr(float(v)) for v in row)])
+        tmp.replace(path)
+
+
+def _check_input(u: np.ndarray, ninputs: int) -> np.ndarray:
+    u = np.asarray(u, dtype=float)
+    if u.ndim == 1 and ninputs == 1:
+        u = u[:, None]
+    if u.ndim != 2 or u.shape[1] != ninputs:
+        raise DataError(f"input has shape {u.shape}, expected (n_samples, {ninputs})")
+    if not np.all(np.isfinite(u)):
+        bad = np.argwhere(~np.isfinite(u))[0]
+        raise DataError(f"input contains a non-finite value at sample {bad[0]}, column {bad[1]}")
+    return np.ascontiguousarray(u)
+
+
+def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
+             x0: np.ndarray | None = None) -> SimulationResult:
+    """Simulate a discrete system from rest (or from ``x0``) for the input samples ``u``.
+
+    Parameters
+    ----------
+    system
+        A dense or modal discrete system.
+    u
+        Input samples, shape (n_samples, n_inputs) (1-D allowed for one input);
+        ``u[k]`` is held over ``[t_k, t_{k+1})``.
+    x0
+        Initial state (dense systems only); zero by default.
+
+    Returns
+    -------
+    SimulationResult
+        ``y[k] = C x[k] + D u[k]`` at ``t_k = k dt``.
+    """
+    if isinstance(system, ModalStateSpace):
+        if x0 is not None:
+            raise ValueError("x0 is only supported for dense DiscreteStateSpace systems")
+        u = _check_input(u, system.G.shape[2])
+        y = np.empty((u.shape[0], system.D.shape[0]))
+        T, G, Cm = system.T, system.G, system.Cm
+        _modal_kernel(np.ascontiguousarray(T[:, 0, 0]), np.ascontiguousarray(T[:, 0, 1]),
+                      np.ascontiguousarray(T[:, 1, 0]), np.ascontiguousarray(T[:, 1, 1]),
+                      np.ascontiguousarray(G[:, 0, :].T), np.ascontiguousarray(G[:, 1, :].T),
+                      np.ascontiguousarray(Cm[:, :, 0]), np.ascontiguousarray(Cm[:, :, 1]),
+                      np.ascontiguousarray(system.D), u, y)
+    else:
+        u = _check_input(u, system.ninputs)
+        y = np.empty((u.shape[0], system.noutputs))
+        x = np.zeros(system.nstates) if x0 is None else np.asarray(x0, dtype=float).reshape(system.nstates)
+        _dense_kernel(np.ascontiguousarray(system.A), np.ascontiguousarray(system.B),
+                      np.ascontiguousarray(system.C), np.ascontiguousarray(system.D), x, u, y)
+    t = np.arange(u.shape[0]) * system.dt
+    return SimulationResult(t, y, tuple(system.output_names))
+
+
+def fast_model(config: BeamConfig, params: Mapping[str, float] | None = None) -> ModalStateSpace:
+    """Assemble the fastest exact realisation of the beam for ``params``.
+
+    The proportional-damping modal route when it applies (checked
+    numerically), otherwise the eigen-decomposition of the dense Φ.
+    Stability is **not** checked here (see :func:`ebb_model.assemble`).
+    """
+    beam = discretise(config, params)
+    ts = config.time
+    modal = modal_from_beam(beam, ts.dt, ts.theta, ts.substeps)
+    if modal is None:
+        modal = modal_from_statespace(discretise_time(beam, ts.dt, ts.theta, ts.substeps))
+    return modal
+
+
+def simulate_config(config: BeamConfig, u: np.ndarray,
+                    params: Mapping[str, float] | None = None) -> SimulationResult:
+    """Assemble the beam for ``params`` and simulate it on the fast path."""
+    return simulate(fast_model(config, params), u)
+
+
+def simulate_batch(config: BeamConfig, params: Sequence[Mapping[str, float]] | np.ndarray,
+                   u: np.ndarray, *, names: Sequence[str] | None = None) -> np.ndarray:
+    """Simulate a batch of parameter sets with the same input.
+
+    Parameters
+    ----------
+    config
+        The set-up (nominal values fill parameters not given).
+    params
+        Either a sequence of mappings, or an array (n_sets, len(names)).
+    u
+        Input samples (n_samples, n_inputs).
+    names
+        Parameter names of the array columns (required with an array).
+
+    Returns
+    -------
+    numpy.ndarray
+        Outputs, shape (n_sets, n_samples, n_outputs).
+    """
+    if isinstance(params, np.ndarray):
+        if names is None:
+            raise ValueError("names are required when params is an array")
+        if params.ndim != 2 or params.shape[1] != len(names):
+            raise ValueError(f"params has shape {params.shape}, expected (n_sets, {len(names)})")
+        sets = [dict(zip(names, map(float, row))) for row in params]
+    else:
+        sets = [dict(p) for p in params]
+    u = _check_input(u, len(config.actuators))
+    out = np.empty((len(sets), u.shape[0], len(config.sensors)))
+    for i, p in enumerate(sets):
+        out[i] = simulate(fast_model(config, p), u).outputs
+    return out

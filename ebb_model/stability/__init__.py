@@ -1,0 +1,18 @@
+"""Stability of the θ-scheme: Bistritz zero-location test and the dispersion relation."""
+from .bistritz import ZeroLocation, bistritz
+from .dispersion import (
+    StabilityReport,
+    analyse_stability,
+    bistritz_values,
+    dispersion_coefficients,
+    growth_factors,
+    max_growth_factor,
+    stability_bounds,
+    wavenumbers,
+)
+
+__all__ = [
+    "ZeroLocation", "bistritz", "StabilityReport", "analyse_stability",
+    "bistritz_values", "dispersion_coefficients", "growth_factors", "max_growth_factor",
+    "stability_bounds", "wavenumbers",
+]

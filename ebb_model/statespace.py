@@ -1,0 +1,142 @@
+"""Discrete-time state-space systems as immutable values.
+
+.. math::
+
+    x[k+1] = A x[k] + B u[k], \\qquad y[k] = C x[k] + D u[k], \\qquad t_k = k\\,dt.
+
+Following python-control's ``statesp.py`` habit, every matrix passes through
+one normaliser (:func:`_matrix`) that makes a read-only float 2-D copy and
+checks its shape; operations return new objects.  Signals carry names from
+the start (actuator and sensor names of the config).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from .errors import ConfigError
+
+__all__ = ["DiscreteStateSpace", "common_timebase"]
+
+
+def _matrix(name: str, value, shape: tuple[int | None, int | None]) -> np.ndarray:
+    """Read-only float64 2-D copy of ``value`` with the expected shape."""
+    a = np.array(value, dtype=float, copy=True)
+    if a.ndim != 2:
+        raise ConfigError(f"{name} must be 2-D, got {a.ndim}-D array")
+    exp = tuple(a.shape[i] if s is None else s for i, s in enumerate(shape))
+    if a.shape != exp:
+        raise ConfigError(f"{name} has shape {a.shape}, expected {exp}")
+    if not np.all(np.isfinite(a)):
+        raise ConfigError(f"{name} contains non-finite entries")
+    a.setflags(write=False)
+    return a
+
+
+def _names(kind: str, names: Sequence[str] | None, n: int, prefix: str) -> tuple[str, ...]:
+    if names is None:
+        return tuple(f"{prefix}[{i}]" for i in range(n))
+    names = tuple(names)
+    if len(names) != n:
+        raise ConfigError(f"{kind} names: got {len(names)}, expected {n}")
+    return names
+
+
+def common_timebase(dt1: float, dt2: float, *, rtol: float = 1e-12) -> float:
+    """The one place that decides whether two sample times are compatible.
+
+    Raises
+    ------
+    ConfigError
+        If the sample times differ by more than ``rtol`` relatively.
+    """
+    if abs(dt1 - dt2) > rtol * max(abs(dt1), abs(dt2)):
+        raise ConfigError(f"incompatible sample times {dt1:g} s and {dt2:g} s")
+    return dt1
+
+
+@dataclass(frozen=True, eq=False)
+class DiscreteStateSpace:
+    """An immutable discrete-time LTI system with named signals.
+
+    Parameters
+    ----------
+    A, B, C, D
+        System matrices (n×n, n×m, p×n, p×m).
+    dt
+        Sample time [s], > 0.
+    input_names, output_names, state_names
+        Signal names; defaults ``u[i]``, ``y[i]``, ``x[i]``.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    dt: float
+    input_names: tuple[str, ...] = field(default=())
+    output_names: tuple[str, ...] = field(default=())
+    state_names: tuple[str, ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        A = _matrix("A", self.A, (None, None))
+        n = A.shape[0]
+        if A.shape != (n, n):
+            raise ConfigError(f"A has shape {A.shape}, expected a square matrix")
+        B = _matrix("B", self.B, (n, None))
+        C = _matrix("C", self.C, (None, n))
+        D = _matrix("D", self.D, (C.shape[0], B.shape[1]))
+        dt = float(self.dt)
+        if not np.isfinite(dt) or dt <= 0:
+            raise ConfigError(f"dt must be a finite number > 0, got {self.dt!r}")
+        object.__setattr__(self, "A", A)
+        object.__setattr__(self, "B", B)
+        object.__setattr__(self, "C", C)
+        object.__setattr__(self, "D", D)
+        object.__setattr__(self, "dt", dt)
+        object.__setattr__(self, "input_names", _names("input", self.input_names or None, B.shape[1], "u"))
+        object.__setattr__(self, "output_names", _names("output", self.output_names or None, C.shape[0], "y"))
+        object.__setattr__(self, "state_names", _names("state", self.state_names or None, n, "x"))
+
+    @property
+    def nstates(self) -> int:
+        """Number of states."""
+        return self.A.shape[0]
+
+    @property
+    def ninputs(self) -> int:
+        """Number of inputs."""
+        return self.B.shape[1]
+
+    @property
+    def noutputs(self) -> int:
+        """Number of outputs."""
+        return self.C.shape[0]
+
+    def poles(self) -> np.ndarray:
+        """Eigenvalues of ``A``."""
+        return np.linalg.eigvals(self.A)
+
+    def spectral_radius(self) -> float:
+        """Largest modulus of the eigenvalues of ``A``."""
+        return float(np.max(np.abs(self.poles()))) if self.nstates else 0.0
+
+    def similarity(self, T: np.ndarray, state_names: Sequence[str] | None = None) -> "DiscreteStateSpace":
+        """The same system in coordinates ``x = T z`` (a new object)."""
+        Ti = np.linalg.inv(T)
+        return DiscreteStateSpace(Ti @ self.A @ T, Ti @ self.B, self.C @ T, self.D, self.dt,
+                                  self.input_names, self.output_names, tuple(state_names or ()))
+
+    def to_control(self):
+        """Convert to a :class:`control.StateSpace` (discrete, named signals)."""
+        import control
+
+        return control.ss(self.A, self.B, self.C, self.D, self.dt,
+                          inputs=list(self.input_names), outputs=list(self.output_names),
+                          states=list(self.state_names))
+
+    def __repr__(self) -> str:
+        return (f"DiscreteStateSpace(nstates={self.nstates}, inputs={list(self.input_names)}, "
+                f"outputs={list(self.output_names)}, dt={self.dt:g})")
