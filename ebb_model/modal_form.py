@@ -12,17 +12,11 @@ Two routes lead here:
 * **Proportional damping** (the damping matrix is diagonal in the undamped
   modes, e.g. ``eta = 0``, or ``N = 0`` without springs): the θ-scheme
   decouples *exactly* in the mass-normalised modes ``q = Ψ ξ`` of
-  ``K Ψ = M Ψ Ω²``.  Mode ``i`` obeys the scalar three-level recursion
-
-  .. math::
-
-     \\xi^{j+1} = a_{1,i}\\xi^j + a_{2,i}\\xi^{j-1} + b_i f^j,\\quad
-     \\ell_i = \\tfrac{1}{\\tau^2} + \\tfrac{d_i}{2\\tau} + \\theta\\omega_i^2,\\;
-     a_{1,i} = (\\tfrac{2}{\\tau^2} - (1-2\\theta)\\omega_i^2)/\\ell_i,\\;
-     a_{2,i} = (-\\tfrac{1}{\\tau^2} + \\tfrac{d_i}{2\\tau} - \\theta\\omega_i^2)/\\ell_i,
-
-  whose 2×2 companion matrix (raised to the number of sub-steps) is the
-  block.  Cost: one symmetric generalised eigenproblem of size n.
+  ``K Ψ = M Ψ Ω²``.  Mode ``i`` obeys the scalar scheme of
+  :mod:`ebb_model.theta_scheme` on the state ``(ξ^j, v^{j-1/2})`` with
+  ``ℓ_i = 1/τ + d_i/2 + θτω_i²``, ``k̃_i = ω_i²/ℓ_i``, ``c̃_i = d_i/ℓ_i``:
+  the block is ``[[1 - τk̃, τ(1 - c̃)], [-k̃, 1 - c̃]]`` raised to the number of
+  sub-steps.  Cost: one symmetric generalised eigenproblem of size n.
 * **General damping**: the eigen-decomposition of Φ; complex pairs
   ``σ ± iω`` become blocks ``[[σ, ω], [-ω, σ]]`` in the real basis
   ``[Re v, Im v]``; real eigenvalues are paired in diagonal blocks.
@@ -100,25 +94,25 @@ def modal_from_beam(beam: SemiDiscreteBeam, dt: float, theta: float = 0.25,
     if not prop:
         return None
     tau = dt / substeps
-    ell = 1.0 / tau ** 2 + d / (2 * tau) + theta * w2
-    a1 = (2.0 / tau ** 2 - (1 - 2 * theta) * w2) / ell
-    a2 = (-1.0 / tau ** 2 + d / (2 * tau) - theta * w2) / ell
-    b = (Psi.T @ beam.F) / ell[:, None]  # (nb, m)
-    nb, m = b.shape
-    # one-step companion blocks and their powers
-    S = np.zeros((nb, 2, 2))
-    S[:, 0, 0] = a1
-    S[:, 0, 1] = a2
-    S[:, 1, 0] = 1.0
-    g = np.zeros((nb, 2, m))
-    g[:, 0, :] = b
+    ell = 1.0 / tau + d / 2 + theta * tau * w2
+    kt, ct = w2 / ell, d / ell
+    bt = (Psi.T @ beam.F) / ell[:, None]  # (nb, m)
+    nb, m = bt.shape
+    # one-step blocks on (xi^j, v^{j-1/2}) and their powers
+    S = np.empty((nb, 2, 2))
+    S[:, 0, 0] = 1.0 - tau * kt
+    S[:, 0, 1] = tau * (1.0 - ct)
+    S[:, 1, 0] = -kt
+    S[:, 1, 1] = 1.0 - ct
+    g = np.empty((nb, 2, m))
+    g[:, 0, :] = tau * bt
+    g[:, 1, :] = bt
     T, G = S.copy(), g.copy()
     for _ in range(substeps - 1):
         G = np.einsum("bij,bjm->bim", S, G) + g
         T = np.einsum("bij,bjk->bik", S, T)
-    # outputs in modal coordinates: P Ψ, with diagonal update matrices
-    PPsi = beam.S @ Psi
-    C2, D = output_matrices(PPsi, beam.sensor_kinds, np.diag(a1), np.diag(a2), b, tau)
+    # outputs in modal coordinates: P Ψ, with diagonal scheme matrices
+    C2, D = output_matrices(beam.S @ Psi, beam.sensor_kinds, np.diag(kt), np.diag(ct), bt, tau)
     Cm = np.stack([C2[:, :nb], C2[:, nb:]], axis=2)  # (p, nb, 2)
     return ModalStateSpace(T, G, Cm, D, dt, beam.input_names, beam.output_names)
 

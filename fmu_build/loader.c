@@ -32,6 +32,7 @@
  *   EBB_PYTHONHOME  value for PYTHONHOME ("prefix" or "prefix:exec_prefix")
  *   EBB_PYTHONPATH  value for PYTHONPATH (site-packages of the build interpreter)
  *   EBB_INNER_LIB   file name of pythonfmu's library next to this one
+ *   EBB_GUID        the FMU's GUID, checked in fmi2Instantiate
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
@@ -350,6 +351,13 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
     if (g_error[0]) {
         emit(inst, inst->name, fmi2Fatal, "logStatusFatal", g_error);
         restore_environment();
+        free_instance(inst);
+        return NULL;
+    }
+    if (fmuGUID && strcmp(fmuGUID, EBB_GUID) != 0) {
+        char msg[512];
+        snprintf(msg, sizeof msg, "fmi2Instantiate: GUID %s does not match this FMU's %s", fmuGUID, EBB_GUID);
+        emit(inst, inst->name, fmi2Error, "logStatusError", msg);
         free_instance(inst);
         return NULL;
     }

@@ -139,7 +139,7 @@ def _compiler() -> str:
                    function="build_fmu")
 
 
-def compile_loader(out: Path, *, inner_library: str, runtime: PythonRuntime) -> Path:
+def compile_loader(out: Path, *, inner_library: str, runtime: PythonRuntime, guid: str) -> Path:
     """Compile ``loader.c`` into the shared library ``out``.
 
     Parameters
@@ -151,6 +151,8 @@ def compile_loader(out: Path, *, inner_library: str, runtime: PythonRuntime) -> 
     runtime
         The interpreter the FMU runs on outside Python (see
         :func:`find_python_runtime`).
+    guid
+        The FMU's GUID; ``fmi2Instantiate`` refuses any other.
 
     Returns
     -------
@@ -172,6 +174,7 @@ def compile_loader(out: Path, *, inner_library: str, runtime: PythonRuntime) -> 
             f"#define EBB_PYTHONHOME {_c_string(runtime.home)}",
             f"#define EBB_PYTHONPATH {_c_string(os.pathsep.join(runtime.path))}",
             f"#define EBB_INNER_LIB {_c_string(inner_library)}",
+            f"#define EBB_GUID {_c_string(guid)}",
             "",
         ]
     )

@@ -266,7 +266,7 @@ def test_elastic_ends_tend_to_clamped_and_pinned():
     clamped = _fe(("clamped", "clamped"), U, ne).natural_frequencies_hz(5)
     pinned = _fe(("pinned", "pinned"), U, ne).natural_frequencies_hz(5)
     prev_c = prev_p = None
-    for s in (1e2, 1e4, 1e6, 1e8):
+    for s in (1e6, 1e8, 1e10):  # s must exceed the modal stiffnesses (Omega_5^2 ~ 1e5)
         ends = (s * kt_unit, s * kr_unit)
         fc = hermite_beam(L_, ne, EI=EI_, rhoA=RHOA_, N=N, left=ends, right=ends).natural_frequencies_hz(5)
         fp = hermite_beam(L_, ne, EI=EI_, rhoA=RHOA_, N=N, left=(s * kt_unit, 0.0),
@@ -274,15 +274,15 @@ def test_elastic_ends_tend_to_clamped_and_pinned():
         assert np.all(fc < clamped * (1 + 1e-12)) and np.all(fp < pinned * (1 + 1e-12))
         ec, ep = np.max(np.abs(fc / clamped - 1)), np.max(np.abs(fp / pinned - 1))
         if prev_c is not None:
-            assert ec < prev_c / 50 and ep < prev_p / 50  # ~1/k convergence
+            assert 80 < prev_c / ec < 120 and 80 < prev_p / ep < 120  # error ~ 1/k
         prev_c, prev_p = ec, ep
     big = 1e12
     fc = hermite_beam(L_, ne, EI=EI_, rhoA=RHOA_, N=N, left=(big * kt_unit, big * kr_unit),
                       right=(big * kt_unit, big * kr_unit)).natural_frequencies_hz(5)
-    np.testing.assert_allclose(fc, clamped, rtol=1e-6)
+    np.testing.assert_allclose(fc, clamped, rtol=1e-8)  # measured ~1e-9
     fp = hermite_beam(L_, ne, EI=EI_, rhoA=RHOA_, N=N, left=(big * kt_unit, 0.0),
                       right=(big * kt_unit, 0.0)).natural_frequencies_hz(5)
-    np.testing.assert_allclose(fp, pinned, rtol=1e-6)
+    np.testing.assert_allclose(fp, pinned, rtol=1e-8)
     # soft supports lower the frequencies; free-free has two rigid-body modes
     ff = hermite_beam(L_, ne, EI=EI_, rhoA=RHOA_, left=FREE, right=FREE).natural_frequencies_hz(4)
     assert ff[0] < 1e-5 * ff[2] and ff[1] < 1e-5 * ff[2]
@@ -429,7 +429,9 @@ def _exact_zoh(beam: HermiteBeam, Phi: np.ndarray, rows: np.ndarray, u: np.ndarr
 
 
 def test_newmark_matches_exact_zoh_and_converges_second_order():
-    b = hermite_beam(L_, 6, EI=EI_, rhoA=RHOA_, N=3.0, c=0.2, eta=2e-3, left=CLAMPED, right=FREE,
+    # White ZOH input excites every FE mode, so the high modes must be resolved
+    # (h * omega_max ~ 1) and damped: coarse mesh, Kelvin–Voigt damping.
+    b = hermite_beam(L_, 4, EI=EI_, rhoA=RHOA_, N=3.0, c=0.2, eta=2e-3, left=CLAMPED, right=FREE,
                      point_masses=[(0.1, 0.8)])
     f1 = b.natural_frequencies_hz(1)[0]
     dt = 1 / (20 * f1)
@@ -441,13 +443,14 @@ def test_newmark_matches_exact_zoh_and_converges_second_order():
     Phi = np.column_stack([b.load_vector(x) for x in fx])
     ref = _exact_zoh(b, Phi, b.displacement_row(xs)[None, :], u, dt)
     errs = []
-    for s in (4, 8, 16):
+    for s in (16, 32, 64):
         y = newmark_simulate(b, forces_x=fx, sensors=sensors, u=u, dt=dt, substeps=s)
         errs.append(np.max(np.abs(y - ref), axis=0) / np.max(np.abs(ref), axis=0))
     errs = np.array(errs)
-    assert np.all(errs[-1] < 2e-3), errs
+    # measured (disp, vel, acc): 9.5e-5, 7.6e-4, 1.7e-3 relative at 64 substeps
+    assert np.all(errs[-1] < [2e-4, 1.5e-3, 3e-3]), errs
     ratio = errs[:-1] / errs[1:]
-    assert np.all((ratio > 3.3) & (ratio < 4.8)), ratio  # second order in h
+    assert np.all((ratio > 3.5) & (ratio < 4.5)), ratio  # second order in h
 
 
 def test_newmark_input_validation():

@@ -343,27 +343,23 @@ def _roots_in_beta(g: CharFun, U: float, n_modes: int) -> np.ndarray:
     while len(roots) < n_modes:
         if chunk > 64:  # pragma: no cover - defensive
             raise RuntimeError("analytic root scan did not find enough roots")
-        k = np.arange(chunk * per_chunk + (start_index if chunk == 0 else 0),
-                      (chunk + 1) * per_chunk + 1)
-        b = beta0 + step * k
+        first = chunk * per_chunk + (start_index if chunk == 0 else 0)
+        b = beta0 + step * np.arange(first, (chunk + 1) * per_chunk + 1)
         vals = g(_alpha_from_beta(b, U), b, U)
-        for i in range(len(b) - 1):
+        # brackets: strict sign changes, plus exact zeros on grid points
+        candidates = np.flatnonzero((vals[:-1] == 0.0) | (vals[:-1] * vals[1:] < 0.0))
+        for i in candidates:
             fa, fb = vals[i], vals[i + 1]
             if fa == 0.0:
-                # exact zero on a grid point (counted once: as left end)
-                if b[i] > beta0 and (not roots or b[i] > roots[-1]):
-                    roots.append(float(b[i]))
+                r = float(b[i])
+            else:
+                r = brentq(gs, b[i], b[i + 1], xtol=1e-15,
+                           rtol=4.0 * np.finfo(float).eps, maxiter=200)
+                if abs(gs(r)) > 1e-6 * max(abs(fa), abs(fb)) + 1e-13:
+                    continue  # sign change through a pole, not a root
+            if r <= beta0 or (roots and r <= roots[-1]):
                 continue
-            if fa * fb >= 0.0:
-                continue
-            r = brentq(gs, b[i], b[i + 1], xtol=1e-15, rtol=4.0 * np.finfo(float).eps,
-                       maxiter=200)
-            scale = max(abs(fa), abs(fb))
-            if abs(gs(r)) > 1e-6 * scale + 1e-13:
-                continue  # sign change through a pole, not a root
-            if r <= beta0:
-                continue
-            roots.append(float(r))
+            roots.append(r)
             if len(roots) >= n_modes:
                 break
         chunk += 1

@@ -243,11 +243,13 @@ class HermiteBeam:
         :math:`\lambda_n` are the eigenvalues of :math:`K\phi = \lambda M\phi`,
         computed with ``scipy.linalg.eigh``.  When :math:`K` is positive
         definite the *inverted* problem :math:`M\phi = \mu K\phi`,
-        :math:`\mu = 1/\lambda`, is solved instead: its round-off error is
-        :math:`\approx \epsilon\,\mu_{\max}`, so the low modes are obtained
-        to full relative precision even with penalty-like end springs
-        (e.g. :math:`k \sim 10^{12} EI/L^3`), for which the direct problem
-        loses many digits.  Otherwise (rigid-body modes, buckled beam) the
+        :math:`\mu = 1/\lambda`, is solved instead: its absolute round-off is
+        of order :math:`\epsilon\,\mu_{\max}` (relative to the *lowest*
+        mode), so the low modes stay accurate with fine meshes and with
+        penalty-like end springs (e.g. :math:`k \sim 10^{12} EI/L^3`), for
+        which the direct problem loses many digits (measured: 1e-9 instead of
+        1e-1 relative error for :math:`10^{12}` springs; about 1e-9..3e-7
+        instead of 1e-6..2e-4 with 320 elements).  Otherwise (rigid-body modes, buckled beam) the
         direct problem is solved and round-off negatives of rigid-body modes
         are clipped to 0.
 
@@ -499,6 +501,27 @@ def newmark_simulate(
     -------
     numpy.ndarray
         ``y`` of shape ``(n_samples, n_sensors)``, ``y[k]`` at :math:`t_k`.
+
+    Notes
+    -----
+    Accuracy.  The scheme is second order in :math:`h` for each mode, with
+    period elongation :math:`\tan(\tilde\omega h/2) = \omega h/2`.  A
+    zero-order-hold input with jumps excites *every* FE mode, and the
+    average-acceleration rule has no numerical dissipation: modes with
+    :math:`\omega h \gtrsim 1` are integrated with large phase errors, and
+    strongly (Kelvin–Voigt) over-damped stiff modes with
+    :math:`\eta\omega^2 h \gg 1` decay with amplification factor close to
+    :math:`-1` instead of vanishing.  Displacements are little affected, but
+    velocity and especially acceleration outputs near a force carry this
+    high-mode content.  For accurate velocity/acceleration "measurements"
+    choose ``substeps`` so that :math:`h\,\omega_{\max}` is of order one
+    (:math:`\omega_{\max}` from ``beam.natural_frequencies_hz()[-1]``), use a
+    mesh no finer than needed, or pass dissipative parameters
+    (:math:`\gamma > 1/2`, :math:`\beta = (\gamma + 1/2)^2/4`, first order).
+
+    Cost: one LU factorisation of the effective matrix and of :math:`M`,
+    then per step one solve and one :math:`n \times 2n` matrix-vector
+    product (about 30 microseconds per step for 120 DOFs).
     """
     forces_x = list(forces_x)
     n_f = len(forces_x)

@@ -1,0 +1,14 @@
+"""Package the beam model as an FMI 2.0 co-simulation FMU (pythonfmu + a C loader).
+
+Flat functional API in FMPy's style::
+
+    from fmu_build import build_fmu
+    build_fmu("examples/seed_clamped.toml", "beam.fmu", field=False)
+
+and the ``ebb build-fmu`` sub-command (:func:`add_parser`,
+:func:`run_build_fmu`).  See ``fmu_build/README.md``.
+"""
+from .builder import build_fmu
+from .cli import add_parser, run_build_fmu
+
+__all__ = ["build_fmu", "add_parser", "run_build_fmu"]

@@ -1,0 +1,188 @@
+"""Build an FMI 2.0 co-simulation FMU of the beam: :func:`build_fmu`.
+
+The FMU is a pythonfmu FMU (its export library and Python runtime, a slave
+class derived from ``pythonfmu.Fmi2Slave``) with three additions:
+
+* a C loader as the entry library (``binaries/linux64/<id>.so``, see
+  ``loader.c``), so that non-Python masters can load it without
+  ``LD_PRELOAD`` or environment variables;
+* a completed ``modelDescription.xml`` (units, ModelStructure) that
+  ``fmpy.validation.validate_fmu`` accepts without findings;
+* a unique model identifier, slave module and class name, core package name
+  and GUID per build, so several beam FMUs run side by side in one process.
+
+The archive is written to a temporary file next to ``out`` and renamed into
+place only when complete: a failed build leaves no partial ``.fmu``.
+"""
+from __future__ import annotations
+
+import os
+import re
+import sys
+import shutil
+import tempfile
+import uuid
+import zipfile
+from pathlib import Path
+
+import pythonfmu
+
+from ebb_model import PARAMETER_NAMES, BeamConfig, assemble, load_config
+from ebb_model.errors import FmuError
+
+from . import slave_template
+from .bundle import write_resources
+from .loader import compile_loader, find_python_runtime
+from .model_description import FmuIdentity, feedthrough_from_D, finish_model_description
+
+__all__ = ["build_fmu"]
+
+_PLATFORM = "linux64"
+
+#: Top-level variable names the FMU itself uses besides the parameters.
+_RESERVED = {"beam", "time", "actuators", "sensors", "masses", slave_template.FIELD_NAME}
+
+
+def _identity(base: str) -> FmuIdentity:
+    """Fresh names for one build, derived from ``base`` (e.g. the config file's stem)."""
+    stem = re.sub(r"\W", "_", base, flags=re.ASCII).strip("_") or "beam"
+    if not stem[0].isalpha():
+        stem = "beam_" + stem
+    stem = stem[:40]
+    token = uuid.uuid4()
+    tag = token.hex[:12]
+    model_identifier = f"{stem}_{tag}"
+    return FmuIdentity(
+        model_identifier=model_identifier,
+        class_name=f"BeamSlave_{tag}",
+        core_package=f"ebb_core_{tag}",
+        guid=f"{{{token}}}",
+        model_name=stem,
+    )
+
+
+def _check_names(config: BeamConfig) -> None:
+    names = [a.name for a in config.actuators] + [s.name for s in config.sensors]
+    reserved = _RESERVED | set(PARAMETER_NAMES)
+    clashes = sorted(set(names) & reserved)
+    if clashes:
+        raise FmuError(
+            f"actuator/sensor names {clashes} clash with names the FMU uses ({', '.join(sorted(reserved))})",
+            function="build_fmu",
+        )
+
+
+def _description(config: BeamConfig, runtime_python: str, version: str, field: bool) -> str:
+    b = config.beam
+    text = (
+        f"Axially loaded Euler-Bernoulli beam (ebb_model): length {b.length:g} m, {b.nodes} interior nodes, "
+        f"{b.left.kind}-{b.right.kind}, dt {config.time.dt:g} s, theta {config.time.theta:g}; "
+        f"{len(config.actuators)} force input(s), {len(config.sensors)} sensor output(s)"
+        + (", deflection at every grid node" if field else "")
+        + ". Communication steps must be integer multiples of dt (inputs held over the step). "
+        f"Requires Python {version} with numpy and scipy (built with {runtime_python}); "
+        "the FMU's loader starts that interpreter when the master is not Python itself. Linux x86-64 only."
+    )
+    return text
+
+
+def _check_output(out: Path) -> Path:
+    if out.suffix.lower() != ".fmu":
+        raise FmuError(f"{out}: the output file name must end in .fmu", function="build_fmu")
+    if out.is_dir():
+        raise FmuError(f"{out}: is a directory; give the path of the .fmu file to write", function="build_fmu")
+    parent = out.parent if str(out.parent) else Path(".")
+    if not parent.is_dir():
+        raise FmuError(f"{out}: directory {parent} does not exist", function="build_fmu")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise FmuError(f"{out}: directory {parent} is not writable", function="build_fmu")
+    return parent
+
+
+def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLike[str], *,
+              field: bool = False) -> Path:
+    """Build the beam FMU (FMI 2.0 co-simulation, Linux x86-64).
+
+    Parameters
+    ----------
+    config
+        A :class:`~ebb_model.BeamConfig`, or the path of a TOML config file.
+    out
+        Path of the ``.fmu`` file to write (replaced if it exists).
+    field
+        Also output the deflection ``w[i]`` at every grid node (boundary
+        nodes included), in addition to the sensors.
+
+    Returns
+    -------
+    pathlib.Path
+        ``out``.
+
+    Raises
+    ------
+    ConfigError
+        The config file is missing or invalid.
+    ParameterError, StabilityError
+        The nominal parameters give no valid (stable) model.
+    FmuError
+        The output path is unusable, names clash, the interpreter has no shared
+        libpython, no C compiler is available, or writing the archive fails.
+
+    Notes
+    -----
+    The FMU runs on the interpreter that builds it: its libpython, standard
+    library and site-packages are recorded in the loader.  ``ebb_model``'s
+    sources are bundled (renamed) in the FMU's resources.
+    """
+    if isinstance(config, BeamConfig):
+        cfg, base = config, "beam"
+    else:
+        cfg, base = load_config(config), Path(config).stem
+    out = Path(out)
+    parent = _check_output(out)
+    _check_names(cfg)
+    system = assemble(cfg)  # nominal parameters must give a valid, stable model
+    runtime = find_python_runtime()
+    identity = _identity(base)
+    description = _description(cfg, sys.executable, runtime.version, field)
+    spec = {
+        "format": 1,
+        "config": {k: v for k, v in cfg.to_dict().items() if k not in cfg.extra},
+        "field": bool(field),
+        "dt": float(system.dt),
+        "model_name": identity.model_name,
+        "description": description,
+    }
+
+    tmp_path = parent / f".{out.name}.{uuid.uuid4().hex[:8]}.part"
+    try:
+        with tempfile.TemporaryDirectory(prefix="ebb_fmu_") as staging_dir:
+            staging = Path(staging_dir)
+            resources = staging / "resources"
+            write_resources(resources, identity=identity, spec=spec)
+
+            binaries = staging / "binaries" / _PLATFORM
+            binaries.mkdir(parents=True)
+            inner = f"{identity.model_identifier}_pythonfmu.so"
+            shutil.copy2(Path(pythonfmu.__file__).parent / "resources" / "binaries" / _PLATFORM
+                         / "libpythonfmu-export.so", binaries / inner)
+            compile_loader(binaries / f"{identity.model_identifier}.so", inner_library=inner,
+                           runtime=runtime, guid=identity.guid)
+
+            slave = slave_template.BeamSlave(instance_name="build", resources=str(resources))
+            feedthrough = feedthrough_from_D(system.D, system.output_names, system.input_names)
+            xml = finish_model_description(slave.to_xml(), identity=identity, description=description,
+                                           units=slave.variable_units, feedthrough=feedthrough)
+            (staging / "modelDescription.xml").write_bytes(xml)
+
+            with open(tmp_path, "xb") as fh, zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+                for f in sorted(staging.rglob("*")):
+                    if f.is_file() and "__pycache__" not in f.parts:
+                        zf.write(f, f.relative_to(staging).as_posix())
+        os.replace(tmp_path, out)
+    except OSError as exc:
+        raise FmuError(f"{out}: cannot write the FMU ({exc.strerror or exc})", function="build_fmu") from None
+    finally:
+        if tmp_path.exists():
+            tmp_path.unlink()
+    return out

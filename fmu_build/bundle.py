@@ -1,0 +1,154 @@
+"""What goes into an FMU's ``resources/``: the slave, its private core, pythonfmu.
+
+Layout written by :func:`write_resources`::
+
+    resources/
+      slavemodule.txt          name of the slave module (read by pythonfmu's binary)
+      <modelIdentifier>.py     the slave (slave_template.py, class renamed)
+      <core_package>/          a private copy of ebb_model's sources
+      pythonfmu/               pythonfmu's Python runtime (as pythonfmu's own builder does)
+      ebb_fmu.json             the config (JSON) and build options
+
+Why a private, renamed copy of ``ebb_model``: the FMU keeps working with the
+interpreter it was built with even if the project is later changed or
+uninstalled, and two FMUs (or an FMU and the project itself) never share a
+``sys.modules`` entry, so each runs exactly the core it was built and tested
+with.  ``ebb_model`` uses relative imports internally; any absolute
+``import ebb_model...`` statement in the copy is rewritten to the new name.
+"""
+from __future__ import annotations
+
+import ast
+import io
+import json
+import shutil
+import tokenize
+from pathlib import Path
+from typing import Any, Mapping
+
+import pythonfmu
+
+import ebb_model
+from ebb_model.errors import FmuError
+
+from . import slave_template
+from .model_description import FmuIdentity
+
+__all__ = ["write_resources", "copy_package", "render_slave"]
+
+_SKIP_DIRS = {"__pycache__"}
+
+
+def render_slave(identity: FmuIdentity) -> str:
+    """Source of the FMU's slave module: the template with its names replaced.
+
+    Raises
+    ------
+    FmuError
+        If the template no longer contains the lines to replace.
+    """
+    source = Path(slave_template.__file__).read_text(encoding="utf-8")
+    replacements = {
+        f'CORE_PACKAGE = "{slave_template.CORE_PACKAGE}"': f'CORE_PACKAGE = "{identity.core_package}"',
+        f"class {slave_template.BeamSlave.__name__}(Fmi2Slave):": f"class {identity.class_name}(Fmi2Slave):",
+    }
+    for old, new in replacements.items():
+        if source.count(old) != 1:
+            raise FmuError(f"slave template: expected exactly one line {old!r}", function="build_fmu")
+        source = source.replace(old, new)
+    return source
+
+
+def _absolute_import_lines(source: str, package: str) -> tuple[set[int], bool]:
+    """Line numbers of statements importing ``package`` absolutely.
+
+    The flag says whether the module binds the package's own name
+    (``import package`` or ``import package.sub`` without ``as``), in which
+    case every later use of that name refers to the package too.
+    """
+    lines: set[int] = set()
+    binds_name = False
+    for node in ast.walk(ast.parse(source)):
+        names: list[str] = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+            binds_name = binds_name or any(
+                a.asname is None and (a.name == package or a.name.startswith(package + ".")) for a in node.names
+            )
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names = [node.module]
+        if any(n == package or n.startswith(package + ".") for n in names):
+            lines.update(range(node.lineno, (node.end_lineno or node.lineno) + 1))
+    return lines, binds_name
+
+
+def _rename_imports(source: str, old: str, new: str) -> str:
+    """Rewrite absolute imports of package ``old`` to ``new`` (token-exact)."""
+    lines, everywhere = _absolute_import_lines(source, old)
+    if not lines:
+        return source
+    hits: list[tuple[int, int, int]] = []
+    prev: tokenize.TokenInfo | None = None
+    for tok in tokenize.generate_tokens(io.StringIO(source).readline):
+        if (tok.type == tokenize.NAME and tok.string == old and (everywhere or tok.start[0] in lines)
+                and not (prev is not None and prev.string in (".", "as"))):
+            hits.append((tok.start[0], tok.start[1], tok.end[1]))
+        if tok.type not in (tokenize.NL, tokenize.NEWLINE, tokenize.COMMENT):
+            prev = tok
+    text = source.splitlines(keepends=True)
+    for row, c0, c1 in sorted(hits, reverse=True):
+        line = text[row - 1]
+        text[row - 1] = line[:c0] + new + line[c1:]
+    return "".join(text)
+
+
+def copy_package(src: Path, dest: Path, *, old_name: str, new_name: str) -> None:
+    """Copy the package directory ``src`` to ``dest``, renaming absolute self-imports.
+
+    Parameters
+    ----------
+    src
+        Package directory (contains ``__init__.py``).
+    dest
+        Directory to create.
+    old_name, new_name
+        The package's import name and the name of the copy.
+    """
+    for path in sorted(src.rglob("*")):
+        rel = path.relative_to(src)
+        if any(part in _SKIP_DIRS for part in rel.parts) or path.is_dir():
+            continue
+        if path.suffix in (".pyc", ".pyo", ".so", ".nbi", ".nbc"):
+            continue
+        target = dest / rel
+        target.parent.mkdir(parents=True, exist_ok=True)
+        if path.suffix == ".py":
+            text = path.read_text(encoding="utf-8")
+            target.write_text(_rename_imports(text, old_name, new_name), encoding="utf-8")
+        else:
+            shutil.copy2(path, target)
+
+
+def write_resources(resources: Path, *, identity: FmuIdentity, spec: Mapping[str, Any]) -> None:
+    """Fill ``resources`` with everything the slave needs at run time.
+
+    Parameters
+    ----------
+    resources
+        Empty directory (the future ``resources/`` of the FMU).
+    identity
+        Names of this build.
+    spec
+        JSON-serialisable model description for the slave (config, options).
+    """
+    resources.mkdir(parents=True, exist_ok=True)
+    (resources / "slavemodule.txt").write_text(identity.model_identifier, encoding="utf-8")
+    (resources / f"{identity.model_identifier}.py").write_text(render_slave(identity), encoding="utf-8")
+    (resources / slave_template.SPEC_FILE).write_text(json.dumps(spec, indent=2, allow_nan=False),
+                                                       encoding="utf-8")
+    core_src = Path(ebb_model.__file__).parent
+    copy_package(core_src, resources / identity.core_package, old_name="ebb_model", new_name=identity.core_package)
+    runtime = resources / "pythonfmu"
+    runtime.mkdir()
+    for f in Path(pythonfmu.__file__).parent.glob("*.py"):
+        shutil.copy2(f, runtime / f.name)

@@ -1,0 +1,358 @@
+"""The beam as a pythonfmu co-simulation slave: a thin adapter over ``ebb_model``.
+
+The slave holds no physics.  At the end of initialisation it asks the core
+for the discrete system of the current parameter values,
+
+.. math::
+
+    x_{k+1} = A x_k + B u_k, \\qquad y_k = C x_k + D u_k, \\qquad t_k = t_0 + k\\,dt,
+
+(``ebb_model.assemble``; with ``field=True`` the rows of
+``ebb_model.field_matrix`` are appended to ``C`` with zero ``D``) and then
+only iterates it.  Co-simulation semantics, zero-order hold:
+
+* at ``t_k`` the master sets ``u_k``; ``fmi2GetReal`` returns
+  ``y_k = C x_k + D u_k`` -- an input just set shows at once in velocity and
+  acceleration sensors (direct feedthrough, declared in ModelStructure);
+* ``fmi2DoStep(t_k, h)`` with ``h = n dt`` (``n`` a positive integer) applies
+  the recursion ``n`` times with ``u`` held; any other ``h`` is refused.
+
+Errors never escape as Python exceptions, which pythonfmu would report as
+``fmi2Fatal``: they are logged with status ``fmi2Error`` and the FMU's C
+loader returns ``fmi2Error`` for that call (see ``loader.c``).
+
+This module is a template.  :func:`fmu_build.builder.build_fmu` copies it into
+the FMU's resources as ``<modelIdentifier>.py`` with the class renamed and
+:data:`CORE_PACKAGE` pointing at the FMU's private copy of ``ebb_model``, so
+that FMUs built from different configs can run side by side in one process
+(pythonfmu imports the slave module by name and Python caches it).
+
+The per-step path is kept lean: the system is stored as ``M = [A B]`` and
+``N = [C D]`` acting on one vector ``z = (x, u)``; a step is one matrix-vector
+product into a preallocated buffer, outputs are computed only when read after
+a change and cached as a Python list.
+"""
+from __future__ import annotations
+
+import importlib
+import json
+import math
+import os
+import sys
+from typing import Any, Sequence
+
+import numpy as np
+from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
+from pythonfmu.enums import Fmi2Status
+
+__all__ = ["BeamSlave", "CORE_PACKAGE", "SPEC_FILE", "STEP_TOLERANCE", "FIELD_NAME"]
+
+#: Package that provides ``config_from_dict``, ``assemble`` and ``field_matrix``.
+#: The builder rewrites this line to the FMU's bundled copy.
+CORE_PACKAGE = "ebb_model"
+
+#: JSON file in the FMU's resources describing the model (written by the builder).
+SPEC_FILE = "ebb_fmu.json"
+
+#: A step ``h`` is accepted when ``|h/dt - n| <= STEP_TOLERANCE`` for an integer ``n >= 1``.
+STEP_TOLERANCE = 1e-6
+
+#: Base name of the deflection outputs ``w[0] ... w[nodes+1]`` (``field=True``).
+FIELD_NAME = "w"
+
+_core = importlib.import_module(CORE_PACKAGE)
+_beam = importlib.import_module(CORE_PACKAGE + ".beam")
+
+
+class BeamSlave(Fmi2Slave):
+    """pythonfmu slave iterating the beam's discrete state-space system.
+
+    Parameters
+    ----------
+    **kwargs
+        Passed by pythonfmu: ``instance_name``, ``resources`` (directory with
+        :data:`SPEC_FILE`), ``visible``, ``logger``.
+
+    Notes
+    -----
+    Value references follow registration order: the parameters
+    ``EI, rhoA, c, eta, N`` (tunable), one input per actuator [N], one output
+    per sensor [m, m/s, m/s2], the field outputs when built with
+    ``field=True``, then the fixed set-up as calculated parameters
+    (``beam.length``, ``beam.nodes``, ``time.dt``, positions, ...).
+    Parameter values are read when initialisation ends; a change in step mode
+    takes effect at the next step (the state is kept).
+    """
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        resources = kwargs.get("resources") or os.path.dirname(os.path.abspath(__file__))
+        _dedupe_sys_path(resources)
+        with open(os.path.join(resources, SPEC_FILE), encoding="utf-8") as fh:
+            spec = json.load(fh)
+        self._cfg = _core.config_from_dict(spec["config"])
+        self._field = bool(spec.get("field", False))
+        self._dt = float(spec["dt"])
+        self.modelName = spec.get("model_name", self.modelName)
+        self.description = spec.get("description")
+        self.default_experiment = DefaultExperiment(start_time=0.0, step_size=self._dt)
+
+        #: unit of each Real variable by name (read by the builder for modelDescription.xml)
+        self.variable_units: dict[str, str] = {}
+        self._reals: list[float | None] = []
+        self._roles: list[tuple[int, Any] | None] = []  # per value reference: (kind, key) if settable
+        self._params: dict[str, float] = dict(self._cfg.parameter_values())
+        self._register_variables()
+
+        self._model_stale = True  # parameters changed since the last assembly
+        self._outputs_stale = True  # state, input or model changed since outputs were computed
+        self._z: np.ndarray | None = None  # (x, u)
+        self._next: np.ndarray | None = None  # buffer for A x + B u
+        self._x: np.ndarray | None = None  # view z[:nx]
+        self._y: np.ndarray | None = None
+        self._M: np.ndarray | None = None
+        self._N: np.ndarray | None = None
+        self._nx = 0
+        self._field_C: np.ndarray | None = None
+        self._time = 0.0
+
+    # ----------------------------------------------------------- variables
+    def _add_real(self, name: str, value: float, unit: str | None, role: tuple[int, Any] | None, **kw: Any) -> None:
+        self.register_variable(Real(name, **kw), nested=False)
+        self._reals.append(value)
+        self._roles.append(role)
+        if unit:
+            self.variable_units[name] = unit
+
+    def _add_constant(self, name: str, value: Any, description: str, unit: str | None = None) -> None:
+        cls = {float: Real, int: Integer, str: String}[type(value)]
+        self.register_variable(
+            cls(name, causality=Fmi2Causality.calculatedParameter, variability=Fmi2Variability.fixed,
+                description=description, getter=lambda: value),
+            nested=False,
+        )
+        self._reals.append(value if cls is Real else None)
+        self._roles.append(None)
+        if unit:
+            self.variable_units[name] = unit
+
+    def _register_variables(self) -> None:
+        cfg = self._cfg
+        for name in _beam.PARAMETER_NAMES:
+            self._add_real(name, self._params[name], _beam.PARAMETER_UNITS[name], (1, name),
+                           causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable,
+                           description=_beam.PARAMETER_DESCRIPTIONS[name])
+        self._inputs = range(len(self._reals), len(self._reals) + len(cfg.actuators))
+        for j, a in enumerate(cfg.actuators):
+            self._add_real(a.name, 0.0, "N", (0, j), causality=Fmi2Causality.input,
+                           description=f"point force at x = {a.x:g} m")
+        first_output = len(self._reals)
+        for s in cfg.sensors:
+            self._add_real(s.name, math.nan, s.unit, None, causality=Fmi2Causality.output,
+                           description=f"{s.kind} at x = {s.x:g} m")
+        if self._field:
+            xs, _ = _core.field_matrix(cfg)
+            for i, x in enumerate(xs):
+                self._add_real(f"{FIELD_NAME}[{i}]", math.nan, "m", None, causality=Fmi2Causality.output,
+                               description=f"deflection at grid node x = {x:g} m")
+        self._outputs = (first_output, len(self._reals))
+
+        b = cfg.beam
+        self._add_constant("beam.length", float(b.length), "beam length", "m")
+        self._add_constant("beam.nodes", int(b.nodes), "number of interior grid points")
+        for side, end in (("left", b.left), ("right", b.right)):
+            self._add_constant(f"beam.{side}", str(end.kind), f"boundary condition at the {side} end")
+            if end.kind == "elastic":
+                self._add_constant(f"beam.{side}_kt", float(end.kt), f"translational spring at the {side} end", "N/m")
+                self._add_constant(f"beam.{side}_kr", float(end.kr), f"rotational spring at the {side} end",
+                                   "N.m/rad")
+        t = cfg.time
+        self._add_constant("time.dt", float(t.dt), "sample time (communication steps are multiples of it)", "s")
+        self._add_constant("time.theta", float(t.theta), "theta of the three-level time-stepping scheme")
+        self._add_constant("time.substeps", int(t.substeps), "sub-steps of the scheme per sample")
+        for a in cfg.actuators:
+            self._add_constant(f"actuators.{a.name}.x", float(a.x), f"position of actuator {a.name}", "m")
+        for s in cfg.sensors:
+            self._add_constant(f"sensors.{s.name}.x", float(s.x), f"position of sensor {s.name}", "m")
+            self._add_constant(f"sensors.{s.name}.kind", str(s.kind), f"quantity measured by sensor {s.name}")
+        for m in getattr(cfg, "masses", ()):
+            self._add_constant(f"masses.{m.name}.x", float(m.x), f"position of point mass {m.name}", "m")
+            self._add_constant(f"masses.{m.name}.mass", float(m.mass), f"point mass {m.name}", "kg")
+
+    # ----------------------------------------------------------- model
+    def _error(self, function: str, message: str) -> None:
+        """Log ``message`` with status error: the loader turns the call's status into fmi2Error."""
+        self.log(f"{function}: {message}", Fmi2Status.error)
+
+    def _assemble(self, function: str) -> bool:
+        """(Re)build the matrices from the current parameters; keep the state. False on failure."""
+        try:
+            system = _core.assemble(self._cfg, dict(self._params))
+        except Exception as exc:  # ParameterError, StabilityError, anything numerical
+            self._M = None
+            self._model_stale = True
+            self._error(function, f"cannot build the model for these parameters: {type(exc).__name__}: {exc}")
+            return False
+        A, B, C, D = (np.asarray(m, dtype=float) for m in (system.A, system.B, system.C, system.D))
+        nx, nu = B.shape
+        if self._field:
+            if self._field_C is None:
+                self._field_C = np.asarray(_core.field_matrix(self._cfg)[1], dtype=float)
+            C = np.vstack([C, self._field_C])
+            D = np.vstack([D, np.zeros((self._field_C.shape[0], nu))])
+        if self._z is None or self._nx != nx:
+            self._z = np.zeros(nx + nu)
+            self._nx = nx
+            self._x = self._z[:nx]
+            self._next = np.empty(nx)
+        self._z[nx:] = [self._reals[vr] for vr in self._inputs]
+        self._M = np.ascontiguousarray(np.hstack([A, B]))
+        self._N = np.ascontiguousarray(np.hstack([C, D]))
+        self._y = np.empty(self._N.shape[0])
+        self._model_stale = False
+        self._outputs_stale = True
+        return True
+
+    def _refresh_outputs(self, function: str) -> bool:
+        if self._model_stale and not self._assemble(function):
+            return False
+        y = self._y
+        np.dot(self._N, self._z, out=y)
+        values = y.tolist()
+        if not math.isfinite(math.fsum(values)):
+            self._error(function, "the outputs are not finite (numerical overflow)")
+            return False
+        o0, o1 = self._outputs
+        self._reals[o0:o1] = values
+        self._outputs_stale = False
+        return True
+
+    # ----------------------------------------------------------- FMI calls
+    def setup_experiment(self, start_time: float = 0.0, *args: Any) -> None:
+        self._time = float(start_time)
+
+    def enter_initialization_mode(self) -> None:
+        pass
+
+    def exit_initialization_mode(self) -> None:
+        try:
+            if self._model_stale or self._M is None:
+                self._assemble("fmi2ExitInitializationMode")
+        except Exception as exc:
+            self._error("fmi2ExitInitializationMode", f"{type(exc).__name__}: {exc}")
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        try:
+            ratio = step_size / self._dt
+            n = round(ratio) if math.isfinite(ratio) else 0
+            if n < 1 or abs(ratio - n) > STEP_TOLERANCE:
+                self._error("fmi2DoStep", f"communication step size {step_size!r} s is not a positive integer "
+                                          f"multiple of the sample time dt = {self._dt!r} s")
+                return False
+            if self._model_stale and not self._assemble("fmi2DoStep"):
+                return False
+            M, z, x, nxt = self._M, self._z, self._x, self._next
+            for _ in range(n):
+                np.dot(M, z, out=nxt)
+                x[:] = nxt
+            self._time += n * self._dt
+            self._outputs_stale = True
+            return True
+        except Exception as exc:
+            self._error("fmi2DoStep", f"{type(exc).__name__}: {exc}")
+            return False
+
+    def terminate(self) -> None:
+        pass
+
+    def get_real(self, vrs: Sequence[int]) -> list[float]:
+        try:
+            if self._outputs_stale:
+                o0, o1 = self._outputs
+                for vr in vrs:
+                    if o0 <= vr < o1:
+                        if not self._refresh_outputs("fmi2GetReal"):
+                            return [math.nan] * len(vrs)
+                        break
+            reals = self._reals
+            values = [reals[vr] for vr in vrs]
+            if None in values:
+                raise TypeError("a requested variable is not of type Real")
+            return values
+        except Exception as exc:
+            self._error("fmi2GetReal", f"value references {list(vrs)}: {type(exc).__name__}: {exc}")
+            return [math.nan] * len(vrs)
+
+    def set_real(self, vrs: Sequence[int], values: Sequence[float]) -> None:
+        try:
+            roles, reals = self._roles, self._reals
+            for vr, value in zip(vrs, values):
+                role = roles[vr] if 0 <= vr < len(roles) else None
+                if role is None:
+                    self._error("fmi2SetReal", f"variable {self._name(vr)} cannot be set")
+                    continue
+                kind, key = role
+                if kind == 0:  # input
+                    if not math.isfinite(value):
+                        self._error("fmi2SetReal", f"input {self._name(vr)} = {value!r} is not a finite number")
+                        continue
+                    reals[vr] = value
+                    if self._z is not None:
+                        self._z[self._nx + key] = value
+                else:  # parameter
+                    self._params[key] = value
+                    reals[vr] = value
+                    self._model_stale = True
+                self._outputs_stale = True
+        except Exception as exc:
+            self._error("fmi2SetReal", f"{type(exc).__name__}: {exc}")
+
+    def get_integer(self, vrs: Sequence[int]) -> list[int]:
+        try:
+            return super().get_integer(vrs)
+        except Exception as exc:
+            self._error("fmi2GetInteger", f"{type(exc).__name__}: {exc}")
+            return [0] * len(vrs)
+
+    def get_boolean(self, vrs: Sequence[int]) -> list[bool]:
+        self._error("fmi2GetBoolean", "this FMU has no Boolean variables")
+        return [False] * len(vrs)
+
+    def get_string(self, vrs: Sequence[int]) -> list[str]:
+        try:
+            return super().get_string(vrs)
+        except Exception as exc:
+            self._error("fmi2GetString", f"{type(exc).__name__}: {exc}")
+            return [""] * len(vrs)
+
+    def set_integer(self, vrs: Sequence[int], values: Sequence[int]) -> None:
+        self._error("fmi2SetInteger", f"variables {[self._name(vr) for vr in vrs]} cannot be set")
+
+    def set_boolean(self, vrs: Sequence[int], values: Sequence[bool]) -> None:
+        self._error("fmi2SetBoolean", f"variables {[self._name(vr) for vr in vrs]} cannot be set")
+
+    def set_string(self, vrs: Sequence[int], values: Sequence[str]) -> None:
+        self._error("fmi2SetString", f"variables {[self._name(vr) for vr in vrs]} cannot be set")
+
+    def _name(self, vr: int) -> str:
+        var = self.vars.get(vr)
+        return f"{var.name!r} (value reference {vr})" if var is not None else f"with value reference {vr}"
+
+
+def _dedupe_sys_path(resources: str) -> None:
+    """Keep one entry of ``resources`` on ``sys.path``.
+
+    pythonfmu inserts the resources directory at ``sys.path[0]`` for every
+    instance it creates; without this, 1,000 instantiations leave 1,000
+    entries that every later import would scan.
+    """
+    seen = False
+    kept = []
+    for p in sys.path:
+        if p == resources:
+            if seen:
+                continue
+            seen = True
+        kept.append(p)
+    if len(kept) != len(sys.path):
+        sys.path[:] = kept

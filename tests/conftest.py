@@ -1,0 +1,53 @@
+"""Shared fixtures: config factories and a single-threaded BLAS for the whole session."""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pytest
+from threadpoolctl import threadpool_limits
+
+from ebb_model import config_from_dict
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _single_thread_blas():
+    # many small dense problems: BLAS threads only thrash on the 2-core CI machine
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
+
+
+def make_config(left: str = "clamped", right: str = "clamped", *, length: float = 1.0, nodes: int = 50,
+                dt: float = 1e-4, theta: float = 0.25, substeps: int = 1, EI: float = 10.0,
+                rhoA: float = 1.0, c: float = 0.0, eta: float = 0.0, N: float = 0.0,
+                actuators: list[tuple[str, float]] | None = None,
+                sensors: list[tuple[str, float, str]] | None = None,
+                masses: list[tuple[str, float, float]] | None = None,
+                left_springs: tuple[float, float] | None = None,
+                right_springs: tuple[float, float] | None = None):
+    """Build a validated config from keyword arguments (tests only)."""
+    beam: dict[str, Any] = {"length": length, "nodes": nodes, "left": left, "right": right}
+    for side, sp in (("left", left_springs), ("right", right_springs)):
+        if sp is not None:
+            beam[f"{side}_kt"], beam[f"{side}_kr"] = sp
+    d: dict[str, Any] = {
+        "beam": beam,
+        "time": {"dt": dt, "theta": theta, "substeps": substeps},
+        "parameters": {"EI": {"value": EI}, "rhoA": {"value": rhoA}, "c": {"value": c},
+                       "eta": {"value": eta}, "N": {"value": N}},
+        "actuators": [{"name": n, "x": x} for n, x in (actuators or [("F1", 0.3 * length)])],
+        "sensors": [{"name": n, "x": x, "kind": k}
+                    for n, x, k in (sensors or [("y1", 0.5 * length, "displacement"),
+                                                ("y2", 0.71 * length, "displacement")])],
+    }
+    if masses:
+        d["masses"] = [{"name": n, "x": x, "mass": m} for n, x, m in masses]
+    return config_from_dict(d)
+
+
+@pytest.fixture
+def cfg_factory():
+    return make_config
+
+
+INF = math.inf

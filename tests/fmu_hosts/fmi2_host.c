@@ -1,0 +1,190 @@
+/*
+ * fmi2_host.c -- a plain C FMI 2.0 co-simulation master for the tests.
+ *
+ * No Python anywhere: it dlopens the FMU's binary and drives one instance
+ *
+ *   fmi2Instantiate, fmi2SetupExperiment, fmi2SetReal (parameters),
+ *   fmi2EnterInitializationMode, fmi2ExitInitializationMode,
+ *   then per communication point k:  fmi2SetReal(u_k), fmi2GetReal(y_k), fmi2DoStep(t_k, h),
+ *   fmi2Terminate, fmi2FreeInstance.
+ *
+ * Usage:
+ *   fmi2_host LIBRARY GUID RESOURCE_URI STEP NSTEPS INPUT_FILE IN_VRS OUT_VRS [VR=VALUE ...]
+ *
+ *   IN_VRS, OUT_VRS   comma-separated value references, or "-" for none
+ *   INPUT_FILE        NSTEPS lines of len(IN_VRS) numbers, or "-" when IN_VRS is "-"
+ *   VR=VALUE          Real parameters set before initialisation
+ *
+ * Prints one line per communication point with the outputs (%.17g) on
+ * stdout; the FMU's log messages go to stderr.  Exit status: 0 success,
+ * 1 usage, 2 the library or a symbol cannot be loaded, 3 an FMI call
+ * returned an error (the function and status are printed on stderr).
+ */
+#include <dlfcn.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef void *fmi2Component;
+typedef void *fmi2ComponentEnvironment;
+typedef unsigned int fmi2ValueReference;
+typedef double fmi2Real;
+typedef int fmi2Boolean;
+typedef const char *fmi2String;
+typedef enum { fmi2OK, fmi2Warning, fmi2Discard, fmi2Error, fmi2Fatal, fmi2Pending } fmi2Status;
+typedef enum { fmi2ModelExchange, fmi2CoSimulation } fmi2Type;
+
+typedef struct {
+    void (*logger)(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String, ...);
+    void *(*allocateMemory)(size_t, size_t);
+    void (*freeMemory)(void *);
+    void (*stepFinished)(fmi2ComponentEnvironment, fmi2Status);
+    fmi2ComponentEnvironment componentEnvironment;
+} fmi2CallbackFunctions;
+
+typedef fmi2Component (*InstantiateFn)(fmi2String, fmi2Type, fmi2String, fmi2String,
+                                       const fmi2CallbackFunctions *, fmi2Boolean, fmi2Boolean);
+typedef void (*FreeInstanceFn)(fmi2Component);
+typedef fmi2Status (*SetupExperimentFn)(fmi2Component, fmi2Boolean, fmi2Real, fmi2Real, fmi2Boolean, fmi2Real);
+typedef fmi2Status (*ComponentFn)(fmi2Component);
+typedef fmi2Status (*SetRealFn)(fmi2Component, const fmi2ValueReference[], size_t, const fmi2Real[]);
+typedef fmi2Status (*GetRealFn)(fmi2Component, const fmi2ValueReference[], size_t, fmi2Real[]);
+typedef fmi2Status (*DoStepFn)(fmi2Component, fmi2Real, fmi2Real, fmi2Boolean);
+
+static void log_message(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status,
+                        fmi2String category, fmi2String message, ...)
+{
+    (void)env;
+    va_list args;
+    va_start(args, message);
+    fprintf(stderr, "[%s] status=%d category=%s: ", name ? name : "", (int)status, category ? category : "");
+    vfprintf(stderr, message, args);
+    fputc('\n', stderr);
+    va_end(args);
+}
+
+static void *symbol(void *lib, const char *name)
+{
+    void *p = dlsym(lib, name);
+    if (!p) {
+        fprintf(stderr, "missing symbol %s: %s\n", name, dlerror());
+        exit(2);
+    }
+    return p;
+}
+
+static size_t parse_vrs(const char *text, fmi2ValueReference **out)
+{
+    *out = NULL;
+    if (strcmp(text, "-") == 0) return 0;
+    size_t n = 1;
+    for (const char *p = text; *p; ++p) n += (*p == ',');
+    *out = calloc(n, sizeof **out);
+    const char *p = text;
+    for (size_t i = 0; i < n; ++i) {
+        char *end;
+        (*out)[i] = (fmi2ValueReference)strtoul(p, &end, 10);
+        p = end + (*end == ',');
+    }
+    return n;
+}
+
+#define CHECK(call, name)                                                   \
+    do {                                                                    \
+        fmi2Status s_ = (call);                                             \
+        if (s_ > fmi2Warning) {                                             \
+            fprintf(stderr, "%s failed with status %d\n", name, (int)s_);   \
+            if (s_ < fmi2Fatal) freeInstance(c);                            \
+            return 3;                                                       \
+        }                                                                   \
+    } while (0)
+
+int main(int argc, char **argv)
+{
+    if (argc < 9) {
+        fprintf(stderr, "usage: %s LIBRARY GUID RESOURCE_URI STEP NSTEPS INPUT_FILE IN_VRS OUT_VRS [VR=VALUE ...]\n",
+                argv[0]);
+        return 1;
+    }
+    const char *library = argv[1], *guid = argv[2], *resources = argv[3];
+    double step = strtod(argv[4], NULL);
+    long nsteps = strtol(argv[5], NULL, 10);
+    const char *input_file = argv[6];
+    fmi2ValueReference *in_vrs, *out_vrs;
+    size_t n_in = parse_vrs(argv[7], &in_vrs);
+    size_t n_out = parse_vrs(argv[8], &out_vrs);
+
+    void *lib = dlopen(library, RTLD_NOW | RTLD_LOCAL);
+    if (!lib) {
+        fprintf(stderr, "cannot load %s: %s\n", library, dlerror());
+        return 2;
+    }
+    InstantiateFn instantiate = (InstantiateFn)symbol(lib, "fmi2Instantiate");
+    FreeInstanceFn freeInstance = (FreeInstanceFn)symbol(lib, "fmi2FreeInstance");
+    SetupExperimentFn setupExperiment = (SetupExperimentFn)symbol(lib, "fmi2SetupExperiment");
+    ComponentFn enterInit = (ComponentFn)symbol(lib, "fmi2EnterInitializationMode");
+    ComponentFn exitInit = (ComponentFn)symbol(lib, "fmi2ExitInitializationMode");
+    ComponentFn terminate = (ComponentFn)symbol(lib, "fmi2Terminate");
+    SetRealFn setReal = (SetRealFn)symbol(lib, "fmi2SetReal");
+    GetRealFn getReal = (GetRealFn)symbol(lib, "fmi2GetReal");
+    DoStepFn doStep = (DoStepFn)symbol(lib, "fmi2DoStep");
+
+    fmi2CallbackFunctions callbacks = {log_message, calloc, free, NULL, NULL};
+    fmi2Component c = instantiate("c_host", fmi2CoSimulation, guid, resources, &callbacks, 0, 0);
+    if (!c) {
+        fprintf(stderr, "fmi2Instantiate failed\n");
+        return 3;
+    }
+    CHECK(setupExperiment(c, 0, 0.0, 0.0, 0, 0.0), "fmi2SetupExperiment");
+    for (int i = 9; i < argc; ++i) {
+        char *eq = strchr(argv[i], '=');
+        if (!eq) {
+            fprintf(stderr, "bad parameter argument %s\n", argv[i]);
+            freeInstance(c);
+            return 1;
+        }
+        fmi2ValueReference vr = (fmi2ValueReference)strtoul(argv[i], NULL, 10);
+        fmi2Real value = strtod(eq + 1, NULL);
+        CHECK(setReal(c, &vr, 1, &value), "fmi2SetReal");
+    }
+    CHECK(enterInit(c), "fmi2EnterInitializationMode");
+    CHECK(exitInit(c), "fmi2ExitInitializationMode");
+
+    FILE *in = NULL;
+    if (n_in > 0) {
+        in = fopen(input_file, "r");
+        if (!in) {
+            fprintf(stderr, "cannot open %s\n", input_file);
+            freeInstance(c);
+            return 1;
+        }
+    }
+    fmi2Real *u = calloc(n_in + 1, sizeof *u);
+    fmi2Real *y = calloc(n_out + 1, sizeof *y);
+    double t = 0.0;
+    for (long k = 0; k < nsteps; ++k) {
+        for (size_t i = 0; i < n_in; ++i) {
+            if (fscanf(in, "%lf", &u[i]) != 1) {
+                fprintf(stderr, "input file: not enough values at step %ld\n", k);
+                freeInstance(c);
+                return 1;
+            }
+        }
+        if (n_in) CHECK(setReal(c, in_vrs, n_in, u), "fmi2SetReal");
+        if (n_out) CHECK(getReal(c, out_vrs, n_out, y), "fmi2GetReal");
+        for (size_t i = 0; i < n_out; ++i) printf(i ? " %.17g" : "%.17g", y[i]);
+        printf("\n");
+        CHECK(doStep(c, t, step, 1), "fmi2DoStep");
+        t = (double)(k + 1) * step;
+    }
+    if (in) fclose(in);
+    CHECK(terminate(c), "fmi2Terminate");
+    freeInstance(c);
+    free(u);
+    free(y);
+    free(in_vrs);
+    free(out_vrs);
+    fflush(stdout);
+    return 0;
+}

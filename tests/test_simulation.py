@@ -1,0 +1,131 @@
+"""Simulation: fast path vs scipy.signal.dlsim, batch, physics properties of the responses."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import scipy.signal as ss
+
+from ebb_model import (
+    DataError,
+    assemble,
+    fast_model,
+    frequency_response,
+    simulate,
+    simulate_batch,
+    simulate_config,
+)
+from ebb_model.modal_form import modal_from_statespace
+
+from conftest import make_config
+
+KIND_SETS = [("displacement", "displacement"), ("velocity", "acceleration"), ("acceleration", "displacement")]
+
+SYSTEMS = [
+    dict(left="clamped", right="clamped"),                              # the seed, undamped
+    dict(left="clamped", right="free", c=0.3, substeps=3),               # viscous, sub-steps
+    dict(left="pinned", right="clamped", N=50.0, eta=1e-4),              # non-proportional
+    dict(left="elastic", right="free", left_springs=(5e3, 80.0), eta=2e-5, c=0.1,
+         masses=[("m", 0.9, 0.05)]),
+    dict(left="clamped", right="pinned", N=-30.0, theta=0.3),
+]
+
+
+def rel(a, b):
+    return np.linalg.norm(a - b) / np.linalg.norm(b)
+
+
+@pytest.mark.parametrize("kinds", KIND_SETS, ids=["disp", "vel-acc", "acc-disp"])
+@pytest.mark.parametrize("spec", SYSTEMS, ids=["seed", "cantilever-substeps", "nonprop", "elastic-mass", "compr"])
+def test_fast_path_equals_dlsim(spec, kinds):
+    cfg = make_config(nodes=30, sensors=[("y1", 0.5, kinds[0]), ("y2", 0.83, kinds[1])],
+                      actuators=[("F1", 0.31), ("F2", 0.77)], **spec)
+    sys = assemble(cfg)
+    u = np.random.default_rng(1).standard_normal((3000, 2))
+    _, y_ref, _ = ss.dlsim((sys.A, sys.B, sys.C, sys.D, sys.dt), u)
+    y_fast = simulate(fast_model(cfg), u).outputs
+    y_dense = simulate(sys, u).outputs
+    assert rel(y_fast, y_ref) < 1e-10
+    assert rel(y_dense, y_ref) < 1e-10
+
+
+def test_general_modal_route_equals_dense():
+    cfg = make_config(N=80.0, eta=1e-4, nodes=25, sensors=[("a", 0.4, "acceleration")])
+    sys = assemble(cfg)
+    u = np.random.default_rng(2).standard_normal((2000, 1))
+    y1 = simulate(modal_from_statespace(sys), u).outputs
+    y2 = simulate(sys, u).outputs
+    assert rel(y1, y2) < 1e-10
+
+
+def test_batch_equals_individual_runs():
+    cfg = make_config(right="free", c=0.2, nodes=20)
+    u = np.random.default_rng(3).standard_normal((1500, 1))
+    P = np.array([[10.0, 0.0], [12.0, 5.0], [8.0, -3.0]])
+    Y = simulate_batch(cfg, P, u, names=["EI", "N"])
+    for row, y in zip(P, Y):
+        ref = simulate_config(cfg, u, {"EI": row[0], "N": row[1]}).outputs
+        np.testing.assert_array_equal(y, ref)
+
+
+def test_static_tip_deflection_of_cantilever():
+    """A step force at the tip of a damped cantilever settles at P L³ / (3 EI) (beam theory)."""
+    EI, L, P = 10.0, 1.0, 2.0
+    cfg = make_config("clamped", "free", nodes=80, EI=EI, c=8.0, dt=2e-4, actuators=[("F", L)],
+                      sensors=[("tip", L, "displacement"), ("mid", 0.5, "displacement")])
+    y = simulate_config(cfg, np.full((60000, 1), P)).outputs
+    tip, mid = y[-1]
+    assert tip == pytest.approx(P * L ** 3 / (3 * EI), rel=2e-3)
+    x = 0.5  # w(x) = P x² (3L - x) / (6 EI)
+    assert mid == pytest.approx(P * x ** 2 * (3 * L - x) / (6 * EI), rel=2e-3)
+
+
+def test_reciprocity_of_collocated_pairs():
+    """Maxwell–Betti: the response at b to a force at a equals the response at a to a force at b."""
+    a, b = 0.23, 0.68
+    kw = dict(left="elastic", right="free", left_springs=(4e3, 60.0), c=0.2, nodes=40)
+    c1 = make_config(actuators=[("F", a)], sensors=[("y", b, "displacement")], **kw)
+    c2 = make_config(actuators=[("F", b)], sensors=[("y", a, "displacement")], **kw)
+    u = np.random.default_rng(4).standard_normal((3000, 1))
+    y1 = simulate_config(c1, u).outputs
+    y2 = simulate_config(c2, u).outputs
+    assert rel(y1, y2) < 1e-10
+
+
+def test_frequency_response_matches_steady_state_simulation():
+    cfg = make_config(c=6.0, nodes=30, sensors=[("y", 0.5, "displacement")])
+    fm = fast_model(cfg)
+    f0 = 47.0
+    n = 40000
+    t = np.arange(n) * cfg.time.dt
+    u = np.cos(2 * np.pi * f0 * t)[:, None]
+    y = simulate(fm, u).outputs[:, 0]
+    H = frequency_response(fm, [f0]).H[0, 0, 0]
+    H_dense = frequency_response(assemble(cfg), [f0]).H[0, 0, 0]
+    assert abs(H - H_dense) < 1e-9 * abs(H)
+    tail = slice(n - 10000, n)  # transients decayed: envelope exp(-c t / 2 rhoA) = exp(-9) at 3 s
+    y_ss = np.real(H * np.exp(2j * np.pi * f0 * t[tail]))
+    assert rel(y[tail], y_ss) < 1e-3
+
+
+def test_natural_frequency_in_free_vibration():
+    """The free-vibration spectrum peaks at the analytic first mode (clamped–clamped, U = 0)."""
+    cfg = make_config(nodes=60, dt=2e-4, sensors=[("y", 0.5, "displacement")])
+    u = np.zeros((2 ** 16, 1))
+    u[0] = 1.0
+    y = simulate_config(cfg, u).outputs[:, 0]
+    spec = np.abs(np.fft.rfft(y * np.hanning(y.size)))
+    f = np.fft.rfftfreq(y.size, cfg.time.dt)
+    f1 = 22.3733 / (2 * math.pi) * math.sqrt(10.0)
+    peak = f[np.argmax(spec)]
+    assert peak == pytest.approx(f1, abs=2 * (f[1] - f[0]) + 2e-3 * f1)
+
+
+def test_bad_inputs_to_simulate():
+    cfg = make_config()
+    fm = fast_model(cfg)
+    with pytest.raises(DataError, match="non-finite"):
+        simulate(fm, np.array([[0.0], [np.nan]]))
+    with pytest.raises(DataError, match="shape"):
+        simulate(fm, np.zeros((10, 3)))
