@@ -31,7 +31,13 @@ from .theta_scheme import discretise_time
 __all__ = ["SimulationResult", "simulate", "fast_model", "simulate_config", "simulate_batch"]
 
 
-@numba.njit(cache=True, nogil=True)
+#: Re-association lets LLVM vectorise the sums over modes (outputs agree with the
+#: strict order to ~1e-15 relative); no-NaN/no-Inf assumptions are *not* made, so
+#: a diverging simulation still shows inf/nan instead of garbage.
+_FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
+
+
+@numba.njit(cache=True, nogil=True, fastmath=_FASTMATH)
 def _modal_kernel(t00, t01, t10, t11, g0, g1, c0, c1, D, u, y):  # pragma: no cover - compiled
     nb = t00.shape[0]
     ns, ni = u.shape
@@ -41,10 +47,10 @@ def _modal_kernel(t00, t01, t10, t11, g0, g1, c0, c1, D, u, y):  # pragma: no co
     for k in range(ns):
         for o in range(no):
             acc = 0.0
-            for i in range(ni):
-                acc += D[o, i] * u[k, i]
             for b in range(nb):
                 acc += c0[o, b] * z0[b] + c1[o, b] * z1[b]
+            for i in range(ni):
+                acc += D[o, i] * u[k, i]
             y[k, o] = acc
         if ni == 1:
             uk = u[k, 0]
@@ -64,7 +70,7 @@ def _modal_kernel(t00, t01, t10, t11, g0, g1, c0, c1, D, u, y):  # pragma: no co
                 z1[b] = a1
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, fastmath=_FASTMATH)
 def _dense_kernel(A, B, C, D, x0, u, y):  # pragma: no cover - compiled
     n = A.shape[0]
     ns, ni = u.shape
