@@ -137,6 +137,10 @@ class BeamConfig:
         return replace(self, parameters=MappingProxyType(params))
 
     # ----------------------------------------------------------- serialisation
+    def __reduce__(self):
+        """Pickle through the validated dict form (mapping proxies do not pickle)."""
+        return (_rebuild_config, (self.to_dict(), tuple(self.extra)))
+
     def to_dict(self) -> dict[str, Any]:
         """JSON/TOML-serialisable dict; :func:`config_from_dict` inverts it.
 
@@ -402,6 +406,10 @@ def _points(pr: _Problems, data: Mapping[str, Any], key: str, length: float | No
             x = None
         out.append({"name": name, "x": x, "raw": item, "where": where})
     return out
+
+
+def _rebuild_config(data: dict[str, Any], extra_sections: tuple[str, ...]) -> BeamConfig:
+    return config_from_dict(data, extra_sections=extra_sections)
 
 
 def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...] = ()) -> BeamConfig:

@@ -27,16 +27,18 @@ the FMU's resources as ``<modelIdentifier>.py`` with the class renamed and
 that FMUs built from different configs can run side by side in one process
 (pythonfmu imports the slave module by name and Python caches it).
 
-The per-step path is kept lean: the system is stored as ``M = [A B]`` and
-``N = [C D]`` acting on one vector ``z = (x, u)``; a step is one matrix-vector
-product into a preallocated buffer, outputs are computed only when read after
-a change and cached as a Python list.
+The per-step path is kept lean (see :class:`_StepPlan`): everything is
+precomputed at assembly, a step is one matrix-vector product into a
+preallocated buffer (which also yields ``C x`` of the new state) and one
+copy, and outputs are converted to Python floats only when read after a
+change.
 """
 from __future__ import annotations
 
 import importlib
 import json
 import math
+import operator
 import os
 import sys
 from typing import Any, Sequence
@@ -105,16 +107,18 @@ class BeamSlave(Fmi2Slave):
         self._register_variables()
 
         self._model_stale = True  # parameters changed since the last assembly
-        self._outputs_stale = True  # state, input or model changed since outputs were computed
-        self._z: np.ndarray | None = None  # (x, u)
-        self._next: np.ndarray | None = None  # buffer for A x + B u
-        self._x: np.ndarray | None = None  # view z[:nx]
-        self._y: np.ndarray | None = None
-        self._M: np.ndarray | None = None
-        self._N: np.ndarray | None = None
-        self._nx = 0
+        self._outputs_stale = True  # state, input or model changed since the outputs were stored
+        self._problem = ""  # why the model or the outputs are unavailable
+        self._u: list[float] = [0.0] * len(self._inputs)
         self._field_C: np.ndarray | None = None
-        self._time = 0.0
+        self._plan: _StepPlan | None = None
+        # the hot path's references into the plan (see _assemble)
+        self._z: np.ndarray | None = None  # (x, u)
+        self._x: np.ndarray | None = None  # view z[:nx]
+        self._W: np.ndarray | None = None
+        self._buf: np.ndarray | None = None
+        self._next_x: np.ndarray | None = None  # view buf[:nx]
+        self._cx_valid = False  # plan.cx holds C x of the current state
 
     # ----------------------------------------------------------- variables
     def _add_real(self, name: str, value: float, unit: str | None, role: tuple[int, Any] | None, **kw: Any) -> None:
@@ -184,43 +188,57 @@ class BeamSlave(Fmi2Slave):
         """Log ``message`` with status error: the loader turns the call's status into fmi2Error."""
         self.log(f"{function}: {message}", Fmi2Status.error)
 
-    def _assemble(self, function: str) -> bool:
-        """(Re)build the matrices from the current parameters; keep the state. False on failure."""
+    def _assemble(self) -> bool:
+        """(Re)build the step plan from the current parameters, keeping the state.
+
+        Returns False, with the reason in ``self._problem``, when the core
+        rejects the parameters (ParameterError, StabilityError) or fails.
+        """
         try:
             system = _core.assemble(self._cfg, dict(self._params))
-        except Exception as exc:  # ParameterError, StabilityError, anything numerical
-            self._M = None
+            C, D = system.C, system.D
+            if self._field:
+                if self._field_C is None:
+                    self._field_C = np.asarray(_core.field_matrix(self._cfg)[1], dtype=float)
+                C = np.vstack([C, self._field_C])
+                D = np.vstack([D, np.zeros((self._field_C.shape[0], D.shape[1]))])
+            plan = _StepPlan(system.A, system.B, C, D)
+        except Exception as exc:
             self._model_stale = True
-            self._error(function, f"cannot build the model for these parameters: {type(exc).__name__}: {exc}")
+            self._problem = f"no valid model for these parameters: {type(exc).__name__}: {exc}"
             return False
-        A, B, C, D = (np.asarray(m, dtype=float) for m in (system.A, system.B, system.C, system.D))
-        nx, nu = B.shape
-        if self._field:
-            if self._field_C is None:
-                self._field_C = np.asarray(_core.field_matrix(self._cfg)[1], dtype=float)
-            C = np.vstack([C, self._field_C])
-            D = np.vstack([D, np.zeros((self._field_C.shape[0], nu))])
-        if self._z is None or self._nx != nx:
-            self._z = np.zeros(nx + nu)
-            self._nx = nx
-            self._x = self._z[:nx]
-            self._next = np.empty(nx)
-        self._z[nx:] = [self._reals[vr] for vr in self._inputs]
-        self._M = np.ascontiguousarray(np.hstack([A, B]))
-        self._N = np.ascontiguousarray(np.hstack([C, D]))
-        self._y = np.empty(self._N.shape[0])
+        if self._z is None or self._z.size != plan.nx + plan.nu:
+            self._z = np.zeros(plan.nx + plan.nu)
+        self._z[plan.nx:] = self._u
+        self._plan = plan
+        self._x = self._z[:plan.nx]
+        self._W = plan.W
+        self._buf = plan.buf
+        self._next_x = plan.next_x
+        self._cx_valid = False
         self._model_stale = False
         self._outputs_stale = True
         return True
 
-    def _refresh_outputs(self, function: str) -> bool:
-        if self._model_stale and not self._assemble(function):
+    def _refresh_outputs(self) -> bool:
+        """Store ``y = C x + D u`` of the current state and inputs among the Real values.
+
+        Returns False, with the reason in ``self._problem``, when there is no
+        valid model or the outputs are not finite.
+        """
+        if self._model_stale and not self._assemble():
             return False
-        y = self._y
-        np.dot(self._N, self._z, out=y)
-        values = y.tolist()
-        if not math.isfinite(math.fsum(values)):
-            self._error(function, "the outputs are not finite (numerical overflow)")
+        plan = self._plan
+        if not self._cx_valid:
+            plan.N.dot(self._z, out=plan.cx)
+            self._cx_valid = True
+        values = plan.cx.tolist()
+        if plan.feedthrough:
+            u = self._u
+            for i, drow in plan.feedthrough:
+                values[i] += sum(map(operator.mul, drow, u))
+        if not math.isfinite(sum(values)):
+            self._problem = "the outputs are not finite (numerical overflow)"
             return False
         o0, o1 = self._outputs
         self._reals[o0:o1] = values
@@ -229,51 +247,59 @@ class BeamSlave(Fmi2Slave):
 
     # ----------------------------------------------------------- FMI calls
     def setup_experiment(self, start_time: float = 0.0, *args: Any) -> None:
-        self._time = float(start_time)
+        pass
 
     def enter_initialization_mode(self) -> None:
         pass
 
     def exit_initialization_mode(self) -> None:
         try:
-            if self._model_stale or self._M is None:
-                self._assemble("fmi2ExitInitializationMode")
+            if (self._model_stale or self._plan is None) and not self._assemble():
+                self._error("fmi2ExitInitializationMode", self._problem)
         except Exception as exc:
             self._error("fmi2ExitInitializationMode", f"{type(exc).__name__}: {exc}")
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         try:
-            ratio = step_size / self._dt
-            n = round(ratio) if math.isfinite(ratio) else 0
-            if n < 1 or abs(ratio - n) > STEP_TOLERANCE:
-                self._error("fmi2DoStep", f"communication step size {step_size!r} s is not a positive integer "
-                                          f"multiple of the sample time dt = {self._dt!r} s")
-                return False
-            if self._model_stale and not self._assemble("fmi2DoStep"):
-                return False
-            M, z, x, nxt = self._M, self._z, self._x, self._next
-            for _ in range(n):
-                np.dot(M, z, out=nxt)
-                x[:] = nxt
-            self._time += n * self._dt
-            self._outputs_stale = True
-            return True
+            if step_size == self._dt and not self._model_stale:  # the hot path
+                self._W.dot(self._z, out=self._buf)
+                self._x[...] = self._next_x
+                self._cx_valid = True
+                self._outputs_stale = True
+                return True
+            return self._do_steps(step_size)
         except Exception as exc:
             self._error("fmi2DoStep", f"{type(exc).__name__}: {exc}")
             return False
+
+    def _do_steps(self, step_size: float) -> bool:
+        ratio = step_size / self._dt
+        n = round(ratio) if math.isfinite(ratio) else 0
+        if n < 1 or abs(ratio - n) > STEP_TOLERANCE:
+            self._error("fmi2DoStep", f"communication step size {step_size!r} s is not a positive "
+                                      f"integer multiple of the sample time dt = {self._dt!r} s")
+            return False
+        if self._model_stale and not self._assemble():
+            self._error("fmi2DoStep", self._problem)
+            return False
+        W, z, buf, x, next_x = self._W, self._z, self._buf, self._x, self._next_x
+        for _ in range(n):
+            W.dot(z, out=buf)
+            x[...] = next_x
+        self._cx_valid = True
+        self._outputs_stale = True
+        return True
 
     def terminate(self) -> None:
         pass
 
     def get_real(self, vrs: Sequence[int]) -> list[float]:
         try:
-            if self._outputs_stale:
+            if self._outputs_stale and not self._refresh_outputs():
                 o0, o1 = self._outputs
-                for vr in vrs:
-                    if o0 <= vr < o1:
-                        if not self._refresh_outputs("fmi2GetReal"):
-                            return [math.nan] * len(vrs)
-                        break
+                if any(o0 <= vr < o1 for vr in vrs):
+                    self._error("fmi2GetReal", self._problem)
+                    return [math.nan] * len(vrs)
             reals = self._reals
             values = [reals[vr] for vr in vrs]
             if None in values:
@@ -287,19 +313,20 @@ class BeamSlave(Fmi2Slave):
         try:
             roles, reals = self._roles, self._reals
             for vr, value in zip(vrs, values):
-                role = roles[vr] if 0 <= vr < len(roles) else None
-                if role is None:
+                try:
+                    kind, key = roles[vr]
+                except (IndexError, TypeError):
                     self._error("fmi2SetReal", f"variable {self._name(vr)} cannot be set")
                     continue
-                kind, key = role
                 if kind == 0:  # input
                     if not math.isfinite(value):
                         self._error("fmi2SetReal", f"input {self._name(vr)} = {value!r} is not a finite number")
                         continue
                     reals[vr] = value
-                    if self._z is not None:
-                        self._z[self._nx + key] = value
-                else:  # parameter
+                    self._u[key] = value
+                    if self._plan is not None:
+                        self._z[self._plan.nx + key] = value  # C x stays valid; D u is added on reading
+                else:  # parameter: used from the next assembly on
                     self._params[key] = value
                     reals[vr] = value
                     self._model_stale = True
@@ -337,6 +364,37 @@ class BeamSlave(Fmi2Slave):
     def _name(self, vr: int) -> str:
         var = self.vars.get(vr)
         return f"{var.name!r} (value reference {vr})" if var is not None else f"with value reference {vr}"
+
+
+class _StepPlan:
+    """One sample of ``x+ = A x + B u`` and the outputs ``C x+`` as one matrix-vector product.
+
+    ``W = [[A, B], [C A, C B]]`` acts on ``z = (x, u)``: its first ``nx``
+    entries are the next state, the others ``C x+``, so that reading the
+    outputs after a step costs no further product; ``D u`` of the inputs set
+    after the step is added when the outputs are read.  ``W`` is stored in
+    column-major order (a slightly faster ``dgemv`` for these sizes).
+
+    Parameters
+    ----------
+    A, B, C, D
+        The discrete system (``C``, ``D`` include the field rows, if any).
+    """
+
+    def __init__(self, A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray) -> None:
+        A, B, C, D = (np.asarray(m, dtype=float) for m in (A, B, C, D))
+        nx, nu = B.shape
+        self.nx, self.nu = nx, nu
+        self.W = np.asfortranarray(np.vstack([np.hstack([A, B]), np.hstack([C @ A, C @ B])]))
+        #: ``[C 0]``: the outputs' state part of the current ``z`` (when no step has computed it)
+        self.N = np.ascontiguousarray(np.hstack([C, np.zeros_like(D)]))
+        self.buf = np.empty(self.W.shape[0])
+        self.next_x = self.buf[:nx]
+        self.cx = self.buf[nx:]
+        #: (output row, row of D as a list) for every output with direct feedthrough
+        self.feedthrough: list[tuple[int, list[float]]] = [
+            (i, D[i].tolist()) for i in range(D.shape[0]) if D[i].any()
+        ]
 
 
 def _dedupe_sys_path(resources: str) -> None:

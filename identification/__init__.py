@@ -1,0 +1,1 @@
+"""Identification of the beam: experiments, objectives, optimiser, identifiability, exports."""

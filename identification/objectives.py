@@ -1,0 +1,79 @@
+"""Objectives of the identification: output errors and the stabilising objective.
+
+Output error
+------------
+The normalised RMS error of sensor ``s`` over the samples of all experiments
+
+.. math::
+
+    e_s = \\frac{\\lVert y_s^{sim} - y_s^{meas} \\rVert_2}{\\lVert y_s^{meas} - \\bar y_s^{meas} \\rVert_2},
+
+0 for a perfect fit, 1 for a model no better than the measurement's mean
+(``1 - e_s`` is the "fit" of MATLAB's ``compare`` as a fraction).  With
+``per = "experiment"`` the errors of all sensors of one experiment are pooled
+(squared errors summed, each sensor normalised by its own spread) instead.
+
+Stabilising objective
+---------------------
+The maximum growth factor of the θ-scheme's dispersion relation over the
+grid's wavenumbers (:func:`ebb_model.max_growth_factor`), after Talic et al.:
+it is ≤ 1 for a stable scheme; minimising it steers the front away from
+unstable and marginal (undamped) parameter sets.
+
+Penalty
+-------
+Candidates whose finite beam is unstable (spectral radius of Φ above one) are
+never simulated; they get :data:`PENALTY` plus their spectral radius on every
+output-error objective, so the values stay finite and ordered (never NaN).
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+__all__ = ["PENALTY", "nrmse", "objective_names", "output_errors"]
+
+#: Objective value given to unstable candidates (plus their spectral radius).
+PENALTY = 1.0e3
+
+
+def nrmse(y_sim: np.ndarray, y_meas: np.ndarray) -> np.ndarray:
+    """Normalised RMS error per column (see the module docstring)."""
+    y_sim = np.atleast_2d(np.asarray(y_sim, dtype=float).T).T
+    y_meas = np.atleast_2d(np.asarray(y_meas, dtype=float).T).T
+    num = np.linalg.norm(y_sim - y_meas, axis=0)
+    den = np.linalg.norm(y_meas - y_meas.mean(axis=0), axis=0)
+    return num / np.where(den > 0, den, 1.0)
+
+
+def objective_names(sensor_names: Sequence[str], experiment_names: Sequence[str], *, per: str = "sensor",
+                    stabilising: bool = True) -> tuple[str, ...]:
+    """Names of the objectives, in the order of :func:`output_errors` (+ ``growth_factor``)."""
+    if per not in ("sensor", "experiment"):
+        raise ValueError(f"per must be 'sensor' or 'experiment', got {per!r}")
+    base = tuple(f"nrmse_{s}" for s in sensor_names) if per == "sensor" \
+        else tuple(f"nrmse_{e}" for e in experiment_names)
+    return base + (("growth_factor",) if stabilising else ())
+
+
+def output_errors(sims: Sequence[np.ndarray], meas: Sequence[np.ndarray], *, per: str = "sensor") -> np.ndarray:
+    """Output-error objectives of one candidate.
+
+    Parameters
+    ----------
+    sims, meas
+        Simulated and measured outputs per experiment, each (n_samples_e, n_sensors).
+    per
+        ``"sensor"``: one objective per sensor, pooled over experiments;
+        ``"experiment"``: one per experiment, pooled over sensors.
+    """
+    if per == "sensor":
+        num = sum(np.sum((s - m) ** 2, axis=0) for s, m in zip(sims, meas))
+        den = sum(np.sum((m - m.mean(axis=0)) ** 2, axis=0) for m in meas)
+        return np.sqrt(num / np.where(den > 0, den, 1.0))
+    out = []
+    for s, m in zip(sims, meas):
+        den = np.sum((m - m.mean(axis=0)) ** 2, axis=0)
+        out.append(np.sqrt(np.mean(np.sum((s - m) ** 2, axis=0) / np.where(den > 0, den, 1.0))))
+    return np.array(out)

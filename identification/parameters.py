@@ -1,0 +1,129 @@
+"""The unknowns of an identification: physical parameters and uncertain positions.
+
+Physical parameters are those of the config's ``[parameters]`` table with
+``identify = true`` (bounds required).  Positions of actuators and sensors can
+be unknowns too (real test benches rarely give them exactly), declared in the
+config's ``[identification]`` table::
+
+    [identification]
+    positions = { force = [0.65, 0.75], accel = [0.55, 0.70] }   # name = [lo, hi] in m
+
+They are named ``x_<name>``.  A candidate vector ``X`` (in the order of
+:attr:`ParameterSpace.names`) maps to a config with the positions moved and a
+dict of physical parameter values (:meth:`ParameterSpace.apply`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any, Mapping
+
+import numpy as np
+
+from ebb_model.beam import PARAMETER_NAMES
+from ebb_model.config import BeamConfig
+from ebb_model.errors import ConfigError
+
+__all__ = ["ParameterSpace", "parameter_space"]
+
+
+@dataclass(frozen=True)
+class ParameterSpace:
+    """Names, bounds and nominal values of the unknowns, in a fixed order."""
+
+    names: tuple[str, ...]
+    lower: np.ndarray
+    upper: np.ndarray
+    nominal: np.ndarray
+
+    def __post_init__(self) -> None:
+        for k in ("lower", "upper", "nominal"):
+            a = np.array(getattr(self, k), dtype=float)
+            a.setflags(write=False)
+            object.__setattr__(self, k, a)
+
+    @property
+    def dim(self) -> int:
+        """Number of unknowns."""
+        return len(self.names)
+
+    def is_position(self, name: str) -> bool:
+        """Whether ``name`` is a position unknown (``x_<actuator or sensor>``)."""
+        return name.startswith("x_")
+
+    def apply(self, config: BeamConfig, x: np.ndarray) -> tuple[BeamConfig, dict[str, float]]:
+        """Config with moved positions and the physical parameter values of candidate ``x``."""
+        x = np.asarray(x, dtype=float)
+        if x.shape != (self.dim,):
+            raise ValueError(f"candidate has shape {x.shape}, expected ({self.dim},)")
+        params = config.parameter_values()
+        moves: dict[str, float] = {}
+        for name, v in zip(self.names, x):
+            if self.is_position(name):
+                moves[name[2:]] = float(v)
+            else:
+                params[name] = float(v)
+        if moves:
+            config = replace(
+                config,
+                actuators=tuple(replace(a, x=moves.get(a.name, a.x)) for a in config.actuators),
+                sensors=tuple(replace(s, x=moves.get(s.name, s.x)) for s in config.sensors),
+            )
+        return config, params
+
+    def to_dict(self, x: np.ndarray) -> dict[str, float]:
+        """``{name: value}`` of a candidate."""
+        return {n: float(v) for n, v in zip(self.names, np.asarray(x, dtype=float))}
+
+
+def parameter_space(config: BeamConfig, *, extra_positions: Mapping[str, tuple[float, float]] | None = None
+                    ) -> ParameterSpace:
+    """The unknowns declared by ``config`` (``identify = true`` and ``[identification].positions``).
+
+    Raises
+    ------
+    ConfigError
+        No unknowns, bad position bounds, or a position for an unknown name.
+    """
+    names: list[str] = []
+    lo: list[float] = []
+    hi: list[float] = []
+    nom: list[float] = []
+    for k in PARAMETER_NAMES:
+        spec = config.parameters[k]
+        if spec.identify:
+            assert spec.bounds is not None  # guaranteed by the config validation
+            names.append(k)
+            lo.append(spec.bounds[0])
+            hi.append(spec.bounds[1])
+            nom.append(spec.value)
+    ident: Any = config.extra.get("identification", {}) or {}
+    positions = dict(ident.get("positions", {}) if isinstance(ident, Mapping) else {})
+    positions.update(extra_positions or {})
+    points = {a.name: a.x for a in config.actuators} | {s.name: s.x for s in config.sensors}
+    problems = []
+    for name, b in positions.items():
+        where = f"identification.positions.{name}"
+        if name not in points:
+            problems.append(f"{where}: no actuator or sensor of that name")
+            continue
+        if not isinstance(b, (list, tuple)) or len(b) != 2:
+            problems.append(f"{where}: must be [lo, hi] in m")
+            continue
+        a, c = float(b[0]), float(b[1])
+        if not (math.isfinite(a) and math.isfinite(c)) or not a < c:
+            problems.append(f"{where}: lower bound must be < upper bound, got [{a:g}, {c:g}]")
+            continue
+        if a < 0 or c > config.beam.length:
+            problems.append(f"{where}: [{a:g}, {c:g}] leaves the beam [0, {config.beam.length:g}] m")
+            continue
+        names.append(f"x_{name}")
+        lo.append(a)
+        hi.append(c)
+        nom.append(min(max(points[name], a), c))
+    if problems:
+        raise ConfigError(problems)
+    if not names:
+        raise ConfigError("parameters: nothing to identify (set identify = true with bounds on at least "
+                          "one parameter, or give [identification].positions)")
+    return ParameterSpace(tuple(names), np.array(lo), np.array(hi), np.array(nom))

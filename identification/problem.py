@@ -1,0 +1,60 @@
+"""The identification as a pymoo ``Problem``: unknowns, bounds, objectives, population evaluation.
+
+Following pymoo's roles (Problem / Algorithm / Result kept apart): the problem
+declares the parameter names, bounds and objective names and evaluates a whole
+population at once (``F`` of shape (n, n_obj)) through an injected runner.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from pymoo.core.problem import Problem
+
+from .runners import Runner, SerialRunner
+
+__all__ = ["IdentificationProblem"]
+
+
+class IdentificationProblem(Problem):
+    """Multi-objective output-error identification.
+
+    Parameters
+    ----------
+    evaluator
+        Picklable evaluator (``evaluate(X) -> F``) with ``space`` and ``n_obj``.
+    objective_names
+        Names of the objectives, in order.
+    runner
+        Parallel runner; not pickled with the problem (re-attach after loading
+        a checkpoint with :meth:`attach`).
+    """
+
+    def __init__(self, evaluator: Any, objective_names: tuple[str, ...], runner: Runner | None = None):
+        space = evaluator.space
+        super().__init__(n_var=space.dim, n_obj=len(objective_names), xl=np.asarray(space.lower),
+                         xu=np.asarray(space.upper))
+        self.evaluator = evaluator
+        self.parameter_names = tuple(space.names)
+        self.objective_names = tuple(objective_names)
+        self.runner: Runner = runner or SerialRunner()
+        self.n_evaluations = 0
+
+    def attach(self, runner: Runner) -> None:
+        """Use ``runner`` from now on."""
+        self.runner = runner
+
+    def _evaluate(self, X: np.ndarray, out: dict, *args: Any, **kwargs: Any) -> None:
+        F = self.runner(self.evaluator, np.asarray(X, dtype=float))
+        self.n_evaluations += len(X)
+        out["F"] = F
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["runner"] = None
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        if self.runner is None:
+            self.runner = SerialRunner()

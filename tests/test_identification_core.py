@@ -1,0 +1,147 @@
+"""Identification building blocks: unknowns, objectives, penalties, Fisher information, GA checkpoints."""
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+
+import ebb_model as em
+from ebb_model import ConfigError
+from identification.fisher import estimate_noise_std, experiments_from_arrays, fisher_information
+from identification.native import NativeEvaluator
+from identification.objectives import PENALTY, nrmse, objective_names
+from identification.optimise import knee_index, optimise
+from identification.parameters import parameter_space
+from identification.problem import IdentificationProblem
+from identification.runners import SerialRunner
+
+from conftest import make_config
+
+
+def seed_like(**kw):
+    cfg = make_config(nodes=20, N=50.0, **kw)
+    d = cfg.to_dict()
+    d["parameters"]["EI"].update(bounds=[5.0, 20.0], identify=True)
+    d["parameters"]["N"].update(bounds=[0.0, 100.0], identify=True)
+    return em.config_from_dict(d, extra_sections=("identification",))
+
+
+def synthetic(cfg, n=1500, noise=0.01, seed=0):
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal((n, 1))
+    y = em.simulate_config(cfg, u).outputs
+    return u, y + noise * y.std(axis=0) * rng.standard_normal(y.shape)
+
+
+def test_config_pickles():
+    cfg = seed_like()
+    assert pickle.loads(pickle.dumps(cfg)).to_dict() == cfg.to_dict()
+
+
+def test_nrmse_definition():
+    y = np.sin(np.linspace(0, 10, 200))[:, None]
+    assert nrmse(y, y)[0] == 0.0
+    assert nrmse(np.full_like(y, y.mean()), y)[0] == pytest.approx(1.0)
+
+
+def test_unstable_candidates_get_finite_penalties():
+    cfg = seed_like(right="free", c=0.1)
+    u, y = synthetic(cfg)
+    d = cfg.to_dict()
+    d["parameters"]["N"]["bounds"] = [-100.0, 100.0]
+    cfg = em.config_from_dict(d)
+    sp = parameter_space(cfg)
+    ev = NativeEvaluator(cfg, sp, experiments_from_arrays([("e", u, y)]))
+    F = ev.evaluate(np.array([[10.0, 50.0], [10.0, -90.0]]))  # cantilever buckles at N = -pi^2/4 EI
+    assert np.all(np.isfinite(F))
+    assert F[0, 0] < 0.05 and F[1, 0] > PENALTY
+    assert objective_names(cfg.output_names, ["e"]) == ("nrmse_y1", "nrmse_y2", "growth_factor")
+
+
+def test_fisher_full_rank_and_cramer_rao_matches_scatter_of_estimates():
+    cfg = seed_like(c=0.5)
+    sp = parameter_space(cfg)
+    u, y = synthetic(cfg, noise=0.0)
+    sigma = 1e-3 * y.std(axis=0)
+    ev = NativeEvaluator(cfg, sp, experiments_from_arrays([("e", u, y)]))
+    rep = fisher_information(ev, sp.nominal, noise_std=sigma)
+    assert rep.rank == 2 and not rep.singular
+    assert np.all(rep.cramer_rao_std > 0) and np.all(np.isfinite(rep.cramer_rao_std))
+    # linearised estimator scatter over noise realisations equals the Cramér–Rao bound
+    from identification.fisher import sensitivities
+
+    S = sensitivities(ev, sp.nominal)[0]  # (n, sensors, dim)
+    J = (S / sigma[None, :, None]).reshape(-1, 2)
+    rng = np.random.default_rng(5)
+    est = []
+    for _ in range(300):
+        e = (rng.standard_normal(y.shape)).reshape(-1)
+        est.append(np.linalg.lstsq(J, e, rcond=None)[0])
+    emp = np.std(est, axis=0) * rep.scales
+    np.testing.assert_allclose(emp, rep.cramer_rao_std, rtol=0.15)
+
+
+def test_fisher_names_the_unidentifiable_direction():
+    """Sensor and force at mid-span of a symmetric beam: only symmetric modes respond, so the
+    sensor position has zero sensitivity — the matrix is singular and the report says which unknown."""
+    d = seed_like().to_dict()
+    d["actuators"] = [{"name": "F1", "x": 0.5}]
+    d["sensors"] = [{"name": "y1", "x": 0.5}]
+    d["identification"] = {"positions": {"y1": [0.4, 0.6]}}
+    cfg = em.config_from_dict(d, extra_sections=("identification",))
+    sp = parameter_space(cfg)
+    assert sp.names == ("EI", "N", "x_y1")
+    u, y = synthetic(cfg)
+    rep = fisher_information(NativeEvaluator(cfg, sp, experiments_from_arrays([("e", u, y)])), sp.nominal)
+    assert rep.singular
+    assert any("x_y1" in m for m in rep.messages)
+
+
+def test_noise_estimate_from_second_differences():
+    rng = np.random.default_rng(1)
+    t = np.linspace(0, 1, 20000)
+    y = np.sin(2 * np.pi * 3 * t)[:, None] + 0.01 * rng.standard_normal((t.size, 1))
+    assert estimate_noise_std(y)[0] == pytest.approx(0.01, rel=0.05)
+
+
+def test_bad_position_bounds():
+    d = seed_like().to_dict()
+    d["identification"] = {"positions": {"y1": [0.6, 0.4], "nope": [0.1, 0.2]}}
+    with pytest.raises(ConfigError) as ei:
+        parameter_space(em.config_from_dict(d, extra_sections=("identification",)))
+    assert "identification.positions.y1" in str(ei.value) and "identification.positions.nope" in str(ei.value)
+
+
+class _Interrupting(SerialRunner):
+    """Dies (like a killed run) when asked for the given evaluation call."""
+
+    def __init__(self, die_at_call: int):
+        self.calls = 0
+        self.die_at_call = die_at_call
+
+    def __call__(self, evaluator, X):
+        self.calls += 1
+        if self.calls == self.die_at_call:
+            raise KeyboardInterrupt
+        return super().__call__(evaluator, X)
+
+
+def test_checkpoint_resume_gives_identical_front(tmp_path):
+    cfg = seed_like(c=0.3)
+    u, y = synthetic(cfg, n=400)
+    sp = parameter_space(cfg)
+    ev = NativeEvaluator(cfg, sp, experiments_from_arrays([("e", u, y)]))
+    names = objective_names(cfg.output_names, ["e"])
+    kw = dict(pop=8, generations=5, seed=7, progress=False)
+    (tmp_path / "a").mkdir()
+    full = optimise(IdentificationProblem(ev, names), out_dir=tmp_path / "a", **kw)
+    (tmp_path / "b").mkdir()
+    with pytest.raises(KeyboardInterrupt):
+        optimise(IdentificationProblem(ev, names), out_dir=tmp_path / "b", runner=_Interrupting(3), **kw)
+    assert (tmp_path / "b" / "checkpoint.pkl").exists()
+    resumed = optimise(IdentificationProblem(ev, names), out_dir=tmp_path / "b", resume=True, **kw)
+    np.testing.assert_array_equal(full.X, resumed.X)
+    np.testing.assert_array_equal(full.F, resumed.F)
+    assert resumed.generations == 5
+    assert knee_index(full.F) == full.knee
