@@ -145,3 +145,20 @@ def test_checkpoint_resume_gives_identical_front(tmp_path):
     np.testing.assert_array_equal(full.F, resumed.F)
     assert resumed.generations == 5
     assert knee_index(full.F) == full.knee
+
+
+def test_statespace_export_roundtrip_and_balanced_truncation_bound(tmp_path):
+    from identification.export_statespace import balanced_truncation, load_statespace, save_statespace
+
+    cfg = make_config(nodes=20, c=2.0, dt=1e-3)
+    sys = em.assemble(cfg)
+    cs = load_statespace(save_statespace(sys, tmp_path / "m.npz"))
+    assert cs.dt == sys.dt and list(cs.input_labels) == ["F1"] and list(cs.output_labels) == ["y1", "y2"]
+    np.testing.assert_array_equal(cs.A, sys.A)
+    bm = balanced_truncation(sys, 8)
+    f = np.linspace(0.0, 0.5 / sys.dt, 2001)
+    err = np.abs(em.frequency_response(sys, f).H - em.frequency_response(bm.system, f).H).max()
+    assert err <= bm.error_bound
+    assert np.all(np.diff(bm.hankel_singular_values) <= 1e-15)
+    with pytest.raises(em.StabilityError, match="asymptotically stable"):
+        balanced_truncation(em.assemble(make_config(nodes=10)), 4)
