@@ -1,5 +1,5 @@
 """Stability of the θ-scheme: Bistritz zero-location test and the dispersion relation."""
-from .bistritz import ZeroLocation, bistritz
+from .bistritz import ZeroLocation, bistritz, bistritz_sequence
 from .dispersion import (
     StabilityReport,
     analyse_stability,
@@ -12,7 +12,7 @@ from .dispersion import (
 )
 
 __all__ = [
-    "ZeroLocation", "bistritz", "StabilityReport", "analyse_stability",
+    "ZeroLocation", "bistritz", "bistritz_sequence", "StabilityReport", "analyse_stability",
     "bistritz_values", "dispersion_coefficients", "growth_factors", "max_growth_factor",
     "stability_bounds", "wavenumbers",
 ]

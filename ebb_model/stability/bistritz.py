@@ -7,8 +7,8 @@ For a real polynomial
     D(z) = d_n z^n + d_{n-1} z^{n-1} + \dots + d_0 ,
 
 the test counts the zeros of :math:`D` inside, on and outside the unit circle
-without computing them.  It only uses additions, multiplications and ``n``
-divisions, so with :class:`fractions.Fraction` coefficients it runs in exact
+without computing them.  It only uses additions, multiplications and about
+``n`` divisions, so with :class:`fractions.Fraction` coefficients it runs in exact
 rational arithmetic and gives exact verdicts, including the *singular* cases
 (zeros on the unit circle, reciprocal zero pairs :math:`r, 1/r`).
 
@@ -106,16 +106,22 @@ the operands ``x`` was computed from:
   :math:`B_k` the multiplied polynomial of the step;
 * the restart pair against :math:`S = \|p\|_\infty`.
 
-The default ``tol = 1000 * eps`` (about ``2.2e-13``) never reported a
-spurious unit-circle zero in our randomised tests (roots down to ``1e-6``
-from the circle), but it misses some unit-circle zeros of polynomials whose
-coefficients were *rounded* (e.g. produced by :func:`numpy.poly`): rounding
-moves such zeros off the circle by far more than ``eps`` and the recursion
-amplifies it.  Pass a larger ``tol`` (say ``1e-9``) when coefficients are
-known only to that relative accuracy, or pass :class:`~fractions.Fraction`
+The default ``tol = 1000 * eps`` (about ``2.2e-13``) is a compromise.  In
+our randomised tests (about ``10^5`` polynomials of degree <= 8 with all
+roots at least ``1e-6`` away from the circle) the only spurious unit-circle
+zeros were of polynomials with several zeros clustered within a few percent
+of ``z = 1``, for which ``|D(1)|`` falls below ``tol * sum|d_i|`` (such a
+polynomial *is* within the tolerance of one with a zero at ``z = 1``).
+Conversely, unit-circle zeros of polynomials whose coefficients were
+*rounded* (e.g. produced by :func:`numpy.poly`) are missed in a few percent
+of the cases, because rounding moves them off the circle and the recursion
+amplifies that.  Pass a larger ``tol`` (say ``1e-9``) when the coefficients
+are known only to that relative accuracy, or :class:`~fractions.Fraction`
 coefficients (``Fraction(x)`` is exact for a float ``x``) for the exact
-verdict on the polynomial as given.  Zero coefficients are only stripped at
-the ends when they are exactly zero.
+verdict on the polynomial as given.  Like the Schur-Cohn and Jury
+recursions the test is not backward stable: for high degrees (beyond ~100)
+the float verdict can differ from the exact one.  Zero coefficients at the
+ends are only stripped when they are exactly zero.
 
 References
 ----------
@@ -322,6 +328,17 @@ def _run(coefficients: Any, tol: float | None, *, normalise: bool) -> _Run:
         _check_tol(tol)  # validated, then ignored: exact zero tests
     zero: _Number = Fraction(0) if exact else 0.0
 
+    def shift(p: list[_Number], always: bool = False) -> int:
+        # Exact power-of-two rescaling against overflow/underflow in float
+        # arithmetic: it changes no rounding, no sign and no relative test.
+        if exact or not (normalise or always):
+            return 0
+        big = _norm(p)
+        return 0 if big == 0 else -math.frexp(big)[1]
+
+    def rescaled(p: list[_Number], e: int) -> list[_Number]:
+        return p if e == 0 else [math.ldexp(x, e) for x in p]
+
     # -- step 0: reduction ---------------------------------------------------
     while d and d[-1] == 0:
         d.pop()
@@ -331,27 +348,20 @@ def _run(coefficients: Any, tol: float | None, *, normalise: bool) -> _Run:
     while d[0] == 0:               # d[-1] != 0, so this stops
         d.pop(0)
         at_zero += 1
+    e0 = shift(d, always=True)     # the sums below must not overflow
+    d = rescaled(d, e0)
     at_one = 0
     while len(d) > 1 and abs(_total(d, exact)) <= eps_rel * sum(abs(x) for x in d):
         d = _div_z_minus_1(d, zero)
         at_one += 1
     n = len(d) - 1
-
-    def power_of_two(p: list[_Number]) -> float:
-        # Exact power-of-two rescaling against overflow/underflow in float
-        # arithmetic: it changes no rounding, no sign and no relative test.
-        if exact or not normalise:
-            return 1.0
-        big = _norm(p)
-        return 1.0 if big == 0 else math.ldexp(1.0, -math.frexp(big)[1])
-
-    def rescaled(p: list[_Number], factor: float) -> list[_Number]:
-        return p if factor == 1.0 else [x * factor for x in p]
+    if not normalise:
+        d = rescaled(d, -e0)       # bistritz_sequence: the unscaled polynomial
 
     # -- step 1: initial pair ------------------------------------------------
     d_rev = d[::-1]
     t_n = _symmetrise([a + b for a, b in zip(d, d_rev)], exact)
-    sequence: list[list[_Number]] = [rescaled(t_n, power_of_two(t_n))]
+    sequence: list[list[_Number]] = [rescaled(t_n, shift(t_n))]
     s: int | None = None
     s_index: int | None = None
     if n == 0:
@@ -373,16 +383,17 @@ def _run(coefficients: Any, tol: float | None, *, normalise: bool) -> _Run:
             p = [(i - deg_top) * top[i] for i in range(deg_top)]
             p_rev = p[::-1]
             t_new = _symmetrise([a + b for a, b in zip(p, p_rev)], exact)
-            sequence.append(rescaled(t_new, power_of_two(t_new)))
+            sequence.append(rescaled(t_new, shift(t_new)))
             if deg_top == 1:
                 break                              # that was T_0
             candidate = _div_z_minus_1([a - b for a, b in zip(p, p_rev)], zero)
             scale = _norm(p)
             continue
 
-        factor = power_of_two(candidate)
-        t_k = rescaled(candidate, factor)
-        threshold = threshold * factor
+        e = shift(candidate)
+        t_k = rescaled(candidate, e)
+        if e:
+            threshold = math.ldexp(threshold, e)
         sequence.append(t_k)
         k = len(t_k) - 1
         if k == 0:
@@ -491,8 +502,9 @@ def bistritz_sequence(coefficients: Sequence[Any] | np.ndarray, *, tol: float | 
         polynomials are replaced by the restart pair built from
         :math:`p = z T_s' - s T_s`.  The arrays have dtype ``float`` or, for
         exact input, ``object`` holding :class:`fractions.Fraction`.  The
-        polynomials are those of the recursion, not normalised (very high
-        degrees may overflow here, while :func:`bistritz` rescales).
+        polynomials are those of the recursion, not normalised: extreme
+        coefficients or very high degrees may overflow here, while
+        :func:`bistritz` rescales every ``T_k`` by an exact power of two.
 
     Examples
     --------
