@@ -98,7 +98,7 @@ class Experiment:
             bad = np.argwhere(~np.isfinite(arr))
             if bad.size:
                 i, j = bad[0]
-                raise DataError(f"{where}: {label} {cols[j]!r} has a non-finite value ({arr[i, j]!r}) "
+                raise DataError(f"{where}: {label} {cols[j]!r} has a non-finite value ({float(arr[i, j])!r}) "
                                 f"at sample {i} (t = {t[i]:.9g} s)")
         units = {str(k): str(v) for k, v in dict(self.units).items()}
         extra = sorted(set(units) - set(names))

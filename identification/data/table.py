@@ -45,6 +45,9 @@ class RawTable:
         Default time channel (a name or index) when ``time`` is ``None``.
     time_tolerance
         Maximum error of the stored ``time`` values (``0.0`` if exact).
+    unusable
+        For each channel, why it cannot be a signal (e.g. "is a frequency
+        response, not a time history"), or ``None``; empty = all usable.
     """
 
     source: str
@@ -56,6 +59,11 @@ class RawTable:
     time: np.ndarray | None = None
     time_key: str | int = "time"
     time_tolerance: float = 0.0
+    unusable: tuple[str | None, ...] = ()
+
+    def why_unusable(self, i: int) -> str | None:
+        """Reason why channel ``i`` cannot be used, or ``None``."""
+        return self.unusable[i] if i < len(self.unusable) else None
 
     def index(self, key: str | int) -> int | None:
         """Channel index of a name or index; ``None`` if there is no such channel."""
@@ -81,13 +89,16 @@ def printed_resolution(tokens: Sequence[str]) -> float:
     """Largest quantum ``10**(exponent - decimals)`` among printed numbers.
 
     ``"0.000312"`` has quantum 1e-6, ``"3.12500E-4"`` 1e-9, ``"19"`` 1.
-    Tokens that are not plain numbers (``"NaN"``) are ignored; ``0.0`` if none
-    is a number.
+    Tokens that are not plain numbers (``"NaN"``) and zeros printed without
+    decimals (``"0"``, as ``%g`` writes them) say nothing about the precision
+    and are ignored; ``0.0`` if no token is left.
     """
     res = 0.0
     for tok in tokens:
         m = _NUMBER.match(tok.strip())
         if not m or not any(c.isdigit() for c in tok):
+            continue
+        if not m.group(1) and float(tok.replace("d", "e").replace("D", "e")) == 0.0:
             continue
         decimals = len(m.group(1) or "")
         exponent = int(m.group(2) or 0)

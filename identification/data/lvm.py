@@ -1,0 +1,192 @@
+"""LabVIEW measurement files (``.lvm``, text format, Writer_Version 2).
+
+Layout (National Instruments, "Specification of the LabVIEW Measurement File
+(.lvm)", NI tutorial 4139)::
+
+    LabVIEW Measurement            <- file header: key<sep>value lines
+    Separator   Tab
+    Decimal_Separator   .
+    X_Columns   One                <- No | One | Multi
+    ...
+    ***End_of_Header***
+                                   <- segment header (one per segment)
+    Channels    3
+    Y_Unit_Label    Volts   Pounds  g
+    X0  0.0E+0 ...
+    Delta_X 1.953125E-5 ...
+    ***End_of_Header***
+    X_Value Voltage Force Acceleratio [Comment]   <- column headings
+    0.000000    -0.170586   -3.399325   -0.016694 <- data rows
+    ...                                            (further segments may follow)
+
+The reader locates the ``***End_of_Header***`` markers with a regular
+expression (no fixed number of header lines), honours ``Separator``,
+``Decimal_Separator`` and ``X_Columns``, and parses each data block with
+:func:`numpy.loadtxt` (the 63,041-row ARTS-Lab record takes well under a
+second).  Segments are concatenated in file order.
+
+Time: with ``X_Columns = One`` the first column (``X_Value``) is the time and
+wins over the header's ``X0``/``Delta_X`` -- in the ARTS-Lab record (decimated
+from 51.2 kHz to 3200 Hz after acquisition) ``Delta_X`` still says
+1.953125e-5 s while the X column steps by 3.125e-4 s.  With ``X_Columns = No``
+the time is ``X0 + k * Delta_X`` of each segment.  Units come from
+``Y_Unit_Label`` (``"Pounds"``, ``"g"``, ``"Volts"``).
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ebb_model.errors import DataError
+
+from .csv_format import read_text
+from .table import RawTable, printed_resolution
+from .textblock import column_resolutions, edge_lines, parse_block
+
+__all__ = ["read_lvm"]
+
+_MARK = re.compile(r"^\*\*\*End_of_Header\*\*\*[^\n]*(?:\n|\Z)", re.MULTILINE)
+# a line that starts like a number (LabVIEW writes NaN, Inf, -Inf too)
+_NUMERIC_START = r"[ \t]*(?:[-+]?(?:\d|\.\d)|[-+]?nan\b|[-+]?inf)"
+_NUMERIC_LINE = re.compile(_NUMERIC_START, re.IGNORECASE)
+_TEXT_LINE = re.compile(rf"^(?!{_NUMERIC_START})[ \t]*\S", re.MULTILINE | re.IGNORECASE)
+_SEPARATORS = {"tab": "\t", "comma": ","}
+
+
+def _header(block: str, sep: str | None) -> dict[str, list[str]]:
+    out: dict[str, list[str]] = {}
+    for line in block.split("\n"):
+        if not line.strip():
+            continue
+        s = sep if sep is not None else ("\t" if "\t" in line else ",")
+        fields = [f.strip() for f in line.split(s)]
+        while len(fields) > 1 and not fields[-1]:
+            fields.pop()
+        out.setdefault(fields[0], fields[1:])
+    return out
+
+
+def _floats(values: list[str], key: str, source: str, decimal: str) -> list[float]:
+    try:
+        return [float(v.replace(decimal, ".")) for v in values]
+    except ValueError:
+        raise DataError(f"{source}: header field {key} is not numeric ({values!r})") from None
+
+
+def read_lvm(path: str | Path) -> RawTable:
+    """Read a LabVIEW ``.lvm`` file into a :class:`~identification.data.table.RawTable`.
+
+    Raises
+    ------
+    DataError
+        Not an LVM file, no ``***End_of_Header***`` marker, unsupported
+        separator, no data, segments with different columns, malformed rows
+        (naming line, sample and column).
+    """
+    p = Path(path)
+    src = str(p)
+    text = read_text(p).replace("\r\n", "\n").replace("\r", "\n")
+    if not text.lstrip().startswith("LabVIEW Measurement"):
+        raise DataError(f"{src}: not a LabVIEW measurement file (first line is not 'LabVIEW Measurement')")
+    marks = list(_MARK.finditer(text))
+    if not marks:
+        raise DataError(f"{src}: no ***End_of_Header*** line; not a LabVIEW measurement file")
+    file_hdr = _header(text[: marks[0].start()], None)
+    sep_name = (file_hdr.get("Separator") or ["Tab"])[0]
+    sep = _SEPARATORS.get(sep_name.lower())
+    if sep is None:
+        raise DataError(f"{src}: unsupported Separator {sep_name!r}; allowed: Tab, Comma")
+    decimal = (file_hdr.get("Decimal_Separator") or ["."])[0] or "."
+    if decimal not in (".", ","):
+        raise DataError(f"{src}: unsupported Decimal_Separator {decimal!r}; allowed: '.', ','")
+    if decimal == "," and sep == ",":
+        raise DataError(f"{src}: Decimal_Separator ',' with Separator Comma cannot be parsed")
+    x_columns = (file_hdr.get("X_Columns") or ["One"])[0].lower()
+    if x_columns not in ("no", "one", "multi"):
+        raise DataError(f"{src}: unsupported X_Columns {x_columns!r}; allowed: No, One, Multi")
+
+    # marks[0] ends the file header; every further marker ends a segment header.
+    # Without a segment header (only one marker) the data follow the file header.
+    seg_marks = marks[1:] if len(marks) > 1 else marks[:1]
+    cursor = marks[0].end()
+    blocks: list[np.ndarray] = []
+    names: tuple[str, ...] | None = None
+    seg_headers: list[dict[str, list[str]]] = []
+    res: tuple[float, ...] | None = None
+    for i, m in enumerate(seg_marks):
+        seg_hdr = _header(text[cursor:m.start()], sep) if m is not marks[0] else {}
+        start = m.end()
+        stop = seg_marks[i + 1].start() if i + 1 < len(seg_marks) else len(text)
+        region = text[start:stop]
+        # column headings: first non-blank line, if it does not start like a number
+        lead = len(region) - len(region.lstrip("\n \t"))
+        lead = region.rfind("\n", 0, lead) + 1
+        first_nl = region.find("\n", lead)
+        first = region[lead: len(region) if first_nl < 0 else first_nl]
+        body_start = lead
+        seg_names: tuple[str, ...] | None = None
+        if first.strip() and not _NUMERIC_LINE.match(first):
+            fields = [f.strip() for f in first.split(sep)]
+            while fields and not fields[-1]:
+                fields.pop()
+            if fields and fields[-1].lower() == "comment":
+                fields.pop()
+            seg_names = tuple(fields)
+            body_start = len(region) if first_nl < 0 else first_nl + 1
+        body_end = len(region)
+        if i + 1 < len(seg_marks):          # the next segment's header follows the data
+            nxt = _TEXT_LINE.search(region, body_start)
+            if nxt is not None:
+                body_end = nxt.start()
+                cursor = start + body_end
+        body = region[body_start:body_end]
+        if decimal == ",":
+            body = body.replace(",", ".")
+        if seg_names is None:
+            first_row = next((ln for ln in body.split("\n", 3) if ln.strip()), "")
+            parts = first_row.split(sep)
+            while parts and not parts[-1].strip():
+                parts.pop()
+            seg_names = tuple(f"column{j}" for j in range(len(parts)))
+        if names is not None and len(seg_names) != len(names):
+            raise DataError(f"{src}: segment {i + 1} has {len(seg_names)} columns, segment 1 has {len(names)}")
+        names = names or seg_names
+        first_line = text.count("\n", 0, start + body_start) + 1
+        arr = parse_block(body, delimiter=sep, names=names, source=src, first_line=first_line,
+                          usecols=len(names))
+        blocks.append(arr)
+        seg_headers.append(seg_hdr)
+        r = column_resolutions(edge_lines(body), sep, len(names))
+        res = r if res is None else tuple(max(a, b) for a, b in zip(res, r))
+    assert names is not None and res is not None
+    data = np.vstack(blocks)
+    k = len(names)
+
+    labels = (seg_headers[0].get("Y_Unit_Label") or []) if seg_headers else []
+    if x_columns == "one":
+        chan_of = [None] + list(range(k - 1))
+    elif x_columns == "multi":
+        chan_of = [None if j % 2 == 0 else j // 2 for j in range(k)]
+    else:
+        chan_of = list(range(k))
+    units = tuple(labels[c] if c is not None and c < len(labels) and labels[c] else None for c in chan_of)
+    columns = tuple(np.ascontiguousarray(data[:, j]) for j in range(k))
+
+    time = None
+    tol = 0.0
+    if x_columns == "no":
+        pieces = []
+        for hdr, arr in zip(seg_headers, blocks):
+            if not hdr.get("X0") or not hdr.get("Delta_X"):
+                raise DataError(f"{src}: X_Columns = No but the segment header lacks X0 / Delta_X")
+            x0 = _floats(hdr["X0"][:1], "X0", src, decimal)[0]
+            dx = _floats(hdr["Delta_X"][:1], "Delta_X", src, decimal)[0]
+            pieces.append(x0 + dx * np.arange(arr.shape[0]))
+            n = arr.shape[0]
+            tol = max(tol, 0.5 * printed_resolution(hdr["X0"][:1])
+                      + 0.5 * (n - 1) * printed_resolution(hdr["Delta_X"][:1]))
+        time = np.concatenate(pieces)
+    return RawTable(source=src, kind="column", names=names, columns=columns, units=units, resolution=res,
+                    time=time, time_key=0, time_tolerance=tol)
