@@ -1,0 +1,62 @@
+"""``ebb identify`` and ``ebb export``: parse, then call :func:`identification.run.identify` / ``export_points``."""
+from __future__ import annotations
+
+import argparse
+import json
+
+__all__ = ["add_parser"]
+
+
+def _cmd_identify(args: argparse.Namespace) -> int:
+    from .run import identify
+
+    res = identify(args.config, args.data, args.out, backend=args.backend, workers=args.workers,
+                   dask=args.dask, pop=args.pop, generations=args.generations, seed=args.seed,
+                   resume=args.resume, force=args.force, algorithm=args.algorithm,
+                   progress=not args.no_progress, export=not args.no_export)
+    f = res.fisher_nominal
+    print(f"Fisher information at the nominal point: rank {f.rank}/{len(f.names)}, "
+          f"condition number {f.condition_number:.3g}")
+    for m in f.messages:
+        print(f"  {m}")
+    p = res.pareto
+    print(f"{len(p.X)} Pareto points after {p.generations} generations, {p.n_evaluations} evaluations")
+    print("knee: " + json.dumps({k: round(v, 6) for k, v in res.knee.items()}))
+    print(f"wrote {res.out_dir / 'pareto.json'}")
+    return 0
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    from .export import export_points
+
+    files = export_points(args.dir, args.points, fmu=not args.no_fmu, reduce_order=args.reduce_order)
+    for f in files:
+        print(f"wrote {f}")
+    return 0
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the identification subcommands on the ``ebb`` parser."""
+    p = sub.add_parser("identify", help="multi-objective identification of the config's unknowns from data")
+    p.add_argument("config", help="TOML config with identify = true parameters")
+    p.add_argument("data", nargs="+", help="data files (.csv, .npz, .mat, .lvm, .uff)")
+    p.add_argument("--out", required=True, help="result directory (checkpoint, pareto.json, plots, exports)")
+    p.add_argument("--backend", default="auto", help="auto | native")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--workers", type=int, default=1, help="local worker processes")
+    g.add_argument("--dask", default=None, metavar="ADDRESS", help="Dask scheduler address")
+    p.add_argument("--pop", type=int, default=40, help="population size")
+    p.add_argument("--generations", type=int, default=30, help="generations")
+    p.add_argument("--seed", type=int, default=1, help="random seed")
+    p.add_argument("--algorithm", default="nsga2", help="nsga2 | nsga3")
+    p.add_argument("--resume", action="store_true", help="continue from the checkpoint in --out")
+    p.add_argument("--force", action="store_true", help="run even if the Fisher matrix is singular")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-export", action="store_true", help="skip the exports at the end")
+    p.set_defaults(func=_cmd_identify)
+    p = sub.add_parser("export", help="export Pareto points of a result directory (StateSpace, FMU)")
+    p.add_argument("dir", help="result directory of 'ebb identify'")
+    p.add_argument("--points", type=int, nargs="*", default=None, help="point indices (default: all)")
+    p.add_argument("--no-fmu", action="store_true", help="StateSpace only")
+    p.add_argument("--reduce-order", type=int, default=None, help="also a balanced truncation of this order")
+    p.set_defaults(func=_cmd_export)

@@ -1,0 +1,70 @@
+"""Export of Pareto points: python-control StateSpace (``.npz``) and, when available, FMUs.
+
+``export_points(DIR)`` reads ``DIR/pareto.json`` (written by
+:func:`identification.run.identify`) and writes, per chosen point ``i``,
+``DIR/export/point_<i>.npz`` (reload with
+:func:`identification.export_statespace.load_statespace`) and
+``DIR/export/point_<i>.fmu`` with the identified values as start values (via
+:mod:`fmu_build`; each FMU gets its own model identifier so several load side
+by side).  Optionally a balanced-truncation reduced model with its error bound.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Sequence
+
+from ebb_model import assemble, config_from_dict
+from ebb_model.errors import ConfigError, StabilityError
+
+from .export_statespace import balanced_truncation, save_statespace
+from .parameters import ParameterSpace
+
+__all__ = ["export_points"]
+
+
+def export_points(result_dir: str | Path, points: Sequence[int] | None = None, *, fmu: bool = True,
+                  reduce_order: int | None = None) -> list[Path]:
+    """Export the chosen Pareto points (all by default). Returns the written files."""
+    d = Path(result_dir)
+    try:
+        doc = json.loads((d / "pareto.json").read_text())
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"{d}: no readable pareto.json ({exc})") from None
+    cfg = config_from_dict(doc["config"], extra_sections=("identification",))
+    pts = doc["points"]
+    chosen = range(len(pts)) if points is None else points
+    bad = [i for i in chosen if not 0 <= i < len(pts)]
+    if bad:
+        raise ConfigError(f"--points: {bad} out of range 0 … {len(pts) - 1}")
+    out = d / "export"
+    out.mkdir(exist_ok=True)
+    written: list[Path] = []
+    names = tuple(doc["parameter_names"])
+    for i in chosen:
+        values = pts[i]["parameters"]
+        space = ParameterSpace(names, [0.0] * len(names), [0.0] * len(names), [0.0] * len(names))
+        c, params = space.apply(cfg, [values[n] for n in names])
+        try:
+            sys = assemble(c, params)
+        except StabilityError:
+            continue  # unstable points are listed in pareto.json but not exported
+        written.append(save_statespace(sys, out / f"point_{i}.npz"))
+        if reduce_order:
+            try:
+                bm = balanced_truncation(sys, reduce_order)
+            except StabilityError:
+                bm = None
+            if bm is not None:
+                written.append(save_statespace(bm.system, out / f"point_{i}_reduced{reduce_order}.npz"))
+                (out / f"point_{i}_reduced{reduce_order}.json").write_text(json.dumps(
+                    {"order": bm.order, "error_bound_hinf": bm.error_bound,
+                     "hankel_singular_values": [float(v) for v in bm.hankel_singular_values]}, indent=2))
+        if fmu:
+            try:
+                from fmu_build import build_fmu
+            except ImportError:
+                continue
+            c_fmu = c.with_parameters(**params)
+            written.append(build_fmu(c_fmu, out / f"point_{i}.fmu"))
+    return written

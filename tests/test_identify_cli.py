@@ -1,0 +1,94 @@
+"""``ebb identify`` / ``ebb export`` end to end on a small synthetic case, and their bad-input handling."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import ebb_model as em
+from ebb_model.cli import main
+from identification.export_statespace import load_statespace
+
+CFG = """
+[beam]
+length = 1.0
+nodes = 16
+left = "clamped"
+right = "clamped"
+[time]
+dt = 1e-4
+[parameters]
+EI   = { value = 10.0, bounds = [5.0, 20.0], identify = true }
+rhoA = { value = 1.0 }
+c    = { value = 0.5 }
+N    = { value = 50.0, bounds = [0.0, 100.0], identify = true }
+[[actuators]]
+name = "F1"
+x = 0.3
+[[sensors]]
+name = "y1"
+x = 0.5
+[[sensors]]
+name = "y2"
+x = 0.75
+"""
+
+
+@pytest.fixture
+def case(tmp_path: Path):
+    cfg_path = tmp_path / "cfg.toml"
+    cfg_path.write_text(CFG)
+    cfg = em.load_config(cfg_path)
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal((600, 1))
+    y = em.simulate_config(cfg, u).outputs
+    y += 0.01 * y.std(0) * rng.standard_normal(y.shape)
+    t = np.arange(600) * 1e-4
+    data = tmp_path / "data.csv"
+    np.savetxt(data, np.column_stack([t, u[:, 0], y]), delimiter=",", header="time,F1,y1,y2", comments="")
+    return cfg_path, data, tmp_path
+
+
+def test_identify_writes_results_and_exports(case, capsys):
+    cfg, data, tmp = case
+    out = tmp / "out"
+    rc = main(["identify", str(cfg), str(data), "--out", str(out), "--pop", "8", "--generations", "3",
+               "--no-progress"])
+    assert rc == 0
+    doc = json.loads((out / "pareto.json").read_text())
+    assert doc["parameter_names"] == ["EI", "N"]
+    assert doc["objective_names"] == ["nrmse_y1", "nrmse_y2", "growth_factor"]
+    assert sum(p["knee"] for p in doc["points"]) == 1
+    for p in doc["points"]:
+        assert set(p) >= {"parameters", "objectives", "cramer_rao_std", "growth_factor", "stable"}
+    for f in ("pareto.csv", "identifiability.json", "pareto_front.png", "knee_fit.png", "checkpoint.pkl"):
+        assert (out / f).exists(), f
+    sys0 = load_statespace(out / "export" / "point_0.npz")
+    assert list(sys0.output_labels) == ["y1", "y2"] and sys0.dt == 1e-4
+
+
+@pytest.mark.parametrize("case_name", ["nan data", "missing column", "bad bounds", "wrong dt", "not empty"])
+def test_identify_bad_input_exit_2_no_result_dir(case, case_name, capsys):
+    cfg, data, tmp = case
+    out = tmp / "out"
+    if case_name == "nan data":
+        lines = data.read_text().splitlines()
+        lines[5] = ",".join(lines[5].split(",")[:-1] + ["nan"])
+        data.write_text("\n".join(lines) + "\n")
+    elif case_name == "missing column":
+        data.write_text(data.read_text().replace("time,F1,y1,y2", "time,F1,y1,yy"))
+    elif case_name == "bad bounds":
+        cfg.write_text(CFG.replace("bounds = [5.0, 20.0]", "bounds = [20.0, 5.0]"))
+    elif case_name == "wrong dt":
+        cfg.write_text(CFG.replace("dt = 1e-4", "dt = 2e-4"))
+    elif case_name == "not empty":
+        out.mkdir()
+        (out / "something").write_text("x")
+    rc = main(["identify", str(cfg), str(data), "--out", str(out), "--pop", "8", "--generations", "2",
+               "--no-progress"])
+    assert rc == 2
+    assert "error" in capsys.readouterr().err
+    if case_name != "not empty":
+        assert not out.exists()
