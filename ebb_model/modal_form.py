@@ -37,7 +37,12 @@ __all__ = ["ModalStateSpace", "modal_from_beam", "modal_from_statespace", "is_pr
 
 @dataclass(frozen=True, eq=False)
 class ModalStateSpace:
-    """Block-diagonal real form: blocks ``T`` (nb, 2, 2), ``G`` (nb, 2, m), ``Cm`` (p, nb, 2), ``D`` (p, m)."""
+    """Block-diagonal real form: blocks ``T`` (nb, 2, 2), ``G`` (nb, 2, m), ``Cm`` (p, nb, 2), ``D`` (p, m).
+
+    ``to_nodal`` (2n × 2nb), when known, maps the block state (flattened
+    block by block) to the nodal state ``(q, v)`` of
+    :func:`~ebb_model.theta_scheme.discretise_time`.
+    """
 
     T: np.ndarray
     G: np.ndarray
@@ -46,9 +51,10 @@ class ModalStateSpace:
     dt: float
     input_names: tuple[str, ...]
     output_names: tuple[str, ...]
+    to_nodal: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        for name in ("T", "G", "Cm", "D"):
+        for name in ("T", "G", "Cm", "D") + (("to_nodal",) if self.to_nodal is not None else ()):
             a = np.ascontiguousarray(getattr(self, name), dtype=float)
             a.setflags(write=False)
             object.__setattr__(self, name, a)
@@ -114,7 +120,11 @@ def modal_from_beam(beam: SemiDiscreteBeam, dt: float, theta: float = 0.25,
     # outputs in modal coordinates: P Ψ, with diagonal scheme matrices
     C2, D = output_matrices(beam.S @ Psi, beam.sensor_kinds, np.diag(kt), np.diag(ct), bt, tau)
     Cm = np.stack([C2[:, :nb], C2[:, nb:]], axis=2)  # (p, nb, 2)
-    return ModalStateSpace(T, G, Cm, D, dt, beam.input_names, beam.output_names)
+    n = Psi.shape[0]
+    to_nodal = np.zeros((2 * n, 2 * nb))
+    to_nodal[:n, 0::2] = Psi
+    to_nodal[n:, 1::2] = Psi
+    return ModalStateSpace(T, G, Cm, D, dt, beam.input_names, beam.output_names, to_nodal)
 
 
 def modal_from_statespace(sys: DiscreteStateSpace) -> ModalStateSpace:
@@ -163,4 +173,4 @@ def modal_from_statespace(sys: DiscreteStateSpace) -> ModalStateSpace:
     T = np.array(blocks).reshape(nb, 2, 2)
     G = (Wi @ sys.B).reshape(nb, 2, -1)
     Cm = (sys.C @ W).reshape(sys.noutputs, nb, 2)
-    return ModalStateSpace(T, G, Cm, sys.D, sys.dt, sys.input_names, sys.output_names)
+    return ModalStateSpace(T, G, Cm, sys.D, sys.dt, sys.input_names, sys.output_names, W)

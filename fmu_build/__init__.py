@@ -6,7 +6,7 @@ Flat functional API in FMPy's style::
     build_fmu("examples/seed_clamped.toml", "beam.fmu", field=False)
 
 and the ``ebb build-fmu`` sub-command (:func:`add_parser`,
-:func:`run_build_fmu`).  See ``fmu_build/README.md``.
+:func:`run_build_fmu`).  See the "FMU" section of the project README.
 """
 from .builder import build_fmu
 from .cli import add_parser, run_build_fmu

@@ -3,11 +3,18 @@
 Layout written by :func:`write_resources`::
 
     resources/
-      slavemodule.txt          name of the slave module (read by pythonfmu's binary)
-      <modelIdentifier>.py     the slave (slave_template.py, class renamed)
+      slavemodule.txt          name of the entry module (read by pythonfmu's binary)
+      <modelIdentifier>.py     entry module: imports the slave class, nothing else
+      <modelIdentifier>_slave.py  the slave (slave_template.py, class renamed)
       <core_package>/          a private copy of ebb_model's sources
       pythonfmu/               pythonfmu's Python runtime (as pythonfmu's own builder does)
       ebb_fmu.json             the config (JSON) and build options
+
+Why an entry module apart from the slave: pythonfmu 0.7.0 compiles and
+executes the entry module's source afresh for every instance it creates
+(and never frees that namespace).  Keeping it to one import line makes
+instantiation cheap and leaves almost nothing behind; the slave module
+itself is imported once per process, like any module.
 
 Why a private, renamed copy of ``ebb_model``: the FMU keeps working with the
 interpreter it was built with even if the project is later changed or
@@ -34,7 +41,7 @@ from ebb_model.errors import FmuError
 from . import slave_template
 from .model_description import FmuIdentity
 
-__all__ = ["write_resources", "copy_package", "render_slave"]
+__all__ = ["write_resources", "copy_package", "render_slave", "render_entry"]
 
 _SKIP_DIRS = {"__pycache__"}
 
@@ -57,6 +64,27 @@ def render_slave(identity: FmuIdentity) -> str:
             raise FmuError(f"slave template: expected exactly one line {old!r}", function="build_fmu")
         source = source.replace(old, new)
     return source
+
+
+def render_entry(identity: FmuIdentity) -> str:
+    """Source of the entry module that pythonfmu executes per instance.
+
+    pythonfmu 0.7.0 (``findClass``) imports this module, then executes its
+    source again for every instance, with the module's namespace as globals
+    and a fresh dict as locals, takes the slave class from the locals and
+    finally releases one reference to the module's namespace that it never
+    acquired.  The last statement adds one lasting reference per execution
+    to balance that release (a few bytes per instance), without which the
+    namespace would be freed under the module after a few instantiations.
+    """
+    return (
+        f'"""Entry module of FMU {identity.model_identifier}: pythonfmu looks here for the slave class.\n\n'
+        "pythonfmu 0.7.0 executes this source once per instance and then drops one reference to\n"
+        'this module\'s namespace that it did not take: the last line keeps the count balanced."""\n'
+        f"from {identity.model_identifier}_slave import {identity.class_name}\n"
+        "\n"
+        'globals().setdefault("_balance_pythonfmu_references", []).append(globals())\n'
+    )
 
 
 def _absolute_import_lines(source: str, package: str) -> tuple[set[int], bool]:
@@ -143,7 +171,8 @@ def write_resources(resources: Path, *, identity: FmuIdentity, spec: Mapping[str
     """
     resources.mkdir(parents=True, exist_ok=True)
     (resources / "slavemodule.txt").write_text(identity.model_identifier, encoding="utf-8")
-    (resources / f"{identity.model_identifier}.py").write_text(render_slave(identity), encoding="utf-8")
+    (resources / f"{identity.model_identifier}.py").write_text(render_entry(identity), encoding="utf-8")
+    (resources / f"{identity.model_identifier}_slave.py").write_text(render_slave(identity), encoding="utf-8")
     (resources / slave_template.SPEC_FILE).write_text(json.dumps(spec, indent=2, allow_nan=False),
                                                        encoding="utf-8")
     core_src = Path(ebb_model.__file__).parent

@@ -8,14 +8,18 @@
  * fmi2Instantiate it
  *
  *   1. looks whether the Python C API is already visible in the process (a
- *      Python host such as fmpy or libcosimpy).  If not, it points PYTHONHOME
- *      and PYTHONPATH at the interpreter the FMU was built with (only where
- *      the host has not set them) and dlopens libpython with RTLD_GLOBAL, so
+ *      Python host such as fmpy or libcosimpy).  If not, it dlopens the
+ *      libpython of the interpreter the FMU was built with, RTLD_GLOBAL, so
  *      that pythonfmu *and* the extension modules numpy imports later resolve
  *      their Python symbols;
  *   2. dlopens pythonfmu's library from its own directory (RTLD_LOCAL) and
- *      resolves every fmi2 function it forwards to;
- *   3. once the interpreter is up, restores the environment variables it set.
+ *      resolves every fmi2 function it forwards to.
+ *
+ * pythonfmu starts the interpreter inside its fmi2Instantiate.  While that
+ * can happen (libpython loaded here, Py_IsInitialized() false) the loader
+ * points PYTHONHOME and PYTHONPATH at the build interpreter -- only those the
+ * host has not set -- for the duration of that one call, then removes them
+ * again: the host's environment is left as it was.
  *
  * Every fmi2 call is forwarded unchanged, with one addition: the Python slave
  * reports recoverable problems (invalid parameters, a step size that is not a
@@ -124,7 +128,7 @@ static pthread_mutex_t g_env_lock = PTHREAD_MUTEX_INITIALIZER;
 static InnerApi g_api;
 static void *g_inner = NULL;
 static int g_loaded_libpython = 0;
-static int g_set_home = 0, g_set_path = 0, g_env_restored = 0;
+static int (*g_py_is_initialized)(void) = NULL; /* set when this loader loaded libpython */
 static char g_error[2048] = "";
 
 /* One instance as the host sees it: wraps pythonfmu's component. */
@@ -169,18 +173,16 @@ static void load_inner(void)
 {
     if (!dlsym(RTLD_DEFAULT, "Py_IsInitialized")) {
         /* No Python in the process: bring the build interpreter's. */
-        if (!getenv("PYTHONHOME")) {
-            setenv("PYTHONHOME", EBB_PYTHONHOME, 1);
-            g_set_home = 1;
-        }
-        if (!getenv("PYTHONPATH")) {
-            setenv("PYTHONPATH", EBB_PYTHONPATH, 1);
-            g_set_path = 1;
-        }
-        if (!dlopen(EBB_LIBPYTHON, RTLD_NOW | RTLD_GLOBAL)) {
+        void *libpython = dlopen(EBB_LIBPYTHON, RTLD_NOW | RTLD_GLOBAL);
+        if (!libpython) {
             snprintf(g_error, sizeof g_error,
                      "cannot load the Python runtime this FMU was built with (%s): %s",
                      EBB_LIBPYTHON, dlerror());
+            return;
+        }
+        *(void **)(&g_py_is_initialized) = dlsym(libpython, "Py_IsInitialized");
+        if (!g_py_is_initialized) {
+            snprintf(g_error, sizeof g_error, "%s: missing symbol Py_IsInitialized", EBB_LIBPYTHON);
             return;
         }
         g_loaded_libpython = 1;
@@ -228,16 +230,25 @@ static void load_inner(void)
     RESOLVE(GetStringStatus, "fmi2GetStringStatus");
 }
 
-/* After the interpreter is up, give the host its environment back. */
-static void restore_environment(void)
+/* Set PYTHONHOME/PYTHONPATH for an interpreter about to start; returns which were set. */
+static int set_python_environment(void)
 {
-    pthread_mutex_lock(&g_env_lock);
-    if (!g_env_restored) {
-        if (g_set_home) unsetenv("PYTHONHOME");
-        if (g_set_path) unsetenv("PYTHONPATH");
-        g_env_restored = 1;
+    int set = 0;
+    if (!getenv("PYTHONHOME")) {
+        setenv("PYTHONHOME", EBB_PYTHONHOME, 1);
+        set |= 1;
     }
-    pthread_mutex_unlock(&g_env_lock);
+    if (!getenv("PYTHONPATH")) {
+        setenv("PYTHONPATH", EBB_PYTHONPATH, 1);
+        set |= 2;
+    }
+    return set;
+}
+
+static void restore_environment(int set)
+{
+    if (set & 1) unsetenv("PYTHONHOME");
+    if (set & 2) unsetenv("PYTHONPATH");
 }
 
 __attribute__((destructor)) static void unload_inner(void)
@@ -350,7 +361,6 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
     pthread_once(&g_once, load_inner);
     if (g_error[0]) {
         emit(inst, inst->name, fmi2Fatal, "logStatusFatal", g_error);
-        restore_environment();
         free_instance(inst);
         return NULL;
     }
@@ -368,9 +378,17 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
         return NULL;
     }
     /* pythonfmu always logs to us; the host's switch is applied in relay_log. */
+    int set = 0;
+    if (g_py_is_initialized) { /* this loader brought Python: it may start in this call */
+        pthread_mutex_lock(&g_env_lock);
+        if (!g_py_is_initialized()) set = set_python_environment();
+    }
     inst->inner = g_api.Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation,
                                     &inst->relay, visible, 1);
-    restore_environment();
+    if (g_py_is_initialized) {
+        restore_environment(set);
+        pthread_mutex_unlock(&g_env_lock);
+    }
     if (!inst->inner) {
         free_instance(inst);
         return NULL;

@@ -178,18 +178,18 @@ def finish_model_description(
     return text
 
 
-def feedthrough_from_D(D: np.ndarray, output_names: Sequence[str], input_names: Sequence[str],
-                       *, rtol: float = 0.0) -> dict[str, tuple[str, ...]]:
+def feedthrough_from_D(D: np.ndarray, output_names: Sequence[str],
+                       input_names: Sequence[str]) -> dict[str, tuple[str, ...]]:
     """Inputs that reach each output directly: the non-zero pattern of ``D``.
 
     Parameters
     ----------
     D
-        Feedthrough matrix, shape (n_outputs, n_inputs).
+        Feedthrough matrix, shape (n_outputs, n_inputs), at the nominal
+        parameters.  Its zero pattern comes from the sensor kinds (a
+        displacement row is exactly zero), not from the parameter values.
     output_names, input_names
         Signal names of its rows and columns.
-    rtol
-        Entries with ``|D[i, j]| <= rtol * max|D|`` count as zero.
 
     Returns
     -------
@@ -197,10 +197,9 @@ def feedthrough_from_D(D: np.ndarray, output_names: Sequence[str], input_names: 
         Output name -> tuple of input names (only outputs with at least one).
     """
     D = np.asarray(D, dtype=float)
-    scale = float(np.max(np.abs(D))) if D.size else 0.0
     out: dict[str, tuple[str, ...]] = {}
     for i, oname in enumerate(output_names):
-        deps = tuple(input_names[j] for j in range(D.shape[1]) if abs(D[i, j]) > rtol * scale and D[i, j] != 0.0)
+        deps = tuple(input_names[j] for j in range(D.shape[1]) if D[i, j] != 0.0)
         if deps:
             out[oname] = deps
     return out

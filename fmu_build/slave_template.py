@@ -22,10 +22,10 @@ Errors never escape as Python exceptions, which pythonfmu would report as
 loader returns ``fmi2Error`` for that call (see ``loader.c``).
 
 This module is a template.  :func:`fmu_build.builder.build_fmu` copies it into
-the FMU's resources as ``<modelIdentifier>.py`` with the class renamed and
-:data:`CORE_PACKAGE` pointing at the FMU's private copy of ``ebb_model``, so
-that FMUs built from different configs can run side by side in one process
-(pythonfmu imports the slave module by name and Python caches it).
+the FMU's resources as ``<modelIdentifier>_slave.py`` with the class renamed
+and :data:`CORE_PACKAGE` pointing at the FMU's private copy of ``ebb_model``,
+so that FMUs built from different configs can run side by side in one
+process (pythonfmu imports the slave module by name and Python caches it).
 
 The per-step path is kept lean (see :class:`_StepPlan`): everything is
 precomputed at assembly, a step is one matrix-vector product into a
@@ -121,9 +121,12 @@ class BeamSlave(Fmi2Slave):
         self._cx_valid = False  # plan.cx holds C x of the current state
 
     # ----------------------------------------------------------- variables
-    def _add_real(self, name: str, value: float, unit: str | None, role: tuple[int, Any] | None, **kw: Any) -> None:
-        self.register_variable(Real(name, **kw), nested=False)
-        self._reals.append(value)
+    def _add_real(self, name: str, value: float, unit: str | None, role: tuple[int, Any] | None,
+                  **kw: Any) -> None:
+        reals, vr = self._reals, len(self._reals)
+        # a getter on the values list, not on self: no reference cycle through pythonfmu's variables
+        self.register_variable(Real(name, getter=lambda: reals[vr], **kw), nested=False)
+        reals.append(value)
         self._roles.append(role)
         if unit:
             self.variable_units[name] = unit
@@ -167,7 +170,8 @@ class BeamSlave(Fmi2Slave):
         for side, end in (("left", b.left), ("right", b.right)):
             self._add_constant(f"beam.{side}", str(end.kind), f"boundary condition at the {side} end")
             if end.kind == "elastic":
-                self._add_constant(f"beam.{side}_kt", float(end.kt), f"translational spring at the {side} end", "N/m")
+                self._add_constant(f"beam.{side}_kt", float(end.kt), f"translational spring at the {side} end",
+                                   "N/m")
                 self._add_constant(f"beam.{side}_kr", float(end.kr), f"rotational spring at the {side} end",
                                    "N.m/rad")
         t = cfg.time

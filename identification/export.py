@@ -61,10 +61,8 @@ def export_points(result_dir: str | Path, points: Sequence[int] | None = None, *
                     {"order": bm.order, "error_bound_hinf": bm.error_bound,
                      "hankel_singular_values": [float(v) for v in bm.hankel_singular_values]}, indent=2))
         if fmu:
-            try:
-                from fmu_build import build_fmu
-            except ImportError:
-                continue
+            from fmu_build import build_fmu
+
             c_fmu = c.with_parameters(**params)
             written.append(build_fmu(c_fmu, out / f"point_{i}.fmu"))
     return written

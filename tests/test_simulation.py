@@ -129,3 +129,27 @@ def test_bad_inputs_to_simulate():
         simulate(fm, np.array([[0.0], [np.nan]]))
     with pytest.raises(DataError, match="shape"):
         simulate(fm, np.zeros((10, 3)))
+
+
+@pytest.mark.parametrize("spec", [dict(right="free", c=0.3, substeps=4), dict(N=60.0, eta=1e-4)],
+                         ids=["proportional", "general"])
+def test_modal_realisation_equals_nodal_including_field(spec):
+    from ebb_model import assemble_modal, field_matrix
+
+    cfg = make_config(nodes=24, sensors=[("a", 0.8, "acceleration"), ("v", 0.4, "velocity")], **spec)
+    u = np.random.default_rng(6).standard_normal((2000, 1))
+    nodal = assemble(cfg)
+    modal = assemble_modal(cfg, field=True)
+    _, Cf = field_matrix(cfg)
+    assert modal.output_names[:2] == ("a", "v") and modal.output_names[2] == "w[0]"
+    y_modal = simulate(modal, u).outputs
+    y_nodal = simulate(nodal, u).outputs
+    w_nodal = simulate(em_field_system(nodal, Cf), u).outputs
+    assert rel(y_modal[:, :2], y_nodal) < 1e-9
+    assert rel(y_modal[:, 2:], w_nodal) < 1e-9
+
+
+def em_field_system(sys, Cf):
+    from ebb_model import DiscreteStateSpace
+
+    return DiscreteStateSpace(sys.A, sys.B, Cf, np.zeros((Cf.shape[0], sys.ninputs)), sys.dt)

@@ -16,7 +16,8 @@
  *   VR=VALUE          Real parameters set before initialisation
  *
  * Prints one line per communication point with the outputs (%.17g) on
- * stdout; the FMU's log messages go to stderr.  Exit status: 0 success,
+ * stdout; the FMU's log messages go to stderr, and so does the state of
+ * PYTHONHOME / PYTHONPATH right after fmi2Instantiate.  Exit status: 0 success,
  * 1 usage, 2 the library or a symbol cannot be loaded, 3 an FMI call
  * returned an error (the function and status are printed on stderr).
  */
@@ -136,6 +137,10 @@ int main(int argc, char **argv)
         fprintf(stderr, "fmi2Instantiate failed\n");
         return 3;
     }
+    /* the FMU's loader may set these while Python starts, but must give them back */
+    fprintf(stderr, "after fmi2Instantiate: PYTHONHOME=%s PYTHONPATH=%s\n",
+            getenv("PYTHONHOME") ? getenv("PYTHONHOME") : "(unset)",
+            getenv("PYTHONPATH") ? getenv("PYTHONPATH") : "(unset)");
     CHECK(setupExperiment(c, 0, 0.0, 0.0, 0, 0.0), "fmi2SetupExperiment");
     for (int i = 9; i < argc; ++i) {
         char *eq = strchr(argv[i], '=');

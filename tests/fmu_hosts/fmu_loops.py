@@ -1,0 +1,258 @@
+"""Drive a beam FMU from different masters, for the FMU tests.
+
+Usable as a module (the tests import it) and as a script, so that every
+master can run in a fresh interpreter::
+
+    python fmu_loops.py fmpy  FMU INPUTS.npy OUT.npy [--after] [--param NAME=VALUE ...]
+    python fmu_loops.py cosim FMU INPUTS.npy OUT.npy [--param NAME=VALUE ...]
+    python fmu_loops.py two   FMU_A FMU_B INPUTS.npy OUT_A.npy OUT_B.npy
+    python fmu_loops.py lifecycle FMU CYCLES          (prints JSON: RSS growth)
+
+Protocols (zero-order hold, ``u`` of shape (n, n_inputs)):
+
+* ``before`` -- at ``t_k``: set ``u_k``, read ``y_k``, step.  ``y_k = C x_k + D u_k``,
+  the rows of ``ebb_model.simulate``.
+* ``after`` -- at ``t_k``: set ``u_k``, step, read: ``C x_{k+1} + D u_k``.  This
+  is what libcosim's observers record after each step.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+HOST_SOURCE = HERE / "fmi2_host.c"
+
+
+def _names(md, causality: str) -> list[str]:
+    return [v.name for v in md.modelVariables if v.causality == causality]
+
+
+def fmpy_outputs(fmu: str | os.PathLike, u: np.ndarray, *, params: Mapping[str, float] | None = None,
+                 protocol: str = "before", outputs: Sequence[str] | None = None) -> np.ndarray:
+    """Outputs of the FMU through fmpy's low-level ``FMU2Slave`` API.
+
+    Parameters
+    ----------
+    fmu
+        The ``.fmu`` file.
+    u
+        Inputs, one row per communication point, columns in input order.
+    params
+        Parameter values set before initialisation.
+    protocol
+        ``"before"`` or ``"after"`` (see the module docstring).
+    outputs
+        Names of the outputs to read (default: every output).
+    """
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    unzipdir = extract(str(fmu))
+    md = read_model_description(unzipdir)
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    in_vr = [vr[n] for n in _names(md, "input")]
+    out_vr = [vr[n] for n in (outputs or _names(md, "output"))]
+    dt = md.defaultExperiment.stepSize
+    dt = float(dt)
+    u = np.asarray(u, dtype=float).reshape(len(u), -1)
+    y = np.empty((len(u), len(out_vr)))
+    fmu_ = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
+                     instanceName="fmpy")
+    fmu_.instantiate()
+    try:
+        fmu_.setupExperiment(startTime=0.0)
+        for name, value in (params or {}).items():
+            fmu_.setReal([vr[name]], [value])
+        fmu_.enterInitializationMode()
+        fmu_.exitInitializationMode()
+        for k in range(len(u)):
+            fmu_.setReal(in_vr, u[k].tolist())
+            if protocol == "before":
+                y[k] = fmu_.getReal(out_vr)
+                fmu_.doStep(k * dt, dt)
+            else:
+                fmu_.doStep(k * dt, dt)
+                y[k] = fmu_.getReal(out_vr)
+        fmu_.terminate()
+    finally:
+        fmu_.freeInstance()
+    return y
+
+
+def cosim_outputs(fmu: str | os.PathLike, u: np.ndarray, *,
+                  params: Mapping[str, float] | None = None) -> np.ndarray:
+    """Outputs recorded by libcosim (the OSP C++ master) after each step ("after" protocol)."""
+    from fmpy import read_model_description
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimManipulator import CosimManipulator
+    from libcosimpy.CosimObserver import CosimObserver
+    from libcosimpy.CosimSlave import CosimLocalSlave
+
+    md = read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    in_vr = [vr[n] for n in _names(md, "input")]
+    out_vr = [vr[n] for n in _names(md, "output")]
+    dt_ns = round(float(md.defaultExperiment.stepSize) * 1e9)
+    execution = CosimExecution.from_step_size(dt_ns)
+    slave = CosimLocalSlave(fmu_path=str(fmu), instance_name="beam")
+    index = execution.add_local_slave(slave)
+    for name, value in (params or {}).items():
+        execution.real_initial_value(index, vr[name], value)
+    manipulator = CosimManipulator.create_override()
+    execution.add_manipulator(manipulator)
+    observer = CosimObserver.create_last_value()
+    execution.add_observer(observer)
+    u = np.asarray(u, dtype=float).reshape(len(u), -1)
+    y = np.empty((len(u), len(out_vr)))
+    for k in range(len(u)):
+        manipulator.slave_real_values(index, in_vr, u[k].tolist())
+        if not execution.step():
+            raise RuntimeError(f"libcosim step {k} failed")
+        y[k] = observer.last_real_values(index, out_vr)
+    return y
+
+
+def compile_host(out_dir: Path) -> Path:
+    """Compile the plain C master with gcc."""
+    exe = Path(out_dir) / "fmi2_host"
+    subprocess.run(["gcc", "-O2", "-Wall", "-o", str(exe), str(HOST_SOURCE), "-ldl"], check=True,
+                   capture_output=True, text=True)
+    return exe
+
+
+def host_run(exe: Path, fmu: str | os.PathLike, u: np.ndarray, work: Path, *,
+             params: Mapping[str, float] | None = None, step: float | None = None,
+             env: Mapping[str, str] | None = None) -> subprocess.CompletedProcess:
+    """Run the C master on an extracted copy of ``fmu`` ("before" protocol)."""
+    from fmpy import extract, read_model_description
+
+    unzipdir = Path(extract(str(fmu), unzipdir=str(Path(work) / "unzipped")))
+    md = read_model_description(str(unzipdir))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    in_vr = [vr[n] for n in _names(md, "input")]
+    out_vr = [vr[n] for n in _names(md, "output")]
+    u = np.asarray(u, dtype=float).reshape(len(u), -1)
+    inputs = Path(work) / "inputs.txt"
+    np.savetxt(inputs, u, fmt="%.17g")
+    library = unzipdir / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"
+    cmd = [str(exe), str(library), md.guid, (unzipdir / "resources").as_uri(),
+           repr(float(step if step is not None else md.defaultExperiment.stepSize)), str(len(u)), str(inputs),
+           ",".join(map(str, in_vr)) or "-", ",".join(map(str, out_vr)) or "-"]
+    cmd += [f"{vr[k]}={v!r}" for k, v in (params or {}).items()]
+    clean_env = {"PATH": "/usr/bin:/bin"} if env is None else dict(env)
+    return subprocess.run(cmd, capture_output=True, text=True, env=clean_env, timeout=120)
+
+
+def lifecycle(fmu: str | os.PathLike, cycles: int) -> dict[str, float]:
+    """RSS growth over ``cycles`` load/instantiate/reset/free cycles (after 100 warm-up cycles).
+
+    Each cycle loads the FMU's library (fmpy's ``FMU2Slave``), instantiates,
+    resets and frees the instance (which unloads the library).  The warm-up
+    lets allocator arenas and import caches settle.
+    """
+    import psutil
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    unzipdir = extract(str(fmu))
+    md = read_model_description(unzipdir)
+
+    def cycle() -> None:
+        f = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
+                      instanceName="cycle")
+        f.instantiate()
+        try:
+            f.reset()
+        finally:
+            f.freeInstance()
+
+    proc = psutil.Process()
+    for _ in range(100):
+        cycle()
+    rss0 = proc.memory_info().rss
+    for _ in range(cycles):
+        cycle()
+    return {"cycles": cycles, "rss_growth_mb": (proc.memory_info().rss - rss0) / 2**20,
+            "sys_path_entries": len(sys.path)}
+
+
+def _params(items: Sequence[str]) -> dict[str, float]:
+    out = {}
+    for item in items:
+        name, value = item.split("=", 1)
+        out[name] = float(value)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser()
+    sub = p.add_subparsers(dest="cmd", required=True)
+    a = sub.add_parser("fmpy")
+    a.add_argument("fmu"); a.add_argument("inputs"); a.add_argument("out")
+    a.add_argument("--after", action="store_true"); a.add_argument("--param", action="append", default=[])
+    b = sub.add_parser("cosim")
+    b.add_argument("fmu"); b.add_argument("inputs"); b.add_argument("out")
+    b.add_argument("--param", action="append", default=[])
+    c = sub.add_parser("two")
+    c.add_argument("fmu_a"); c.add_argument("fmu_b"); c.add_argument("inputs")
+    c.add_argument("out_a"); c.add_argument("out_b")
+    d = sub.add_parser("lifecycle")
+    d.add_argument("fmu"); d.add_argument("cycles", type=int)
+    args = p.parse_args(argv)
+    if args.cmd == "fmpy":
+        y = fmpy_outputs(args.fmu, np.load(args.inputs), params=_params(args.param),
+                         protocol="after" if args.after else "before")
+        np.save(args.out, y)
+    elif args.cmd == "cosim":
+        np.save(args.out, cosim_outputs(args.fmu, np.load(args.inputs), params=_params(args.param)))
+    elif args.cmd == "two":
+        u = np.load(args.inputs)
+        _two_side_by_side(args.fmu_a, args.fmu_b, u, args.out_a, args.out_b)
+    else:
+        print(json.dumps(lifecycle(args.fmu, args.cycles)))
+    return 0
+
+
+def _two_side_by_side(fmu_a: str, fmu_b: str, u: np.ndarray, out_a: str, out_b: str) -> None:
+    """Step two FMUs alternately, both instances alive at once, in one process."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    slaves = []
+    for path in (fmu_a, fmu_b):
+        unzipdir = extract(path)
+        md = read_model_description(unzipdir)
+        vr = {v.name: v.valueReference for v in md.modelVariables}
+        f = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
+                      instanceName=Path(path).stem)
+        f.instantiate()
+        f.setupExperiment(startTime=0.0)
+        f.enterInitializationMode()
+        f.exitInitializationMode()
+        slaves.append((f, [vr[n] for n in _names(md, "input")], [vr[n] for n in _names(md, "output")],
+                       float(md.defaultExperiment.stepSize)))
+    results = [np.empty((len(u), len(s[2]))) for s in slaves]
+    try:
+        for k in range(len(u)):
+            for (f, in_vr, out_vr, dt), y in zip(slaves, results):
+                f.setReal(in_vr, [float(u[k, 0])] * len(in_vr))
+                y[k] = f.getReal(out_vr)
+                f.doStep(k * dt, dt)
+    finally:
+        for f, *_ in slaves:
+            f.terminate()
+            f.freeInstance()
+    np.save(out_a, results[0])
+    np.save(out_b, results[1])
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,145 @@
+"""The beam FMU outside fmpy: a plain C master, libcosim (OSP), two FMUs in one process, lifecycle.
+
+Every master runs in its own process (a crash at interpreter exit must not
+take the test session down).  The C master's process has no Python at all and
+an environment reduced to ``PATH``: the FMU's loader must find the
+interpreter itself.  fmpy's outputs are the reference (1e-12 relative).
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pythonfmu")
+pytest.importorskip("fmpy")
+
+HOSTS = Path(__file__).resolve().parent / "fmu_hosts"
+sys.path.insert(0, str(HOSTS))
+from fmu_configs import SEED_TOML, mixed_config  # noqa: E402
+from fmu_loops import compile_host, fmpy_outputs, host_run  # noqa: E402
+
+from ebb_model import assemble, config_from_dict, load_config, simulate  # noqa: E402
+from fmu_build import build_fmu  # noqa: E402
+
+LOOPS = HOSTS / "fmu_loops.py"
+RTOL_HOSTS = 1e-12
+
+
+def _rel_err(y: np.ndarray, ref: np.ndarray) -> float:
+    return float(np.max(np.max(np.abs(y - ref), axis=0) / np.max(np.abs(ref), axis=0)))
+
+
+def _run(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
+    proc = subprocess.run([sys.executable, str(LOOPS), *args], capture_output=True, text=True, timeout=timeout)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return proc
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory):
+    d = tmp_path_factory.mktemp("fmus")
+    return {"seed": build_fmu(SEED_TOML, d / "seed.fmu"),
+            "mixed": build_fmu(config_from_dict(mixed_config()), d / "mixed.fmu")}
+
+
+@pytest.fixture(scope="module")
+def host(tmp_path_factory):
+    try:
+        return compile_host(tmp_path_factory.mktemp("host"))
+    except (OSError, subprocess.CalledProcessError) as exc:  # pragma: no cover - gcc is on the CI image
+        pytest.skip(f"cannot compile the C host: {exc}")
+
+
+@pytest.mark.parametrize("name", ["seed", "mixed"])
+def test_c_host_matches_fmpy(fmus, host, tmp_path, name):
+    u = np.random.default_rng(21).standard_normal((800, 2 if name == "mixed" else 1))
+    proc = host_run(host, fmus[name], u, tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    y = np.loadtxt(proc.stdout.splitlines(), ndmin=2)
+    ref = fmpy_outputs(fmus[name], u)
+    assert y.shape == ref.shape
+    assert _rel_err(y, ref) <= RTOL_HOSTS
+    # the loader started Python without leaving environment variables behind
+    assert "after fmi2Instantiate: PYTHONHOME=(unset) PYTHONPATH=(unset)" in proc.stderr
+
+
+def test_c_host_keeps_user_python_variables(fmus, host, tmp_path):
+    """Variables the user did set are neither overwritten nor removed."""
+    import sysconfig
+
+    home = sys.base_prefix
+    site = sysconfig.get_path("purelib")
+    proc = host_run(host, fmus["seed"], np.zeros((3, 1)), tmp_path,
+                    env={"PATH": "/usr/bin:/bin", "PYTHONHOME": home, "PYTHONPATH": site})
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert f"after fmi2Instantiate: PYTHONHOME={home} PYTHONPATH={site}" in proc.stderr
+
+
+def test_c_host_gets_errors_not_crashes(fmus, host, tmp_path):
+    u = np.zeros((5, 1))
+    bad_step = host_run(host, fmus["seed"], u, tmp_path / "a", step=1.5e-4)
+    assert bad_step.returncode == 3, bad_step.stderr
+    assert "fmi2DoStep failed with status 3" in bad_step.stderr
+    assert "multiple of the sample time" in bad_step.stderr
+    bad_param = host_run(host, fmus["seed"], u, tmp_path / "b", params={"EI": -1.0})
+    assert bad_param.returncode == 3
+    assert "fmi2ExitInitializationMode failed with status 3" in bad_param.stderr
+    assert "EI" in bad_param.stderr
+
+
+def test_c_host_with_parameters_matches_core(fmus, host, tmp_path):
+    cfg = load_config(SEED_TOML)
+    params = {"EI": 15.0, "N": 10.0}
+    u = np.random.default_rng(2).standard_normal((300, 1))
+    proc = host_run(host, fmus["seed"], u, tmp_path, params=params)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    y = np.loadtxt(proc.stdout.splitlines(), ndmin=2)
+    assert _rel_err(y, simulate(assemble(cfg, params), u).outputs) < 1e-10
+
+
+@pytest.mark.parametrize("name", ["seed", "mixed"])
+def test_libcosim_matches_fmpy(fmus, tmp_path, name):
+    pytest.importorskip("libcosimpy")
+    u = np.random.default_rng(4).standard_normal((600, 2 if name == "mixed" else 1))
+    np.save(tmp_path / "u.npy", u)
+    _run("cosim", str(fmus[name]), str(tmp_path / "u.npy"), str(tmp_path / "y.npy"))
+    y = np.load(tmp_path / "y.npy")
+    ref = fmpy_outputs(fmus[name], u, protocol="after")
+    assert _rel_err(y, ref) <= RTOL_HOSTS
+
+
+def test_two_fmus_side_by_side_in_one_process(fmus, tmp_path):
+    u = np.random.default_rng(9).standard_normal((400, 1))
+    np.save(tmp_path / "u.npy", u)
+    _run("two", str(fmus["seed"]), str(fmus["mixed"]), str(tmp_path / "u.npy"),
+         str(tmp_path / "a.npy"), str(tmp_path / "b.npy"))
+    seed_ref = simulate(assemble(load_config(SEED_TOML)), u).outputs
+    mixed_ref = simulate(assemble(config_from_dict(mixed_config())), np.hstack([u, u])).outputs
+    assert _rel_err(np.load(tmp_path / "a.npy"), seed_ref) < 1e-10
+    assert _rel_err(np.load(tmp_path / "b.npy"), mixed_ref) < 1e-10
+
+
+def test_two_builds_of_one_config_side_by_side(tmp_path):
+    """Same config, two builds with different nominal parameters: each keeps its own model."""
+    cfg = load_config(SEED_TOML)
+    stiff = cfg.with_parameters(EI=30.0)
+    a = build_fmu(cfg, tmp_path / "a.fmu")
+    b = build_fmu(stiff, tmp_path / "b.fmu")
+    u = np.random.default_rng(1).standard_normal((300, 1))
+    np.save(tmp_path / "u.npy", u)
+    _run("two", str(a), str(b), str(tmp_path / "u.npy"), str(tmp_path / "ya.npy"), str(tmp_path / "yb.npy"))
+    assert _rel_err(np.load(tmp_path / "ya.npy"), simulate(assemble(cfg), u).outputs) < 1e-10
+    assert _rel_err(np.load(tmp_path / "yb.npy"), simulate(assemble(stiff), u).outputs) < 1e-10
+
+
+def test_thousand_instantiate_reset_free_cycles_keep_memory_flat(fmus):
+    proc = _run("lifecycle", str(fmus["seed"]), "1000", timeout=600)
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert result["cycles"] == 1000
+    assert result["rss_growth_mb"] < 20.0, result
+    assert result["sys_path_entries"] < 50, result
