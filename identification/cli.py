@@ -13,7 +13,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     res = identify(args.config, args.data, args.out, backend=args.backend, workers=args.workers,
                    dask=args.dask, pop=args.pop, generations=args.generations, seed=args.seed,
                    resume=args.resume, force=args.force, algorithm=args.algorithm,
-                   progress=not args.no_progress, export=not args.no_export)
+                   progress=not args.no_progress, export=not args.no_export, fmu=args.fmu,
+                   fmu_parameters=args.fmu_parameters, fmu_inputs=args.fmu_inputs, fmu_outputs=args.fmu_outputs)
     f = res.fisher_nominal
     print(f"Fisher information at the nominal point: rank {f.rank}/{len(f.names)}, "
           f"condition number {f.condition_number:.3g}")
@@ -41,7 +42,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("config", help="TOML config with identify = true parameters")
     p.add_argument("data", nargs="+", help="data files (.csv, .npz, .mat, .lvm, .uff)")
     p.add_argument("--out", required=True, help="result directory (checkpoint, pareto.json, plots, exports)")
-    p.add_argument("--backend", default="auto", help="auto | native")
+    p.add_argument("--backend", default="auto", help="auto | native | fmu")
+    p.add_argument("--fmu", default=None, help="FMU to evaluate with --backend fmu (default: built from CONFIG)")
+    p.add_argument("--fmu-parameters", nargs="+", default=None, help="FMU parameter names, one per unknown")
+    p.add_argument("--fmu-inputs", nargs="+", default=None, help="FMU input names, one per actuator")
+    p.add_argument("--fmu-outputs", nargs="+", default=None, help="FMU output names, one per sensor")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", type=int, default=1, help="local worker processes")
     g.add_argument("--dask", default=None, metavar="ADDRESS", help="Dask scheduler address")

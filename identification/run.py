@@ -37,7 +37,7 @@ from .runners import make_runner
 
 __all__ = ["BACKENDS", "IdentificationResult", "identify", "load_identification_config", "read_data"]
 
-BACKENDS = ("auto", "native")
+BACKENDS = ("auto", "native", "fmu")
 _DATA_KEYS = ("mapping", "units", "remove_offset", "pre_trigger", "resample", "format")
 
 
@@ -107,9 +107,18 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
              backend: str = "auto", workers: int = 1, dask: str | None = None, pop: int = 40,
              generations: int = 30, seed: int = 1, resume: bool = False, force: bool = False,
              algorithm: str = "nsga2", per: str | None = None, stabilising: bool | None = None,
-             noise_std: Sequence[float] | None = None, progress: bool = True, export: bool = True
+             noise_std: Sequence[float] | None = None, progress: bool = True, export: bool = True,
+             fmu: str | Path | None = None, fmu_parameters: Sequence[str] | None = None,
+             fmu_inputs: Sequence[str] | None = None, fmu_outputs: Sequence[str] | None = None
              ) -> IdentificationResult:
     """Identify the unknowns of ``config`` from ``data``; write results into ``out_dir``.
+
+    ``backend="auto"`` and ``"native"`` use the ``ebb_model`` fast path;
+    ``"fmu"`` evaluates through an FMU with fmpy: the given ``fmu`` (a
+    third-party FMU needs ``fmu_parameters``/``fmu_inputs``/``fmu_outputs``,
+    the names of its variables in the order of the unknowns, actuators and
+    sensors) or one built from the config.  The Fisher information always
+    uses the native model.
 
     Raises
     ------
@@ -149,12 +158,37 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                            f"(rank {fisher0.rank} of {space.dim})", *fisher0.messages,
                            "remove or fix the unidentifiable unknowns, change sensors/inputs, or use --force"])
     names = objective_names(cfg.output_names, [e.name for e in exps], per=per, stabilising=bool(stabilising))
+    search_evaluator: Any = evaluator
+    tmp_fmu_dir = None
+    if backend == "fmu":
+        from .fmu_backend import FmuEvaluator
+
+        if fmu is None:
+            import tempfile
+
+            from fmu_build import build_fmu
+
+            tmp_fmu_dir = tempfile.mkdtemp(prefix="ebb-fmu-")
+            fmu = build_fmu(cfg, Path(tmp_fmu_dir) / "beam.fmu")
+        search_evaluator = FmuEvaluator(str(fmu), cfg, space, evaluator.experiments,
+                                        tuple(fmu_parameters) if fmu_parameters else None,
+                                        tuple(fmu_inputs) if fmu_inputs else None,
+                                        tuple(fmu_outputs) if fmu_outputs else None, per=per,
+                                        stabilising=bool(stabilising))
     out.mkdir(exist_ok=True)
     _write_json(out / "identifiability.json", fisher0.to_dict())
-    problem = IdentificationProblem(evaluator, names)
-    with make_runner(workers=workers, dask=dask) as runner:
-        pareto = optimise(problem, pop=pop, generations=generations, seed=seed, algorithm=algorithm,
-                          out_dir=out, resume=resume, runner=runner, progress=progress)
+    problem = IdentificationProblem(search_evaluator, names)
+    try:
+        with make_runner(workers=workers, dask=dask) as runner:
+            pareto = optimise(problem, pop=pop, generations=generations, seed=seed, algorithm=algorithm,
+                              out_dir=out, resume=resume, runner=runner, progress=progress)
+    finally:
+        if search_evaluator is not evaluator:
+            search_evaluator.close()
+        if tmp_fmu_dir is not None:
+            import shutil
+
+            shutil.rmtree(tmp_fmu_dir, ignore_errors=True)
     crb, g, st = [], [], []
     for x in pareto.X:
         c, params = space.apply(cfg, x)

@@ -92,3 +92,17 @@ def test_identify_bad_input_exit_2_no_result_dir(case, case_name, capsys):
     assert "error" in capsys.readouterr().err
     if case_name != "not empty":
         assert not out.exists()
+
+
+def test_identify_with_fmu_backend_gives_the_native_front(case):
+    """Same seed, same data: the FMU backend (fmpy) and the native backend produce the same Pareto set."""
+    cfg, data, tmp = case
+    args = ["--pop", "6", "--generations", "2", "--no-progress", "--no-export", "--seed", "4"]
+    assert main(["identify", str(cfg), str(data), "--out", str(tmp / "n"), "--backend", "native", *args]) == 0
+    assert main(["identify", str(cfg), str(data), "--out", str(tmp / "f"), "--backend", "fmu", *args]) == 0
+    a = json.loads((tmp / "n" / "pareto.json").read_text())
+    b = json.loads((tmp / "f" / "pareto.json").read_text())
+    assert [p["parameters"] for p in a["points"]] == [p["parameters"] for p in b["points"]]
+    for pa, pb in zip(a["points"], b["points"]):
+        for k, v in pa["objectives"].items():
+            assert pb["objectives"][k] == pytest.approx(v, rel=1e-9)
