@@ -162,3 +162,15 @@ def test_statespace_export_roundtrip_and_balanced_truncation_bound(tmp_path):
     assert np.all(np.diff(bm.hankel_singular_values) <= 1e-15)
     with pytest.raises(em.StabilityError, match="asymptotically stable"):
         balanced_truncation(em.assemble(make_config(nodes=10)), 4)
+
+
+def test_polish_converges_from_a_nearby_start():
+    from identification.polish import polish
+
+    cfg = seed_like(c=0.4)
+    u, y = synthetic(cfg, n=800, noise=0.0)
+    sp = parameter_space(cfg)
+    ev = NativeEvaluator(cfg, sp, experiments_from_arrays([("e", u, y)]))
+    res = polish(ev, np.array([11.0, 45.0]))
+    np.testing.assert_allclose(res.x, sp.nominal, rtol=1e-6)
+    assert 0 < res.n_evaluations <= 400 and res.cost < 1e-12
