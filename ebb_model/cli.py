@@ -11,7 +11,6 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
-import math
 import sys
 from pathlib import Path
 from typing import Any, Sequence
@@ -23,19 +22,6 @@ _PLUGINS: tuple[tuple[str, str], ...] = (
     ("fmu_build.cli", "add_parser"),
     ("identification.cli", "add_parser"),
 )
-
-
-def _jsonable(v: Any) -> Any:
-    if isinstance(v, float):
-        if math.isnan(v):
-            return None
-        if math.isinf(v):
-            return "inf" if v > 0 else "-inf"
-    if isinstance(v, dict):
-        return {k: _jsonable(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_jsonable(x) for x in v]
-    return v
 
 
 def _parse_params(items: Sequence[str] | None) -> dict[str, float]:
@@ -63,7 +49,9 @@ def modes_report(config_path: str | Path, *, n_modes: int = 10,
     fm = fast_model(cfg, params)
     fd, zd = discrete_frequencies(cfg, params)
     rep = analyse_stability(cfg, params, spectral_radius=fm.spectral_radius())
-    return _jsonable({
+    from .jsonio import jsonable
+
+    return jsonable({
         "frequencies_hz": ma.frequencies_hz.tolist(),
         "damping_ratios": ma.damping_ratios.tolist(),
         "discrete_frequencies_hz": fd[:n_modes].tolist(),

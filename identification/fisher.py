@@ -34,7 +34,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .native import ExperimentArrays, NativeEvaluator
+from .native import NativeEvaluator
 
 __all__ = ["FisherReport", "estimate_noise_std", "sensitivities", "fisher_information", "cramer_rao_std"]
 
@@ -170,9 +170,3 @@ def fisher_information(evaluator: NativeEvaluator, x: np.ndarray, *,
 def cramer_rao_std(evaluator: NativeEvaluator, x: np.ndarray, noise_std: Sequence[float]) -> np.ndarray:
     """Cramér–Rao standard deviations of the unknowns at ``x`` (absolute units)."""
     return fisher_information(evaluator, x, noise_std=noise_std).cramer_rao_std
-
-
-def experiments_from_arrays(items: Sequence[tuple[str, np.ndarray, np.ndarray]]) -> tuple[ExperimentArrays, ...]:
-    """Convenience: ``(name, inputs, outputs)`` triples to :class:`ExperimentArrays`."""
-    return tuple(ExperimentArrays(n, np.atleast_2d(np.asarray(u, float).T).T,
-                                  np.atleast_2d(np.asarray(y, float).T).T) for n, u, y in items)

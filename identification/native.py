@@ -18,7 +18,7 @@ from ebb_model.errors import ParameterError
 from .objectives import PENALTY, output_errors
 from .parameters import ParameterSpace
 
-__all__ = ["ExperimentArrays", "NativeEvaluator"]
+__all__ = ["ExperimentArrays", "NativeEvaluator", "experiments_from_arrays"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -28,6 +28,12 @@ class ExperimentArrays:
     name: str
     inputs: np.ndarray
     outputs: np.ndarray
+
+
+def experiments_from_arrays(items: Sequence[tuple[str, np.ndarray, np.ndarray]]) -> tuple[ExperimentArrays, ...]:
+    """``(name, inputs, outputs)`` triples to :class:`ExperimentArrays` (1-D signals become columns)."""
+    return tuple(ExperimentArrays(n, np.atleast_2d(np.asarray(u, float).T).T,
+                                  np.atleast_2d(np.asarray(y, float).T).T) for n, u, y in items)
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,7 +68,9 @@ class NativeEvaluator:
 
     def simulate(self, x: np.ndarray) -> tuple[list[np.ndarray], float]:
         """Simulated outputs per experiment and the spectral radius of Φ for candidate ``x``."""
-        cfg, params = self.space.apply(self.config, x)
+        return self._simulate(*self.space.apply(self.config, x))
+
+    def _simulate(self, cfg: BeamConfig, params: dict[str, float]) -> tuple[list[np.ndarray], float]:
         model = fast_model(cfg, params)
         rho = model.spectral_radius()
         if rho > 1.0 + 1e-9:
@@ -74,7 +82,7 @@ class NativeEvaluator:
         try:
             cfg, params = self.space.apply(self.config, x)
             g = max_growth_factor(cfg, params) if self.stabilising else 0.0
-            sims, rho = self.simulate(x)
+            sims, rho = self._simulate(cfg, params)
         except ParameterError:
             return np.full(self.n_obj, 2 * PENALTY)
         n_err = self.n_obj - int(self.stabilising)
@@ -91,7 +99,3 @@ class NativeEvaluator:
         X = np.atleast_2d(np.asarray(X, dtype=float))
         return np.array([self.objectives(x) for x in X])
 
-
-def evaluate_chunk(evaluator: NativeEvaluator, X: Sequence[np.ndarray]) -> np.ndarray:
-    """Module-level function for process pools / Dask: evaluate a chunk of candidates."""
-    return evaluator.evaluate(np.asarray(X))

@@ -13,7 +13,6 @@ run leaves nothing behind.
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 from dataclasses import dataclass
@@ -25,6 +24,7 @@ import numpy as np
 from ebb_model import load_config, max_growth_factor
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
+from ebb_model.jsonio import write_json
 
 from .data import Experiment, load_experiments
 from .fisher import FisherReport, fisher_information
@@ -95,12 +95,6 @@ def _arrays(config: BeamConfig, exps: Sequence[Experiment]) -> tuple[ExperimentA
         idx = [e.output_names.index(s.name) for s in config.sensors]
         out.append(ExperimentArrays(e.name, np.asarray(e.inputs), np.asarray(e.outputs)[:, idx]))
     return tuple(out)
-
-
-def _jsonable(v: float) -> Any:
-    if isinstance(v, float) and not math.isfinite(v):
-        return None if math.isnan(v) else ("inf" if v > 0 else "-inf")
-    return v
 
 
 def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_dir: str | Path, *,
@@ -176,7 +170,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                                         tuple(fmu_outputs) if fmu_outputs else None, per=per,
                                         stabilising=bool(stabilising))
     out.mkdir(exist_ok=True)
-    _write_json(out / "identifiability.json", fisher0.to_dict())
+    write_json(out / "identifiability.json", fisher0.to_dict())
     problem = IdentificationProblem(search_evaluator, names)
     try:
         with make_runner(workers=workers, dask=dask) as runner:
@@ -208,12 +202,6 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     return res
 
 
-def _write_json(path: Path, obj: Any) -> None:
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(json.dumps(obj, indent=2, default=_jsonable))
-    os.replace(tmp, path)
-
-
 def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: NativeEvaluator) -> None:
     p = res.pareto
     points = []
@@ -223,7 +211,7 @@ def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: Native
             "knee": i == p.knee,
             "parameters": dict(zip(p.parameter_names, map(float, x))),
             "objectives": dict(zip(p.objective_names, map(float, f))),
-            "cramer_rao_std": {k: _jsonable(float(v)) for k, v in zip(p.parameter_names, res.cramer_rao_std[i])},
+            "cramer_rao_std": {k: float(v) for k, v in zip(p.parameter_names, res.cramer_rao_std[i])},
             "growth_factor": float(res.growth_factors[i]),
             "stable": bool(res.stable[i]),
         })
@@ -236,7 +224,7 @@ def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: Native
         "generations": int(p.generations),
         "points": points,
     }
-    _write_json(res.out_dir / "pareto.json", doc)
+    write_json(res.out_dir / "pareto.json", doc)
     tmp = res.out_dir / "pareto.csv.part"
     with tmp.open("w", newline="") as fh:
         w = csv.writer(fh)

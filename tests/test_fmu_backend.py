@@ -5,7 +5,7 @@ import numpy as np
 
 import ebb_model as em
 from fmu_build import build_fmu
-from identification.fisher import experiments_from_arrays
+from identification.native import experiments_from_arrays
 from identification.fmu_backend import FmuEvaluator
 from identification.native import NativeEvaluator
 from identification.parameters import parameter_space

@@ -8,8 +8,8 @@ import pytest
 
 import ebb_model as em
 from ebb_model import ConfigError
-from identification.fisher import estimate_noise_std, experiments_from_arrays, fisher_information
-from identification.native import NativeEvaluator
+from identification.fisher import estimate_noise_std, fisher_information
+from identification.native import NativeEvaluator, experiments_from_arrays
 from identification.objectives import PENALTY, nrmse, objective_names
 from identification.optimise import knee_index, optimise
 from identification.parameters import parameter_space

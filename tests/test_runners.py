@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import ebb_model as em
-from identification.fisher import experiments_from_arrays
+from identification.native import experiments_from_arrays
 from identification.native import NativeEvaluator
 from identification.parameters import parameter_space
 from identification.runners import DaskRunner, ProcessRunner, SerialRunner
