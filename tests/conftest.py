@@ -51,3 +51,11 @@ def cfg_factory():
 
 
 INF = math.inf
+
+
+def make_identification_config(**kw):
+    """``make_config(**kw)`` with EI ∈ [5, 20] and N ∈ [0, 100] marked for identification (tests only)."""
+    d = make_config(**kw).to_dict()
+    d["parameters"]["EI"].update(bounds=[5.0, 20.0], identify=True)
+    d["parameters"]["N"].update(bounds=[0.0, 100.0], identify=True)
+    return config_from_dict(d, extra_sections=("identification",))

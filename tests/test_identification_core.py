@@ -16,15 +16,11 @@ from identification.parameters import parameter_space
 from identification.problem import IdentificationProblem
 from identification.runners import SerialRunner
 
-from conftest import make_config
+from conftest import make_config, make_identification_config
 
 
 def seed_like(**kw):
-    cfg = make_config(nodes=20, N=50.0, **kw)
-    d = cfg.to_dict()
-    d["parameters"]["EI"].update(bounds=[5.0, 20.0], identify=True)
-    d["parameters"]["N"].update(bounds=[0.0, 100.0], identify=True)
-    return em.config_from_dict(d, extra_sections=("identification",))
+    return make_identification_config(nodes=20, N=50.0, **kw)
 
 
 def synthetic(cfg, n=1500, noise=0.01, seed=0):

@@ -10,15 +10,12 @@ from identification.native import NativeEvaluator
 from identification.parameters import parameter_space
 from identification.runners import DaskRunner, ProcessRunner, SerialRunner
 
-from conftest import make_config
+from conftest import make_identification_config
 
 
 @pytest.fixture(scope="module")
 def evaluator_and_population():
-    d = make_config(nodes=16, c=0.2, N=40.0).to_dict()
-    d["parameters"]["EI"].update(bounds=[5.0, 20.0], identify=True)
-    d["parameters"]["N"].update(bounds=[0.0, 100.0], identify=True)
-    cfg = em.config_from_dict(d)
+    cfg = make_identification_config(nodes=16, c=0.2, N=40.0)
     rng = np.random.default_rng(0)
     u = rng.standard_normal((500, 1))
     y = em.simulate_config(cfg, u).outputs
