@@ -1,0 +1,9 @@
+"""Sim-to-real gap diagnosis: where an identified model and measurements disagree,
+which unmodelled physical effect explains it, and how far the gap closes once
+that effect is modelled (checked on held-out data).
+
+Data flow: identified model + data → :mod:`.localise` (where) →
+:mod:`.effects` / :mod:`.augmented` (candidate effects, simulated natively) →
+:mod:`.rank` (score test, refit, information criteria, held-out error) →
+:mod:`.run` (``gap.json`` and report plots).
+"""
