@@ -7,7 +7,7 @@ path :func:`fast_model`) ; analysis with :func:`modes`,
 :func:`frequency_response` and :func:`analyse_stability` (Bistritz test of the
 dispersion relation).
 """
-from .assemble import assemble, assemble_modal, check_stable, field_matrix
+from .assemble import assemble, assemble_modal, check_stable, field_config, field_matrix
 from .beam import PARAMETER_NAMES, Actuator, End, PointMass, Sensor
 from .config import BeamConfig, ParameterSpec, config_from_dict, load_config
 from .discretisation import SemiDiscreteBeam, discretise
@@ -25,7 +25,7 @@ __all__ = [
     "PARAMETER_NAMES", "Actuator", "End", "PointMass", "Sensor",
     "BeamConfig", "ParameterSpec", "config_from_dict", "load_config",
     "SemiDiscreteBeam", "discretise", "discretise_time", "DiscreteStateSpace", "ModalStateSpace",
-    "assemble", "assemble_modal", "check_stable", "field_matrix",
+    "assemble", "assemble_modal", "check_stable", "field_config", "field_matrix",
     "simulate", "simulate_config", "simulate_batch", "fast_model", "SimulationResult",
     "modes", "ModalAnalysis", "frequency_response", "FrequencyResponse", "discrete_frequencies",
     "analyse_stability", "StabilityReport", "bistritz", "max_growth_factor", "stability_bounds",

@@ -19,7 +19,7 @@ from .errors import StabilityError
 from .statespace import DiscreteStateSpace
 from .theta_scheme import discretise_time
 
-__all__ = ["assemble", "assemble_modal", "field_matrix", "check_stable"]
+__all__ = ["assemble", "assemble_modal", "field_config", "field_matrix", "check_stable"]
 
 
 def check_stable(config: BeamConfig, params: Mapping[str, float], spectral_radius: float,
@@ -106,17 +106,25 @@ def assemble_modal(config: BeamConfig, params: Mapping[str, float] | None = None
     from .simulate import fast_model
 
     p = config.parameter_values() | dict(params or {})
-    modal = fast_model(config, p)
+    # the field comes as extra displacement outputs at every grid node, so it gets
+    # the same (first-order-hold) feedthrough as the sensors
+    modal = fast_model(field_config(config) if field else config, p)
     if check_stability:
         check_stable(config, p, modal.spectral_radius())
-    sys = modal.to_statespace()
-    if not field:
-        return sys
-    _, Cf = field_matrix(config)
-    if modal.to_nodal is None:  # pragma: no cover - both modal routes provide it
-        raise ValueError("modal realisation without its nodal transformation")
-    Cw = Cf @ modal.to_nodal
-    names = tuple(f"w[{i}]" for i in range(Cw.shape[0]))
-    return DiscreteStateSpace(sys.A, sys.B, np.vstack([sys.C, Cw]),
-                              np.vstack([sys.D, np.zeros((Cw.shape[0], sys.ninputs))]), sys.dt,
-                              sys.input_names, sys.output_names + names, sys.state_names)
+    return modal.to_statespace()
+
+
+def field_config(config: BeamConfig) -> BeamConfig:
+    """``config`` with displacement outputs ``w[0] … w[nodes+1]`` at every grid node appended to its sensors.
+
+    A hat function evaluated at a grid node is that node's unit vector, so
+    these outputs are exactly the rows of :func:`field_matrix` (zero at a
+    boundary node that cannot move).
+    """
+    from dataclasses import replace
+
+    from .beam import Sensor
+
+    xs = np.linspace(0.0, config.beam.length, config.beam.nodes + 2)
+    extra = tuple(Sensor(f"w[{i}]", float(x), "displacement") for i, x in enumerate(xs))
+    return replace(config, sensors=tuple(config.sensors) + extra)

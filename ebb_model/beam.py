@@ -4,14 +4,21 @@ These are plain immutable values.  Validation of user input happens in
 :mod:`ebb_model.config`; the constructors here only normalise.
 
 The model is the axially loaded Euler–Bernoulli beam with viscous and
-Kelvin–Voigt damping,
+Kelvin–Voigt damping, rotary inertia (Rayleigh beam) and a Winkler elastic
+foundation,
 
 .. math::
 
-    \\rho A\\, w_{tt} + c\\, w_t + \\eta EI\\, w_{xxxxt} + EI\\, w_{xxxx} - N w_{xx}
+    \\rho A\\, w_{tt} - (\\rho I\\, w_{xtt})_x + c\\, w_t + \\eta EI\\, w_{xxxxt} + EI\\, w_{xxxx}
+    - N w_{xx} + k_f w
     = \\sum_j f_j(t)\\, \\delta(x - a_j) - \\sum_m m_m w_{tt}(a_m, t)\\, \\delta(x - a_m),
 
 on :math:`0 \\le x \\le L`, with :math:`N > 0` tension, SI units throughout.
+``rhoI`` [kg m] and ``kf`` [N/m²] default to 0 (the Euler–Bernoulli beam
+without foundation).  With rotary inertia the shear force at an end is
+:math:`-EI w_{xxx} + N w_x + \\rho I w_{xtt}` (natural boundary condition of
+Hamilton's principle with kinetic energy
+:math:`\\tfrac12\\int \\rho A w_t^2 + \\rho I w_{xt}^2\\,dx`).
 """
 from __future__ import annotations
 
@@ -33,7 +40,7 @@ __all__ = [
 
 #: Names of the physical parameters, in the canonical order used everywhere
 #: (config files, FMU variables, parameter vectors of the identification).
-PARAMETER_NAMES: tuple[str, ...] = ("EI", "rhoA", "c", "eta", "N")
+PARAMETER_NAMES: tuple[str, ...] = ("EI", "rhoA", "c", "eta", "N", "rhoI", "kf")
 
 PARAMETER_UNITS: dict[str, str] = {
     "EI": "N.m2",
@@ -41,6 +48,8 @@ PARAMETER_UNITS: dict[str, str] = {
     "c": "N.s/m2",
     "eta": "s",
     "N": "N",
+    "rhoI": "kg.m",
+    "kf": "N/m2",
 }
 
 PARAMETER_DESCRIPTIONS: dict[str, str] = {
@@ -49,6 +58,8 @@ PARAMETER_DESCRIPTIONS: dict[str, str] = {
     "c": "viscous damping per unit length",
     "eta": "Kelvin-Voigt (strain-rate) damping time constant",
     "N": "axial force, positive in tension",
+    "rhoI": "rotary inertia per unit length (Rayleigh beam), rho times second moment of area",
+    "kf": "Winkler elastic foundation stiffness per unit length",
 }
 
 #: Boundary conditions an end can have.

@@ -21,6 +21,7 @@ __all__ = ["main"]
 _PLUGINS: tuple[tuple[str, str], ...] = (
     ("fmu_build.cli", "add_parser"),
     ("identification.cli", "add_parser"),
+    ("diagnosis.cli", "add_parser"),
 )
 
 

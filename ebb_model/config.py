@@ -13,9 +13,14 @@ bounds and an ``identify`` flag used by the identification layer::
     dt = 1e-4               # sample time, s
     theta = 0.25            # theta of the three-level scheme
     substeps = 1            # integer sub-steps per sample
-    [parameters]
-    EI   = { value = 10.0, bounds = [1.0, 100.0], identify = true }
-    rhoA = { value = 1.0 }
+    [parameters]            # EI, rhoA required; c, eta, N, rhoI, kf optional (default 0)
+    EI   = { value = 10.0, bounds = [1.0, 100.0], identify = true }   # N.m2, > 0
+    rhoA = { value = 1.0 }  # kg/m, > 0
+    c    = 0.0              # N.s/m2, >= 0: viscous damping
+    eta  = 0.0              # s, >= 0: Kelvin-Voigt damping time constant
+    N    = 0.0              # N: axial force, > 0 tension
+    rhoI = 0.0              # kg.m, >= 0: rotary inertia (Rayleigh beam)
+    kf   = 0.0              # N/m2, >= 0: Winkler foundation stiffness
     [[actuators]]
     name = "F1"
     x = 0.3
@@ -66,7 +71,10 @@ _NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 #: Lower limits of the physical parameters (exclusive for EI, rhoA).
 _POSITIVE = ("EI", "rhoA")
-_NONNEGATIVE = ("c", "eta")
+_NONNEGATIVE = ("c", "eta", "rhoI", "kf")
+
+#: Values of the optional parameters when a config omits them (each switches its effect off).
+_DEFAULTS: Mapping[str, float] = MappingProxyType({"c": 0.0, "eta": 0.0, "N": 0.0, "rhoI": 0.0, "kf": 0.0})
 
 
 @dataclass(frozen=True)
@@ -292,7 +300,7 @@ def check_parameter_values(values: Mapping[str, Any], *, where: str = "parameter
     ------
     ParameterError
         Naming every invalid parameter: missing, non-finite, ``EI <= 0``,
-        ``rhoA <= 0``, ``c < 0``, ``eta < 0``.
+        ``rhoA <= 0``, ``c < 0``, ``eta < 0``, ``rhoI < 0``, ``kf < 0``.
     """
     pr = _Problems()
     out: dict[str, float] = {}
@@ -319,7 +327,7 @@ def check_parameter_values(values: Mapping[str, Any], *, where: str = "parameter
 
 def _parameters(pr: _Problems, table: Mapping[str, Any]) -> dict[str, ParameterSpec]:
     specs: dict[str, ParameterSpec] = {}
-    defaults = {"c": 0.0, "eta": 0.0, "N": 0.0}
+    defaults = _DEFAULTS
     for k in table:
         if k not in PARAMETER_NAMES:
             pr.add(f"parameters.{k}", f"unknown parameter; allowed: {', '.join(PARAMETER_NAMES)}")

@@ -20,8 +20,11 @@ Ghost nodes at the left end (the right end is its mirror image), with
 * moment, ``EI w'' = kr w'``:
   :math:`w_{-1} = (2w_0 + (r-1)w_1)/(1+r)`, and :math:`w_{-1} = w_1` for
   ``kr = inf`` (clamped);
-* shear, ``EI w''' - N w' = -kt w`` (only when ``w_0`` is unknown):
-  :math:`w_{-2} = w_2 - 2w_1 + 2w_{-1} - \\tfrac{Nh^2}{EI}(w_1 - w_{-1}) + \\tfrac{2h^3 k_t}{EI} w_0`.
+* shear, ``EI w''' - N w' - rhoI w_xtt = -kt w`` (only when ``w_0`` is unknown):
+  :math:`w_{-2} = w_2 - 2w_1 + 2w_{-1} - \\tfrac{Nh^2}{EI}(w_1 - w_{-1}) + \\tfrac{2h^3 k_t}{EI} w_0
+  - \\tfrac{\\rho I h^2}{EI}(\\ddot w_1 - \\ddot w_{-1})`.  The last (rotary-inertia) part
+  involves accelerations and goes into the mass matrix (below); the
+  extension ``E`` holds the rest.
 
 Semi-discrete system
 --------------------
@@ -30,12 +33,29 @@ inside, ``h/2`` at a boundary node that is an unknown), giving
 
 .. math::  M \\ddot q + C \\dot q + K q = F f(t),
 
-with :math:`M = \\rho A\\,\\mathrm{diag}(V) + \\sum_m m_m \\phi(a_m)\\phi(a_m)^T`,
-:math:`K = \\mathrm{diag}(V)(EI D_4 - N D_2)E`, :math:`C = c\\,\\mathrm{diag}(V) + \\eta EI\\,\\mathrm{diag}(V) D_4 E`
+with :math:`M = \\rho A\\,\\mathrm{diag}(V) + \\rho I\\, M_r + \\sum_m m_m \\phi(a_m)\\phi(a_m)^T`,
+:math:`K = \\mathrm{diag}(V)(EI D_4 - N D_2)E + k_f\\,\\mathrm{diag}(V)`,
+:math:`C = c\\,\\mathrm{diag}(V) + \\eta EI\\,\\mathrm{diag}(V) D_4 E`
 (``E`` maps unknowns to the extended vector with ghosts; the Kelvin–Voigt
 term uses the same ghost relations as the displacement, which is exact for
-clamped and pinned ends and neglects an ``η N ẇ'`` term at free/elastic ends
-under axial load).  Point forces, point masses and sensors use the piecewise
+clamped and pinned ends and neglects an ``η N ẇ'`` term under axial load —
+and, with rotary inertia, an ``η ρI ẇ_xtt`` term — at free/elastic ends).
+
+Rotary inertia: the row of unknown ``i`` gets :math:`-\\rho I\\,V_i (D_2 \\ddot w)_i`
+(with ``ẅ_0 = 0`` where an end cannot translate).  At an end that can
+translate, the rotary-inertia part of the shear ghost ``w_{-2}`` adds
+:math:`-\\tfrac{\\rho I}{2h}(\\ddot w_1 - \\ddot w_{-1})` to row 0 (through
+``EI V_0 D_4``); its ``ẅ_{-1}`` cancels the one of the ``D_2`` stencil whatever
+the moment condition, leaving :math:`\\tfrac{\\rho I}{h}(\\ddot w_0 - \\ddot w_1)`.
+Hence, exactly, :math:`M_r = h\\,(GP)^T(GP)` with ``G`` the slopes
+:math:`(w_{i+1} - w_i)/h` of the ``n + 1`` cells and ``P`` the
+unknowns-to-grid map: the kinetic energy :math:`\\tfrac12\\rho I\\int \\dot w_x^2\\,dx`
+of the piecewise-linear interpolant, so ``M`` stays symmetric positive
+definite (:func:`rotary_mass`).  The Winkler foundation is lumped like the
+translational mass, :math:`k_f\\,\\mathrm{diag}(V)`, and enters no boundary
+condition.
+
+Point forces, point masses and sensors use the piecewise
 linear "hat" functions :math:`\\phi_i(x)` of the grid, so a force between nodes
 is shared by its two neighbours with weights summing to one (consistent load
 distribution) and a collocated sensor/actuator pair is reciprocal.
@@ -50,7 +70,7 @@ import numpy as np
 
 from .config import BeamConfig, check_parameter_values
 
-__all__ = ["SemiDiscreteBeam", "discretise", "grid_nodes", "hat_weights"]
+__all__ = ["SemiDiscreteBeam", "discretise", "grid_nodes", "hat_weights", "rotary_mass"]
 
 
 @dataclass(frozen=True)
@@ -72,10 +92,8 @@ class SemiDiscreteBeam:
         Positions of all grid nodes ``0 … n+1`` [m].
     unknown
         Indices (into ``x``) of the nodes that are unknowns.
-    proportional_hint
-        True when the damping is known to be diagonal in the undamped modes
-        (``eta == 0``, or ``N == 0`` with no springs coupling).  The modal
-        fast path re-checks numerically.
+    input_names, output_names
+        Actuator and sensor names (the columns of ``F``, the rows of ``S``).
     """
 
     M: np.ndarray
@@ -122,6 +140,37 @@ def hat_weights(x: float, length: float, nodes: int) -> np.ndarray:
     return w
 
 
+def rotary_mass(nodes: int, h: float, unknown: np.ndarray) -> np.ndarray:
+    """Rotary-inertia mass matrix per unit ``rhoI``: ``h (G P)ᵀ (G P)``.
+
+    Parameters
+    ----------
+    nodes
+        Number of interior grid points ``n``.
+    h
+        Grid spacing [m].
+    unknown
+        Indices (into the ``n + 2`` grid nodes) of the nodal unknowns; the
+        other nodes are held at zero.
+
+    Returns
+    -------
+    numpy.ndarray
+        Symmetric positive semi-definite (n_u × n_u) matrix, ``1/h`` times the
+        grid's graph Laplacian: ``2`` on the diagonal of an interior unknown,
+        ``1`` at a boundary unknown, ``-1`` between neighbours.  It equals
+        ``-diag(V) D_2`` plus the rotary-inertia part of the shear ghost
+        relation (see the module docstring).
+    """
+    unknown = np.asarray(unknown)
+    # cells adjacent to each unknown's node: 1 at a boundary node, 2 inside
+    cells = np.where((unknown == 0) | (unknown == nodes + 1), 1.0, 2.0)
+    Mr = np.diag(cells / h)
+    nb = np.flatnonzero(np.diff(unknown) == 1)  # neighbouring unknowns share a cell
+    Mr[nb, nb + 1] = Mr[nb + 1, nb] = -1.0 / h
+    return Mr
+
+
 def _extension(n: int, h: float, EI: float, N: float, left, right, unknown: np.ndarray) -> np.ndarray:
     """Matrix E mapping unknowns to grid values on indices -2 … n+3 (offset +2)."""
     n_ext = n + 6
@@ -160,7 +209,7 @@ def discretise(config: BeamConfig, params: Mapping[str, float] | None = None) ->
         The validated set-up.
     params
         Physical parameters overriding the config's nominal values
-        (any subset of ``EI, rhoA, c, eta, N``).
+        (any subset of ``EI, rhoA, c, eta, N, rhoI, kf``).
 
     Returns
     -------
@@ -174,6 +223,7 @@ def discretise(config: BeamConfig, params: Mapping[str, float] | None = None) ->
     values = config.parameter_values() | dict(params or {})
     p = check_parameter_values(values)
     EI, rhoA, c, eta, N = p["EI"], p["rhoA"], p["c"], p["eta"], p["N"]
+    rhoI, kf = p["rhoI"], p["kf"]
     L, n = config.beam.length, config.beam.nodes
     left, right = config.beam.left, config.beam.right
     h = L / (n + 1)
@@ -202,8 +252,11 @@ def discretise(config: BeamConfig, params: Mapping[str, float] | None = None) ->
     B4 = V[:, None] * (D4 @ E)
     K = EI * B4 - N * (V[:, None] * (D2 @ E))
     C = eta * EI * B4
+    K[np.diag_indices(nu)] += kf * V
     C[np.diag_indices(nu)] += c * V
     M = np.diag(rhoA * V)
+    if rhoI != 0.0:
+        M += rhoI * rotary_mass(n, h, unknown)
     for m in config.masses:
         phi = hat_weights(m.x, L, n)[unknown]
         M += m.mass * np.outer(phi, phi)

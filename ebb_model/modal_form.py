@@ -10,7 +10,9 @@ diagonal with 2×2 real blocks ``T_b``:
 Two routes lead here:
 
 * **Proportional damping** (the damping matrix is diagonal in the undamped
-  modes, e.g. ``eta = 0``, or ``N = 0`` without springs): the θ-scheme
+  modes, checked numerically: e.g. no damping, or ``c`` alone with a lumped
+  mass matrix — not with rotary inertia ``rhoI > 0`` or point masses, which
+  make ``M`` non-diagonal while ``c diag(V)`` stays diagonal): the θ-scheme
   decouples *exactly* in the mass-normalised modes ``q = Ψ ξ`` of
   ``K Ψ = M Ψ Ω²``.  Mode ``i`` obeys the scalar scheme of
   :mod:`ebb_model.theta_scheme` on the state ``(ξ^j, v^{j-1/2})`` with
@@ -30,7 +32,7 @@ import scipy.linalg as sla
 
 from .discretisation import SemiDiscreteBeam
 from .statespace import DiscreteStateSpace
-from .theta_scheme import output_matrices
+from .theta_scheme import hold_matrices, output_matrices
 
 __all__ = ["ModalStateSpace", "modal_from_beam", "modal_from_statespace", "is_proportional"]
 
@@ -41,7 +43,9 @@ class ModalStateSpace:
 
     ``to_nodal`` (2n × 2nb), when known, maps the block state (flattened
     block by block) to the nodal state ``(q, v)`` of
-    :func:`~ebb_model.theta_scheme.discretise_time`.
+    :func:`~ebb_model.theta_scheme.discretise_time`.  ``hold`` (nb, 2, m), when
+    given, is the first-order-hold matrix ``Γ₁`` in block coordinates (a start
+    at rest is ``z[0] = −Γ₁ u[0]``, see :class:`DiscreteStateSpace`).
     """
 
     T: np.ndarray
@@ -52,9 +56,11 @@ class ModalStateSpace:
     input_names: tuple[str, ...]
     output_names: tuple[str, ...]
     to_nodal: np.ndarray | None = None
+    hold: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        for name in ("T", "G", "Cm", "D") + (("to_nodal",) if self.to_nodal is not None else ()):
+        optional = tuple(k for k in ("to_nodal", "hold") if getattr(self, k) is not None)
+        for name in ("T", "G", "Cm", "D") + optional:
             a = np.ascontiguousarray(getattr(self, name), dtype=float)
             a.setflags(write=False)
             object.__setattr__(self, name, a)
@@ -71,7 +77,8 @@ class ModalStateSpace:
         B = self.G.reshape(2 * nb, -1)
         C = self.Cm.reshape(self.Cm.shape[0], 2 * nb)
         names = tuple(f"z{b}_{j}" for b in range(nb) for j in range(2))
-        return DiscreteStateSpace(A, B, C, self.D, self.dt, self.input_names, self.output_names, names)
+        hold = self.hold.reshape(2 * nb, -1) if self.hold is not None else None
+        return DiscreteStateSpace(A, B, C, self.D, self.dt, self.input_names, self.output_names, names, hold)
 
     def spectral_radius(self) -> float:
         """Largest modulus of the block eigenvalues (closed form for 2×2 blocks)."""
@@ -93,7 +100,7 @@ def is_proportional(Psi: np.ndarray, C: np.ndarray, *, rtol: float = 1e-10) -> t
 
 
 def modal_from_beam(beam: SemiDiscreteBeam, dt: float, theta: float = 0.25,
-                    substeps: int = 1) -> ModalStateSpace | None:
+                    substeps: int = 1, input_hold: str = "foh") -> ModalStateSpace | None:
     """Exact modal form via the undamped modes, or ``None`` if damping is not proportional."""
     w2, Psi = sla.eigh(beam.K, beam.M)
     prop, d = is_proportional(Psi, beam.C)
@@ -113,18 +120,19 @@ def modal_from_beam(beam: SemiDiscreteBeam, dt: float, theta: float = 0.25,
     g = np.empty((nb, 2, m))
     g[:, 0, :] = tau * bt
     g[:, 1, :] = bt
-    T, G = S.copy(), g.copy()
-    for _ in range(substeps - 1):
-        G = np.einsum("bij,bjm->bim", S, G) + g
-        T = np.einsum("bij,bjk->bik", S, T)
+    T, G0, G1 = hold_matrices(S, g, substeps, input_hold)
     # outputs in modal coordinates: P Ψ, with diagonal scheme matrices
     C2, D = output_matrices(beam.S @ Psi, beam.sensor_kinds, np.diag(kt), np.diag(ct), bt, tau)
     Cm = np.stack([C2[:, :nb], C2[:, nb:]], axis=2)  # (p, nb, 2)
+    # causal first-order-hold realisation per block (see ebb_model.theta_scheme)
+    G = G0 + np.matmul(T, G1)
+    D = D + np.einsum("pbi,bim->pm", Cm, G1)
     n = Psi.shape[0]
     to_nodal = np.zeros((2 * n, 2 * nb))
     to_nodal[:n, 0::2] = Psi
     to_nodal[n:, 1::2] = Psi
-    return ModalStateSpace(T, G, Cm, D, dt, beam.input_names, beam.output_names, to_nodal)
+    hold = G1 if substeps > 1 and input_hold == "foh" else None
+    return ModalStateSpace(T, G, Cm, D, dt, beam.input_names, beam.output_names, to_nodal, hold)
 
 
 def modal_from_statespace(sys: DiscreteStateSpace) -> ModalStateSpace:
@@ -173,4 +181,5 @@ def modal_from_statespace(sys: DiscreteStateSpace) -> ModalStateSpace:
     T = np.array(blocks).reshape(nb, 2, 2)
     G = (Wi @ sys.B).reshape(nb, 2, -1)
     Cm = (sys.C @ W).reshape(sys.noutputs, nb, 2)
-    return ModalStateSpace(T, G, Cm, sys.D, sys.dt, sys.input_names, sys.output_names, W)
+    hold = (Wi @ sys.hold).reshape(nb, 2, -1) if sys.hold is not None else None
+    return ModalStateSpace(T, G, Cm, sys.D, sys.dt, sys.input_names, sys.output_names, W, hold)

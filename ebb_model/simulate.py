@@ -38,12 +38,12 @@ _FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
 
 
 @numba.njit(cache=True, nogil=True, fastmath=_FASTMATH)
-def _modal_kernel(t00, t01, t10, t11, g0, g1, c0, c1, D, u, y):  # pragma: no cover - compiled
+def _modal_kernel(t00, t01, t10, t11, g0, g1, c0, c1, D, u, y, s0, s1):  # pragma: no cover - compiled
     nb = t00.shape[0]
     ns, ni = u.shape
     no = D.shape[0]
-    z0 = np.zeros(nb)
-    z1 = np.zeros(nb)
+    z0 = s0.copy()
+    z1 = s1.copy()
     for k in range(ns):
         for o in range(no):
             acc = 0.0
@@ -157,7 +157,9 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
         Input samples, shape (n_samples, n_inputs) (1-D allowed for one input);
         ``u[k]`` is held over ``[t_k, t_{k+1})``.
     x0
-        Initial state (dense systems only); zero by default.
+        Initial state (block state ``(nb, 2)`` flattened for modal systems).
+        Default: at rest — zero, or ``−Γ₁ u[0]`` for a first-order-hold
+        realisation (``system.hold``, see :mod:`ebb_model.theta_scheme`).
 
     Returns
     -------
@@ -165,20 +167,30 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
         ``y[k] = C x[k] + D u[k]`` at ``t_k = k dt``.
     """
     if isinstance(system, ModalStateSpace):
-        if x0 is not None:
-            raise ValueError("x0 is only supported for dense DiscreteStateSpace systems")
         u = _check_input(u, system.G.shape[2])
         y = np.empty((u.shape[0], system.D.shape[0]))
         T, G, Cm = system.T, system.G, system.Cm
+        if x0 is not None:
+            z = np.asarray(x0, dtype=float).reshape(system.nblocks, 2)
+        elif system.hold is not None and u.shape[0]:
+            z = -np.einsum("bim,m->bi", system.hold, u[0])
+        else:
+            z = np.zeros((system.nblocks, 2))
         _modal_kernel(np.ascontiguousarray(T[:, 0, 0]), np.ascontiguousarray(T[:, 0, 1]),
                       np.ascontiguousarray(T[:, 1, 0]), np.ascontiguousarray(T[:, 1, 1]),
                       np.ascontiguousarray(G[:, 0, :].T), np.ascontiguousarray(G[:, 1, :].T),
                       np.ascontiguousarray(Cm[:, :, 0]), np.ascontiguousarray(Cm[:, :, 1]),
-                      np.ascontiguousarray(system.D), u, y)
+                      np.ascontiguousarray(system.D), u, y,
+                      np.ascontiguousarray(z[:, 0]), np.ascontiguousarray(z[:, 1]))
     else:
         u = _check_input(u, system.ninputs)
         y = np.empty((u.shape[0], system.noutputs))
-        x = np.zeros(system.nstates) if x0 is None else np.asarray(x0, dtype=float).reshape(system.nstates)
+        if x0 is not None:
+            x = np.asarray(x0, dtype=float).reshape(system.nstates)
+        elif system.hold is not None and u.shape[0]:
+            x = -(system.hold @ u[0])
+        else:
+            x = np.zeros(system.nstates)
         _dense_kernel(np.ascontiguousarray(system.A), np.ascontiguousarray(system.B),
                       np.ascontiguousarray(system.C), np.ascontiguousarray(system.D), x, u, y)
     t = np.arange(u.shape[0]) * system.dt

@@ -69,6 +69,11 @@ class DiscreteStateSpace:
         Sample time [s], > 0.
     input_names, output_names, state_names
         Signal names; defaults ``u[i]``, ``y[i]``, ``x[i]``.
+    hold
+        Optional (n×m) matrix ``Γ₁`` of a first-order-hold realisation
+        (:mod:`ebb_model.theta_scheme`): the state is ``ξ = x − Γ₁ u``, so
+        a start at rest is ``ξ[0] = −Γ₁ u[0]`` (what :func:`ebb_model.simulate`
+        uses by default).  ``None``: a start at rest is ``ξ[0] = 0``.
     """
 
     A: np.ndarray
@@ -79,6 +84,7 @@ class DiscreteStateSpace:
     input_names: tuple[str, ...] = field(default=())
     output_names: tuple[str, ...] = field(default=())
     state_names: tuple[str, ...] = field(default=())
+    hold: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         A = _matrix("A", self.A, (None, None))
@@ -88,6 +94,8 @@ class DiscreteStateSpace:
         B = _matrix("B", self.B, (n, None))
         C = _matrix("C", self.C, (None, n))
         D = _matrix("D", self.D, (C.shape[0], B.shape[1]))
+        if self.hold is not None:
+            object.__setattr__(self, "hold", _matrix("hold", self.hold, (n, B.shape[1])))
         dt = float(self.dt)
         if not np.isfinite(dt) or dt <= 0:
             raise ConfigError(f"dt must be a finite number > 0, got {self.dt!r}")

@@ -10,8 +10,19 @@ sub-steps per sample), the scheme (Newmark-equivalent for ``θ = β``) is
     + K\left[\theta q^{j+1} + (1-2\theta) q^j + \theta q^{j-1}\right] = F f^j ,
 
 unconditionally stable for ``θ ≥ 1/4`` (with non-negative damping), and for
-``θ < 1/4`` stable when ``τ² ω_max² (1 - 4θ) ≤ 4``.  The force ``f^j`` is the
-sample ``u[k]`` held (zero-order hold) over ``[t_k, t_{k+1})``.
+``θ < 1/4`` stable when ``τ² ω_max² (1 - 4θ) ≤ 4``.
+
+Input between samples
+---------------------
+The scheme collocates the force at the levels ``t_j``.  At a sample instant
+(``j = mk``) it is the sample ``u[k]``; at the sub-step levels in between it is
+either the straight line between ``u[k]`` and ``u[k+1]`` (first-order hold,
+``input_hold="foh"``, the default: measured forces are samples of continuous
+signals) or ``u[k]`` held (zero-order hold, ``"zoh"``: a force commanded
+through a hold device).  With one sub-step both coincide.  For the
+first-order hold the per-sample recursion ``x[k+1] = Φ x[k] + Γ₀ u[k] + Γ₁ u[k+1]``
+is made causal with the state ``ξ[k] = x[k] − Γ₁ u[k]`` (the standard FOH
+realisation): ``ξ[k+1] = Φ ξ[k] + (Γ₀ + ΦΓ₁) u[k]``, ``y = C ξ + (D + CΓ₁) u``.
 
 State
 -----
@@ -56,7 +67,8 @@ import scipy.linalg as sla
 from .discretisation import SemiDiscreteBeam
 from .statespace import DiscreteStateSpace
 
-__all__ = ["ThetaCoefficients", "theta_coefficients", "discretise_time", "output_matrices", "one_step"]
+__all__ = ["ThetaCoefficients", "theta_coefficients", "discretise_time", "output_matrices", "one_step",
+           "hold_matrices", "causal_hold"]
 
 
 class ThetaCoefficients:
@@ -114,21 +126,47 @@ def output_matrices(P: np.ndarray, kinds: tuple[str, ...], Kt: np.ndarray, Ct: n
     return C, D
 
 
+def hold_matrices(S: np.ndarray, G: np.ndarray, substeps: int, hold: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-sample ``Φ = S^m``, ``Γ₀``, ``Γ₁`` of ``x[k+1] = Φ x[k] + Γ₀ u[k] + Γ₁ u[k+1]``.
+
+    Works on dense matrices (``S`` (n, n), ``G`` (n, p)) and on stacks of 2×2
+    modal blocks (``S`` (b, 2, 2), ``G`` (b, 2, p)).  Sub-step ``i`` of a sample
+    carries the force ``(1 − i/m) u[k] + (i/m) u[k+1]`` (``hold="foh"``) or
+    ``u[k]`` (``"zoh"``, then ``Γ₁ = 0``).
+    """
+    if hold not in ("foh", "zoh"):
+        raise ValueError(f"input hold must be 'foh' or 'zoh', got {hold!r}")
+    mul = np.matmul
+    Phi, G0, G1 = S.copy(), G.copy(), np.zeros_like(G)
+    for i in range(1, substeps):
+        w = i / substeps if hold == "foh" else 0.0
+        G0 = mul(S, G0) + (1.0 - w) * G
+        G1 = mul(S, G1) + w * G
+        Phi = mul(S, Phi)
+    return Phi, G0, G1
+
+
+def causal_hold(Phi: np.ndarray, G0: np.ndarray, G1: np.ndarray, C: np.ndarray, D: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """``(B, D)`` of the causal realisation on ``ξ = x − Γ₁ u``: ``B = Γ₀ + ΦΓ₁``, ``D' = D + CΓ₁`` (dense)."""
+    return G0 + Phi @ G1, D + C @ G1
+
+
 def discretise_time(beam: SemiDiscreteBeam, dt: float, theta: float = 0.25,
-                    substeps: int = 1) -> DiscreteStateSpace:
+                    substeps: int = 1, input_hold: str = "foh") -> DiscreteStateSpace:
     """The θ-scheme of ``beam`` as a dense discrete state-space system (Φ, Γ, C, D, dt).
 
     The state is ``x[k] = (q^{mk}, v^{mk-1/2})`` of nodal unknowns, with
-    ``v^{j-1/2} = (q^j - q^{j-1})/τ``; state names are ``w(x=…)`` and
-    ``v(x=…)``.
+    ``v^{j-1/2} = (q^j - q^{j-1})/τ`` (shifted by ``−Γ₁ u[k]`` for the
+    first-order hold with sub-steps, see the module docstring); state names
+    are ``w(x=…)`` and ``v(x=…)``.
     """
     co = theta_coefficients(beam, dt, theta, substeps)
     S, G = one_step(co.Kt, co.Ct, co.Bt, co.tau)
-    Phi, Gam = S, G
-    for _ in range(substeps - 1):
-        Gam = S @ Gam + G
-        Phi = S @ Phi
+    Phi, G0, G1 = hold_matrices(S, G, substeps, input_hold)
     C, D = output_matrices(beam.S, beam.sensor_kinds, co.Kt, co.Ct, co.Bt, co.tau)
+    B, D = causal_hold(Phi, G0, G1, C, D)
     xs = beam.x[beam.unknown]
     names = tuple(f"w(x={v:.6g})" for v in xs) + tuple(f"v(x={v:.6g})" for v in xs)
-    return DiscreteStateSpace(Phi, Gam, C, D, dt, beam.input_names, beam.output_names, names)
+    hold = G1 if substeps > 1 and input_hold == "foh" else None
+    return DiscreteStateSpace(Phi, B, C, D, dt, beam.input_names, beam.output_names, names, hold)

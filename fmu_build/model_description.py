@@ -42,6 +42,8 @@ UNIT_DEFINITIONS: dict[str, dict[str, int]] = {
     "N.s/m2": {"kg": 1, "m": -1, "s": -1},
     "N/m": {"kg": 1, "s": -2},
     "N.m/rad": {"kg": 1, "m": 2, "s": -2, "rad": -1},
+    "kg.m": {"kg": 1, "m": 1},
+    "N/m2": {"kg": 1, "m": -1, "s": -2},
 }
 
 

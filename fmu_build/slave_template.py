@@ -7,8 +7,8 @@ for the discrete system of the current parameter values,
 
     x_{k+1} = A x_k + B u_k, \\qquad y_k = C x_k + D u_k, \\qquad t_k = t_0 + k\\,dt,
 
-(``ebb_model.assemble``; with ``field=True`` the rows of
-``ebb_model.field_matrix`` are appended to ``C`` with zero ``D``) and then
+(``ebb_model.assemble``; with ``field=True`` of ``ebb_model.field_config``,
+which appends displacement outputs at every grid node) and then
 only iterates it.  Co-simulation semantics, zero-order hold:
 
 * at ``t_k`` the master sets ``u_k``; ``fmi2GetReal`` returns
@@ -78,9 +78,10 @@ class BeamSlave(Fmi2Slave):
     Notes
     -----
     Value references follow registration order: the parameters
-    ``EI, rhoA, c, eta, N`` (tunable), one input per actuator [N], one output
-    per sensor [m, m/s, m/s2], the field outputs when built with
-    ``field=True``, then the fixed set-up as calculated parameters
+    ``EI, rhoA, c, eta, N, rhoI, kf`` (tunable, ``PARAMETER_NAMES``), one
+    input per actuator [N], one output per sensor [m, m/s, m/s2], the field
+    outputs when built with ``field=True``, then the fixed set-up as
+    calculated parameters
     (``beam.length``, ``beam.nodes``, ``time.dt``, positions, ...).
     Parameter values are read when initialisation ends; a change in step mode
     takes effect at the next step (the state is kept).
@@ -110,10 +111,11 @@ class BeamSlave(Fmi2Slave):
         self._outputs_stale = True  # state, input or model changed since the outputs were stored
         self._problem = ""  # why the model or the outputs are unavailable
         self._u: list[float] = [0.0] * len(self._inputs)
-        self._field_C: np.ndarray | None = None
         self._plan: _StepPlan | None = None
         # the hot path's references into the plan (see _assemble)
         self._z: np.ndarray | None = None  # (x, u)
+        #: at the start time: with a first-order-hold realisation, "at rest" is x = −Γ₁ u(t0)
+        self._at_start = True
         self._x: np.ndarray | None = None  # view z[:nx]
         self._W: np.ndarray | None = None
         self._buf: np.ndarray | None = None
@@ -199,14 +201,10 @@ class BeamSlave(Fmi2Slave):
         rejects the parameters (ParameterError, StabilityError) or fails.
         """
         try:
-            system = _core.assemble(self._cfg, dict(self._params))
-            C, D = system.C, system.D
-            if self._field:
-                if self._field_C is None:
-                    self._field_C = np.asarray(_core.field_matrix(self._cfg)[1], dtype=float)
-                C = np.vstack([C, self._field_C])
-                D = np.vstack([D, np.zeros((self._field_C.shape[0], D.shape[1]))])
-            plan = _StepPlan(system.A, system.B, C, D)
+            # field outputs are displacement outputs at the grid nodes (same feedthrough as the sensors)
+            cfg = _core.field_config(self._cfg) if self._field else self._cfg
+            system = _core.assemble(cfg, dict(self._params))
+            plan = _StepPlan(system.A, system.B, system.C, system.D, system.hold)
         except Exception as exc:
             self._model_stale = True
             self._problem = f"no valid model for these parameters: {type(exc).__name__}: {exc}"
@@ -233,6 +231,7 @@ class BeamSlave(Fmi2Slave):
         if self._model_stale and not self._assemble():
             return False
         plan = self._plan
+        self._rest_start()
         if not self._cx_valid:
             plan.N.dot(self._z, out=plan.cx)
             self._cx_valid = True
@@ -248,6 +247,12 @@ class BeamSlave(Fmi2Slave):
         self._reals[o0:o1] = values
         self._outputs_stale = False
         return True
+
+    def _rest_start(self) -> None:
+        """At the start time, put the state at rest for the current inputs (``x = −Γ₁ u``)."""
+        if self._at_start and self._plan is not None and self._plan.hold is not None:
+            self._x[...] = -(self._plan.hold @ np.asarray(self._u, dtype=float))
+            self._cx_valid = False
 
     # ----------------------------------------------------------- FMI calls
     def setup_experiment(self, start_time: float = 0.0, *args: Any) -> None:
@@ -265,7 +270,7 @@ class BeamSlave(Fmi2Slave):
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         try:
-            if step_size == self._dt and not self._model_stale:  # the hot path
+            if step_size == self._dt and not self._model_stale and not self._at_start:  # the hot path
                 self._W.dot(self._z, out=self._buf)
                 self._x[...] = self._next_x
                 self._cx_valid = True
@@ -286,6 +291,8 @@ class BeamSlave(Fmi2Slave):
         if self._model_stale and not self._assemble():
             self._error("fmi2DoStep", self._problem)
             return False
+        self._rest_start()
+        self._at_start = False
         W, z, buf, x, next_x = self._W, self._z, self._buf, self._x, self._next_x
         for _ in range(n):
             W.dot(z, out=buf)
@@ -383,10 +390,15 @@ class _StepPlan:
     ----------
     A, B, C, D
         The discrete system (``C``, ``D`` include the field rows, if any).
+    hold
+        ``Γ₁`` of a first-order-hold realisation, or ``None``.
     """
 
-    def __init__(self, A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray) -> None:
+    def __init__(self, A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray,
+                 hold: np.ndarray | None = None) -> None:
         A, B, C, D = (np.asarray(m, dtype=float) for m in (A, B, C, D))
+        #: first-order-hold matrix Γ₁ (state at rest is −Γ₁ u), or None
+        self.hold = None if hold is None else np.asarray(hold, dtype=float)
         nx, nu = B.shape
         self.nx, self.nu = nx, nu
         self.W = np.asfortranarray(np.vstack([np.hstack([A, B]), np.hstack([C @ A, C @ B])]))

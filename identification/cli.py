@@ -14,7 +14,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
                    dask=args.dask, pop=args.pop, generations=args.generations, seed=args.seed,
                    resume=args.resume, force=args.force, algorithm=args.algorithm,
                    progress=not args.no_progress, export=not args.no_export, fmu=args.fmu,
-                   fmu_parameters=args.fmu_parameters, fmu_inputs=args.fmu_inputs, fmu_outputs=args.fmu_outputs)
+                   fmu_parameters=args.fmu_parameters, fmu_inputs=args.fmu_inputs, fmu_outputs=args.fmu_outputs,
+                   polish=args.polish)
     f = res.fisher_nominal
     print(f"Fisher information at the nominal point: rank {f.rank}/{len(f.names)}, "
           f"condition number {f.condition_number:.3g}")
@@ -23,6 +24,11 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     p = res.pareto
     print(f"{len(p.X)} Pareto points after {p.generations} generations, {p.n_evaluations} evaluations")
     print("knee: " + json.dumps({k: round(v, 6) for k, v in res.knee.items()}))
+    for j, q in enumerate(res.polished):
+        values = {k: round(float(v), 6) for k, v in zip(p.parameter_names, q.x)}
+        print(f"polished {j} (from point {q.from_index}, {q.n_evaluations} evaluations): " + json.dumps(values))
+    if res.polished:
+        print(f"total evaluations (GA + polish): {res.n_evaluations}")
     print(f"wrote {res.out_dir / 'pareto.json'}")
     return 0
 
@@ -30,7 +36,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 def _cmd_export(args: argparse.Namespace) -> int:
     from .export import export_points
 
-    files = export_points(args.dir, args.points, fmu=not args.no_fmu, reduce_order=args.reduce_order)
+    files = export_points(args.dir, args.points, polished=args.polished, fmu=not args.no_fmu,
+                          reduce_order=args.reduce_order)
     for f in files:
         print(f"wrote {f}")
     return 0
@@ -54,6 +61,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--generations", type=int, default=30, help="generations")
     p.add_argument("--seed", type=int, default=1, help="random seed")
     p.add_argument("--algorithm", default="nsga2", help="nsga2 | nsga3")
+    p.add_argument("--polish", type=int, default=0, metavar="K",
+                   help="after the GA, refine the K Pareto points nearest the knee (knee first) by bounded least "
+                        "squares (default 0: no polish)")
     p.add_argument("--resume", action="store_true", help="continue from the checkpoint in --out")
     p.add_argument("--force", action="store_true", help="run even if the Fisher matrix is singular")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -61,7 +71,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_identify)
     p = sub.add_parser("export", help="export Pareto points of a result directory (StateSpace, FMU)")
     p.add_argument("dir", help="result directory of 'ebb identify'")
-    p.add_argument("--points", type=int, nargs="*", default=None, help="point indices (default: all)")
+    p.add_argument("--points", type=int, nargs="*", default=None,
+                   help="Pareto point indices (default: all, unless --polished is given)")
+    p.add_argument("--polished", type=int, nargs="*", default=None,
+                   help="polished point indices (default: all, unless --points is given)")
     p.add_argument("--no-fmu", action="store_true", help="StateSpace only")
     p.add_argument("--reduce-order", type=int, default=None, help="also a balanced truncation of this order")
     p.set_defaults(func=_cmd_export)

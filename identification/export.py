@@ -1,12 +1,15 @@
 """Export of Pareto points: python-control StateSpace (``.npz``) and, when available, FMUs.
 
 ``export_points(DIR)`` reads ``DIR/pareto.json`` (written by
-:func:`identification.run.identify`) and writes, per chosen point ``i``,
-``DIR/export/point_<i>.npz`` (reload with
+:func:`identification.run.identify`) and writes, per chosen Pareto point
+``i``, ``DIR/export/point_<i>.npz`` (reload with
 :func:`identification.export_statespace.load_statespace`) and
 ``DIR/export/point_<i>.fmu`` with the identified values as start values (via
 :mod:`fmu_build`; each FMU gets its own model identifier so several load side
-by side).  Optionally a balanced-truncation reduced model with its error bound.
+by side), and the same per chosen polished point ``j`` as
+``DIR/export/polished_<j>.*``.  Optionally a balanced-truncation reduced model
+with its error bound.  Unstable points are listed in ``pareto.json`` but not
+exported.
 """
 from __future__ import annotations
 
@@ -23,9 +26,23 @@ from .parameters import ParameterSpace
 __all__ = ["export_points"]
 
 
-def export_points(result_dir: str | Path, points: Sequence[int] | None = None, *, fmu: bool = True,
+def _chosen(what: str, selection: Sequence[int] | None, n: int) -> Sequence[int]:
+    chosen = range(n) if selection is None else list(selection)
+    bad = [i for i in chosen if not 0 <= i < n]
+    if bad:
+        raise ConfigError(f"--{what}: {bad} out of range" + (f" 0 … {n - 1}" if n else f" (no {what} points)"))
+    return chosen
+
+
+def export_points(result_dir: str | Path, points: Sequence[int] | None = None, *,
+                  polished: Sequence[int] | None = None, fmu: bool = True,
                   reduce_order: int | None = None) -> list[Path]:
-    """Export the chosen Pareto points (all by default). Returns the written files."""
+    """Export Pareto and polished points of a result directory. Returns the written files.
+
+    With neither ``points`` nor ``polished`` given, every Pareto point and
+    every polished point is exported; when one selection is given, the other
+    defaults to none.
+    """
     d = Path(result_dir)
     try:
         doc = json.loads((d / "pareto.json").read_text())
@@ -33,36 +50,39 @@ def export_points(result_dir: str | Path, points: Sequence[int] | None = None, *
         raise ConfigError(f"{d}: no readable pareto.json ({exc})") from None
     cfg = config_from_dict(doc["config"], extra_sections=("identification",))
     pts = doc["points"]
-    chosen = range(len(pts)) if points is None else points
-    bad = [i for i in chosen if not 0 <= i < len(pts)]
-    if bad:
-        raise ConfigError(f"--points: {bad} out of range 0 … {len(pts) - 1}")
+    pol = doc.get("polished", [])
+    if points is None and polished is None:
+        chosen_pts, chosen_pol = _chosen("points", None, len(pts)), _chosen("polished", None, len(pol))
+    else:
+        chosen_pts = _chosen("points", points or [], len(pts))
+        chosen_pol = _chosen("polished", polished or [], len(pol))
     out = d / "export"
     out.mkdir(exist_ok=True)
     written: list[Path] = []
     names = tuple(doc["parameter_names"])
-    for i in chosen:
-        values = pts[i]["parameters"]
+    jobs = [(f"point_{i}", pts[i]["parameters"]) for i in chosen_pts]
+    jobs += [(f"polished_{j}", pol[j]["parameters"]) for j in chosen_pol]
+    for stem, values in jobs:
         space = ParameterSpace(names, [0.0] * len(names), [0.0] * len(names), [0.0] * len(names))
         c, params = space.apply(cfg, [values[n] for n in names])
         try:
             sys = assemble(c, params)
         except StabilityError:
             continue  # unstable points are listed in pareto.json but not exported
-        written.append(save_statespace(sys, out / f"point_{i}.npz"))
+        written.append(save_statespace(sys, out / f"{stem}.npz"))
         if reduce_order:
             try:
                 bm = balanced_truncation(sys, reduce_order)
             except StabilityError:
                 bm = None
             if bm is not None:
-                written.append(save_statespace(bm.system, out / f"point_{i}_reduced{reduce_order}.npz"))
-                (out / f"point_{i}_reduced{reduce_order}.json").write_text(json.dumps(
+                written.append(save_statespace(bm.system, out / f"{stem}_reduced{reduce_order}.npz"))
+                (out / f"{stem}_reduced{reduce_order}.json").write_text(json.dumps(
                     {"order": bm.order, "error_bound_hinf": bm.error_bound,
                      "hankel_singular_values": [float(v) for v in bm.hankel_singular_values]}, indent=2))
         if fmu:
             from fmu_build import build_fmu
 
             c_fmu = c.with_parameters(**params)
-            written.append(build_fmu(c_fmu, out / f"point_{i}.fmu"))
+            written.append(build_fmu(c_fmu, out / f"{stem}.fmu"))
     return written

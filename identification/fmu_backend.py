@@ -7,17 +7,31 @@ inputs (one per actuator, in order) and outputs (one per sensor, in order).
 Protocol per candidate (zero-order hold, as :func:`ebb_model.simulate`):
 ``reset`` → ``setupExperiment`` → enter initialisation → set parameters →
 exit initialisation → for every sample ``k``: set ``u_k``, get ``y_k``,
-``doStep(dt)``.  The FMU is extracted and instantiated once per evaluator
-object in a process (lazily, not pickled) and reused with ``reset()``; it is
-freed when the evaluator is closed or collected.
+``doStep(dt)``.
+
+Instances
+---------
+An evaluator carries a run token (created with it, kept when pickled).  Each
+process keeps at most one extracted, instantiated FMU per token and thread in
+a registry that is created lazily on first use (nothing exists at import):
+process-pool workers and Dask workers instantiate the FMU once, at their first
+candidate, and reuse it with ``reset()`` for every later candidate of the run,
+however often the evaluator is pickled to them.  :meth:`FmuEvaluator.close`
+frees the calling process's instances of the token; whatever is left is freed
+when the process exits (a ``multiprocessing`` finaliser, which also runs in
+pool workers at pool shutdown).
 """
 from __future__ import annotations
 
+import functools
+import multiprocessing.util
 import shutil
+import threading
+import uuid
 import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -66,6 +80,60 @@ class _Instance:
         self._finalizer()
 
 
+class _InstanceRegistry:
+    """The FMU instances of one process: one per (run token, thread), counted, freed on release or exit."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._instances: dict[tuple[str, int], _Instance] = {}
+        self._created: dict[str, int] = {}
+        # runs at normal interpreter exit and at the exit of multiprocessing workers (which skip atexit)
+        multiprocessing.util.Finalize(self, self.release_all, exitpriority=100)
+
+    def get(self, token: str, create: Callable[[], _Instance]) -> _Instance:
+        """This thread's instance for ``token``, created on first use."""
+        key = (token, threading.get_ident())
+        with self._lock:
+            inst = self._instances.get(key)
+        if inst is None:
+            inst = create()
+            with self._lock:
+                self._instances[key] = inst
+                self._created[token] = self._created.get(token, 0) + 1
+        return inst
+
+    def created(self, token: str) -> int:
+        """Number of instances created for ``token`` in this process so far."""
+        with self._lock:
+            return self._created.get(token, 0)
+
+    def release(self, token: str) -> None:
+        """Free this process's instances of ``token``."""
+        with self._lock:
+            keys = [k for k in self._instances if k[0] == token]
+            insts = [self._instances.pop(k) for k in keys]
+        for inst in insts:
+            inst.close()
+
+    def release_all(self) -> None:
+        """Free every instance of this process."""
+        with self._lock:
+            insts = list(self._instances.values())
+            self._instances.clear()
+        for inst in insts:
+            inst.close()
+
+
+@functools.lru_cache(maxsize=1)
+def _registry() -> _InstanceRegistry:
+    """This process's instance registry, created on first use."""
+    return _InstanceRegistry()
+
+
+def _new_token() -> str:
+    return uuid.uuid4().hex
+
+
 @dataclass(eq=False)
 class FmuEvaluator:
     """Evaluate candidates through an FMU (picklable; the instance is created lazily per process)."""
@@ -79,7 +147,7 @@ class FmuEvaluator:
     output_names: tuple[str, ...] | None = None
     per: str = "sensor"
     stabilising: bool = True
-    _inst: _Instance | None = field(default=None, repr=False)
+    token: str = field(default_factory=_new_token, repr=False)
 
     def __post_init__(self) -> None:
         if any(self.space.is_position(n) for n in self.space.names):
@@ -93,33 +161,30 @@ class FmuEvaluator:
         if not Path(self.fmu_path).is_file():
             raise ConfigError(f"--fmu {self.fmu_path}: no such file")
 
-    def __getstate__(self) -> dict:
-        state = self.__dict__.copy()
-        state["_inst"] = None
-        return state
-
     @property
     def n_obj(self) -> int:
         """Number of objectives."""
         n = len(self.config.sensors) if self.per == "sensor" else len(self.experiments)
         return n + int(self.stabilising)
 
+    def _create(self) -> _Instance:
+        inst = _Instance(self.fmu_path, "identification")
+        missing = [n for n in (*self.parameter_names, *self.input_names, *self.output_names) if n not in inst.vr]
+        if missing:
+            inst.close()
+            raise FmuError(f"{self.fmu_path}: no variable(s) {', '.join(missing)}")
+        return inst
+
     def _instance(self) -> _Instance:
-        if self._inst is None:
-            inst = _Instance(self.fmu_path, "identification")
-            missing = [n for n in (*self.parameter_names, *self.input_names, *self.output_names)
-                       if n not in inst.vr]
-            if missing:
-                inst.close()
-                raise FmuError(f"{self.fmu_path}: no variable(s) {', '.join(missing)}")
-            self._inst = inst
-        return self._inst
+        return _registry().get(self.token, self._create)
+
+    def instantiations(self) -> int:
+        """FMU instances created for this evaluator's run in the calling process so far."""
+        return _registry().created(self.token)
 
     def close(self) -> None:
-        """Free the FMU instance of this process, if any."""
-        if self._inst is not None:
-            self._inst.close()
-            self._inst = None
+        """Free this process's FMU instances of this run, if any (a later evaluation creates a new one)."""
+        _registry().release(self.token)
 
     def simulate(self, x: np.ndarray) -> tuple[list[np.ndarray], bool]:
         """Outputs per experiment for candidate ``x``; empty list when the FMU refuses the parameters."""

@@ -13,6 +13,7 @@ import os
 import pickle
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 from pymoo.algorithms.moo.nsga2 import NSGA2
@@ -24,7 +25,7 @@ from ebb_model.errors import ConfigError
 from .problem import IdentificationProblem
 from .runners import Runner
 
-__all__ = ["ALGORITHMS", "ParetoSet", "knee_index", "optimise", "CHECKPOINT"]
+__all__ = ["ALGORITHMS", "ParetoSet", "knee_index", "knee_order", "optimise", "CHECKPOINT"]
 
 ALGORITHMS = ("nsga2", "nsga3")
 CHECKPOINT = "checkpoint.pkl"
@@ -66,6 +67,22 @@ def knee_index(F: np.ndarray) -> int:
     return int(np.argmin(np.linalg.norm((F - lo) / span, axis=1)))
 
 
+def knee_order(F: np.ndarray) -> np.ndarray:
+    """Indices of a front ordered by distance to its knee (knee first), in the normalisation of :func:`knee_index`."""
+    F = np.asarray(F, dtype=float)
+    lo, hi = F.min(axis=0), F.max(axis=0)
+    span = np.where(hi > lo, hi - lo, 1.0)
+    G = (F - lo) / span
+    k = knee_index(F)
+    d = np.linalg.norm(G - G[k], axis=1)
+    d[k] = -1.0  # the knee first, also when another point coincides with it
+    return np.argsort(d, kind="stable")
+
+
+#: ``callback(generation, n_evaluations, X, F)`` after every generation (current non-dominated set).
+GenerationCallback = Callable[[int, int, np.ndarray, np.ndarray], None]
+
+
 def _algorithm(name: str, pop: int, n_obj: int):
     if name == "nsga2":
         return NSGA2(pop_size=pop)
@@ -87,8 +104,13 @@ def _save_atomic(obj: object, path: Path) -> None:
 
 def optimise(problem: IdentificationProblem, *, pop: int = 40, generations: int = 30, seed: int = 1,
              algorithm: str = "nsga2", out_dir: str | Path | None = None, resume: bool = False,
-             runner: Runner | None = None, progress: bool = True) -> ParetoSet:
+             runner: Runner | None = None, progress: bool = True,
+             callback: GenerationCallback | None = None) -> ParetoSet:
     """Run the GA; checkpoint into ``out_dir`` each generation; resume from it on request.
+
+    ``callback(generation, n_evaluations, X, F)`` is called after every
+    generation with the current non-dominated candidates (e.g. to monitor
+    convergence); it must not modify the arrays.
 
     Raises
     ------
@@ -124,6 +146,10 @@ def optimise(problem: IdentificationProblem, *, pop: int = 40, generations: int 
                 _save_atomic(algo, ckpt)
             if bar is not None:
                 bar.update(1)
+            if callback is not None:
+                opt = algo.opt
+                callback(int(algo.n_gen - 1), int(problem.n_evaluations), np.atleast_2d(opt.get("X")),
+                         np.atleast_2d(opt.get("F")))
     finally:
         if bar is not None:
             bar.close()

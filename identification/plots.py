@@ -35,6 +35,8 @@ def plot_results(res: Any, evaluator: Any) -> list[str]:
     files.append("pareto_front.png")
 
     sims, _ = evaluator.simulate(p.X[p.knee])
+    polished = getattr(res, "polished", ())
+    sims_pol = evaluator.simulate(polished[0].x)[0] if polished else []
     if sims:
         e0 = evaluator.experiments[0]
         n_out = e0.outputs.shape[1]
@@ -44,6 +46,8 @@ def plot_results(res: Any, evaluator: Any) -> list[str]:
         for j, ax in enumerate(axes[:, 0]):
             ax.plot(t, e0.outputs[:, j], lw=0.8, label="measured")
             ax.plot(t, sims[0][:, j], lw=0.8, label="simulated (knee)")
+            if sims_pol:
+                ax.plot(t, sims_pol[0][:, j], lw=0.8, ls="--", label="simulated (polished knee)")
             ax.set_ylabel(evaluator.config.sensors[j].name)
         axes[0, 0].legend(loc="upper right")
         axes[-1, 0].set_xlabel("time [s]")
@@ -56,6 +60,8 @@ def plot_results(res: Any, evaluator: Any) -> list[str]:
     for j, ax in enumerate(axes[0]):
         ax.plot(np.zeros(len(p.X)), p.X[:, j], "o", alpha=0.5)
         ax.plot([0], [p.X[p.knee, j]], "r*", ms=12)
+        if polished:
+            ax.plot([0], [polished[0].x[j]], "kx", ms=10)
         ax.set_title(p.parameter_names[j])
         ax.set_xticks([])
     fig.tight_layout()

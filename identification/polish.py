@@ -1,26 +1,55 @@
 """Local polish of Pareto points with ``scipy.optimize.least_squares``.
 
 The GA locates the basin; a trust-region least-squares fit of the stacked,
-per-sensor normalised residuals ``(y_sim - y_meas)/‖y_meas - ȳ_meas‖`` (the
-output-error objectives summed in squares) finishes it.  Unknowns are scaled
-to [0, 1] by their bounds; bounds are respected.  The number of model
-evaluations (including the finite-difference Jacobian's) is reported.
+per-sensor normalised residuals ``(y_sim - y_meas)/‖y_meas - ȳ_meas‖`` finishes
+it.  The sum of squares of these residuals is ``Σ_s e_s²``, the output-error
+objectives of :mod:`identification.objectives` (``per = "sensor"``) summed in
+squares; the stabilising objective is not part of the fit.
+
+Unknowns are scaled to [0, 1] by their bounds and the bounds are respected.
+The Jacobian is a forward difference in the scaled unknowns (step
+``diff_step``, taken inwards at a bound); its ``dim`` perturbed candidates are
+evaluated as one batch through the run's runner, so a polish runs on the same
+worker processes (or Dask cluster) and the same backend as the GA.  Every
+model evaluation (residuals and Jacobian columns) is counted.
+
+Candidates the model refuses (unstable, invalid parameters, an FMU refusing
+them) get a constant large residual, so the trust region shrinks away from
+them; they are never NaN.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any, Sequence
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from .native import NativeEvaluator
+from ebb_model.errors import ParameterError
 
-__all__ = ["PolishResult", "polish"]
+from .runners import Runner, SerialRunner
+
+__all__ = ["PolishResult", "ResidualEvaluator", "polish", "residual_scale"]
+
+#: Residual given to every sample of a candidate the model refuses.
+FAILED_RESIDUAL = 1.0e3
 
 
 @dataclass(frozen=True)
 class PolishResult:
-    """Outcome of :func:`polish`."""
+    """Outcome of :func:`polish`.
+
+    Attributes
+    ----------
+    x
+        Polished candidate (physical units, order of the unknowns).
+    cost
+        Sum of squared normalised residuals at ``x`` (``Σ_s e_s²``).
+    n_evaluations
+        Model evaluations used (residuals and finite-difference Jacobian).
+    success, message
+        As reported by ``least_squares``.
+    """
 
     x: np.ndarray
     cost: float
@@ -29,27 +58,117 @@ class PolishResult:
     message: str
 
 
-def polish(evaluator: NativeEvaluator, x0: np.ndarray, *, max_evaluations: int = 400,
-           xtol: float = 1e-10) -> PolishResult:
-    """Least-squares refinement of candidate ``x0`` (native backend)."""
-    sp = evaluator.space
-    lo, hi = np.asarray(sp.lower), np.asarray(sp.upper)
-    span = hi - lo
-    meas = [e.outputs for e in evaluator.experiments]
-    scale = np.sqrt(sum(np.sum((m - m.mean(axis=0)) ** 2, axis=0) for m in meas))
-    scale = np.where(scale > 0, scale, 1.0)
-    count = [0]
-    n_res = sum(m.size for m in meas)
+def residual_scale(experiments: Sequence[Any]) -> np.ndarray:
+    """Per-sensor normaliser ``‖y_meas - ȳ_meas‖`` pooled over the experiments (1 where it is 0)."""
+    scale = np.sqrt(sum(np.sum((e.outputs - e.outputs.mean(axis=0)) ** 2, axis=0) for e in experiments))
+    return np.where(scale > 0, scale, 1.0)
 
-    def residuals(s: np.ndarray) -> np.ndarray:
-        count[0] += 1
-        sims, _ = evaluator.simulate(lo + s * span)
+
+@dataclass(frozen=True, eq=False)
+class ResidualEvaluator:
+    """Normalised residual vectors of candidates (picklable; runs through any runner).
+
+    Parameters
+    ----------
+    evaluator
+        Native or FMU evaluator: ``simulate(x) -> (outputs per experiment, info)``,
+        an empty list when the model refuses the candidate.
+    """
+
+    evaluator: Any
+    scale: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "scale", residual_scale(self.evaluator.experiments))
+
+    @property
+    def space(self) -> Any:
+        """The unknowns of the wrapped evaluator."""
+        return self.evaluator.space
+
+    @property
+    def n_residuals(self) -> int:
+        """Length of a residual vector (all samples of all sensors of all experiments)."""
+        return int(sum(e.outputs.size for e in self.evaluator.experiments))
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        """Residual vector of candidate ``x``; :data:`FAILED_RESIDUAL` everywhere when refused."""
+        exps, scale = self.evaluator.experiments, self.scale
+        try:
+            sims, _ = self.evaluator.simulate(np.asarray(x, dtype=float))
+        except ParameterError:
+            sims = []
         if not sims:
-            return np.full(n_res, 1e3)
-        r = np.concatenate([((y - m) / scale).ravel() for y, m in zip(sims, meas)])
-        return r if np.all(np.isfinite(r)) else np.full(n_res, 1e3)
+            return np.full(self.n_residuals, FAILED_RESIDUAL)
+        r = np.concatenate([((y - e.outputs) / scale).ravel() for y, e in zip(sims, exps)])
+        return r if np.all(np.isfinite(r)) else np.full(self.n_residuals, FAILED_RESIDUAL)
+
+    def close(self) -> None:
+        """Release the wrapped evaluator's per-process resources, if it has any."""
+        close = getattr(self.evaluator, "close", None)
+        if callable(close):
+            close()
+
+    def evaluate(self, X: np.ndarray) -> np.ndarray:
+        """Residual vectors of a batch ``X`` (n, dim) → (n, n_residuals)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        return np.array([self.residuals(x) for x in X])
+
+
+def polish(evaluator: Any, x0: np.ndarray, *, runner: Runner | None = None, max_evaluations: int = 400,
+           xtol: float = 1e-10, ftol: float = 1e-12, diff_step: float = 1e-6) -> PolishResult:
+    """Least-squares refinement of candidate ``x0``.
+
+    Parameters
+    ----------
+    evaluator
+        Native (:class:`~identification.native.NativeEvaluator`) or FMU
+        (:class:`~identification.fmu_backend.FmuEvaluator`) evaluator.
+    x0
+        Start (physical units), clipped into the bounds.
+    runner
+        Where batches of candidates are evaluated (default: this process).
+    max_evaluations
+        Budget of residual evaluations passed to ``least_squares``
+        (``max_nfev``; the Jacobian's evaluations come on top and are counted).
+    xtol, ftol
+        ``least_squares`` tolerances (``xtol`` relative to the scaled unknowns).
+    diff_step
+        Forward-difference step in the scaled unknowns.
+    """
+    run = runner or SerialRunner()
+    res_ev = ResidualEvaluator(evaluator)
+    sp = evaluator.space
+    lo, hi = np.asarray(sp.lower, dtype=float), np.asarray(sp.upper, dtype=float)
+    span = hi - lo
+    count = [0]
+    last: dict[bytes, np.ndarray] = {}
+
+    def batch(S: np.ndarray) -> np.ndarray:
+        count[0] += len(S)
+        return np.asarray(run(res_ev, lo + S * span))
+
+    def fun(s: np.ndarray) -> np.ndarray:
+        key = s.tobytes()
+        if key not in last:
+            last.clear()
+            last[key] = batch(s[None, :])[0]
+        return last[key]
+
+    def jac(s: np.ndarray) -> np.ndarray:
+        steps = np.where(s + diff_step <= 1.0, diff_step, -diff_step)
+        S = s[None, :] + np.diag(steps)
+        key = s.tobytes()
+        if key in last:
+            r0, R = last[key], batch(S)
+        else:
+            both = batch(np.vstack([s[None, :], S]))
+            r0, R = both[0], both[1:]
+            last.clear()
+            last[key] = r0
+        return ((R - r0[None, :]) / steps[:, None]).T
 
     s0 = np.clip((np.asarray(x0, dtype=float) - lo) / span, 0.0, 1.0)
-    res = least_squares(residuals, s0, bounds=(0.0, 1.0), x_scale="jac", xtol=xtol, ftol=1e-12,
-                        gtol=1e-12, max_nfev=max_evaluations, diff_step=1e-7)
-    return PolishResult(lo + res.x * span, float(2 * res.cost), count[0], bool(res.success), res.message)
+    res = least_squares(fun, s0, jac=jac, bounds=(0.0, 1.0), x_scale="jac", xtol=xtol, ftol=ftol,
+                        gtol=1e-12, max_nfev=max_evaluations)
+    return PolishResult(lo + res.x * span, float(2 * res.cost), count[0], bool(res.success), str(res.message))

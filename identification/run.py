@@ -2,10 +2,20 @@
 
 config + data files → experiments → unknowns → Fisher information at the
 nominal point (stop when singular unless ``force``) → pymoo GA with a
-checkpoint per generation → Pareto set with Cramér–Rao standard deviations,
-growth factor and stability per point, knee marked → ``pareto.json``,
-``pareto.csv``, ``identifiability.json``, plots, and exports of every Pareto
+checkpoint per generation → optional local polish (``polish = K``: the ``K``
+Pareto points nearest the knee, knee first, refined by bounded
+``scipy.optimize.least_squares`` on the same backend and workers, see
+:mod:`identification.polish`) → Pareto set and polished points with
+Cramér–Rao standard deviations, growth factor and stability per point, knee
+marked → ``pareto.json``, ``pareto.csv``, ``polished.csv``,
+``identifiability.json``, plots, and exports of every Pareto and polished
 point (see :mod:`identification.export`).
+
+Evaluation counts: ``n_evaluations`` in ``pareto.json`` is the total number
+of model evaluations of the search, GA plus polish (residuals, Jacobian
+columns and the final objective evaluation of each polished point); the
+simulations of the Fisher analysis (``2 × unknowns`` per point) are not
+included.
 
 Bad input is detected before the output directory is created, so a failed
 run leaves nothing behind.
@@ -17,7 +27,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -30,12 +40,14 @@ from .data import Experiment, load_experiments
 from .fisher import FisherReport, fisher_information
 from .native import ExperimentArrays, NativeEvaluator
 from .objectives import objective_names
-from .optimise import ALGORITHMS, CHECKPOINT, ParetoSet, optimise
+from .optimise import ALGORITHMS, CHECKPOINT, ParetoSet, knee_index, knee_order, optimise
 from .parameters import ParameterSpace, parameter_space
+from .polish import polish as polish_point
 from .problem import IdentificationProblem
-from .runners import make_runner
+from .runners import Runner, make_runner
 
-__all__ = ["BACKENDS", "IdentificationResult", "identify", "load_identification_config", "read_data"]
+__all__ = ["BACKENDS", "IdentificationResult", "PolishedPoint", "Progress", "identify",
+           "load_identification_config", "read_data"]
 
 BACKENDS = ("auto", "native", "fmu")
 _DATA_KEYS = ("mapping", "units", "remove_offset", "pre_trigger", "resample", "format")
@@ -72,6 +84,58 @@ def read_data(config: BeamConfig, paths: Sequence[str | Path]) -> tuple[Experime
 
 
 @dataclass(frozen=True, eq=False)
+class PolishedPoint:
+    """A Pareto point after the local polish.
+
+    Attributes
+    ----------
+    from_index
+        Index of the Pareto point it started from (into ``pareto.X``).
+    x, objectives
+        Polished parameters and their objective values.
+    cramer_rao_std
+        Cramér–Rao standard deviations at ``x``.
+    growth_factor, stable
+        Stabilising objective and stability of the discrete beam at ``x``.
+    n_evaluations
+        Model evaluations of this polish (including its Jacobians and the
+        final objective evaluation).
+    cost, success, message
+        Final sum of squared normalised residuals and ``least_squares``'s verdict.
+    """
+
+    from_index: int
+    x: np.ndarray
+    objectives: np.ndarray
+    cramer_rao_std: np.ndarray
+    growth_factor: float
+    stable: bool
+    n_evaluations: int
+    cost: float
+    success: bool
+    message: str
+
+
+@dataclass(frozen=True)
+class Progress:
+    """What :func:`identify` reports to ``on_progress`` during the search.
+
+    ``stage`` is ``"generation"`` (after every GA generation: ``X``, ``F`` the
+    current non-dominated set, ``knee`` its knee) or ``"polish"`` (after every
+    polished point: ``X``, ``F`` of that one point, ``knee = 0``).
+    ``n_evaluations`` counts the search's model evaluations so far (GA plus
+    polish).
+    """
+
+    stage: str
+    step: int
+    n_evaluations: int
+    X: np.ndarray
+    F: np.ndarray
+    knee: int
+
+
+@dataclass(frozen=True, eq=False)
 class IdentificationResult:
     """Outcome of :func:`identify`."""
 
@@ -81,12 +145,25 @@ class IdentificationResult:
     growth_factors: np.ndarray
     stable: np.ndarray
     out_dir: Path
+    polished: tuple[PolishedPoint, ...] = ()
 
     @property
     def knee(self) -> dict[str, float]:
-        """Parameters of the knee point."""
+        """Parameters of the knee point of the GA's front."""
         p = self.pareto
         return dict(zip(p.parameter_names, map(float, p.X[p.knee])))
+
+    @property
+    def best(self) -> dict[str, float]:
+        """Parameters of the polished knee when polished, otherwise of the knee."""
+        if not self.polished:
+            return self.knee
+        return dict(zip(self.pareto.parameter_names, map(float, self.polished[0].x)))
+
+    @property
+    def n_evaluations(self) -> int:
+        """Model evaluations of the search: GA plus polish."""
+        return int(self.pareto.n_evaluations + sum(q.n_evaluations for q in self.polished))
 
 
 def _arrays(config: BeamConfig, exps: Sequence[Experiment]) -> tuple[ExperimentArrays, ...]:
@@ -103,8 +180,9 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
              algorithm: str = "nsga2", per: str | None = None, stabilising: bool | None = None,
              noise_std: Sequence[float] | None = None, progress: bool = True, export: bool = True,
              fmu: str | Path | None = None, fmu_parameters: Sequence[str] | None = None,
-             fmu_inputs: Sequence[str] | None = None, fmu_outputs: Sequence[str] | None = None
-             ) -> IdentificationResult:
+             fmu_inputs: Sequence[str] | None = None, fmu_outputs: Sequence[str] | None = None,
+             polish: int = 0, polish_evaluations: int = 200,
+             on_progress: Callable[[Progress], None] | None = None) -> IdentificationResult:
     """Identify the unknowns of ``config`` from ``data``; write results into ``out_dir``.
 
     ``backend="auto"`` and ``"native"`` use the ``ebb_model`` fast path;
@@ -113,6 +191,12 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     the names of its variables in the order of the unknowns, actuators and
     sensors) or one built from the config.  The Fisher information always
     uses the native model.
+
+    ``polish = K`` refines the ``K`` Pareto points nearest the knee (knee
+    first) with bounded least squares on the search backend and workers, at
+    most ``polish_evaluations`` residual evaluations each (their Jacobians
+    come on top and are counted).  ``on_progress`` receives a
+    :class:`Progress` after every generation and every polished point.
 
     Raises
     ------
@@ -127,6 +211,11 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         raise ConfigError(f"--algorithm: unknown {algorithm!r}; allowed: {', '.join(ALGORITHMS)}")
     if workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {workers}")
+    if isinstance(polish, bool) or not isinstance(polish, (int, np.integer)) or polish < 0:
+        raise ConfigError(f"--polish must be an integer >= 0, got {polish!r}")
+    if isinstance(polish_evaluations, bool) or not isinstance(polish_evaluations, (int, np.integer)) \
+            or polish_evaluations < 1:
+        raise ConfigError(f"polish_evaluations must be an integer >= 1, got {polish_evaluations!r}")
     per = per or ident.get("per", "sensor")
     if per not in ("sensor", "experiment"):
         raise ConfigError(f"--per: unknown {per!r}; allowed: sensor, experiment")
@@ -172,10 +261,18 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     out.mkdir(exist_ok=True)
     write_json(out / "identifiability.json", fisher0.to_dict())
     problem = IdentificationProblem(search_evaluator, names)
+
+    def generation_done(gen: int, n_ev: int, X: np.ndarray, F: np.ndarray) -> None:
+        if on_progress is not None:
+            on_progress(Progress("generation", gen, n_ev, X, F, knee_index(F)))
+
     try:
         with make_runner(workers=workers, dask=dask) as runner:
             pareto = optimise(problem, pop=pop, generations=generations, seed=seed, algorithm=algorithm,
-                              out_dir=out, resume=resume, runner=runner, progress=progress)
+                              out_dir=out, resume=resume, runner=runner, progress=progress,
+                              callback=generation_done)
+            polished_raw = _polish_front(pareto, search_evaluator, runner, int(polish), int(polish_evaluations),
+                                         on_progress)
     finally:
         if search_evaluator is not evaluator:
             search_evaluator.close()
@@ -185,21 +282,50 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
             shutil.rmtree(tmp_fmu_dir, ignore_errors=True)
     crb, g, st = [], [], []
     for x in pareto.X:
-        c, params = space.apply(cfg, x)
-        g.append(max_growth_factor(c, params))
-        _, rho = evaluator.simulate(x)
-        st.append(rho <= 1 + 1e-9)
-        try:
-            crb.append(fisher_information(evaluator, x, noise_std=fisher0.noise_std).cramer_rao_std)
-        except ValueError:
-            crb.append(np.full(space.dim, np.inf))
-    res = IdentificationResult(pareto, fisher0, np.array(crb), np.array(g), np.array(st), out)
+        c_, g_, s_ = _point_properties(cfg, space, evaluator, x, fisher0.noise_std)
+        crb.append(c_)
+        g.append(g_)
+        st.append(s_)
+    polished = []
+    for i, x, f, n_ev, r in polished_raw:
+        c_, g_, s_ = _point_properties(cfg, space, evaluator, x, fisher0.noise_std)
+        polished.append(PolishedPoint(i, x, f, c_, g_, s_, n_ev, r.cost, r.success, r.message))
+    res = IdentificationResult(pareto, fisher0, np.array(crb), np.array(g), np.array(st), out, tuple(polished))
     _write_results(res, cfg, evaluator)
     if export:
         from .export import export_points
 
         export_points(out)
     return res
+
+
+def _polish_front(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, budget: int,
+                  on_progress: Callable[[Progress], None] | None) -> list[tuple[int, np.ndarray, np.ndarray, int, Any]]:
+    """Polish the ``k`` points nearest the knee (knee first): ``(from_index, x, F, evaluations, result)``."""
+    out: list[tuple[int, np.ndarray, np.ndarray, int, Any]] = []
+    n_done = pareto.n_evaluations
+    for step, i in enumerate(knee_order(pareto.F)[:k]):
+        r = polish_point(evaluator, pareto.X[i], runner=runner, max_evaluations=budget)
+        f = np.asarray(runner(evaluator, r.x[None, :]))[0]
+        n_ev = r.n_evaluations + 1
+        n_done += n_ev
+        out.append((int(i), r.x, f, n_ev, r))
+        if on_progress is not None:
+            on_progress(Progress("polish", step, n_done, r.x[None, :], f[None, :], 0))
+    return out
+
+
+def _point_properties(cfg: BeamConfig, space: ParameterSpace, evaluator: NativeEvaluator, x: np.ndarray,
+                      noise_std: np.ndarray) -> tuple[np.ndarray, float, bool]:
+    """Cramér–Rao std, growth factor and stability of candidate ``x`` (native model)."""
+    c, params = space.apply(cfg, x)
+    g = float(max_growth_factor(c, params))
+    _, rho = evaluator.simulate(x)
+    try:
+        crb = fisher_information(evaluator, x, noise_std=noise_std).cramer_rao_std
+    except ValueError:
+        crb = np.full(space.dim, np.inf)
+    return crb, g, bool(rho <= 1 + 1e-9)
 
 
 def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: NativeEvaluator) -> None:
@@ -215,25 +341,53 @@ def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: Native
             "growth_factor": float(res.growth_factors[i]),
             "stable": bool(res.stable[i]),
         })
+    polished = []
+    for j, q in enumerate(res.polished):
+        polished.append({
+            "index": j,
+            "from_index": int(q.from_index),
+            "parameters": dict(zip(p.parameter_names, map(float, q.x))),
+            "objectives": dict(zip(p.objective_names, map(float, q.objectives))),
+            "cramer_rao_std": {k: float(v) for k, v in zip(p.parameter_names, q.cramer_rao_std)},
+            "growth_factor": float(q.growth_factor),
+            "stable": bool(q.stable),
+            "n_evaluations": int(q.n_evaluations),
+            "cost": float(q.cost),
+            "success": bool(q.success),
+            "message": q.message,
+        })
+    n_polish = sum(q["n_evaluations"] for q in polished)
     doc = {
         "config": cfg.to_dict(),
         "parameter_names": list(p.parameter_names),
         "objective_names": list(p.objective_names),
         "knee": int(p.knee),
-        "n_evaluations": int(p.n_evaluations),
+        "n_evaluations": int(p.n_evaluations + n_polish),
+        "n_evaluations_ga": int(p.n_evaluations),
+        "n_evaluations_polish": int(n_polish),
         "generations": int(p.generations),
         "points": points,
+        "polished": polished,
     }
     write_json(res.out_dir / "pareto.json", doc)
-    tmp = res.out_dir / "pareto.csv.part"
-    with tmp.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["index", "knee", *p.parameter_names, *p.objective_names,
-                    *[f"crb_{n}" for n in p.parameter_names], "growth_factor", "stable"])
-        for pt, crb in zip(points, res.cramer_rao_std):
-            w.writerow([pt["index"], int(pt["knee"]), *pt["parameters"].values(), *pt["objectives"].values(),
-                        *map(float, crb), pt["growth_factor"], int(pt["stable"])])
-    os.replace(tmp, res.out_dir / "pareto.csv")
+    head = [*p.parameter_names, *p.objective_names, *[f"crb_{n}" for n in p.parameter_names],
+            "growth_factor", "stable"]
+    _write_csv(res.out_dir / "pareto.csv", ["index", "knee", *head],
+               [[pt["index"], int(pt["knee"]), *pt["parameters"].values(), *pt["objectives"].values(),
+                 *pt["cramer_rao_std"].values(), pt["growth_factor"], int(pt["stable"])] for pt in points])
+    _write_csv(res.out_dir / "polished.csv", ["index", "from_index", *head, "n_evaluations", "success"],
+               [[q["index"], q["from_index"], *q["parameters"].values(), *q["objectives"].values(),
+                 *q["cramer_rao_std"].values(), q["growth_factor"], int(q["stable"]), q["n_evaluations"],
+                 int(q["success"])] for q in polished])
     from .plots import plot_results
 
     plot_results(res, evaluator)
+
+
+def _write_csv(path: Path, header: list[str], rows: list[list[Any]]) -> None:
+    tmp = path.with_name(path.name + ".part")
+    with tmp.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        w.writerows(rows)
+    os.replace(tmp, path)

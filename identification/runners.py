@@ -2,9 +2,13 @@
 
 A runner maps ``(evaluator, X)`` to ``F``; the evaluator is a picklable value,
 so every backend gets the same work.  Each runner splits the population into
-one chunk per worker, so per-worker state (e.g. an FMU instance held by the FMU
-backend) is reused across the whole chunk.  Whoever creates a runner closes it
-(context manager).
+one chunk per worker.  Per-worker state lives in the worker process, not in
+the pickled evaluator: the FMU backend keeps one FMU instance per worker
+process for the whole run (see :mod:`identification.fmu_backend`), created at
+the worker's first candidate and freed when the worker exits (process pool
+shutdown) or, on a Dask cluster that outlives the runner, by
+``evaluator.close()`` run on every worker when the runner closes.  Whoever
+creates a runner closes it (context manager).
 """
 from __future__ import annotations
 
@@ -26,6 +30,10 @@ def _evaluate_chunk(evaluator: Evaluator, X: np.ndarray) -> np.ndarray:
 
     with threadpool_limits(limits=1, user_api="blas"):
         return evaluator.evaluate(X)
+
+
+def _close_evaluator(evaluator: Any) -> None:
+    evaluator.close()
 
 
 class Runner:
@@ -84,18 +92,27 @@ class DaskRunner(Runner):
         self._own = isinstance(address, str)
         self.client = Client(address) if self._own else address
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
-        self._scattered: tuple[int, Any] | None = None
+        self._scattered: tuple[Any, Any] | None = None  # (evaluator, its future on the workers)
+        self._to_close: list[Any] = []  # evaluators with per-worker resources
 
     def __call__(self, evaluator: Evaluator, X: np.ndarray) -> np.ndarray:
-        if self._scattered is None or self._scattered[0] != id(evaluator):
-            self._scattered = (id(evaluator), self.client.scatter(evaluator, broadcast=True))
+        if self._scattered is None or self._scattered[0] is not evaluator:
+            self._scattered = (evaluator, self.client.scatter(evaluator, broadcast=True))
+            if callable(getattr(evaluator, "close", None)) and not any(e is evaluator for e in self._to_close):
+                self._to_close.append(evaluator)
         ev = self._scattered[1]
         futs = [self.client.submit(_evaluate_chunk, ev, c, pure=False) for c in _chunks(X, self.workers)]
         return np.vstack(self.client.gather(futs))
 
     def close(self) -> None:
-        if self._own:
-            self.client.close()
+        self._scattered = None
+        try:
+            for ev in self._to_close:
+                self.client.run(_close_evaluator, ev)
+        finally:
+            self._to_close.clear()
+            if self._own:
+                self.client.close()
 
 
 def make_runner(*, workers: int = 1, dask: str | None = None) -> Runner:

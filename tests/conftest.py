@@ -59,3 +59,34 @@ def make_identification_config(**kw):
     d["parameters"]["EI"].update(bounds=[5.0, 20.0], identify=True)
     d["parameters"]["N"].update(bounds=[0.0, 100.0], identify=True)
     return config_from_dict(d, extra_sections=("identification",))
+
+
+def foh_reference(cfg, u):
+    """Sensor outputs and nodal deflection field by the *non-causal* first-order-hold recursion (tests only).
+
+    ``x[k+1] = Φ x[k] + Γ₀ u[k] + Γ₁ u[k+1]`` on the physical state
+    ``(q, v)``, ``y[k] = C x[k] + D u[k]``: an independent check of the causal
+    realisation that the core builds.
+    """
+    import numpy as np
+
+    from ebb_model import field_matrix
+    from ebb_model.discretisation import discretise
+    from ebb_model.theta_scheme import hold_matrices, one_step, output_matrices, theta_coefficients
+
+    ts = cfg.time
+    beam = discretise(cfg)
+    co = theta_coefficients(beam, ts.dt, ts.theta, ts.substeps)
+    S, G = one_step(co.Kt, co.Ct, co.Bt, co.tau)
+    Phi, G0, G1 = hold_matrices(S, G, ts.substeps, "foh")
+    C, D = output_matrices(beam.S, beam.sensor_kinds, co.Kt, co.Ct, co.Bt, co.tau)
+    _, Cf = field_matrix(cfg)
+    u = np.atleast_2d(np.asarray(u, float).T).T
+    x = np.zeros(Phi.shape[0])
+    y = np.empty((u.shape[0], C.shape[0]))
+    w = np.empty((u.shape[0], Cf.shape[0]))
+    for k in range(u.shape[0]):
+        y[k] = C @ x + D @ u[k]
+        w[k] = Cf @ x
+        x = Phi @ x + G0 @ u[k] + G1 @ u[min(k + 1, u.shape[0] - 1)]
+    return y, w

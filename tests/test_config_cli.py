@@ -51,6 +51,10 @@ BAD = [
     ("negative mass", lambda d: d.update(masses=[{"name": "m", "x": 0.5, "mass": -1.0}]), "masses[0].mass"),
     ("identify without bounds", lambda d: d["parameters"].update(N={"value": 1.0, "identify": True}),
      "parameters.N.bounds"),
+    ("negative rhoI", lambda d: d["parameters"].update(rhoI={"value": -1e-4}), "parameters.rhoI.value"),
+    ("negative kf", lambda d: d["parameters"].update(kf={"value": -1.0}), "parameters.kf.value"),
+    ("kf bounds below zero", lambda d: d["parameters"].update(kf={"value": 1.0, "bounds": [-1.0, 5.0]}),
+     "parameters.kf.bounds"),
 ]
 
 
@@ -109,6 +113,24 @@ def test_cli_modes_json(capsys):
 
     f1 = analytic_frequencies_hz("clamped", "clamped", length=1.0, EI=10.0, rhoA=1.0, N=50.0, n_modes=1)[0]
     assert rep["frequencies_hz"][0] == pytest.approx(f1, rel=2e-3)
+
+
+def test_config_without_rhoI_and_kf_defaults_to_zero():
+    cfg = config_from_dict(base())
+    assert cfg.parameter_values()["rhoI"] == 0.0 and cfg.parameter_values()["kf"] == 0.0
+    assert load_config(SEED).parameter_values()["kf"] == 0.0
+
+
+def test_cli_modes_with_foundation_and_rotary_inertia(capsys):
+    """``--param kf=..`` raises every ω² by kf/rhoA (uniform beam); ``--param rhoI=..`` lowers the modes."""
+    assert main(["modes", str(SEED), "--json", "--n-modes", "3"]) == 0
+    f0 = np.array(json.loads(capsys.readouterr().out)["frequencies_hz"])
+    assert main(["modes", str(SEED), "--json", "--n-modes", "3", "--param", "kf=400"]) == 0
+    f1 = np.array(json.loads(capsys.readouterr().out)["frequencies_hz"])
+    np.testing.assert_allclose((2 * np.pi * f1) ** 2 - (2 * np.pi * f0) ** 2, 400.0, rtol=1e-8)
+    assert main(["modes", str(SEED), "--json", "--n-modes", "3", "--param", "rhoI=1e-3"]) == 0
+    f2 = np.array(json.loads(capsys.readouterr().out)["frequencies_hz"])
+    assert np.all(f2 < f0)
 
 
 def test_cli_simulate_roundtrip(tmp_path):

@@ -45,7 +45,8 @@ def test_validate_fmu_reports_nothing(seed_fmu, mixed_fmu):
 def test_variables_units_and_causality(seed_fmu):
     md = read_model_description(str(seed_fmu))
     v = _variables(md)
-    for name, unit in {"EI": "N.m2", "rhoA": "kg/m", "c": "N.s/m2", "eta": "s", "N": "N"}.items():
+    for name, unit in {"EI": "N.m2", "rhoA": "kg/m", "c": "N.s/m2", "eta": "s", "N": "N",
+                       "rhoI": "kg.m", "kf": "N/m2"}.items():
         assert (v[name].causality, v[name].variability, v[name].unit) == ("parameter", "tunable", unit)
         assert v[name].description
     cfg = load_config(SEED_TOML)

@@ -27,6 +27,8 @@ from fmu_loops import fmpy_outputs  # noqa: E402
 from ebb_model import DiscreteStateSpace, assemble, config_from_dict, field_matrix, load_config, simulate  # noqa: E402
 from fmu_build import build_fmu  # noqa: E402
 
+from conftest import foh_reference  # noqa: E402
+
 RTOL = 1e-10
 
 
@@ -122,8 +124,7 @@ def test_field_outputs_are_the_core_field_matrix(built):
     names = [f"w[{i}]" for i in range(len(xs))]
     y = fmpy_outputs(fmus["seed_field"], u, outputs=names + ["y1"])
     sys_ = assemble(cfg)
-    field_sys = DiscreteStateSpace(sys_.A, sys_.B, Cf, np.zeros((Cf.shape[0], 1)), sys_.dt)
-    ref = simulate(field_sys, u).outputs
+    _, ref = foh_reference(cfg, u)  # P q of the physical state (non-causal first-order-hold recursion)
     assert np.max(np.abs(y[:, :-1] - ref)) <= RTOL * np.max(np.abs(ref))
     assert np.all(y[:, 0] == 0.0) and np.all(y[:, len(xs) - 1] == 0.0)  # clamped ends do not move
     assert np.max(np.abs(y[:, -1] - simulate(sys_, u).outputs[:, 0])) <= RTOL * np.max(np.abs(y[:, -1]))
@@ -176,6 +177,23 @@ def test_reset_then_new_parameters_give_the_new_model(built, instance):
     assert np.all(_rel_err(ref_new, ref_nominal) > 1e-2)
 
 
+def test_rotary_inertia_and_foundation_are_tunable(built, instance):
+    """rhoI and kf set at initialisation give the core's model with them (non-proportional damping)."""
+    cfg = built[0]["mixed"]
+    params = {"rhoI": 2e-3, "kf": 400.0}
+    u = np.random.default_rng(9).standard_normal((300, 2))
+    inst = instance("mixed")
+    inst.init(**params)
+    y = np.empty((len(u), 3))
+    for k in range(len(u)):
+        inst.set(F1=float(u[k, 0]), F2=float(u[k, 1]))
+        y[k] = inst.get("d1", "v1", "a1")
+        inst.fmu.doStep(k * inst.dt, inst.dt)
+    ref = simulate(assemble(cfg, params), u).outputs
+    assert np.all(_rel_err(y, ref) < RTOL)
+    assert np.all(_rel_err(simulate(assemble(cfg), u).outputs, ref) > 1e-2)
+
+
 def test_parameters_set_before_initialisation_are_used(built, instance):
     cfg = built[0]["mixed"]
     inst = instance("mixed")
@@ -202,7 +220,7 @@ def test_bad_step_size_is_an_error_not_a_crash(instance, step):
 
 @pytest.mark.parametrize("name, value, message", [
     ("EI", -1.0, "EI"), ("EI", 0.0, "EI"), ("rhoA", 0.0, "rhoA"), ("EI", math.nan, "EI"),
-    ("c", -1.0, "c"), ("N", -1e6, "N"),
+    ("c", -1.0, "c"), ("N", -1e6, "N"), ("rhoI", -1e-3, "rhoI"), ("kf", -1.0, "kf"),
 ])
 def test_bad_parameters_fail_at_exit_initialisation(instance, name, value, message):
     inst = instance("seed")

@@ -5,11 +5,14 @@ project's model
 
 .. math::
 
-    \rho A\, w_{tt} + c\, w_t + \eta EI\, w_{xxxxt} + EI\, w_{xxxx} - N w_{xx}
+    \rho A\, w_{tt} - (\rho I\, w_{xtt})_x + c\, w_t + \eta EI\, w_{xxxxt}
+    + EI\, w_{xxxx} - N w_{xx} + k_f w
     = \sum_j f_j(t)\, \delta(x - a_j), \qquad 0 \le x \le L,
 
-used to validate the project's finite-difference model and to generate
-synthetic "measured" data.
+(rotary inertia :math:`\rho I` of the Rayleigh beam and a Winkler foundation
+:math:`k_f` are optional and zero by default), used to validate the project's
+finite-difference model and to generate synthetic "measured" data
+(:mod:`ebb_model.reference.synthetic`).
 
 Weak form and discretisation
 ----------------------------
@@ -18,8 +21,8 @@ Multiplying by a test function :math:`v` and integrating by parts twice
 
 .. math::
 
-    \int_0^L \rho A\, \ddot w v
-    + c\, \dot w v
+    \int_0^L \rho A\, \ddot w v + \rho I\, \ddot w' v'
+    + c\, \dot w v + k_f w v
     + EI (w'' + \eta \dot w'') v''
     + N w' v' \,dx
     + \sum_{\text{ends}} \bigl(k_t\, w v + k_r\, w' v'\bigr)
@@ -27,9 +30,9 @@ Multiplying by a test function :math:`v` and integrating by parts twice
     = \sum_j f_j(t)\, v(a_j).
 
 The natural boundary conditions at an unconstrained end are therefore
-:math:`EI w'' = \mp k_r w'` and :math:`EI w''' - N w' = \pm k_t w` (zero for a
-free end: moment and transverse shear vanish), consistent with
-:mod:`ebb_model.reference.analytic`.
+:math:`EI w'' = \mp k_r w'` and :math:`EI w''' - N w' - \rho I \ddot w' = \pm k_t w`
+(zero for a free end: moment and transverse shear vanish), consistent with
+:mod:`ebb_model.reference.analytic` for :math:`\rho I = 0`.
 
 On a uniform mesh of ``n_elements`` elements of length :math:`l`, with nodal
 unknowns :math:`(w_i, w'_i)`, the element shape functions in
@@ -58,9 +61,14 @@ giving the exact (closed-form) element matrices
     \begin{bmatrix} 36 & 3l & -36 & 3l\\ 3l & 4l^2 & -3l & -l^2\\
                     -36 & -3l & 36 & -3l\\ 3l & -l^2 & -3l & 4l^2 \end{bmatrix}.
 
-Global matrices: :math:`M = M_{\rho A} + \sum_i m_i \phi(x_i)\phi(x_i)^T`,
-:math:`K = K_b + K_g + K_{\text{springs}}`,
-:math:`C = (c/\rho A)\, M_{\rho A} + \eta K_b`, where :math:`\phi(x)` is the
+The rotary-inertia matrix :math:`\int \rho I\, N'^T N'` has the shape of
+:math:`K_{g,e}` with :math:`N \to \rho I`, and the foundation matrix
+:math:`\int k_f N^T N = (k_f/\rho A) M_e`.
+
+Global matrices: :math:`M = M_{\rho A} + M_{\rho I} + \sum_i m_i \phi(x_i)\phi(x_i)^T`,
+:math:`K = K_b + K_g + (k_f/\rho A) M_{\rho A} + K_{\text{springs}}`,
+:math:`C = (c/\rho A)\, M_{\rho A} + \eta K_b` (viscous damping acts on the
+translational inertia only), where :math:`\phi(x)` is the
 vector of global shape functions (translational part) at :math:`x`.
 Constrained DOFs (spring stiffness ``inf``) are removed.
 The semi-discrete system is :math:`M\ddot q + C\dot q + K q = \Phi u(t)`
@@ -209,6 +217,12 @@ class HermiteBeam:
         Number of (equal) elements.
     length
         Beam length :math:`L`.
+    K_axial
+        :math:`\partial K/\partial N = \int N'^T N'\,dx` (free DOFs,
+        read-only), so that the stiffness for another axial force
+        :math:`N + \Delta N` is ``K + ΔN * K_axial``; also
+        :math:`q^T K_{axial} q = \int_0^L w_x^2\,dx`.  ``None`` when the beam
+        was built without it.
     """
 
     M: np.ndarray
@@ -217,6 +231,7 @@ class HermiteBeam:
     free_dofs: np.ndarray
     n_elements: int
     length: float
+    K_axial: np.ndarray | None = None
 
     def _row(self, x: float) -> np.ndarray:
         return _global_shape_vector(x, self.length, self.n_elements)[self.free_dofs]
@@ -324,6 +339,8 @@ def hermite_beam(
     left: tuple[float, float] = CLAMPED,
     right: tuple[float, float] = CLAMPED,
     point_masses: Sequence[tuple[float, float]] = (),
+    rhoI: float = 0.0,
+    kf: float = 0.0,
 ) -> HermiteBeam:
     r"""Assemble the cubic Hermite finite-element model.
 
@@ -353,6 +370,12 @@ def hermite_beam(
         ``(mass, x)`` pairs; each adds :math:`m\,\phi(x)\phi(x)^T` to
         :math:`M` (consistent with the Hermite interpolation, any
         :math:`x \in [0, L]`).
+    rhoI
+        Rotary inertia per unit length :math:`\rho I` [kg m] (>= 0):
+        :math:`M \mathrel{+}= \int \rho I\, N'^T N'\,dx` (Rayleigh beam).
+    kf
+        Winkler foundation modulus [N/m²] (>= 0):
+        :math:`K \mathrel{+}= \int k_f N^T N\,dx = (k_f/\rho A) M_{\rho A}`.
 
     Returns
     -------
@@ -372,20 +395,22 @@ def hermite_beam(
         raise ParameterError(f"N must be finite, got {N!r}")
     c = _check_positive("c", c, allow_zero=True)
     eta = _check_positive("eta", eta, allow_zero=True)
+    rhoI = _check_positive("rhoI", rhoI, allow_zero=True)
+    kf = _check_positive("kf", kf, allow_zero=True)
     kt0, kr0 = _check_end("left", left)
     kt1, kr1 = _check_end("right", right)
 
     l = L / ne
-    Me, Kbe, Kge = element_matrices(l, EI, rhoA, N)
+    Me, Kbe, Ge = element_matrices(l, EI, rhoA, 1.0)  # Ge = int N'^T N' (unit axial force)
     ndof = 2 * (ne + 1)
     Mr = np.zeros((ndof, ndof))
     Kb = np.zeros((ndof, ndof))
-    Kg = np.zeros((ndof, ndof))
+    G = np.zeros((ndof, ndof))
     for e in range(ne):
         s = slice(2 * e, 2 * e + 4)
         Mr[s, s] += Me
         Kb[s, s] += Kbe
-        Kg[s, s] += Kge
+        G[s, s] += Ge
 
     Mp = np.zeros((ndof, ndof))
     for item in point_masses:
@@ -410,12 +435,13 @@ def hermite_beam(
         raise ConfigError("all degrees of freedom are constrained")
 
     ix = np.ix_(free, free)
-    M = (Mr + Mp)[ix]
-    K = (Kb + Kg + Ks)[ix]
+    M = (Mr + rhoI * G + Mp)[ix]
+    K = (Kb + N * G + (kf / rhoA) * Mr + Ks)[ix]
     C = ((c / rhoA) * Mr + eta * Kb)[ix]
-    for a in (M, C, K, free):
+    K_axial = G[ix]
+    for a in (M, C, K, free, K_axial):
         a.setflags(write=False)
-    return HermiteBeam(M=M, C=C, K=K, free_dofs=free, n_elements=ne, length=L)
+    return HermiteBeam(M=M, C=C, K=K, free_dofs=free, n_elements=ne, length=L, K_axial=K_axial)
 
 
 # --------------------------------------------------------------------------
@@ -451,13 +477,16 @@ def newmark_simulate(
     substeps: int = 1,
     beta: float = 0.25,
     gamma: float = 0.5,
+    interpolation: str = "hold",
 ) -> np.ndarray:
     r"""Simulate the beam response with the Newmark method.
 
-    The beam starts at rest (:math:`q = \dot q = 0` at :math:`t_0 = 0`); the
-    point forces are held constant over each sample interval (zero-order
-    hold): :math:`f(t) = u_k` for :math:`t \in [t_k, t_{k+1})`,
-    :math:`t_k = k\,\Delta t`.
+    The beam starts at rest (:math:`q = \dot q = 0` at :math:`t_0 = 0`).  With
+    ``interpolation="hold"`` (default) the point forces are held constant
+    over each sample interval (zero-order hold): :math:`f(t) = u_k` for
+    :math:`t \in [t_k, t_{k+1})`, :math:`t_k = k\,\Delta t`.  With
+    ``interpolation="linear"`` they are interpolated linearly between the
+    samples (first-order hold, continuous force, no acceleration jumps).
 
     Each interval is integrated with ``substeps`` Newmark steps of
     :math:`h = \Delta t/\text{substeps}` (average acceleration for
@@ -469,14 +498,16 @@ def newmark_simulate(
         q_{n+1} &= q_n + h\dot q_n + h^2\bigl((\tfrac12 - \beta)\ddot q_n
                    + \beta\ddot q_{n+1}\bigr),\\
         \dot q_{n+1} &= \dot q_n + h\bigl((1-\gamma)\ddot q_n + \gamma\ddot q_{n+1}\bigr),\\
-        M\ddot q_{n+1} &+ C\dot q_{n+1} + K q_{n+1} = \Phi u_k,
+        M\ddot q_{n+1} &+ C\dot q_{n+1} + K q_{n+1} = \Phi f(t_{n+1}),
 
     solved for :math:`q_{n+1}` with the effective matrix
     :math:`K + \frac{\gamma}{\beta h} C + \frac{1}{\beta h^2} M`, factorised
-    once (LU).  At a sample instant the input jumps from :math:`u_k` to
+    once (LU).  With the hold, :math:`f(t_{n+1}) = u_k` inside the interval;
+    at a sample instant the input jumps from :math:`u_k` to
     :math:`u_{k+1}`; :math:`q, \dot q` are continuous and the acceleration
     jumps by :math:`M^{-1}\Phi(u_{k+1} - u_k)`, so the reported acceleration
-    at :math:`t_k` satisfies :math:`M\ddot q = \Phi u_k - C\dot q - K q`.
+    at :math:`t_k` satisfies :math:`M\ddot q = \Phi u_k - C\dot q - K q`
+    (as it does, without any jump, for the linear interpolation).
 
     Parameters
     ----------
@@ -496,6 +527,9 @@ def newmark_simulate(
         Newmark steps per sample interval (>= 1).
     beta, gamma
         Newmark parameters.
+    interpolation
+        ``"hold"`` (zero-order hold) or ``"linear"`` (first-order hold) of
+        the force samples between sample instants.
 
     Returns
     -------
@@ -541,6 +575,9 @@ def newmark_simulate(
         raise ParameterError(f"substeps must be an integer >= 1, got {substeps!r}")
     beta = _check_positive("beta", beta)
     gamma = _check_positive("gamma", gamma)
+    if interpolation not in ("hold", "linear"):
+        raise ParameterError(f"interpolation must be 'hold' or 'linear', got {interpolation!r}")
+    linear = interpolation == "linear"
 
     sensors = list(sensors)
     if not sensors:
@@ -597,15 +634,18 @@ def newmark_simulate(
     stacked = np.empty(2 * n)
     for k in range(n_s - 1):
         f = Phi @ U[k]
-        for _ in range(substeps):
+        df = Phi @ (U[k + 1] - U[k])
+        for i in range(substeps):
             stacked[:n] = a0 * q + a2 * v + a3 * acc
             stacked[n:] = a1 * q + a4 * v + a5 * acc
-            q_new = eff.solve(f + MC @ stacked)
+            f_end = f + ((i + 1) / substeps) * df if linear else f
+            q_new = eff.solve(f_end + MC @ stacked)
             acc_new = a0 * (q_new - q) - a2 * v - a3 * acc
             v = v + hg1 * acc + hg * acc_new
             q, acc = q_new, acc_new
-        du = U[k + 1] - U[k]
-        if np.any(du):
-            acc = acc + MinvPhi @ du
+        if not linear:
+            du = U[k + 1] - U[k]
+            if np.any(du):
+                acc = acc + MinvPhi @ du
         output(k + 1)
     return y

@@ -4,7 +4,9 @@ from .dispersion import (
     StabilityReport,
     analyse_stability,
     bistritz_values,
+    critical_wavenumbers,
     dispersion_coefficients,
+    grid_omega_max,
     growth_factors,
     max_growth_factor,
     stability_bounds,
@@ -13,6 +15,6 @@ from .dispersion import (
 
 __all__ = [
     "ZeroLocation", "bistritz", "bistritz_sequence", "StabilityReport", "analyse_stability",
-    "bistritz_values", "dispersion_coefficients", "growth_factors", "max_growth_factor",
-    "stability_bounds", "wavenumbers",
+    "bistritz_values", "critical_wavenumbers", "dispersion_coefficients", "grid_omega_max",
+    "growth_factors", "max_growth_factor", "stability_bounds", "wavenumbers",
 ]

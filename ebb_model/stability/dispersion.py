@@ -9,30 +9,35 @@ temporal growth factor ``z`` (per sub-step ``τ``):
 
     p_\\kappa(z) = a z^2 + b z + c,\\qquad
     \\begin{aligned}
-    a &= \\rho A + \\tfrac{\\tau}{2} d + \\theta\\tau^2 k,\\\\
-    b &= -2\\rho A + (1-2\\theta)\\tau^2 k,\\\\
-    c &= \\rho A - \\tfrac{\\tau}{2} d + \\theta\\tau^2 k,
+    a &= m + \\tfrac{\\tau}{2} d + \\theta\\tau^2 k,\\\\
+    b &= -2m + (1-2\\theta)\\tau^2 k,\\\\
+    c &= m - \\tfrac{\\tau}{2} d + \\theta\\tau^2 k,
     \\end{aligned}
 
-with :math:`s_2 = \\tfrac{4}{h^2}\\sin^2\\tfrac{\\kappa h}{2}`, :math:`s_4 = s_2^2`,
-stiffness symbol :math:`k = EI s_4 + N s_2` and damping symbol
-:math:`d = c + \\eta EI s_4`.
+with :math:`s_2 = \\tfrac{4}{h^2}\\sin^2\\tfrac{\\kappa h}{2}` (the symbol of
+:math:`-D_2`), :math:`s_4 = s_2^2`, mass symbol :math:`m = \\rho A + \\rho I s_2`
+(rotary inertia), stiffness symbol :math:`k = EI s_4 + N s_2 + k_f` (Winkler
+foundation) and damping symbol :math:`d = c + \\eta EI s_4`.
 
 For degree two the Bistritz sequence evaluated at ``z = 1`` is
 :math:`T_2(1) = 2(a+b+c) = 2\\tau^2 k`, :math:`T_1(1) = 2(a-c) = 2\\tau d`,
-:math:`T_0 = 2(a-b+c) = 2(4\\rho A + (4\\theta - 1)\\tau^2 k)`; no zero lies
+:math:`T_0 = 2(a-b+c) = 2(4m + (4\\theta - 1)\\tau^2 k)`; no zero lies
 outside the unit circle iff all three are ≥ 0.  Each is *affine* in every
 physical parameter, so the conditions give closed-form parameter bounds
-(:func:`stability_bounds`).  The same quadratic with ``k = ω_i²`` and
-``d = ξ_i`` (mass-normalised modal stiffness and damping) is the exact
-characteristic polynomial of mode ``i`` of the finite beam under
-proportional damping.
+(:func:`stability_bounds`), and a polynomial of degree ≤ 2 in ``s_2``, so
+its minimum over the wavenumber range lies at an end of the range or at the
+polynomial's vertex (:func:`critical_wavenumbers`).  The same quadratic with
+``m = 1``, ``k = ω_i²`` and ``d = ξ_i`` (mass-normalised modal stiffness and
+damping) is the exact characteristic polynomial of mode ``i`` of the finite
+beam under proportional damping.
 
 The wavenumbers are those that fit the beam, ``π/L ≤ κ ≤ π/h``.  Under
 compression the unbounded-grid analysis is conservative: it flags
-``N < -EI s_2(π/L)`` (the pinned–pinned Euler load of the grid) even when
-the ends make the finite beam stiffer; :func:`analyse_stability` reports such
-disagreements.
+``N < -min_{s_2} (EI s_2 + k_f/s_2)`` over the range — the pinned–pinned
+Euler load of the grid ``EI s_2(π/L)`` without foundation, the classical
+``2√(EI k_f)`` at ``s_2 = √(k_f/EI)`` when that lies inside the range — even
+when the ends make the finite beam stiffer; :func:`analyse_stability`
+reports such disagreements.
 """
 from __future__ import annotations
 
@@ -49,12 +54,17 @@ from .bistritz import bistritz
 #: Relative zero tolerance of the Bistritz test on the dispersion polynomials.
 _BISTRITZ_TOL = 16 * np.finfo(float).eps
 
+#: Physical lower limits of the parameters (the upper ones are all infinite).
+_PHYSICAL_LOWER = {"EI": 0.0, "rhoA": 0.0, "c": 0.0, "eta": 0.0, "N": -math.inf, "rhoI": 0.0, "kf": 0.0}
+
 __all__ = [
     "wavenumbers",
+    "critical_wavenumbers",
     "dispersion_coefficients",
     "growth_factors",
     "max_growth_factor",
     "bistritz_values",
+    "grid_omega_max",
     "stability_bounds",
     "StabilityReport",
     "analyse_stability",
@@ -72,17 +82,30 @@ def _symbols(kappa: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
     return s2, s2 * s2
 
 
+def _kappa_of_s2(s2: np.ndarray, h: float) -> np.ndarray:
+    """Inverse of ``s2(κ)`` on ``0 ≤ κ ≤ π/h``."""
+    return 2.0 / h * np.arcsin(np.clip(np.sqrt(np.maximum(s2, 0.0)) * h / 2, 0.0, 1.0))
+
+
+def _get(p: Mapping[str, float], name: str) -> float:
+    # rhoI and kf default to 0 so that dicts of the original five parameters still work
+    return float(p[name]) if name in p else 0.0
+
+
 def dispersion_coefficients(params: Mapping[str, float], *, h: float, tau: float, theta: float,
                             kappa: np.ndarray) -> np.ndarray:
-    """Coefficients ``[a, b, c]`` (highest power first) of ``p_κ(z)``, shape (n_κ, 3)."""
+    """Coefficients ``[a, b, c]`` (highest power first) of ``p_κ(z)``, shape (n_κ, 3).
+
+    ``params`` needs ``EI, rhoA, c, eta, N``; ``rhoI`` and ``kf`` are 0 when absent.
+    """
     p = params
     s2, s4 = _symbols(np.asarray(kappa, dtype=float), h)
-    k = p["EI"] * s4 + p["N"] * s2
+    k = p["EI"] * s4 + p["N"] * s2 + _get(p, "kf")
     d = p["c"] + p["eta"] * p["EI"] * s4
-    rho = p["rhoA"]
-    a = rho + tau / 2 * d + theta * tau ** 2 * k
-    b = -2 * rho + (1 - 2 * theta) * tau ** 2 * k
-    c = rho - tau / 2 * d + theta * tau ** 2 * k
+    m = p["rhoA"] + _get(p, "rhoI") * s2
+    a = m + tau / 2 * d + theta * tau ** 2 * k
+    b = -2 * m + (1 - 2 * theta) * tau ** 2 * k
+    c = m - tau / 2 * d + theta * tau ** 2 * k
     return np.stack([a, b, c], axis=-1)
 
 
@@ -95,96 +118,170 @@ def growth_factors(coeffs: np.ndarray) -> np.ndarray:
     return np.maximum(np.abs(z1), np.abs(z2))
 
 
-def max_growth_factor(config: BeamConfig, params: Mapping[str, float] | None = None,
-                      *, n_kappa: int = 257) -> float:
-    """The seed's stabilising objective: ``max_κ max |z|`` on the unbounded grid."""
-    p = check_parameter_values(config.parameter_values() | dict(params or {}))
-    h = config.beam.length / (config.beam.nodes + 1)
-    tau = config.time.dt / config.time.substeps
-    co = dispersion_coefficients(p, h=h, tau=tau, theta=config.time.theta,
-                                 kappa=wavenumbers(config.beam.length, config.beam.nodes, n_kappa))
-    return float(np.max(growth_factors(co)))
-
-
 def bistritz_values(coeffs: np.ndarray) -> np.ndarray:
     """Bistritz values ``(T_2(1), T_1(1), T_0(1))`` of each quadratic, shape (n, 3)."""
     a, b, c = coeffs[..., 0], coeffs[..., 1], coeffs[..., 2]
     return np.stack([2 * (a + b + c), 2 * (a - c), 2 * (a - b + c)], axis=-1)
 
 
-def _endpoint_kappas(config: BeamConfig) -> np.ndarray:
-    # k and d are monotone in s2 (or quadratic with extremes at the ends), so
-    # the ends of the wavenumber range decide every condition.
-    return wavenumbers(config.beam.length, config.beam.nodes, 2)
+def _bistritz_polynomials(p: Mapping[str, float], tau: float, theta: float
+                          ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The Bistritz values as polynomials in ``s2`` and their exact parameter derivatives.
 
-
-def _bistritz_terms(p: Mapping[str, float], s2: np.ndarray, s4: np.ndarray, tau: float,
-                    theta: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """Bistritz values (n_κ, 3) and their exact derivatives with respect to each parameter.
-
-    ``T_2(1) = 2τ²k``, ``T_1(1) = 2τd``, ``T_0 = 8ρA + 2(4θ-1)τ²k`` with
-    ``k = EI s4 + N s2`` and ``d = c + η EI s4``.
+    Returns
+    -------
+    T : numpy.ndarray
+        Shape (3, 3): rows ``T_2(1), T_1(1), T_0(1)``, each the coefficients of
+        a polynomial of degree ≤ 2 in ``s2`` (highest power first):
+        ``T_2 = 2τ²k``, ``T_1 = 2τd``, ``T_0 = 8m + β k`` with ``β = 2(4θ-1)τ²``,
+        ``k = EI s2² + N s2 + kf``, ``d = eta EI s2² + c``, ``m = rhoI s2 + rhoA``.
+    der : dict
+        ``{name: dT/d(name)}``, same shape (each ``T`` is affine in each parameter).
     """
-    k = p["EI"] * s4 + p["N"] * s2
-    d = p["c"] + p["eta"] * p["EI"] * s4
-    T = np.stack([2 * tau ** 2 * k, 2 * tau * d, 8 * p["rhoA"] + 2 * (4 * theta - 1) * tau ** 2 * k], axis=-1)
-    zero = np.zeros_like(s2)
+    EI, N, kf = p["EI"], p["N"], _get(p, "kf")
+    rhoA, rhoI, c, eta = p["rhoA"], _get(p, "rhoI"), p["c"], p["eta"]
+    t2, t1 = 2 * tau ** 2, 2 * tau
+    beta = 2 * (4 * theta - 1) * tau ** 2
 
-    def dT(dk: np.ndarray, dd: np.ndarray, drho: np.ndarray) -> np.ndarray:
-        return np.stack([2 * tau ** 2 * dk, 2 * tau * dd, 8 * drho + 2 * (4 * theta - 1) * tau ** 2 * dk], axis=-1)
+    def rows(k: tuple[float, float, float], d: tuple[float, float, float],
+             m: tuple[float, float, float]) -> np.ndarray:
+        k_, d_, m_ = np.asarray(k, float), np.asarray(d, float), np.asarray(m, float)
+        return np.stack([t2 * k_, t1 * d_, 8 * m_ + beta * k_])
 
+    zero = (0.0, 0.0, 0.0)
+    T = rows((EI, N, kf), (eta * EI, 0.0, c), (0.0, rhoI, rhoA))
     der = {
-        "EI": dT(s4, p["eta"] * s4, zero),
-        "rhoA": dT(zero, zero, zero + 1.0),
-        "c": dT(zero, zero + 1.0, zero),
-        "eta": dT(zero, p["EI"] * s4, zero),
-        "N": dT(s2, zero, zero),
+        "EI": rows((1.0, 0.0, 0.0), (eta, 0.0, 0.0), zero),
+        "rhoA": rows(zero, zero, (0.0, 0.0, 1.0)),
+        "c": rows(zero, (0.0, 0.0, 1.0), zero),
+        "eta": rows(zero, (EI, 0.0, 0.0), zero),
+        "N": rows((0.0, 1.0, 0.0), zero, zero),
+        "rhoI": rows(zero, zero, (0.0, 1.0, 0.0)),
+        "kf": rows((0.0, 0.0, 1.0), zero, zero),
     }
     return T, der
+
+
+def _s2_range(config: BeamConfig) -> tuple[float, float]:
+    h = config.beam.length / (config.beam.nodes + 1)
+    s2, _ = _symbols(wavenumbers(config.beam.length, config.beam.nodes, 2), h)
+    return float(s2[0]), float(s2[1])
+
+
+def _interior_roots(poly: np.ndarray, lo: float, hi: float) -> list[float]:
+    """Real roots of ``poly`` (highest power first) strictly inside ``(lo, hi)``."""
+    poly = np.trim_zeros(np.asarray(poly, dtype=float), "f")
+    if poly.size < 2:
+        return []
+    out = []
+    for r in np.roots(poly):
+        if abs(r.imag) <= 1e-12 * max(1.0, abs(r.real)) and lo < r.real < hi:
+            out.append(float(r.real))
+    return out
+
+
+def critical_wavenumbers(config: BeamConfig, params: Mapping[str, float] | None = None) -> np.ndarray:
+    """Wavenumbers inside ``(π/L, π/h)`` where a Bistritz value is stationary in ``s_2``.
+
+    Each Bistritz value is a polynomial of degree ≤ 2 in ``s_2`` (a monotone
+    function of κ), so its minimum over the range lies at an end or at its
+    vertex.  The ends are always sampled; these are the vertices inside.
+    Without a foundation they only occur beyond the grid's Euler load; with
+    one, the vertex of ``k`` at ``s_2 = -N/(2EI)`` is where a compressed beam
+    on a Winkler foundation buckles first.
+    """
+    p = check_parameter_values(config.parameter_values() | dict(params or {}))
+    tau = config.time.dt / config.time.substeps
+    lo, hi = _s2_range(config)
+    T, _ = _bistritz_polynomials(p, tau, config.time.theta)
+    s2 = sorted({r for row in T for r in _interior_roots(np.polyder(row), lo, hi)})
+    h = config.beam.length / (config.beam.nodes + 1)
+    return _kappa_of_s2(np.asarray(s2, dtype=float), h)
+
+
+def _analysis_kappas(config: BeamConfig, p: Mapping[str, float], n_kappa: int) -> np.ndarray:
+    kap = wavenumbers(config.beam.length, config.beam.nodes, n_kappa)
+    crit = critical_wavenumbers(config, p)
+    return np.sort(np.concatenate([kap, crit])) if crit.size else kap
+
+
+def max_growth_factor(config: BeamConfig, params: Mapping[str, float] | None = None,
+                      *, n_kappa: int = 257) -> float:
+    """The seed's stabilising objective: ``max_κ max |z|`` on the unbounded grid.
+
+    Evaluated at ``n_kappa`` equidistant wavenumbers in ``[π/L, π/h]`` plus
+    the :func:`critical_wavenumbers`.
+    """
+    p = check_parameter_values(config.parameter_values() | dict(params or {}))
+    h = config.beam.length / (config.beam.nodes + 1)
+    tau = config.time.dt / config.time.substeps
+    co = dispersion_coefficients(p, h=h, tau=tau, theta=config.time.theta,
+                                 kappa=_analysis_kappas(config, p, n_kappa))
+    return float(np.max(growth_factors(co)))
 
 
 def stability_bounds(config: BeamConfig, params: Mapping[str, float] | None = None
                      ) -> dict[str, tuple[float, float]]:
     """Interval of each parameter (others held) where the Bistritz conditions hold.
 
-    Each Bistritz value is affine in each parameter, ``T(p) = T(p0) + T'·(p - p0)``
-    with the exact derivative ``T'`` (see :func:`_bistritz_terms`), so the
-    condition ``T ≥ 0`` at every wavenumber gives ``p ≥ p0 - T/T'`` (T' > 0)
-    or ``p ≤ p0 - T/T'`` (T' < 0).  The physical ranges (``EI, rhoA > 0``;
-    ``c, eta ≥ 0``) are intersected in.  Conditions are extremal at the two
-    ends of the wavenumber range (``k`` is convex in ``s_2``, ``d`` monotone),
-    so those two wavenumbers suffice.
+    Each Bistritz value is affine in each parameter,
+    ``T(s2; p) = T(s2; p0) + T'(s2)·(p - p0)`` with the exact derivative ``T'``
+    (see :func:`_bistritz_polynomials`; ``T'`` has one sign for ``s2 > 0``), so
+    ``T ≥ 0`` at every ``s2`` of the range gives ``p ≥ sup r`` (``T' > 0``) or
+    ``p ≤ inf r`` (``T' < 0``) with ``r(s2) = p0 - T/T'``.  ``r`` is a ratio of
+    polynomials of degree ≤ 2, so its extremes over ``[s2(π/L), s2(π/h)]`` lie
+    at the ends or where ``T'·dT/ds2 - T·dT'/ds2 = 0`` — e.g. the foundation's
+    critical load ``N = -2√(EI k_f)`` at ``s2 = √(k_f/EI)``.  Where ``T' ≡ 0``
+    the condition ``T ≥ 0`` does not depend on the parameter.  The physical
+    ranges (``EI, rhoA > 0``; ``c, eta, rhoI, kf ≥ 0``) are intersected in.
 
     Returns
     -------
     dict
-        ``{name: (lo, hi)}`` for ``EI, rhoA, c, eta, N``; infinite where
-        unbounded; ``(nan, nan)`` when no value of that parameter alone can
-        satisfy the conditions (another parameter violates one that does not
-        depend on it).
+        ``{name: (lo, hi)}`` for every name of ``PARAMETER_NAMES``; infinite
+        where unbounded; ``(nan, nan)`` when no value of that parameter alone
+        can satisfy the conditions (another parameter violates one that does
+        not depend on it).
     """
     p0 = check_parameter_values(config.parameter_values() | dict(params or {}))
-    h = config.beam.length / (config.beam.nodes + 1)
     tau = config.time.dt / config.time.substeps
-    s2, s4 = _symbols(_endpoint_kappas(config), h)
-    T, der = _bistritz_terms(p0, s2, s4, tau, config.time.theta)
+    s_lo, s_hi = _s2_range(config)
+    T, der = _bistritz_polynomials(p0, tau, config.time.theta)
     out: dict[str, tuple[float, float]] = {}
-    phys_lo = {"EI": 0.0, "rhoA": 0.0, "c": 0.0, "eta": 0.0, "N": -math.inf}
     for name in PARAMETER_NAMES:
-        lo, hi = phys_lo[name], math.inf
+        lo, hi = _PHYSICAL_LOWER[name], math.inf
         feasible = True
-        for t, dt_ in zip(T.ravel(), der[name].ravel()):
-            if dt_ == 0.0:
-                if t < 0:
+        for P, Q in zip(T, der[name]):
+            if not np.any(Q):
+                cand = [s_lo, s_hi] + _interior_roots(np.polyder(P), s_lo, s_hi)
+                if min(np.polyval(P, s) for s in cand) < 0:
                     feasible = False
                 continue
-            r = p0[name] - t / dt_
-            if dt_ > 0:
-                lo = max(lo, r)
-            else:
-                hi = min(hi, r)
+            crit = np.polysub(np.polymul(Q, np.polyder(P)), np.polymul(P, np.polyder(Q)))
+            for s in [s_lo, s_hi] + _interior_roots(crit, s_lo, s_hi):
+                q = np.polyval(Q, s)
+                r = p0[name] - np.polyval(P, s) / q
+                if q > 0:
+                    lo = max(lo, r)
+                else:
+                    hi = min(hi, r)
         out[name] = (float(lo), float(hi)) if feasible and lo <= hi else (math.nan, math.nan)
     return out
+
+
+def grid_omega_max(config: BeamConfig, params: Mapping[str, float] | None = None) -> float:
+    """Highest angular frequency of the semi-discrete unbounded grid [rad/s].
+
+    ``ω²(s2) = k/m = (EI s2² + N s2 + kf) / (rhoA + rhoI s2)``; its derivative
+    has the sign of ``EI rhoI s2² + 2 EI rhoA s2 + N rhoA - rhoI kf``, which
+    increases with ``s2``, so the maximum over the range lies at one of its
+    ends (at the Nyquist wavenumber ``π/h`` unless the grid is very coarse).
+    Rotary inertia lowers it: ``ω_max² ≈ 4EI/(h² rhoI)`` once ``rhoI ≫ rhoA h²/4``.
+    Returns 0 when ``k ≤ 0`` at both ends.
+    """
+    p = check_parameter_values(config.parameter_values() | dict(params or {}))
+    w2 = max((p["EI"] * s * s + p["N"] * s + p["kf"]) / (p["rhoA"] + p["rhoI"] * s) for s in _s2_range(config))
+    return math.sqrt(w2) if w2 > 0 else 0.0
 
 
 @dataclass(frozen=True)
@@ -231,16 +328,15 @@ class StabilityReport:
         return self.grid_stable == self.beam_stable
 
 
-def _dt_max(p: Mapping[str, float], config: BeamConfig, kappa: np.ndarray) -> float:
+def _dt_max(p: Mapping[str, float], config: BeamConfig) -> float:
+    """Largest stable sample time of the grid for ``θ < 1/4``: ``τ ≤ 2/(ω_max √(1-4θ))``."""
     theta = config.time.theta
     if theta >= 0.25:
         return math.inf
-    h = config.beam.length / (config.beam.nodes + 1)
-    s2, s4 = _symbols(kappa, h)
-    kmax = float(np.max(p["EI"] * s4 + p["N"] * s2))
-    if kmax <= 0:
+    w_max = grid_omega_max(config, p)
+    if w_max <= 0:
         return math.inf
-    return config.time.substeps * 2.0 * math.sqrt(p["rhoA"] / ((1 - 4 * theta) * kmax))
+    return config.time.substeps * 2.0 / (w_max * math.sqrt(1 - 4 * theta))
 
 
 def analyse_stability(config: BeamConfig, params: Mapping[str, float] | None = None, *,
@@ -253,7 +349,8 @@ def analyse_stability(config: BeamConfig, params: Mapping[str, float] | None = N
     config, params
         Set-up and parameter overrides.
     n_kappa
-        Number of wavenumbers in ``[π/L, π/h]``.
+        Number of equidistant wavenumbers in ``[π/L, π/h]`` (the
+        :func:`critical_wavenumbers` are added).
     spectral_radius
         Spectral radius of Φ if already known; computed from the modal form otherwise.
     tol
@@ -262,7 +359,7 @@ def analyse_stability(config: BeamConfig, params: Mapping[str, float] | None = N
     p = check_parameter_values(config.parameter_values() | dict(params or {}))
     h = config.beam.length / (config.beam.nodes + 1)
     tau = config.time.dt / config.time.substeps
-    kap = wavenumbers(config.beam.length, config.beam.nodes, n_kappa)
+    kap = _analysis_kappas(config, p, n_kappa)
     co = dispersion_coefficients(p, h=h, tau=tau, theta=config.time.theta, kappa=kap)
     g = float(np.max(growth_factors(co)))
     outside = 0
@@ -301,7 +398,7 @@ def analyse_stability(config: BeamConfig, params: Mapping[str, float] | None = N
         msgs.append(f"the unbounded-grid analysis says unstable (max growth factor {g:.12g}) but the "
                     f"finite beam is stable (spectral radius {spectral_radius:.12g}): its ends "
                     f"stiffen it beyond the grid's Euler load")
-    dtm = _dt_max(p, config, kap)
+    dtm = _dt_max(p, config)
     if config.time.dt > dtm:
         msgs.append(f"dt = {config.time.dt:g} s exceeds the explicit limit {dtm:g} s for theta = "
                     f"{config.time.theta:g}")

@@ -1,0 +1,206 @@
+"""Least-squares fits of the baseline and of augmented models on the fit windows.
+
+A :class:`GapProblem` bundles what every fit needs: the baseline config, its
+unknowns (:class:`identification.parameters.ParameterSpace`), the records with
+their windows and the per-sensor noise standard deviation.  A model is the
+baseline unknowns ``beta`` plus, optionally, one effect's search variables
+``s``; both are scaled to [0, 1] by their bounds for the optimiser
+(``scipy.optimize.least_squares``, trust-region reflective, bounded).
+
+Errors are reported as *gap ratios*: the mean squared noise-normalised
+residual of a window, 1 at the noise floor.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+import numpy as np
+from scipy.optimize import least_squares
+
+from ebb_model.config import BeamConfig
+from ebb_model.errors import EbbError
+
+from identification.parameters import ParameterSpace
+
+from .augmented import simulate_effects
+from .effects import AugmentedModel, Effect
+from .records import Record
+
+__all__ = ["GapProblem", "Fit", "PENALTY_RESIDUAL"]
+
+#: Residual assigned to every sample of a candidate that cannot be simulated (invalid or unstable).
+PENALTY_RESIDUAL = 1e3
+
+
+@dataclass(frozen=True)
+class Fit:
+    """A fitted model: baseline unknowns, effect variables, residual statistics.
+
+    Attributes
+    ----------
+    beta
+        Baseline unknowns (physical units, order of the space).
+    s
+        Effect search variables (empty for the baseline).
+    rss
+        Sum of squared noise-normalised residuals over the fit windows.
+    n
+        Number of fitted residuals.
+    jac
+        Jacobian of the normalised residuals w.r.t. the scaled variables at the solution.
+    residuals
+        Normalised residuals at the solution.
+    n_evaluations
+        Model evaluations used (including finite-difference Jacobians).
+    """
+
+    beta: np.ndarray
+    s: np.ndarray
+    rss: float
+    n: int
+    jac: np.ndarray
+    residuals: np.ndarray
+    n_evaluations: int
+
+    def bic(self, k: int) -> float:
+        """Bayesian information criterion ``n ln(RSS/n) + k ln n`` (Gaussian, variance unknown)."""
+        return float(self.n * np.log(self.rss / self.n) + k * np.log(self.n))
+
+    def aic(self, k: int) -> float:
+        """Akaike information criterion ``n ln(RSS/n) + 2k``."""
+        return float(self.n * np.log(self.rss / self.n) + 2 * k)
+
+
+@dataclass(frozen=True, eq=False)
+class GapProblem:
+    """Baseline model, unknowns, records and noise level of one diagnosis.
+
+    Parameters
+    ----------
+    config
+        Baseline set-up; parameters that are not unknowns keep its nominal values.
+    space
+        Baseline unknowns with bounds.
+    records
+        Measured records with fit and held-out windows.
+    noise_std
+        Measurement-noise standard deviation per sensor.
+    """
+
+    config: BeamConfig
+    space: ParameterSpace
+    records: tuple[Record, ...]
+    noise_std: np.ndarray
+
+    # ----------------------------------------------------------- simulation
+    def model(self, beta: np.ndarray, effect: Effect | None = None, s: np.ndarray | None = None
+              ) -> AugmentedModel:
+        """The augmented model of baseline unknowns ``beta`` and effect values ``s``."""
+        cfg, params = self.space.apply(self.config, np.asarray(beta, dtype=float))
+        if effect is None:
+            return AugmentedModel(cfg, params)
+        return effect.apply(cfg, params, np.asarray(s, dtype=float))
+
+    def simulate(self, beta: np.ndarray, effect: Effect | None = None, s: np.ndarray | None = None, *,
+                 until: str = "fit") -> list[np.ndarray | None]:
+        """Simulated outputs per record, up to the end of the fit window (``"fit"``) or the record (``"all"``).
+
+        Records without a fit window give ``None`` for ``until="fit"``.
+        Raises :class:`ebb_model.errors.EbbError` subclasses for invalid models.
+        """
+        m = self.model(beta, effect, s)
+        out: list[np.ndarray | None] = []
+        for r in self.records:
+            stop = r.fit_end if until == "fit" else r.n
+            if stop == 0:
+                out.append(None)
+                continue
+            out.append(simulate_effects(m.config, m.params, r.inputs[:stop], actuator_tau=m.actuator_tau,
+                                        sensor_tau=m.sensor_tau, drift_rate=m.drift_rate,
+                                        stretching_EA=m.stretching_EA))
+        return out
+
+    @property
+    def n_fit(self) -> int:
+        """Number of fitted residuals (samples × sensors over all fit windows)."""
+        return int(sum(r.fit_end for r in self.records) * len(self.config.sensors))
+
+    def residuals(self, beta: np.ndarray, effect: Effect | None = None, s: np.ndarray | None = None
+                  ) -> np.ndarray:
+        """Noise-normalised residuals ``(y_sim − y)/σ`` over the fit windows, stacked."""
+        try:
+            sims = self.simulate(beta, effect, s, until="fit")
+        except (EbbError, ValueError, np.linalg.LinAlgError):
+            return np.full(self.n_fit, PENALTY_RESIDUAL)
+        parts = [((y - r.outputs[:r.fit_end]) / self.noise_std).ravel()
+                 for y, r in zip(sims, self.records) if y is not None]
+        res = np.concatenate(parts)
+        return res if np.all(np.isfinite(res)) else np.full(self.n_fit, PENALTY_RESIDUAL)
+
+    def heldout(self, beta: np.ndarray, effect: Effect | None = None, s: np.ndarray | None = None
+                ) -> tuple[np.ndarray, list[np.ndarray]]:
+        """Gap ratio per sensor on the held-out windows, and the held-out residuals per record.
+
+        Returns
+        -------
+        ratio
+            ``mean(((y_sim − y)/σ)²)`` per sensor over every held-out sample (1 = noise floor).
+        residuals
+            Normalised held-out residuals ``(n_hold, n_sensors)`` per record with a held-out window.
+        """
+        sims = self.simulate(beta, effect, s, until="all")
+        res = [((y - r.outputs) / self.noise_std)[r.hold_start:]
+               for y, r in zip(sims, self.records) if r.has_holdout]
+        if not res:
+            raise ValueError("no held-out samples")
+        stacked = np.concatenate(res)
+        return np.mean(stacked ** 2, axis=0), res
+
+    # ------------------------------------------------------------------ fits
+    def fit(self, beta0: np.ndarray, effect: Effect | None = None, s0: np.ndarray | None = None, *,
+            max_evaluations: int = 300) -> Fit:
+        """Bounded least-squares fit of the baseline unknowns (and the effect's variables) on the fit windows."""
+        sp = self.space
+        lo = np.asarray(sp.lower, dtype=float)
+        hi = np.asarray(sp.upper, dtype=float)
+        if effect is not None:
+            lo = np.concatenate([lo, effect.lower])
+            hi = np.concatenate([hi, effect.upper])
+        span = hi - lo
+        z0 = np.asarray(beta0, dtype=float)
+        if effect is not None:
+            z0 = np.concatenate([z0, np.asarray(s0 if s0 is not None else effect.off, dtype=float)])
+        x0 = np.clip((z0 - lo) / span, 0.0, 1.0)
+        p = sp.dim
+        count = [0]
+
+        def fun(x: np.ndarray) -> np.ndarray:
+            count[0] += 1
+            z = lo + x * span
+            return self.residuals(z[:p], effect, z[p:] if effect is not None else None)
+
+        res = least_squares(fun, x0, bounds=(0.0, 1.0), x_scale="jac", diff_step=1e-6, xtol=1e-10,
+                            ftol=1e-10, gtol=1e-10, max_nfev=max_evaluations)
+        z = lo + res.x * span
+        r = res.fun
+        return Fit(z[:p], z[p:], float(r @ r), int(r.size), res.jac, r, count[0])
+
+    def scaled_jacobian(self, beta: np.ndarray, effect: Effect, s: np.ndarray, *, step: float = 1e-3
+                        ) -> np.ndarray:
+        """Forward-difference Jacobian of the residuals w.r.t. the effect's variables scaled by their bounds.
+
+        Steps move away from the nearer bound, so one-sided effects are
+        differentiated at their "off" value from the feasible side.
+        """
+        s = np.asarray(s, dtype=float)
+        lo, hi = np.asarray(effect.lower), np.asarray(effect.upper)
+        span = hi - lo
+        r0 = self.residuals(beta, effect, s)
+        J = np.empty((r0.size, effect.dim))
+        for j in range(effect.dim):
+            ds = step * span[j]
+            sign = 1.0 if s[j] + ds <= hi[j] else -1.0
+            s1 = s.copy()
+            s1[j] += sign * ds
+            J[:, j] = (self.residuals(beta, effect, s1) - r0) / (sign * step)
+        return J
+

@@ -1,0 +1,68 @@
+"""Report plots of a diagnosis: ranked effects, held-out residual before/after, localisation."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+__all__ = ["plot_diagnosis"]
+
+
+def plot_diagnosis(doc: Mapping[str, Any], problem: Any, ranking: Any, effects: Mapping[str, Any],
+                   localisations: Sequence[Any], out_dir: Path) -> list[Path]:
+    """Write ``effects.png``, ``heldout_residuals.png`` and the localisation plots into ``out_dir``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out_dir = Path(out_dir)
+    paths: list[Path] = []
+    rows = [r for r in doc["effects"] if r.get("refit")]
+    if rows:
+        fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 0.5 * len(doc["effects"]) + 2))
+        labels = [r["label"] for r in doc["effects"]][::-1]
+        a1.barh(labels, [max(r["score"], 1e-3) for r in doc["effects"]][::-1])
+        a1.set_xscale("log")
+        a1.set_xlabel("score-test statistic (LM)")
+        a2.barh([r["label"] for r in rows][::-1], [100 * (r["refit"]["closed"] or 0.0) for r in rows][::-1])
+        a2.axvline(80, color="k", lw=0.5, ls="--")
+        a2.set_xlabel("held-out gap closed after refit [%]")
+        fig.suptitle(f"verdict: {doc['verdict']}")
+        fig.tight_layout()
+        paths.append(out_dir / "effects.png")
+        fig.savefig(paths[-1], dpi=100)
+        plt.close(fig)
+    _, before = problem.heldout(ranking.baseline.beta)
+    after = None
+    if ranking.verdict != "none":
+        rf = ranking.refits[ranking.verdict]
+        _, after = problem.heldout(rf.fit.beta, effects[ranking.verdict], rf.fit.s)
+    rb = before[0]
+    n_s = rb.shape[1]
+    fig, axes = plt.subplots(n_s, 1, figsize=(10, 2.2 * n_s + 0.5), squeeze=False)
+    t = np.arange(rb.shape[0]) * problem.config.time.dt
+    for j, name in enumerate(problem.config.output_names):
+        ax = axes[j, 0]
+        ax.plot(t, rb[:, j], lw=0.6, label="baseline")
+        if after is not None:
+            ax.plot(t, after[0][:, j], lw=0.6, label=f"with {ranking.verdict}")
+        ax.set_ylabel(f"{name} residual / σ")
+        ax.legend(loc="upper right", fontsize=8)
+    axes[-1, 0].set_xlabel("time in the held-out window [s]")
+    fig.tight_layout()
+    paths.append(out_dir / "heldout_residuals.png")
+    fig.savefig(paths[-1], dpi=100)
+    plt.close(fig)
+    try:
+        from .report_plots import plot_localisation
+    except ImportError:  # pragma: no cover - localisation plots are optional
+        return paths
+    r0 = problem.records[0]
+    y0 = problem.simulate(ranking.baseline.beta, until="all")[0]
+    sub = out_dir / "localisation"
+    sub.mkdir(exist_ok=True)
+    paths += [Path(p) for p in plot_localisation(localisations[0], problem.config.time.dt, r0.inputs,
+                                                 r0.outputs, y0, sub)]
+    return paths

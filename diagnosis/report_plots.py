@@ -1,0 +1,178 @@
+"""Report plots of a gap localisation (matplotlib, Agg backend, PNG files).
+
+:func:`plot_localisation` draws what :func:`diagnosis.localise.localise`
+computed: residual time series, measured versus model FRFs with the mode
+markers, residual statistics per time window and per amplitude level, and the
+residual auto- and cross-correlations with their 99 % bands.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ebb_model.errors import DataError
+
+from .localise import Localisation, _matrix, estimate_frf
+
+__all__ = ["plot_localisation"]
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_localisation(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray,
+                      out_dir: str | Path) -> list[Path]:
+    """Write the localisation plots as PNG files into ``out_dir``.
+
+    Parameters
+    ----------
+    loc
+        Result of :func:`diagnosis.localise.localise` on the same data.
+    dt, u, y, y_hat
+        The data given to :func:`~diagnosis.localise.localise`.
+    out_dir
+        Directory (created if missing).
+
+    Returns
+    -------
+    list of Path
+        ``residuals.png``, ``frf.png``, ``windows.png``, ``amplitude.png``,
+        ``correlation.png``, ``bands.png``.
+    """
+    u2, y2, yh2 = _matrix(u, "u"), _matrix(y, "y"), _matrix(y_hat, "y_hat")
+    if y2.shape != yh2.shape or y2.shape[1] != len(loc.sensor_names) or u2.shape[0] != y2.shape[0] \
+            or u2.shape[1] != len(loc.input_names):
+        raise DataError(f"plot_localisation: data shapes u {u2.shape}, y {y2.shape}, y_hat {yh2.shape} do not "
+                        f"match the localisation ({len(loc.input_names)} inputs, {len(loc.sensor_names)} sensors)")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    plt = _pyplot()
+    names = loc.sensor_names
+    n_out = len(names)
+    t = np.arange(y2.shape[0]) * dt
+    files: list[Path] = []
+
+    def save(fig, name: str) -> None:
+        fig.tight_layout()
+        p = out / name
+        fig.savefig(p, dpi=100)
+        plt.close(fig)
+        files.append(p)
+
+    # residual time series with the ±2σ noise band
+    fig, axes = plt.subplots(n_out, 1, figsize=(8, 2.2 * n_out), squeeze=False, sharex=True)
+    for o, ax in enumerate(axes[:, 0]):
+        s = loc.sensors[o]
+        ax.plot(t, y2[:, o] - yh2[:, o], lw=0.5, color="C3", label="residual y - ŷ")
+        ax.axhline(2 * s.noise_std, color="k", ls=":", lw=0.8, label="±2σ noise")
+        ax.axhline(-2 * s.noise_std, color="k", ls=":", lw=0.8)
+        ax.set_ylabel(names[o])
+        ax.set_title(f"{names[o]}: NRMSE {s.nrmse:.3g}, gap ratio {s.gap_ratio:.3g}", fontsize=9)
+    axes[0, 0].legend(loc="upper right", fontsize=8)
+    axes[-1, 0].set_xlabel("time [s]")
+    save(fig, "residuals.png")
+
+    # FRF magnitude and phase, measured vs model, with mode markers
+    fm = estimate_frf(dt, u2, y2, nperseg=loc.nperseg)
+    fh = estimate_frf(dt, u2, yh2, nperseg=loc.nperseg)
+    n_in = u2.shape[1]
+    fig, axes = plt.subplots(2 * n_out, n_in, figsize=(6 * n_in, 3.2 * n_out), squeeze=False, sharex=True)
+    for o in range(n_out):
+        for j in range(n_in):
+            exc = fm.excited[:, j]
+            f = fm.f[exc]
+            axm, axp = axes[2 * o, j], axes[2 * o + 1, j]
+            axm.semilogy(f, np.abs(fm.H[exc, o, j]), ".", ms=2, color="C0", label="measured")
+            axm.semilogy(f, np.abs(fh.H[exc, o, j]), "-", lw=0.8, color="C1", label="model")
+            axp.plot(f, np.degrees(np.angle(fm.H[exc, o, j])), ".", ms=2, color="C0")
+            axp.plot(f, np.degrees(np.angle(fh.H[exc, o, j])), "-", lw=0.8, color="C1")
+            for m in loc.modes:
+                if m.sensor != names[o] or m.input != loc.input_names[j]:
+                    continue
+                for ax in (axm, axp):
+                    ax.axvline(m.model_freq_hz, color="C1", ls="--", lw=0.6)
+                    if m.fit_ok:
+                        ax.axvline(m.measured_freq_hz, color="C0", ls=":", lw=0.8)
+            axm.set_ylabel(f"|H| {names[o]}/{loc.input_names[j]}")
+            axp.set_ylabel("phase [deg]")
+    axes[0, 0].legend(loc="upper right", fontsize=8)
+    for j in range(n_in):
+        axes[-1, j].set_xlabel("frequency [Hz]  (dashed: model modes, dotted: measured fit)")
+    save(fig, "frf.png")
+
+    # per time window
+    fig, axes = plt.subplots(3, 1, figsize=(7, 7), sharex=True)
+    for o, w in enumerate(loc.windows):
+        tc = np.asarray(w.t_center)
+        axes[0].plot(tc, w.rms, "o-", color=f"C{o}", label=f"{w.sensor}: y - ŷ")
+        axes[0].plot(tc, w.linear_rms, "s--", color=f"C{o}", mfc="none", label=f"{w.sensor}: y - y_lin")
+        axes[1].plot(tc, w.gain, "o-", color=f"C{o}", label=f"{w.sensor} (p={w.gain_p:.2g})")
+        axes[2].plot(tc, w.phase_deg, "o-", color=f"C{o}", label=f"{w.sensor} (p={w.phase_p:.2g})")
+    axes[0].set_ylabel("residual RMS")
+    axes[1].set_ylabel("gain y / y_lin")
+    axes[2].set_ylabel("phase y vs y_lin [deg]")
+    axes[2].set_xlabel("window centre [s]")
+    for ax in axes:
+        ax.legend(fontsize=7)
+    axes[0].set_title("per time window (drift)", fontsize=9)
+    save(fig, "windows.png")
+
+    # per amplitude level
+    fig, axes = plt.subplots(2, 1, figsize=(7, 5.5))
+    for o, a in enumerate(loc.amplitude):
+        lv = np.asarray(a.level)
+        axes[0].loglog(lv, a.residual_rms, "o-", color=f"C{o}",
+                       label=f"{a.sensor} (exponent {a.rms_exponent:.2g})")
+        axes[0].axhline(loc.sensors[o].noise_std, color=f"C{o}", ls=":", lw=0.8)
+        axes[1].semilogx(lv, a.gain, "o-", color=f"C{o}", label=f"{a.sensor} (p={a.gain_p:.2g})")
+    axes[0].set_ylabel("residual RMS (dotted: noise σ)")
+    axes[1].set_ylabel("gain y / y_lin")
+    axes[1].set_xlabel("response envelope level")
+    for ax in axes:
+        ax.legend(fontsize=7)
+    axes[0].set_title("per amplitude level (nonlinearity)", fontsize=9)
+    save(fig, "amplitude.png")
+
+    # correlations
+    fig, axes = plt.subplots(n_out, 1 + n_in, figsize=(3.5 * (1 + n_in), 2.4 * n_out), squeeze=False)
+    for o, h in enumerate(loc.whiteness):
+        ax = axes[o, 0]
+        lags = np.arange(1, len(h.autocorr) + 1)
+        ax.bar(lags, h.autocorr, color="C0", width=0.8)
+        ax.axhspan(-h.band, h.band, color="k", alpha=0.15)
+        ax.set_title(f"{h.sensor}: autocorr (LB p={h.ljung_box_p:.2g})", fontsize=8)
+        ax.set_xlabel("lag")
+    for c in loc.cross_correlation:
+        o = names.index(c.sensor)
+        j = loc.input_names.index(c.input)
+        ax = axes[o, 1 + j]
+        m = (len(c.xcorr) - 1) // 2
+        ax.bar(np.arange(-m, m + 1), c.xcorr, color="C1", width=0.8)
+        ax.axhspan(-c.band, c.band, color="k", alpha=0.15)
+        ax.set_title(f"{c.sensor} vs {c.input}: xcorr (p={c.p:.2g})", fontsize=8)
+        ax.set_xlabel("lag")
+    save(fig, "correlation.png")
+
+    # residual energy per band
+    fig, axes = plt.subplots(n_out, 1, figsize=(7, 2.2 * n_out), squeeze=False)
+    for o, ax in enumerate(axes[:, 0]):
+        bs = [b for b in loc.bands if b.sensor == names[o]]
+        labels = [f"{b.f_lo:.3g}–{b.f_hi:.3g}" + (f"\nmode {b.mode}" if b.mode else "") for b in bs]
+        x = np.arange(len(bs))
+        ax.bar(x - 0.2, [b.residual_fraction or 0.0 for b in bs], width=0.4, label="residual energy")
+        ax.bar(x + 0.2, [0.0 if not np.isfinite(b.excess_fraction) else b.excess_fraction for b in bs],
+               width=0.4, label="model-error energy")
+        ax.set_xticks(x, labels, fontsize=7)
+        ax.set_ylabel(names[o])
+        ax.set_ylim(0, 1)
+    axes[0, 0].legend(fontsize=7)
+    axes[-1, 0].set_xlabel("band [Hz]")
+    save(fig, "bands.png")
+    return files

@@ -1,0 +1,290 @@
+"""The gap diagnosis as one API call (what ``ebb diagnose`` runs).
+
+config + data (+ held-out records or a held-out tail of each record) →
+baseline fit on the fit windows (started from an identification result or the
+nominal values) → noise level → localisation of the residual (where) → score
+tests of every candidate effect, refit of the shortlist, ranking by held-out
+error and BIC (which) → held-out gap before/after per sensor and per band
+(how far) → ``gap.json`` and report plots.
+
+Bad input is detected before anything is written, and the output directory
+appears only when complete (built under a temporary name, then renamed).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+from scipy.signal import welch
+
+from ebb_model.beam import Sensor
+from ebb_model.config import BeamConfig
+from ebb_model.errors import ConfigError, DataError
+from ebb_model.jsonio import write_json
+from ebb_model.modal import discrete_frequencies
+from ebb_model.simulate import fast_model, simulate
+
+from identification.data import Experiment
+from identification.parameters import parameter_space
+from identification.run import load_identification_config, read_data
+
+from .effects import Scales, candidate_effects
+from .fitting import GapProblem
+from .localise import localise
+from .noise import noise_std as estimate_noise
+from .rank import Ranking, rank_effects
+from .records import Record, split_records
+
+__all__ = ["Diagnosis", "diagnose", "GAP_FILE"]
+
+GAP_FILE = "gap.json"
+
+
+@dataclass(frozen=True, eq=False)
+class Diagnosis:
+    """Outcome of :func:`diagnose`: the ranking and the JSON document written to ``gap.json``."""
+
+    ranking: Ranking
+    document: dict[str, Any]
+    out_dir: Path | None
+
+    @property
+    def verdict(self) -> str:
+        """Label of the effect that explains the gap, or ``"none"``."""
+        return self.ranking.verdict
+
+
+def _ordered(config: BeamConfig, e: Experiment) -> tuple[str, np.ndarray, np.ndarray]:
+    idx = [e.output_names.index(s.name) for s in config.sensors]
+    return e.name, np.asarray(e.inputs, dtype=float), np.asarray(e.outputs, dtype=float)[:, idx]
+
+
+def _start_from_result(result: str | Path, names: Sequence[str]) -> np.ndarray:
+    path = Path(result) / "pareto.json"
+    try:
+        doc = json.loads(path.read_text())
+        point = (doc.get("polished") or [None])[0] or doc["points"][int(doc["knee"])]
+        params = point["parameters"]
+        return np.array([float(params[n]) for n in names])
+    except FileNotFoundError:
+        raise ConfigError(f"--result {result}: no pareto.json (run `ebb identify` first)") from None
+    except (KeyError, ValueError, TypeError, IndexError, json.JSONDecodeError) as exc:
+        raise ConfigError(f"--result {path}: unreadable identification result ({exc!s}); "
+                          f"expected the parameters {', '.join(names)}") from None
+
+
+def excited_band(inputs: Sequence[np.ndarray], dt: float, *, rel: float = 1e-3) -> tuple[float, float]:
+    """Frequency range [Hz] where the input power is above ``rel`` of its peak (Welch PSD)."""
+    lo, hi = math.inf, 0.0
+    for u in inputs:
+        f, P = welch(u, fs=1.0 / dt, nperseg=min(4096, u.shape[0]), axis=0)
+        P = P.sum(axis=1) if P.ndim > 1 else P
+        on = f[P >= rel * P.max()] if P.max() > 0 else f[:0]
+        if on.size:
+            lo, hi = min(lo, float(on.min())), max(hi, float(on.max()))
+    if hi <= 0:
+        raise DataError("inputs: the measured forces carry no power")
+    return (0.0 if not math.isfinite(lo) else lo), hi
+
+
+def _stretch_max(config: BeamConfig, params: dict[str, float], records: Sequence[Record]) -> float:
+    """Largest ``∫ w_x² dx`` of the baseline response (displacement field sampled at 41 points)."""
+    L = config.beam.length
+    xs = np.linspace(0.0, L, 41)
+    field_cfg = replace(config, sensors=tuple(Sensor(f"w{i}", float(x)) for i, x in enumerate(xs)))
+    model = fast_model(field_cfg, params)
+    best = 0.0
+    for r in records:
+        w = simulate(model, r.inputs).outputs
+        wx = np.gradient(w, xs, axis=1)
+        best = max(best, float(np.max(np.trapz(wx ** 2, xs, axis=1))))
+    return best
+
+
+def _band_closure(before: Sequence[np.ndarray], after: Sequence[np.ndarray], dt: float,
+                  edges: np.ndarray) -> list[dict[str, Any]]:
+    """Held-out gap ratio per frequency band before/after, and the fraction of the band's gap closed.
+
+    For noise-normalised residuals, white unit-variance noise has an expected
+    periodogram ``|R_k|²/n = 1`` in every bin, so a band's gap ratio is the
+    mean of ``|R_k|²/n`` over its bins (and sensors).
+    """
+    nb = len(edges) - 1
+    eb, ea, cnt = np.zeros(nb), np.zeros(nb), np.zeros(nb)
+    for rb, ra in zip(before, after):
+        n = rb.shape[0]
+        f = np.fft.rfftfreq(n, dt)
+        Pb = np.sum(np.abs(np.fft.rfft(rb, axis=0)) ** 2, axis=1) / n
+        Pa = np.sum(np.abs(np.fft.rfft(ra, axis=0)) ** 2, axis=1) / n
+        band = np.searchsorted(edges, f, side="right") - 1
+        for i in range(nb):
+            m = band == i
+            eb[i] += Pb[m].sum()
+            ea[i] += Pa[m].sum()
+            cnt[i] += m.sum() * rb.shape[1]
+    rows = []
+    for i in range(nb):
+        b = eb[i] / cnt[i] if cnt[i] else float("nan")
+        a = ea[i] / cnt[i] if cnt[i] else float("nan")
+        rows.append({"band_hz": [float(edges[i]), float(edges[i + 1])], "gap_ratio_before": float(b),
+                     "gap_ratio_after": float(a),
+                     "closed": float((b - a) / (b - 1.0)) if b > 1.05 else None})
+    return rows
+
+
+def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_dir: str | Path | None, *,
+             holdout: Sequence[str | Path] = (), result: str | Path | None = None,
+             holdout_fraction: float = 0.3, shortlist: int = 4, noise_std: Sequence[float] | None = None,
+             plots: bool = True, progress: Callable[[str], None] | None = None) -> Diagnosis:
+    """Locate the sim-to-real gap, name the effect that explains it, and measure how far it closes.
+
+    Parameters
+    ----------
+    config
+        Identification config (path or value): geometry, sensors, the baseline
+        unknowns (``identify = true``) with bounds.
+    data
+        Measured records to fit (any format of :mod:`identification.data`).
+    out_dir
+        Directory for ``gap.json`` and plots; must not exist or be empty.
+        ``None`` writes nothing (API use).
+    holdout
+        Records held out entirely; without them the last ``holdout_fraction``
+        of every record is held out.
+    result
+        An ``ebb identify`` output directory: the baseline fit starts from its
+        (polished) knee instead of the nominal values.
+    shortlist
+        Number of best-scoring effects that are refitted.
+    noise_std
+        Measurement-noise standard deviation per sensor; estimated from the
+        data (noise floor above the excited band) when omitted.
+
+    Returns
+    -------
+    Diagnosis
+
+    Raises
+    ------
+    ConfigError, DataError
+        Bad config, data or settings — before anything is written.
+    """
+    say = progress or (lambda _m: None)
+    cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
+    if shortlist < 1:
+        raise ConfigError(f"--shortlist must be >= 1, got {shortlist}")
+    out = Path(out_dir) if out_dir is not None else None
+    if out is not None:
+        if out.exists() and (not out.is_dir() or any(out.iterdir())):
+            raise ConfigError(f"--out {out}: exists and is not an empty directory")
+        if not out.parent.is_dir():
+            raise ConfigError(f"--out {out}: parent directory does not exist")
+    exps = read_data(cfg, data)
+    held = read_data(cfg, holdout) if holdout else ()
+    records = split_records([_ordered(cfg, e) for e in exps], [_ordered(cfg, e) for e in held],
+                            holdout_fraction=holdout_fraction)
+    space = parameter_space(cfg)
+    beta0 = _start_from_result(result, space.names) if result is not None else np.asarray(space.nominal)
+    dt = cfg.time.dt
+    n_s = len(cfg.sensors)
+    if noise_std is not None:
+        sigma = np.asarray(noise_std, dtype=float).ravel()
+        if sigma.shape != (n_s,) or not np.all(np.isfinite(sigma) & (sigma > 0)):
+            raise ConfigError(f"noise_std: need one positive number per sensor ({n_s})")
+    else:
+        sigma = np.median(np.array([estimate_noise(r.outputs, dt) for r in records]), axis=0)
+        if not np.all(np.isfinite(sigma) & (sigma > 0)):
+            raise DataError("noise: could not estimate the measurement noise from the data (noise-free or "
+                            "constant records?); give noise_std in [identification]")
+    problem = GapProblem(cfg, space, records, sigma)
+    say("baseline fit")
+    baseline = problem.fit(beta0)
+    base_cfg, base_params = space.apply(cfg, baseline.beta)
+    f_lo, f_hi = excited_band([r.inputs for r in records], dt)
+    freqs, zetas = discrete_frequencies(base_cfg, base_params)
+    in_band = freqs <= 1.2 * f_hi
+    in_band[0] = True
+    mf, mz = freqs[in_band], zetas[in_band]
+    fit_records = [r for r in records if r.has_fit]
+    scales = Scales(EI=base_params["EI"], rhoA=base_params["rhoA"], N=base_params["N"],
+                    length=cfg.beam.length, omega_low=2 * np.pi * float(mf[0]),
+                    omega_high=2 * np.pi * max(float(mf[-1]), f_hi),
+                    duration=max(r.fit_end for r in fit_records) * dt,
+                    stretch_max=_stretch_max(base_cfg, base_params, fit_records))
+    effects = candidate_effects(base_cfg, scales, identified=space.names)
+    ranking = rank_effects(problem, baseline, effects, shortlist=shortlist, progress=say)
+    say(f"verdict: {ranking.verdict}")
+
+    # where: localisation of the baseline residual per record
+    base_all = problem.simulate(baseline.beta, until="all")
+    locs = [localise(dt, r.inputs, r.outputs, y, cfg.output_names, mf, mz, noise_std=sigma)
+            for r, y in zip(records, base_all)]
+    edges = np.concatenate([[0.0], 0.5 * (mf[1:] + mf[:-1]), [1.2 * f_hi], [0.5 / dt]])
+    effect_rows = []
+    by_label = {e.label: e for e in effects}
+    _, res_before = problem.heldout(baseline.beta)
+    for rank_i, lab in enumerate(ranking.order, start=1):
+        e, sc = by_label[lab], ranking.scores[lab]
+        row: dict[str, Any] = {"rank": rank_i, "label": lab, "effect": e.name, "target": e.target,
+                               "description": e.description, "score": sc.lm, "p_value": sc.p_value,
+                               "shortlisted": lab in ranking.refits}
+        rf = ranking.refits.get(lab)
+        if rf is not None:
+            _, res_after = problem.heldout(rf.fit.beta, e, rf.fit.s)
+            row["refit"] = {
+                "effect_parameters": rf.physical,
+                "baseline_parameters": space.to_dict(rf.fit.beta),
+                "delta_bic": rf.delta_bic, "delta_aic": rf.delta_aic,
+                "heldout_gap_ratio_before": dict(zip(cfg.output_names, map(float, ranking.heldout_before))),
+                "heldout_gap_ratio_after": dict(zip(cfg.output_names, map(float, rf.heldout_after))),
+                "closed": rf.closed,
+                "closed_per_sensor": {n: (None if not np.isfinite(v) else float(v))
+                                      for n, v in zip(cfg.output_names, rf.closed_per_sensor)},
+                "closed_per_band": _band_closure(res_before, res_after, dt, edges),
+                "n_evaluations": rf.fit.n_evaluations,
+            }
+        effect_rows.append(row)
+    p = space.dim
+    doc: dict[str, Any] = {
+        "verdict": ranking.verdict,
+        "reason": ranking.reason,
+        "indistinguishable": ranking.indistinguishable,
+        "noise_std": dict(zip(cfg.output_names, map(float, sigma))),
+        "excited_band_hz": [f_lo, f_hi],
+        "baseline": {
+            "parameters": space.to_dict(baseline.beta),
+            "fit_gap_ratio": float(baseline.rss / baseline.n),
+            "heldout_gap_ratio": dict(zip(cfg.output_names, map(float, ranking.heldout_before))),
+            "bic": baseline.bic(p),
+            "n_evaluations": baseline.n_evaluations,
+            "model_modes_hz": [float(v) for v in mf],
+        },
+        "localisation": {r.name: loc.to_dict() for r, loc in zip(records, locs)},
+        "summary": [s for loc in locs for s in loc.summary],
+        "effects": effect_rows,
+        "settings": {"holdout": [str(h) for h in holdout], "holdout_fraction": None if holdout else holdout_fraction,
+                     "shortlist": shortlist, "gap_threshold": 0.25, "bic_margin": 10.0},
+    }
+    if out is None:
+        return Diagnosis(ranking, doc, None)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        write_json(tmp / GAP_FILE, doc)
+        if plots:
+            from .gap_plots import plot_diagnosis
+
+            plot_diagnosis(doc, problem, ranking, by_label, locs, tmp)
+        if out.exists():
+            out.rmdir()
+        os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return Diagnosis(ranking, doc, out)
