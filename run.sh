@@ -24,11 +24,9 @@ cmd="${1:-}"
 case "$cmd" in
     demo)
         setup
-        mkdir -p demo-out
-        "$VENV/bin/ebb" modes examples/seed_clamped.toml
-        "$VENV/bin/ebb" simulate examples/seed_clamped.toml \
-            --input examples/seed_input.csv --out demo-out/seed_output.csv
-        "$VENV/bin/ebb" modes examples/arts_cantilever.toml
+        # synthetic data with a withheld effect -> identify -> export FMU + StateSpace -> diagnose
+        rm -rf demo-out
+        "$VENV/bin/ebb" demo --out demo-out
         ;;
     test)
         setup

@@ -246,7 +246,7 @@ def stretch_integral(config: BeamConfig, q: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True, nogil=True, fastmath=_FASTMATH)
-def _axial_kernel(Kt, Ct, KGt, Bt, P, kinds, u, substeps, tau, offset, rate, ea_coef,
+def _axial_kernel(Kt, Ct, KGt, Bt, P, kinds, u, substeps, foh, tau, offset, rate, ea_coef,
                   first, n_nodes, h, q0, v0, y):  # pragma: no cover - compiled
     n = Kt.shape[0]
     ns, ni = u.shape
@@ -274,7 +274,7 @@ def _axial_kernel(Kt, Ct, KGt, Bt, P, kinds, u, substeps, tau, offset, rate, ea_
             bu1[r] = a1
         for sub in range(substeps):
             # first-order hold: the force at sub-step level j is the straight line between samples
-            w = sub / substeps
+            w = foh * sub / substeps
             for r in range(n):
                 bu[r] = (1.0 - w) * bu0[r] + w * bu1[r]
             j = k * substeps + sub
@@ -386,7 +386,8 @@ def simulate_axial(config: BeamConfig, params: Mapping[str, float] | None, input
     h = config.beam.length / (config.beam.nodes + 1)
     _axial_kernel(np.ascontiguousarray(co.Kt), np.ascontiguousarray(co.Ct),
                   np.ascontiguousarray(co.Bt[:, m_in:]), np.ascontiguousarray(co.Bt[:, :m_in]),
-                  np.ascontiguousarray(beam.S), kinds, u, int(config.time.substeps), float(co.tau),
+                  np.ascontiguousarray(beam.S), kinds, u, int(config.time.substeps),
+                  1.0 if config.time.input_hold == "foh" else 0.0, float(co.tau),
                   offset, rate, EA / (2.0 * config.beam.length), int(beam.unknown[0]), int(beam.x.size), h,
                   q0, v0, y)
     if check_stability and not np.all(np.isfinite(y)):

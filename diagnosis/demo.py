@@ -60,7 +60,7 @@ kind = "displacement"
 
 #: Parameters of the truth (the config's values above are only the starting guess).
 TRUTH = {"EI": 10.0, "rhoA": 1.0, "c": 2.0, "N": 20.0}
-WITHHELD = ("point_mass", {"mass": 0.08, "x": 0.7})
+WITHHELD = ("boundary_rotational_left", {"kr": 300.0})
 
 
 def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: bool = True) -> dict:

@@ -90,6 +90,8 @@ class GapProblem:
     space: ParameterSpace
     records: tuple[Record, ...]
     noise_std: np.ndarray
+    #: further starts of the baseline unknowns (other basins of the global search), tried by refits
+    other_starts: tuple[np.ndarray, ...] = ()
 
     # ----------------------------------------------------------- simulation
     def model(self, beta: np.ndarray, effect: Effect | None = None, s: np.ndarray | None = None
@@ -178,14 +180,60 @@ class GapProblem:
             z = lo + x * span
             return self.residuals(z[:p], effect, z[p:] if effect is not None else None)
 
-        res = least_squares(fun, x0, bounds=(0.0, 1.0), x_scale="jac", diff_step=1e-6, xtol=1e-10,
-                            ftol=1e-10, gtol=1e-10, max_nfev=max_evaluations)
+        res = least_squares(fun, x0, bounds=(0.0, 1.0), x_scale="jac", diff_step=1e-6, xtol=1e-9,
+                            ftol=1e-9, gtol=1e-9, max_nfev=max_evaluations)
         z = lo + res.x * span
         r = res.fun
         return Fit(z[:p], z[p:], float(r @ r), int(r.size), res.jac, r, count[0])
 
-    def scaled_jacobian(self, beta: np.ndarray, effect: Effect, s: np.ndarray, *, step: float = 1e-3
-                        ) -> np.ndarray:
+    def global_start(self, beta0: np.ndarray, effect: Effect | None = None, s0: np.ndarray | None = None, *,
+                     seed: int = 0, maxiter: int = 20, popsize: int = 8, n_basins: int = 1
+                     ) -> tuple[np.ndarray, np.ndarray, int] | list[np.ndarray]:
+        """A global search (differential evolution on the fit windows' RSS) of the baseline unknowns (and an effect's variables).
+
+        Lightly damped records have many local minima (resonances misaligned by
+        one mode, or a parameter compensating an unmodelled effect at its
+        bound); a short differential evolution seeded with the given point
+        finds the basin that :meth:`fit` then polishes.  Returns the start
+        ``(beta, s)`` and the evaluations used; with ``n_basins > 1`` (baseline
+        only) the best members of the final population that lie apart from
+        each other (distinct basins), best first.
+        """
+        from scipy.optimize import differential_evolution
+
+        lo, hi = np.asarray(self.space.lower, float), np.asarray(self.space.upper, float)
+        z0 = np.asarray(beta0, float)
+        if effect is not None:
+            lo, hi = np.concatenate([lo, effect.lower]), np.concatenate([hi, effect.upper])
+            z0 = np.concatenate([z0, np.asarray(s0 if s0 is not None else effect.off, float)])
+        span = hi - lo
+        p = self.space.dim
+        count = [0]
+
+        def cost(x: np.ndarray) -> float:
+            count[0] += 1
+            z = lo + x * span
+            r = self.residuals(z[:p], effect, z[p:] if effect is not None else None)
+            return float(r @ r)
+
+        x0 = np.clip((z0 - lo) / span, 0.0, 1.0)
+        res = differential_evolution(cost, [(0.0, 1.0)] * lo.size, x0=x0, popsize=popsize, maxiter=maxiter,
+                                     tol=1e-8, seed=seed, polish=False, init="sobol")
+        best = lo + (res.x if res.fun <= cost(x0) else x0) * span
+        if n_basins > 1:
+            order = np.argsort(res.population_energies)
+            picks = [res.population[order[0]]]
+            for i in order[1:]:
+                cand = res.population[i]
+                if all(np.max(np.abs(cand - q)) > 0.15 for q in picks):
+                    picks.append(cand)
+                if len(picks) == n_basins:
+                    break
+            return [best[:p]] + [(lo + q * span)[:p] for q in picks[1:]]
+        return best[:p], best[p:], count[0]
+
+    def scaled_jacobian(self, beta: np.ndarray, effect: Effect, s: np.ndarray, *, step: float = 1e-3,
+                        r0: np.ndarray | None = None) -> np.ndarray:
         """Forward-difference Jacobian of the residuals w.r.t. the effect's variables scaled by their bounds.
 
         Steps move away from the nearer bound, so one-sided effects are
@@ -194,7 +242,8 @@ class GapProblem:
         s = np.asarray(s, dtype=float)
         lo, hi = np.asarray(effect.lower), np.asarray(effect.upper)
         span = hi - lo
-        r0 = self.residuals(beta, effect, s)
+        if r0 is None:
+            r0 = self.residuals(beta, effect, s)
         J = np.empty((r0.size, effect.dim))
         for j in range(effect.dim):
             ds = step * span[j]

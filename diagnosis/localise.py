@@ -15,7 +15,13 @@ Given the measured inputs ``u``, the measured outputs ``y`` and the outputs
   Levenberg–Marquardt refinement, covariance from the Jacobian) gives the
   natural frequency and damping ratio of both FRFs with standard errors, hence
   the relative frequency shift, the damping ratio measured/model, amplitude ratio
-  and phase difference at the mode; a least-squares complex gain of the measured
+  and phase difference at the mode.  When a fit fails (typically a lightly damped
+  mode narrower than the resolution) the peaks of both FRFs are located on a 4×
+  zero-padded grid with parabolic refinement; the error of that shift is the
+  larger of the H1 random error and the scatter between the two halves of the
+  record, and the damping is then reported as not measurable.  A mode at whose
+  frequency the model FRF shows no peak (sensor at a node) is marked as not
+  observed.  A least-squares complex gain of the measured
   over the model FRF over the mode's band gives amplitude/phase even when only a
   few lines are excited (multisine).  The residual PSD is integrated over bands
   between mode midpoints, minus the white-noise share, to say in which band the
@@ -25,9 +31,9 @@ Given the measured inputs ``u``, the measured outputs ``y`` and the outputs
   ``y_lin`` (``u`` filtered by the measured H1 FRF, i.e. the best time-invariant
   linear model the data allow): RMS of ``y - y_lin`` and the local complex gain
   ``c`` with ``y ≈ Re(c (y_lin + i H y_lin))`` (least squares on ``y_lin`` and its
-  Hilbert transform: amplitude ratio and phase) per window; linear trends with a
-  t-test whose degrees of freedom are reduced for AR(1) correlation of the window
-  values.  A slowly drifting resonance shows as a phase trend even when the
+  Hilbert transform: amplitude ratio and phase) per window; linear trends whose
+  p-value is the larger of the OLS t-test and a t-test with the sampling variance
+  of a window value estimated from four sub-windows.  A slowly drifting resonance shows as a phase trend even when the
   residual RMS is V-shaped (a model fitted to the whole record matches its
   middle); because ``y_lin`` already carries every time-invariant linear error,
   a sweep input with a wrong model cannot fake a trend;
@@ -57,8 +63,9 @@ is named for a sensor whose residual is consistent with its noise.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, fields
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 from scipy import fft as sfft
@@ -69,19 +76,19 @@ from ebb_model.errors import ConfigError, DataError
 from .noise import noise_estimate
 
 __all__ = [
-    "Localisation",
-    "SensorGap",
-    "ModeGap",
-    "BandGap",
-    "WindowGap",
     "AmplitudeGap",
-    "Whiteness",
+    "BandGap",
     "CrossCorrelation",
     "FrfEstimate",
-    "estimate_frf",
+    "Localisation",
+    "ModeGap",
+    "SensorGap",
+    "Whiteness",
+    "WindowGap",
     "choose_nperseg",
-    "residual_correlations",
+    "estimate_frf",
     "localise",
+    "residual_correlations",
 ]
 
 #: 99 % two-sided normal quantile used for the correlation bands.
@@ -94,6 +101,10 @@ MIN_DAMPING_RATIO = 1.2   # damping ratio measured/model (or its inverse)
 MIN_GAIN = 0.05           # relative amplitude change
 MIN_PHASE_DEG = 3.0       # phase change [deg]
 MIN_RMS_CHANGE = 0.2      # relative RMS change over the record
+#: Zero-padding factor of the FRFs used to locate peaks and to build the best linear approximation.
+PAD = 4
+#: Sub-windows per time window for the sampling variance of window statistics.
+_SUB = 4
 
 
 # ----------------------------------------------------------------------------------------------
@@ -106,11 +117,13 @@ class SensorGap:
     sensor: str
     nrmse: float                 #: ||y - y_hat|| / ||y - mean(y)||
     residual_rms: float          #: RMS of y - y_hat
+    residual_mean: float         #: mean of y - y_hat (static offset; excluded from gap_ratio)
     noise_std: float             #: noise std (model-free estimate or given)
     noise_method: str            #: "psd_floor", "difference_mad" or "given"
     gap_ratio: float             #: var(y - y_hat) / noise_std²
     model_error_fraction: float  #: max(0, 1 - noise_std² / MSE)
-    gap_detected: bool           #: gap_ratio >= gap_threshold, or input-correlated residual and gap_ratio >= 1.1
+    gap_detected: bool           #: gap_ratio >= gap_threshold, or input-correlated residual and gap_ratio >= 1.1,
+    #: or an offset with residual_mean² / noise_std² >= gap_threshold - 1
 
 
 @dataclass(frozen=True)
@@ -123,9 +136,11 @@ class ModeGap:
     model_freq_hz: float         #: given model modal frequency
     model_damping: float | None  #: given model damping ratio
     excited: bool                #: the input has power in the mode's band
-    fit_ok: bool                 #: both local SDOF fits succeeded
-    model_fit_freq_hz: float     #: natural frequency fitted to the model FRF
-    measured_freq_hz: float      #: natural frequency fitted to the measured FRF
+    observed: bool               #: the model FRF peaks at the mode here (the sensor is not at a node)
+    fit_ok: bool                 #: both local SDOF fits succeeded (frequency, damping, amplitude from fits)
+    freq_method: str             #: "sdof_fit", "peak" (unresolved: interpolated peaks of both FRFs) or "none"
+    model_fit_freq_hz: float     #: natural frequency fitted to (or peak of) the model FRF
+    measured_freq_hz: float      #: natural frequency fitted to (or peak of) the measured FRF
     freq_shift_rel: float        #: (measured - model_fit) / model_fit
     freq_shift_std: float        #: standard error of freq_shift_rel
     freq_shift_p: float          #: two-sided p-value of the shift (not corrected)
@@ -277,8 +292,8 @@ class Localisation:
                          (m.sensor, where, "damping measured/model",
                           f"{m.damping_ratio:.3g} ({m.measured_damping:.3g}/{m.model_fit_damping:.3g})"
                           + ("" if m.damping_resolved else " unresolved")),
-                         (m.sensor, where, "amplitude ratio, phase", f"{m.amplitude_ratio:.3g}, "
-                          f"{m.phase_diff_deg:+.1f}°")]
+                         (m.sensor, where, "amplitude ratio, phase",
+                          f"{m.amplitude_ratio:.3g}, {m.phase_diff_deg:+.1f}°")]
             rows.append((m.sensor, where, "band gain, phase", f"{m.band_gain:.3g}, {m.band_phase_deg:+.1f}°"))
             rows.append((m.sensor, where, "share of model-error energy", _pct(m.band_excess_fraction)))
         for b in self.bands:
@@ -298,9 +313,8 @@ class Localisation:
             rows.append((h.sensor, "whiteness", "Ljung–Box p, lags outside 99 %",
                          f"{h.ljung_box_p:.3g}, {h.fraction_outside:.0%}"))
         for c in self.cross_correlation:
-            rows.append((c.sensor, f"input {c.input}", "max |xcorr| (lag), lags outside 99 %, p",
-                         f"{c.max_abs:.3g} ({c.max_lag}), {c.fraction_outside:.0%} (band {c.band:.3g}), "
-                         f"{c.p:.2g}"))
+            value = f"{c.max_abs:.3g} ({c.max_lag}), {c.fraction_outside:.0%} (band {c.band:.3g}), {c.p:.2g}"
+            rows.append((c.sensor, f"input {c.input}", "max |xcorr| (lag), lags outside 99 %, p", value))
         return rows
 
     def table_text(self) -> str:
@@ -404,15 +418,18 @@ class FrfEstimate:
     nperseg: int
 
 
-def _segment_fft(x: np.ndarray, nperseg: int) -> np.ndarray:
-    """Hann-windowed, per-segment demeaned rFFT of 50 %-overlapping segments: ``(K, nf, c)``."""
+def _segment_fft(x: np.ndarray, nperseg: int, pad: int = 1) -> np.ndarray:
+    """Hann-windowed, per-segment demeaned rFFT (zero-padded ``pad``×) of 50 %-overlapping segments.
+
+    Returns ``(K, nf, c)``.
+    """
     step = max(nperseg // 2, 1)
     k = 1 + (x.shape[0] - nperseg) // step
     idx = np.arange(nperseg)[None, :] + step * np.arange(k)[:, None]
     seg = x[idx]
     seg = seg - seg.mean(axis=1, keepdims=True)
     win = signal.get_window("hann", nperseg)
-    return sfft.rfft(seg * win[None, :, None], axis=1)
+    return sfft.rfft(seg * win[None, :, None], n=pad * nperseg, axis=1)
 
 
 def choose_nperseg(n: int, dt: float, mode_freqs_hz: Sequence[float],
@@ -427,11 +444,11 @@ def choose_nperseg(n: int, dt: float, mode_freqs_hz: Sequence[float],
         return int(min(cap, max(min(n, 256), n // 8)))
     z = np.full(len(mode_freqs_hz), 0.01) if mode_damping is None else np.maximum(np.asarray(mode_damping), 1e-4)
     bw = float(np.min(np.asarray(mode_freqs_hz) * z))  # half of the half-power bandwidth 2ζf
-    target = int(math.ceil(2.0 / (bw * dt)))
+    target = math.ceil(2.0 / (bw * dt))
     return int(min(cap, max(target, min(n, 256))))
 
 
-def estimate_frf(dt: float, u: np.ndarray, y: np.ndarray, *, nperseg: int) -> FrfEstimate:
+def estimate_frf(dt: float, u: np.ndarray, y: np.ndarray, *, nperseg: int, pad: int = 1) -> FrfEstimate:
     """H1 FRF estimate from inputs ``u (n, n_in)`` to outputs ``y (n, n_out)``.
 
     Parameters
@@ -442,6 +459,9 @@ def estimate_frf(dt: float, u: np.ndarray, y: np.ndarray, *, nperseg: int) -> Fr
         Input and output arrays with the same number of samples.
     nperseg
         Segment length.
+    pad
+        Zero-padding factor of the segments (``pad > 1`` samples the same,
+        equally smeared spectra on a ``pad``× finer grid, e.g. to locate peaks).
 
     Returns
     -------
@@ -450,8 +470,8 @@ def estimate_frf(dt: float, u: np.ndarray, y: np.ndarray, *, nperseg: int) -> Fr
     u2 = _matrix(u, "u")
     y2 = _matrix(y, "y")
     nperseg = int(min(nperseg, u2.shape[0]))
-    U = _segment_fft(u2, nperseg)
-    Y = _segment_fft(y2, nperseg)
+    U = _segment_fft(u2, nperseg, pad)
+    Y = _segment_fft(y2, nperseg, pad)
     k = U.shape[0]
     suu = np.einsum("kfi,kfj->fij", U, U.conj()) / k
     syu = np.einsum("kfo,kfj->foj", Y, U.conj()) / k
@@ -464,7 +484,7 @@ def estimate_frf(dt: float, u: np.ndarray, y: np.ndarray, *, nperseg: int) -> Fr
     coh = np.clip(num / np.maximum(syy, 1e-300), 0.0, 1.0)
     pu = np.real(np.diagonal(suu, axis1=1, axis2=2))
     excited = pu >= EXCITE_REL * pu.max(axis=0, keepdims=True)
-    f = sfft.rfftfreq(nperseg, dt)
+    f = sfft.rfftfreq(pad * nperseg, dt)
     return FrfEstimate(f=f, H=H, coherence=coh, excited=excited, n_segments=k, nperseg=nperseg)
 
 
@@ -552,8 +572,15 @@ def _peak_bin(f: np.ndarray, mag: np.ndarray, lo: float, hi: float) -> int | Non
 # ----------------------------------------------------------------------------------------------
 # small statistics helpers
 # ----------------------------------------------------------------------------------------------
-def _trend(t: np.ndarray, v: np.ndarray) -> tuple[float, float]:
-    """OLS slope of ``v`` on ``t`` and its two-sided p-value, dof reduced for AR(1) residuals."""
+def _trend(t: np.ndarray, v: np.ndarray, var_v: float | None = None, dof_v: int = 0) -> tuple[float, float]:
+    """OLS slope of ``v`` on ``t`` and a conservative two-sided p-value.
+
+    The p-value is the larger of the plain OLS t-test (scatter about the line,
+    ``n - 2`` dof) and, if ``var_v`` (the sampling variance of one value of
+    ``v``, e.g. from sub-windows, with ``dof_v`` dof) is given, the t-test with
+    that variance.  The first guards against correlated sub-windows, the second
+    against a chance small scatter of a few points.
+    """
     ok = np.isfinite(v)
     t, v = t[ok], v[ok]
     n = len(v)
@@ -565,14 +592,14 @@ def _trend(t: np.ndarray, v: np.ndarray) -> tuple[float, float]:
     res = v - v.mean() - slope * tc
     ss = float(res @ res)
     if ss <= 1e-30 * max(float(v @ v), 1e-300):
-        return slope, (0.0 if abs(slope) > 0 else 1.0)
-    rho = float(res[1:] @ res[:-1] / ss) if n > 3 else 0.0
-    rho = min(max(rho, 0.0), 0.9)
-    infl = (1 + rho) / (1 - rho)
-    n_eff = max(n / infl, 3.0)
-    se = math.sqrt(ss / (n - 2) / sxx * infl)
-    tstat = slope / se
-    return slope, float(2 * stats.t.sf(abs(tstat), n_eff - 2))
+        p = 0.0 if abs(slope) > 0 else 1.0
+    else:
+        p = float(2 * stats.t.sf(abs(slope) / math.sqrt(ss / (n - 2) / sxx), n - 2))
+    if var_v is not None and dof_v > 0:
+        p_w = 1.0 if var_v <= 0 and slope == 0 else \
+            float(2 * stats.t.sf(abs(slope) / math.sqrt(max(var_v, 1e-300) / sxx), dof_v))
+        p = max(p, p_w)
+    return slope, p
 
 
 def _local_gain(y: np.ndarray, yh: np.ndarray, yq: np.ndarray) -> complex:
@@ -586,6 +613,36 @@ def _hilbert(x: np.ndarray) -> np.ndarray:
     """Hilbert transform of the columns of ``x`` (imaginary part of the analytic signal)."""
     n = x.shape[0]
     return np.imag(signal.hilbert(x, N=sfft.next_fast_len(n), axis=0)[:n])
+
+
+def _peak_location(f: np.ndarray, h: np.ndarray, coh: np.ndarray, usable: np.ndarray, k_seg: int, pad: int,
+                   lo: float, hi: float) -> tuple[float, float, int] | None:
+    """Peak of ``|h|`` in ``[lo, hi]`` on a ``pad``× zero-padded grid, refined by a parabola in ``ln|h|``.
+
+    The parabola uses the points one *resolution* bin (``pad`` fine bins) either
+    side, whose errors are nearly independent; the standard error follows from
+    the H1 random error of ``ln|h|``, ``(1 - γ²) / (2 K γ²)`` (Bendat & Piersol),
+    plus 1 % of a bin for the interpolation.  Returns ``(f_peak, std, index)``
+    or ``None`` when the maximum lies on the border of the range (no peak).
+    """
+    sel = np.flatnonzero((f >= lo) & (f <= hi) & usable & np.isfinite(h))
+    if len(sel) < 3:
+        return None
+    i = int(sel[np.argmax(np.abs(h[sel]))])
+    if i - pad < 0 or i + pad >= len(f) or not (usable[i - pad] and usable[i + pad]) \
+            or i in (sel[0], sel[-1]):
+        return None
+    a, b, c = (math.log(max(abs(h[j]), 1e-300)) for j in (i - pad, i, i + pad))
+    den = a - 2 * b + c
+    if not den < 0:
+        return None
+    x = 0.5 * (a - c) / den
+    step = float(f[pad] - f[0])
+    g2 = np.clip(coh[[i - pad, i, i + pad]], 1e-6, 1 - 1e-9)
+    var = (1 - g2) / (2 * k_seg * g2)
+    grad = np.array([c - b, a - c, b - a]) / den ** 2
+    std = step * math.sqrt(float(grad ** 2 @ var) + 1e-4)
+    return float(f[i] + x * step), std, i
 
 
 def _linear_prediction(dt: float, u: np.ndarray, frf: FrfEstimate) -> np.ndarray:
@@ -725,8 +782,8 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
     mode_freqs_hz
         Model modal frequencies [Hz] (modes in the excited band), each in ``(0, Nyquist)``.
     mode_damping
-        Model damping ratios of those modes (optional; used for the frequency
-        resolution and the fit windows).
+        Model damping ratios of those modes in ``[0, 1)`` (optional; used for the
+        frequency resolution and the fit windows).
     noise_std
         Measurement-noise std per sensor (scalar or ``(n_out,)``); default: the
         model-free estimate of :func:`diagnosis.noise.noise_estimate` with the
@@ -776,10 +833,12 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
         problems.append(f"amplitude_bins: must be an integer >= 2, got {amplitude_bins!r}")
     if not (isinstance(max_lag, (int, np.integer)) and max_lag >= 1):
         problems.append(f"max_lag: must be an integer >= 1, got {max_lag!r}")
-    if not (0 < alpha < 1):
+    if not (isinstance(alpha, (int, float)) and 0 < alpha < 1):
         problems.append(f"alpha: must be in (0, 1), got {alpha!r}")
-    if not (math.isfinite(gap_threshold) and gap_threshold > 1):
-        problems.append(f"gap_threshold: must be > 1, got {gap_threshold!r}")
+    if not (isinstance(gap_threshold, (int, float)) and math.isfinite(gap_threshold) and gap_threshold > 1):
+        problems.append(f"gap_threshold: must be a number > 1, got {gap_threshold!r}")
+    if nperseg is not None and not (isinstance(nperseg, (int, np.integer)) and 16 <= nperseg <= n):
+        problems.append(f"nperseg: must be an integer in [16, n_samples = {n}], got {nperseg!r}")
     fnyq = 0.5 / dt
     try:
         mf = np.atleast_1d(np.asarray(mode_freqs_hz, dtype=float))
@@ -791,9 +850,14 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
         problems.append(f"mode_freqs_hz: frequencies must be distinct, got {mf.tolist()}")
     md = None
     if mode_damping is not None:
-        md = np.atleast_1d(np.asarray(mode_damping, dtype=float))
-        if md.shape != mf.shape or not np.all(np.isfinite(md)) or np.any(md <= 0) or np.any(md >= 1):
-            problems.append(f"mode_damping: must be one ratio in (0, 1) per mode, got {md.tolist()}")
+        try:
+            md = np.atleast_1d(np.asarray(mode_damping, dtype=float))
+        except (TypeError, ValueError):
+            raise ConfigError(f"mode_damping: not a list of numbers: {mode_damping!r}") from None
+        if md.shape != mf.shape or not np.all(np.isfinite(md)) or np.any(md < -1e-6) or np.any(md >= 1):
+            problems.append(f"mode_damping: must be one ratio in [0, 1) per mode, got {md.tolist()}")
+        else:
+            md = np.maximum(md, 0.0)  # round-off of an undamped model
     if problems:
         raise ConfigError(problems)
     if n < max(64 * windows, 4 * max_lag + 8, 256):
@@ -803,17 +867,25 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
         flat = np.flatnonzero(np.ptp(a, axis=0) == 0)
         if len(flat):
             raise DataError(f"{name}: column {names[flat[0]]!r} is constant (no information)")
-    order = np.argsort(mf)
+    order = np.argsort(mf)  # analysis in increasing frequency; reported indices refer to the caller's list
     mf = mf[order]
+    mode_no = [int(i) + 1 for i in order]
     if md is not None:
         md = md[order]
 
     # ---- spectra -----------------------------------------------------------------------------
     if nperseg is None:
         nperseg = choose_nperseg(n, dt, mf, md)
-    nperseg = int(min(max(int(nperseg), 16), n))
+    nperseg = int(nperseg)
     fr_m = estimate_frf(dt, u2, y2, nperseg=nperseg)
     fr_h = estimate_frf(dt, u2, yh2, nperseg=nperseg)
+    fp_m = estimate_frf(dt, u2, y2, nperseg=nperseg, pad=PAD)
+    fp_h = estimate_frf(dt, u2, yh2, nperseg=nperseg, pad=PAD)
+    # the two halves of the record, for an empirical error of peak locations
+    half = n // 2
+    halves = [(estimate_frf(dt, u2[sl], y2[sl], nperseg=min(nperseg, half), pad=PAD),
+               estimate_frf(dt, u2[sl], yh2[sl], nperseg=min(nperseg, half), pad=PAD))
+              for sl in (slice(0, half), slice(half, n))]
     f = fr_m.f
     df = float(f[1] - f[0])
 
@@ -828,8 +900,11 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
         sig = ne.std
         nmeth = ne.method
     else:
-        sig = np.broadcast_to(np.asarray(noise_std, dtype=float), (n_out,)).copy() \
-            if np.ndim(noise_std) == 0 or np.size(noise_std) == n_out else None
+        try:
+            sig = np.broadcast_to(np.asarray(noise_std, dtype=float), (n_out,)).copy() \
+                if np.ndim(noise_std) == 0 or np.size(noise_std) == n_out else None
+        except (TypeError, ValueError):
+            sig = None
         if sig is None or not np.all(np.isfinite(sig)) or np.any(sig <= 0):
             raise ConfigError(f"noise_std: must be > 0, one value or one per sensor ({n_out}), got {noise_std!r}")
         nmeth = ("given",) * n_out
@@ -837,6 +912,7 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
 
     r = y2 - yh2
     mse = np.mean(r ** 2, axis=0)
+    rmean = r.mean(axis=0)
     var_r = np.var(r, axis=0)
 
     # ---- correlations ------------------------------------------------------------------------
@@ -871,9 +947,11 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
         xsig = any(c.significant for c in xc_list if c.sensor == snames[o])
         sensors.append(SensorGap(
             sensor=snames[o], nrmse=float(np.linalg.norm(r[:, o]) / np.linalg.norm(yc)),
-            residual_rms=float(math.sqrt(mse[o])), noise_std=float(sig[o]), noise_method=nmeth[o],
-            gap_ratio=gap, model_error_fraction=float(max(0.0, 1.0 - sig[o] ** 2 / mse[o])) if mse[o] > 0 else 0.0,
-            gap_detected=bool(gap >= gap_threshold or (xsig and gap >= 1.1))))
+            residual_rms=float(math.sqrt(mse[o])), residual_mean=float(rmean[o]), noise_std=float(sig[o]),
+            noise_method=nmeth[o], gap_ratio=gap,
+            model_error_fraction=float(max(0.0, 1.0 - sig[o] ** 2 / mse[o])) if mse[o] > 0 else 0.0,
+            gap_detected=bool(gap >= gap_threshold or (xsig and gap >= 1.1)
+                              or rmean[o] ** 2 >= (gap_threshold - 1) * sig[o] ** 2)))
 
     # ---- bands -------------------------------------------------------------------------------
     _, pr = _welch_psd(r, dt, nperseg)
@@ -881,7 +959,7 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
         mids = list((mf[1:] + mf[:-1]) / 2)
         top = min(fnyq, float(mf[-1]) + (float(mf[-1]) - (mids[-1] if mids else 0.0)))
         edges = [0.0] + mids + [top]
-        band_modes: list[int | None] = list(range(1, len(mf) + 1))
+        band_modes: list[int | None] = list(mode_no)
         if top < fnyq * (1 - 1e-9):
             edges.append(fnyq)
             band_modes.append(None)
@@ -917,7 +995,7 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
             lo_s = edges[k] if k > 0 else 0.0
             hi_s = edges[k + 1]
             lo_s, hi_s = max(lo_s, 0.85 * fk), min(hi_s, 1.15 * fk)
-            zk = float(md[k]) if md is not None else 0.02
+            zk = max(float(md[k]), 1e-3) if md is not None else 0.02
             # input with the largest model response around the mode
             band_sel = (f >= lo_s) & (f <= hi_s)
             contrib = [float(np.max(np.abs(fr_h.H[band_sel & fr_h.excited[:, j], o, j]), initial=0.0))
@@ -926,15 +1004,18 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
             exc = fr_m.excited[:, j]
             hm = fr_m.H[:, o, j]
             hh = fr_h.H[:, o, j]
-            mode_kw: dict[str, Any] = dict(sensor=snames[o], mode=k + 1, input=inames[j], model_freq_hz=float(fk),
-                                           model_damping=None if md is None else float(md[k]))
+            mode_kw: dict[str, Any] = {"sensor": snames[o], "mode": mode_no[k], "input": inames[j],
+                                       "model_freq_hz": float(fk),
+                                       "model_damping": None if md is None else float(md[k])}
             nan = float("nan")
-            empty = dict(fit_ok=False, model_fit_freq_hz=nan, measured_freq_hz=nan, freq_shift_rel=nan,
-                         freq_shift_std=nan, freq_shift_p=nan, model_fit_damping=nan, measured_damping=nan,
-                         damping_ratio=nan, damping_ratio_std=nan, damping_p=nan, damping_resolved=False,
-                         amplitude_ratio=nan, phase_diff_deg=nan, band_gain=nan, band_phase_deg=nan,
-                         band_gain_p=nan, coherence=nan,
-                         band_excess_fraction=excess_by_mode.get((o, k + 1), nan), significant=())
+            empty: dict[str, Any] = {
+                "observed": False, "fit_ok": False, "freq_method": "none", "model_fit_freq_hz": nan,
+                "measured_freq_hz": nan, "freq_shift_rel": nan,
+                "freq_shift_std": nan, "freq_shift_p": nan, "model_fit_damping": nan, "measured_damping": nan,
+                "damping_ratio": nan, "damping_ratio_std": nan, "damping_p": nan, "damping_resolved": False,
+                "amplitude_ratio": nan, "phase_diff_deg": nan, "band_gain": nan, "band_phase_deg": nan,
+                "band_gain_p": nan, "coherence": nan,
+                "band_excess_fraction": excess_by_mode.get((o, mode_no[k]), nan), "significant": ()}
             if contrib[j] <= 0 or np.count_nonzero(band_sel & exc) < 3:
                 modes.append(ModeGap(excited=False, **{**mode_kw, **empty}))
                 continue
@@ -959,10 +1040,18 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
                 res.update(band_gain=abs(c), band_phase_deg=math.degrees(np.angle(c)),
                            band_gain_p=float(math.exp(-zc ** 2)),
                            coherence=float(np.mean(fr_m.coherence[wsel, o])))
+            # is the mode visible in the model FRF at this sensor (not at a node)?
+            pad_exc = fp_h.excited[:, j]
+            pk_h = _peak_location(fp_h.f, fp_h.H[:, o, j], fp_h.coherence[:, o], pad_exc, fp_h.n_segments, PAD,
+                                  lo_s, hi_s)
+            pk_m = _peak_location(fp_m.f, fp_m.H[:, o, j], fp_m.coherence[:, o], pad_exc, fp_m.n_segments, PAD,
+                                  lo_s, hi_s)
+            observed = pk_h is not None and abs(pk_h[0] - fk) <= max(2.0 * df, 0.02 * fk)
+            res["observed"] = bool(observed)
             # local SDOF fits, each centred on its own peak
-            fits = []
+            fits: list[_Sdof | None] = []
             for pk, hx in ((ph, hh), (pm, hm)):
-                if pk is None:
+                if pk is None or not observed:
                     fits.append(None)
                     continue
                 sel = (f >= max(f[pk] - hw, lo_s)) & (f <= min(f[pk] + hw, hi_s)) & exc
@@ -979,21 +1068,42 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
                 dr = sm.zeta / sh.zeta
                 sl = math.hypot(sm.zeta_std / sm.zeta, sh.zeta_std / sh.zeta)
                 hr = sm.h_at_fn / sh.h_at_fn if sh.h_at_fn != 0 else complex(nan)
-                res.update(fit_ok=True, model_fit_freq_hz=sh.fn, measured_freq_hz=sm.fn, freq_shift_rel=shift,
-                           freq_shift_std=sshift,
+                res.update(fit_ok=True, freq_method="sdof_fit", model_fit_freq_hz=sh.fn, measured_freq_hz=sm.fn,
+                           freq_shift_rel=shift, freq_shift_std=sshift,
                            freq_shift_p=float(2 * stats.norm.sf(abs(shift) / sshift)) if sshift > 0 else 0.0,
                            model_fit_damping=sh.zeta, measured_damping=sm.zeta, damping_ratio=dr,
                            damping_ratio_std=dr * sl,
                            damping_p=float(2 * stats.norm.sf(abs(math.log(dr)) / sl)) if sl > 0 else 0.0,
                            damping_resolved=bool(2 * min(sh.zeta * sh.fn, sm.zeta * sm.fn) >= 3 * df),
                            amplitude_ratio=abs(hr), phase_diff_deg=math.degrees(np.angle(hr)))
+            elif observed and pk_m is not None:
+                # unresolved or poorly fitting peak: compare the peak locations of the two
+                # identically smeared FRFs (the damping is not measurable).  Leakage of modes
+                # that outlast a segment makes these locations scatter more than the H1 random
+                # error says, so the error is also taken from the two halves of the record.
+                shift = pk_m[0] / pk_h[0] - 1.0
+                sshift = math.hypot(pk_m[1], pk_h[1]) / pk_h[0]
+                sh_half = []
+                for hm_, hh_ in halves:
+                    a_ = _peak_location(hm_.f, hm_.H[:, o, j], hm_.coherence[:, o], hm_.excited[:, j],
+                                        hm_.n_segments, PAD, lo_s, hi_s)
+                    b_ = _peak_location(hh_.f, hh_.H[:, o, j], hh_.coherence[:, o], hh_.excited[:, j],
+                                        hh_.n_segments, PAD, lo_s, hi_s)
+                    sh_half.append(math.nan if a_ is None or b_ is None else a_[0] / b_[0] - 1.0)
+                # var(full) ≈ var(half) / 2 ≈ (d_A - d_B)² / 4; a failed half counts as a 15 % scatter
+                sshift = max(sshift, abs(sh_half[0] - sh_half[1]) / 2 if all(map(np.isfinite, sh_half)) else 0.15)
+                hr = fp_m.H[pk_m[2], o, j] / fp_h.H[pk_h[2], o, j]
+                res.update(freq_method="peak", model_fit_freq_hz=pk_h[0], measured_freq_hz=pk_m[0],
+                           freq_shift_rel=shift, freq_shift_std=sshift,
+                           freq_shift_p=float(2 * stats.norm.sf(abs(shift) / sshift)),
+                           amplitude_ratio=float(abs(hr)), phase_diff_deg=math.degrees(np.angle(hr)))
             sig_list = []
-            if res["fit_ok"]:
-                if res["freq_shift_p"] * n_mode_tests < alpha and abs(res["freq_shift_rel"]) >= MIN_SHIFT:
-                    sig_list.append("frequency")
-                if (res["damping_resolved"] and res["damping_p"] * n_mode_tests < alpha
-                        and abs(math.log(res["damping_ratio"])) >= math.log(MIN_DAMPING_RATIO)):
-                    sig_list.append("damping")
+            if res["freq_method"] != "none" and res["freq_shift_p"] * n_mode_tests < alpha \
+                    and abs(res["freq_shift_rel"]) >= MIN_SHIFT:
+                sig_list.append("frequency")
+            if (res["fit_ok"] and res["damping_resolved"] and res["damping_p"] * n_mode_tests < alpha
+                    and abs(math.log(res["damping_ratio"])) >= math.log(MIN_DAMPING_RATIO)):
+                sig_list.append("damping")
             if np.isfinite(res["band_gain_p"]) and res["band_gain_p"] * n_mode_tests < alpha and (
                     abs(res["band_gain"] - 1) >= MIN_GAIN or abs(res["band_phase_deg"]) >= MIN_PHASE_DEG):
                 sig_list.append("amplitude/phase")
@@ -1003,11 +1113,10 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
     # ---- time windows and amplitude levels ---------------------------------------------------
     yc2 = y2 - y2.mean(axis=0)
     yhc = yh2 - yh2.mean(axis=0)
-    yq = _hilbert(yhc)
     # linear prediction of y from u through the *measured* FRF: the best linear approximation.
     # The amplitude test compares y with it, so linear model errors (frequency-dependent gain
     # and phase, which would otherwise alias into envelope bins for multisines and sweeps) cancel.
-    ylin = _linear_prediction(dt, u2, fr_m)
+    ylin = _linear_prediction(dt, u2, fp_m)
     ylq = _hilbert(ylin)
     env = np.hypot(ylin, ylq)
     idx_w = np.array_split(np.arange(n), windows)
@@ -1025,9 +1134,19 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
         cw = np.array([_local_gain(yc2[w, o], ylin[w, o], ylq[w, o]) for w in idx_w])
         gw = np.abs(cw)
         pw = np.degrees(np.unwrap(np.angle(cw)))
-        s_r, p_r = _trend(tc, lrms)
-        s_g, p_g = _trend(tc, gw)
-        s_p, p_p = _trend(tc, pw)
+        # sampling variance of a window value from _SUB sub-windows of each window (pooled)
+        vr, vg, vp = [], [], []
+        for w, c in zip(idx_w, cw):
+            subs = np.array_split(w, _SUB)
+            cs = np.array([_local_gain(yc2[q, o], ylin[q, o], ylq[q, o]) for q in subs])
+            rs = np.array([math.sqrt(float(np.mean((yc2[q, o] - ylin[q, o]) ** 2))) for q in subs])
+            vr.append(np.var(rs, ddof=1) / _SUB)
+            vg.append(np.var(np.abs(cs), ddof=1) / _SUB)
+            vp.append(np.var(np.degrees(np.angle(cs / c)), ddof=1) / _SUB)
+        dof_sub = windows * (_SUB - 1)
+        s_r, p_r = _trend(tc, lrms, float(np.mean(vr)), dof_sub)
+        s_g, p_g = _trend(tc, gw, float(np.mean(vg)), dof_sub)
+        s_p, p_p = _trend(tc, pw, float(np.mean(vp)), dof_sub)
         rms_change = s_r * span / float(np.mean(lrms)) if np.mean(lrms) > 0 else 0.0
         drift = ((p_r * n_drift < alpha and abs(rms_change) >= MIN_RMS_CHANGE)
                  or (p_g * n_drift < alpha and abs(s_g * span) >= MIN_GAIN / 2)
@@ -1101,6 +1220,9 @@ def _summary(sensors: Sequence[SensorGap], modes: Sequence[ModeGap], bands: Sequ
         n_before = len(out)
         out.append(f"sensor {name}: residual variance is {s.gap_ratio:.3g}× the noise variance "
                    f"(NRMSE {s.nrmse:.3g}, {s.model_error_fraction:.0%} of the residual is model error)")
+        if s.residual_mean ** 2 >= 0.25 * s.noise_std ** 2:
+            out.append(f"sensor {name}: residual has a mean offset of {s.residual_mean:.3g} "
+                       f"({abs(s.residual_mean) / s.noise_std:.2g}× the noise std): static/offset error")
         ms = [m for m in modes if m.sensor == name and m.significant]
         ms.sort(key=lambda m: -(m.band_excess_fraction if np.isfinite(m.band_excess_fraction) else 0.0))
         for m in ms[:3]:

@@ -129,9 +129,9 @@ def noise_estimate(y: np.ndarray, dt: float, *, band: tuple[float, float] | None
     n = a.shape[0]
     fs = 1.0 / dt
     fn = fs / 2.0
-    if band is not None:
-        if len(band) != 2 or not all(math.isfinite(float(b)) for b in band) or not 0 <= band[0] <= band[1]:
-            raise ConfigError(f"band: expected (f_lo, f_hi) with 0 <= f_lo <= f_hi, got {band!r}")
+    if band is not None and (len(band) != 2 or not all(math.isfinite(float(b)) for b in band)
+                             or not 0 <= band[0] <= band[1]):
+        raise ConfigError(f"band: expected (f_lo, f_hi) with 0 <= f_lo <= f_hi, got {band!r}")
     if nperseg is None:
         nperseg = int(min(max(n // 8, 256), 4096))
     nperseg = min(int(nperseg), n)

@@ -33,7 +33,7 @@ reported as indistinguishable from it.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -50,7 +50,7 @@ GAP_THRESHOLD = 0.25
 #: BIC improvement an effect must reach to count as paying for its parameters.
 BIC_MARGIN = 10.0
 #: Positions tried for the point mass score (fractions of the search interval).
-_MASS_GRID = 25
+_MASS_GRID = 13
 
 
 @dataclass(frozen=True)
@@ -62,6 +62,7 @@ class EffectScore:
     p_value: float
     start: np.ndarray          # suggested start of the refit (Gauss–Newton step), search variables
     n_evaluations: int
+    alternatives: tuple[np.ndarray, ...] = ()   # further starts (e.g. another point-mass position)
 
 
 @dataclass(frozen=True)
@@ -119,36 +120,92 @@ def score_effect(problem: GapProblem, baseline: Fit, effect: Effect) -> EffectSc
     one_sided = bool(off[0] <= lo[0])
     span = hi - lo
     evals = 0
+    starts: list[np.ndarray] = []
+    # at the "off" value the augmented model is the baseline: its residuals are known
     if effect.dim == 1:
-        J = problem.scaled_jacobian(baseline.beta, effect, off)
-        evals += 2
+        J = problem.scaled_jacobian(baseline.beta, effect, off, r0=r)
+        evals += 1
         lm, step = _lm(_orthogonal(J, Q)[:, 0], r, one_sided)
         start = off + np.clip(step, -0.5, 0.5) * span
     else:
         # switch variable 0 with nuisance variables (point mass: position) — sup over a grid
-        best = (0.0, 0.0, off.copy())
+        grid: list[tuple[float, float, np.ndarray]] = []
         for frac in np.linspace(0.0, 1.0, _MASS_GRID):
             s = off.copy()
             s[1] = lo[1] + frac * span[1]
-            J = problem.scaled_jacobian(baseline.beta, effect, s)[:, :1]
-            evals += 2
+            J = problem.scaled_jacobian(baseline.beta, effect, s, r0=r)[:, :1]
+            evals += 1
             lm_i, step_i = _lm(_orthogonal(J, Q)[:, 0], r, one_sided)
-            if lm_i > best[0]:
-                best = (lm_i, step_i, s)
-        lm, step, s_best = best
+            grid.append((lm_i, step_i, s))
+        grid.sort(key=lambda g: -g[0])
+        lm, step, s_best = grid[0]
         start = s_best.copy()
         start[0] = off[0] + np.clip(step, -0.5, 0.5) * span[0]
+        # the best position well apart from the first as an alternative start of the refit
+        for lm_j, step_j, s_j in grid[1:]:
+            if abs(s_j[1] - s_best[1]) > 0.2 * span[1] and lm_j > 0:
+                alt = s_j.copy()
+                alt[0] = off[0] + np.clip(step_j, -0.5, 0.5) * span[0]
+                starts.append(np.clip(alt, lo, hi))
+                break
     start = np.clip(start, lo, hi)
     p = float(chi2.sf(lm, 1))
     if effect.dim > 1:
         p = min(1.0, p * _MASS_GRID)   # Bonferroni over the position grid (conservative)
-    return EffectScore(effect.label, float(lm), p, start, evals)
+    return EffectScore(effect.label, float(lm), p, start, evals, tuple(starts))
+
+
+def _best_start(problem: GapProblem, baseline: Fit, effect: Effect, score: EffectScore) -> np.ndarray:
+    """The start of a refit with the lowest RSS among the score's Gauss–Newton step(s) and a coarse grid.
+
+    The linearisation at the "off" value can badly misjudge a large effect, so
+    the switch variable is also tried on a geometric grid up to its bound (and,
+    for the point mass, at every position of a grid), the baseline unknowns
+    held at their fitted values.
+    """
+    lo, hi = np.asarray(effect.lower, float), np.asarray(effect.upper, float)
+    off = np.asarray(effect.off, float)
+    if off[0] <= lo[0]:
+        values = off[0] + (hi[0] - off[0]) * np.geomspace(1e-3, 1.0, 7)
+    else:
+        mag = (hi[0] - lo[0]) / 2 * np.geomspace(1e-3, 1.0, 4)
+        values = np.clip(np.concatenate([off[0] - mag, off[0] + mag]), lo[0], hi[0])
+    candidates = [score.start, *score.alternatives]
+    positions = [None] if effect.dim == 1 else list(np.linspace(lo[1], hi[1], _MASS_GRID))
+    for x in positions:
+        for v in values:
+            s = off.copy()
+            s[0] = v
+            if x is not None:
+                s[1] = x
+            candidates.append(s)
+
+    def rss(s: np.ndarray) -> float:
+        r = problem.residuals(baseline.beta, effect, s)
+        return float(r @ r)
+
+    return min(candidates, key=rss)
 
 
 def refit_effect(problem: GapProblem, baseline: Fit, heldout_before: np.ndarray, effect: Effect,
                  score: EffectScore, *, max_evaluations: int = 300) -> EffectRefit:
     """Refit the baseline unknowns and ``effect`` from the score's start; held-out error after."""
-    fit = problem.fit(baseline.beta, effect, score.start, max_evaluations=max_evaluations)
+    fit = problem.fit(baseline.beta, effect, _best_start(problem, baseline, effect, score),
+                      max_evaluations=max_evaluations)
+    excess_before = baseline.rss / baseline.n - 1.0
+    if excess_before > GAP_THRESHOLD and fit.rss / fit.n - 1.0 > 0.1 * excess_before:
+        # the local refit explains less than 90 % of the fit windows' excess: the baseline unknowns
+        # may sit in a basin that only suited the model without the effect — start also from the
+        # other basins of the baseline's global search
+        used = fit.n_evaluations
+        for beta_alt in problem.other_starts:
+            base_alt = replace(baseline, beta=beta_alt)
+            alt = problem.fit(beta_alt, effect, _best_start(problem, base_alt, effect, score),
+                              max_evaluations=max_evaluations)
+            used += alt.n_evaluations
+            if alt.rss < fit.rss:
+                fit = alt
+        fit = replace(fit, n_evaluations=used)
     p = problem.space.dim
     after, _ = problem.heldout(fit.beta, effect, fit.s)
     b_excess = heldout_before - 1.0

@@ -104,7 +104,7 @@ def _stretch_max(config: BeamConfig, params: dict[str, float], records: Sequence
     for r in records:
         w = simulate(model, r.inputs).outputs
         wx = np.gradient(w, xs, axis=1)
-        best = max(best, float(np.max(np.trapz(wx ** 2, xs, axis=1))))
+        best = max(best, float(np.max(np.trapezoid(wx ** 2, xs, axis=1))))
     return best
 
 
@@ -199,12 +199,19 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         if sigma.shape != (n_s,) or not np.all(np.isfinite(sigma) & (sigma > 0)):
             raise ConfigError(f"noise_std: need one positive number per sensor ({n_s})")
     else:
-        sigma = np.median(np.array([estimate_noise(r.outputs, dt) for r in records]), axis=0)
+        f_top = excited_band([r.inputs for r in records], dt)[1]
+        sigma = np.median(np.array([estimate_noise(r.outputs, dt, band=(0.0, f_top)) for r in records]), axis=0)
         if not np.all(np.isfinite(sigma) & (sigma > 0)):
             raise DataError("noise: could not estimate the measurement noise from the data (noise-free or "
                             "constant records?); give noise_std in [identification]")
     problem = GapProblem(cfg, space, records, sigma)
     say("baseline fit")
+    # a short global search first, seeded with the identification result (or the nominal values);
+    # its other basins are kept as starts for the refits (the baseline may sit where it only
+    # compensates an effect)
+    basins = problem.global_start(beta0, n_basins=3)
+    beta0 = basins[0]
+    problem = replace(problem, other_starts=tuple(problem.fit(b, max_evaluations=60).beta for b in basins[1:]))
     baseline = problem.fit(beta0)
     base_cfg, base_params = space.apply(cfg, baseline.beta)
     f_lo, f_hi = excited_band([r.inputs for r in records], dt)
@@ -220,6 +227,19 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                     stretch_max=_stretch_max(base_cfg, base_params, fit_records))
     effects = candidate_effects(base_cfg, scales, identified=space.names)
     ranking = rank_effects(problem, baseline, effects, shortlist=shortlist, progress=say)
+    for _ in range(2):
+        # an effect's refit may have moved the baseline unknowns into a better basin: then the
+        # baseline itself was not at its optimum, and every comparison must be made again
+        better = None
+        for rf in ranking.refits.values():
+            cand = problem.fit(rf.fit.beta)
+            if cand.rss < baseline.rss * (1.0 - 1e-3) and (better is None or cand.rss < better.rss):
+                better = cand
+        if better is None:
+            break
+        say(f"baseline re-fit from an effect's optimum: RSS {baseline.rss:.4g} -> {better.rss:.4g}; ranking again")
+        baseline = better
+        ranking = rank_effects(problem, baseline, effects, shortlist=shortlist, progress=say)
     say(f"verdict: {ranking.verdict}")
 
     # where: localisation of the baseline residual per record

@@ -66,7 +66,7 @@ def assemble(config: BeamConfig, params: Mapping[str, float] | None = None, *,
     p = config.parameter_values() | dict(params or {})
     beam = discretise(config, p)
     ts = config.time
-    sys = discretise_time(beam, ts.dt, ts.theta, ts.substeps)
+    sys = discretise_time(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold)
     if check_stability:
         check_stable(config, p, sys.spectral_radius())
     return sys

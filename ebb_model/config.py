@@ -13,6 +13,7 @@ bounds and an ``identify`` flag used by the identification layer::
     dt = 1e-4               # sample time, s
     theta = 0.25            # theta of the three-level scheme
     substeps = 1            # integer sub-steps per sample
+    input = "foh"           # force between samples: "foh" straight line (measured), "zoh" held
     [parameters]            # EI, rhoA required; c, eta, N, rhoI, kf optional (default 0)
     EI   = { value = 10.0, bounds = [1.0, 100.0], identify = true }   # N.m2, > 0
     rhoA = { value = 1.0 }  # kg/m, > 0
@@ -103,6 +104,7 @@ class TimeSettings:
     dt: float
     theta: float = 0.25
     substeps: int = 1
+    input_hold: str = "foh"
 
 
 @dataclass(frozen=True)
@@ -180,7 +182,8 @@ class BeamConfig:
             params[k] = d
         out: dict[str, Any] = {
             "beam": beam,
-            "time": {"dt": self.time.dt, "theta": self.time.theta, "substeps": self.time.substeps},
+            "time": {"dt": self.time.dt, "theta": self.time.theta, "substeps": self.time.substeps,
+                     "input": self.time.input_hold},
             "parameters": params,
             "actuators": [{"name": a.name, "x": a.x} for a in self.actuators],
             "sensors": [{"name": s.name, "x": s.x, "kind": s.kind} for s in self.sensors],
@@ -458,7 +461,10 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
     right = _end(pr, beam_t, "right") if beam_t else None
 
     time_t = _table(pr, data, "time")
-    pr.unknown_keys("time", time_t, ("dt", "theta", "substeps"))
+    pr.unknown_keys("time", time_t, ("dt", "theta", "substeps", "input"))
+    input_hold = time_t.get("input", "foh")
+    if input_hold not in ("foh", "zoh"):
+        pr.add("time.input", f"must be \"foh\" (first-order hold) or \"zoh\" (zero-order hold), got {input_hold!r}")
     dt = None
     if "dt" not in time_t:
         pr.add("time.dt", "missing (sample time, s)")
@@ -518,7 +524,7 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
     extra = {k: data[k] for k in extra_sections if k in data}
     return BeamConfig(
         beam=BeamGeometry(length, nodes, left, right),
-        time=TimeSettings(dt, theta, substeps),
+        time=TimeSettings(dt, theta, substeps, input_hold),
         parameters=MappingProxyType(params),
         actuators=tuple(actuators),
         sensors=tuple(sensors),

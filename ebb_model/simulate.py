@@ -206,9 +206,9 @@ def fast_model(config: BeamConfig, params: Mapping[str, float] | None = None) ->
     """
     beam = discretise(config, params)
     ts = config.time
-    modal = modal_from_beam(beam, ts.dt, ts.theta, ts.substeps)
+    modal = modal_from_beam(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold)
     if modal is None:
-        modal = modal_from_statespace(discretise_time(beam, ts.dt, ts.theta, ts.substeps))
+        modal = modal_from_statespace(discretise_time(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold))
     return modal
 
 

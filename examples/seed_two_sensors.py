@@ -8,10 +8,18 @@ y2.  The identification (NSGA-II over EI, rhoA, N, c) minimises the NRMSE of
 y1, the NRMSE of y2 and the maximum growth factor.
 
 The knee of the three-objective front is read back from ``pareto.json``
-together with its Cramér–Rao standard deviations; the knee is then polished
-by least squares on the output errors (:func:`identification.polish.polish`)
-and its Cramér–Rao bounds recomputed with the same noise level.  The table
-shows identified vs true values and the errors in units of σ.
+together with its Cramér–Rao standard deviations, and so is the knee polished
+by bounded least squares on the output errors (``identify(..., polish=1)``),
+with its Cramér–Rao bounds at the same noise level.  The table shows
+identified vs true values and the errors in units of σ.
+
+What to expect: the knee of the three-objective front is *not* the best
+estimate — the growth-factor objective rewards damping and a softer beam, so
+the knee trades fit for stability margin (c at its upper bound).  The
+polished knee recovers EI, rhoA and c to a fraction of a percent; its errors
+beyond 3σ (EI about +0.12 %, N about -0.9 %) are the finite-difference grid's
+bias, not noise: the least-squares optimum on noise-free data of the same
+set-up shows the same numbers (see ``seed_two_sensors.toml``).
 
 Run: ``python examples/seed_two_sensors.py [--quick] [--out DIR]``.
 """
@@ -25,13 +33,8 @@ import time
 from pathlib import Path
 from typing import Any, Sequence
 
-import numpy as np
 from threadpoolctl import threadpool_limits
 
-from identification.fisher import fisher_information
-from identification.native import NativeEvaluator, experiments_from_arrays
-from identification.parameters import parameter_space
-from identification.polish import polish
 from identification.run import identify, load_identification_config
 
 from fe_data import fe_measurements, half_sine_pulse, write_csv
@@ -57,34 +60,22 @@ def run_case(out: Path, *, quick: bool, seed: int, pop: int | None, generations:
     y = fe_measurements(cfg, TRUTH, u[:, None], noise=NOISE, seed=seed)
     data = write_csv(out / "data.csv", dt, {"F1": u, "y1": y[:, 0], "y2": y[:, 1]})
     t0 = time.perf_counter()
-    identify(cfg, [data], out / "identify", pop=pop, generations=generations, seed=seed, progress=False,
-             export=export)
+    identify(cfg, [data], out / "identify", pop=pop, generations=generations, seed=seed, polish=1,
+             progress=False, export=export)
     seconds = time.perf_counter() - t0
     doc = json.loads((out / "identify" / "pareto.json").read_text())
     ident = json.loads((out / "identify" / "identifiability.json").read_text())
-    knee = doc["points"][doc["knee"]]
-    # least-squares polish of the knee on the output errors, Cramér–Rao bounds at the result
-    sp = parameter_space(cfg)
-    ev = NativeEvaluator(cfg, sp, experiments_from_arrays([("data", u, y)]))
-    x0 = np.array([knee["parameters"][n] for n in sp.names])
-    pol = polish(ev, x0)
-    noise_std = ident["noise_std"]
-    crb = fisher_information(ev, pol.x, noise_std=noise_std).cramer_rao_std
-    f = ev.objectives(pol.x)
+    keys = ("parameters", "cramer_rao_std", "objectives", "growth_factor", "stable")
     return {
         "truth": TRUTH, "noise": NOISE, "pop": pop, "generations": generations, "seconds": seconds,
-        "evaluations": doc["n_evaluations"], "front_size": len(doc["points"]),
+        "evaluations": doc["n_evaluations"], "evaluations_polish": doc["n_evaluations_polish"],
+        "front_size": len(doc["points"]),
         "true_noise_std": [float(v) for v in NOISE * y_clean.std(axis=0)],
-        "estimated_noise_std": noise_std,
+        "estimated_noise_std": ident["noise_std"],
         "fisher_nominal": {"rank": ident["rank"], "condition_number": ident["condition_number"],
                            "messages": ident["messages"]},
-        "knee": {"parameters": knee["parameters"], "cramer_rao_std": knee["cramer_rao_std"],
-                 "objectives": knee["objectives"], "growth_factor": knee["growth_factor"],
-                 "stable": knee["stable"]},
-        "polished": {"parameters": dict(zip(sp.names, map(float, pol.x))),
-                     "cramer_rao_std": dict(zip(sp.names, map(float, crb))),
-                     "objectives": dict(zip(doc["objective_names"], map(float, f))),
-                     "evaluations": pol.n_evaluations},
+        "knee": {k: doc["points"][doc["knee"]][k] for k in keys},
+        "polished": {k: doc["polished"][0][k] for k in keys},
     }
 
 
@@ -99,7 +90,7 @@ def report(summary: dict[str, Any]) -> str:
         f"Fisher information at the nominal guess: rank {fn['rank']}, condition number "
         f"{fn['condition_number']:.3g}",
         f"NSGA-II: {summary['front_size']} front points, {summary['evaluations']} evaluations, "
-        f"{summary['seconds']:.1f} s; polish: {summary['polished']['evaluations']} evaluations",
+        f"{summary['seconds']:.1f} s (of which {summary['evaluations_polish']} evaluations polish the knee)",
         "",
         f"{'param':<6}{'truth':>8} | {'knee':>9}{'err %':>8}{'CR std':>9}{'err/σ':>7} | "
         f"{'polished':>9}{'err %':>8}{'CR std':>9}{'err/σ':>7}",
@@ -114,7 +105,8 @@ def report(summary: dict[str, Any]) -> str:
         lines.append(row.rstrip(" |"))
     for key in ("knee", "polished"):
         o = summary[key]["objectives"]
-        lines.append(f"{key}: " + ", ".join(f"{k} = {v:.6g}" for k, v in o.items()))
+        lines.append(f"{key}: " + ", ".join(f"{k} = {v:.12f}" if k == "growth_factor" else f"{k} = {v:.4g}"
+                                            for k, v in o.items()))
     return "\n".join(lines)
 
 

@@ -2,7 +2,8 @@
 
 A runner maps ``(evaluator, X)`` to ``F``; the evaluator is a picklable value,
 so every backend gets the same work.  Each runner splits the population into
-one chunk per worker.  Per-worker state lives in the worker process, not in
+a few chunks per worker (:data:`CHUNKS_PER_WORKER`), handed out as workers
+become free.  Per-worker state lives in the worker process, not in
 the pickled evaluator: the FMU backend keeps one FMU instance per worker
 process for the whole run (see :mod:`identification.fmu_backend`), created at
 the worker's first candidate and freed when the worker exits (process pool
@@ -61,8 +62,13 @@ class SerialRunner(Runner):
         return _evaluate_chunk(evaluator, X)
 
 
-def _chunks(X: np.ndarray, k: int) -> list[np.ndarray]:
-    k = max(1, min(k, len(X)))
+#: Chunks per worker: small enough that a worker slowed down by other load (or given cheap, refused
+#: candidates) does not leave the others idle, large enough to keep the per-task overhead small.
+CHUNKS_PER_WORKER = 3
+
+
+def _chunks(X: np.ndarray, workers: int) -> list[np.ndarray]:
+    k = max(1, min(CHUNKS_PER_WORKER * workers, len(X)))
     return [c for c in np.array_split(X, k) if len(c)]
 
 

@@ -166,6 +166,25 @@ def test_damping_mismatch_found_at_the_right_mode():
     assert any("mode 2" in x and "damping" in x for x in loc.summary)
 
 
+def test_lightly_damped_unresolved_modes_and_a_sensor_at_a_node():
+    """ζ = 0.002: half-power bandwidth below the Welch resolution; sensor b sits at a node of mode 2."""
+    rng = np.random.default_rng(13)
+    u = _input(rng, n=20000)[:, 0]
+    res = np.array([[1.0, 0.5], [0.8, 0.0]])
+    freqs, zetas = [40.0, 90.0], [0.002, 0.002]
+    y_hat = _modal(u, freqs, zetas, res)
+    y, _ = _noisy(_modal(u, [40.0, 90.0 * 0.98], zetas, res), rng, 0.02)
+    loc = localise(DT, u, y, y_hat, NAMES, freqs, zetas)
+    a1, a2, b1, b2 = loc.modes
+    assert a2.observed and "frequency" in a2.significant
+    assert a2.freq_shift_rel == pytest.approx(-0.02, rel=0.2)
+    assert not a2.damping_resolved and "damping" not in a2.significant  # not measurable: not claimed
+    assert not b2.observed and b2.significant == () and not np.isfinite(b2.freq_shift_rel)
+    assert a1.significant == () and b1.significant == ()
+    assert any("sensor a: mode 2 (90 Hz) measured" in x for x in loc.summary)
+    assert not any("sensor b: mode 2" in x for x in loc.summary)
+
+
 # ------------------------------------------------------------------------------------------ drift
 def test_time_varying_frequency_gives_a_trend_constant_offset_does_not():
     rng = np.random.default_rng(2)
@@ -287,7 +306,11 @@ def test_to_dict_is_json_and_table_has_rows():
     u = _input(rng, n=8000)[:, 0]
     y_hat = _modal(u, FREQS, ZETAS, RES)
     y, _ = _noisy(_modal(u, [20.0, 55.0 * 0.97, 130.0], ZETAS, RES), rng, 0.05)
-    loc = localise(DT, u, y, y_hat, NAMES, FREQS, ZETAS)
+    # modes given out of order: indices refer to the caller's list
+    loc = localise(DT, u, y, y_hat, NAMES, [130.0, 20.0, 55.0], [0.02, 0.02, 0.02])
+    m = next(m for m in loc.modes if m.sensor == "a" and m.mode == 3)
+    assert m.model_freq_hz == 55.0 and "frequency" in m.significant
+    assert m.freq_shift_rel == pytest.approx(-0.03, rel=0.2)
     d = json.loads(json.dumps(loc.to_dict(), allow_nan=False))
     assert set(d) >= {"sensors", "modes", "bands", "windows", "amplitude", "whiteness", "cross_correlation",
                       "summary", "gap_detected"}
@@ -322,7 +345,8 @@ def test_bad_input_raises_typed_errors_naming_the_problem():
     y = y_hat + 0.01 * rng.standard_normal(y_hat.shape)
 
     def call(**kw):
-        args = dict(dt=DT, u=u, y=y, y_hat=y_hat, sensor_names=NAMES, mode_freqs_hz=FREQS, mode_damping=ZETAS)
+        args = {"dt": DT, "u": u, "y": y, "y_hat": y_hat, "sensor_names": NAMES, "mode_freqs_hz": FREQS,
+                "mode_damping": ZETAS}
         args.update(kw)
         return localise(**args)
 

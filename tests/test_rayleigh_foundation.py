@@ -22,10 +22,25 @@ import scipy.integrate as sint
 import scipy.linalg as sla
 import scipy.optimize as sopt
 
-from ebb_model import (ConfigError, ParameterError, StabilityError, analyse_stability, assemble, bistritz, config_from_dict,
-                       fast_model, modes, simulate)
+from ebb_model import (
+    ConfigError,
+    ParameterError,
+    StabilityError,
+    analyse_stability,
+    assemble,
+    bistritz,
+    config_from_dict,
+    fast_model,
+    modes,
+    simulate,
+)
 from ebb_model.discretisation import discretise
-from ebb_model.stability import dispersion_coefficients, growth_factors, stability_bounds, wavenumbers
+from ebb_model.stability import (
+    dispersion_coefficients,
+    growth_factors,
+    stability_bounds,
+    wavenumbers,
+)
 
 from conftest import make_config
 
@@ -171,10 +186,10 @@ def _cantilever_modes(n_modes: int) -> list[tuple[float, float]]:
         b = bl / L
         sig = (math.cosh(bl) + math.cos(bl)) / (math.sinh(bl) + math.sin(bl))
 
-        def psi(x):
+        def psi(x, b=b, sig=sig):
             return math.cosh(b * x) - math.cos(b * x) - sig * (math.sinh(b * x) - math.sin(b * x))
 
-        def dpsi(x):
+        def dpsi(x, b=b, sig=sig):
             return b * (math.sinh(b * x) + math.sin(b * x) - sig * (math.cosh(b * x) - math.cos(b * x)))
 
         num = sint.quad(lambda x: dpsi(x) ** 2, 0, L, limit=200, epsabs=0, epsrel=1e-12)[0]

@@ -1,26 +1,28 @@
 """Parameter recovery from data of a *different* discretisation (no inverse crime).
 
 "Measured" data: the cubic-Hermite finite-element beam (60 elements) integrated
-by Newmark's average-acceleration rule (20 sub-steps per sample) — an
-independent discretisation in space and time — driven by a band-limited
-multisine (0.67–110 Hz: modes 1–4 of the clamped–clamped beam at 12.6, 32.9,
-62.9 and 102.7 Hz; mode 5 at 152 Hz is not excited), with 1 % white noise on
-both displacement sensors.  The identification model is the project's
-finite-difference beam (159 interior nodes, θ = 1/4, 20 sub-steps).
+by Newmark's average-acceleration rule with a step of dt/20 — an independent
+discretisation in space and time — driven by a continuous band-limited force,
+a multisine (0.67–110 Hz: modes 1–4 of the clamped–clamped beam at 12.6, 32.9,
+62.9 and 102.7 Hz; mode 5 at 152 Hz is not excited) that is *sampled* at dt to
+give the measured input, with 1 % white noise on both displacement sensors.
+The identification model is the project's finite-difference beam (199 interior
+nodes, θ = 1/4, 20 sub-steps per sample, the measured force interpolated
+between samples as the time scheme does by default).
 
 The FD model's error at the true parameters is measured first and must stay
 below the noise: a white-noise (zero-order-hold) input would excite the high
 modes where FD and FE disagree by 8–11 % NRMSE; with the band-limited input the
-error is about 0.6 % (NRMSE, against 1 % noise).
+error is about 0.5 % (NRMSE, against 1 % noise).
 
 Then ``identify`` (NSGA-II + least-squares polish of the knee) must recover
 EI, rhoA and N within 1 % and c within 10 %.  The remaining error is the sum
 of a deterministic part — the discretisation bias, obtained by fitting the
 *noise-free* FE record — and a random part due to the noise; the random part
 must lie within 4 Cramér–Rao standard deviations.  The bias itself is many
-σ for this lightly damped record (the frequencies of the FD model are
-0.01–0.09 % low for modes 1–4 at this grid and the fit moves mostly N to
-compensate); it is reported and bounded by the 1 % acceptance.
+σ for this long, lightly damped record (the FD frequencies are 0.01–0.06 % low
+for modes 1–4 at this grid, and the fit mostly lowers N to compensate: about
+−0.4 % ≈ 14 σ); it is reported and bounded by the 1 % acceptance.
 """
 from __future__ import annotations
 
@@ -50,28 +52,50 @@ DT = 1e-3
 N_SAMPLES = 1500
 F_MAX = 110.0  # Hz, just above mode 4
 NOISE = 0.01  # noise std / signal std, per sensor
-FD_NODES = 159  # h = L/160: force and sensors sit on grid nodes
+FD_NODES = 199  # h = L/200: force and sensors sit on grid nodes
 FD_SUBSTEPS = 20
 FE_ELEMENTS = 60
 FE_SUBSTEPS = 20
 
 
-def multisine(n: int, dt: float, f_max: float, seed: int = 0) -> np.ndarray:
-    """Unit-std multisine with random phases on the record's frequency grid ``k/(n dt)``, 0 < f ≤ f_max."""
-    df = 1.0 / (n * dt)
-    freqs = df * np.arange(1, int(f_max / df) + 1)
-    phases = np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, freqs.size)
-    t = np.arange(n) * dt
-    u = np.cos(2.0 * np.pi * np.outer(t, freqs) + phases).sum(axis=1)
-    return u / u.std()
+@dataclass(frozen=True)
+class Multisine:
+    """A continuous force: equal-amplitude cosines with random phases on the grid ``k/(n dt)``, 0 < f ≤ f_max,
+    scaled to unit standard deviation over the record's samples."""
+
+    n: int
+    dt: float
+    f_max: float
+    seed: int = 0
+
+    def _raw(self, t: np.ndarray) -> np.ndarray:
+        df = 1.0 / (self.n * self.dt)
+        freqs = df * np.arange(1, int(self.f_max / df) + 1)
+        phases = np.random.default_rng(self.seed).uniform(0.0, 2.0 * np.pi, freqs.size)
+        return np.cos(2.0 * np.pi * np.outer(t, freqs) + phases).sum(axis=1)
+
+    def __call__(self, t: np.ndarray) -> np.ndarray:
+        """Force at times ``t`` [s]."""
+        return self._raw(np.asarray(t, dtype=float)) / self._raw(np.arange(self.n) * self.dt).std()
+
+    def samples(self) -> np.ndarray:
+        """The measured force: the samples at ``k dt``, shape (n, 1)."""
+        return self(np.arange(self.n) * self.dt)[:, None]
 
 
-def fe_measurement(u: np.ndarray, params: dict[str, float] = TRUTH, *, n_elements: int = FE_ELEMENTS,
+def fe_measurement(force: Multisine, params: dict[str, float] = TRUTH, *, n_elements: int = FE_ELEMENTS,
                    substeps: int = FE_SUBSTEPS) -> np.ndarray:
-    """Noise-free sensor signals of the Hermite-FE/Newmark reference (clamped–clamped), shape (n, 2)."""
+    """Noise-free sensor signals at ``k dt`` of the Hermite-FE/Newmark reference under the continuous ``force``.
+
+    Newmark steps of ``h = dt/substeps``, the force held over each step at its value at the step's
+    midpoint (second-order accurate, like the scheme).  Shape (n, 2).
+    """
     beam = hermite_beam(LENGTH, n_elements, EI=params["EI"], rhoA=params["rhoA"], N=params["N"], c=params["c"])
-    return newmark_simulate(beam, forces_x=[FORCE_X], sensors=[(x, "displacement") for _, x in SENSORS],
-                            u=u, dt=DT, substeps=substeps)
+    h = force.dt / substeps
+    u_fine = force((np.arange(force.n * substeps) + 0.5) * h)[:, None]
+    y = newmark_simulate(beam, forces_x=[FORCE_X], sensors=[(x, "displacement") for _, x in SENSORS],
+                         u=u_fine, dt=h, substeps=1)
+    return y[::substeps]
 
 
 def fd_config(values: dict[str, float] = NOMINAL) -> BeamConfig:
@@ -107,8 +131,9 @@ class RecoveryCase:
 
 def recovery_case(seed: int = 1) -> RecoveryCase:
     """The synthetic 4-parameter case (FE-generated, 1 % noise)."""
-    u = multisine(N_SAMPLES, DT, F_MAX)[:, None]
-    y_clean = fe_measurement(u)
+    force = Multisine(N_SAMPLES, DT, F_MAX)
+    u = force.samples()
+    y_clean = fe_measurement(force)
     sigma = NOISE * y_clean.std(axis=0)
     y = y_clean + sigma * np.random.default_rng(seed).standard_normal(y_clean.shape)
     return RecoveryCase(u, y_clean, y, sigma)
@@ -126,7 +151,7 @@ def case() -> RecoveryCase:
 
 def test_fe_reference_is_converged_and_fd_model_error_is_below_the_noise(case):
     # the reference itself: natural frequencies (modes 1–5) converged to 1e-5, ten times below the FD
-    # model's frequency errors (1e-4 … 1e-3 at this grid)
+    # model's frequency errors (1e-4 … 6e-4 at this grid)
     coarse = hermite_beam(LENGTH, FE_ELEMENTS, EI=10.0, rhoA=1.0, N=100.0).natural_frequencies_hz(5)
     fine = hermite_beam(LENGTH, 2 * FE_ELEMENTS, EI=10.0, rhoA=1.0, N=100.0).natural_frequencies_hz(5)
     np.testing.assert_allclose(coarse, fine, rtol=1e-5)

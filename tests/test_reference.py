@@ -463,3 +463,80 @@ def test_newmark_input_validation():
         newmark_simulate(b, forces_x=[L_], sensors=[(L_, "velocity")], u=np.zeros((5, 1)), dt=0.0)
     y = newmark_simulate(b, forces_x=[L_], sensors=[(L_, "velocity")], u=np.ones(5), dt=0.01)
     assert y.shape == (5, 1)
+
+
+# ==========================================================================
+# rotary inertia, Winkler foundation, axial-stiffness matrix, linear input
+# ==========================================================================
+from scipy.integrate import quad
+
+from ebb_model.errors import ParameterError
+
+
+@pytest.mark.parametrize("rhoI, kf, N", [(0.0, 0.0, 0.0), (3e-3, 0.0, 2.0), (0.0, 40.0, -1.5), (2e-2, 25.0, 5.0)])
+def test_rayleigh_winkler_pinned_pinned_closed_form(rhoI, kf, N):
+    """Pinned-pinned modes are sin(n pi x/L) for every rhoI, kf, N:
+    omega_n^2 = (EI k^4 + N k^2 + kf) / (rhoA + rhoI k^2), k = n pi / L."""
+    n = np.arange(1, 7)
+    k = n * np.pi / L_
+    w = np.sqrt((EI_ * k**4 + N * k**2 + kf) / (RHOA_ + rhoI * k**2))
+    errs = []
+    for ne in (30, 60):
+        fe = hermite_beam(L_, ne, EI=EI_, rhoA=RHOA_, N=N, rhoI=rhoI, kf=kf, left=PINNED, right=PINNED)
+        errs.append(np.abs(2 * np.pi * fe.natural_frequencies_hz(6) / w - 1.0))
+    assert errs[1].max() < 1e-5  # measured 7e-6 (mode 6), 3e-9 (mode 1)
+    np.testing.assert_allclose(errs[0][2:] / errs[1][2:], 16.0, rtol=0.1)  # fourth-order convergence
+
+
+def test_rotary_inertia_and_foundation_matrices():
+    b0 = hermite_beam(L_, 12, EI=EI_, rhoA=RHOA_, N=0.7, left=CLAMPED, right=FREE)
+    b1 = hermite_beam(L_, 12, EI=EI_, rhoA=RHOA_, N=0.7, left=CLAMPED, right=FREE, rhoI=0.0, kf=0.0)
+    np.testing.assert_array_equal(b0.M, b1.M)  # backward compatible defaults
+    np.testing.assert_array_equal(b0.K, b1.K)
+    rhoI, kf = 0.013, 55.0
+    b2 = hermite_beam(L_, 12, EI=EI_, rhoA=RHOA_, N=0.7, left=CLAMPED, right=FREE, rhoI=rhoI, kf=kf)
+    # M gains rhoI * int N'^T N' (the axial matrix), K gains kf/rhoA * translational mass
+    np.testing.assert_allclose(b2.M - b0.M, rhoI * b0.K_axial, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(b2.K - b0.K, (kf / RHOA_) * b0.M, rtol=1e-12, atol=1e-9)
+    np.testing.assert_array_equal(b2.C, b0.C)  # viscous damping acts on rhoA only
+    # K_axial = dK/dN
+    b3 = hermite_beam(L_, 12, EI=EI_, rhoA=RHOA_, N=3.7, left=CLAMPED, right=FREE)
+    np.testing.assert_allclose(b3.K - b0.K, 3.0 * b0.K_axial, rtol=1e-10, atol=1e-10)
+    with pytest.raises(ParameterError, match="rhoI"):
+        hermite_beam(L_, 4, EI=EI_, rhoA=RHOA_, rhoI=-1.0)
+    with pytest.raises(ParameterError, match="kf"):
+        hermite_beam(L_, 4, EI=EI_, rhoA=RHOA_, kf=float("nan"))
+
+
+def test_axial_matrix_integrates_slope_squared_exactly_for_cubics():
+    """q^T K_axial q = int_0^L w_x^2 dx, exact for a cubic w (Hermite interpolation is exact)."""
+    ne = 7
+    b = hermite_beam(L_, ne, EI=EI_, rhoA=RHOA_, left=FREE, right=FREE)
+    x = np.linspace(0.0, L_, ne + 1)
+    def w(x):
+        return 0.3 - 1.2 * x + 0.8 * x**2 - 0.45 * x**3
+
+    def dw(x):
+        return -1.2 + 1.6 * x - 1.35 * x**2
+
+    q = np.column_stack([w(x), dw(x)]).ravel()
+    exact = quad(lambda s: dw(s) ** 2, 0.0, L_)[0]
+    assert q @ b.K_axial @ q == pytest.approx(exact, rel=1e-13)
+
+
+def test_newmark_linear_interpolation_option():
+    b = hermite_beam(L_, 8, EI=EI_, rhoA=RHOA_, c=0.3, left=CLAMPED, right=FREE)
+    kw = {"forces_x": [L_], "sensors": [(L_, "displacement"), (0.5 * L_, "acceleration")], "dt": 0.002, "substeps": 3}
+    const = np.ones(200)
+    # a constant force: hold and linear interpolation coincide
+    np.testing.assert_allclose(newmark_simulate(b, u=const, interpolation="linear", **kw),
+                               newmark_simulate(b, u=const, **kw), rtol=1e-12, atol=1e-14)
+    # a ramp: the held force lags the linear one by half a sample on average
+    ramp = np.arange(400) * 1e-3
+    y_lin = newmark_simulate(b, u=ramp, interpolation="linear", **kw)[:, 0]
+    y_hold = newmark_simulate(b, u=ramp, **kw)[:, 0]
+    y_shift = newmark_simulate(b, u=ramp + 0.5e-3, **kw)[:, 0]  # hold of the ramp advanced by half a sample
+    assert np.abs(y_lin - y_hold)[-50:].min() > 0
+    np.testing.assert_allclose(y_lin[-50:], y_shift[-50:], rtol=2e-3)
+    with pytest.raises(ParameterError, match="interpolation"):
+        newmark_simulate(b, u=const, interpolation="cubic", **kw)

@@ -41,3 +41,32 @@ def test_dask_local_cluster_equals_serial(evaluator_and_population):
             assert r.workers == 2
             np.testing.assert_array_equal(r(ev, X), ref)
             np.testing.assert_array_equal(r(ev, X[:3]), ref[:3])
+
+
+class _CountingEvaluator:
+    """Test wrapper: the native evaluator, counting its simulations (serial use only)."""
+
+    def __init__(self, inner):
+        self.inner = inner
+        self.space = inner.space
+        self.experiments = inner.experiments
+        self.calls = 0
+
+    def simulate(self, x):
+        self.calls += 1
+        return self.inner.simulate(x)
+
+
+def test_polish_counts_every_evaluation_and_runs_the_same_on_worker_processes(evaluator_and_population):
+    from identification.polish import polish
+
+    ev, _ = evaluator_and_population
+    counting = _CountingEvaluator(ev)
+    x0 = np.array([12.0, 60.0])
+    serial = polish(counting, x0)
+    assert serial.n_evaluations == counting.calls > 3  # residuals and Jacobian columns, all counted
+    np.testing.assert_allclose(serial.x, [10.0, 40.0], rtol=1e-6)  # noise-free data of the model itself
+    with ProcessRunner(2) as r:
+        parallel = polish(ev, x0, runner=r)
+    assert parallel.n_evaluations == serial.n_evaluations
+    np.testing.assert_allclose(parallel.x, serial.x, rtol=1e-12, atol=0)

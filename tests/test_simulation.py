@@ -8,6 +8,7 @@ import pytest
 import scipy.signal as ss
 
 from ebb_model import (
+    ConfigError,
     DataError,
     assemble,
     fast_model,
@@ -16,6 +17,7 @@ from ebb_model import (
     simulate_batch,
     simulate_config,
 )
+from ebb_model.config import config_from_dict
 from ebb_model.modal_form import modal_from_statespace
 
 from conftest import foh_reference, make_config
@@ -150,3 +152,25 @@ def test_modal_realisation_equals_nodal_including_field(spec):
     assert rel(y_modal[:, :2], y_nodal) < 1e-9
     assert rel(y_nodal, y_ref) < 1e-9
     assert rel(y_modal[:, 2:], w_ref) < 1e-9
+
+
+def test_input_hold_option():
+    """``time.input = "zoh"`` holds the sample over the sub-steps; "foh" (default) draws the straight line.
+
+    A constant force is the same under both holds (equal outputs), a varying one
+    is not; the zero-order-hold system has no hold matrix and equals the
+    sub-stepped recursion with the sample held.
+    """
+    d = make_config(right="free", c=0.3, substeps=4, nodes=20).to_dict()
+    foh = config_from_dict(d)
+    d["time"]["input"] = "zoh"
+    zoh = config_from_dict(d)
+    assert foh.time.input_hold == "foh" and zoh.time.input_hold == "zoh"
+    assert assemble(zoh).hold is None and assemble(foh).hold is not None
+    const = np.ones((500, 1))
+    assert rel(simulate(fast_model(foh), const).outputs, simulate(fast_model(zoh), const).outputs) < 1e-10
+    u = np.random.default_rng(4).standard_normal((500, 1))
+    assert rel(simulate(fast_model(foh), u).outputs, simulate(fast_model(zoh), u).outputs) > 1e-3
+    d["time"]["input"] = "cubic"
+    with pytest.raises(ConfigError, match="time.input"):
+        config_from_dict(d)

@@ -1,10 +1,18 @@
-"""Independent reference solutions for validating the finite-difference beam model.
+"""Independent reference solutions and the blind data generator.
 
 * :mod:`.analytic` -- exact natural frequencies of the axially loaded
   Euler–Bernoulli beam from the characteristic equations.
 * :mod:`.hermite_fe` -- cubic Hermite finite-element model of the damped,
-  axially loaded beam with elastic supports, point masses, point forces and
-  point sensors, plus a Newmark time integrator.
+  axially loaded beam (optionally with rotary inertia and a Winkler
+  foundation) with elastic supports, point masses, point forces and point
+  sensors, plus a dense Newmark time integrator.
+* :mod:`.newmark_banded` -- compiled banded Newmark integrator with actuator
+  and sensor lags, axial-load drift and geometric stiffening.
+* :mod:`.withheld` -- the catalogue of unmodelled effects and
+  :class:`WithheldEffect`.
+* :mod:`.excitation` -- band-limited multisine / chirp inputs.
+* :mod:`.synthetic` -- :func:`synthesize`: synthetic "measured" records with a
+  withheld effect, independent of the finite-difference model.
 """
 from __future__ import annotations
 
@@ -16,6 +24,7 @@ from .analytic import (
     critical_buckling_U,
     solve_characteristic,
 )
+from .excitation import EXCITATION_KINDS, band_limited_input
 from .hermite_fe import (
     CLAMPED,
     FREE,
@@ -27,6 +36,8 @@ from .hermite_fe import (
     hermite_shape_functions,
     newmark_simulate,
 )
+from .synthetic import SyntheticRecord, synthesize
+from .withheld import EFFECT_CATALOGUE, EFFECT_NAMES, EffectSpec, WithheldEffect
 
 __all__ = [
     "U_MAX",
@@ -44,4 +55,12 @@ __all__ = [
     "hermite_beam",
     "hermite_shape_functions",
     "newmark_simulate",
+    "EXCITATION_KINDS",
+    "band_limited_input",
+    "SyntheticRecord",
+    "synthesize",
+    "EFFECT_CATALOGUE",
+    "EFFECT_NAMES",
+    "EffectSpec",
+    "WithheldEffect",
 ]

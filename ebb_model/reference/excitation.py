@@ -119,7 +119,7 @@ def band_limited_input(
     fade = _finite("fade", fade)
     if not 0.0 <= fade <= 0.5:
         raise ParameterError(f"fade must lie in [0, 0.5], got {fade:g}")
-    n_fade = int(round(fade * n))
+    n_fade = round(fade * n)
     window = np.ones(n)
     if n_fade >= 2:
         window[:n_fade] = 0.5 - 0.5 * np.cos(np.pi * np.arange(n_fade) / n_fade)

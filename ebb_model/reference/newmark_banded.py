@@ -217,9 +217,8 @@ def _kernel(Mb, Cb, Kb, Gb, Phi, rows, kinds, F, dt, m, beta, gamma, rate, ea_ov
     if not _band_cholesky(Mb, L):
         return 1, 0, 0
     _band_cholesky_solve(L, rhs, acc)
-    if not varying:
-        if not _band_cholesky(Sbase, L):
-            return 2, 0, 0
+    if not varying and not _band_cholesky(Sbase, L):
+        return 2, 0, 0
 
     def sensor_value(o):
         sv = 0.0
@@ -325,11 +324,9 @@ def _kernel(Mb, Cb, Kb, Gb, Phi, rows, kinds, F, dt, m, beta, gamma, rate, ea_ov
                     for r in range(n):
                         da = z1[r] - coef * z2[r]
                         acc[r] -= da
-                        if abs(da) > dmax:
-                            dmax = abs(da)
+                        dmax = max(dmax, abs(da))
                         qv = abs(qp[r] + bh2 * acc[r])
-                        if qv > qmax:
-                            qmax = qv
+                        qmax = max(qmax, qv)
                     if bh2 * dmax <= tol * qmax:
                         converged = True
                         n_iter += it + 1
@@ -370,7 +367,7 @@ def newmark_banded(
     tol: float = 1e-12,
     maxit: int = 50,
 ) -> np.ndarray:
-    """Run the compiled integrator (see the module docstring); inputs are assumed validated.
+    r"""Run the compiled integrator (see the module docstring); inputs are assumed validated.
 
     Parameters
     ----------
@@ -414,7 +411,7 @@ def newmark_banded(
     if (F.shape[0] - 1) % substeps != 0:
         raise ValueError("F must have (n_samples - 1) * substeps + 1 rows")
     y = np.empty(((F.shape[0] - 1) // substeps + 1, rows.shape[0]))
-    status, k, n_iter = _kernel(
+    status, k, _n_iter = _kernel(
         to_band(M), to_band(C), to_band(K), to_band(G),
         np.ascontiguousarray(Phi, dtype=float), np.ascontiguousarray(rows, dtype=float),
         np.ascontiguousarray(kinds, dtype=np.int64), F, float(dt), int(substeps), float(beta), float(gamma),

@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Mapping
 
 import numpy as np
@@ -55,7 +56,8 @@ from .bistritz import bistritz
 _BISTRITZ_TOL = 16 * np.finfo(float).eps
 
 #: Physical lower limits of the parameters (the upper ones are all infinite).
-_PHYSICAL_LOWER = {"EI": 0.0, "rhoA": 0.0, "c": 0.0, "eta": 0.0, "N": -math.inf, "rhoI": 0.0, "kf": 0.0}
+_PHYSICAL_LOWER = MappingProxyType({"EI": 0.0, "rhoA": 0.0, "c": 0.0, "eta": 0.0, "N": -math.inf,
+                                    "rhoI": 0.0, "kf": 0.0})
 
 __all__ = [
     "wavenumbers",

@@ -1,0 +1,103 @@
+"""The examples of issue 4 run end to end (``--quick``) and show what they claim.
+
+Each example runs as a subprocess, as a user would run it; the assertions
+re-derive the claims from the files it wrote (``pareto.json``,
+``identifiability.json``) with the model's own stability machinery, rather
+than trusting the example's printed verdicts.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import ebb_model as em
+from identification.objectives import nrmse
+from identification.run import load_identification_config, read_data
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples"
+ARTS_DATA = ROOT.parent / "shared" / "data" / "arts-lab-cantilever" / "test_1_3200Hz.lvm"
+
+
+def run_example(name: str, out: Path, *args: str) -> str:
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    proc = subprocess.run([sys.executable, str(EXAMPLES / name), "--quick", "--out", str(out), *args],
+                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=300, check=False)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return proc.stdout
+
+
+def test_seed_undamped_stability_objective_removes_marginal_sets(tmp_path):
+    stdout = run_example("seed_undamped.py", tmp_path)
+    assert "without_stability" in stdout and "with_stability" in stdout
+    cfg = load_identification_config(EXAMPLES / "seed_undamped.toml")
+    # the time step makes part of the search box unstable (explicit-leaning theta = 1/12) ...
+    assert em.max_growth_factor(cfg, {"EI": 20.0, "rhoA": 0.5}) > 1.0
+    # ... but not the truth (undamped: exactly on the unit circle)
+    assert em.max_growth_factor(cfg, {"EI": 10.0, "rhoA": 1.0, "N": 50.0, "c": 0.0}) == pytest.approx(1.0, abs=1e-12)
+
+    without = json.loads((tmp_path / "without_stability" / "pareto.json").read_text())
+    with_ = json.loads((tmp_path / "with_stability" / "pareto.json").read_text())
+    assert without["objective_names"] == ["nrmse_y1"]
+    assert with_["objective_names"] == ["nrmse_y1", "growth_factor"]
+
+    # without the stabilising objective: the output-error optimum is undamped, i.e. marginal
+    opt = without["polished"][0]["parameters"]
+    assert opt["c"] < 0.02
+    g_opt = em.max_growth_factor(cfg, opt)
+    assert g_opt > 1.0 - 1e-6
+    # ... and it fits the data well (the fit is not the problem, the margin is)
+    assert without["polished"][0]["objectives"]["nrmse_y1"] < 0.05
+
+    # with it: the knee is strictly stable (grid and finite beam) and no front point is unstable
+    knee = with_["points"][with_["knee"]]["parameters"]
+    g_knee = em.max_growth_factor(cfg, knee)
+    assert g_knee < 1.0 - 1e-6
+    assert em.fast_model(cfg, cfg.parameter_values() | knee).spectral_radius() < 1.0
+    assert all(em.max_growth_factor(cfg, p["parameters"]) <= 1.0 for p in with_["points"])
+    # the stability objective is genuinely traded: its front spans a range of growth factors
+    g = [p["objectives"]["growth_factor"] for p in with_["points"]]
+    assert max(g) - min(g) > 1e-6
+
+
+def test_seed_two_sensors_recovers_the_truth_with_cramer_rao_bounds(tmp_path):
+    run_example("seed_two_sensors.py", tmp_path)
+    doc = json.loads((tmp_path / "identify" / "pareto.json").read_text())
+    assert doc["objective_names"] == ["nrmse_y1", "nrmse_y2", "growth_factor"]
+    pol = doc["polished"][0]
+    p, sd = pol["parameters"], pol["cramer_rao_std"]
+    truth = {"EI": 10.0, "rhoA": 1.0, "N": 50.0, "c": 0.5}
+    rel = {k: abs(p[k] / v - 1) for k, v in truth.items()}
+    # tolerances: EI, rhoA 1 %; N 1.5 % (the finite-difference grid biases N by ~0.9 %, measured by
+    # refinement); c 10 %
+    assert rel["EI"] < 0.01 and rel["rhoA"] < 0.01 and rel["N"] < 0.015 and rel["c"] < 0.10, rel
+    assert all(0 < sd[k] < np.inf for k in truth)
+    # the noise the Cramér–Rao bounds use is estimated from the data: within 10 % of the true level
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    np.testing.assert_allclose(summary["estimated_noise_std"], summary["true_noise_std"], rtol=0.1)
+    assert pol["stable"]
+
+
+@pytest.mark.skipif(not ARTS_DATA.is_file(), reason="ARTS-Lab record not available")
+def test_arts_identification_reports_identifiability_and_improves_the_fit(tmp_path):
+    run_example("arts_identify.py", tmp_path, str(ARTS_DATA))
+    ident = json.loads((tmp_path / "identify" / "identifiability.json").read_text())
+    assert ident["parameters"] == ["EI", "rhoA", "c", "eta", "x_force", "x_accel"]
+    assert ident["condition_number"] > 1e4          # three tones, one sensor: ill-conditioned
+    doc = json.loads((tmp_path / "identify" / "pareto.json").read_text())
+    # the nominal model's NRMSE, computed here from the data and the config
+    cfg = load_identification_config(EXAMPLES / "arts_identify.toml")
+    exp = read_data(cfg, [ARTS_DATA])[0]
+    y_nom = em.simulate(em.fast_model(cfg), np.asarray(exp.inputs)).outputs
+    e_nom = nrmse(y_nom, np.asarray(exp.outputs))[0]
+    e_knee = doc["points"][doc["knee"]]["objectives"]["nrmse_accel"]
+    e_pol = doc["polished"][0]["objectives"]["nrmse_accel"]
+    assert e_knee < 0.5 * e_nom and e_pol <= e_knee
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["reciprocity_difference"] < 1e-9   # swapping the transducers changes nothing
