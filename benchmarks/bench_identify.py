@@ -75,8 +75,8 @@ class RunRecord:
     search_seconds: float
     ga_seconds: float
     first_generation_seconds: float
-    worker_cpu_share: float | None = None
     errors_percent: dict[str, float]
+    worker_cpu_share: float | None = None
 
 
 def _within(x: np.ndarray, names: tuple[str, ...]) -> bool:

@@ -1,0 +1,105 @@
+"""``ebb diagnose`` / ``ebb demo`` from the command line: outputs, bad input (exit 2, nothing written)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from ebb_model.cli import main
+from ebb_model.reference.excitation import band_limited_input
+from ebb_model.reference.synthetic import synthesize
+from ebb_model.reference.withheld import WithheldEffect
+
+from test_diagnosis_blind import DT, bench_config
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory):
+    d = tmp_path_factory.mktemp("bench")
+    cfg = bench_config()
+    (d / "bench.toml").write_text(_toml(cfg))
+    files = []
+    for seed in (21, 22):
+        u = band_limited_input(3000, DT, 2.0, 60.0, seed=seed)
+        rec = synthesize(cfg, u, effect=WithheldEffect("actuator_lag", {"tau": 6e-4}), noise=0.01, seed=seed)
+        path = d / f"rec{seed}.csv"
+        rec.to_csv(path)
+        files.append(path)
+    return d, files
+
+
+def _toml(cfg) -> str:
+    d = cfg.to_dict()
+    lines = ["[beam]"] + [f"{k} = {json.dumps(v)}" for k, v in d["beam"].items()]
+    lines += ["[time]"] + [f"{k} = {json.dumps(v)}" for k, v in d["time"].items()]
+    lines += ["[parameters]"]
+    for k, p in d["parameters"].items():
+        items = ", ".join(f"{kk} = {json.dumps(vv)}" for kk, vv in p.items())
+        lines.append(f"{k} = {{ {items} }}")
+    for a in d["actuators"]:
+        lines += ["[[actuators]]", f"name = {json.dumps(a['name'])}", f"x = {a['x']}"]
+    for s in d["sensors"]:
+        lines += ["[[sensors]]", f"name = {json.dumps(s['name'])}", f"x = {s['x']}", f"kind = {json.dumps(s['kind'])}"]
+    return "\n".join(lines) + "\n"
+
+
+def test_diagnose_with_holdout_file_writes_gap_json_and_plots(bench, capsys):
+    d, (fit, held) = bench
+    out = d / "gap"
+    rc = main(["diagnose", str(d / "bench.toml"), str(fit), "--holdout", str(held), "--out", str(out), "--quiet"])
+    assert rc == 0
+    doc = json.loads((out / "gap.json").read_text())
+    assert doc["verdict"] == "actuator_lag"
+    top = doc["effects"][0]
+    assert top["label"] == "actuator_lag" and top["refit"]["closed"] >= 0.8
+    assert abs(top["refit"]["effect_parameters"]["tau"] - 6e-4) < 1.5e-4
+    assert set(doc["localisation"]) == {"rec21", "holdout:rec22"} or len(doc["localisation"]) == 2
+    assert (out / "effects.png").is_file() and (out / "heldout_residuals.png").is_file()
+    assert "verdict: actuator_lag" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("extra,problem", [
+    (["--holdout-fraction", "1.5"], "holdout-fraction"),
+    (["--shortlist", "0"], "shortlist"),
+    (["--result", "nowhere"], "pareto.json"),
+])
+def test_bad_settings_exit_2_and_write_nothing(bench, tmp_path, capsys, extra, problem):
+    d, (fit, _) = bench
+    out = tmp_path / "gap"
+    rc = main(["diagnose", str(d / "bench.toml"), str(fit), "--out", str(out), "--quiet", *extra])
+    assert rc == 2
+    assert problem in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_bad_data_exit_2_and_write_nothing(bench, tmp_path, capsys):
+    d, (fit, _) = bench
+    text = fit.read_text().splitlines()
+    cells = text[50].split(",")
+    cells[-1] = "nan"
+    text[50] = ",".join(cells)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join(text) + "\n")
+    out = tmp_path / "gap"
+    rc = main(["diagnose", str(d / "bench.toml"), str(bad), "--out", str(out), "--quiet"])
+    assert rc == 2
+    assert "bad.csv" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_non_empty_out_is_refused(bench, tmp_path, capsys):
+    d, (fit, _) = bench
+    (tmp_path / "keep.txt").write_text("x")
+    rc = main(["diagnose", str(d / "bench.toml"), str(fit), "--out", str(tmp_path), "--quiet"])
+    assert rc == 2 and "not an empty directory" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.txt"]
+
+
+def test_demo_quick_runs_the_whole_workflow(tmp_path, capsys):
+    out = tmp_path / "demo"
+    assert main(["demo", "--quick", "--quiet", "--out", str(out)]) == 0
+    text = (out / "report.txt").read_text()
+    assert "withheld effect: boundary_rotational_left -> diagnosis RIGHT" in text
+    assert (out / "diagnosis" / "gap.json").is_file()
+    assert list((out / "identify" / "export").glob("*.fmu")) and list((out / "identify" / "export").glob("*.npz"))
