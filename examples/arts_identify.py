@@ -44,16 +44,13 @@ Run: ``python examples/arts_identify.py [DATA.lvm] [--quick] [--out DIR]``.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 import ebb_model as em
 from identification.fisher import FisherReport, fisher_information
@@ -68,6 +65,8 @@ DATA = HERE.parent.parent / "shared" / "data" / "arts-lab-cantilever" / "test_1_
 TONES_HZ = (100.0, 120.0, 150.0)
 PERIOD_S = 0.1          # common period of the three tones (10 Hz)
 SETTINGS = {"full": {"pop": 32, "generations": 40}, "quick": {"pop": 12, "generations": 4}}
+
+from fe_data import example_main
 
 
 def period_noise_std(y: np.ndarray, period: int) -> np.ndarray:
@@ -227,29 +226,7 @@ def report(summary: dict[str, Any]) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("data", nargs="?", type=Path, default=DATA, help=f"the .lvm record (default {DATA})")
-    ap.add_argument("--quick", action="store_true", help="small population (for tests)")
-    ap.add_argument("--out", type=Path, default=None, help="output directory (new or empty)")
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--pop", type=int, default=None)
-    ap.add_argument("--generations", type=int, default=None)
-    ap.add_argument("--export", action="store_true", help="also export every Pareto point (FMU, StateSpace)")
-    args = ap.parse_args(argv)
-    if not args.data.is_file():
-        print(f"error: data file {args.data} not found (the ARTS-Lab record is not part of the repository)",
-              file=sys.stderr)
-        return 2
-    out = args.out or Path(tempfile.mkdtemp(prefix="ebb-arts-identify-"))
-    out.mkdir(parents=True, exist_ok=True)
-    with threadpool_limits(limits=1, user_api="blas"):
-        summary = run_case(args.data, out, quick=args.quick, seed=args.seed, pop=args.pop,
-                           generations=args.generations, export=args.export)
-    (out / "summary.json").write_text(json.dumps(summary, indent=1))
-    print(report(summary))
-    print(f"\nresults in {out}")
-    return 0
-
+    return example_main(__doc__, "arts-identify", run_case, report, argv, data=DATA)
 
 if __name__ == "__main__":
     sys.exit(main())

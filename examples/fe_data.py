@@ -12,10 +12,15 @@ Used by ``seed_undamped.py`` and ``seed_two_sensors.py``; not a library module.
 """
 from __future__ import annotations
 
+import argparse
+import json
+import sys
+import tempfile
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ebb_model.config import BeamConfig
 from ebb_model.reference.hermite_fe import hermite_beam, newmark_simulate
@@ -77,3 +82,36 @@ def write_csv(path: str | Path, dt: float, columns: Mapping[str, np.ndarray]) ->
     np.savetxt(p, np.column_stack([t, *cols.values()]), delimiter=",", header=",".join(["time", *cols]),
                comments="", fmt="%.17g")
     return p
+
+
+def example_main(doc: str, prefix: str, run_case: Callable[..., dict], report: Callable[[dict], str],
+                 argv: Sequence[str] | None = None, *, data: Path | None = None) -> int:
+    """The command line shared by the examples: parse, run ``run_case`` into an output directory, report.
+
+    With ``data`` the example takes an optional positional data file (default
+    ``data``) and ``run_case(data, out, ...)``; otherwise ``run_case(out, ...)``.
+    Writes ``summary.json``; returns the exit code (2 when the data file is missing).
+    """
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    if data is not None:
+        ap.add_argument("data", nargs="?", type=Path, default=data, help=f"the record (default {data})")
+    ap.add_argument("--quick", action="store_true", help="small population and record (for tests)")
+    ap.add_argument("--out", type=Path, default=None, help="output directory (new or empty)")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--pop", type=int, default=None)
+    ap.add_argument("--generations", type=int, default=None)
+    ap.add_argument("--export", action="store_true", help="also export every Pareto point (FMU, StateSpace)")
+    args = ap.parse_args(argv)
+    if data is not None and not args.data.is_file():
+        print(f"error: data file {args.data} not found (the ARTS-Lab record is not part of the repository)",
+              file=sys.stderr)
+        return 2
+    out = args.out or Path(tempfile.mkdtemp(prefix=f"ebb-{prefix}-"))
+    out.mkdir(parents=True, exist_ok=True)
+    kwargs = dict(quick=args.quick, seed=args.seed, pop=args.pop, generations=args.generations, export=args.export)
+    with threadpool_limits(limits=1, user_api="blas"):
+        summary = run_case(args.data, out, **kwargs) if data is not None else run_case(out, **kwargs)
+    (out / "summary.json").write_text(json.dumps(summary, indent=1))
+    print(report(summary))
+    print(f"\nresults in {out}")
+    return 0

@@ -25,19 +25,16 @@ Run: ``python examples/seed_two_sensors.py [--quick] [--out DIR]``.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import Any, Sequence
 
-from threadpoolctl import threadpool_limits
 
 from identification.run import identify, load_identification_config
 
-from fe_data import fe_measurements, half_sine_pulse, write_csv
+from fe_data import example_main, fe_measurements, half_sine_pulse, write_csv
 
 HERE = Path(__file__).resolve().parent
 CONFIG = HERE / "seed_two_sensors.toml"
@@ -111,24 +108,7 @@ def report(summary: dict[str, Any]) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="small population and record (for tests)")
-    ap.add_argument("--out", type=Path, default=None, help="output directory (new or empty)")
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--pop", type=int, default=None)
-    ap.add_argument("--generations", type=int, default=None)
-    ap.add_argument("--export", action="store_true", help="also export every Pareto point (FMU, StateSpace)")
-    args = ap.parse_args(argv)
-    out = args.out or Path(tempfile.mkdtemp(prefix="ebb-seed-two-sensors-"))
-    out.mkdir(parents=True, exist_ok=True)
-    with threadpool_limits(limits=1, user_api="blas"):
-        summary = run_case(out, quick=args.quick, seed=args.seed, pop=args.pop,
-                           generations=args.generations, export=args.export)
-    (out / "summary.json").write_text(json.dumps(summary, indent=1))
-    print(report(summary))
-    print(f"\nresults in {out}")
-    return 0
-
+    return example_main(__doc__, "seed-two-sensors", run_case, report, argv)
 
 if __name__ == "__main__":
     sys.exit(main())
