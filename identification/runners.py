@@ -62,9 +62,10 @@ class SerialRunner(Runner):
         return _evaluate_chunk(evaluator, X)
 
 
-#: Chunks per worker: small enough that a worker slowed down by other load (or given cheap, refused
-#: candidates) does not leave the others idle, large enough to keep the per-task overhead small.
-CHUNKS_PER_WORKER = 3
+#: Chunks per worker and call: small chunks keep workers busy to the end of a generation when one of
+#: them is slowed down by other load or gets cheap (refused) candidates; the per-chunk overhead (pickling
+#: the evaluator, IPC, the BLAS thread limit: about 1 ms) stays small against one evaluation.
+CHUNKS_PER_WORKER = 6
 
 
 def _chunks(X: np.ndarray, workers: int) -> list[np.ndarray]:
