@@ -12,7 +12,6 @@
 """
 from __future__ import annotations
 
-import inspect
 import time
 from pathlib import Path
 
@@ -94,10 +93,8 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
     np.savetxt(data, table, delimiter=",", header="time,F1,y1,y2", comments="", fmt="%.10g")
 
     say("2/4 identify EI, rhoA, c, N (NSGA-II + least-squares polish)")
-    kw = dict(pop=16 if quick else 24, generations=4 if quick else 12, seed=1, progress=progress, export=False)
-    if "polish" in inspect.signature(identify).parameters:
-        kw["polish"] = 1
-    res = identify(cfg_path, [data], out / "identify", **kw)
+    res = identify(cfg_path, [data], out / "identify", pop=16 if quick else 24, generations=4 if quick else 12,
+                   seed=1, progress=progress, export=False, polish=1)
     knee = res.knee
 
     say("3/4 export the knee point: FMU + python-control StateSpace")

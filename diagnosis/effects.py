@@ -132,11 +132,6 @@ class Effect:
         """Number of search variables."""
         return len(self.variables)
 
-    @property
-    def switch(self) -> int:
-        """Index of the variable whose "off" value switches the effect off (the others are nuisances)."""
-        return 0
-
     def apply(self, config: BeamConfig, params: Mapping[str, float], s: np.ndarray) -> AugmentedModel:
         """The baseline ``(config, params)`` with this effect at search values ``s``."""
         s = np.asarray(s, dtype=float)

@@ -186,51 +186,37 @@ class GapProblem:
         r = res.fun
         return Fit(z[:p], z[p:], float(r @ r), int(r.size), res.jac, r, count[0])
 
-    def global_start(self, beta0: np.ndarray, effect: Effect | None = None, s0: np.ndarray | None = None, *,
-                     seed: int = 0, maxiter: int = 20, popsize: int = 8, n_basins: int = 1
-                     ) -> tuple[np.ndarray, np.ndarray, int] | list[np.ndarray]:
-        """A global search (differential evolution on the fit windows' RSS) of the baseline unknowns (and an effect's variables).
+    def baseline_basins(self, beta0: np.ndarray, *, n_basins: int = 3, seed: int = 0, maxiter: int = 20,
+                        popsize: int = 8) -> list[np.ndarray]:
+        """Starts of the baseline unknowns in distinct basins, best first (differential evolution on the fit RSS).
 
         Lightly damped records have many local minima (resonances misaligned by
         one mode, or a parameter compensating an unmodelled effect at its
-        bound); a short differential evolution seeded with the given point
-        finds the basin that :meth:`fit` then polishes.  Returns the start
-        ``(beta, s)`` and the evaluations used; with ``n_basins > 1`` (baseline
-        only) the best members of the final population that lie apart from
-        each other (distinct basins), best first.
+        bound); a short differential evolution seeded with ``beta0`` finds the
+        basin that :meth:`fit` then polishes.  The best members of its final
+        population that lie apart from each other (> 0.15 of the bounds in some
+        unknown) are returned as further starts, up to ``n_basins`` in all.
         """
         from scipy.optimize import differential_evolution
 
         lo, hi = np.asarray(self.space.lower, float), np.asarray(self.space.upper, float)
-        z0 = np.asarray(beta0, float)
-        if effect is not None:
-            lo, hi = np.concatenate([lo, effect.lower]), np.concatenate([hi, effect.upper])
-            z0 = np.concatenate([z0, np.asarray(s0 if s0 is not None else effect.off, float)])
         span = hi - lo
-        p = self.space.dim
-        count = [0]
 
         def cost(x: np.ndarray) -> float:
-            count[0] += 1
-            z = lo + x * span
-            r = self.residuals(z[:p], effect, z[p:] if effect is not None else None)
+            r = self.residuals(lo + x * span)
             return float(r @ r)
 
-        x0 = np.clip((z0 - lo) / span, 0.0, 1.0)
+        x0 = np.clip((np.asarray(beta0, float) - lo) / span, 0.0, 1.0)
         res = differential_evolution(cost, [(0.0, 1.0)] * lo.size, x0=x0, popsize=popsize, maxiter=maxiter,
                                      tol=1e-8, seed=seed, polish=False, init="sobol")
-        best = lo + (res.x if res.fun <= cost(x0) else x0) * span
-        if n_basins > 1:
-            order = np.argsort(res.population_energies)
-            picks = [res.population[order[0]]]
-            for i in order[1:]:
-                cand = res.population[i]
-                if all(np.max(np.abs(cand - q)) > 0.15 for q in picks):
-                    picks.append(cand)
-                if len(picks) == n_basins:
-                    break
-            return [best[:p]] + [(lo + q * span)[:p] for q in picks[1:]]
-        return best[:p], best[p:], count[0]
+        picks = [res.x if res.fun <= cost(x0) else x0]
+        for i in np.argsort(res.population_energies):
+            cand = res.population[i]
+            if len(picks) >= n_basins:
+                break
+            if all(np.max(np.abs(cand - q)) > 0.15 for q in picks):
+                picks.append(cand)
+        return [lo + q * span for q in picks]
 
     def scaled_jacobian(self, beta: np.ndarray, effect: Effect, s: np.ndarray, *, step: float = 1e-3,
                         r0: np.ndarray | None = None) -> np.ndarray:

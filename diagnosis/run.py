@@ -24,11 +24,11 @@ from typing import Any, Callable, Sequence
 import numpy as np
 from scipy.signal import welch
 
-from ebb_model.beam import Sensor
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError, DataError
 from ebb_model.jsonio import write_json
 from ebb_model.modal import discrete_frequencies
+from ebb_model.assemble import field_config
 from ebb_model.simulate import fast_model, simulate
 
 from identification.data import Experiment
@@ -39,7 +39,7 @@ from .effects import Scales, candidate_effects
 from .fitting import GapProblem
 from .localise import localise
 from .noise import noise_std as estimate_noise
-from .rank import Ranking, rank_effects
+from .rank import BIC_MARGIN, GAP_THRESHOLD, Ranking, rank_effects
 from .records import Record, split_records
 
 __all__ = ["Diagnosis", "diagnose", "GAP_FILE"]
@@ -95,16 +95,19 @@ def excited_band(inputs: Sequence[np.ndarray], dt: float, *, rel: float = 1e-3) 
 
 
 def _stretch_max(config: BeamConfig, params: dict[str, float], records: Sequence[Record]) -> float:
-    """Largest ``∫ w_x² dx`` of the baseline response (displacement field sampled at 41 points)."""
-    L = config.beam.length
-    xs = np.linspace(0.0, L, 41)
-    field_cfg = replace(config, sensors=tuple(Sensor(f"w{i}", float(x)) for i, x in enumerate(xs)))
-    model = fast_model(field_cfg, params)
+    """Largest ``∫ w_x² dx`` of the baseline response over the records.
+
+    The deflection at every grid node (:func:`ebb_model.field_config`) and the
+    integral of its piecewise-linear interpolant — the quadrature the
+    stretching simulation itself uses (:func:`diagnosis.augmented.stretch_integral`).
+    """
+    n_s = len(config.sensors)
+    model = fast_model(field_config(config), params)
+    h = config.beam.length / (config.beam.nodes + 1)
     best = 0.0
     for r in records:
-        w = simulate(model, r.inputs).outputs
-        wx = np.gradient(w, xs, axis=1)
-        best = max(best, float(np.max(np.trapezoid(wx ** 2, xs, axis=1))))
+        w = simulate(model, r.inputs).outputs[:, n_s:]
+        best = max(best, float(np.max(np.sum(np.diff(w, axis=1) ** 2, axis=1) / h)))
     return best
 
 
@@ -209,7 +212,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     # a short global search first, seeded with the identification result (or the nominal values);
     # its other basins are kept as starts for the refits (the baseline may sit where it only
     # compensates an effect)
-    basins = problem.global_start(beta0, n_basins=3)
+    basins = problem.baseline_basins(beta0, n_basins=3)
     beta0 = basins[0]
     problem = replace(problem, other_starts=tuple(problem.fit(b, max_evaluations=60).beta for b in basins[1:]))
     baseline = problem.fit(beta0)
@@ -290,7 +293,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         "summary": [s for loc in locs for s in loc.summary],
         "effects": effect_rows,
         "settings": {"holdout": [str(h) for h in holdout], "holdout_fraction": None if holdout else holdout_fraction,
-                     "shortlist": shortlist, "gap_threshold": 0.25, "bic_margin": 10.0},
+                     "shortlist": shortlist, "gap_threshold": GAP_THRESHOLD, "bic_margin": BIC_MARGIN},
     }
     if out is None:
         return Diagnosis(ranking, doc, None)
