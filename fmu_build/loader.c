@@ -129,6 +129,7 @@ static InnerApi g_api;
 static void *g_inner = NULL;
 static int g_loaded_libpython = 0;
 static int (*g_py_is_initialized)(void) = NULL; /* set when this loader loaded libpython */
+static void (*g_inner_finalize)(void) = NULL;   /* pythonfmu's finalizePythonInterpreter */
 static char g_error[2048] = "";
 
 /* One instance as the host sees it: wraps pythonfmu's component. */
@@ -159,6 +160,33 @@ static void own_directory(char *buf, size_t size)
         }
     }
 }
+
+/*
+ * pythonfmu keeps its interpreter state in a global std::shared_ptr and resets
+ * it in a function marked __attribute__((destructor)).  Its library cannot be
+ * unloaded (it carries GNU_UNIQUE symbols, so dlclose leaves it mapped) and is
+ * therefore still loaded when the process exits.  The exit handlers then run
+ * the shared_ptr's static destructor, and the ELF destructor afterwards
+ * releases the same, already freed, control block a second time: a
+ * use-after-free that aborts the process at exit now and then ("corrupted
+ * double-linked list").  The loader calls pythonfmu's own reset first, so
+ * that both later releases see an empty pointer:
+ *   - from unload_inner, when the host unloads this loader (fmpy, libcosim);
+ *   - from an exit handler registered right after pythonfmu's static
+ *     initialisers ran (so it runs before their destructors), when the loader
+ *     is still loaded at exit -- always the case when it started Python
+ *     itself, because it then pins itself (the interpreter must outlive any
+ *     reload of the FMU, numpy cannot be initialised twice).
+ */
+static void finalize_inner(void)
+{
+    if (g_inner && g_inner_finalize) {
+        g_inner_finalize();
+        g_inner_finalize = NULL;
+    }
+}
+
+static void finalize_inner_at_exit(void) { finalize_inner(); }
 
 #define RESOLVE(field, symbol)                                                         \
     do {                                                                               \
@@ -228,6 +256,15 @@ static void load_inner(void)
     RESOLVE(GetIntegerStatus, "fmi2GetIntegerStatus");
     RESOLVE(GetBooleanStatus, "fmi2GetBooleanStatus");
     RESOLVE(GetStringStatus, "fmi2GetStringStatus");
+    /* See finalize_inner. */
+    *(void **)(&g_inner_finalize) = dlsym(g_inner, "finalizePythonInterpreter");
+    if (g_inner_finalize) atexit(finalize_inner_at_exit);
+    if (g_loaded_libpython) {
+        Dl_info self;
+        if (dladdr((void *)&load_inner, &self) && self.dli_fname) {
+            dlopen(self.dli_fname, RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);
+        }
+    }
 }
 
 /* Set PYTHONHOME/PYTHONPATH for an interpreter about to start; returns which were set. */
@@ -257,6 +294,7 @@ __attribute__((destructor)) static void unload_inner(void)
      * without the loader).  An interpreter this loader started stays loaded:
      * pythonfmu finalises it at process exit. */
     if (g_inner && !g_loaded_libpython) {
+        finalize_inner();
         dlclose(g_inner);
         g_inner = NULL;
     }
