@@ -142,6 +142,23 @@ def test_csv_mapping_and_units(tmp_path):
     np.testing.assert_allclose(exp.signal("a2"), sig["a2"] * 9.80665, rtol=1e-15)
 
 
+def test_gains_apply_after_units_and_before_offset_removal(tmp_path):
+    """A load cell reading compression negative: gain -1 flips it; the offset is removed afterwards."""
+    sig = signals()
+    p = write_csv(tmp_path / "g.csv", sig)
+    exp = load_experiment(p, cfg(), units={"F1": "lbf"}, gains={"F1": -1.0, "a2": 0.5}, remove_offset="mean")
+    f = -sig["F1"] * 4.4482216152605
+    np.testing.assert_allclose(exp.signal("F1"), f - f.mean(), rtol=1e-12, atol=1e-14)
+    a = 0.5 * sig["a2"]
+    np.testing.assert_allclose(exp.signal("a2"), a - a.mean(), rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(exp.signal("y1"), sig["y1"] - sig["y1"].mean(), rtol=1e-12, atol=1e-18)
+    for bad in (0.0, float("nan"), float("inf"), True, "x"):
+        with pytest.raises(DataError, match=r"gains\['F1'\]: must be a finite, non-zero number"):
+            load_experiment(p, cfg(), gains={"F1": bad})
+    with pytest.raises(DataError, match=r"gains: 'F9' is not a signal of the config"):
+        load_experiment(p, cfg(), gains={"F9": 2.0})
+
+
 def test_csv_time_printed_with_few_decimals_is_recognised_as_uniform(tmp_path):
     # 3200 Hz printed with 6 decimals: steps 0.000312 / 0.000313 s, 0.16 % off dt, yet uniform to print precision
     dt = 1 / 3200

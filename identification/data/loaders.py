@@ -6,6 +6,7 @@ steps, so every format gives the same errors)::
     file --reader--> RawTable --mapping--> time + one column per actuator/sensor
          --checks--> lengths, finite values, increasing time (naming file, column, sample)
          --units---> SI (lbf -> N, g -> m/s2, ...)
+         --gains---> optional per-signal factor (sign convention, calibration)
          --time----> printed times snapped to their uniform grid (see timebase)
          --offset--> optional removal of the static offset
          --resample> optional, to the config's dt
@@ -105,7 +106,8 @@ def _offset_mode(path: Path, remove_offset: Any, pre_trigger: float | None) -> s
 
 
 def _check_options(path: Path, config: BeamConfig, mapping: Mapping[str, Key] | None,
-                   units: Mapping[str, str] | None) -> tuple[dict[str, Key], dict[str, str]]:
+                   units: Mapping[str, str] | None, gains: Mapping[str, float] | None = None
+                   ) -> tuple[dict[str, Key], dict[str, str], dict[str, float]]:
     signals = config.input_names + config.output_names
     problems: list[str] = []
     m = dict(mapping or {})
@@ -118,10 +120,19 @@ def _check_options(path: Path, config: BeamConfig, mapping: Mapping[str, Key] | 
     for k in u:
         if k not in signals:
             problems.append(f"units: {k!r} is not a signal of the config; allowed: {', '.join(signals)}")
+    g: dict[str, float] = {}
+    for k, v in dict(gains or {}).items():
+        if k not in signals:
+            problems.append(f"gains: {k!r} is not a signal of the config; allowed: {', '.join(signals)}")
+        elif isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
+                or not np.isfinite(v) or v == 0:
+            problems.append(f"gains[{k!r}]: must be a finite, non-zero number, got {v!r}")
+        else:
+            g[k] = float(v)
     if problems:
         raise DataError(f"{path}: " + problems[0] if len(problems) == 1 else
                         f"{path}: {len(problems)} problems:\n" + "\n".join(f"  - {p}" for p in problems))
-    return m, u
+    return m, u, g
 
 
 def _lookup(table: RawTable, key: Key) -> int | None:
@@ -159,7 +170,7 @@ def _check_finite(a: np.ndarray, t: np.ndarray, where: str) -> None:
 
 def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None = None,
                     mapping: Mapping[str, Key] | None = None, units: Mapping[str, str] | None = None,
-                    remove_offset: Literal[False, "mean", "pre-trigger"] | bool | None = False,
+                    gains: Mapping[str, float] | None = None, remove_offset: Literal[False, "mean", "pre-trigger"] | bool | None = False,
                     pre_trigger: float | None = None, resample: bool = False,
                     name: str | None = None) -> Experiment:
     """Read one experiment and tie it to ``config``.
@@ -185,6 +196,11 @@ def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None 
         factors (:mod:`identification.data.units`).  Without an entry, the
         unit the file declares (LVM ``Y_Unit_Label``, UFF58 ordinate units
         label, ``to_npz`` metadata) is used, else SI is assumed.
+    gains
+        Config signal name -> factor applied after the unit conversion, for a
+        transducer whose sign convention or calibration differs from the
+        model's: e.g. ``{"force": -1.0}`` for a load cell that reads the
+        force pushing on the beam as negative.  Finite and non-zero.
     remove_offset
         ``False`` (default); ``"mean"`` (or ``True``): subtract each signal's
         mean over the record; ``"pre-trigger"``: subtract each signal's mean
@@ -216,7 +232,7 @@ def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None 
     p = Path(path)
     fmt = _format_of(p, format)
     mode = _offset_mode(p, remove_offset, pre_trigger)
-    cmap, cunits = _check_options(p, config, mapping, units)
+    cmap, cunits, cgains = _check_options(p, config, mapping, units, gains)
     table = FORMATS[fmt](p)
     src = table.source
 
@@ -272,6 +288,8 @@ def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None 
                 hint = (f" -- the file declares this unit; pass units={{{sig!r}: ...}} to override"
                         if declared else "")
                 raise DataError(f"{exc}{hint}") from None
+        if sig in cgains:
+            a = a * cgains[sig]
         cols[sig] = a
         si_units[sig] = "N" if role == "actuator" else SENSOR_UNITS[quantity]
 
@@ -316,7 +334,7 @@ def load_experiments(paths: Iterable[str | Path] | str | Path, config: BeamConfi
         unique.
     **kwargs
         Options of :func:`load_experiment` (``format``, ``mapping``,
-        ``units``, ``remove_offset``, ``pre_trigger``, ``resample``).
+        ``units``, ``gains``, ``remove_offset``, ``pre_trigger``, ``resample``).
 
     Returns
     -------
