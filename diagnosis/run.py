@@ -167,8 +167,9 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     shortlist
         Number of best-scoring effects that are refitted.
     noise_std
-        Measurement-noise standard deviation per sensor; estimated from the
-        data (noise floor above the excited band) when omitted.
+        Measurement-noise standard deviation per sensor; default the
+        config's ``[identification] noise_std``, else estimated from the data
+        (noise floor above the excited band).
 
     Returns
     -------
@@ -197,6 +198,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     beta0 = _start_from_result(result, space.names) if result is not None else np.asarray(space.nominal)
     dt = cfg.time.dt
     n_s = len(cfg.sensors)
+    if noise_std is None:
+        noise_std = cfg.extra.get("identification", {}).get("noise_std")
     if noise_std is not None:
         sigma = np.asarray(noise_std, dtype=float).ravel()
         if sigma.shape != (n_s,) or not np.all(np.isfinite(sigma) & (sigma > 0)):

@@ -50,7 +50,7 @@ __all__ = ["BACKENDS", "IdentificationResult", "PolishedPoint", "Progress", "ide
            "load_identification_config", "read_data"]
 
 BACKENDS = ("auto", "native", "fmu")
-_DATA_KEYS = ("mapping", "units", "gains", "remove_offset", "pre_trigger", "resample", "format")
+_DATA_KEYS = ("mapping", "units", "gains", "remove_offset", "pre_trigger", "band", "resample", "format")
 
 
 def load_identification_config(path: str | Path) -> BeamConfig:

@@ -159,6 +159,24 @@ def test_gains_apply_after_units_and_before_offset_removal(tmp_path):
         load_experiment(p, cfg(), gains={"F9": 2.0})
 
 
+def test_band_keeps_in_band_tones_and_removes_the_rest(tmp_path):
+    """Tones on exact FFT bins: inside the flat part of the band unchanged, outside gone, on every signal."""
+    t = np.arange(N) * DT                      # 1000 samples at 10 kHz: 10 Hz bins
+    inside = np.sin(2 * np.pi * 120 * t) + 0.5 * np.cos(2 * np.pi * 150 * t)
+    outside = 0.7 * np.sin(2 * np.pi * 20 * t) + 0.3 * np.sin(2 * np.pi * 900 * t) + 0.2
+    sig = {"time": t, "F1": inside + outside, "y1": 1e-3 * (inside + outside), "a2": 2.0 * inside + outside}
+    exp = load_experiment(write_csv(tmp_path / "b.csv", sig), cfg(), band=[80.0, 200.0])
+    np.testing.assert_allclose(exp.signal("F1"), inside, atol=1e-12)
+    np.testing.assert_allclose(exp.signal("y1"), 1e-3 * inside, atol=1e-15)
+    np.testing.assert_allclose(exp.signal("a2"), 2.0 * inside, atol=1e-12)
+    for bad, msg in (([200.0, 80.0], r"band \[200, 80\] Hz must satisfy 0 <= f_lo < f_hi <= 5000"),
+                     ([0.0, 6000.0], r"must satisfy 0 <= f_lo < f_hi <= 5000 \(the Nyquist frequency\)"),
+                     ([float("nan"), 10.0], r"must satisfy"), ("wide", r"band must be two numbers"),
+                     ([1.0], r"band must be two numbers")):
+        with pytest.raises(DataError, match=msg):
+            load_experiment(tmp_path / "b.csv", cfg(), band=bad)
+
+
 def test_csv_time_printed_with_few_decimals_is_recognised_as_uniform(tmp_path):
     # 3200 Hz printed with 6 decimals: steps 0.000312 / 0.000313 s, 0.16 % off dt, yet uniform to print precision
     dt = 1 / 3200

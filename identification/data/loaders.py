@@ -9,6 +9,7 @@ steps, so every format gives the same errors)::
          --gains---> optional per-signal factor (sign convention, calibration)
          --time----> printed times snapped to their uniform grid (see timebase)
          --offset--> optional removal of the static offset
+         --band----> optional zero-phase band limitation (same filter on every signal)
          --resample> optional, to the config's dt
          --check---> Experiment.check_against(config): names and dt
 
@@ -41,6 +42,7 @@ from ebb_model.signals_io import check_time_vector
 from .binary_formats import read_mat, read_npz
 from .csv_format import read_csv
 from .experiment import Experiment
+from .filtering import band_limit, check_band
 from .lvm import read_lvm
 from .table import RawTable
 from .timebase import regularise_time, resample_uniform
@@ -171,7 +173,7 @@ def _check_finite(a: np.ndarray, t: np.ndarray, where: str) -> None:
 def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None = None,
                     mapping: Mapping[str, Key] | None = None, units: Mapping[str, str] | None = None,
                     gains: Mapping[str, float] | None = None, remove_offset: Literal[False, "mean", "pre-trigger"] | bool | None = False,
-                    pre_trigger: float | None = None, resample: bool = False,
+                    pre_trigger: float | None = None, band: Any = None, resample: bool = False,
                     name: str | None = None) -> Experiment:
     """Read one experiment and tie it to ``config``.
 
@@ -208,6 +210,12 @@ def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None 
         excitation).
     pre_trigger
         Length [s] of the quiet stretch, for ``remove_offset="pre-trigger"``.
+    band
+        ``[f_lo, f_hi]`` in Hz: filter every signal (inputs and outputs alike)
+        to this band, zero phase (:mod:`identification.data.filtering`) --
+        for records excited only in a band, whose input channel carries
+        broadband noise the model would answer at resonances the excitation
+        never reached.  Applied at the file's sample time, before resampling.
     resample
         If ``True``, resample to ``config.time.dt`` (see
         :func:`~identification.data.timebase.resample_uniform`: polyphase
@@ -304,6 +312,9 @@ def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None 
         if not quiet.any():
             raise DataError(f"{src}: no sample in the pre-trigger window of {pre_trigger:g} s")
         x = x - x[quiet].mean(axis=0)
+    if band is not None:
+        f_lo, f_hi = check_band(band, float(t[1] - t[0]) if n > 1 else config.time.dt, where=f"{src}: band")
+        x = band_limit(x, float(t[1] - t[0]), f_lo, f_hi)
     if resample:
         t, x, _ = resample_uniform(t, x, config.time.dt, where=time_label)
     n_in = len(config.actuators)
@@ -334,7 +345,7 @@ def load_experiments(paths: Iterable[str | Path] | str | Path, config: BeamConfi
         unique.
     **kwargs
         Options of :func:`load_experiment` (``format``, ``mapping``,
-        ``units``, ``gains``, ``remove_offset``, ``pre_trigger``, ``resample``).
+        ``units``, ``gains``, ``remove_offset``, ``band``, ``pre_trigger``, ``resample``).
 
     Returns
     -------
