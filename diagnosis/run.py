@@ -142,6 +142,12 @@ def _band_closure(before: Sequence[np.ndarray], after: Sequence[np.ndarray], dt:
     return rows
 
 
+def _modes_hz(model: Any, k: int) -> list[float]:
+    """The first ``k`` modal frequencies [Hz] of an augmented model (its beam; lags and drift do not move them)."""
+    freqs, _ = discrete_frequencies(model.config, model.params)
+    return [float(v) for v in freqs[:k]]
+
+
 def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_dir: str | Path | None, *,
              holdout: Sequence[str | Path] = (), result: str | Path | None = None,
              holdout_fraction: float = 0.3, shortlist: int = 4, noise_std: Sequence[float] | None = None,
@@ -275,6 +281,9 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                                       for n, v in zip(cfg.output_names, rf.closed_per_sensor)},
                 "closed_per_band": _band_closure(res_before, res_after, dt, edges),
                 "n_evaluations": rf.fit.n_evaluations,
+                # the refitted model's modes (the baseline's in-band ones and the next), for a
+                # cross-check against an independent modal test
+                "model_modes_hz": _modes_hz(problem.model(rf.fit.beta, e, rf.fit.s), len(mf) + 1),
             }
         effect_rows.append(row)
     p = space.dim

@@ -101,3 +101,24 @@ def test_arts_identification_reports_identifiability_and_improves_the_fit(tmp_pa
     assert e_knee < 0.5 * e_nom and e_pol <= e_knee
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["reciprocity_difference"] < 1e-9   # swapping the transducers changes nothing
+
+
+@pytest.mark.skipif(not ARTS_DATA.is_file(), reason="ARTS-Lab record not available")
+def test_arts_diagnosis_is_checked_against_the_independent_impulse_test(tmp_path):
+    run_example("arts_diagnose.py", tmp_path, str(ARTS_DATA))
+    s = json.loads((tmp_path / "summary.json").read_text())
+    # the impulse test's peaks are the natural frequencies its README documents
+    # (6.62-6.66, 41.3-41.4, 117.5 and about 230 Hz), found without being told them
+    modes = s["impulse_modes_hz"]
+    assert len(modes) >= 4
+    np.testing.assert_allclose(modes[:4], [6.64, 41.35, 117.5, 230.0], rtol=0.012)
+    # the configured in-band noise is what adjacent periods of the filtered record give
+    assert s["noise_std_adjacent_periods"] == pytest.approx(s["noise_std_config"], rel=0.05)
+    # a real gap: far above the noise floor even after band limitation
+    assert s["baseline"]["heldout"] > 25.0
+    assert (tmp_path / "gap" / "gap.json").is_file()
+    # every refit is compared with the impulse test, and the report says which survive
+    assert s["refits"] and all(len(r["modes"]["relative_error"]) >= 3 for r in s["refits"])
+    for r in s["refits"]:
+        worse = r["modes"]["max_abs_error"] > s["baseline"]["modes"]["max_abs_error"] + 0.01
+        assert (r["label"] in s["consistent_with_impulse_test"]) == (not worse and r["closed"] >= 0.5)
