@@ -178,19 +178,8 @@ def test_no_use_after_free_when_the_process_exits(fmus, host, tmp_path, master):
         pytest.skip("valgrind is not installed")
     library = "_pythonfmu.so"
     if master == "c-host":
-        import fmu_loops
-
-        real_run = subprocess.run
-
-        def under_valgrind(cmd, **kw):
-            kw["timeout"] = 900
-            return real_run(["valgrind", "--num-callers=40", *cmd], **kw)
-
-        fmu_loops.subprocess.run = under_valgrind
-        try:
-            proc = host_run(host, fmus["seed"], np.zeros((20, 1)), tmp_path)
-        finally:
-            fmu_loops.subprocess.run = real_run
+        proc = host_run(host, fmus["seed"], np.zeros((20, 1)), tmp_path, wrapper=["valgrind", "--num-callers=40"],
+                        timeout=900)
     else:
         np.save(tmp_path / "u.npy", np.zeros((20, 1)))
         proc = subprocess.run(["valgrind", "--num-callers=40", sys.executable, str(LOOPS), "fmpy",

@@ -313,8 +313,9 @@ def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None 
             raise DataError(f"{src}: no sample in the pre-trigger window of {pre_trigger:g} s")
         x = x - x[quiet].mean(axis=0)
     if band is not None:
-        f_lo, f_hi = check_band(band, float(t[1] - t[0]) if n > 1 else config.time.dt, where=f"{src}: band")
-        x = band_limit(x, float(t[1] - t[0]), f_lo, f_hi)
+        dt_file = float(t[1] - t[0]) if n > 1 else config.time.dt
+        f_lo, f_hi = check_band(band, dt_file, where=f"{src}: band")
+        x = band_limit(x, dt_file, f_lo, f_hi)
     if resample:
         t, x, _ = resample_uniform(t, x, config.time.dt, where=time_label)
     n_in = len(config.actuators)

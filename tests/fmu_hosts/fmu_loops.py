@@ -130,8 +130,12 @@ def compile_host(out_dir: Path) -> Path:
 
 def host_run(exe: Path, fmu: str | os.PathLike, u: np.ndarray, work: Path, *,
              params: Mapping[str, float] | None = None, step: float | None = None,
-             env: Mapping[str, str] | None = None) -> subprocess.CompletedProcess:
-    """Run the C master on an extracted copy of ``fmu`` ("before" protocol)."""
+             env: Mapping[str, str] | None = None, wrapper: Sequence[str] = (),
+             timeout: float = 120) -> subprocess.CompletedProcess:
+    """Run the C master on an extracted copy of ``fmu`` ("before" protocol).
+
+    ``wrapper`` prefixes the command (e.g. ``["valgrind"]``).
+    """
     from fmpy import extract, read_model_description
 
     unzipdir = Path(extract(str(fmu), unzipdir=str(Path(work) / "unzipped")))
@@ -143,12 +147,12 @@ def host_run(exe: Path, fmu: str | os.PathLike, u: np.ndarray, work: Path, *,
     inputs = Path(work) / "inputs.txt"
     np.savetxt(inputs, u, fmt="%.17g")
     library = unzipdir / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"
-    cmd = [str(exe), str(library), md.guid, (unzipdir / "resources").as_uri(),
+    cmd = [*wrapper, str(exe), str(library), md.guid, (unzipdir / "resources").as_uri(),
            repr(float(step if step is not None else md.defaultExperiment.stepSize)), str(len(u)), str(inputs),
            ",".join(map(str, in_vr)) or "-", ",".join(map(str, out_vr)) or "-"]
     cmd += [f"{vr[k]}={v!r}" for k, v in (params or {}).items()]
     clean_env = {"PATH": "/usr/bin:/bin"} if env is None else dict(env)
-    return subprocess.run(cmd, capture_output=True, text=True, env=clean_env, timeout=120)
+    return subprocess.run(cmd, capture_output=True, text=True, env=clean_env, timeout=timeout)
 
 
 def lifecycle(fmu: str | os.PathLike, cycles: int) -> dict[str, float]:
