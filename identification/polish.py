@@ -13,6 +13,15 @@ evaluated as one batch through the run's runner, so a polish runs on the same
 worker processes (or Dask cluster) and the same backend as the GA.  Every
 model evaluation (residuals and Jacobian columns) is counted.
 
+The fit stops as soon as the Gauss–Newton step from the current point would
+lower χ² by less than :data:`CHI2_RESOLUTION` (χ² in units of the residual
+variance estimated from the current residuals): the unknowns are then within a
+few hundredths of their standard deviation of the local optimum, below
+anything the data can tell apart, and further iterations only cost
+evaluations.  Unknowns held at a bound by the gradient are left out of that
+step.  ``least_squares``' own ``xtol``/``ftol`` tests still apply (noise-free
+data, where the residual variance vanishes with the fit).
+
 Candidates the model refuses (unstable, invalid parameters, an FMU refusing
 them) get a constant large residual, so the trust region shrinks away from
 them; they are never NaN.
@@ -29,7 +38,11 @@ from ebb_model.errors import ParameterError
 
 from .runners import Runner, SerialRunner
 
-__all__ = ["PolishResult", "ResidualEvaluator", "polish", "residual_scale"]
+__all__ = ["CHI2_RESOLUTION", "PolishResult", "ResidualEvaluator", "polish", "predicted_chi2_decrease",
+           "residual_scale"]
+
+#: Predicted decrease of χ² (in units of the residual variance) below which the polish has converged.
+CHI2_RESOLUTION = 1.0e-3
 
 #: Residual given to every sample of a candidate the model refuses.
 FAILED_RESIDUAL = 1.0e3
@@ -116,7 +129,8 @@ class ResidualEvaluator:
 
 
 def polish(evaluator: Any, x0: np.ndarray, *, runner: Runner | None = None, max_evaluations: int = 400,
-           xtol: float = 1e-10, ftol: float = 1e-12, diff_step: float = 1e-6) -> PolishResult:
+           xtol: float = 1e-10, ftol: float = 1e-12, diff_step: float = 1e-6,
+           chi2_resolution: float = CHI2_RESOLUTION) -> PolishResult:
     """Least-squares refinement of candidate ``x0``.
 
     Parameters
@@ -135,6 +149,9 @@ def polish(evaluator: Any, x0: np.ndarray, *, runner: Runner | None = None, max_
         ``least_squares`` tolerances (``xtol`` relative to the scaled unknowns).
     diff_step
         Forward-difference step in the scaled unknowns.
+    chi2_resolution
+        Stop once a Gauss–Newton step would lower χ² by less than this many
+        residual variances (see the module docstring); 0 disables the test.
     """
     run = runner or SerialRunner()
     res_ev = ResidualEvaluator(evaluator)
@@ -143,6 +160,7 @@ def polish(evaluator: Any, x0: np.ndarray, *, runner: Runner | None = None, max_
     span = hi - lo
     count = [0]
     last: dict[bytes, np.ndarray] = {}
+    jacobian: dict[bytes, np.ndarray] = {}
 
     def batch(S: np.ndarray) -> np.ndarray:
         count[0] += len(S)
@@ -166,9 +184,60 @@ def polish(evaluator: Any, x0: np.ndarray, *, runner: Runner | None = None, max_
             r0, R = both[0], both[1:]
             last.clear()
             last[key] = r0
-        return ((R - r0[None, :]) / steps[:, None]).T
+        J = ((R - r0[None, :]) / steps[:, None]).T
+        jacobian.clear()
+        jacobian[key] = J
+        return J
+
+    converged: list[float] = []
+
+    def stop_when_resolved(intermediate_result: Any) -> None:
+        s = np.asarray(intermediate_result.x, dtype=float)
+        J = jacobian.get(s.tobytes())
+        if J is None:
+            return
+        gain = predicted_chi2_decrease(J, np.asarray(intermediate_result.fun, dtype=float), s)
+        if gain < chi2_resolution:
+            converged.append(gain)
+            raise StopIteration
 
     s0 = np.clip((np.asarray(x0, dtype=float) - lo) / span, 0.0, 1.0)
     res = least_squares(fun, s0, jac=jac, bounds=(0.0, 1.0), x_scale="jac", xtol=xtol, ftol=ftol,
-                        gtol=1e-12, max_nfev=max_evaluations)
+                        gtol=1e-12, max_nfev=max_evaluations, callback=stop_when_resolved)
+    if converged:
+        return PolishResult(lo + res.x * span, float(2 * res.cost), count[0], True,
+                            f"converged: a Gauss-Newton step would lower chi2 by {converged[0]:.1e} "
+                            f"(< {chi2_resolution:g} residual variances)")
     return PolishResult(lo + res.x * span, float(2 * res.cost), count[0], bool(res.success), str(res.message))
+
+
+def predicted_chi2_decrease(J: np.ndarray, r: np.ndarray, s: np.ndarray, *, at_bound: float = 1e-12) -> float:
+    """χ² decrease a Gauss–Newton step from ``s`` would bring, in units of the residual variance.
+
+    Parameters
+    ----------
+    J, r
+        Jacobian (n, dim) and residuals (n,) at the scaled unknowns ``s`` (in [0, 1]).
+    s
+        Scaled unknowns; one at a bound whose gradient ``Jᵀr`` pushes it outwards is held.
+
+    Returns
+    -------
+    float
+        ``‖J δ‖² / σ²`` with ``δ`` the least-squares step on the free unknowns and
+        ``σ² = ‖r‖² / (n - dim)``; ``inf`` when the residual variance is zero
+        and the step is not (noise-free data).
+    """
+    g = J.T @ r
+    held = ((s <= at_bound) & (g > 0)) | ((s >= 1.0 - at_bound) & (g < 0))
+    free = ~held
+    n, dim = J.shape
+    rr = float(r @ r)
+    if not free.any():
+        return 0.0
+    delta, *_ = np.linalg.lstsq(J[:, free], -r, rcond=None)
+    gain = float(np.sum((J[:, free] @ delta) ** 2))
+    var = rr / max(n - dim, 1)
+    if var <= 0.0:
+        return 0.0 if gain <= 0.0 else float("inf")
+    return gain / var

@@ -170,3 +170,46 @@ def test_polish_converges_from_a_nearby_start():
     res = polish(ev, np.array([11.0, 45.0]))
     np.testing.assert_allclose(res.x, sp.nominal, rtol=1e-6)
     assert 0 < res.n_evaluations <= 400 and res.cost < 1e-12
+
+
+def test_predicted_chi2_decrease_is_the_exact_drop_of_a_linear_fit():
+    """For a linear model the Gauss-Newton prediction is exact: compare with the fitted χ² drop."""
+    from identification.polish import predicted_chi2_decrease
+
+    rng = np.random.default_rng(3)
+    J = rng.normal(size=(200, 3))
+    r = rng.normal(size=200)
+    s = np.full(3, 0.5)
+    beta, *_ = np.linalg.lstsq(J, -r, rcond=None)
+    drop = r @ r - (r + J @ beta) @ (r + J @ beta)
+    var = (r @ r) / (200 - 3)
+    assert predicted_chi2_decrease(J, r, s) == pytest.approx(drop / var, rel=1e-12)
+    # an unknown on its bound that the gradient pushes outwards is held; the drop is that of the others
+    g = J.T @ r
+    s_held = s.copy()
+    s_held[0] = 0.0 if g[0] > 0 else 1.0
+    beta2, *_ = np.linalg.lstsq(J[:, 1:], -r, rcond=None)
+    drop2 = r @ r - (r + J[:, 1:] @ beta2) @ (r + J[:, 1:] @ beta2)
+    assert predicted_chi2_decrease(J, r, s_held) == pytest.approx(drop2 / var, rel=1e-12)
+    assert predicted_chi2_decrease(J, np.zeros(200), s) == 0.0
+
+
+def test_polish_stops_once_the_data_cannot_tell_the_remaining_step_apart():
+    """On noisy data the polish ends within the stated χ² resolution of the optimum, not at round-off."""
+    from identification.polish import CHI2_RESOLUTION, ResidualEvaluator, polish
+
+    cfg = seed_like(c=0.4)
+    u, y = synthetic(cfg, n=800, noise=0.0)
+    y = y + np.random.default_rng(5).normal(scale=0.02 * np.std(y, axis=0), size=y.shape)
+    sp = parameter_space(cfg)
+    ev = NativeEvaluator(cfg, sp, experiments_from_arrays([("e", u, y)]))
+    res = polish(ev, np.array([11.0, 45.0]))
+    full = polish(ev, np.array([11.0, 45.0]), chi2_resolution=0.0)  # on to least_squares' round-off tests
+    assert res.success and res.message.startswith("converged")
+    assert not full.message.startswith("converged")
+    r = ResidualEvaluator(ev).residuals(res.x)
+    var = (r @ r) / (r.size - sp.dim)
+    chi2_left = (res.cost - full.cost) / var  # what the early stop left on the table, in χ² units
+    print(f"\nstop after {res.n_evaluations} evaluations (vs {full.n_evaluations}); chi2 left {chi2_left:.2e}")
+    assert -1e-9 <= chi2_left < CHI2_RESOLUTION
+    assert res.n_evaluations < full.n_evaluations
