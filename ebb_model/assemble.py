@@ -96,7 +96,7 @@ def assemble_modal(config: BeamConfig, params: Mapping[str, float] | None = None
     mode's contribution to an output is formed separately, instead of
     cancelling large nodal terms (acceleration outputs with sub-steps have
     ``C`` entries ~1e8 summing to outputs ~1e2 in nodal coordinates).  This is
-    what the FMU iterates.
+    what the FMU iterates (rebuilt for every new parameter set).
 
     Parameters
     ----------
