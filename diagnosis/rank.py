@@ -27,13 +27,14 @@ the fit windows, from the best of the score's step and a coarse grid of the
 effect.  When that local refit leaves more than 10 % of the fit windows'
 excess unexplained, the baseline may sit in a basin that only suited the
 model without the effect: the refit is repeated from the other basins of the
-baseline's global search, and by *continuation in the record length* — a
-global search (differential evolution) over the baseline unknowns and the
-effect together on the first :data:`CONTINUATION` fraction of every fit
-window, where a few-per-cent frequency error costs a fraction of a cycle
-instead of whole cycles, followed by local fits on ever longer windows.  The
-fit with the lowest residual on the whole fit windows is kept.  Each refit
-gets BIC/AIC (``n ln(RSS/n) + k ln n``) and its gap ratio
+baseline's global search.  When still no shortlisted effect explains the gap,
+each is refitted once more by *continuation in the record length*: a global
+search (differential evolution) over the baseline unknowns and the effect
+together on the first :data:`CONTINUATION` fraction of every fit window, where
+a few-per-cent frequency error costs a fraction of a cycle instead of whole
+cycles, followed by local fits on ever longer windows.  The fit with the
+lowest residual on the whole fit windows is kept.  Each refit gets BIC/AIC
+(``n ln(RSS/n) + k ln n``) and its gap ratio
 on the held-out windows.  Effects are ranked by held-out error among those
 whose BIC improves by more than :data:`BIC_MARGIN` (an extra parameter must
 pay for itself).  The verdict is ``none`` when the baseline's held-out gap is
@@ -199,6 +200,12 @@ def _best_start(problem: GapProblem, baseline: Fit, effect: Effect, score: Effec
     return min(candidates, key=rss)
 
 
+def _explains(fit: Fit, baseline: Fit) -> bool:
+    """Whether ``fit`` leaves at most 10 % of the baseline's excess over the noise floor on the fit windows."""
+    excess_before = baseline.rss / baseline.n - 1.0
+    return excess_before <= GAP_THRESHOLD or fit.rss / fit.n - 1.0 <= 0.1 * excess_before
+
+
 def _continuation_fit(problem: GapProblem, starts: list[tuple[np.ndarray, np.ndarray]], effect: Effect,
                       max_evaluations: int) -> tuple[Fit, int]:
     """Refit by continuation in the record length (see the module docstring); the best fit and evaluations used."""
@@ -217,41 +224,43 @@ def _continuation_fit(problem: GapProblem, starts: list[tuple[np.ndarray, np.nda
     return best, used
 
 
-def refit_effect(problem: GapProblem, baseline: Fit, heldout_before: np.ndarray, effect: Effect,
-                 score: EffectScore, *, max_evaluations: int = 300) -> EffectRefit:
-    """Refit the baseline unknowns and ``effect`` from the score's start; held-out error after.
+def _local_refit(problem: GapProblem, baseline: Fit, effect: Effect, score: EffectScore, max_evaluations: int
+                 ) -> tuple[Fit, list[tuple[np.ndarray, np.ndarray]]]:
+    """Refit from the score's start and, if that leaves the gap, from the baseline's other basins.
 
-    Falls back on the other basins of the baseline and on the continuation in
-    the record length when the local refit leaves more than 10 % of the fit
-    windows' excess unexplained (module docstring).
+    Returns the best fit (its ``n_evaluations`` counting every fit) and the
+    starts tried after the first refit's optimum (for a continuation refit).
     """
     fit = problem.fit(baseline.beta, effect, _best_start(problem, baseline, effect, score),
                       max_evaluations=max_evaluations)
-    excess_before = baseline.rss / baseline.n - 1.0
-
-    def unexplained(f: Fit) -> bool:
-        return excess_before > GAP_THRESHOLD and f.rss / f.n - 1.0 > 0.1 * excess_before
-
-    if unexplained(fit):
+    starts: list[tuple[np.ndarray, np.ndarray]] = []
+    if not _explains(fit, baseline):
         # the baseline unknowns may sit in a basin that only suited the model without the effect
         used = fit.n_evaluations
-        starts = [(fit.beta, fit.s)]
+        starts.append((fit.beta, fit.s))
         for beta_alt in problem.other_starts:
-            base_alt = replace(baseline, beta=beta_alt)
-            s_alt = _best_start(problem, base_alt, effect, score)
+            s_alt = _best_start(problem, replace(baseline, beta=beta_alt), effect, score)
             starts.append((beta_alt, s_alt))
             alt = problem.fit(beta_alt, effect, s_alt, max_evaluations=max_evaluations)
             used += alt.n_evaluations
             if alt.rss < fit.rss:
                 fit = alt
-        if unexplained(fit):
-            best = (fit.beta, fit.s)
-            others = [st for st in starts if not (np.array_equal(st[0], best[0]) and np.array_equal(st[1], best[1]))]
-            cont, n_cont = _continuation_fit(problem, [best, *others], effect, max_evaluations)
-            used += n_cont
-            if cont.rss < fit.rss:
-                fit = cont
         fit = replace(fit, n_evaluations=used)
+    return fit, starts
+
+
+def _continued(problem: GapProblem, fit: Fit, starts: list[tuple[np.ndarray, np.ndarray]], effect: Effect,
+               max_evaluations: int) -> Fit:
+    """``fit``, or the continuation refit from it and ``starts`` when that fits the whole windows better."""
+    others = [st for st in starts if not (np.array_equal(st[0], fit.beta) and np.array_equal(st[1], fit.s))]
+    cont, used = _continuation_fit(problem, [(fit.beta, fit.s), *others], effect, max_evaluations)
+    best = cont if cont.rss < fit.rss else fit
+    return replace(best, n_evaluations=fit.n_evaluations + used)
+
+
+def _summarise(problem: GapProblem, baseline: Fit, heldout_before: np.ndarray, effect: Effect, fit: Fit
+               ) -> EffectRefit:
+    """Held-out error, % closed and information criteria of an effect's refit."""
     p = problem.space.dim
     after, _ = problem.heldout(fit.beta, effect, fit.s)
     b_excess = heldout_before - 1.0
@@ -263,6 +272,20 @@ def refit_effect(problem: GapProblem, baseline: Fit, heldout_before: np.ndarray,
     aic = fit.aic(p + effect.dim)
     return EffectRefit(effect.label, fit, effect.physical(fit.s), bic, aic,
                        bic - baseline.bic(p), aic - baseline.aic(p), after, float(closed), per)
+
+
+def refit_effect(problem: GapProblem, baseline: Fit, heldout_before: np.ndarray, effect: Effect,
+                 score: EffectScore, *, max_evaluations: int = 300, continuation: bool = True) -> EffectRefit:
+    """Refit the baseline unknowns and ``effect`` from the score's start; held-out error after.
+
+    Falls back on the other basins of the baseline and (``continuation``) on
+    the continuation in the record length when the local refit leaves more
+    than 10 % of the fit windows' excess unexplained (module docstring).
+    """
+    fit, starts = _local_refit(problem, baseline, effect, score, max_evaluations)
+    if continuation and not _explains(fit, baseline):
+        fit = _continued(problem, fit, starts, effect, max_evaluations)
+    return _summarise(problem, baseline, heldout_before, effect, fit)
 
 
 def rank_effects(problem: GapProblem, baseline: Fit, effects: tuple[Effect, ...], *, shortlist: int = 4,
@@ -296,12 +319,13 @@ def rank_effects(problem: GapProblem, baseline: Fit, effects: tuple[Effect, ...]
         say(f"score {e.label}: {scores[e.label].lm:.4g}")
     by_score = sorted(effects, key=lambda e: -scores[e.label].lm)
     chosen = [e for e in by_score if scores[e.label].lm > 0][:shortlist]
-    refits = {}
-    for e in chosen:
-        refits[e.label] = refit_effect(problem, baseline, before, e, scores[e.label],
-                                       max_evaluations=max_evaluations)
-        rf = refits[e.label]
-        say(f"refit {e.label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
+    local = {e.label: _local_refit(problem, baseline, e, scores[e.label], max_evaluations) for e in chosen}
+    if not any(_explains(fit, baseline) for fit, _ in local.values()):
+        # no local refit explains the gap: the continuation refit for each (module docstring)
+        local = {e.label: (_continued(problem, *local[e.label], e, max_evaluations), []) for e in chosen}
+    refits = {e.label: _summarise(problem, baseline, before, e, local[e.label][0]) for e in chosen}
+    for label, rf in refits.items():
+        say(f"refit {label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
             f"dBIC {rf.delta_bic:.1f}")
     paying = [lab for lab, rf in refits.items()
               if rf.delta_bic < -BIC_MARGIN and np.mean(rf.heldout_after) < np.mean(before)]
