@@ -13,6 +13,7 @@ residual of a window, 1 at the noise floor.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -198,8 +199,6 @@ class GapProblem:
         population that lie apart from each other (> 0.15 of the bounds in some
         unknown) are returned as further starts, up to ``n_basins`` in all.
         """
-        from scipy.optimize import differential_evolution
-
         lo, hi = np.asarray(self.space.lower, float), np.asarray(self.space.upper, float)
         span = hi - lo
 
@@ -208,8 +207,7 @@ class GapProblem:
             return float(r @ r)
 
         x0 = np.clip((np.asarray(beta0, float) - lo) / span, 0.0, 1.0)
-        res = differential_evolution(cost, [(0.0, 1.0)] * lo.size, x0=x0, popsize=popsize, maxiter=maxiter,
-                                     tol=1e-8, seed=seed, polish=False, init="sobol")
+        res = _evolve(cost, x0, seed=seed, maxiter=maxiter, popsize=popsize)
         picks = [res.x if res.fun <= cost(x0) else x0]
         for i in np.argsort(res.population_energies):
             cand = res.population[i]
@@ -240,8 +238,6 @@ class GapProblem:
         evaluations used.  Meant for a :meth:`truncated` problem, where it is
         cheap and the cost has few basins.
         """
-        from scipy.optimize import differential_evolution
-
         lo = np.concatenate([np.asarray(self.space.lower, float), np.asarray(effect.lower, float)])
         hi = np.concatenate([np.asarray(self.space.upper, float), np.asarray(effect.upper, float)])
         span = hi - lo
@@ -253,9 +249,7 @@ class GapProblem:
             return float(r @ r)
 
         z0 = np.concatenate([np.asarray(beta0, float), np.asarray(s0, float)])
-        x0 = np.clip((z0 - lo) / span, 0.0, 1.0)
-        res = differential_evolution(cost, [(0.0, 1.0)] * lo.size, x0=x0, popsize=popsize, maxiter=maxiter,
-                                     tol=1e-8, seed=seed, polish=False, init="sobol")
+        res = _evolve(cost, np.clip((z0 - lo) / span, 0.0, 1.0), seed=seed, maxiter=maxiter, popsize=popsize)
         z = lo + res.x * span
         return z[:p], z[p:], int(res.nfev)
 
@@ -280,3 +274,10 @@ class GapProblem:
             J[:, j] = (self.residuals(beta, effect, s1) - r0) / (sign * step)
         return J
 
+
+def _evolve(cost: Any, x0: np.ndarray, *, seed: int, maxiter: int, popsize: int) -> Any:
+    """Differential evolution of ``cost`` over the unit cube, seeded with ``x0`` (no polish)."""
+    from scipy.optimize import differential_evolution
+
+    return differential_evolution(cost, [(0.0, 1.0)] * x0.size, x0=x0, popsize=popsize, maxiter=maxiter,
+                                  tol=1e-8, seed=seed, polish=False, init="sobol")
