@@ -56,7 +56,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--fmu-outputs", nargs="+", default=None, help="FMU output names, one per sensor")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", type=int, default=1, help="local worker processes")
-    g.add_argument("--dask", default=None, metavar="ADDRESS", help="Dask scheduler address")
+    g.add_argument("--dask", default=None, metavar="ADDRESS",
+                   help="Dask scheduler address, or local:K for a local cluster of K worker processes set up "
+                        "for model evaluations (profiler off, slower health checks)")
     p.add_argument("--pop", type=int, default=40, help="population size")
     p.add_argument("--generations", type=int, default=30, help="generations")
     p.add_argument("--seed", type=int, default=1, help="random seed")

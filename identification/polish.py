@@ -129,7 +129,7 @@ class ResidualEvaluator:
 
 
 def polish(evaluator: Any, x0: np.ndarray, *, runner: Runner | None = None, max_evaluations: int = 400,
-           xtol: float = 1e-10, ftol: float = 1e-12, diff_step: float = 1e-6,
+           xtol: float = 1e-10, ftol: float = 1e-12, diff_step: float = 1e-5,
            chi2_resolution: float = CHI2_RESOLUTION) -> PolishResult:
     """Least-squares refinement of candidate ``x0``.
 

@@ -192,6 +192,10 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     sensors) or one built from the config.  The Fisher information always
     uses the native model.
 
+    ``workers = K`` evaluates on ``K`` local processes; ``dask`` on a Dask
+    cluster: a scheduler address, or ``"local:K"`` for a local cluster
+    started (and closed) for this run (:mod:`identification.cluster`).
+
     ``polish = K`` refines the ``K`` Pareto points nearest the knee (knee
     first) with bounded least squares on the search backend and workers, at
     most ``polish_evaluations`` residual evaluations each (their Jacobians
@@ -211,6 +215,10 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         raise ConfigError(f"--algorithm: unknown {algorithm!r}; allowed: {', '.join(ALGORITHMS)}")
     if workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {workers}")
+    if dask is not None:
+        from .cluster import parse_local_address
+
+        parse_local_address(dask)  # a malformed local:K fails here, before anything is written
     if isinstance(polish, bool) or not isinstance(polish, (int, np.integer)) or polish < 0:
         raise ConfigError(f"--polish must be an integer >= 0, got {polish!r}")
     if isinstance(polish_evaluations, bool) or not isinstance(polish_evaluations, (int, np.integer)) \

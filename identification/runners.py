@@ -91,13 +91,34 @@ class ProcessRunner(Runner):
 
 
 class DaskRunner(Runner):
-    """Evaluate chunks on a Dask distributed cluster at ``address`` (or a given ``Client``)."""
+    """Evaluate chunks on a Dask distributed cluster.
+
+    Parameters
+    ----------
+    address
+        A scheduler address, ``"local:K"`` — a local cluster of ``K``
+        single-threaded worker processes with the low-overhead settings of
+        :func:`identification.cluster.local_cluster`, started here and closed
+        with the runner — or a connected ``distributed.Client`` (left open).
+    """
 
     def __init__(self, address: str | Any):
         from distributed import Client
 
+        from .cluster import local_cluster, parse_local_address
+
         self._own = isinstance(address, str)
-        self.client = Client(address) if self._own else address
+        self._cluster = None
+        n_local = parse_local_address(address) if self._own else None
+        if n_local is not None:
+            self._cluster = local_cluster(n_local)
+            address = self._cluster.scheduler_address
+        try:
+            self.client = Client(address) if self._own else address
+        except BaseException:
+            if self._cluster is not None:
+                self._cluster.close()
+            raise
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
         self._scattered: tuple[Any, Any] | None = None  # (evaluator, its future on the workers)
         self._to_close: list[Any] = []  # evaluators with per-worker resources
@@ -119,11 +140,15 @@ class DaskRunner(Runner):
         finally:
             self._to_close.clear()
             if self._own:
-                self.client.close()
+                try:
+                    self.client.close()
+                finally:
+                    if self._cluster is not None:
+                        self._cluster.close()
 
 
 def make_runner(*, workers: int = 1, dask: str | None = None) -> Runner:
-    """The runner for ``--workers K`` or ``--dask ADDRESS``."""
+    """The runner for ``--workers K`` or ``--dask ADDRESS`` (a scheduler address or ``local:K``)."""
     if dask:
         return DaskRunner(dask)
     if workers > 1:

@@ -69,7 +69,8 @@ def test_identify_writes_results_and_exports(case, capsys):
     assert list(sys0.output_labels) == ["y1", "y2"] and sys0.dt == 1e-4
 
 
-@pytest.mark.parametrize("case_name", ["nan data", "missing column", "bad bounds", "wrong dt", "not empty"])
+@pytest.mark.parametrize("case_name", ["nan data", "missing column", "bad bounds", "wrong dt", "not empty",
+                                       "bad local cluster"])
 def test_identify_bad_input_exit_2_no_result_dir(case, case_name, capsys):
     cfg, data, tmp = case
     out = tmp / "out"
@@ -86,10 +87,14 @@ def test_identify_bad_input_exit_2_no_result_dir(case, case_name, capsys):
     elif case_name == "not empty":
         out.mkdir()
         (out / "something").write_text("x")
+    extra = ["--dask", "local:0"] if case_name == "bad local cluster" else []
     rc = main(["identify", str(cfg), str(data), "--out", str(out), "--pop", "8", "--generations", "2",
-               "--no-progress"])
+               "--no-progress", *extra])
     assert rc == 2
-    assert "error" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "error" in err
+    if extra:
+        assert "local:K" in err
     if case_name != "not empty":
         assert not out.exists()
 
@@ -183,3 +188,15 @@ def test_identify_polish_writes_polished_points_and_exports_them(case, capsys):
     assert (out / "export" / "polished_0.fmu").is_file()
     assert not (out / "export" / "point_0.npz").exists()  # only the selection
     assert main(["export", str(out), "--polished", "5"]) == 2  # out of range: clear error
+
+
+def test_identify_on_a_local_dask_cluster_gives_the_serial_front(case):
+    """``--dask local:2`` starts its own low-overhead cluster, evaluates there and closes it: same front."""
+    cfg, data, tmp = case
+    args = ["--pop", "6", "--generations", "2", "--no-progress", "--no-export", "--seed", "3"]
+    assert main(["identify", str(cfg), str(data), "--out", str(tmp / "s"), *args]) == 0
+    assert main(["identify", str(cfg), str(data), "--out", str(tmp / "d"), "--dask", "local:2", *args]) == 0
+    a = json.loads((tmp / "s" / "pareto.json").read_text())
+    b = json.loads((tmp / "d" / "pareto.json").read_text())
+    assert [p["parameters"] for p in a["points"]] == [p["parameters"] for p in b["points"]]
+    assert [p["objectives"] for p in a["points"]] == [p["objectives"] for p in b["points"]]

@@ -43,6 +43,52 @@ def test_dask_local_cluster_equals_serial(evaluator_and_population):
             np.testing.assert_array_equal(r(ev, X[:3]), ref[:3])
 
 
+def _dask_settings() -> dict:
+    import dask
+
+    from identification.cluster import LOW_OVERHEAD
+
+    return {k: dask.config.get(k) for k in LOW_OVERHEAD}
+
+
+def test_local_dask_cluster_runs_with_low_overhead_settings_and_closes(evaluator_and_population):
+    """``local:K``: K single-threaded workers with the profiler off and slow health checks; closed with the runner."""
+    import dask
+
+    from identification.cluster import LOW_OVERHEAD
+
+    ev, X = evaluator_and_population
+    ref = SerialRunner()(ev, X)
+    before = dask.config.get("distributed.worker.profile.enabled")
+    with DaskRunner("local:2") as r:
+        assert r.workers == 2
+        info = r.client.scheduler_info()["workers"]
+        assert sorted(w["nthreads"] for w in info.values()) == [1, 1]
+        for settings in r.client.run(_dask_settings).values():
+            assert settings == LOW_OVERHEAD
+        np.testing.assert_array_equal(r(ev, X), ref)
+        cluster = r._cluster
+    assert cluster.status.name == "closed"
+    assert dask.config.get("distributed.worker.profile.enabled") == before  # the caller's settings untouched
+
+
+@pytest.mark.parametrize("address", ["local:0", "local:", "local:two", "local:-1", "local"])
+def test_bad_local_cluster_address_is_a_config_error(address):
+    from ebb_model.errors import ConfigError
+    from identification.cluster import parse_local_address
+
+    with pytest.raises(ConfigError, match="local:K"):
+        parse_local_address(address)
+
+
+def test_scheduler_addresses_are_not_local_clusters():
+    from identification.cluster import parse_local_address
+
+    assert parse_local_address("tcp://127.0.0.1:8786") is None
+    assert parse_local_address("127.0.0.1:8786") is None
+    assert parse_local_address("localhost:8786") is None
+
+
 class _CountingEvaluator:
     """Test wrapper: the native evaluator, counting its simulations (serial use only)."""
 
