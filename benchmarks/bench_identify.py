@@ -22,9 +22,12 @@ Configurations:
 (a) native backend, 2 local worker processes (target ≤ 3000 evaluations, ≤ 30 s);
 (b) FMU backend (fmpy, the FMU built from the config once, outside the timing),
     2 local worker processes;
-(c) FMU backend on a Dask ``LocalCluster`` with 1 and with 2 single-threaded
-    worker processes — the same seeded run, so the same candidates — and the
-    speed-up of the search time (target ≥ 1.7×).  The clusters are started
+(c) FMU backend on Dask with 1 and with 2 single-threaded worker processes —
+    the same seeded run, so the same candidates — and the speed-up of the
+    search time (target ≥ 1.7×), on two kinds of cluster (``--cluster``):
+    a ``LocalCluster`` with Dask's default settings, and the tool's own local
+    cluster (``--dask local:K``, :func:`identification.cluster.local_cluster`:
+    worker profiler off, slower health checks).  The clusters are started
     before timing and reused across repeats.
 
 Medians over ``--repeats`` runs.  BLAS is limited to one thread.  The machine
@@ -34,7 +37,7 @@ machine, other processes take cores from the workers.
 Usage::
 
     python benchmarks/bench_identify.py [--repeats 3] [--pop 24] [--generations 10]
-        [--fmu-repeats 1] [--parts abc] [--json out.json]
+        [--fmu-repeats 1] [--parts abc] [--cluster both|defaults|local] [--json out.json]
 """
 from __future__ import annotations
 
@@ -140,6 +143,47 @@ def _load() -> str:
     return " ".join(f"{v:.2f}" for v in os.getloadavg())
 
 
+#: The clusters of configuration (c).
+CLUSTERS = {"defaults": "LocalCluster with Dask's default settings",
+            "local": "the tool's local cluster (--dask local:K: profiler off, slower health checks)"}
+
+
+def _dask_runs(setup: str, data: Path, work: Path, names: tuple[str, ...], fmu: Path, repeats: int,
+               common: dict[str, Any]) -> dict[int, list[RunRecord]]:
+    """Alternating runs (1, 2, 1, 2, ...) on a 1-worker and a 2-worker cluster of ``setup``, both started first."""
+    import distributed
+
+    from identification.cluster import local_cluster
+
+    def start(n: int) -> Any:
+        directory = str(work / f"dask-{setup}-{n}")
+        if setup == "local":
+            return local_cluster(n, local_directory=directory)
+        return distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                                        local_directory=directory)
+
+    by_workers: dict[int, list[RunRecord]] = {1: [], 2: []}
+    clusters: dict[int, Any] = {}
+    try:
+        for n in (1, 2):
+            clusters[n] = start(n)
+        clients = {n: distributed.Client(c.scheduler_address) for n, c in clusters.items()}
+        try:
+            # both clusters up before timing; alternating runs see the same (changing) machine load
+            for _ in range(repeats):
+                for n_workers in (1, 2):
+                    by_workers[n_workers].append(run_once(
+                        f"fmu, dask {n_workers}, {setup}", data, work, names, client=clients[n_workers],
+                        backend="fmu", fmu=fmu, **common))
+        finally:
+            for c in clients.values():
+                c.close()
+    finally:
+        for c in clusters.values():
+            c.close()
+    return by_workers
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3, help="repeats of (a) and of each Dask run in (c)")
@@ -149,6 +193,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--polish", type=int, default=1)
     ap.add_argument("--seed", type=int, default=2)
     ap.add_argument("--parts", default="abc", help="which configurations to run, e.g. 'a' or 'ac' (default abc)")
+    ap.add_argument("--cluster", default="both", choices=("defaults", "local", "both"),
+                    help="Dask clusters of (c): a LocalCluster with Dask's defaults, the tool's own local cluster "
+                         "(--dask local:K), or both (default)")
     ap.add_argument("--json", default=None, help="also write the records here")
     args = ap.parse_args(argv)
 
@@ -173,7 +220,7 @@ def main(argv: list[str] | None = None) -> int:
                     for _ in range(args.repeats)]
             rows.append(("(a) native, 2 processes", recs))
             records += recs
-        speedup = None
+        speedups: dict[str, tuple[float | None, float | None, float | None]] = {}
         if "b" in args.parts or "c" in args.parts:
             from fmu_build import build_fmu
 
@@ -186,42 +233,23 @@ def main(argv: list[str] | None = None) -> int:
                 rows.append(("(b) FMU, 2 processes", recs))
                 records += recs
             if "c" in args.parts:
-                import distributed
-
-                # both clusters up before timing; runs alternate 1, 2, 1, 2, ... so that both see
-                # the same (changing) machine load
-                by_workers: dict[int, list[RunRecord]] = {1: [], 2: []}
-                clusters = {n: distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                                        dashboard_address=None,
-                                                        local_directory=str(work / f"dask{n}"))
-                            for n in (1, 2)}
-                try:
-                    clients = {n: distributed.Client(c.scheduler_address) for n, c in clusters.items()}
-                    for _ in range(args.repeats):
-                        for n_workers in (1, 2):
-                            by_workers[n_workers].append(run_once(
-                                f"fmu, dask {n_workers}", data, work, names, client=clients[n_workers],
-                                backend="fmu", fmu=fmu, **common))
-                    for c in clients.values():
-                        c.close()
-                finally:
-                    for c in clusters.values():
-                        c.close()
-                for n_workers in (1, 2):
-                    recs = by_workers[n_workers]
-                    rows.append((f"(c) FMU, Dask {n_workers} worker{'s' if n_workers > 1 else ''}", recs))
-                    records += recs
-                t1 = _median([r.search_seconds for r in by_workers[1]])
-                t2 = _median([r.search_seconds for r in by_workers[2]])
-                speedup = t1 / t2 if t1 and t2 else None
-                g1 = _median([r.ga_seconds for r in by_workers[1]])
-                g2 = _median([r.ga_seconds for r in by_workers[2]])
-                p1 = _median([r.search_seconds - r.ga_seconds for r in by_workers[1]])
-                p2 = _median([r.search_seconds - r.ga_seconds for r in by_workers[2]])
-                phases = (g1 / g2 if g1 and g2 else None, p1 / p2 if p1 and p2 else None)
+                for setup in (["defaults", "local"] if args.cluster == "both" else [args.cluster]):
+                    by_workers = _dask_runs(setup, data, work, names, fmu, args.repeats, common)
+                    for n_workers in (1, 2):
+                        recs = by_workers[n_workers]
+                        rows.append((f"(c) FMU, Dask {n_workers} worker{'s' if n_workers > 1 else ''}, {setup}", recs))
+                        records += recs
+                    t1 = _median([r.search_seconds for r in by_workers[1]])
+                    t2 = _median([r.search_seconds for r in by_workers[2]])
+                    g1 = _median([r.ga_seconds for r in by_workers[1]])
+                    g2 = _median([r.ga_seconds for r in by_workers[2]])
+                    p1 = _median([r.search_seconds - r.ga_seconds for r in by_workers[1]])
+                    p2 = _median([r.search_seconds - r.ga_seconds for r in by_workers[2]])
+                    speedups[setup] = (t1 / t2 if t1 and t2 else None, g1 / g2 if g1 and g2 else None,
+                                       p1 / p2 if p1 and p2 else None)
         print(f"load average after: {_load()}")
         print()
-        head = (f"{'configuration':28s} {'runs':>4s} {'evals to 1 %':>12s} {'s to 1 %':>9s} {'reached at':>12s} "
+        head = (f"{'configuration':38s} {'runs':>4s} {'evals to 1 %':>12s} {'s to 1 %':>9s} {'reached at':>12s} "
                 f"{'search evals':>12s} {'search s':>9s}  final errors % (EI, rhoA, c, N)")
         print(head)
         print("-" * len(head))
@@ -234,7 +262,7 @@ def main(argv: list[str] | None = None) -> int:
             if base is None:
                 base = ss
             errs = ", ".join(f"{recs[-1].errors_percent[n]:+.3f}" for n in names)
-            print(f"{label:28s} {len(recs):4d} {_fmt(ev, '12.0f')} {_fmt(ts, '9.2f')} "
+            print(f"{label:38s} {len(recs):4d} {_fmt(ev, '12.0f')} {_fmt(ts, '9.2f')} "
                   f"{(recs[-1].stage_at_target or 'never'):>12s} {_fmt(se, '12.0f')} {_fmt(ss, '9.2f')}  {errs}")
         print()
         for label, recs in rows:
@@ -243,11 +271,11 @@ def main(argv: list[str] | None = None) -> int:
                               + ("" if r.worker_cpu_share is None else
                                  f" (workers' CPU {100 * r.worker_cpu_share:.0f} % of their cores)")
                               for r in recs))
-        if speedup is not None:
-            print(f"Dask speed-up, FMU backend, 2 workers vs 1 (median search time): {speedup:.2f}x (target >= 1.7x); "
-                  f"GA phase (start-up included) {_fmt(phases[0], '.2f')}x, polish phase {_fmt(phases[1], '.2f')}x "
-                  "(forward-difference polish of 4 unknowns: 1 + 4 evaluations per iteration, at best 5/3 = "
-                  "1.67x on 2 workers)")
+        for setup, (speedup, ga, pol) in speedups.items():
+            print(f"Dask speed-up, FMU backend, 2 workers vs 1 (median search time), {CLUSTERS[setup]}: "
+                  f"{_fmt(speedup, '.2f')}x (target >= 1.7x); GA phase (start-up included) {_fmt(ga, '.2f')}x, "
+                  f"polish phase {_fmt(pol, '.2f')}x (forward-difference polish of 4 unknowns: 1 + 4 evaluations "
+                  "per iteration, at best 5/3 = 1.67x on 2 workers)")
         if "a" in args.parts:
             a = rows[0][1]
             ev_a, t_a = _median([r.evaluations_to_target for r in a]), _median([r.seconds_to_target for r in a])
@@ -255,7 +283,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"(a) target <= 3000 evaluations and <= 30 s: {'met' if ok else 'NOT met'}")
         if args.json:
             Path(args.json).write_text(json.dumps({"records": [asdict(r) for r in records],
-                                                   "dask_speedup": speedup, "load_after": _load()}, indent=2))
+                                                   "dask_speedup": {k: v[0] for k, v in speedups.items()},
+                                                   "load_after": _load()}, indent=2))
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return 0

@@ -72,6 +72,34 @@ def test_local_dask_cluster_runs_with_low_overhead_settings_and_closes(evaluator
     assert dask.config.get("distributed.worker.profile.enabled") == before  # the caller's settings untouched
 
 
+def test_low_overhead_settings_are_dask_settings_and_the_readme_says_the_same():
+    """Dask accepts unknown keys silently: every setting must be one of distributed's own; the README's YAML
+    block for hand-started clusters must give exactly these values."""
+    import re
+    from pathlib import Path
+
+    import dask
+    import distributed  # noqa: F401 - registers distributed's defaults
+    import yaml
+
+    from identification.cluster import LOW_OVERHEAD
+
+    sentinel = object()
+    for key in LOW_OVERHEAD:
+        assert dask.config.get(key, default=sentinel) is not sentinel, key
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    block = re.search(r"```yaml\n(.*?)```", readme, re.S)
+    assert block is not None
+    flat: dict = {}
+
+    def walk(d: dict, prefix: str) -> None:
+        for k, v in d.items():
+            walk(v, f"{prefix}{k}.") if isinstance(v, dict) else flat.__setitem__(prefix + k, v)
+
+    walk(yaml.safe_load(block.group(1)), "")
+    assert flat == LOW_OVERHEAD
+
+
 @pytest.mark.parametrize("address", ["local:0", "local:", "local:two", "local:-1", "local"])
 def test_bad_local_cluster_address_is_a_config_error(address):
     from ebb_model.errors import ConfigError
