@@ -201,7 +201,7 @@ def test_polish_difference_step_is_accurate_and_its_chi2_stop_ends_the_fit(case)
     """The polish's default forward-difference Jacobian against a central-difference reference (another formula,
     ten times the step), and the χ² stop ending the fit on this record.
 
-    With a 1e-6 step the model's round-off (eigen-decomposition, cond K ≈ 1e9) made the EI, ρA and N columns
+    With a 1e-6 step the model's round-off (eigen-decomposition, cond K ≈ 4e7) made the EI, ρA and N columns
     0.2–0.9 % wrong; the Gauss–Newton prediction then never fell below the χ² threshold and least squares ran on
     through rejected steps until ``xtol``.
     """
