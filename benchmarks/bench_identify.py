@@ -135,6 +135,13 @@ def _median(values: list[float | None]) -> float | None:
     return statistics.median(vals) if len(vals) == len(values) and vals else None
 
 
+def _speedup(by_workers: dict[int, list[RunRecord]], seconds: Any) -> float | None:
+    """Median ``seconds(run)`` on 1 worker over the median on 2 workers."""
+    t1 = _median([seconds(r) for r in by_workers[1]])
+    t2 = _median([seconds(r) for r in by_workers[2]])
+    return t1 / t2 if t1 and t2 else None
+
+
 def _fmt(v: float | None, spec: str) -> str:
     return "—" if v is None else format(v, spec)
 
@@ -239,14 +246,8 @@ def main(argv: list[str] | None = None) -> int:
                         recs = by_workers[n_workers]
                         rows.append((f"(c) FMU, Dask {n_workers} worker{'s' if n_workers > 1 else ''}, {setup}", recs))
                         records += recs
-                    t1 = _median([r.search_seconds for r in by_workers[1]])
-                    t2 = _median([r.search_seconds for r in by_workers[2]])
-                    g1 = _median([r.ga_seconds for r in by_workers[1]])
-                    g2 = _median([r.ga_seconds for r in by_workers[2]])
-                    p1 = _median([r.search_seconds - r.ga_seconds for r in by_workers[1]])
-                    p2 = _median([r.search_seconds - r.ga_seconds for r in by_workers[2]])
-                    speedups[setup] = (t1 / t2 if t1 and t2 else None, g1 / g2 if g1 and g2 else None,
-                                       p1 / p2 if p1 and p2 else None)
+                    speedups[setup] = tuple(_speedup(by_workers, phase) for phase in (
+                        lambda r: r.search_seconds, lambda r: r.ga_seconds, lambda r: r.search_seconds - r.ga_seconds))
         print(f"load average after: {_load()}")
         print()
         head = (f"{'configuration':38s} {'runs':>4s} {'evals to 1 %':>12s} {'s to 1 %':>9s} {'reached at':>12s} "
