@@ -28,19 +28,20 @@ does so for the cluster it starts from ``"local:K"``.
 from __future__ import annotations
 
 import re
-from typing import Any
+from types import MappingProxyType
+from typing import Any, Mapping
 
 from ebb_model.errors import ConfigError
 
 __all__ = ["LOW_OVERHEAD", "local_cluster", "parse_local_address"]
 
-#: Dask settings of :func:`local_cluster` (see the module docstring for what each costs).
-LOW_OVERHEAD: dict[str, Any] = {
+#: Dask settings of :func:`local_cluster` (read-only; see the module docstring for what each costs).
+LOW_OVERHEAD: Mapping[str, Any] = MappingProxyType({
     "distributed.worker.profile.enabled": False,
     "distributed.admin.tick.interval": "500ms",
     "distributed.admin.system-monitor.interval": "2s",
     "distributed.worker.memory.monitor-interval": "1s",
-}
+})
 
 _LOCAL = re.compile(r"local:(\d+)")
 
@@ -82,7 +83,7 @@ def local_cluster(n_workers: int, *, local_directory: str | None = None) -> Any:
 
     if n_workers < 1:
         raise ConfigError(f"local cluster: n_workers must be >= 1, got {n_workers}")
-    with dask.config.set(LOW_OVERHEAD):
+    with dask.config.set(dict(LOW_OVERHEAD)):
         # the nannies hand this configuration to the worker processes they spawn
         return distributed.LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
                                         dashboard_address=None, local_directory=local_directory)

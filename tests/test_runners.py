@@ -65,7 +65,7 @@ def test_local_dask_cluster_runs_with_low_overhead_settings_and_closes(evaluator
         info = r.client.scheduler_info()["workers"]
         assert sorted(w["nthreads"] for w in info.values()) == [1, 1]
         for settings in r.client.run(_dask_settings).values():
-            assert settings == LOW_OVERHEAD
+            assert settings == dict(LOW_OVERHEAD)
         np.testing.assert_array_equal(r(ev, X), ref)
         cluster = r._cluster
     assert cluster.status.name == "closed"
@@ -94,10 +94,13 @@ def test_low_overhead_settings_are_dask_settings_and_the_readme_says_the_same():
 
     def walk(d: dict, prefix: str) -> None:
         for k, v in d.items():
-            walk(v, f"{prefix}{k}.") if isinstance(v, dict) else flat.__setitem__(prefix + k, v)
+            if isinstance(v, dict):
+                walk(v, f"{prefix}{k}.")
+            else:
+                flat[prefix + k] = v
 
     walk(yaml.safe_load(block.group(1)), "")
-    assert flat == LOW_OVERHEAD
+    assert flat == dict(LOW_OVERHEAD)
 
 
 @pytest.mark.parametrize("address", ["local:0", "local:", "local:two", "local:-1", "local"])
