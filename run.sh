@@ -2,22 +2,43 @@
 # One entry point for a fresh machine (Python 3.11, pip, gcc):
 #   bash run.sh demo   - the main job on the embedded default example
 #   bash run.sh test   - the test suite
+#   bash run.sh lock   - refresh requirements.lock (the exact versions installed by demo and test)
 # Each command creates/refreshes the virtual environment .venv first.
 set -euo pipefail
 cd "$(dirname "$0")"
 VENV="${EBB_VENV:-.venv}"
 PY="$VENV/bin/python"
 
+LOCK=requirements.lock
+
 setup() {
     if [ ! -x "$PY" ]; then
         python3 -m venv "$VENV"
     fi
     local stamp="$VENV/.ebb-installed"
-    if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
-        "$PY" -m pip install --quiet --upgrade pip
-        "$PY" -m pip install --quiet -e ".[test]"
+    if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ] || [ "$LOCK" -nt "$stamp" ]; then
+        # the exact versions the suite was last run with (pyproject.toml keeps the open lower bounds)
+        "$PY" -m pip install --quiet -c "$LOCK" pip
+        "$PY" -m pip install --quiet -c "$LOCK" -e ".[test]"
         touch "$stamp"
     fi
+}
+
+# Refresh the lock: resolve the newest versions allowed by pyproject.toml in a scratch environment.
+# Run the suite with the new lock before committing it (bash run.sh lock && bash run.sh test).
+lock() {
+    local tmp
+    tmp=$(mktemp -d)
+    python3 -m venv "$tmp/venv"
+    "$tmp/venv/bin/python" -m pip install --quiet --upgrade pip
+    "$tmp/venv/bin/python" -m pip install --quiet ".[test]"
+    {
+        echo "# Exact versions for 'bash run.sh demo|test' (pip constraints). Refresh: bash run.sh lock"
+        echo "# Python $("$tmp/venv/bin/python" -c 'import platform; print(platform.python_version())'), resolved $(date -u +%Y-%m-%d)"
+        "$tmp/venv/bin/python" -m pip freeze --all | grep -v -i -E '^(ebb-ident|setuptools|wheel)[=@ ]'
+    } > "$LOCK"
+    rm -rf "$tmp"
+    echo "wrote $LOCK"
 }
 
 cmd="${1:-}"
@@ -33,8 +54,11 @@ case "$cmd" in
         shift || true
         "$PY" -m pytest -q "$@"
         ;;
+    lock)
+        lock
+        ;;
     *)
-        echo "usage: bash run.sh demo|test [pytest args]" >&2
+        echo "usage: bash run.sh demo|test [pytest args]|lock" >&2
         exit 2
         ;;
 esac

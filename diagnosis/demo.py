@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ebb_model.errors import ConfigError
+from ebb_model.outdir import check_new_output_dir
 
 __all__ = ["DEMO_CONFIG", "run_demo"]
 
@@ -74,10 +74,8 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
     from .report import text_report
     from .run import diagnose
 
-    out = Path(out)
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise ConfigError(f"--out {out}: exists and is not an empty directory")
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_new_output_dir(out)
+    out.mkdir(exist_ok=True)
     say = print if progress else (lambda *_a, **_k: None)
     t0 = time.perf_counter()
     cfg_path = out / "config.toml"

@@ -27,6 +27,7 @@ from scipy.signal import welch
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError, DataError
 from ebb_model.jsonio import write_json
+from ebb_model.outdir import check_new_output_dir
 from ebb_model.modal import discrete_frequencies
 from ebb_model.assemble import field_config
 from ebb_model.simulate import fast_model, simulate
@@ -192,10 +193,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         raise ConfigError(f"--shortlist must be >= 1, got {shortlist}")
     out = Path(out_dir) if out_dir is not None else None
     if out is not None:
-        if out.exists() and (not out.is_dir() or any(out.iterdir())):
-            raise ConfigError(f"--out {out}: exists and is not an empty directory")
-        if not out.parent.is_dir():
-            raise ConfigError(f"--out {out}: parent directory does not exist")
+        check_new_output_dir(out)
     exps = read_data(cfg, data)
     held = read_data(cfg, holdout) if holdout else ()
     records = split_records([_ordered(cfg, e) for e in exps], [_ordered(cfg, e) for e in held],

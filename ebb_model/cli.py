@@ -152,18 +152,34 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``ebb`` console script; returns the exit code."""
+    import warnings
+
     from threadpoolctl import threadpool_limits
 
-    from .errors import EbbError
+    from .errors import DataWarning, EbbError, Interrupted
 
     parser = build_parser()
     args = parser.parse_args(argv)
+    prog = f"ebb {args.command}"
+
+    def one_line(message: Warning | str, category: type[Warning], *_a: Any, **_k: Any) -> None:
+        print(f"{prog}: warning: {message}", file=sys.stderr)
+
     try:
-        # the matrices are small: BLAS threads only add overhead (and thrash on 2 cores)
-        with threadpool_limits(limits=1, user_api="blas"):
-            return int(args.func(args) or 0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("always", DataWarning)
+            warnings.showwarning = one_line
+            # the matrices are small: BLAS threads only add overhead (and thrash on 2 cores)
+            with threadpool_limits(limits=1, user_api="blas"):
+                return int(args.func(args) or 0)
+    except Interrupted as exc:
+        print(f"{prog}: {exc}", file=sys.stderr)
+        return 130
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
     except EbbError as exc:
-        print(f"ebb {args.command}: error: {exc}", file=sys.stderr)
+        print(f"{prog}: error: {exc}", file=sys.stderr)
         return 2
 
 

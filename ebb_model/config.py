@@ -57,6 +57,7 @@ from .beam import (
     Sensor,
 )
 from .errors import ConfigError, ParameterError
+from .textio import read_text
 
 __all__ = [
     "ParameterSpec",
@@ -217,10 +218,7 @@ def load_config(path: str | Path, *, extra_sections: tuple[str, ...] = ()) -> Be
         Listing every problem found, each naming its field.
     """
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"{p}: cannot read config file ({exc.strerror or exc})") from None
+    text = read_text(p, ConfigError, what="config file")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -16,6 +16,8 @@ __all__ = [
     "StabilityError",
     "DataError",
     "FmuError",
+    "Interrupted",
+    "DataWarning",
 ]
 
 
@@ -76,3 +78,14 @@ class FmuError(EbbError, RuntimeError):
         self.function = function
         self.status = status
         super().__init__(message)
+
+
+class Interrupted(EbbError):
+    """A run stopped by the user (Ctrl-C); the message says what was kept.  The CLI exits with code 130."""
+
+
+class DataWarning(UserWarning):
+    """Data that can be used but look suspicious (e.g. a file shorter than its header declares).
+
+    The CLI prints each as one line, ``ebb COMMAND: warning: ...``.
+    """

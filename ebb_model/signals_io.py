@@ -9,6 +9,7 @@ from typing import Sequence
 import numpy as np
 
 from .errors import DataError
+from .textio import printable, quote, read_text
 
 __all__ = ["read_signal_csv", "check_time_vector"]
 
@@ -33,7 +34,7 @@ def check_time_vector(t: np.ndarray, dt: float | None = None, *, where: str = "t
         if nonmono.size:
             i = nonmono[0]
             raise DataError(f"{where}: not strictly increasing at sample {i + 1} "
-                            f"({t[i]!r} -> {t[i + 1]!r})")
+                            f"({float(t[i]):.9g} s -> {float(t[i + 1]):.9g} s)")
         if dt is not None:
             off = np.flatnonzero(np.abs(steps - dt) > rtol * dt)
             if off.size:
@@ -70,21 +71,19 @@ def read_signal_csv(path: str | Path, columns: Sequence[str], *, dt: float | Non
         non-monotonic time or inconsistent sample time.
     """
     p = Path(path)
+    reader = csv.reader(read_text(p, DataError, what="CSV file").splitlines())
     try:
-        fh = p.open(newline="", encoding="utf-8")
-    except OSError as exc:
-        raise DataError(f"{p}: cannot read ({exc.strerror or exc})") from None
-    with fh:
-        reader = csv.reader(fh)
-        try:
-            header = [h.strip() for h in next(reader)]
-        except StopIteration:
-            raise DataError(f"{p}: empty file") from None
-        missing = [c for c in ("time", *columns) if c not in header]
-        if missing:
-            raise DataError(f"{p}: missing column(s) {', '.join(missing)}; found {', '.join(header)}")
-        idx = [header.index(c) for c in ("time", *columns)]
-        rows: list[list[float]] = []
+        header = [h.strip() for h in next(reader)]
+    except StopIteration:
+        raise DataError(f"{p}: empty file") from None
+    except csv.Error as exc:
+        raise DataError(f"{p}, line 1: not a CSV header ({exc})") from None
+    missing = [c for c in ("time", *columns) if c not in header]
+    if missing:
+        raise DataError(f"{p}: missing column(s) {', '.join(missing)}; found {printable(', '.join(header))}")
+    idx = [header.index(c) for c in ("time", *columns)]
+    rows: list[list[float]] = []
+    try:
         for lineno, row in enumerate(reader, start=2):
             if not row or all(not c.strip() for c in row):
                 continue
@@ -95,12 +94,15 @@ def read_signal_csv(path: str | Path, columns: Sequence[str], *, dt: float | Non
                 try:
                     v = float(row[j])
                 except ValueError:
-                    raise DataError(f"{p}, line {lineno}, column {header[j]!r}: not a number "
-                                    f"({row[j]!r})") from None
+                    raise DataError(f"{p}, line {lineno}, column {quote(header[j])}: not a number "
+                                    f"({quote(row[j])})") from None
                 if not math.isfinite(v):
-                    raise DataError(f"{p}, line {lineno}, column {header[j]!r}: non-finite value {row[j]!r}")
+                    raise DataError(f"{p}, line {lineno}, column {quote(header[j])}: non-finite value "
+                                    f"{quote(row[j])}")
                 vals.append(v)
             rows.append(vals)
+    except csv.Error as exc:
+        raise DataError(f"{p}, line {reader.line_num}: malformed CSV ({exc})") from None
     if not rows:
         raise DataError(f"{p}: no data rows")
     arr = np.asarray(rows)

@@ -80,7 +80,8 @@ def _description(config: BeamConfig, runtime_python: str, version: str, field: b
         f"{len(config.actuators)} force input(s), {len(config.sensors)} sensor output(s)"
         + (", deflection at every grid node" if field else "")
         + ". Communication steps must be integer multiples of dt (inputs held over the step). "
-        f"Requires Python {version} with numpy and scipy (built with {runtime_python}); "
+        f"Requires Python {version} with {', '.join(slave_template.REQUIRED_PACKAGES)} (built with "
+        f"{runtime_python}); "
         "the FMU's loader starts that interpreter when the master is not Python itself. Linux x86-64 only."
     )
     return text
@@ -152,6 +153,7 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
         "dt": float(system.dt),
         "model_name": identity.model_name,
         "description": description,
+        "build_python": sys.executable,
     }
 
     tmp_path = parent / f".{out.name}.{uuid.uuid4().hex[:8]}.part"

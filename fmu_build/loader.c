@@ -32,6 +32,7 @@
  * the host enabled debug logging (and the category, if the host named any).
  *
  * Build-time constants come from loader_config.h, written by loader.py:
+ *   EBB_PYTHON      the build interpreter (checked, with EBB_PYTHONPATH, before Python starts)
  *   EBB_LIBPYTHON   absolute path of the shared libpython
  *   EBB_PYTHONHOME  value for PYTHONHOME ("prefix" or "prefix:exec_prefix")
  *   EBB_PYTHONPATH  value for PYTHONPATH (site-packages of the build interpreter)
@@ -39,6 +40,7 @@
  *   EBB_GUID        the FMU's GUID, checked in fmi2Instantiate
  */
 #define _GNU_SOURCE
+#include <errno.h>
 #include <dlfcn.h>
 #include <pthread.h>
 #include <stdarg.h>
@@ -46,6 +48,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "loader_config.h"
 
@@ -197,10 +200,35 @@ static void finalize_inner_at_exit(void) { finalize_inner(); }
         }                                                                              \
     } while (0)
 
+/* The build interpreter and its site-packages must still be where the build found them: otherwise
+ * name what is missing (not the first module Python fails to import). Returns 0 when all is there. */
+static int check_build_python(void)
+{
+    const char *missing = NULL;
+    char entry[4096];
+    if (access(EBB_PYTHON, X_OK) != 0) missing = EBB_PYTHON;
+    for (const char *p = EBB_PYTHONPATH; !missing && *p;) {
+        size_t n = strcspn(p, ":");
+        if (n > 0 && n < sizeof entry) {
+            memcpy(entry, p, n);
+            entry[n] = '\0';
+            if (access(entry, R_OK | X_OK) != 0) missing = entry;
+        }
+        p += n + (p[n] == ':');
+    }
+    if (!missing) return 0;
+    snprintf(g_error, sizeof g_error,
+             "the Python this FMU was built with is gone (%s: %s); the FMU runs on %s with numpy, scipy "
+             "and numba installed: restore that environment or rebuild the FMU", missing, strerror(errno),
+             EBB_PYTHON);
+    return 1;
+}
+
 static void load_inner(void)
 {
     if (!dlsym(RTLD_DEFAULT, "Py_IsInitialized")) {
         /* No Python in the process: bring the build interpreter's. */
+        if (check_build_python()) return;
         void *libpython = dlopen(EBB_LIBPYTHON, RTLD_NOW | RTLD_GLOBAL);
         if (!libpython) {
             snprintf(g_error, sizeof g_error,

@@ -36,6 +36,7 @@ change.
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import json
 import math
 import operator
@@ -43,18 +44,40 @@ import os
 import sys
 from typing import Any, Sequence
 
-import numpy as np
-from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
-from pythonfmu.enums import Fmi2Status
+#: What the FMU's Python must provide (the bundled core imports them); the model description says so too.
+REQUIRED_PACKAGES = ("numpy", "scipy", "numba")
 
-__all__ = ["BeamSlave", "CORE_PACKAGE", "SPEC_FILE", "STEP_TOLERANCE", "FIELD_NAME"]
+#: JSON file in the FMU's resources describing the model (written by the builder).
+SPEC_FILE = "ebb_fmu.json"
+
+
+def _check_requirements() -> None:
+    """Name every missing package and the interpreter the FMU was built with, instead of a bare import error."""
+    missing = [p for p in REQUIRED_PACKAGES if importlib.util.find_spec(p) is None]
+    if not missing:
+        return
+    built_with = "unknown"
+    spec_file = os.path.join(os.path.dirname(os.path.abspath(__file__)), SPEC_FILE)
+    try:
+        with open(spec_file, encoding="utf-8") as fh:
+            built_with = json.load(fh).get("build_python", built_with)
+    except (OSError, ValueError):
+        pass
+    raise ImportError(f"this FMU needs Python with {', '.join(REQUIRED_PACKAGES)}; the Python running it "
+                      f"({sys.executable}) lacks {', '.join(missing)}. It was built with {built_with}")
+
+
+_check_requirements()
+
+import numpy as np  # noqa: E402 - after the requirement check
+from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String  # noqa: E402
+from pythonfmu.enums import Fmi2Status  # noqa: E402
+
+__all__ = ["BeamSlave", "CORE_PACKAGE", "SPEC_FILE", "STEP_TOLERANCE", "FIELD_NAME", "REQUIRED_PACKAGES"]
 
 #: Package that provides ``config_from_dict``, ``assemble`` and ``field_matrix``.
 #: The builder rewrites this line to the FMU's bundled copy.
 CORE_PACKAGE = "ebb_model"
-
-#: JSON file in the FMU's resources describing the model (written by the builder).
-SPEC_FILE = "ebb_fmu.json"
 
 #: A step ``h`` is accepted when ``|h/dt - n| <= STEP_TOLERANCE`` for an integer ``n >= 1``.
 STEP_TOLERANCE = 1e-6

@@ -3,19 +3,28 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 
 __all__ = ["add_parser"]
 
 
 def _cmd_identify(args: argparse.Namespace) -> int:
+    from ebb_model.errors import Interrupted
+
+    from .optimise import CHECKPOINT
     from .run import identify
 
-    res = identify(args.config, args.data, args.out, backend=args.backend, workers=args.workers,
-                   dask=args.dask, pop=args.pop, generations=args.generations, seed=args.seed,
-                   resume=args.resume, force=args.force, algorithm=args.algorithm,
-                   progress=not args.no_progress, export=not args.no_export, fmu=args.fmu,
-                   fmu_parameters=args.fmu_parameters, fmu_inputs=args.fmu_inputs, fmu_outputs=args.fmu_outputs,
-                   polish=args.polish)
+    try:
+        res = identify(args.config, args.data, args.out, backend=args.backend, workers=args.workers,
+                       dask=args.dask, pop=args.pop, generations=args.generations, seed=args.seed,
+                       resume=args.resume, force=args.force, algorithm=args.algorithm,
+                       progress=not args.no_progress, export=not args.no_export, fmu=args.fmu,
+                       fmu_parameters=args.fmu_parameters, fmu_inputs=args.fmu_inputs,
+                       fmu_outputs=args.fmu_outputs, polish=args.polish)
+    except KeyboardInterrupt:
+        if (Path(args.out) / CHECKPOINT).exists():
+            raise Interrupted(f"interrupted; resume with --resume (checkpoint kept in {args.out})") from None
+        raise Interrupted("interrupted before the first generation; nothing was written") from None
     f = res.fisher_nominal
     print(f"Fisher information at the nominal point: rank {f.rank}/{len(f.names)}, "
           f"condition number {f.condition_number:.3g}")
@@ -36,7 +45,10 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 def _cmd_export(args: argparse.Namespace) -> int:
     from .export import export_points
 
-    files = export_points(args.dir, args.points, polished=args.polished, fmu=not args.no_fmu,
+    # a flag without indices means all of its kind ("--polished": every polished point)
+    points = "all" if args.points == [] else args.points
+    polished = "all" if args.polished == [] else args.polished
+    files = export_points(args.dir, points, polished=polished, fmu=not args.no_fmu,
                           reduce_order=args.reduce_order)
     for f in files:
         print(f"wrote {f}")
@@ -74,9 +86,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("export", help="export Pareto points of a result directory (StateSpace, FMU)")
     p.add_argument("dir", help="result directory of 'ebb identify'")
     p.add_argument("--points", type=int, nargs="*", default=None,
-                   help="Pareto point indices (default: all, unless --polished is given)")
+                   help="Pareto point indices; the flag alone: all (default: all, unless --polished is given)")
     p.add_argument("--polished", type=int, nargs="*", default=None,
-                   help="polished point indices (default: all, unless --points is given)")
+                   help="polished point indices; the flag alone: all (default: all, unless --points is given)")
     p.add_argument("--no-fmu", action="store_true", help="StateSpace only")
     p.add_argument("--reduce-order", type=int, default=None, help="also a balanced truncation of this order")
     p.set_defaults(func=_cmd_export)

@@ -16,7 +16,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ebb_model import DiscreteStateSpace
-from ebb_model.errors import StabilityError
+from ebb_model.errors import ConfigError, StabilityError
 
 __all__ = ["save_statespace", "load_statespace", "BalancedModel", "balanced_truncation"]
 
@@ -59,12 +59,12 @@ def balanced_truncation(sys: DiscreteStateSpace, order: int) -> BalancedModel:
     ------
     StabilityError
         If the spectral radius is not below one (no Gramians exist).
-    ValueError
+    ConfigError
         If ``order`` is not in ``1 … nstates``.
     """
     n = sys.nstates
-    if not 1 <= order <= n:
-        raise ValueError(f"order must lie in 1 … {n}, got {order}")
+    if isinstance(order, bool) or not 1 <= order <= n:
+        raise ConfigError(f"order must lie in 1 … {n}, got {order}")
     rho = sys.spectral_radius()
     if rho >= 1.0 - 1e-12:
         raise StabilityError(f"balanced truncation needs an asymptotically stable system (spectral radius "

@@ -34,6 +34,8 @@ from typing import Sequence
 
 import numpy as np
 
+from ebb_model.errors import StabilityError
+
 from .native import NativeEvaluator
 
 __all__ = ["FisherReport", "estimate_noise_std", "sensitivities", "fisher_information", "cramer_rao_std"]
@@ -53,7 +55,13 @@ def _scales(evaluator: NativeEvaluator, x: np.ndarray) -> np.ndarray:
 
 
 def sensitivities(evaluator: NativeEvaluator, x: np.ndarray, *, rel_step: float = 1e-4) -> list[np.ndarray]:
-    """``∂y/∂θ`` per experiment, each (n_samples, n_sensors, dim), by central differences."""
+    """``∂y/∂θ`` per experiment, each (n_samples, n_sensors, dim), by central differences.
+
+    Raises
+    ------
+    ebb_model.errors.StabilityError
+        If the model is unstable at a point of the difference stencil.
+    """
     x = np.asarray(x, dtype=float)
     s = _scales(evaluator, x)
     dim = x.size
@@ -66,7 +74,8 @@ def sensitivities(evaluator: NativeEvaluator, x: np.ndarray, *, rel_step: float 
         yp, _ = evaluator.simulate(xp)
         ym, _ = evaluator.simulate(xm)
         if not yp or not ym:
-            raise ValueError(f"the model is unstable next to the point (parameter {evaluator.space.names[j]})")
+            raise StabilityError(f"the model is unstable next to the point (parameter {evaluator.space.names[j]}); "
+                                 "the Fisher information is not defined there")
         for e, (a, b) in enumerate(zip(yp, ym)):
             out[e][:, :, j] = (a - b) / (2 * rel_step)
     return out
@@ -131,6 +140,11 @@ def fisher_information(evaluator: NativeEvaluator, x: np.ndarray, *,
         Eigenvalues below ``rank_tol × λ_max`` count as zero.
     ill_conditioned
         Condition number above which weak directions are reported.
+
+    Raises
+    ------
+    ebb_model.errors.StabilityError
+        If the model is unstable at a point of the difference stencil around ``x``.
     """
     x = np.asarray(x, dtype=float)
     names = evaluator.space.names

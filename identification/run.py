@@ -33,8 +33,9 @@ import numpy as np
 
 from ebb_model import load_config, max_growth_factor
 from ebb_model.config import BeamConfig
-from ebb_model.errors import ConfigError
+from ebb_model.errors import ConfigError, StabilityError
 from ebb_model.jsonio import write_json
+from ebb_model.outdir import check_new_output_dir
 
 from .data import Experiment, load_experiments
 from .fisher import FisherReport, fisher_information
@@ -174,6 +175,24 @@ def _arrays(config: BeamConfig, exps: Sequence[Experiment]) -> tuple[ExperimentA
     return tuple(out)
 
 
+def _check_out_dir(out: Path, resume: bool) -> Path:
+    """The result directory: new (absent or empty) for a run, an interrupted run's for ``resume``."""
+    finished = (out / "pareto.json").exists()
+    if resume:
+        if (out / CHECKPOINT).exists() and not finished:
+            return out
+        if finished:
+            raise ConfigError(f"--resume: the run in {out} has finished (pareto.json); nothing to resume")
+        raise ConfigError(f"--resume: {out} holds no interrupted `ebb identify` run (no {CHECKPOINT})")
+    if (out / CHECKPOINT).exists() and not finished:
+        raise ConfigError(f"--out {out}: holds an interrupted run; continue it with --resume, or choose a new "
+                          "directory")
+    if finished:
+        raise ConfigError(f"--out {out}: holds a finished run; choose a new directory (export its points with "
+                          "`ebb export`)")
+    return check_new_output_dir(out)
+
+
 def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_dir: str | Path, *,
              backend: str = "auto", workers: int = 1, dask: str | None = None, pop: int = 40,
              generations: int = 30, seed: int = 1, resume: bool = False, force: bool = False,
@@ -233,13 +252,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         noise_std = [float(v) for v in np.atleast_1d(noise_std)]
         if len(noise_std) != len(cfg.sensors) or not all(v > 0 and math.isfinite(v) for v in noise_std):
             raise ConfigError(f"noise_std: need one positive number per sensor ({len(cfg.sensors)})")
-    out = Path(out_dir)
-    if resume and not (out / CHECKPOINT).exists():
-        raise ConfigError(f"--resume: no checkpoint in {out}")
-    if not resume and out.exists() and any(out.iterdir()):
-        raise ConfigError(f"--out {out}: exists and is not empty (use --resume to continue a run)")
-    if not out.parent.is_dir():
-        raise ConfigError(f"--out {out}: parent directory does not exist")
+    out = _check_out_dir(Path(out_dir), resume)
     exps = read_data(cfg, data)
     space: ParameterSpace = parameter_space(cfg)
     evaluator = NativeEvaluator(cfg, space, _arrays(cfg, exps), per=per, stabilising=bool(stabilising))
@@ -266,44 +279,61 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                                         tuple(fmu_inputs) if fmu_inputs else None,
                                         tuple(fmu_outputs) if fmu_outputs else None, per=per,
                                         stabilising=bool(stabilising))
+    created = not out.exists()
     out.mkdir(exist_ok=True)
-    write_json(out / "identifiability.json", fisher0.to_dict())
-    problem = IdentificationProblem(search_evaluator, names)
-
-    def generation_done(gen: int, n_ev: int, X: np.ndarray, F: np.ndarray) -> None:
-        if on_progress is not None:
-            on_progress(Progress("generation", gen, n_ev, X, F, knee_index(F)))
-
     try:
-        with make_runner(workers=workers, dask=dask) as runner:
-            pareto = optimise(problem, pop=pop, generations=generations, seed=seed, algorithm=algorithm,
-                              out_dir=out, resume=resume, runner=runner, progress=progress,
-                              callback=generation_done)
-            polished_raw = _polish_front(pareto, search_evaluator, runner, int(polish), int(polish_evaluations),
-                                         on_progress)
-    finally:
-        if search_evaluator is not evaluator:
-            search_evaluator.close()
-        if tmp_fmu_dir is not None:
+        write_json(out / "identifiability.json", fisher0.to_dict())
+        problem = IdentificationProblem(search_evaluator, names)
+
+        def generation_done(gen: int, n_ev: int, X: np.ndarray, F: np.ndarray) -> None:
+            if on_progress is not None:
+                on_progress(Progress("generation", gen, n_ev, X, F, knee_index(F)))
+
+        try:
+            with make_runner(workers=workers, dask=dask) as runner:
+                pareto = optimise(problem, pop=pop, generations=generations, seed=seed, algorithm=algorithm,
+                                  out_dir=out, resume=resume, runner=runner, progress=progress,
+                                  callback=generation_done)
+                polished_raw = _polish_front(pareto, search_evaluator, runner, int(polish), int(polish_evaluations),
+                                             on_progress)
+        finally:
+            if search_evaluator is not evaluator:
+                search_evaluator.close()
+            if tmp_fmu_dir is not None:
+                import shutil
+
+                shutil.rmtree(tmp_fmu_dir, ignore_errors=True)
+        crb, g, st = [], [], []
+        for x in pareto.X:
+            c_, g_, s_ = _point_properties(cfg, space, evaluator, x, fisher0.noise_std)
+            crb.append(c_)
+            g.append(g_)
+            st.append(s_)
+        polished = []
+        for i, x, f, n_ev, r in polished_raw:
+            c_, g_, s_ = _point_properties(cfg, space, evaluator, x, fisher0.noise_std)
+            polished.append(PolishedPoint(i, x, f, c_, g_, s_, n_ev, r.cost, r.success, r.message))
+        res = IdentificationResult(pareto, fisher0, np.array(crb), np.array(g), np.array(st), out, tuple(polished))
+        _write_results(res, cfg, evaluator)
+        if export:
+            from .export import export_points
+
+            export_points(out)
+    except KeyboardInterrupt:
+        # resumable once a generation is checkpointed; before that, leave nothing behind (the
+        # directory was absent or empty: _check_out_dir)
+        if not (out / CHECKPOINT).exists():
             import shutil
 
-            shutil.rmtree(tmp_fmu_dir, ignore_errors=True)
-    crb, g, st = [], [], []
-    for x in pareto.X:
-        c_, g_, s_ = _point_properties(cfg, space, evaluator, x, fisher0.noise_std)
-        crb.append(c_)
-        g.append(g_)
-        st.append(s_)
-    polished = []
-    for i, x, f, n_ev, r in polished_raw:
-        c_, g_, s_ = _point_properties(cfg, space, evaluator, x, fisher0.noise_std)
-        polished.append(PolishedPoint(i, x, f, c_, g_, s_, n_ev, r.cost, r.success, r.message))
-    res = IdentificationResult(pareto, fisher0, np.array(crb), np.array(g), np.array(st), out, tuple(polished))
-    _write_results(res, cfg, evaluator)
-    if export:
-        from .export import export_points
-
-        export_points(out)
+            if created:
+                shutil.rmtree(out, ignore_errors=True)
+            else:
+                for item in out.iterdir():
+                    if item.is_dir():
+                        shutil.rmtree(item, ignore_errors=True)
+                    else:
+                        item.unlink(missing_ok=True)
+        raise
     return res
 
 
@@ -331,7 +361,7 @@ def _point_properties(cfg: BeamConfig, space: ParameterSpace, evaluator: NativeE
     _, rho = evaluator.simulate(x)
     try:
         crb = fisher_information(evaluator, x, noise_std=noise_std).cramer_rao_std
-    except ValueError:
+    except StabilityError:
         crb = np.full(space.dim, np.inf)
     return crb, g, bool(rho <= 1 + 1e-9)
 
@@ -377,7 +407,6 @@ def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: Native
         "points": points,
         "polished": polished,
     }
-    write_json(res.out_dir / "pareto.json", doc)
     head = [*p.parameter_names, *p.objective_names, *[f"crb_{n}" for n in p.parameter_names],
             "growth_factor", "stable"]
     _write_csv(res.out_dir / "pareto.csv", ["index", "knee", *head],
@@ -390,6 +419,7 @@ def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: Native
     from .plots import plot_results
 
     plot_results(res, evaluator)
+    write_json(res.out_dir / "pareto.json", doc)  # last: it marks the run as finished
 
 
 def _write_csv(path: Path, header: list[str], rows: list[list[Any]]) -> None:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import multiprocessing as mp
+import signal
 from typing import Any, Protocol
 
 import numpy as np
@@ -73,6 +74,11 @@ def _chunks(X: np.ndarray, workers: int) -> list[np.ndarray]:
     return [c for c in np.array_split(X, k) if len(c)]
 
 
+def _ignore_sigint() -> None:
+    """Worker initialiser: Ctrl-C reaches the whole process group; only the main process handles it."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 class ProcessRunner(Runner):
     """Evaluate chunks in ``workers`` local processes (``spawn``: no inherited locks or threads)."""
 
@@ -80,7 +86,8 @@ class ProcessRunner(Runner):
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
         self.workers = workers
-        self._pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+        self._pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+                                            initializer=_ignore_sigint)
 
     def __call__(self, evaluator: Evaluator, X: np.ndarray) -> np.ndarray:
         futs = [self._pool.submit(_evaluate_chunk, evaluator, c) for c in _chunks(X, self.workers)]

@@ -2,6 +2,10 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -90,3 +94,25 @@ def foh_reference(cfg, u):
         w[k] = Cf @ x
         x = Phi @ x + G0 @ u[k] + G1 @ u[min(k + 1, u.shape[0] - 1)]
     return y, w
+
+
+def run_identify_signalled(cfg: Path, data: Path, out: Path, sig: int, after_generation: int,
+                           *extra: str) -> subprocess.CompletedProcess:
+    """Run ``ebb identify`` in a subprocess that sends itself ``sig`` right after checkpoint ``after_generation``.
+
+    Deterministic: the signal follows a given checkpoint, whatever the machine's speed (no polling race).
+    """
+    script = textwrap.dedent(f"""
+        import os, sys
+        import identification.optimise as opt
+        save = opt._save_atomic
+        def save_then_signal(algo, path):
+            save(algo, path)
+            if algo.n_gen - 1 >= {after_generation}:
+                os.kill(os.getpid(), {int(sig)})
+        opt._save_atomic = save_then_signal
+        from ebb_model.cli import main
+        sys.exit(main(sys.argv[1:]))
+    """)
+    return subprocess.run([sys.executable, "-c", script, "identify", str(cfg), str(data), "--out", str(out),
+                           *extra], capture_output=True, text=True, timeout=600)

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("pythonfmu")
-fmpy = pytest.importorskip("fmpy")
+import pythonfmu  # noqa: F401 - a dependency: a broken install must fail, not skip
+import fmpy
 from fmpy import read_model_description  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 

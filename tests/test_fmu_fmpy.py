@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytest.importorskip("pythonfmu")
-pytest.importorskip("fmpy")
+import pythonfmu  # noqa: F401 - a dependency: a broken install must fail, not skip
+import fmpy  # noqa: F401
 from fmpy import extract, read_model_description, simulate_fmu  # noqa: E402
 from fmpy.fmi1 import FMICallException  # noqa: E402
 from fmpy.fmi2 import (FMU2Slave, defaultCallbacks, fmi2CallbackFunctions,  # noqa: E402

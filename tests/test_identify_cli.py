@@ -11,6 +11,8 @@ import ebb_model as em
 from ebb_model.cli import main
 from identification.export_statespace import load_statespace
 
+from conftest import run_identify_signalled
+
 CFG = """
 [beam]
 length = 1.0
@@ -114,34 +116,16 @@ def test_identify_with_fmu_backend_gives_the_native_front(case):
 
 
 def test_kill_9_then_resume_gives_the_uninterrupted_front(case):
-    import os
-    import pickle
     import signal
-    import subprocess
-    import sys
-    import time
 
     cfg, data, tmp = case
     args = ["--pop", "8", "--generations", "30", "--no-progress", "--no-export", "--seed", "9"]
     assert main(["identify", str(cfg), str(data), "--out", str(tmp / "ref"), *args]) == 0
     out = tmp / "killed"
-    proc = subprocess.Popen([sys.executable, "-m", "ebb_model.cli", "identify", str(cfg), str(data), "--out",
-                             str(out), *args], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    ckpt = out / "checkpoint.pkl"
-    deadline = time.monotonic() + 120
-    gen = 0
-    while time.monotonic() < deadline and proc.poll() is None:
-        if ckpt.exists():
-            try:
-                gen = pickle.loads(ckpt.read_bytes()).n_gen
-            except Exception:  # noqa: BLE001 - file being replaced
-                gen = 0
-            if gen >= 3:
-                break
-        time.sleep(0.01)
-    assert proc.poll() is None, "the run finished before it could be killed"
-    os.kill(proc.pid, signal.SIGKILL)
-    proc.wait()
+    # killed right after the checkpoint of generation 3, however fast the machine (no polling race)
+    proc = run_identify_signalled(cfg, data, out, signal.SIGKILL, 3, *args)
+    assert proc.returncode == -signal.SIGKILL, proc.stderr
+    assert (out / "checkpoint.pkl").exists()
     assert not (out / "pareto.json").exists()
     assert main(["identify", str(cfg), str(data), "--out", str(out), "--resume", *args]) == 0
     a = json.loads((tmp / "ref" / "pareto.json").read_text())

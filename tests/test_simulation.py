@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+import scipy.linalg as sla
 import scipy.signal as ss
 
 from ebb_model import (
@@ -18,6 +19,7 @@ from ebb_model import (
     simulate_config,
 )
 from ebb_model.config import config_from_dict
+from ebb_model.discretisation import discretise
 from ebb_model.modal_form import modal_from_statespace
 
 from conftest import foh_reference, make_config
@@ -50,8 +52,17 @@ def test_fast_path_equals_dlsim(spec, kinds):
     _, y_ref, _ = ss.dlsim((sys.A, sys.B, sys.C, sys.D, sys.dt), u, x0=x0)
     y_fast = simulate(fast_model(cfg), u).outputs
     y_dense = simulate(sys, u).outputs
-    assert rel(y_fast, y_ref) < 1e-10
-    assert rel(y_dense, y_ref) < 1e-10
+    # Error budget of the modal route: it is the same scheme in other coordinates, so the two differ by
+    # round-off in the lowest modes, whose eigenvalues carry a relative error of order eps·κ in either
+    # float64 route, κ = ω²_max/ω²_min (absolute error eps·‖K‖ against the smallest ω²).  Displacement outputs, dominated by
+    # those modes, differ by (0.1–0.7)·eps·κ in every case here (measured with numpy 2.4 / scipy 1.17:
+    # 1.3e-10 for the elastic end with a point mass, κ = 1.9e6); other outputs by < 2e-12.
+    beam = discretise(cfg, cfg.parameter_values())
+    w2 = sla.eigvalsh(beam.K, beam.M)
+    budget = 2 * np.finfo(float).eps * w2.max() / w2.min()
+    assert rel(y_fast, y_ref) < max(budget, 1e-11)
+    # the dense kernel iterates the very matrices dlsim does: summation order only (measured < 1e-12)
+    assert rel(y_dense, y_ref) < 1e-11
 
 
 def test_general_modal_route_equals_dense():

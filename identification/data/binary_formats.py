@@ -10,13 +10,13 @@
 from __future__ import annotations
 
 import json
-import zipfile
 from pathlib import Path
 
 import numpy as np
 import scipy.io
 
 from ebb_model.errors import DataError
+from ebb_model.textio import printable
 
 from .experiment import NPZ_META_KEY
 from .table import RawTable
@@ -28,6 +28,11 @@ def _table(src: str, kind: str, arrays: dict[str, np.ndarray], units: dict[str, 
     names = tuple(arrays)
     return RawTable(source=src, kind=kind, names=names, columns=tuple(arrays[n] for n in names),
                     units=tuple(units.get(n) for n in names), resolution=(0.0,) * len(names), time_key="time")
+
+
+def _reason(exc: BaseException) -> str:
+    """A third-party parser's complaint, fit for a one-line message."""
+    return f"{type(exc).__name__}: {printable(str(exc), 160)}"
 
 
 def read_npz(path: str | Path) -> RawTable:
@@ -42,10 +47,10 @@ def read_npz(path: str | Path) -> RawTable:
     try:
         with np.load(p, allow_pickle=False) as z:
             arrays = {k: np.asarray(z[k]) for k in z.files}
-    except OSError as exc:
+    except FileNotFoundError as exc:
         raise DataError(f"{p}: cannot read ({exc.strerror or exc})") from None
-    except (ValueError, zipfile.BadZipFile) as exc:
-        raise DataError(f"{p}: not a readable .npz archive ({exc})") from None
+    except Exception as exc:  # noqa: BLE001 - numpy/zipfile on a damaged archive: EOFError, BadZipFile, zlib...
+        raise DataError(f"{p}: not a readable .npz archive ({_reason(exc)})") from None
     units: dict[str, str] = {}
     meta = arrays.pop(NPZ_META_KEY, None)
     if meta is not None:
@@ -70,9 +75,9 @@ def read_mat(path: str | Path) -> RawTable:
         raw = scipy.io.loadmat(p, squeeze_me=False, struct_as_record=True)
     except NotImplementedError:
         raise DataError(f"{p}: MATLAB v7.3 (HDF5) files are not supported; save with save(..., '-v7')") from None
-    except OSError as exc:
+    except FileNotFoundError as exc:
         raise DataError(f"{p}: cannot read ({exc.strerror or exc})") from None
-    except (ValueError, TypeError) as exc:
-        raise DataError(f"{p}: not a readable MATLAB file ({exc})") from None
+    except Exception as exc:  # noqa: BLE001 - scipy.io on a damaged file: MatReadError, ValueError, zlib...
+        raise DataError(f"{p}: not a readable MATLAB file ({_reason(exc)})") from None
     arrays = {k: np.asarray(v) for k, v in raw.items() if not k.startswith("__")}
     return _table(str(p), "variable", arrays, {})

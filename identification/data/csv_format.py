@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ebb_model.errors import DataError
+from ebb_model.textio import read_text as read_file_text
 
 from .table import RawTable
 from .textblock import column_resolutions, edge_lines, parse_block
@@ -19,15 +20,8 @@ __all__ = ["read_csv"]
 
 
 def read_text(path: Path) -> str:
-    """Read a text file (UTF-8, BOM tolerated; Latin-1 as a fallback)."""
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    try:
-        return raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        return raw.decode("latin-1")
+    """Read a text data file (UTF-8, BOM tolerated; Latin-1 as a fallback; binary data refused)."""
+    return read_file_text(path, DataError, what="data file", latin1_fallback=True)
 
 
 def read_csv(path: str | Path) -> RawTable:

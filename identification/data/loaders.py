@@ -38,6 +38,7 @@ from ebb_model.beam import SENSOR_UNITS
 from ebb_model.config import BeamConfig
 from ebb_model.errors import DataError
 from ebb_model.signals_io import check_time_vector
+from ebb_model.textio import printable, quote
 
 from .binary_formats import read_mat, read_npz
 from .csv_format import read_csv
@@ -83,7 +84,8 @@ def _format_of(path: Path, fmt: str | None) -> str:
     f = EXTENSIONS.get(path.suffix.lower())
     if f is None:
         raise DataError(f"{path}: cannot tell the format from the extension {path.suffix!r}; "
-                        f"known: {', '.join(EXTENSIONS)} (or pass format=, one of {', '.join(FORMATS)})")
+                        f"known: {', '.join(EXTENSIONS)} (or name the format, one of {', '.join(FORMATS)}: format = ... under "
+                        "[identification.data], format= in the API)")
     return f
 
 
@@ -249,8 +251,9 @@ def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None 
         key = cmap.get("time", table.time_key)
         ti = _lookup(table, key)
         if ti is None:
-            raise DataError(f"{src}: missing time {table.kind} {key!r}; found {', '.join(table.names)}"
-                            + ("" if "time" in cmap else " (map it with mapping={'time': ...})"))
+            raise DataError(f"{src}: missing time {table.kind} {key!r}; found {printable(', '.join(table.names))}"
+                            + ("" if "time" in cmap else
+                               " (name it with mapping = { time = ... } under [identification.data])"))
         t = _vector(table, ti, None, "time")
         time_label = f"{src}: time ({table.label(ti)})"
         tol = 0.5 * table.resolution[ti]
@@ -276,8 +279,9 @@ def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None 
             raise DataError(f"{src}: {table.label(i)} is used both as the time and as {role} {sig!r}")
         idx[sig] = i
     if missing:
-        raise DataError(f"{src}: missing {table.kind}(s) {', '.join(missing)}; found {', '.join(table.names)}"
-                        " (use mapping= to name the file's channels)")
+        raise DataError(f"{src}: missing {table.kind}(s) {', '.join(missing)}; found "
+                        f"{printable(', '.join(table.names))} (name the file's channels with mapping = {{ ... }} "
+                        "under [identification.data])")
     cols: dict[str, np.ndarray] = {}
     si_units: dict[str, str] = {}
     for sig, role, quantity in roles:
@@ -293,7 +297,8 @@ def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None 
             try:
                 a = a * to_si_factor(unit, quantity, where=f"{src}: {table.label(i)} ({what})")
             except DataError as exc:
-                hint = (f" -- the file declares this unit; pass units={{{sig!r}: ...}} to override"
+                hint = (f" -- the file declares this unit; override it with units = {{ {sig} = ... }} under "
+                        "[identification.data]"
                         if declared else "")
                 raise DataError(f"{exc}{hint}") from None
         if sig in cgains:
@@ -327,7 +332,8 @@ def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None 
     except DataError as exc:
         if resample:
             raise
-        raise DataError(f"{exc} (pass resample=True to resample to the config's dt)") from None
+        raise DataError(f"{exc} (to resample the record to the config's dt: resample = true under "
+                        "[identification.data], resample=True in the API)") from None
     return exp
 
 

@@ -35,11 +35,12 @@ the time is ``X0 + k * Delta_X`` of each segment.  Units come from
 from __future__ import annotations
 
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from ebb_model.errors import DataError
+from ebb_model.errors import DataError, DataWarning
 
 from .csv_format import read_text
 from .table import RawTable, printed_resolution
@@ -75,6 +76,51 @@ def _floats(values: list[str], key: str, source: str, decimal: str) -> list[floa
         raise DataError(f"{source}: header field {key} is not numeric ({values!r})") from None
 
 
+def _check_not_open_header(region: str, src: str, first_line: int) -> None:
+    """Refuse a segment header that the file ends inside (it starts with ``Channels``, per the spec)."""
+    for offset, line in enumerate(region.split("\n")):
+        if line.strip():
+            if line.split("\t")[0].split(",")[0].strip() == "Channels":
+                raise DataError(f"{src}: the segment header starting at line {first_line + offset} is not closed by "
+                                "an ***End_of_Header*** line: the file is truncated")
+            return
+    raise DataError(f"{src}: no data after the last ***End_of_Header*** line (line {first_line - 1}): "
+                    "the file is truncated or holds no samples")
+
+
+def _check_declared_length(hdr: dict[str, list[str]], arr: np.ndarray, x_columns: str, decimal: str, src: str,
+                           segment: int) -> None:
+    """Compare a segment's rows with its header's ``Samples`` (and ``Delta_X``).
+
+    With ``X_Columns = No`` the rows *are* the samples, so a different count is an
+    error.  With an X column, files are often decimated after acquisition without
+    updating the header (the ARTS-Lab record), so only data that end before the
+    declared duration ``Samples × Delta_X`` are reported, as a :class:`DataWarning`.
+    """
+    if not hdr.get("Samples"):
+        return
+    try:
+        declared = int(float(hdr["Samples"][0].replace(decimal, ".")))
+    except ValueError:
+        raise DataError(f"{src}: header field Samples is not a number ({hdr['Samples'][0]!r})") from None
+    rows = arr.shape[0]
+    if x_columns == "no":
+        if rows != declared:
+            raise DataError(f"{src}: segment {segment} holds {rows} rows, its header declares Samples = {declared}"
+                            + (": the file is truncated" if rows < declared else ""))
+        return
+    if not hdr.get("Delta_X") or rows < 2:
+        return
+    dx = _floats(hdr["Delta_X"][:1], "Delta_X", src, decimal)[0]
+    span = float(arr[-1, 0] - arr[0, 0])
+    step = span / (rows - 1)
+    if dx > 0 and span + 1.5 * step < declared * dx:
+        warnings.warn(DataWarning(
+            f"{src}: segment {segment} ends at {span:.6g} s, its header declares {declared} samples of "
+            f"{dx:.6g} s ({declared * dx:.6g} s): truncated file, or a record shortened after acquisition"),
+            stacklevel=3)
+
+
 def read_lvm(path: str | Path) -> RawTable:
     """Read a LabVIEW ``.lvm`` file into a :class:`~identification.data.table.RawTable`.
 
@@ -83,7 +129,13 @@ def read_lvm(path: str | Path) -> RawTable:
     DataError
         Not an LVM file, no ``***End_of_Header***`` marker, unsupported
         separator, no data, segments with different columns, malformed rows
-        (naming line, sample and column).
+        (naming line, sample and column), a header the file ends inside, fewer
+        rows than ``Samples`` declares (``X_Columns = No``).
+
+    Warns
+    -----
+    DataWarning
+        Data with an X column that end before the duration the header declares.
     """
     p = Path(path)
     src = str(p)
@@ -92,7 +144,8 @@ def read_lvm(path: str | Path) -> RawTable:
         raise DataError(f"{src}: not a LabVIEW measurement file (first line is not 'LabVIEW Measurement')")
     marks = list(_MARK.finditer(text))
     if not marks:
-        raise DataError(f"{src}: no ***End_of_Header*** line; not a LabVIEW measurement file")
+        raise DataError(f"{src}: the file header is not closed by an ***End_of_Header*** line "
+                        "(the file is truncated or not a LabVIEW measurement file)")
     file_hdr = _header(text[: marks[0].start()], None)
     sep_name = (file_hdr.get("Separator") or ["Tab"])[0]
     sep = _SEPARATORS.get(sep_name.lower())
@@ -120,6 +173,8 @@ def read_lvm(path: str | Path) -> RawTable:
         start = m.end()
         stop = seg_marks[i + 1].start() if i + 1 < len(seg_marks) else len(text)
         region = text[start:stop]
+        if i + 1 == len(seg_marks):
+            _check_not_open_header(region, src, text.count("\n", 0, start) + 1)
         # column headings: first non-blank line, if it does not start like a number
         lead = len(region) - len(region.lstrip("\n \t"))
         lead = region.rfind("\n", 0, lead) + 1
@@ -156,6 +211,7 @@ def read_lvm(path: str | Path) -> RawTable:
         first_line = text.count("\n", 0, start + body_start) + 1
         arr = parse_block(body, delimiter=sep, names=names, source=src, first_line=first_line,
                           usecols=len(names))
+        _check_declared_length(seg_hdr, arr, x_columns, decimal, src, i + 1)
         blocks.append(arr)
         seg_headers.append(seg_hdr)
         r = column_resolutions(edge_lines(body), sep, len(names))

@@ -11,6 +11,7 @@ import io
 import numpy as np
 
 from ebb_model.errors import DataError
+from ebb_model.textio import printable, quote
 
 from .table import printed_resolution
 
@@ -21,7 +22,9 @@ def _locate_problem(block: str, delimiter: str, names: tuple[str, ...], first_li
                     usecols: int) -> str | None:
     """Describe the first malformed line of ``block`` (slow path, errors only)."""
     sample = 0
-    for offset, line in enumerate(block.splitlines()):
+    lines = block.splitlines()
+    last = max((i for i, ln in enumerate(lines) if ln.strip()), default=-1)
+    for offset, line in enumerate(lines):
         if not line.strip():
             continue
         fields = line.split(delimiter)
@@ -30,13 +33,14 @@ def _locate_problem(block: str, delimiter: str, names: tuple[str, ...], first_li
         lineno = first_line + offset
         if len(fields) < usecols or (len(fields) > usecols and usecols == len(names)):
             return (f"line {lineno} (sample {sample}): {len(fields)} fields, expected {usecols} "
-                    f"({', '.join(names[:usecols])}) -- mismatched lengths")
+                    f"({printable(', '.join(names[:usecols]))}) -- mismatched lengths"
+                    + ("; it is the last line: the file is truncated" if offset == last and sample > 0 else ""))
         for j in range(usecols):
             f = fields[j].strip()
             try:
                 float(f)
             except ValueError:
-                what = "empty field" if not f else f"not a number ({fields[j]!r})"
+                what = "empty field" if not f else f"not a number ({quote(fields[j])})"
                 return f"line {lineno} (sample {sample}), column {names[j]!r}: {what}"
         sample += 1
     return None

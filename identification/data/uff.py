@@ -19,6 +19,7 @@ import numpy as np
 import pyuff
 
 from ebb_model.errors import DataError
+from ebb_model.textio import printable
 
 from .table import RawTable
 
@@ -42,7 +43,8 @@ def read_uff58(path: str | Path) -> RawTable:
     try:
         sets = pyuff.UFF(str(p)).read_sets()
     except Exception as exc:  # pyuff raises bare Exception on malformed data sets
-        raise DataError(f"{p}: not a readable universal file ({exc})") from None
+        raise DataError(f"{p}: not a readable universal file ({type(exc).__name__}: "
+                        f"{printable(str(exc), 160)})") from None
     if isinstance(sets, dict):
         sets = [sets]
     records = [s for s in sets if int(s.get("type", -1)) == 58]
