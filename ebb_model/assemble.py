@@ -16,6 +16,7 @@ import numpy as np
 from .config import BeamConfig, check_parameter_values
 from .discretisation import discretise
 from .errors import StabilityError
+from .exact_modal import exact_modal
 from .statespace import DiscreteStateSpace
 from .theta_scheme import discretise_time
 
@@ -56,17 +57,20 @@ def assemble(config: BeamConfig, params: Mapping[str, float] | None = None, *,
     Returns
     -------
     DiscreteStateSpace
-        State ``x[k] = (q^{mk}, q^{mk-1})`` of nodal unknowns; inputs named
-        after the actuators, outputs after the sensors.
+        ``scheme = "theta"``: state ``x[k] = (q^{mk}, v^{mk-1/2})`` of nodal unknowns;
+        ``scheme = "exact"``: the modal block state of :func:`ebb_model.exact_modal.exact_modal`.
+        Inputs named after the actuators, outputs after the sensors.
 
     Raises
     ------
     ParameterError, StabilityError
     """
     p = config.parameter_values() | dict(params or {})
-    beam = discretise(config, p)
     ts = config.time
-    sys = discretise_time(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold)
+    if ts.scheme == "exact":
+        sys = exact_modal(config, p).to_statespace()
+    else:
+        sys = discretise_time(discretise(config, p), ts.dt, ts.theta, ts.substeps, ts.input_hold)
     if check_stability:
         check_stable(config, p, sys.spectral_radius())
     return sys

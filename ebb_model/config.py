@@ -14,6 +14,7 @@ bounds and an ``identify`` flag used by the identification layer::
     theta = 0.25            # theta of the three-level scheme
     substeps = 1            # integer sub-steps per sample
     input = "foh"           # force between samples: "foh" straight line (measured), "zoh" held
+    scheme = "theta"        # "theta": the seed's FD + theta-scheme; "exact": Richardson modes, exact in time
     [parameters]            # EI, rhoA required; c, eta, N, rhoI, kf optional (default 0)
     EI   = { value = 10.0, bounds = [1.0, 100.0], identify = true }   # N.m2, > 0
     rhoA = { value = 1.0 }  # kg/m, > 0
@@ -98,14 +99,24 @@ class BeamGeometry:
     right: End
 
 
+#: Time-stepping schemes: the seed's FD + θ-scheme, and the accurate realisation of :mod:`ebb_model.exact_modal`.
+SCHEMES = ("theta", "exact")
+
+
 @dataclass(frozen=True)
 class TimeSettings:
-    """Sample time ``dt`` [s], ``theta`` of the three-level scheme, sub-steps per sample."""
+    """Sample time ``dt`` [s], ``theta`` of the three-level scheme, sub-steps per sample, input hold, scheme.
+
+    ``scheme = "theta"`` is the seed's FD + θ-scheme (``theta`` and ``substeps`` apply);
+    ``scheme = "exact"`` is :mod:`ebb_model.exact_modal` (two-grid Richardson modes integrated exactly
+    over each sample; ``theta`` and ``substeps`` do not apply).
+    """
 
     dt: float
     theta: float = 0.25
     substeps: int = 1
     input_hold: str = "foh"
+    scheme: str = "theta"
 
 
 @dataclass(frozen=True)
@@ -184,7 +195,7 @@ class BeamConfig:
         out: dict[str, Any] = {
             "beam": beam,
             "time": {"dt": self.time.dt, "theta": self.time.theta, "substeps": self.time.substeps,
-                     "input": self.time.input_hold},
+                     "input": self.time.input_hold, "scheme": self.time.scheme},
             "parameters": params,
             "actuators": [{"name": a.name, "x": a.x} for a in self.actuators],
             "sensors": [{"name": s.name, "x": s.x, "kind": s.kind} for s in self.sensors],
@@ -459,10 +470,13 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
     right = _end(pr, beam_t, "right") if beam_t else None
 
     time_t = _table(pr, data, "time")
-    pr.unknown_keys("time", time_t, ("dt", "theta", "substeps", "input"))
+    pr.unknown_keys("time", time_t, ("dt", "theta", "substeps", "input", "scheme"))
     input_hold = time_t.get("input", "foh")
     if input_hold not in ("foh", "zoh"):
         pr.add("time.input", f"must be \"foh\" (first-order hold) or \"zoh\" (zero-order hold), got {input_hold!r}")
+    scheme = time_t.get("scheme", TimeSettings.scheme)
+    if scheme not in SCHEMES:
+        pr.add("time.scheme", f"must be one of {', '.join(SCHEMES)}, got {scheme!r}")
     dt = None
     if "dt" not in time_t:
         pr.add("time.dt", "missing (sample time, s)")
@@ -522,7 +536,7 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
     extra = {k: data[k] for k in extra_sections if k in data}
     return BeamConfig(
         beam=BeamGeometry(length, nodes, left, right),
-        time=TimeSettings(dt, theta, substeps, input_hold),
+        time=TimeSettings(dt, theta, substeps, input_hold, scheme),
         parameters=MappingProxyType(params),
         actuators=tuple(actuators),
         sensors=tuple(sensors),

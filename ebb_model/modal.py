@@ -90,7 +90,7 @@ def modes(config: BeamConfig, params: Mapping[str, float] | None = None,
 
 def discrete_frequencies(config: BeamConfig, params: Mapping[str, float] | None = None
                          ) -> tuple[np.ndarray, np.ndarray]:
-    """Frequencies [Hz] and damping ratios of the fully discrete θ-scheme.
+    """Frequencies [Hz] and damping ratios of the fully discrete model (θ-scheme or exact scheme).
 
     Computed from the eigenvalues ``λ`` of the *one-sub-step* map (sub-step
     ``τ = dt/m``) as ``s = ln(λ)/τ``: for ``θ ≥ 1/4`` every mode maps to
@@ -99,13 +99,18 @@ def discrete_frequencies(config: BeamConfig, params: Mapping[str, float] | None 
     conjugate pair, sorted by frequency; the difference to :func:`modes` is the
     scheme's period elongation.
     """
+    from .exact_modal import continuous_modes
     from .theta_scheme import discretise_time
 
-    beam = discretise(config, params)
-    tau = config.time.dt / config.time.substeps
-    lam = discretise_time(beam, tau, config.time.theta, 1).poles()
-    lam = lam[(lam.imag >= 0) & (np.abs(lam) > 0)]
-    s = np.log(lam.astype(complex)) / tau
+    if config.time.scheme == "exact":   # exact in time: the poles of the Richardson modes themselves
+        s = continuous_modes(config, config.parameter_values() | dict(params or {})).poles
+        s = s[s.imag >= 0]
+    else:
+        beam = discretise(config, params)
+        tau = config.time.dt / config.time.substeps
+        lam = discretise_time(beam, tau, config.time.theta, 1).poles()
+        lam = lam[(lam.imag >= 0) & (np.abs(lam) > 0)]
+        s = np.log(lam.astype(complex)) / tau
     w = np.abs(s)
     with np.errstate(divide="ignore", invalid="ignore"):
         zeta = np.where(w > 0, -s.real / w, np.nan)

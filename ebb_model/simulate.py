@@ -24,6 +24,7 @@ import numpy as np
 from .config import BeamConfig
 from .discretisation import discretise
 from .errors import DataError
+from .exact_modal import exact_modal
 from .modal_form import ModalStateSpace, modal_from_beam, modal_from_statespace
 from .statespace import DiscreteStateSpace
 from .theta_scheme import discretise_time
@@ -198,14 +199,16 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
 
 
 def fast_model(config: BeamConfig, params: Mapping[str, float] | None = None) -> ModalStateSpace:
-    """Assemble the fastest exact realisation of the beam for ``params``.
+    """Assemble the fastest realisation of the beam for ``params`` (block-diagonal modal form).
 
-    The proportional-damping modal route when it applies (checked
-    numerically), otherwise the eigen-decomposition of the dense Φ.
-    Stability is **not** checked here (see :func:`ebb_model.assemble`).
+    ``scheme = "exact"``: :func:`ebb_model.exact_modal.exact_modal`.  ``scheme = "theta"``: the seed's
+    scheme, by the proportional-damping modal route when it applies (checked numerically), otherwise the
+    eigen-decomposition of the dense Φ.  Stability is **not** checked here (see :func:`ebb_model.assemble`).
     """
-    beam = discretise(config, params)
     ts = config.time
+    if ts.scheme == "exact":
+        return exact_modal(config, config.parameter_values() | dict(params or {}))
+    beam = discretise(config, params)
     modal = modal_from_beam(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold)
     if modal is None:
         modal = modal_from_statespace(discretise_time(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold))
