@@ -333,6 +333,9 @@ def simulate_axial(config: BeamConfig, params: Mapping[str, float] | None, input
 
     .. math::  \delta N(t) = \text{offset} + \text{rate}\cdot t + \frac{EA}{2L}\int_0^L w_x^2\,dx .
 
+    With ``time.scheme = "exact"`` the perturbation acts on the exact-scheme model instead
+    (:func:`diagnosis.axial_modal.simulate_axial_exact`), so candidates and baseline share its accuracy.
+
     Parameters
     ----------
     config, params
@@ -366,6 +369,13 @@ def simulate_axial(config: BeamConfig, params: Mapping[str, float] | None, input
     offset, rate = _finite("axial offset", offset), _finite("axial_drift.rate", rate)
     EA = _nonnegative("geometric_stiffening.EA", EA)
     u = _check_inputs(inputs, config)
+    if config.time.scheme == "exact":
+        if x0 is not None:
+            raise ConfigError("x0: a nodal initial state applies to the θ-scheme only (time.scheme = \"theta\")")
+        from .axial_modal import simulate_axial_exact
+
+        return simulate_axial_exact(config, params, u, offset=offset, rate=rate, EA=EA,
+                                    check_stability=check_stability)
     p = config.parameter_values() | dict(params or {})
     beam, _, co = _scheme(config, p)
     n = beam.n_unknowns

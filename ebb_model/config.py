@@ -14,7 +14,7 @@ bounds and an ``identify`` flag used by the identification layer::
     theta = 0.25            # theta of the three-level scheme
     substeps = 1            # integer sub-steps per sample
     input = "foh"           # force between samples: "foh" straight line (measured), "zoh" held
-    scheme = "theta"        # "theta": the seed's FD + theta-scheme; "exact": Richardson modes, exact in time
+    scheme = "exact"        # "exact" (default): Richardson modes, exact in time; "theta": the seed's FD + theta-scheme
     [parameters]            # EI, rhoA required; c, eta, N, rhoI, kf optional (default 0)
     EI   = { value = 10.0, bounds = [1.0, 100.0], identify = true }   # N.m2, > 0
     rhoA = { value = 1.0 }  # kg/m, > 0
@@ -107,16 +107,16 @@ SCHEMES = ("theta", "exact")
 class TimeSettings:
     """Sample time ``dt`` [s], ``theta`` of the three-level scheme, sub-steps per sample, input hold, scheme.
 
-    ``scheme = "theta"`` is the seed's FD + θ-scheme (``theta`` and ``substeps`` apply);
-    ``scheme = "exact"`` is :mod:`ebb_model.exact_modal` (two-grid Richardson modes integrated exactly
-    over each sample; ``theta`` and ``substeps`` do not apply).
+    ``scheme = "exact"`` (default) is :mod:`ebb_model.exact_modal` (two-grid Richardson modes integrated
+    exactly over each sample; ``theta`` and ``substeps`` do not apply); ``scheme = "theta"`` is the seed's
+    FD + θ-scheme (``theta`` and ``substeps`` apply, with its Bistritz stability analysis).
     """
 
     dt: float
     theta: float = 0.25
     substeps: int = 1
     input_hold: str = "foh"
-    scheme: str = "theta"
+    scheme: str = "exact"
 
 
 @dataclass(frozen=True)

@@ -7,10 +7,11 @@ error (``ω τ``-dependent).  On lightly damped accelerometer records either is 
 seed's spatial discretisation (same grid, ghost nodes, matrices):
 
 1. **Space, Richardson over two grids.**  The FD beam is discretised on the config's grid (``h``) and on
-   the nested grid with twice the intervals (``h/2``).  The eigenvalues ``ω_i²`` of the undamped
-   problems converge as ``h²``, so ``(4 ω_i²(h/2) − ω_i²(h)) / 3`` is ``O(h⁴)``; the mode shapes (at the
-   sensors and actuators) and the modal damping come from the fine grid.  The model keeps as many modes as
-   the config's grid has unknowns (the state dimension of the seed's model).
+   a grid with half the spacing (:func:`companion_config`; twice the spacing for configs above 100 nodes,
+   whose refined grid would be too ill-conditioned).  The eigenvalues ``ω_i²`` of the undamped problems
+   converge as ``h²``, so ``(4 ω_i²(h/2) − ω_i²(h)) / 3`` is ``O(h⁴)``; the mode shapes (at the sensors and
+   actuators) and the modal damping come from the finer grid.  The model keeps as many modes as the config's grid has unknowns (the state dimension of the
+   seed's model).
 2. **Time, exact.**  The modal system ``q̈ + C_m q̇ + Λ q = Ψᵀ F u`` (``C_m = Ψᵀ C Ψ``: non-proportional
    damping is kept) is diagonalised in continuous time and each pole ``s`` is integrated exactly over a
    sample under the input of :attr:`~ebb_model.config.TimeSettings.input_hold` (straight line between
@@ -34,39 +35,79 @@ from .discretisation import SemiDiscreteBeam, discretise
 from .modal_form import ModalStateSpace, is_proportional
 from .statespace import DiscreteStateSpace
 
-__all__ = ["exact_modal", "exact_statespace", "continuous_modes", "ContinuousModes", "richardson_modes"]
+__all__ = ["exact_modal", "exact_statespace", "continuous_modes", "ContinuousModes", "richardson_modes",
+           "refined_config", "companion_config", "pole_integrals"]
 
-#: Richardson is applied to a mode while its two grids agree to this relative ω² difference (beyond, the
-#: mode is not in the asymptotic range and the fine grid's value is kept; such modes lie far above any band
-#: the grid can represent).
-_ASYMPTOTIC = 0.05
+#: Largest refined grid: the eigen-solver's round-off grows with the stiffness matrix's condition number
+#: (``∝ n⁴``: 4e7 at 199 nodes), and beyond this it shows as noise in the identification's difference
+#: Jacobians; larger configs pair their grid with a coarsened one instead.
+_MAX_REFINED_NODES = 201
 
 
-def _fine_config(config: BeamConfig) -> BeamConfig:
-    """The same beam on the nested grid with half the spacing (``2 n + 1`` interior nodes)."""
-    return replace(config, beam=replace(config.beam, nodes=2 * config.beam.nodes + 1))
+def companion_config(config: BeamConfig) -> BeamConfig:
+    """The second grid of the Richardson pair: half the spacing (``2n + 1`` nodes) while that grid has at most
+    :data:`_MAX_REFINED_NODES` nodes, else twice the spacing (``(n − 1)//2`` nodes)."""
+    n = config.beam.nodes
+    nodes = 2 * n + 1 if 2 * n + 1 <= _MAX_REFINED_NODES else (n - 1) // 2
+    return replace(config, beam=replace(config.beam, nodes=nodes))
+
+
+def refined_config(config: BeamConfig) -> BeamConfig:
+    """The finer grid of the Richardson pair, which gives the mode shapes and the damping."""
+    other = companion_config(config)
+    return other if other.beam.nodes > config.beam.nodes else config
+
+
+def _lowest_modes(beam: SemiDiscreteBeam, n_modes: int, *, vectors: bool = True):
+    """The ``n_modes`` lowest ``ω²`` (and mass-normalised modes) of ``K ψ = ω² M ψ``, to relative accuracy.
+
+    ``eigh(K, M)`` resolves ``ω²`` only to ``eps·‖K‖`` absolutely, i.e. ``eps·κ(K)`` relatively for the
+    lowest modes (``κ ≈ 6e8`` on a 399-node grid: jitter that spoils difference Jacobians).  When ``K`` is
+    positive definite the inverted problem ``M ψ = μ K ψ`` (``μ = 1/ω²``, largest first) resolves each
+    ``ω²`` to a few ``eps`` relatively; otherwise (compression, free ends) the direct problem is used.
+    """
+    n = beam.n_unknowns
+    try:
+        mu, psi = sla.eigh(beam.M, beam.K, subset_by_index=(n - n_modes, n - 1))
+    except np.linalg.LinAlgError:     # K not positive definite
+        mu = None
+    if mu is None or np.any(mu <= 0):
+        return sla.eigh(beam.K, beam.M, eigvals_only=not vectors, subset_by_index=(0, n_modes - 1))
+    w2 = 1.0 / mu[::-1]
+    if not vectors:
+        return w2
+    psi = psi[:, ::-1]
+    psi /= np.sqrt(np.einsum("ij,ij->j", psi, beam.M @ psi))[None, :]   # mass-normalised (eigh gave K-normalised)
+    return w2, psi
 
 
 def richardson_modes(coarse: SemiDiscreteBeam, fine: SemiDiscreteBeam, n_modes: int
                      ) -> tuple[np.ndarray, np.ndarray]:
     """Extrapolated eigenvalues ``ω²`` and fine-grid mass-normalised modes ``Ψ`` (n_fine × n_modes).
 
+    With spacings ``h_f < h_c`` and ``ω²(h) = ω² + a h² + O(h⁴)``:
+    ``ω²_R = ω²_f + (ω²_f − ω²_c) / ((h_c/h_f)² − 1)``.  The coarse grid has fewer modes; the upper half of
+    them is faded out of the extrapolation by mode index (continuous in the parameters), and modes beyond
+    keep the fine grid's values — they lie far above any band the grids resolve.
+
     Parameters
     ----------
     coarse, fine
-        The FD beam on grids ``h`` and ``h/2``.
+        The FD beam on the two grids.
     n_modes
-        How many of the lowest modes to return (at most the coarse grid's unknowns).
+        How many of the lowest modes to return (at most the fine grid's unknowns).
     """
-    w2_f, psi = sla.eigh(fine.K, fine.M, subset_by_index=(0, n_modes - 1))
-    w2_c = sla.eigh(coarse.K, coarse.M, eigvals_only=True, subset_by_index=(0, n_modes - 1))
-    scale = np.maximum(np.abs(w2_f), np.max(np.abs(w2_f)) * 1e-12)
-    asymptotic = np.abs(w2_f - w2_c) <= _ASYMPTOTIC * scale
-    w2 = np.where(asymptotic, (4.0 * w2_f - w2_c) / 3.0, w2_f)
+    w2_f, psi = _lowest_modes(fine, n_modes)
+    m = min(coarse.n_unknowns, n_modes)
+    w2_c = _lowest_modes(coarse, m, vectors=False)
+    h_f, h_c = np.diff(fine.x[:2])[0], np.diff(coarse.x[:2])[0]
+    weight = np.clip(2.0 * (1.0 - np.arange(m) / m), 0.0, 1.0)   # 1 for the lower half, fading to 0
+    w2 = w2_f.copy()
+    w2[:m] += weight * (w2_f[:m] - w2_c) / ((h_c / h_f) ** 2 - 1.0)
     return w2, psi
 
 
-def _pole_integrals(s: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pole_integrals(s: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``e^{sT}``, ``φ₀ = ∫₀ᵀ e^{s(T−τ)} dτ`` and ``φ₁ = ∫₀ᵀ e^{s(T−τ)} τ/T dτ`` for each pole, to round-off.
 
     With ``z = sT``: ``φ₀ = T (e^z − 1)/z`` and ``φ₁ = T (e^z − 1 − z)/z²``; for ``|z| < 1/2`` their Taylor
@@ -172,7 +213,9 @@ class ContinuousModes:
     """The beam's continuous-time modal system, diagonalised: ``ẋ = diag(poles) z``, ``x = V z``.
 
     ``x = (q, q̇)`` in the (Richardson-corrected) undamped modal coordinates; ``inputs`` (2k, m) are the
-    input weights in pole coordinates; ``C``, ``D`` give the sensors' outputs from ``x`` and ``u``.
+    input weights in pole coordinates; ``C``, ``D`` give the sensors' outputs from ``x`` and ``u``;
+    ``shapes`` (n_u of the refined grid × k) are the mass-normalised modes on the refined grid
+    (:func:`refined_config`) and ``frequencies2`` the extrapolated ``ω²``.
     """
 
     poles: np.ndarray
@@ -180,6 +223,8 @@ class ContinuousModes:
     inputs: np.ndarray
     C: np.ndarray
     D: np.ndarray
+    shapes: np.ndarray
+    frequencies2: np.ndarray
 
 
 def continuous_modes(config: BeamConfig, params: Mapping[str, float]) -> ContinuousModes:
@@ -190,9 +235,9 @@ def continuous_modes(config: BeamConfig, params: Mapping[str, float]) -> Continu
     ParameterError
         Invalid parameter values (from the discretisation).
     """
-    coarse = discretise(config, params)
-    fine = discretise(_fine_config(config), params)
-    k = coarse.n_unknowns
+    grids = (discretise(config, params), discretise(companion_config(config), params))
+    coarse, fine = sorted(grids, key=lambda b: b.n_unknowns)
+    k = grids[0].n_unknowns                               # as many modes as the config's grid has unknowns
     w2, psi = richardson_modes(coarse, fine, k)
     proportional, d = is_proportional(psi, fine.C)
     Cm = np.diag(d) if proportional else 0.5 * (psi.T @ fine.C @ psi + (psi.T @ fine.C @ psi).T)
@@ -205,7 +250,7 @@ def continuous_modes(config: BeamConfig, params: Mapping[str, float]) -> Continu
         A = np.block([[np.zeros((k, k)), np.eye(k)], [-np.diag(w2), -Cm]])
         s, V = np.linalg.eig(A)
         B_modal = np.linalg.solve(V, np.vstack([np.zeros_like(Fm), Fm]))
-    return ContinuousModes(s, V, B_modal, C, D)
+    return ContinuousModes(s, V, B_modal, C, D, psi, w2)
 
 
 def exact_modal(config: BeamConfig, params: Mapping[str, float]) -> ModalStateSpace:
@@ -218,7 +263,7 @@ def exact_modal(config: BeamConfig, params: Mapping[str, float]) -> ModalStateSp
     """
     cm = continuous_modes(config, params)
     T_s = config.time.dt
-    E, phi0, phi1 = _pole_integrals(cm.poles, T_s)
+    E, phi0, phi1 = pole_integrals(cm.poles, T_s)
     if config.time.input_hold == "foh":                   # u linear between samples
         b0, b1 = (phi0 - phi1)[:, None] * cm.inputs, phi1[:, None] * cm.inputs
     else:                                                 # u held over the sample

@@ -28,6 +28,7 @@ from pathlib import Path
 import pythonfmu
 
 from ebb_model import PARAMETER_NAMES, BeamConfig, assemble, load_config
+from ebb_model.assemble import assemble_modal
 from ebb_model.errors import FmuError
 
 from . import slave_template
@@ -172,7 +173,8 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
                            runtime=runtime, guid=identity.guid)
 
             slave = slave_template.BeamSlave(instance_name="build", resources=str(resources))
-            feedthrough = feedthrough_from_D(system.D, system.output_names, system.input_names)
+            realised = assemble_modal(cfg, field=field)  # what the slave iterates, field outputs included
+            feedthrough = feedthrough_from_D(realised.D, realised.output_names, realised.input_names)
             xml = finish_model_description(slave.to_xml(), identity=identity, description=description,
                                            units=slave.variable_units, feedthrough=feedthrough)
             (staging / "modelDescription.xml").write_bytes(xml)

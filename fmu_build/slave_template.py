@@ -203,6 +203,8 @@ class BeamSlave(Fmi2Slave):
         self._add_constant("time.dt", float(t.dt), "sample time (communication steps are multiples of it)", "s")
         self._add_constant("time.theta", float(t.theta), "theta of the three-level time-stepping scheme")
         self._add_constant("time.substeps", int(t.substeps), "sub-steps of the scheme per sample")
+        self._add_constant("time.scheme", str(t.scheme),
+                           "exact: Richardson FD modes integrated exactly in time; theta: the seed's theta-scheme")
         for a in cfg.actuators:
             self._add_constant(f"actuators.{a.name}.x", float(a.x), f"position of actuator {a.name}", "m")
         for s in cfg.sensors:

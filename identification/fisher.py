@@ -55,7 +55,10 @@ def _scales(evaluator: NativeEvaluator, x: np.ndarray) -> np.ndarray:
 
 
 def sensitivities(evaluator: NativeEvaluator, x: np.ndarray, *, rel_step: float = 1e-4) -> list[np.ndarray]:
-    """``∂y/∂θ`` per experiment, each (n_samples, n_sensors, dim), by central differences.
+    """``∂y/∂θ`` per experiment, each (n_samples, n_sensors, dim), by second-order differences.
+
+    Central differences; within a step of a bound (e.g. ``c = 0`` at its lower bound, where ``c − h``
+    is not a valid parameter) the one-sided three-point formula ``(∓3 y₀ ± 4 y₁ ∓ y₂)/(2h)`` into the box.
 
     Raises
     ------
@@ -64,20 +67,31 @@ def sensitivities(evaluator: NativeEvaluator, x: np.ndarray, *, rel_step: float 
     """
     x = np.asarray(x, dtype=float)
     s = _scales(evaluator, x)
+    lo, hi = np.asarray(evaluator.space.lower, dtype=float), np.asarray(evaluator.space.upper, dtype=float)
     dim = x.size
     out = [np.empty(e.outputs.shape + (dim,)) for e in evaluator.experiments]
-    for j in range(dim):
-        h = rel_step * s[j]
-        xp, xm = x.copy(), x.copy()
-        xp[j] += h
-        xm[j] -= h
-        yp, _ = evaluator.simulate(xp)
-        ym, _ = evaluator.simulate(xm)
-        if not yp or not ym:
+    y0: list[np.ndarray] | None = None
+
+    def at(j: int, step: float) -> list[np.ndarray]:
+        xs = x.copy()
+        xs[j] += step
+        y, _ = evaluator.simulate(xs)
+        if not y:
             raise StabilityError(f"the model is unstable next to the point (parameter {evaluator.space.names[j]}); "
                                  "the Fisher information is not defined there")
-        for e, (a, b) in enumerate(zip(yp, ym)):
-            out[e][:, :, j] = (a - b) / (2 * rel_step)
+        return y
+
+    for j in range(dim):
+        h = rel_step * s[j]
+        if lo[j] <= x[j] - h and x[j] + h <= hi[j]:
+            for e, (a, b) in enumerate(zip(at(j, h), at(j, -h))):
+                out[e][:, :, j] = (a - b) / (2 * rel_step)
+            continue
+        if y0 is None:
+            y0 = at(j, 0.0)
+        sign = 1.0 if x[j] - h < lo[j] else -1.0   # into the box
+        for e, (a0, a1, a2) in enumerate(zip(y0, at(j, sign * h), at(j, 2 * sign * h))):
+            out[e][:, :, j] = sign * (-3 * a0 + 4 * a1 - a2) / (2 * rel_step)
     return out
 
 

@@ -246,7 +246,8 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     per = per or ident.get("per", "sensor")
     if per not in ("sensor", "experiment"):
         raise ConfigError(f"--per: unknown {per!r}; allowed: sensor, experiment")
-    stabilising = ident.get("stabilising", True) if stabilising is None else stabilising
+    # the seed's stabilising objective (max growth factor of the θ-scheme) belongs to that scheme
+    stabilising = ident.get("stabilising", cfg.time.scheme == "theta") if stabilising is None else stabilising
     noise_std = noise_std if noise_std is not None else ident.get("noise_std")
     if noise_std is not None:
         noise_std = [float(v) for v in np.atleast_1d(noise_std)]

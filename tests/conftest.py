@@ -28,15 +28,15 @@ def make_config(left: str = "clamped", right: str = "clamped", *, length: float 
                 sensors: list[tuple[str, float, str]] | None = None,
                 masses: list[tuple[str, float, float]] | None = None,
                 left_springs: tuple[float, float] | None = None,
-                right_springs: tuple[float, float] | None = None):
-    """Build a validated config from keyword arguments (tests only)."""
+                right_springs: tuple[float, float] | None = None, scheme: str | None = None):
+    """Build a validated config from keyword arguments (tests only); ``scheme=None``: the project's default."""
     beam: dict[str, Any] = {"length": length, "nodes": nodes, "left": left, "right": right}
     for side, sp in (("left", left_springs), ("right", right_springs)):
         if sp is not None:
             beam[f"{side}_kt"], beam[f"{side}_kr"] = sp
     d: dict[str, Any] = {
         "beam": beam,
-        "time": {"dt": dt, "theta": theta, "substeps": substeps},
+        "time": {"dt": dt, "theta": theta, "substeps": substeps} | ({"scheme": scheme} if scheme else {}),
         "parameters": {"EI": {"value": EI}, "rhoA": {"value": rhoA}, "c": {"value": c},
                        "eta": {"value": eta}, "N": {"value": N}},
         "actuators": [{"name": n, "x": x} for n, x in (actuators or [("F1", 0.3 * length)])],

@@ -120,17 +120,23 @@ def test_richardson_modes_converge_at_fourth_order_to_the_closed_form(left, righ
     assert np.all(order > 3.5), order
 
 
-def test_pinned_pinned_under_tension_matches_the_closed_form_to_1e_7():
-    """Ω_n = nπ√(n²π² + U), U = N L²/EI = 30: 200 nodes, Richardson with 401 — modes 1–5 within 1e-7."""
+def test_pinned_pinned_under_tension_matches_the_closed_form_at_fourth_order():
+    """Ω_n = nπ√(n²π² + U), U = N L²/EI = 30: modes 1–5 within 1e-6 at 100 nodes (measured 8.4e-7; the pair
+    100/201 nodes) and the error falls as h⁴ from 60 nodes (measured 6.3e-6: ratio 7.5 = (101/61)⁴)."""
     U = 30.0
-    cfg = em.config_from_dict({"beam": {"length": 1.0, "nodes": 200, "left": "pinned", "right": "pinned"},
-                               "time": {"dt": 1e-4, "scheme": "exact"},
-                               "parameters": {"EI": {"value": 1.0}, "rhoA": {"value": 1.0}, "N": {"value": U}},
-                               "actuators": [{"name": "F1", "x": 0.3}], "sensors": [{"name": "y1", "x": 0.6}]})
-    f, _ = em.discrete_frequencies(cfg)
-    n = np.arange(1, 6)
-    exact = n * np.pi * np.sqrt(n ** 2 * np.pi ** 2 + U)
-    np.testing.assert_allclose(2 * np.pi * f[:5], exact, rtol=1e-7)
+
+    def error(nodes):
+        cfg = em.config_from_dict({"beam": {"length": 1.0, "nodes": nodes, "left": "pinned", "right": "pinned"},
+                                   "time": {"dt": 1e-4, "scheme": "exact"},
+                                   "parameters": {"EI": {"value": 1.0}, "rhoA": {"value": 1.0}, "N": {"value": U}},
+                                   "actuators": [{"name": "F1", "x": 0.3}], "sensors": [{"name": "y1", "x": 0.6}]})
+        f, _ = em.discrete_frequencies(cfg)
+        n = np.arange(1, 6)
+        return np.max(np.abs(2 * np.pi * f[:5] / (n * np.pi * np.sqrt(n ** 2 * np.pi ** 2 + U)) - 1))
+
+    e60, e100 = error(60), error(100)
+    assert e100 < 1e-6, e100
+    assert np.log(e60 / e100) / np.log(101 / 61) > 3.8
 
 
 def test_exact_scheme_is_the_same_through_every_route():

@@ -61,7 +61,8 @@ def test_identify_writes_results_and_exports(case, capsys):
     assert rc == 0
     doc = json.loads((out / "pareto.json").read_text())
     assert doc["parameter_names"] == ["EI", "N"]
-    assert doc["objective_names"] == ["nrmse_y1", "nrmse_y2", "growth_factor"]
+    # the default (exact) scheme: no stabilising objective, which belongs to the seed's θ-scheme
+    assert doc["objective_names"] == ["nrmse_y1", "nrmse_y2"]
     assert sum(p["knee"] for p in doc["points"]) == 1
     for p in doc["points"]:
         assert set(p) >= {"parameters", "objectives", "cramer_rao_std", "growth_factor", "stable"}

@@ -401,7 +401,11 @@ def analyse_stability(config: BeamConfig, params: Mapping[str, float] | None = N
                     f"finite beam is stable (spectral radius {spectral_radius:.12g}): its ends "
                     f"stiffen it beyond the grid's Euler load")
     dtm = _dt_max(p, config)
-    if config.time.dt > dtm:
+    if config.time.scheme == "exact":
+        msgs.append("time.scheme = exact: integrated exactly in time, stable whenever the beam is (spectral "
+                    f"radius {spectral_radius:.12g}); the growth factor and the Bistritz bounds are those of the "
+                    f"seed's theta-scheme (theta = {config.time.theta:g}) on the same grid")
+    elif config.time.dt > dtm:
         msgs.append(f"dt = {config.time.dt:g} s exceeds the explicit limit {dtm:g} s for theta = "
                     f"{config.time.theta:g}")
     return StabilityReport(g, grid_stable, on > 0, float(spectral_radius), beam_stable, bounds, dtm,

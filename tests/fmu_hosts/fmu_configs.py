@@ -27,10 +27,10 @@ def mixed_config() -> dict[str, Any]:
 
 
 def substep_config() -> dict[str, Any]:
-    """A cantilever with sub-steps (dense transition matrix) and an acceleration sensor."""
+    """The seed's θ-scheme: a cantilever with sub-steps (dense transition matrix) and an acceleration sensor."""
     return {
         "beam": {"length": 0.8, "nodes": 20, "left": "clamped", "right": "free"},
-        "time": {"dt": 5e-4, "theta": 0.25, "substeps": 2},
+        "time": {"dt": 5e-4, "theta": 0.25, "substeps": 2, "scheme": "theta"},
         "parameters": {"EI": {"value": 50.0}, "rhoA": {"value": 2.0}, "c": {"value": 0.5},
                        "eta": {"value": 0.0}, "N": {"value": 0.0}},
         "actuators": [{"name": "force", "x": 0.7}],

@@ -1,0 +1,178 @@
+r"""Axial-force perturbations (drift, mid-plane stretching) on the exact-scheme model.
+
+The counterpart of :func:`diagnosis.augmented.simulate_axial` for ``[time] scheme = "exact"``
+(:mod:`ebb_model.exact_modal`), so that a candidate effect is simulated with the same accuracy as the
+baseline it is compared with.  In the Richardson modes ``q = Ψ η`` of the refined grid the extra axial
+force ``δN(t)`` is the modal load
+
+.. math::
+
+    g = -\delta N\,\Psi^T K_g \Psi\,\eta, \qquad
+    \delta N = \delta N_0 + \text{rate}\,t + \frac{EA}{2L}\,\eta^T \Psi^T G \Psi\,\eta,
+
+with the refined grid's geometric stiffness ``K_g = ∂K/∂N`` and ``G`` the matrix of ``∫ w_x² dx`` of the
+piecewise-linear grid deflection (as :func:`diagnosis.augmented.stretch_integral`).  ``g`` enters each
+pole's exact one-sample update like a force, linear between samples (first-order hold); its value at the
+end of the sample is predicted with the value at its start and corrected once (trapezoidal accuracy in the
+perturbation: ``O(dt²)`` in ``δN``'s effect, which is itself small; the linear time-invariant part stays
+exact).  With ``δN ≡ 0`` the recursion is exactly :func:`ebb_model.exact_modal.exact_modal`'s.
+
+The perturbation acts on the modes below the Nyquist frequency (the ones a record at this ``dt``
+resolves); higher modes respond to the forces only.
+
+Accuracy, measured against re-discretising with ``N + δN`` for a constant ``δN`` (clamped–pinned, 60 nodes,
+``dt = 5e-4``, 2–120 Hz): displacement 4e-4 of the effect of ``δN``, acceleration 4e-2 (4e-3 at ``dt/4``:
+the load taken as linear between samples is the trapezoidal rule's ``(ω dt)²`` error on the perturbation,
+weighted up by the accelerometer's ``ω²``); against the Newmark FE truth with a withheld drift of 40 N/s the
+residual falls from 21,639 / 15,010 to 0.19 / 12 noise variances (displacement / acceleration).
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numba
+import numpy as np
+
+from ebb_model.assemble import check_stable
+from ebb_model.config import BeamConfig
+from ebb_model.discretisation import discretise
+from ebb_model.errors import StabilityError
+from ebb_model.exact_modal import continuous_modes, pole_integrals, refined_config
+
+__all__ = ["simulate_axial_exact"]
+
+
+@numba.njit(cache=True, nogil=True)
+def _modal_load(z, Vq, Kg, Gm, dN0, ea_coef, eta, out):  # pragma: no cover - compiled
+    """``out = −δN Kg η`` with ``η = Re(Vq z)`` and ``δN = δN0 + ea_coef ηᵀ Gm η``."""
+    kp = Kg.shape[0]
+    for r in range(kp):
+        acc = 0.0
+        for c in range(z.shape[0]):
+            acc += (Vq[r, c] * z[c]).real
+        eta[r] = acc
+    dN = dN0
+    if ea_coef != 0.0:
+        s = 0.0
+        for r in range(kp):
+            row = 0.0
+            for c in range(kp):
+                row += Gm[r, c] * eta[c]
+            s += eta[r] * row
+        dN += ea_coef * s
+    for r in range(kp):
+        acc = 0.0
+        for c in range(kp):
+            acc += Kg[r, c] * eta[c]
+        out[r] = -dN * acc
+
+
+@numba.njit(cache=True, nogil=True)
+def _kernel(E, a0, a1, Bu, Bg, Vq, Kg, Gm, Cz, D, Dg, u, dt, offset, rate, ea_coef, y):  # pragma: no cover
+    npole = E.shape[0]
+    ns, ni = u.shape
+    kp = Kg.shape[0]
+    no = D.shape[0]
+    z = np.zeros(npole, dtype=np.complex128)
+    base = np.empty(npole, dtype=np.complex128)
+    zn = np.empty(npole, dtype=np.complex128)
+    eta = np.empty(kp)
+    g = np.empty(kp)
+    g1 = np.empty(kp)
+    for k in range(ns):
+        _modal_load(z, Vq, Kg, Gm, offset + rate * (k * dt), ea_coef, eta, g)
+        for o in range(no):
+            acc = 0.0
+            for c in range(npole):
+                acc += (Cz[o, c] * z[c]).real
+            for i in range(ni):
+                acc += D[o, i] * u[k, i]
+            for r in range(kp):
+                acc += Dg[o, r] * g[r]
+            y[k, o] = acc
+        if k + 1 == ns:
+            break
+        for c in range(npole):
+            fu0 = 0.0j
+            fu1 = 0.0j
+            for i in range(ni):
+                fu0 += Bu[c, i] * u[k, i]
+                fu1 += Bu[c, i] * u[k + 1, i]
+            fg = 0.0j
+            for r in range(kp):
+                fg += Bg[c, r] * g[r]
+            base[c] = E[c] * z[c] + a0[c] * (fu0 + fg) + a1[c] * fu1
+            zn[c] = base[c] + a1[c] * fg            # predictor: g at the end of the sample = g at its start
+        _modal_load(zn, Vq, Kg, Gm, offset + rate * ((k + 1) * dt), ea_coef, eta, g1)
+        for c in range(npole):                       # corrector
+            fg1 = 0.0j
+            for r in range(kp):
+                fg1 += Bg[c, r] * g1[r]
+            z[c] = base[c] + a1[c] * fg1
+
+
+def _stretch_matrix(config: BeamConfig) -> np.ndarray:
+    """``G`` with ``qᵀ G q = ∫ w_x² dx`` of the piecewise-linear grid deflection (unknowns ``q``)."""
+    beam = discretise(config)
+    n_nodes = beam.x.size
+    Dm = np.zeros((n_nodes - 1, beam.n_unknowns))
+    for j, node in enumerate(beam.unknown):
+        if node > 0:
+            Dm[node - 1, j] += 1.0
+        if node < n_nodes - 1:
+            Dm[node, j] -= 1.0
+    h = config.beam.length / (config.beam.nodes + 1)
+    return Dm.T @ Dm / h
+
+
+def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None, u: np.ndarray, *,
+                         offset: float = 0.0, rate: float = 0.0, EA: float = 0.0,
+                         check_stability: bool = True) -> np.ndarray:
+    """Outputs (n_samples, n_sensors) of the exact-scheme beam with the extra axial force ``δN(t)``.
+
+    Arguments as :func:`diagnosis.augmented.simulate_axial` (already validated there); starts at rest.
+
+    Raises
+    ------
+    StabilityError
+        The base model is unstable, or the perturbed simulation diverged.
+    """
+    from .augmented import geometric_stiffness
+
+    p = config.parameter_values() | dict(params or {})
+    cm = continuous_modes(config, p)
+    dt = config.time.dt
+    E, phi0, phi1 = pole_integrals(cm.poles, dt)
+    if check_stability:
+        check_stable(config, p, float(np.max(np.abs(E))) if E.size else 0.0)
+    if config.time.input_hold == "foh":
+        a0, a1 = phi0 - phi1, phi1
+    else:
+        a0, a1 = phi0, np.zeros_like(phi1)
+    fine = refined_config(config)
+    kp = max(1, int(np.count_nonzero(cm.frequencies2 < (math.pi / dt) ** 2)))  # below Nyquist
+    psi = cm.shapes[:, :kp]
+    Kg = psi.T @ geometric_stiffness(fine, p) @ psi
+    Gm = psi.T @ _stretch_matrix(fine) @ psi
+    k = cm.shapes.shape[1]
+    Bg = np.linalg.solve(cm.V, np.vstack([np.zeros((k, kp)), np.eye(k, kp)]))
+    Vq = np.ascontiguousarray(cm.V[:kp])
+    Cz = cm.C @ cm.V
+    fine_beam = discretise(fine, p)
+    P = fine_beam.S @ psi
+    Dg = np.zeros((len(config.sensors), kp))
+    for o, kind in enumerate(fine_beam.sensor_kinds):
+        if kind == "acceleration":
+            Dg[o] = P[o]
+    y = np.empty((u.shape[0], len(config.sensors)))
+    _kernel(E.astype(np.complex128), a0.astype(np.complex128), a1.astype(np.complex128),
+            np.ascontiguousarray(cm.inputs, dtype=np.complex128), np.ascontiguousarray(Bg, dtype=np.complex128),
+            Vq.astype(np.complex128), np.ascontiguousarray(Kg), np.ascontiguousarray(Gm),
+            np.ascontiguousarray(Cz, dtype=np.complex128), np.ascontiguousarray(cm.D), Dg,
+            np.ascontiguousarray(u, dtype=float), float(dt), float(offset), float(rate),
+            float(EA) / (2.0 * config.beam.length), y)
+    if check_stability and not np.all(np.isfinite(y)):
+        raise StabilityError("the simulation with axial drift/stretching diverged (non-finite outputs): "
+                             f"rate = {rate:g} N/s, EA = {EA:g} N, offset = {offset:g} N")
+    return y
