@@ -44,13 +44,13 @@ __all__ = ["simulate_axial_exact"]
 
 
 @numba.njit(cache=True, nogil=True)
-def _modal_load(z, Vq, Kg, Gm, dN0, ea_coef, eta, out):  # pragma: no cover - compiled
-    """``out = −δN Kg η`` with ``η = Re(Vq z)`` and ``δN = δN0 + ea_coef ηᵀ Gm η``."""
+def _modal_load(z, vq_ptr, vq_idx, vq_val, Kg, Gm, dN0, ea_coef, eta, out):  # pragma: no cover - compiled
+    """``out = −δN Kg η`` with ``η = Re(Vq z)`` (Vq sparse by rows) and ``δN = δN0 + ea_coef ηᵀ Gm η``."""
     kp = Kg.shape[0]
     for r in range(kp):
         acc = 0.0
-        for c in range(z.shape[0]):
-            acc += (Vq[r, c] * z[c]).real
+        for p in range(vq_ptr[r], vq_ptr[r + 1]):
+            acc += (vq_val[p] * z[vq_idx[p]]).real
         eta[r] = acc
     dN = dN0
     if ea_coef != 0.0:
@@ -69,7 +69,8 @@ def _modal_load(z, Vq, Kg, Gm, dN0, ea_coef, eta, out):  # pragma: no cover - co
 
 
 @numba.njit(cache=True, nogil=True)
-def _kernel(E, a0, a1, Bu, Bg, Vq, Kg, Gm, Cz, D, Dg, u, dt, offset, rate, ea_coef, y):  # pragma: no cover
+def _kernel(E, a0, a1, Bu, bg_ptr, bg_idx, bg_val, vq_ptr, vq_idx, vq_val, Kg, Gm, Cz, D, Dg, u, dt, offset,
+            rate, ea_coef, y):  # pragma: no cover - compiled
     npole = E.shape[0]
     ns, ni = u.shape
     kp = Kg.shape[0]
@@ -81,7 +82,7 @@ def _kernel(E, a0, a1, Bu, Bg, Vq, Kg, Gm, Cz, D, Dg, u, dt, offset, rate, ea_co
     g = np.empty(kp)
     g1 = np.empty(kp)
     for k in range(ns):
-        _modal_load(z, Vq, Kg, Gm, offset + rate * (k * dt), ea_coef, eta, g)
+        _modal_load(z, vq_ptr, vq_idx, vq_val, Kg, Gm, offset + rate * (k * dt), ea_coef, eta, g)
         for o in range(no):
             acc = 0.0
             for c in range(npole):
@@ -100,16 +101,24 @@ def _kernel(E, a0, a1, Bu, Bg, Vq, Kg, Gm, Cz, D, Dg, u, dt, offset, rate, ea_co
                 fu0 += Bu[c, i] * u[k, i]
                 fu1 += Bu[c, i] * u[k + 1, i]
             fg = 0.0j
-            for r in range(kp):
-                fg += Bg[c, r] * g[r]
+            for p in range(bg_ptr[c], bg_ptr[c + 1]):
+                fg += bg_val[p] * g[bg_idx[p]]
             base[c] = E[c] * z[c] + a0[c] * (fu0 + fg) + a1[c] * fu1
             zn[c] = base[c] + a1[c] * fg            # predictor: g at the end of the sample = g at its start
-        _modal_load(zn, Vq, Kg, Gm, offset + rate * ((k + 1) * dt), ea_coef, eta, g1)
+        _modal_load(zn, vq_ptr, vq_idx, vq_val, Kg, Gm, offset + rate * ((k + 1) * dt), ea_coef, eta, g1)
         for c in range(npole):                       # corrector
             fg1 = 0.0j
-            for r in range(kp):
-                fg1 += Bg[c, r] * g1[r]
+            for p in range(bg_ptr[c], bg_ptr[c + 1]):
+                fg1 += bg_val[p] * g1[bg_idx[p]]
             z[c] = base[c] + a1[c] * fg1
+
+
+def _rows(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Compressed rows ``(ptr, idx, val)`` of the non-zeros of ``A`` (decoupled modes: two per row)."""
+    mask = A != 0
+    ptr = np.concatenate([[0], np.cumsum(mask.sum(axis=1))]).astype(np.int64)
+    rows, cols = np.nonzero(mask)
+    return ptr, cols.astype(np.int64), np.ascontiguousarray(A[rows, cols], dtype=np.complex128)
 
 
 def _stretch_matrix(config: BeamConfig) -> np.ndarray:
@@ -167,8 +176,8 @@ def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None,
             Dg[o] = P[o]
     y = np.empty((u.shape[0], len(config.sensors)))
     _kernel(E.astype(np.complex128), a0.astype(np.complex128), a1.astype(np.complex128),
-            np.ascontiguousarray(cm.inputs, dtype=np.complex128), np.ascontiguousarray(Bg, dtype=np.complex128),
-            Vq.astype(np.complex128), np.ascontiguousarray(Kg), np.ascontiguousarray(Gm),
+            np.ascontiguousarray(cm.inputs, dtype=np.complex128), *_rows(Bg), *_rows(Vq),
+            np.ascontiguousarray(Kg), np.ascontiguousarray(Gm),
             np.ascontiguousarray(Cz, dtype=np.complex128), np.ascontiguousarray(cm.D), Dg,
             np.ascontiguousarray(u, dtype=float), float(dt), float(offset), float(rate),
             float(EA) / (2.0 * config.beam.length), y)

@@ -268,10 +268,11 @@ def exact_modal(config: BeamConfig, params: Mapping[str, float]) -> ModalStateSp
         b0, b1 = (phi0 - phi1)[:, None] * cm.inputs, phi1[:, None] * cm.inputs
     else:                                                 # u held over the sample
         b0, b1 = phi0[:, None] * cm.inputs, np.zeros_like(cm.inputs)
-    T, G0, G1, Cb = _real_blocks(E, cm.V, b0, b1, cm.C)
-    # causal first-order hold on ξ = z − Γ₁ u (as the seed's modal form)
-    G = G0 + np.matmul(T, G1)
-    D = cm.D + np.einsum("pbi,bim->pm", Cb, G1)
+    with np.errstate(over="ignore", invalid="ignore"):   # an unstable candidate: caught by the stability check
+        T, G0, G1, Cb = _real_blocks(E, cm.V, b0, b1, cm.C)
+        # causal first-order hold on ξ = z − Γ₁ u (as the seed's modal form)
+        G = G0 + np.matmul(T, G1)
+        D = cm.D + np.einsum("pbi,bim->pm", Cb, G1)
     hold = G1 if config.time.input_hold == "foh" else None
     return ModalStateSpace(T, G, Cb, D, T_s, config.input_names, config.output_names, None, hold)
 
