@@ -18,8 +18,6 @@ Run: ``python benchmarks/bench_accuracy.py [--repeats R]``.
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +27,8 @@ import ebb_model as em
 from ebb_model.reference.exact_fe import exact_fe_response
 from ebb_model.reference.excitation import band_limited_input
 from ebb_model.reference.hermite_fe import hermite_beam
+
+from timing import median_time  # benchmarks/timing.py
 
 ROOT = Path(__file__).resolve().parents[1]
 L, DT = 0.8, 1 / 4000
@@ -49,15 +49,6 @@ def config(nodes: int, scheme: str, substeps: int = 1) -> em.BeamConfig:
 def truth(u: np.ndarray, n_elements: int, substeps: int) -> np.ndarray:
     beam = hermite_beam(L, n_elements, left=(np.inf, np.inf), right=(np.inf, 0.0), **PARAMS)
     return exact_fe_response(beam, u, DT, [ACTUATOR], SENSORS, substeps=substeps)
-
-
-def median_time(fn, repeats: int) -> float:
-    ts = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    return statistics.median(ts)
 
 
 def main() -> None:

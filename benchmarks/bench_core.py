@@ -18,8 +18,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import statistics
-import time
 from pathlib import Path
 
 import numpy as np
@@ -28,16 +26,9 @@ from threadpoolctl import threadpool_limits
 
 import ebb_model as em
 
+from timing import median_time  # benchmarks/timing.py
+
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def median_time(fn, repeats: int) -> float:
-    ts = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    return statistics.median(ts)
 
 
 def config(nodes: int) -> em.BeamConfig:

@@ -14,9 +14,7 @@ from __future__ import annotations
 
 import argparse
 import io
-import statistics
 import sys
-import time
 import warnings
 from pathlib import Path
 
@@ -26,17 +24,10 @@ import ebb_model as em
 from ebb_model.errors import DataWarning
 from identification.data import load_experiment
 
+from timing import median_time  # benchmarks/timing.py
+
 ROOT = Path(__file__).resolve().parents[1]
 ARTS_LVM = ROOT / ".." / "shared" / "data" / "arts-lab-cantilever" / "test_1_3200Hz.lvm"
-
-
-def median_time(fn, repeats: int) -> float:
-    ts = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    return statistics.median(ts)
 
 
 def main() -> None:

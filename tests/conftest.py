@@ -8,9 +8,11 @@ import textwrap
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
+import ebb_model as em
 from ebb_model import config_from_dict
 
 
@@ -116,3 +118,45 @@ def run_identify_signalled(cfg: Path, data: Path, out: Path, sig: int, after_gen
     """)
     return subprocess.run([sys.executable, "-c", script, "identify", str(cfg), str(data), "--out", str(out),
                            *extra], capture_output=True, text=True, timeout=600)
+
+
+#: A small identification config: clamped–clamped, 16 nodes, EI and N unknown, one force, two sensors.
+IDENTIFY_CFG = """
+[beam]
+length = 1.0
+nodes = 16
+left = "clamped"
+right = "clamped"
+[time]
+dt = 1e-4
+[parameters]
+EI   = { value = 10.0, bounds = [5.0, 20.0], identify = true }
+rhoA = { value = 1.0 }
+c    = { value = 0.5 }
+N    = { value = 50.0, bounds = [0.0, 100.0], identify = true }
+[[actuators]]
+name = "F1"
+x = 0.3
+[[sensors]]
+name = "y1"
+x = 0.5
+[[sensors]]
+name = "y2"
+x = 0.75
+"""
+
+
+@pytest.fixture
+def identify_case(tmp_path: Path):
+    """A small identification case: config (EI and N unknown), a 600-sample record of the model, 1 % noise."""
+    cfg_path = tmp_path / "cfg.toml"
+    cfg_path.write_text(IDENTIFY_CFG)
+    cfg = em.load_config(cfg_path)
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal((600, 1))
+    y = em.simulate_config(cfg, u).outputs
+    y += 0.01 * y.std(0) * rng.standard_normal(y.shape)
+    t = np.arange(600) * 1e-4
+    data = tmp_path / "data.csv"
+    np.savetxt(data, np.column_stack([t, u[:, 0], y]), delimiter=",", header="time,F1,y1,y2", comments="")
+    return cfg_path, data, tmp_path

@@ -21,6 +21,7 @@ from ebb_model.cli import main
 from ebb_model.errors import DataError, DataWarning, EbbError, StabilityError
 from identification.data import load_experiment
 
+from conftest import IDENTIFY_CFG as CFG
 from conftest import run_identify_signalled
 from test_data_loaders import cfg as loader_cfg
 from test_data_loaders import signals, write_csv, write_lvm, write_uff
@@ -28,44 +29,10 @@ from test_data_loaders import signals, write_csv, write_lvm, write_uff
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
 SEED = Path(__file__).resolve().parents[1] / "examples" / "seed_clamped.toml"
 
-CFG = """
-[beam]
-length = 1.0
-nodes = 16
-left = "clamped"
-right = "clamped"
-[time]
-dt = 1e-4
-[parameters]
-EI   = { value = 10.0, bounds = [5.0, 20.0], identify = true }
-rhoA = { value = 1.0 }
-c    = { value = 0.5 }
-N    = { value = 50.0, bounds = [0.0, 100.0], identify = true }
-[[actuators]]
-name = "F1"
-x = 0.3
-[[sensors]]
-name = "y1"
-x = 0.5
-[[sensors]]
-name = "y2"
-x = 0.75
-"""
-
 
 @pytest.fixture
-def case(tmp_path: Path):
-    """A small identification case: config, a 600-sample record from the model with 1 % noise."""
-    cfg_path = tmp_path / "cfg.toml"
-    cfg_path.write_text(CFG)
-    rng = np.random.default_rng(0)
-    u = rng.standard_normal((600, 1))
-    y = em.simulate_config(em.load_config(cfg_path), u).outputs
-    y += 0.01 * y.std(0) * rng.standard_normal(y.shape)
-    data = tmp_path / "data.csv"
-    np.savetxt(data, np.column_stack([np.arange(600) * 1e-4, u[:, 0], y]), delimiter=",",
-               header="time,F1,y1,y2", comments="")
-    return cfg_path, data, tmp_path
+def case(identify_case):
+    return identify_case
 
 
 def one_line_error(capsys, command: str) -> str:

@@ -19,7 +19,6 @@ import venv
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 import pythonfmu  # noqa: F401 - a dependency: a broken install must fail, not skip
 import fmpy

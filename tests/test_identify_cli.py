@@ -11,46 +11,12 @@ import ebb_model as em
 from ebb_model.cli import main
 from identification.export_statespace import load_statespace
 
+from conftest import IDENTIFY_CFG as CFG
 from conftest import run_identify_signalled
 
-CFG = """
-[beam]
-length = 1.0
-nodes = 16
-left = "clamped"
-right = "clamped"
-[time]
-dt = 1e-4
-[parameters]
-EI   = { value = 10.0, bounds = [5.0, 20.0], identify = true }
-rhoA = { value = 1.0 }
-c    = { value = 0.5 }
-N    = { value = 50.0, bounds = [0.0, 100.0], identify = true }
-[[actuators]]
-name = "F1"
-x = 0.3
-[[sensors]]
-name = "y1"
-x = 0.5
-[[sensors]]
-name = "y2"
-x = 0.75
-"""
-
-
 @pytest.fixture
-def case(tmp_path: Path):
-    cfg_path = tmp_path / "cfg.toml"
-    cfg_path.write_text(CFG)
-    cfg = em.load_config(cfg_path)
-    rng = np.random.default_rng(0)
-    u = rng.standard_normal((600, 1))
-    y = em.simulate_config(cfg, u).outputs
-    y += 0.01 * y.std(0) * rng.standard_normal(y.shape)
-    t = np.arange(600) * 1e-4
-    data = tmp_path / "data.csv"
-    np.savetxt(data, np.column_stack([t, u[:, 0], y]), delimiter=",", header="time,F1,y1,y2", comments="")
-    return cfg_path, data, tmp_path
+def case(identify_case):
+    return identify_case
 
 
 def test_identify_writes_results_and_exports(case, capsys):
