@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
+from ebb_model.adequacy import adequacy_line
+
 __all__ = ["text_report"]
 
 
@@ -16,6 +18,8 @@ def text_report(doc: Mapping[str, Any], *, top: int = 6) -> str:
     base = doc["baseline"]
     ratios = ", ".join(f"{k} {v:.3g}" for k, v in base["heldout_gap_ratio"].items())
     lines.append(f"baseline held-out gap ratio (1 = noise floor): {ratios}")
+    if base.get("numerical_adequacy"):
+        lines.append(f"baseline's {adequacy_line(base['numerical_adequacy'])}")
     if doc.get("summary"):
         lines.append("where:")
         lines += [f"  - {s}" for s in doc["summary"]]

@@ -26,6 +26,7 @@ from scipy.signal import welch
 
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError, DataError
+from ebb_model.adequacy import numerical_adequacy
 from ebb_model.jsonio import write_json
 from ebb_model.outdir import check_new_output_dir
 from ebb_model.modal import discrete_frequencies
@@ -298,6 +299,9 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
             "bic": baseline.bic(p),
             "n_evaluations": baseline.n_evaluations,
             "model_modes_hz": [float(v) for v in mf],
+            "numerical_adequacy": numerical_adequacy(
+                base_cfg, base_params, [(r.inputs[:r.fit_end], r.outputs[:r.fit_end]) for r in fit_records],
+                sigma).to_dict(),
         },
         "localisation": {r.name: loc.to_dict() for r, loc in zip(records, locs)},
         "summary": [s for loc in locs for s in loc.summary],

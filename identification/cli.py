@@ -38,6 +38,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         print(f"polished {j} (from point {q.from_index}, {q.n_evaluations} evaluations): " + json.dumps(values))
     if res.polished:
         print(f"total evaluations (GA + polish): {res.n_evaluations}")
+    if res.adequacy is not None:
+        print(res.adequacy.summary())
     print(f"wrote {res.out_dir / 'pareto.json'}")
     return 0
 

@@ -32,6 +32,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from ebb_model import load_config, max_growth_factor
+from ebb_model.adequacy import NumericalAdequacy, numerical_adequacy
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError, StabilityError
 from ebb_model.jsonio import write_json
@@ -147,6 +148,7 @@ class IdentificationResult:
     stable: np.ndarray
     out_dir: Path
     polished: tuple[PolishedPoint, ...] = ()
+    adequacy: NumericalAdequacy | None = None   # numerical share of the gap at :attr:`best`
 
     @property
     def knee(self) -> dict[str, float]:
@@ -314,7 +316,11 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         for i, x, f, n_ev, r in polished_raw:
             c_, g_, s_ = _point_properties(cfg, space, evaluator, x, fisher0.noise_std)
             polished.append(PolishedPoint(i, x, f, c_, g_, s_, n_ev, r.cost, r.success, r.message))
-        res = IdentificationResult(pareto, fisher0, np.array(crb), np.array(g), np.array(st), out, tuple(polished))
+        best_x = polished_raw[0][1] if polished_raw else pareto.X[pareto.knee]
+        adequacy = numerical_adequacy(*space.apply(cfg, best_x),
+                                      [(e.inputs, e.outputs) for e in evaluator.experiments], fisher0.noise_std)
+        res = IdentificationResult(pareto, fisher0, np.array(crb), np.array(g), np.array(st), out, tuple(polished),
+                                   adequacy)
         _write_results(res, cfg, evaluator)
         if export:
             from .export import export_points
@@ -407,6 +413,8 @@ def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: Native
         "generations": int(p.generations),
         "points": points,
         "polished": polished,
+        # at the reported point (the polished knee, else the knee): how much of its gap is the grid's
+        "numerical_adequacy": res.adequacy.to_dict() if res.adequacy is not None else None,
     }
     head = [*p.parameter_names, *p.objective_names, *[f"crb_{n}" for n in p.parameter_names],
             "growth_factor", "stable"]

@@ -51,12 +51,15 @@ def test_diagnose_with_holdout_file_writes_gap_json_and_plots(bench, capsys):
     assert rc == 0
     doc = json.loads((out / "gap.json").read_text())
     assert doc["verdict"] == "actuator_lag"
+    # the gap is the withheld lag's, not the grid's: refining the baseline's grid changes little of it
+    assert doc["baseline"]["numerical_adequacy"]["max_numerical_share"] < 0.1
     top = doc["effects"][0]
     assert top["label"] == "actuator_lag" and top["refit"]["closed"] >= 0.8
     assert abs(top["refit"]["effect_parameters"]["tau"] - 6e-4) < 1.5e-4
     assert set(doc["localisation"]) == {"rec21", "holdout:rec22"}
     assert (out / "effects.png").is_file() and (out / "heldout_residuals.png").is_file()
-    assert "verdict: actuator_lag" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "verdict: actuator_lag" in printed and "baseline's numerical share of the gap:" in printed
 
 
 @pytest.mark.parametrize("extra,problem", [

@@ -30,6 +30,11 @@ def test_identify_writes_results_and_exports(case, capsys):
     # the default (exact) scheme: no stabilising objective, which belongs to the seed's θ-scheme
     assert doc["objective_names"] == ["nrmse_y1", "nrmse_y2"]
     assert sum(p["knee"] for p in doc["points"]) == 1
+    adequacy = doc["numerical_adequacy"]
+    assert adequacy["refined_nodes"] == 4 * 16 + 3 and set(adequacy["sensors"]) == {"y1", "y2"}
+    # (what the share means is tested in test_adequacy.py against independent truth; here the data come from
+    # the 16-node model itself, so refining moves away from them)
+    assert all(np.isfinite(v["numerical_share"]) and v["change"] >= 0 for v in adequacy["sensors"].values())
     for p in doc["points"]:
         assert set(p) >= {"parameters", "objectives", "cramer_rao_std", "growth_factor", "stable"}
     for f in ("pareto.csv", "identifiability.json", "pareto_front.png", "knee_fit.png", "checkpoint.pkl"):

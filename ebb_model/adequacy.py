@@ -1,0 +1,97 @@
+"""Numerical adequacy: how much of a model-vs-measurement gap is the model's own discretisation error.
+
+At given parameters the model is simulated on its own grid and on a refined one (:func:`refined_grid`).  Against the measurements, per sensor and in
+noise variances: the gap of the model, the gap of the refined model, and the change refinement makes.
+Their ratio, the *numerical share*, says how much of the gap is numerical: near 0 the gap is the physics'
+(or noise), near 1 the grid's — then no physical effect should be blamed for it, and the grid should be
+refined (``[beam] nodes``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .config import BeamConfig
+from .simulate import fast_model, simulate
+
+__all__ = ["NumericalAdequacy", "adequacy_line", "numerical_adequacy", "refined_grid"]
+
+
+def refined_grid(config: BeamConfig) -> BeamConfig:
+    """``config`` on a finer grid: θ-scheme twice the intervals (``2n + 1`` nodes) and twice the sub-steps;
+    exact scheme four times (``4n + 3`` nodes), so that its Richardson pair of grids is a finer pair too
+    (``2n + 1`` alone would pair with the config's own grid again, see
+    :func:`ebb_model.exact_modal.companion_config`)."""
+    n = config.beam.nodes
+    if config.time.scheme == "theta":
+        return replace(config, beam=replace(config.beam, nodes=2 * n + 1),
+                       time=replace(config.time, substeps=2 * config.time.substeps))
+    return replace(config, beam=replace(config.beam, nodes=4 * n + 3))
+
+
+@dataclass(frozen=True)
+class NumericalAdequacy:
+    """Per sensor, in noise variances: ``gap`` (model), ``gap_refined``, ``change`` (refined − model);
+    ``numerical_share = change / gap``."""
+
+    sensors: tuple[str, ...]
+    gap: np.ndarray
+    gap_refined: np.ndarray
+    change: np.ndarray
+    refined_nodes: int
+
+    @property
+    def numerical_share(self) -> np.ndarray:
+        """Fraction of each sensor's gap that refining the grid changes."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(self.gap > 0, self.change / self.gap, 0.0)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary."""
+        per = {s: {"gap_ratio": float(g), "gap_ratio_refined": float(r), "change": float(c),
+                   "numerical_share": float(f)}
+               for s, g, r, c, f in zip(self.sensors, self.gap, self.gap_refined, self.change,
+                                        self.numerical_share)}
+        return {"refined_nodes": self.refined_nodes, "sensors": per,
+                "max_numerical_share": float(np.max(self.numerical_share)) if self.sensors else 0.0}
+
+    def summary(self) -> str:
+        """One line for reports (:func:`adequacy_line`)."""
+        return adequacy_line(self.to_dict())
+
+
+def adequacy_line(summary: Mapping[str, Any]) -> str:
+    """One report line from :meth:`NumericalAdequacy.to_dict`'s summary."""
+    share = summary["max_numerical_share"]
+    return (f"numerical share of the gap: {100 * share:.2g} % at most (refined grid of {summary['refined_nodes']} "
+            "nodes" + ("; refine [beam] nodes before blaming physics)" if share > 0.1 else ")"))
+
+
+def numerical_adequacy(config: BeamConfig, params: Mapping[str, float],
+                       records: Sequence[tuple[np.ndarray, np.ndarray]],
+                       noise_std: Sequence[float]) -> NumericalAdequacy:
+    """Gap of the model at ``params`` with and without refinement, over ``records`` of ``(inputs, outputs)``.
+
+    Parameters
+    ----------
+    config, params
+        The model and its (fitted) parameter values.
+    records
+        Inputs (n, n_actuators) and measured outputs (n, n_sensors) in the config's sensor order.
+    noise_std
+        Noise standard deviation per sensor.
+    """
+    fine_cfg = refined_grid(config)
+    model, fine = fast_model(config, params), fast_model(fine_cfg, params)
+    sigma2 = np.asarray(noise_std, dtype=float) ** 2
+    sq = np.zeros((3, len(config.sensors)))
+    n = 0
+    for u, y in records:
+        y_m = simulate(model, u).outputs
+        y_f = simulate(fine, u).outputs
+        sq += [np.sum((y - y_m) ** 2, axis=0), np.sum((y - y_f) ** 2, axis=0), np.sum((y_f - y_m) ** 2, axis=0)]
+        n += y.shape[0]
+    gap, gap_f, change = (sq / max(n, 1)) / sigma2
+    return NumericalAdequacy(config.output_names, gap, gap_f, change, fine_cfg.beam.nodes)
