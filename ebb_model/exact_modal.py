@@ -15,8 +15,8 @@ seed's spatial discretisation (same grid, ghost nodes, matrices):
 2. **Time, exact.**  The modal system ``q̈ + C_m q̇ + Λ q = Ψᵀ F u`` (``C_m = Ψᵀ C Ψ``: non-proportional
    damping is kept) is diagonalised in continuous time and each pole ``s`` is integrated exactly over a
    sample under the input of :attr:`~ebb_model.config.TimeSettings.input_hold` (straight line between
-   samples, or held): ``x⁺ = e^{sT} x + φ₀ u_k + φ₁ u_{k+1}``, from the exponential of a 3×3 augmented
-   matrix per pole.  Outputs are exact too: acceleration ``= Ψ(−Λ q − C_m q̇ + Ψᵀ F u)``.
+   samples, or held): ``x⁺ = e^{sT} x + φ₀ u_k + φ₁ u_{k+1}``, with ``φ`` in closed form (Taylor series
+   for small ``|sT|``; checked against the matrix exponential of the 3×3 augmented matrix per pole).  Outputs are exact too: acceleration ``= Ψ(−Λ q − C_m q̇ + Ψᵀ F u)``.
 
 The result is a :class:`~ebb_model.modal_form.ModalStateSpace`, simulated by the same compiled kernel
 as the seed's modal form, at the same cost per sample.  Stable whenever the beam is (no time-step limit);
