@@ -158,3 +158,22 @@ def test_config_scheme_is_validated_and_round_trips():
     d["time"]["scheme"] = "newmark"
     with pytest.raises(em.ConfigError, match=r"time\.scheme: must be one of theta, exact, got 'newmark'"):
         em.config_from_dict(d)
+
+
+def test_pole_integrals_equal_the_matrix_exponential():
+    """Closed form and Taylor branch (|sT| < 1/2) against scipy's expm of the augmented 3×3 matrix."""
+    import scipy.linalg as sla
+
+    from ebb_model.exact_modal import pole_integrals
+
+    rng = np.random.default_rng(0)
+    mag = 10.0 ** rng.uniform(-3, 5, 300)
+    s = mag * np.exp(1j * rng.uniform(np.pi / 2, 3 * np.pi / 2, 300))     # left half-plane: stable poles
+    T = 2.5e-4
+    E, phi0, phi1 = pole_integrals(s, T)
+    A = np.zeros((s.size, 3, 3), dtype=complex)
+    A[:, 0, 0], A[:, 0, 1], A[:, 1, 2] = s * T, T, 1.0
+    X = sla.expm(A)
+    np.testing.assert_allclose(E, X[:, 0, 0], rtol=1e-13, atol=1e-300)
+    np.testing.assert_allclose(phi0, X[:, 0, 1], rtol=1e-12)
+    np.testing.assert_allclose(phi1, X[:, 0, 2], rtol=1e-12)
