@@ -240,7 +240,11 @@ def continuous_modes(config: BeamConfig, params: Mapping[str, float]) -> Continu
     k = grids[0].n_unknowns                               # as many modes as the config's grid has unknowns
     w2, psi = richardson_modes(coarse, fine, k)
     proportional, d = is_proportional(psi, fine.C)
-    Cm = np.diag(d) if proportional else 0.5 * (psi.T @ fine.C @ psi + (psi.T @ fine.C @ psi).T)
+    if proportional:
+        Cm = np.diag(d)
+    else:
+        Cm = psi.T @ fine.C @ psi
+        Cm = 0.5 * (Cm + Cm.T)
     Fm = psi.T @ fine.F
     C, D = _output_rows(fine, psi, w2, Cm, Fm)
     if proportional:                                      # decoupled modes: poles in closed form
