@@ -92,7 +92,7 @@ from ebb_model.errors import ConfigError, DataError, ParameterError, StabilityEr
 from ebb_model.simulate import fast_model, simulate
 from ebb_model.theta_scheme import ThetaCoefficients, one_step, theta_coefficients
 
-__all__ = ["first_order_lag", "geometric_stiffness", "simulate_axial", "simulate_effects", "stretch_integral"]
+__all__ = ["first_order_lag", "lag_coefficients", "geometric_stiffness", "simulate_axial", "simulate_effects", "stretch_integral"]
 
 _KIND_CODE = {"displacement": 0, "velocity": 1, "acceleration": 2}
 _FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
@@ -138,7 +138,7 @@ def _check_inputs(u: np.ndarray, config: BeamConfig) -> np.ndarray:
 # ---------------------------------------------------------------------------
 # first-order lag
 # ---------------------------------------------------------------------------
-def _lag_coefficients(r: float) -> tuple[float, float, float]:
+def lag_coefficients(r: float) -> tuple[float, float, float]:
     """``a = e^{-r}``, ``b0 = 1 - (1-a)/r`` and ``b1 = (1-a)/r - a`` for ``r = dt/τ`` (no cancellation)."""
     a = math.exp(-r)
     if r < 1e-2:  # series of (r - 1 + e^{-r})/r and ((1-e^{-r}) - r e^{-r})/r
@@ -207,7 +207,7 @@ def first_order_lag(x: np.ndarray, dt: float, tau: float, *, y0: np.ndarray | fl
         raise DataError("lag initial output y0 must be finite")
     if tau == 0.0:
         return x.copy()
-    a, b0, b1 = _lag_coefficients(dt_f / tau)
+    a, b0, b1 = lag_coefficients(dt_f / tau)
     # y[k] = b0 x[k] + b1 x[k-1] + a y[k-1]; zi chosen so that y[0] = start
     zi = np.asarray(start - b0 * x[0], dtype=float)[None, ...]
     y, _ = ss.lfilter([b0, b1], [1.0, -a], x, axis=0, zi=zi)

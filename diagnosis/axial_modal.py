@@ -12,7 +12,8 @@ force ``δN(t)`` is the modal load
 
 with the refined grid's geometric stiffness ``K_g = ∂K/∂N`` and ``G`` the matrix of ``∫ w_x² dx`` of the
 piecewise-linear grid deflection (as :func:`diagnosis.augmented.stretch_integral`).  ``g`` enters each
-pole's exact one-sample update like a force, linear between samples (first-order hold); its value at the
+pole's exact one-sample update like a force, linear between samples (the measured force with the config's
+input reconstruction, e.g. the cubic); its value at the
 end of the sample is predicted with the value at its start and corrected once (trapezoidal accuracy in the
 perturbation: ``O(dt²)`` in ``δN``'s effect, which is itself small; the linear time-invariant part stays
 exact).  With ``δN ≡ 0`` the recursion is exactly :func:`ebb_model.exact_modal.exact_modal`'s.
@@ -38,7 +39,7 @@ from ebb_model.assemble import check_stable
 from ebb_model.config import BeamConfig
 from ebb_model.discretisation import discretise
 from ebb_model.errors import StabilityError
-from ebb_model.exact_modal import continuous_modes, pole_integrals, refined_config
+from ebb_model.exact_modal import INPUT_TAPS, continuous_modes, input_weights, pole_integrals, refined_config
 
 __all__ = ["simulate_axial_exact"]
 
@@ -69,7 +70,7 @@ def _modal_load(z, vq_ptr, vq_idx, vq_val, Kg, Gm, dN0, ea_coef, eta, out):  # p
 
 
 @numba.njit(cache=True, nogil=True)
-def _kernel(E, a0, a1, Bu, bg_ptr, bg_idx, bg_val, vq_ptr, vq_idx, vq_val, Kg, Gm, Cz, D, Dg, u, dt, offset,
+def _kernel(E, a0, a1, Fu, bg_ptr, bg_idx, bg_val, vq_ptr, vq_idx, vq_val, Kg, Gm, Cz, D, Dg, u, dt, offset,
             rate, ea_coef, y):  # pragma: no cover - compiled
     npole = E.shape[0]
     ns, ni = u.shape
@@ -95,15 +96,10 @@ def _kernel(E, a0, a1, Bu, bg_ptr, bg_idx, bg_val, vq_ptr, vq_idx, vq_val, Kg, G
         if k + 1 == ns:
             break
         for c in range(npole):
-            fu0 = 0.0j
-            fu1 = 0.0j
-            for i in range(ni):
-                fu0 += Bu[c, i] * u[k, i]
-                fu1 += Bu[c, i] * u[k + 1, i]
             fg = 0.0j
             for p in range(bg_ptr[c], bg_ptr[c + 1]):
                 fg += bg_val[p] * g[bg_idx[p]]
-            base[c] = E[c] * z[c] + a0[c] * (fu0 + fg) + a1[c] * fu1
+            base[c] = E[c] * z[c] + a0[c] * fg + Fu[k, c]
             zn[c] = base[c] + a1[c] * fg            # predictor: g at the end of the sample = g at its start
         _modal_load(zn, vq_ptr, vq_idx, vq_val, Kg, Gm, offset + rate * ((k + 1) * dt), ea_coef, eta, g1)
         for c in range(npole):                       # corrector
@@ -155,10 +151,14 @@ def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None,
     E, phi0, phi1 = pole_integrals(cm.poles, dt)
     if check_stability:
         check_stable(config, p, float(np.max(np.abs(E))) if E.size else 0.0)
-    if config.time.input_hold == "foh":
-        a0, a1 = phi0 - phi1, phi1
-    else:
-        a0, a1 = phi0, np.zeros_like(phi1)
+    a0, a1 = phi0 - phi1, phi1                            # the modal load: straight line between samples
+    # the measured force's drive of every pole over each sample, with the config's input reconstruction
+    _, W = input_weights(cm.poles, dt, config.time.input_hold)
+    f = u @ cm.inputs.T                                   # (n, poles): the force in pole coordinates
+    n = f.shape[0]
+    Fu = np.zeros((max(n - 1, 0), f.shape[1]), dtype=complex)
+    for w, j in zip(W, INPUT_TAPS[config.time.input_hold]):   # u[k + j], constant beyond the record
+        Fu += w[None, :] * f[np.clip(np.arange(n - 1) + j, 0, n - 1)]
     fine = refined_config(config)
     kp = max(1, int(np.count_nonzero(cm.frequencies2 < (math.pi / dt) ** 2)))  # below Nyquist
     psi = cm.shapes[:, :kp]
@@ -176,7 +176,7 @@ def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None,
             Dg[o] = P[o]
     y = np.empty((u.shape[0], len(config.sensors)))
     _kernel(E.astype(np.complex128), a0.astype(np.complex128), a1.astype(np.complex128),
-            np.ascontiguousarray(cm.inputs, dtype=np.complex128), *_rows(Bg), *_rows(Vq),
+            np.ascontiguousarray(Fu, dtype=np.complex128), *_rows(Bg), *_rows(Vq),
             np.ascontiguousarray(Kg), np.ascontiguousarray(Gm),
             np.ascontiguousarray(Cz, dtype=np.complex128), np.ascontiguousarray(cm.D), Dg,
             np.ascontiguousarray(u, dtype=float), float(dt), float(offset), float(rate),

@@ -16,11 +16,13 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
     d = diagnose(args.config, args.data, args.out, holdout=args.holdout or (), result=args.result,
                  holdout_fraction=args.holdout_fraction, shortlist=args.shortlist, plots=not args.no_plots,
-                 progress=say)
+                 export=not args.no_export, progress=say)
     from .report import text_report
 
     print(text_report(d.document))
     print(f"wrote {d.out_dir / 'gap.json'}")
+    if "corrected" in d.document:
+        print(f"wrote the corrected model (config, StateSpace, FMU) to {d.out_dir / 'corrected'}")
     return 0
 
 
@@ -44,6 +46,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="output directory (gap.json, plots); must not exist or be empty")
     p.add_argument("--shortlist", type=int, default=4, help="effects refitted after the score test (default 4)")
     p.add_argument("--no-plots", action="store_true", help="skip the report plots")
+    p.add_argument("--no-export", action="store_true",
+                   help="do not write the corrected model (config, StateSpace, FMU) when an effect is named")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=_cmd_diagnose)
 

@@ -36,7 +36,7 @@ def plot_diagnosis(doc: Mapping[str, Any], problem: Any, ranking: Any, effects: 
         plt.close(fig)
     _, before = problem.heldout(ranking.baseline.beta)
     after = None
-    if ranking.verdict != "none":
+    if ranking.verdict in ranking.refits:
         rf = ranking.refits[ranking.verdict]
         _, after = problem.heldout(rf.fit.beta, effects[ranking.verdict], rf.fit.s)
     rb = before[0]

@@ -20,6 +20,8 @@ def text_report(doc: Mapping[str, Any], *, top: int = 6) -> str:
     lines.append(f"baseline held-out gap ratio (1 = noise floor): {ratios}")
     if base.get("numerical_adequacy"):
         lines.append(f"baseline's {adequacy_line(base['numerical_adequacy'])}")
+    if base.get("grid_advice"):
+        lines.append(base["grid_advice"]["summary"])
     if doc.get("summary"):
         lines.append("where:")
         lines += [f"  - {s}" for s in doc["summary"]]

@@ -13,7 +13,6 @@ appears only when complete (built under a temporary name, then renamed).
 from __future__ import annotations
 
 import json
-import math
 import os
 import shutil
 import tempfile
@@ -22,11 +21,11 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 import numpy as np
-from scipy.signal import welch
 
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError, DataError
-from ebb_model.adequacy import numerical_adequacy
+from ebb_model.adequacy import excited_band, numerical_adequacy
+from ebb_model.grid_advice import grid_advice
 from ebb_model.jsonio import write_json
 from ebb_model.outdir import check_new_output_dir
 from ebb_model.modal import discrete_frequencies
@@ -44,9 +43,13 @@ from .noise import noise_std as estimate_noise
 from .rank import BIC_MARGIN, GAP_THRESHOLD, Ranking, rank_effects
 from .records import Record, split_records
 
-__all__ = ["Diagnosis", "diagnose", "GAP_FILE"]
+__all__ = ["Diagnosis", "diagnose", "excited_band", "GAP_FILE", "GRID_VERDICT", "NUMERICAL_SHARE_LIMIT"]
 
 GAP_FILE = "gap.json"
+#: The verdict when the gap is the model's own discretisation error.
+GRID_VERDICT = "grid"
+#: Largest numerical share of the baseline gap (:mod:`ebb_model.adequacy`) for which a physical effect is named.
+NUMERICAL_SHARE_LIMIT = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,20 +83,6 @@ def _start_from_result(result: str | Path, names: Sequence[str]) -> np.ndarray:
     except (KeyError, ValueError, TypeError, IndexError, json.JSONDecodeError) as exc:
         raise ConfigError(f"--result {path}: unreadable identification result ({exc!s}); "
                           f"expected the parameters {', '.join(names)}") from None
-
-
-def excited_band(inputs: Sequence[np.ndarray], dt: float, *, rel: float = 1e-3) -> tuple[float, float]:
-    """Frequency range [Hz] where the input power is above ``rel`` of its peak (Welch PSD)."""
-    lo, hi = math.inf, 0.0
-    for u in inputs:
-        f, P = welch(u, fs=1.0 / dt, nperseg=min(4096, u.shape[0]), axis=0)
-        P = P.sum(axis=1) if P.ndim > 1 else P
-        on = f[P >= rel * P.max()] if P.max() > 0 else f[:0]
-        if on.size:
-            lo, hi = min(lo, float(on.min())), max(hi, float(on.max()))
-    if hi <= 0:
-        raise DataError("inputs: the measured forces carry no power")
-    return (0.0 if not math.isfinite(lo) else lo), hi
 
 
 def _stretch_max(config: BeamConfig, params: dict[str, float], records: Sequence[Record]) -> float:
@@ -144,6 +133,39 @@ def _band_closure(before: Sequence[np.ndarray], after: Sequence[np.ndarray], dt:
     return rows
 
 
+def _numerical_verdict(ranking: Ranking, share: float, advice: str) -> Ranking:
+    """The ranking with its verdict replaced by :data:`GRID_VERDICT` when the grid's share of the gap is above
+    :data:`NUMERICAL_SHARE_LIMIT`, or its reason qualified when the share is above a tenth."""
+    if share > NUMERICAL_SHARE_LIMIT:
+        instead = f" (the best-ranked effect, {ranking.verdict}, is not blamed)" if ranking.verdict != "none" else ""
+        return replace(ranking, verdict=GRID_VERDICT, reason=(
+            f"the model's grid: refining it changes the model by {100 * share:.0f} % of the baseline gap, so the "
+            f"gap is largely the model's own discretisation error{instead}; {advice}"))
+    if share > 0.1 and ranking.verdict != "none":
+        return replace(ranking, reason=f"{ranking.reason} (caution: {100 * share:.0f} % of the baseline gap is the "
+                                       f"model's grid; {advice})")
+    return ranking
+
+
+def corrected_summary(config: BeamConfig, baseline: dict[str, float], row: dict[str, Any]) -> dict[str, Any]:
+    """What ``corrected.json`` says: the effect and its parameters with units, the refitted baseline, and the
+    held-out gap before/after."""
+    from ebb_model.beam import PARAMETER_UNITS
+    from ebb_model.reference.withheld import EFFECT_CATALOGUE
+
+    rf = row["refit"]
+    spec = EFFECT_CATALOGUE[row["effect"]]
+    units = dict(zip(spec.parameters, spec.units))
+    unit = lambda k: PARAMETER_UNITS.get(k, "m" if k.startswith("x_") else "")   # noqa: E731
+    return {"effect": row["label"], "description": row["description"],
+            "effect_parameters": {k: {"value": v, "unit": units.get(k, "")} for k, v in rf["effect_parameters"].items()},
+            "parameters": {k: {"value": v, "unit": unit(k)} for k, v in rf["baseline_parameters"].items()},
+            "baseline_without_effect": {k: {"value": v, "unit": unit(k)} for k, v in baseline.items()},
+            "heldout_gap_ratio_before": rf["heldout_gap_ratio_before"],
+            "heldout_gap_ratio_after": rf["heldout_gap_ratio_after"], "closed": rf["closed"],
+            "sensors": {s.name: s.unit for s in config.sensors}}
+
+
 def _modes_hz(model: Any, k: int) -> list[float]:
     """The first ``k`` modal frequencies [Hz] of an augmented model (its beam; lags and drift do not move them)."""
     freqs, _ = discrete_frequencies(model.config, model.params)
@@ -153,7 +175,7 @@ def _modes_hz(model: Any, k: int) -> list[float]:
 def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_dir: str | Path | None, *,
              holdout: Sequence[str | Path] = (), result: str | Path | None = None,
              holdout_fraction: float = 0.3, shortlist: int = 4, noise_std: Sequence[float] | None = None,
-             plots: bool = True, progress: Callable[[str], None] | None = None) -> Diagnosis:
+             plots: bool = True, export: bool = True, progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Locate the sim-to-real gap, name the effect that explains it, and measure how far it closes.
 
     Parameters
@@ -178,6 +200,10 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         Measurement-noise standard deviation per sensor; default the
         config's ``[identification] noise_std``, else estimated from the data
         (noise floor above the excited band).
+    export
+        When the verdict names an effect, write the corrected model (baseline
+        plus that effect, refitted) to ``out_dir/corrected/``: config,
+        python-control StateSpace and FMU (:mod:`diagnosis.corrected`).
 
     Returns
     -------
@@ -251,6 +277,12 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         say(f"baseline re-fit from an effect's optimum: RSS {baseline.rss:.4g} -> {better.rss:.4g}; ranking again")
         baseline = better
         ranking = rank_effects(problem, baseline, effects, shortlist=shortlist, progress=say)
+    # the model's own discretisation error: a gap that refining the grid changes is not blamed on physics
+    adequacy = numerical_adequacy(
+        base_cfg, base_params, [(r.inputs[:r.fit_end], r.outputs[:r.fit_end]) for r in fit_records], sigma,
+        band_hz=f_hi)
+    advice = grid_advice(base_cfg, base_params, band_hz=f_hi)
+    ranking = _numerical_verdict(ranking, float(np.max(adequacy.numerical_share)), advice.summary())
     say(f"verdict: {ranking.verdict}")
 
     # where: localisation of the baseline residual per record
@@ -299,20 +331,29 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
             "bic": baseline.bic(p),
             "n_evaluations": baseline.n_evaluations,
             "model_modes_hz": [float(v) for v in mf],
-            "numerical_adequacy": numerical_adequacy(
-                base_cfg, base_params, [(r.inputs[:r.fit_end], r.outputs[:r.fit_end]) for r in fit_records],
-                sigma).to_dict(),
+            "numerical_adequacy": adequacy.to_dict(),
+            "grid_advice": advice.to_dict() | {"summary": advice.summary()},
         },
         "localisation": {r.name: loc.to_dict() for r, loc in zip(records, locs)},
         "summary": [s for loc in locs for s in loc.summary],
         "effects": effect_rows,
         "settings": {"holdout": [str(h) for h in holdout], "holdout_fraction": None if holdout else holdout_fraction,
-                     "shortlist": shortlist, "gap_threshold": GAP_THRESHOLD, "bic_margin": BIC_MARGIN},
+                     "shortlist": shortlist, "gap_threshold": GAP_THRESHOLD, "bic_margin": BIC_MARGIN,
+                     "numerical_share_limit": NUMERICAL_SHARE_LIMIT},
     }
     if out is None:
         return Diagnosis(ranking, doc, None)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
+        rf = ranking.refits.get(ranking.verdict)
+        if export and rf is not None:
+            from .corrected import export_corrected
+
+            e = by_label[ranking.verdict]
+            row = next(r for r in effect_rows if r["label"] == ranking.verdict)
+            files = export_corrected(problem.model(rf.fit.beta, e, rf.fit.s), tmp / "corrected",
+                                     corrected_summary(cfg, space.to_dict(baseline.beta), row))
+            doc["corrected"] = {"directory": "corrected", "files": [f.name for f in files]}
         write_json(tmp / GAP_FILE, doc)
         if plots:
             from .gap_plots import plot_diagnosis

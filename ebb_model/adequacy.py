@@ -1,6 +1,8 @@
 """Numerical adequacy: how much of a model-vs-measurement gap is the model's own discretisation error.
 
-At given parameters the model is simulated on its own grid and on a refined one (:func:`refined_grid`).  Against the measurements, per sensor and in
+At given parameters the model is simulated on its own grid and on a refined one: :func:`refined_grid`, or,
+when :mod:`ebb_model.grid_advice` finds the config's grid too coarse for the band the record excites, the grid
+it recommends (one refinement step of a grid far from its asymptotic range changes only part of its error).  Against the measurements, per sensor and in
 noise variances: the gap of the model, the gap of the refined model, and the change refinement makes.
 Their ratio, the *numerical share*, says how much of the gap is numerical: near 0 the gap is the physics'
 (or noise), near 1 the grid's — then no physical effect should be blamed for it, and the grid should be
@@ -11,12 +13,16 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any, Mapping, Sequence
 
+import math
+
 import numpy as np
+from scipy.signal import welch
 
 from .config import BeamConfig
+from .errors import DataError
 from .simulate import fast_model, simulate
 
-__all__ = ["NumericalAdequacy", "adequacy_line", "numerical_adequacy", "refined_grid"]
+__all__ = ["NumericalAdequacy", "adequacy_line", "excited_band", "numerical_adequacy", "refined_grid"]
 
 
 def refined_grid(config: BeamConfig) -> BeamConfig:
@@ -69,9 +75,41 @@ def adequacy_line(summary: Mapping[str, Any]) -> str:
             "nodes" + ("; refine [beam] nodes before blaming physics)" if share > 0.1 else ")"))
 
 
+def excited_band(inputs: Sequence[np.ndarray], dt: float, *, rel: float = 1e-3) -> tuple[float, float]:
+    """Frequency range [Hz] where the input power is above ``rel`` of its peak (Welch PSD).
+
+    Raises
+    ------
+    DataError
+        The inputs carry no power.
+    """
+    lo, hi = math.inf, 0.0
+    for u in inputs:
+        f, P = welch(u, fs=1.0 / dt, nperseg=min(4096, u.shape[0]), axis=0)
+        P = P.sum(axis=1) if P.ndim > 1 else P
+        on = f[P >= rel * P.max()] if P.max() > 0 else f[:0]
+        if on.size:
+            lo, hi = min(lo, float(on.min())), max(hi, float(on.max()))
+    if hi <= 0:
+        raise DataError("inputs: the measured forces carry no power")
+    return (0.0 if not math.isfinite(lo) else lo), hi
+
+
+def adequacy_grid(config: BeamConfig, params: Mapping[str, float], band_hz: float) -> BeamConfig:
+    """The grid to compare with: :func:`refined_grid`, or finer where the grid advice asks for more."""
+    from .grid_advice import grid_advice
+
+    fine = refined_grid(config)
+    advice = grid_advice(config, params, band_hz=band_hz)
+    if advice.adequate or advice.nodes_needed is None:
+        return fine
+    time = replace(fine.time, substeps=max(fine.time.substeps, advice.substeps_needed))
+    return replace(fine, beam=replace(fine.beam, nodes=max(fine.beam.nodes, advice.nodes_needed)), time=time)
+
+
 def numerical_adequacy(config: BeamConfig, params: Mapping[str, float],
                        records: Sequence[tuple[np.ndarray, np.ndarray]],
-                       noise_std: Sequence[float]) -> NumericalAdequacy:
+                       noise_std: Sequence[float], *, band_hz: float | None = None) -> NumericalAdequacy:
     """Gap of the model at ``params`` with and without refinement, over ``records`` of ``(inputs, outputs)``.
 
     Parameters
@@ -82,8 +120,12 @@ def numerical_adequacy(config: BeamConfig, params: Mapping[str, float],
         Inputs (n, n_actuators) and measured outputs (n, n_sensors) in the config's sensor order.
     noise_std
         Noise standard deviation per sensor.
+    band_hz
+        Top of the excited band [Hz] (default: from the inputs, :func:`excited_band`), for the grid advice.
     """
-    fine_cfg = refined_grid(config)
+    if band_hz is None:
+        band_hz = excited_band([u for u, _ in records], config.time.dt)[1]
+    fine_cfg = adequacy_grid(config, params, band_hz)
     model, fine = fast_model(config, params), fast_model(fine_cfg, params)
     sigma2 = np.asarray(noise_std, dtype=float) ** 2
     sq = np.zeros((3, len(config.sensors)))

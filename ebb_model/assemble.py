@@ -16,7 +16,7 @@ import numpy as np
 from .config import BeamConfig, check_parameter_values
 from .discretisation import discretise
 from .errors import StabilityError
-from .exact_modal import exact_modal
+from .exact_modal import exact_model
 from .statespace import DiscreteStateSpace
 from .theta_scheme import discretise_time
 
@@ -68,7 +68,8 @@ def assemble(config: BeamConfig, params: Mapping[str, float] | None = None, *,
     p = config.parameter_values() | dict(params or {})
     ts = config.time
     if ts.scheme == "exact":
-        sys = exact_modal(config, p).to_statespace()
+        model = exact_model(config, p)
+        sys = model if isinstance(model, DiscreteStateSpace) else model.to_statespace()
     else:
         sys = discretise_time(discretise(config, p), ts.dt, ts.theta, ts.substeps, ts.input_hold)
     if check_stability:
@@ -115,7 +116,7 @@ def assemble_modal(config: BeamConfig, params: Mapping[str, float] | None = None
     modal = fast_model(field_config(config) if field else config, p)
     if check_stability:
         check_stable(config, p, modal.spectral_radius())
-    return modal.to_statespace()
+    return modal if isinstance(modal, DiscreteStateSpace) else modal.to_statespace()
 
 
 def field_config(config: BeamConfig) -> BeamConfig:

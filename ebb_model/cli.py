@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Any, Sequence
@@ -41,12 +42,15 @@ def _parse_params(items: Sequence[str] | None) -> dict[str, float]:
 
 
 def modes_report(config_path: str | Path, *, n_modes: int = 10,
-                 params: dict[str, float] | None = None) -> dict[str, Any]:
-    """Everything ``ebb modes`` prints, as a dict (JSON-ready)."""
+                 params: dict[str, float] | None = None, band_hz: float | None = None) -> dict[str, Any]:
+    """Everything ``ebb modes`` prints, as a dict (JSON-ready); ``band_hz``: the record's top frequency, for the
+    grid advice (default: the listed modes)."""
     from . import analyse_stability, discrete_frequencies, fast_model, load_config, modes
+    from .grid_advice import grid_advice
 
     cfg = load_config(config_path)
     ma = modes(cfg, params, n_modes=n_modes)
+    grid = grid_advice(cfg, params, n_modes=n_modes, band_hz=band_hz)
     fm = fast_model(cfg, params)
     fd, zd = discrete_frequencies(cfg, params)
     rep = analyse_stability(cfg, params, spectral_radius=fm.spectral_radius())
@@ -67,19 +71,27 @@ def modes_report(config_path: str | Path, *, n_modes: int = 10,
         "dt_max": rep.dt_max,
         "messages": list(rep.messages),
         "proportional_damping": ma.proportional,
+        "grid": grid.to_dict() | {"summary": grid.summary()},
     })
 
 
 def _cmd_modes(args: argparse.Namespace) -> int:
-    rep = modes_report(args.config, n_modes=args.n_modes, params=_parse_params(args.param))
+    if args.band is not None and not (math.isfinite(args.band) and args.band > 0):
+        from .errors import ConfigError
+
+        raise ConfigError(f"--band must be a positive frequency in Hz, got {args.band:g}")
+    rep = modes_report(args.config, n_modes=args.n_modes, params=_parse_params(args.param), band_hz=args.band)
     if args.json:
         print(json.dumps(rep, indent=2))
         return 0
-    print(f"{'mode':>4} {'frequency [Hz]':>16} {'damping ratio':>14} {'discrete [Hz]':>16}")
+    errs = rep["grid"]["error_bandwidths"]
+    print(f"{'mode':>4} {'frequency [Hz]':>16} {'damping ratio':>14} {'discrete [Hz]':>16} {'grid error [bw]':>16}")
     for i, (f, z, fd) in enumerate(zip(rep["frequencies_hz"], rep["damping_ratios"],
                                        rep["discrete_frequencies_hz"]), start=1):
         zs = "-" if z is None else f"{z:.3e}"
-        print(f"{i:>4} {f:>16.6f} {zs:>14} {fd:>16.6f}")
+        es = f"{errs[i - 1]:.2g}" if i <= len(errs) else "-"
+        print(f"{i:>4} {f:>16.6f} {zs:>14} {fd:>16.6f} {es:>16}")
+    print(rep["grid"]["summary"])
     print(f"max growth factor (Bistritz, unbounded grid): {rep['max_growth_factor']:.15g}")
     print(f"spectral radius of Phi (finite beam):         {rep['spectral_radius']:.15g}")
     verdict = "stable" if rep["stable"] else "UNSTABLE"
@@ -131,6 +143,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("config", help="TOML config file")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.add_argument("--n-modes", type=int, default=10, help="number of modes to list (default 10)")
+    p.add_argument("--band", type=float, metavar="HZ",
+                   help="top frequency of the record: the grid advice covers the modes up to it "
+                        "(default: the listed modes)")
     p.add_argument("--param", action="append", metavar="NAME=VALUE", help="override a parameter")
     p.set_defaults(func=_cmd_modes)
     p = sub.add_parser("simulate", help="simulate a config for inputs from a CSV file")

@@ -99,11 +99,11 @@ def discrete_frequencies(config: BeamConfig, params: Mapping[str, float] | None 
     conjugate pair, sorted by frequency; the difference to :func:`modes` is the
     scheme's period elongation.
     """
-    from .exact_modal import continuous_modes
+    from .exact_modal import modal_poles
     from .theta_scheme import discretise_time
 
     if config.time.scheme == "exact":   # exact in time: the poles of the Richardson modes themselves
-        s = continuous_modes(config, config.parameter_values() | dict(params or {})).poles
+        s = modal_poles(config, config.parameter_values() | dict(params or {}))
         s = s[s.imag >= 0]
     else:
         beam = discretise(config, params)
@@ -133,10 +133,11 @@ def frequency_response(system: DiscreteStateSpace | ModalStateSpace, f_hz) -> Fr
     f = np.atleast_1d(np.asarray(f_hz, dtype=float))
     z = np.exp(2j * np.pi * f * system.dt)
     if isinstance(system, ModalStateSpace):
-        T, G, Cm = system.T, system.G, system.Cm
+        T, Cm = system.T, system.Cm
         a, b, c, d = T[:, 0, 0], T[:, 0, 1], T[:, 1, 0], T[:, 1, 1]
         H = np.empty((f.size, system.D.shape[0], system.D.shape[1]), dtype=complex)
         for i, zi in enumerate(z):
+            G = system.input_matrix(zi)
             det = (zi - a) * (zi - d) - b * c
             # (zI - T)^{-1} = [[zi - d, b], [c, zi - a]] / det
             x0 = ((zi - d)[:, None] * G[:, 0, :] + b[:, None] * G[:, 1, :]) / det[:, None]

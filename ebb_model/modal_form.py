@@ -19,9 +19,11 @@ Two routes lead here:
   ``ℓ_i = 1/τ + d_i/2 + θτω_i²``, ``k̃_i = ω_i²/ℓ_i``, ``c̃_i = d_i/ℓ_i``:
   the block is ``[[1 - τk̃, τ(1 - c̃)], [-k̃, 1 - c̃]]`` raised to the number of
   sub-steps.  Cost: one symmetric generalised eigenproblem of size n.
-* **General damping**: the eigen-decomposition of Φ; complex pairs
-  ``σ ± iω`` become blocks ``[[σ, ω], [-ω, σ]]`` in the real basis
-  ``[Re v, Im v]``; real eigenvalues are paired in diagonal blocks.
+* **General damping**: the eigen-decomposition of one sub-step ``S`` (:func:`modal_from_theta`);
+  complex pairs ``σ ± iω`` become blocks ``[[σ, ω], [-ω, σ]]`` in the real basis
+  ``[Re v, Im v]``; real eigenvalues are paired in diagonal blocks.  When that basis is
+  ill-conditioned there is no reliable block form and the dense system is simulated instead
+  (:func:`ebb_model.simulate.fast_model`).
 """
 from __future__ import annotations
 
@@ -31,21 +33,25 @@ import numpy as np
 import scipy.linalg as sla
 
 from .discretisation import SemiDiscreteBeam
-from .statespace import DiscreteStateSpace
-from .theta_scheme import hold_matrices, output_matrices
+from .statespace import DiscreteStateSpace, with_input_delays
+from .theta_scheme import hold_matrices, one_step, output_matrices, theta_coefficients
 
-__all__ = ["ModalStateSpace", "modal_from_beam", "modal_from_statespace", "is_proportional"]
+__all__ = ["ModalStateSpace", "modal_from_beam", "modal_from_statespace", "modal_from_theta",
+           "is_proportional", "basis_condition", "MAX_BASIS_CONDITION"]
 
 
 @dataclass(frozen=True, eq=False)
 class ModalStateSpace:
-    """Block-diagonal real form: blocks ``T`` (nb, 2, 2), ``G`` (nb, 2, m), ``Cm`` (p, nb, 2), ``D`` (p, m).
+    """Block-diagonal real form: blocks ``T`` (nb, 2, 2), ``G`` (nb, 2, m·(1 + delays)), ``Cm`` (p, nb, 2),
+    ``D`` (p, m).
 
-    ``to_nodal`` (2n × 2nb), when known, maps the block state (flattened
-    block by block) to the nodal state ``(q, v)`` of
-    :func:`~ebb_model.theta_scheme.discretise_time`.  ``hold`` (nb, 2, m), when
-    given, is the first-order-hold matrix ``Γ₁`` in block coordinates (a start
-    at rest is ``z[0] = −Γ₁ u[0]``, see :class:`DiscreteStateSpace`).
+    ``z[k+1] = T z[k] + Σ_j G_j u[k − j]`` with ``G_j = G[:, :, j m:(j+1) m]``, ``j = 0 … delays`` (an input
+    reconstruction that reads past samples, e.g. the exact scheme's cubic; ``delays = 0`` otherwise; before
+    the record the input is taken as constant, ``u[−j] = u[0]``).  ``to_nodal`` (2n × 2nb), when known, maps
+    the block state (flattened block by block) to the nodal state ``(q, v)`` of
+    :func:`~ebb_model.theta_scheme.discretise_time`.  ``hold`` (nb, 2, m), when given, is the lookahead
+    matrix ``Γ₁`` in block coordinates (a start at rest is ``z[0] = −Γ₁ u[0]``, see
+    :class:`DiscreteStateSpace`).
     """
 
     T: np.ndarray
@@ -57,6 +63,7 @@ class ModalStateSpace:
     output_names: tuple[str, ...]
     to_nodal: np.ndarray | None = None
     hold: np.ndarray | None = None
+    delays: int = 0
 
     def __post_init__(self) -> None:
         optional = tuple(k for k in ("to_nodal", "hold") if getattr(self, k) is not None)
@@ -71,14 +78,19 @@ class ModalStateSpace:
         return self.T.shape[0]
 
     def to_statespace(self) -> DiscreteStateSpace:
-        """The equivalent dense :class:`DiscreteStateSpace` (block-diagonal A)."""
-        nb = self.nblocks
+        """The equivalent dense :class:`DiscreteStateSpace` (block-diagonal A; past inputs as delay states)."""
+        nb, m = self.nblocks, self.D.shape[1]
         A = sla.block_diag(*self.T) if nb else np.zeros((0, 0))
-        B = self.G.reshape(2 * nb, -1)
+        G = [self.G[:, :, j * m:(j + 1) * m].reshape(2 * nb, m) for j in range(self.delays + 1)]
         C = self.Cm.reshape(self.Cm.shape[0], 2 * nb)
         names = tuple(f"z{b}_{j}" for b in range(nb) for j in range(2))
         hold = self.hold.reshape(2 * nb, -1) if self.hold is not None else None
-        return DiscreteStateSpace(A, B, C, self.D, self.dt, self.input_names, self.output_names, names, hold)
+        return with_input_delays(A, G, C, self.D, self.dt, self.input_names, self.output_names, names, hold)
+
+    def input_matrix(self, z: complex) -> np.ndarray:
+        """``Σ_j G_j z^{−j}`` (nb, 2, m): the input matrix of the transfer function at ``z``."""
+        m = self.D.shape[1]
+        return sum(self.G[:, :, j * m:(j + 1) * m] * z ** (-j) for j in range(self.delays + 1))
 
     def spectral_radius(self) -> float:
         """Largest modulus of the block eigenvalues (closed form for 2×2 blocks)."""
@@ -135,15 +147,20 @@ def modal_from_beam(beam: SemiDiscreteBeam, dt: float, theta: float = 0.25,
     return ModalStateSpace(T, G, Cm, D, dt, beam.input_names, beam.output_names, to_nodal, hold)
 
 
-def modal_from_statespace(sys: DiscreteStateSpace) -> ModalStateSpace:
-    """Real block-diagonal form of a general system via the eigen-decomposition of A.
+#: Largest condition number of an eigenvector basis the fast path accepts: beyond it the block form would lose
+#: more than ~6 of float64's 16 digits, and the dense simulation is used instead.
+MAX_BASIS_CONDITION = 1e10
+
+
+def _real_eigenbasis(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Real 2×2 blocks (nb, 2, 2) and basis ``W`` with ``A W = W blockdiag(T)``, from ``eig(A)``.
 
     Raises
     ------
     numpy.linalg.LinAlgError
-        If ``A`` is numerically defective (eigenvector matrix singular).
+        If the eigenvalues cannot be paired into real blocks.
     """
-    lam, V = np.linalg.eig(sys.A)
+    lam, V = np.linalg.eig(A)
     n = lam.size
     used = np.zeros(n, dtype=bool)
     cols: list[np.ndarray] = []
@@ -174,12 +191,63 @@ def modal_from_statespace(sys: DiscreteStateSpace) -> ModalStateSpace:
         cols += [V[:, a].real, V[:, b].real]
         blocks.append(np.diag([lam[a].real, lam[b].real]))
     W = np.column_stack(cols) if cols else np.zeros((n, 0))
-    if n and np.linalg.cond(W) > 1e10:
+    return np.array(blocks).reshape(len(blocks), 2, 2), W
+
+
+def basis_condition(W: np.ndarray) -> float:
+    """Condition number of a basis after scaling its columns to unit length (``inf`` if singular)."""
+    if W.size == 0:
+        return 1.0
+    norms = np.linalg.norm(W, axis=0)
+    if np.any(norms == 0):
+        return np.inf
+    return float(np.linalg.cond(W / norms))
+
+
+def modal_from_statespace(sys: DiscreteStateSpace) -> ModalStateSpace:
+    """Real block-diagonal form of a general system via the eigen-decomposition of A.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        If ``A`` is numerically defective (eigenvector basis condition above :data:`MAX_BASIS_CONDITION`).
+    """
+    T, W = _real_eigenbasis(sys.A)
+    if basis_condition(W) > MAX_BASIS_CONDITION:
         raise np.linalg.LinAlgError("eigenvector matrix is ill-conditioned; use the dense simulation")
     Wi = np.linalg.inv(W)
-    nb = len(blocks)
-    T = np.array(blocks).reshape(nb, 2, 2)
+    nb = T.shape[0]
     G = (Wi @ sys.B).reshape(nb, 2, -1)
     Cm = (sys.C @ W).reshape(sys.noutputs, nb, 2)
     hold = (Wi @ sys.hold).reshape(nb, 2, -1) if sys.hold is not None else None
     return ModalStateSpace(T, G, Cm, sys.D, sys.dt, sys.input_names, sys.output_names, W, hold)
+
+
+def modal_from_theta(beam: SemiDiscreteBeam, dt: float, theta: float = 0.25, substeps: int = 1,
+                     input_hold: str = "foh") -> ModalStateSpace | None:
+    """Block form of the θ-scheme for any damping, via the eigenvectors of **one sub-step** ``S``.
+
+    ``Φ = S^m`` has the same eigenvectors as ``S``, but with many sub-steps the well damped high modes'
+    eigenvalues ``λ^m`` all crowd near zero, where ``eig(Φ)`` cannot separate their eigenvectors (240 nodes,
+    32 sub-steps: condition above 1e10); ``S``'s eigenvalues stay apart.  The sub-step blocks are raised to
+    the ``m``-th power and the hold sums formed per block (:func:`~ebb_model.theta_scheme.hold_matrices`).
+    Returns ``None`` when even ``S``'s eigenvector basis is ill-conditioned (condition above
+    :data:`MAX_BASIS_CONDITION`): then the dense system is the one to simulate.
+    """
+    co = theta_coefficients(beam, dt, theta, substeps)
+    S, G = one_step(co.Kt, co.Ct, co.Bt, co.tau)
+    try:
+        Ts, W = _real_eigenbasis(S)
+    except np.linalg.LinAlgError:
+        return None
+    if basis_condition(W) > MAX_BASIS_CONDITION:
+        return None
+    Wi = np.linalg.inv(W)
+    nb = Ts.shape[0]
+    T, G0, G1 = hold_matrices(Ts, (Wi @ G).reshape(nb, 2, -1), substeps, input_hold)
+    C, D = output_matrices(beam.S, beam.sensor_kinds, co.Kt, co.Ct, co.Bt, co.tau)
+    Cm = (C @ W).reshape(C.shape[0], nb, 2)
+    Gc = G0 + np.matmul(T, G1)           # causal first-order hold, as in modal_from_beam
+    D = D + np.einsum("pbi,bim->pm", Cm, G1)
+    hold = G1 if substeps > 1 and input_hold == "foh" else None
+    return ModalStateSpace(T, Gc, Cm, D, dt, beam.input_names, beam.output_names, W, hold)

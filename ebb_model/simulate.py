@@ -24,8 +24,8 @@ import numpy as np
 from .config import BeamConfig
 from .discretisation import discretise
 from .errors import DataError
-from .exact_modal import exact_modal
-from .modal_form import ModalStateSpace, modal_from_beam, modal_from_statespace
+from .exact_modal import exact_model
+from .modal_form import ModalStateSpace, modal_from_beam, modal_from_theta
 from .statespace import DiscreteStateSpace
 from .theta_scheme import discretise_time
 
@@ -45,6 +45,8 @@ def _modal_kernel(t00, t01, t10, t11, g0, g1, c0, c1, D, u, y, s0, s1):  # pragm
     no = D.shape[0]
     z0 = s0.copy()
     z1 = s1.copy()
+    a0 = np.empty(nb)
+    a1 = np.empty(nb)
     for k in range(ns):
         for o in range(no):
             acc = 0.0
@@ -56,19 +58,31 @@ def _modal_kernel(t00, t01, t10, t11, g0, g1, c0, c1, D, u, y, s0, s1):  # pragm
         if ni == 1:
             uk = u[k, 0]
             for b in range(nb):
-                a0 = t00[b] * z0[b] + t01[b] * z1[b] + g0[0, b] * uk
-                a1 = t10[b] * z0[b] + t11[b] * z1[b] + g1[0, b] * uk
-                z0[b] = a0
-                z1[b] = a1
-        else:
+                v0 = t00[b] * z0[b] + t01[b] * z1[b] + g0[0, b] * uk
+                v1 = t10[b] * z0[b] + t11[b] * z1[b] + g1[0, b] * uk
+                z0[b] = v0
+                z1[b] = v1
+            continue
+        if ni == 3:     # one input with the cubic's taps u[k], u[k−1], u[k−2] (or three inputs)
+            ua, ub, uc = u[k, 0], u[k, 1], u[k, 2]
             for b in range(nb):
-                a0 = t00[b] * z0[b] + t01[b] * z1[b]
-                a1 = t10[b] * z0[b] + t11[b] * z1[b]
-                for i in range(ni):
-                    a0 += g0[i, b] * u[k, i]
-                    a1 += g1[i, b] * u[k, i]
-                z0[b] = a0
-                z1[b] = a1
+                v0 = t00[b] * z0[b] + t01[b] * z1[b] + g0[0, b] * ua + g0[1, b] * ub + g0[2, b] * uc
+                v1 = t10[b] * z0[b] + t11[b] * z1[b] + g1[0, b] * ua + g1[1, b] * ub + g1[2, b] * uc
+                z0[b] = v0
+                z1[b] = v1
+            continue
+        # several input columns (inputs, or the cubic's taps): the blocks innermost, so that the loops vectorise
+        for b in range(nb):
+            a0[b] = t00[b] * z0[b] + t01[b] * z1[b]
+            a1[b] = t10[b] * z0[b] + t11[b] * z1[b]
+        for i in range(ni):
+            uk = u[k, i]
+            for b in range(nb):
+                a0[b] += g0[i, b] * uk
+                a1[b] += g1[i, b] * uk
+        for b in range(nb):
+            z0[b] = a0[b]
+            z1[b] = a1[b]
 
 
 @numba.njit(cache=True, nogil=True, fastmath=_FASTMATH)
@@ -168,7 +182,7 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
         ``y[k] = C x[k] + D u[k]`` at ``t_k = k dt``.
     """
     if isinstance(system, ModalStateSpace):
-        u = _check_input(u, system.G.shape[2])
+        u = _check_input(u, system.D.shape[1])
         y = np.empty((u.shape[0], system.D.shape[0]))
         T, G, Cm = system.T, system.G, system.Cm
         if x0 is not None:
@@ -177,11 +191,16 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
             z = -np.einsum("bim,m->bi", system.hold, u[0])
         else:
             z = np.zeros((system.nblocks, 2))
+        U, D = u, system.D
+        if system.delays:   # the kernel reads u[k], u[k−1], … as extra input columns (u[−j] = u[0])
+            U = np.hstack([np.vstack([np.repeat(u[:1], j, axis=0), u[:max(u.shape[0] - j, 0)]])[:u.shape[0]]
+                           for j in range(system.delays + 1)])
+            D = np.hstack([D, np.zeros((D.shape[0], D.shape[1] * system.delays))])
         _modal_kernel(np.ascontiguousarray(T[:, 0, 0]), np.ascontiguousarray(T[:, 0, 1]),
                       np.ascontiguousarray(T[:, 1, 0]), np.ascontiguousarray(T[:, 1, 1]),
                       np.ascontiguousarray(G[:, 0, :].T), np.ascontiguousarray(G[:, 1, :].T),
                       np.ascontiguousarray(Cm[:, :, 0]), np.ascontiguousarray(Cm[:, :, 1]),
-                      np.ascontiguousarray(system.D), u, y,
+                      np.ascontiguousarray(D), np.ascontiguousarray(U), y,
                       np.ascontiguousarray(z[:, 0]), np.ascontiguousarray(z[:, 1]))
     else:
         u = _check_input(u, system.ninputs)
@@ -198,20 +217,25 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
     return SimulationResult(t, y, tuple(system.output_names))
 
 
-def fast_model(config: BeamConfig, params: Mapping[str, float] | None = None) -> ModalStateSpace:
-    """Assemble the fastest realisation of the beam for ``params`` (block-diagonal modal form).
+def fast_model(config: BeamConfig, params: Mapping[str, float] | None = None
+               ) -> ModalStateSpace | DiscreteStateSpace:
+    """Assemble the fastest reliable realisation of the beam for ``params``.
 
-    ``scheme = "exact"``: :func:`ebb_model.exact_modal.exact_modal`.  ``scheme = "theta"``: the seed's
-    scheme, by the proportional-damping modal route when it applies (checked numerically), otherwise the
-    eigen-decomposition of the dense Φ.  Stability is **not** checked here (see :func:`ebb_model.assemble`).
+    ``scheme = "exact"``: :func:`ebb_model.exact_modal.exact_model`.  ``scheme = "theta"``: the seed's
+    scheme, by the proportional-damping modal route when it applies (checked numerically), otherwise from the
+    eigenvectors of one sub-step (:func:`~ebb_model.modal_form.modal_from_theta`).  Either falls back to the
+    dense system (same scheme, ``O(n²)`` per sample) when no well-conditioned block-diagonal form exists, so
+    this never raises for want of one.  Stability is **not** checked here (see :func:`ebb_model.assemble`).
     """
     ts = config.time
     if ts.scheme == "exact":
-        return exact_modal(config, config.parameter_values() | dict(params or {}))
+        return exact_model(config, config.parameter_values() | dict(params or {}))
     beam = discretise(config, params)
     modal = modal_from_beam(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold)
     if modal is None:
-        modal = modal_from_statespace(discretise_time(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold))
+        modal = modal_from_theta(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold)
+    if modal is None:
+        return discretise_time(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold)
     return modal
 
 

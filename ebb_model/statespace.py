@@ -18,7 +18,7 @@ import numpy as np
 
 from .errors import ConfigError
 
-__all__ = ["DiscreteStateSpace", "common_timebase"]
+__all__ = ["DiscreteStateSpace", "common_timebase", "with_input_delays"]
 
 
 def _matrix(name: str, value, shape: tuple[int | None, int | None]) -> np.ndarray:
@@ -148,3 +148,30 @@ class DiscreteStateSpace:
     def __repr__(self) -> str:
         return (f"DiscreteStateSpace(nstates={self.nstates}, inputs={list(self.input_names)}, "
                 f"outputs={list(self.output_names)}, dt={self.dt:g})")
+
+
+def with_input_delays(A: np.ndarray, G: Sequence[np.ndarray], C: np.ndarray, D: np.ndarray, dt: float,
+                      input_names: Sequence[str], output_names: Sequence[str], state_names: Sequence[str],
+                      hold: np.ndarray | None = None) -> DiscreteStateSpace:
+    """``x[k+1] = A x[k] + Σ_j G[j] u[k − j]`` (``j = 0 … d``) as one system, past inputs as delay states.
+
+    State ``(x, u[k−1], …, u[k−d])``; a start at rest has ``x[0] = −hold·u[0]`` and the delay line at ``u[0]``
+    (the input constant before the record), encoded in the returned system's ``hold``.
+    """
+    d = len(G) - 1
+    nx, m = np.shape(G[0])
+    if d == 0:
+        return DiscreteStateSpace(A, G[0], C, D, dt, tuple(input_names), tuple(output_names), tuple(state_names),
+                                  hold)
+    n = nx + d * m
+    Af = np.zeros((n, n))
+    Af[:nx, :nx] = A
+    for j in range(1, d + 1):
+        Af[:nx, nx + (j - 1) * m:nx + j * m] = G[j]
+        if j < d:                                         # u[k−j−1]⁺ = u[k−j]
+            Af[nx + j * m:nx + (j + 1) * m, nx + (j - 1) * m:nx + j * m] = np.eye(m)
+    B = np.vstack([G[0], np.eye(m), np.zeros(((d - 1) * m, m))])
+    Cf = np.hstack([C, np.zeros((np.shape(C)[0], d * m))])
+    h = np.vstack([hold if hold is not None else np.zeros((nx, m)), -np.tile(np.eye(m), (d, 1))])
+    names = tuple(state_names) + tuple(f"{u}[k-{j}]" for j in range(1, d + 1) for u in input_names)
+    return DiscreteStateSpace(Af, B, Cf, D, dt, tuple(input_names), tuple(output_names), names, h)

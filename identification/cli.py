@@ -32,16 +32,40 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         print(f"  {m}")
     p = res.pareto
     print(f"{len(p.X)} Pareto points after {p.generations} generations, {p.n_evaluations} evaluations")
-    print("knee: " + json.dumps({k: round(v, 6) for k, v in res.knee.items()}))
-    for j, q in enumerate(res.polished):
+    print("knee of the GA front (not polished): " + json.dumps({k: round(v, 6) for k, v in res.knee.items()}))
+    for j, q in enumerate(res.polished[1:], start=1):
         values = {k: round(float(v), 6) for k, v in zip(p.parameter_names, q.x)}
         print(f"polished {j} (from point {q.from_index}, {q.n_evaluations} evaluations): " + json.dumps(values))
     if res.polished:
         print(f"total evaluations (GA + polish): {res.n_evaluations}")
-    if res.adequacy is not None:
-        print(res.adequacy.summary())
+    for line in identified_lines(res):
+        print(line)
     print(f"wrote {res.out_dir / 'pareto.json'}")
     return 0
+
+
+def identified_lines(res) -> list[str]:
+    """The identified model as printed: values with Cramér–Rao standard deviations, units and the fit quality
+    the bound assumes."""
+    from ebb_model.beam import PARAMETER_UNITS
+
+    ident = res.identified
+    lines = [f"identified model ({ident['from']}):"]
+    for k, v in ident["parameters"].items():
+        unit = PARAMETER_UNITS.get(k, "m" if k.startswith("x_") else "")
+        lines.append(f"  {k:<6} = {v:.6g} ± {ident['cramer_rao_std'][k]:.2g} {unit}  (Cramér–Rao std)")
+    gap = ident.get("fit_gap_ratio")
+    if gap:
+        worst = max(gap.values())
+        lines.append("  fit residual in noise variances (1 = noise floor): "
+                     + ", ".join(f"{k} {v:.3g}" for k, v in gap.items()))
+        if not ident["cramer_rao_valid"]:
+            lines.append(f"  caution: the fit leaves {worst:.3g} noise variances; the Cramér–Rao bound assumes a fit "
+                         "at the noise floor and understates the uncertainty here (model or data do not match yet: "
+                         "see `ebb diagnose`)")
+    if res.adequacy is not None:
+        lines.append("  " + res.adequacy.summary())
+    return lines
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
@@ -77,9 +101,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--generations", type=int, default=30, help="generations")
     p.add_argument("--seed", type=int, default=1, help="random seed")
     p.add_argument("--algorithm", default="nsga2", help="nsga2 | nsga3")
-    p.add_argument("--polish", type=int, default=0, metavar="K",
+    p.add_argument("--polish", type=int, default=1, metavar="K",
                    help="after the GA, refine the K Pareto points nearest the knee (knee first) by bounded least "
-                        "squares (default 0: no polish)")
+                        "squares (default 1: the polished knee is the identified model; 0: the GA's knee, reported "
+                        "as not polished)")
     p.add_argument("--resume", action="store_true", help="continue from the checkpoint in --out")
     p.add_argument("--force", action="store_true", help="run even if the Fisher matrix is singular")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")

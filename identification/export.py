@@ -93,15 +93,19 @@ def export_points(result_dir: str | Path, points: Sequence[int] | str | None = N
     out = d / "export"
     out.mkdir(exist_ok=True)
     written: list[Path] = []
+    title = doc.get("config_name") or d.name
     for stem, c, params, sys in models:
-        written.append(save_statespace(sys, out / f"{stem}.npz"))
+        written.append(save_statespace(sys, out / f"{stem}.npz", name=f"{title}_{stem}", parameters=params,
+                                       config=c.to_dict()))
         if reduce_order:
             try:
                 bm = balanced_truncation(sys, reduce_order)
             except StabilityError:
                 bm = None
             if bm is not None:
-                written.append(save_statespace(bm.system, out / f"{stem}_reduced{reduce_order}.npz"))
+                written.append(save_statespace(bm.system, out / f"{stem}_reduced{reduce_order}.npz",
+                                               name=f"{title}_{stem}_reduced{reduce_order}", parameters=params,
+                                               config=c.to_dict()))
                 written.append(write_json(out / f"{stem}_reduced{reduce_order}.json", {
                     "order": bm.order, "error_bound_hinf": bm.error_bound,
                     "hankel_singular_values": [float(v) for v in bm.hankel_singular_values]}))

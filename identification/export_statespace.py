@@ -1,7 +1,8 @@
 """Export of identified models as python-control discrete ``StateSpace`` systems.
 
-A system is saved as an ``.npz`` with ``A, B, C, D, dt`` and the signal names
-(reloadable without pickle: :func:`load_statespace`).  Optionally a reduced
+A system is saved as an ``.npz`` with ``A, B, C, D, dt``, the signal names and what a control designer needs
+to know where it came from: the system's name, its parameter values with units and the config it was built from
+(JSON inside the archive; reloadable without pickle: :func:`load_statespace`, :func:`load_metadata`).  Optionally a reduced
 model by square-root balanced truncation, with its Hankel singular values and
 the a-priori error bound ``‖G - G_r‖_∞ ≤ 2 Σ_{i>r} σ_i`` (Enns/Glover), which
 requires an asymptotically stable system (damping > 0): an undamped beam has
@@ -9,37 +10,63 @@ no Gramians and is refused with that explanation.
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Mapping
 
 import numpy as np
 import scipy.linalg as sla
 
 from ebb_model import DiscreteStateSpace
+from ebb_model.beam import PARAMETER_UNITS
 from ebb_model.errors import ConfigError, StabilityError
+from ebb_model.jsonio import jsonable
 
-__all__ = ["save_statespace", "load_statespace", "BalancedModel", "balanced_truncation"]
+__all__ = ["save_statespace", "load_statespace", "load_metadata", "BalancedModel", "balanced_truncation"]
 
 
-def save_statespace(sys: DiscreteStateSpace, path: str | Path) -> Path:
-    """Write ``sys`` to ``path`` (``.npz``), atomically."""
+def save_statespace(sys: DiscreteStateSpace, path: str | Path, *, name: str = "",
+                    parameters: Mapping[str, float] | None = None, config: Mapping[str, Any] | None = None
+                    ) -> Path:
+    """Write ``sys`` to ``path`` (``.npz``), atomically, with its name, parameter values (and units) and config."""
     path = Path(path)
     tmp = path.with_name(path.name + ".part.npz")
+    meta = {"name": name or path.stem,
+            "parameters": {k: float(v) for k, v in (parameters or {}).items()},
+            "units": {k: PARAMETER_UNITS.get(k, "m" if k.startswith("x_") else "")
+                      for k in (parameters or {})},
+            "signal_units": {**{u: "N" for u in sys.input_names},
+                             **({s.name: s.unit for s in _sensors(config)} if config else {})},
+            "config": jsonable(dict(config)) if config else None}
     np.savez(tmp, A=sys.A, B=sys.B, C=sys.C, D=sys.D, dt=np.array(sys.dt),
              inputs=np.array(sys.input_names), outputs=np.array(sys.output_names),
-             states=np.array(sys.state_names))
+             states=np.array(sys.state_names), metadata=np.array(json.dumps(meta)))
     tmp.replace(path)
     return path
 
 
+def _sensors(config: Mapping[str, Any]):
+    from ebb_model.beam import Sensor
+
+    return [Sensor(s["name"], float(s["x"]), s.get("kind", "displacement")) for s in config.get("sensors", [])]
+
+
+def load_metadata(path: str | Path) -> dict[str, Any]:
+    """The name, parameter values, units and config saved with a system (empty for files without them)."""
+    with np.load(path, allow_pickle=False) as z:
+        return json.loads(str(z["metadata"])) if "metadata" in z.files else {}
+
+
 def load_statespace(path: str | Path):
-    """Load a saved system as a discrete :class:`control.StateSpace` with named signals."""
+    """Load a saved system as a discrete :class:`control.StateSpace` with named signals (and its saved name)."""
     import control
 
+    name = load_metadata(path).get("name") or None
     with np.load(path, allow_pickle=False) as z:
         return control.ss(z["A"], z["B"], z["C"], z["D"], float(z["dt"]), inputs=[str(v) for v in z["inputs"]],
                           outputs=[str(v) for v in z["outputs"]],
-                          states=[str(v) for v in z["states"]])
+                          states=[str(v) for v in z["states"]], name=name)
 
 
 @dataclass(frozen=True, eq=False)

@@ -52,6 +52,9 @@ __all__ = ["BACKENDS", "IdentificationResult", "PolishedPoint", "Progress", "ide
            "load_identification_config", "read_data"]
 
 BACKENDS = ("auto", "native", "fmu")
+#: Largest fit residual (in noise variances, per sensor) at which the Cramér–Rao bound is reported as valid: the
+#: bound assumes the model explains the data up to the noise.
+CRB_GAP_LIMIT = 2.0
 _DATA_KEYS = ("mapping", "units", "gains", "remove_offset", "pre_trigger", "band", "resample", "format")
 
 
@@ -164,6 +167,28 @@ class IdentificationResult:
         return dict(zip(self.pareto.parameter_names, map(float, self.polished[0].x)))
 
     @property
+    def identified(self) -> dict[str, Any]:
+        """*The* identified model: the polished knee (else the GA's knee, marked as not polished), its
+        Cramér–Rao standard deviations and the fit quality they assume (``cramer_rao_valid``: the fit's residual
+        is within :data:`CRB_GAP_LIMIT` noise variances of every sensor)."""
+        names = self.pareto.parameter_names
+        if self.polished:
+            q = self.polished[0]
+            source, x, crb = f"polished knee, from Pareto point {q.from_index}", q.x, q.cramer_rao_std
+        else:
+            i = self.pareto.knee
+            source, x, crb = f"knee of the GA front, Pareto point {i}, NOT polished", self.pareto.X[i], \
+                self.cramer_rao_std[i]
+        doc: dict[str, Any] = {"from": source, "polished": bool(self.polished),
+                               "parameters": dict(zip(names, map(float, x))),
+                               "cramer_rao_std": dict(zip(names, map(float, crb)))}
+        if self.adequacy is not None:
+            gap = dict(zip(self.adequacy.sensors, map(float, self.adequacy.gap)))
+            doc["fit_gap_ratio"] = gap
+            doc["cramer_rao_valid"] = bool(max(gap.values(), default=0.0) <= CRB_GAP_LIMIT)
+        return doc
+
+    @property
     def n_evaluations(self) -> int:
         """Model evaluations of the search: GA plus polish."""
         return int(self.pareto.n_evaluations + sum(q.n_evaluations for q in self.polished))
@@ -202,7 +227,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
              noise_std: Sequence[float] | None = None, progress: bool = True, export: bool = True,
              fmu: str | Path | None = None, fmu_parameters: Sequence[str] | None = None,
              fmu_inputs: Sequence[str] | None = None, fmu_outputs: Sequence[str] | None = None,
-             polish: int = 0, polish_evaluations: int = 200,
+             polish: int = 1, polish_evaluations: int = 200,
              on_progress: Callable[[Progress], None] | None = None) -> IdentificationResult:
     """Identify the unknowns of ``config`` from ``data``; write results into ``out_dir``.
 
@@ -220,7 +245,10 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     ``polish = K`` refines the ``K`` Pareto points nearest the knee (knee
     first) with bounded least squares on the search backend and workers, at
     most ``polish_evaluations`` residual evaluations each (their Jacobians
-    come on top and are counted).  ``on_progress`` receives a
+    come on top and are counted).  The default, 1, polishes the knee: that
+    is *the* identified model (:attr:`IdentificationResult.best`, ``identified``
+    in ``pareto.json``); ``polish = 0`` reports the GA's knee, marked as not
+    polished.  ``on_progress`` receives a
     :class:`Progress` after every generation and every polished point.
 
     Raises
@@ -321,7 +349,8 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                                       [(e.inputs, e.outputs) for e in evaluator.experiments], fisher0.noise_std)
         res = IdentificationResult(pareto, fisher0, np.array(crb), np.array(g), np.array(st), out, tuple(polished),
                                    adequacy)
-        _write_results(res, cfg, evaluator)
+        _write_results(res, cfg, evaluator,
+                       Path(config).stem if not isinstance(config, BeamConfig) else "beam")
         if export:
             from .export import export_points
 
@@ -373,7 +402,8 @@ def _point_properties(cfg: BeamConfig, space: ParameterSpace, evaluator: NativeE
     return crb, g, bool(rho <= 1 + 1e-9)
 
 
-def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: NativeEvaluator) -> None:
+def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: NativeEvaluator,
+                   config_name: str) -> None:
     p = res.pareto
     points = []
     for i, (x, f) in enumerate(zip(p.X, p.F)):
@@ -404,6 +434,8 @@ def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: Native
     n_polish = sum(q["n_evaluations"] for q in polished)
     doc = {
         "config": cfg.to_dict(),
+        "config_name": config_name,
+        "identified": res.identified,
         "parameter_names": list(p.parameter_names),
         "objective_names": list(p.objective_names),
         "knee": int(p.knee),

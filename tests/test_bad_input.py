@@ -223,7 +223,7 @@ def test_export_polished_of_a_run_without_polish_refuses(case, capsys):
     cfg, data, tmp = case
     out = tmp / "nopolish"
     assert main(["identify", str(cfg), str(data), "--out", str(out), "--pop", "4", "--generations", "1",
-                 "--no-progress", "--no-export"]) == 0
+                 "--no-progress", "--no-export", "--polish", "0"]) == 0
     capsys.readouterr()
     assert main(["export", str(out), "--polished", "--no-fmu"]) == 2
     assert "--polished: this run has no polished points (run `ebb identify` with --polish K)" in \
@@ -232,10 +232,12 @@ def test_export_polished_of_a_run_without_polish_refuses(case, capsys):
 
 
 def test_export_reduce_order_out_of_range(finished_run, capsys):
-    _, out = finished_run
+    tmp, out = finished_run
+    n = em.assemble(em.load_config(tmp / "cfg.toml")).nstates     # 2 × 16 modes + 2 delays of the cubic input
+    assert n == 34
     for order in ("0", "10000"):
         assert main(["export", str(out), "--points", "0", "--no-fmu", "--reduce-order", order]) == 2
-        assert "--reduce-order: must lie in 1 … 32 (the model's states)" in one_line_error(capsys, "export")
+        assert f"--reduce-order: must lie in 1 … {n} (the model's states)" in one_line_error(capsys, "export")
 
 
 def test_out_directories_that_are_not_a_run_get_one_consistent_message(case, finished_run, capsys):

@@ -115,6 +115,33 @@ def test_cli_modes_json(capsys):
     assert rep["frequencies_hz"][0] == pytest.approx(f1, rel=2e-3)
 
 
+def test_cli_modes_tells_which_grid_the_record_needs(tmp_path, capsys):
+    """``ebb modes --band`` lists each mode's grid error in half-power bandwidths and names the grid to use
+    (the advice itself is checked against the closed form in test_adequacy.py)."""
+    def write(name: str, nodes: int, substeps: int) -> Path:
+        text = SEED.read_text().replace("nodes = 50 ", f"nodes = {nodes} ").replace(
+            "substeps = 1 ", f"substeps = {substeps}\nscheme = \"theta\" ").replace(
+            "c    = { value = 0.0 }", "c    = { value = 2.0 }")
+        path = tmp_path / name
+        path.write_text(text)
+        return path
+
+    coarse = write("coarse.toml", 20, 1)
+    assert load_config(coarse).time.scheme == "theta" and load_config(coarse).beam.nodes == 20
+    assert main(["modes", str(coarse), "--band", "80"]) == 0
+    out = capsys.readouterr().out
+    assert "grid error [bw]" in out
+    assert "grid: too coarse for modes 1-3" in out and "use [beam] nodes >= " in out, out
+    assert main(["modes", str(coarse), "--band", "80", "--json"]) == 0
+    grid = json.loads(capsys.readouterr().out)["grid"]
+    assert not grid["adequate"] and grid["nodes_needed"] > 20
+    fine = write("fine.toml", grid["nodes_needed"], grid["substeps_needed"])
+    assert main(["modes", str(fine), "--band", "80"]) == 0
+    assert "grid: adequate for modes 1-3" in capsys.readouterr().out
+    assert main(["modes", str(fine), "--band", "-1"]) == 2
+    assert capsys.readouterr().err.strip() == "ebb modes: error: --band must be a positive frequency in Hz, got -1"
+
+
 def test_config_without_rhoI_and_kf_defaults_to_zero():
     cfg = config_from_dict(base())
     assert cfg.parameter_values()["rhoI"] == 0.0 and cfg.parameter_values()["kf"] == 0.0

@@ -105,4 +105,12 @@ def test_demo_quick_runs_the_whole_workflow(tmp_path, capsys):
     text = (out / "report.txt").read_text()
     assert "withheld effect: boundary_rotational_left -> diagnosis RIGHT" in text
     assert (out / "diagnosis" / "gap.json").is_file()
-    assert list((out / "identify" / "export").glob("*.fmu")) and list((out / "identify" / "export").glob("*.npz"))
+    # the identified model (polished knee) is what is exported; the corrected model comes from the diagnosis
+    assert sorted(p.name for p in (out / "identify" / "export").iterdir()) == ["polished_0.fmu", "polished_0.npz"]
+    assert sorted(p.name for p in (out / "diagnosis" / "corrected").iterdir()) == [
+        "corrected.fmu", "corrected.json", "corrected.npz", "corrected.toml"]
+    header = next(line for line in text.splitlines() if "identified" in line and "corrected" in line)
+    assert header.split() == ["unit", "identified", "corrected", "truth"]
+    kr = next(line for line in text.splitlines() if line.startswith("boundary_rotational_left.kr"))
+    assert kr.split()[1] == "N.m/rad" and kr.split()[-1] == "300"    # unit, withheld value
+    assert "held-out gap ratio (1 = noise floor):" in text and "-> corrected" in text

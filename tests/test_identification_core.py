@@ -64,18 +64,23 @@ def test_fisher_full_rank_and_cramer_rao_matches_scatter_of_estimates():
     rep = fisher_information(ev, sp.nominal, noise_std=sigma)
     assert rep.rank == 2 and not rep.singular
     assert np.all(rep.cramer_rao_std > 0) and np.all(np.isfinite(rep.cramer_rao_std))
-    # linearised estimator scatter over noise realisations equals the Cramér–Rao bound
-    from identification.fisher import sensitivities
+    # Monte Carlo: full nonlinear refits of the model (scipy least squares on the simulated outputs, not the
+    # Fisher module's sensitivities) over 300 noise realisations scatter as the Cramér–Rao bound says.
+    # Budget: the sample std of 300 draws has a relative standard error of 1/sqrt(2·299) = 4.1 %; 15 % is 3.6 of
+    # them (the refits' nonlinearity at 0.1 % noise is far smaller).
+    from scipy.optimize import least_squares
 
-    S = sensitivities(ev, sp.nominal)[0]  # (n, sensors, dim)
-    J = (S / sigma[None, :, None]).reshape(-1, 2)
+    truth = np.asarray(sp.nominal, dtype=float)
+    model_y = lambda x: em.simulate_config(cfg, u, dict(zip(sp.names, x))).outputs   # noqa: E731
     rng = np.random.default_rng(5)
     est = []
     for _ in range(300):
-        e = (rng.standard_normal(y.shape)).reshape(-1)
-        est.append(np.linalg.lstsq(J, e, rcond=None)[0])
-    emp = np.std(est, axis=0) * rep.scales
-    np.testing.assert_allclose(emp, rep.cramer_rao_std, rtol=0.15)
+        y_noisy = y + sigma * rng.standard_normal(y.shape)
+        fit = least_squares(lambda x: ((model_y(x) - y_noisy) / sigma).ravel(), truth, x_scale=truth,
+                            method="lm", xtol=1e-12, ftol=1e-12)
+        est.append(fit.x)
+    np.testing.assert_allclose(np.std(est, axis=0, ddof=1), rep.cramer_rao_std, rtol=0.15)
+    assert np.all(np.abs(np.mean(est, axis=0) - truth) < 4 * rep.cramer_rao_std / np.sqrt(300))   # unbiased
 
 
 def test_fisher_names_the_unidentifiable_direction():

@@ -5,13 +5,15 @@ model on a lightly damped accelerometer record: there a mode 0.2 % off in freque
 variances.  This integrator has no time-step error of its own:
 
 * the force between samples is a cubic interpolating spline through the samples (a smooth band-limited
-  force has no kinks; see :mod:`ebb_model.reference.synthetic`), evaluated on a sub-grid of ``substeps``
-  points per sample and taken as linear on each sub-interval (error ``O((dt/substeps)²)`` in the force only);
+  force has no kinks; see :mod:`ebb_model.reference.synthetic`): a cubic polynomial on each sample interval,
+  continuous with its first two derivatives at the samples;
 * the first-order system ``ẋ = A x + B f`` of :class:`~ebb_model.reference.hermite_fe.HermiteBeam`
-  (``x = (q, q̇)``, any damping) is advanced over a sub-interval by the matrix exponential of the augmented
-  matrix ``[[A τ, B τ, 0], [0, 0, I], [0, 0, 0]]`` (:func:`scipy.linalg.expm`), i.e. exactly for a force
-  linear on the sub-interval;
-* that one-sub-step map is diagonalised once and each eigen-coordinate is run through
+  (``x = (q, q̇)``, any damping, optional lag states) is advanced over a sample interval by the matrix
+  exponential of the system augmented with the force's chain of derivatives (the third derivative constant
+  on the interval; :func:`scipy.linalg.expm`), i.e. exactly for the spline.  Taking the force as linear on
+  a sub-grid instead leaves kinks that ring the mesh's lightly damped top modes: the accelerations then
+  change with the mesh;
+* that one-sample map is diagonalised once and each eigen-coordinate is run through
   :func:`scipy.signal.lfilter` (a first-order recursion), so a record costs little more than its modes.
 
 Outputs at the samples: displacement ``φ(x)ᵀ q``, velocity ``φ(x)ᵀ q̇``, acceleration
@@ -30,28 +32,34 @@ from scipy.interpolate import CubicSpline
 from ..errors import DataError
 from .hermite_fe import SENSOR_KINDS, HermiteBeam
 
-__all__ = ["exact_fe_response", "force_on_subgrid"]
+__all__ = ["exact_fe_response", "force_polynomials"]
 
 
-def force_on_subgrid(inputs: np.ndarray, substeps: int, interpolation: str = "cubic") -> np.ndarray:
-    """The measured force samples (n, m) reconstructed at ``substeps`` points per sample: ``(n − 1)·s + 1`` rows.
+def force_polynomials(inputs: np.ndarray, interpolation: str = "cubic") -> np.ndarray:
+    """The force between samples as one polynomial per sample interval: ``(n − 1, 4, m)``.
 
-    ``interpolation``: ``"cubic"`` (not-a-knot cubic spline through the samples) or ``"linear"``.
+    Row ``k`` holds the force and its first three derivatives at the start of interval ``k``, derivatives
+    taken per *sample* (``d/dk``): ``interpolation="cubic"`` is the not-a-knot cubic spline through the
+    samples (continuous with its first two derivatives), ``"linear"`` the straight lines between them.
     """
     u = np.asarray(inputs, dtype=float)
-    n = u.shape[0]
-    t = np.arange(n, dtype=float)
-    tt = np.arange((n - 1) * substeps + 1, dtype=float) / substeps
+    n, m = u.shape
+    d = np.zeros((n - 1, 4, m))
+    d[:, 0] = u[:-1]
     if interpolation == "linear" or n < 4:
-        return np.column_stack([np.interp(tt, t, u[:, j]) for j in range(u.shape[1])])
+        d[:, 1] = np.diff(u, axis=0)
+        return d
     if interpolation != "cubic":
         raise DataError(f"interpolation must be 'cubic' or 'linear', got {interpolation!r}")
-    return CubicSpline(t, u, axis=0)(tt)
+    c = CubicSpline(np.arange(n, dtype=float), u, axis=0).c      # (4, n − 1, m), highest power first
+    d[:, 1], d[:, 2], d[:, 3] = c[2], 2.0 * c[1], 6.0 * c[0]
+    return d
 
 
 def exact_fe_response(beam: HermiteBeam, inputs: np.ndarray, dt: float, actuators: Sequence[float],
-                      sensors: Sequence[tuple[float, str]], *, substeps: int = 16,
-                      interpolation: str = "cubic") -> np.ndarray:
+                      sensors: Sequence[tuple[float, str]], *,
+                      interpolation: str = "cubic", actuator_tau: float = 0.0, lag_sensor: int = -1,
+                      sensor_tau: float = 0.0) -> np.ndarray:
     """Outputs (n_samples, n_sensors) of ``beam`` at ``t_k = k dt``, starting at rest.
 
     Parameters
@@ -66,10 +74,14 @@ def exact_fe_response(beam: HermiteBeam, inputs: np.ndarray, dt: float, actuator
         Position of each force [m].
     sensors
         ``(position, kind)`` of each output, kind in displacement, velocity, acceleration.
-    substeps
-        Sub-intervals per sample on which the reconstructed force is linear.
     interpolation
         Force between samples: ``"cubic"`` spline (default) or ``"linear"``.
+    actuator_tau
+        Time constant [s] of a first-order lag between the measured and the applied forces (0: none);
+        the lagged forces are extra states, integrated exactly with the beam.
+    lag_sensor, sensor_tau
+        Index of a sensor whose quantity reaches the output through a first-order lag of time constant
+        ``sensor_tau`` [s] (``-1``: none); one extra state.
     """
     u = np.atleast_2d(np.asarray(inputs, dtype=float).T).T
     n, m = u.shape
@@ -80,39 +92,67 @@ def exact_fe_response(beam: HermiteBeam, inputs: np.ndarray, dt: float, actuator
     Minv_K = np.linalg.solve(beam.M, beam.K)
     Minv_C = np.linalg.solve(beam.M, beam.C)
     Minv_F = np.linalg.solve(beam.M, F)
-    A = np.block([[np.zeros((nf, nf)), np.eye(nf)], [-Minv_K, -Minv_C]])
-    B = np.vstack([np.zeros((nf, m)), Minv_F])
-    tau = dt / substeps
-    ns = 2 * nf
-    aug = np.zeros((ns + 2 * m, ns + 2 * m))
-    aug[:ns, :ns] = A * tau
-    aug[:ns, ns:ns + m] = B * tau
-    aug[ns:ns + m, ns + m:] = np.eye(m)
-    E = sla.expm(aug)
-    Phi = E[:ns, :ns]
-    g_delta = E[:ns, ns + m:]                   # coefficient of f(t_{j+1}) − f(t_j)
-    g0, g1 = E[:ns, ns:ns + m] - g_delta, g_delta
-    lam, V = np.linalg.eig(Phi)
-    W0 = np.linalg.solve(V, g0)
-    W1 = np.linalg.solve(V, g1)
-    f = force_on_subgrid(u, substeps, interpolation)
-    f = np.vstack([np.zeros((1, m)), f])        # at rest before the first sample
-    idx = np.arange(n) * substeps + 1           # sample k sits at sub-grid row k·s + 1
-    Z = np.empty((lam.size, n), dtype=complex)
-    for i in range(lam.size):                   # z_{j+1} = λ z_j + W0 f_j + W1 f_{j+1}
-        drive = f @ W1[i] + np.concatenate([[0.0], f[:-1] @ W0[i]])
-        Z[i] = ss.lfilter([1.0], [1.0, -lam[i]], drive)[idx]
-    X = (V @ Z).real                            # states (q, q̇) at the samples, (2 nf, n)
+    # beam state (q, q̇), then the lagged forces
+    n_act = m if actuator_tau > 0 else 0
+    ns = 2 * nf + n_act
+    A = np.zeros((ns, ns))
+    B = np.zeros((ns, m))
+    A[:nf, nf:2 * nf] = np.eye(nf)
+    A[nf:2 * nf, :nf], A[nf:2 * nf, nf:2 * nf] = -Minv_K, -Minv_C
+    if n_act:                                   # ḟ_a = (f − f_a)/τ_a, the beam feels f_a
+        A[nf:2 * nf, 2 * nf:] = Minv_F
+        A[2 * nf:, 2 * nf:] = -np.eye(m) / actuator_tau
+        B[2 * nf:] = np.eye(m) / actuator_tau
+    else:
+        B[nf:2 * nf] = Minv_F
     rows = np.array([beam.displacement_row(x) for x, _ in sensors])
-    y = np.empty((n, len(sensors)))
+    C = np.zeros((len(sensors), ns))
+    D = np.zeros((len(sensors), m))
     for j, (_, kind) in enumerate(sensors):
         if kind not in SENSOR_KINDS:
             raise DataError(f"unknown sensor kind {kind!r}; allowed: {', '.join(SENSOR_KINDS)}")
         if kind == "displacement":
-            y[:, j] = rows[j] @ X[:nf]
+            C[j, :nf] = rows[j]
         elif kind == "velocity":
-            y[:, j] = rows[j] @ X[nf:]
-        else:
-            acc = -Minv_K @ X[:nf] - Minv_C @ X[nf:] + Minv_F @ u.T
-            y[:, j] = rows[j] @ acc
+            C[j, nf:2 * nf] = rows[j]
+        else:                                   # q̈ = A[nf:2nf] x + B[nf:2nf] f
+            C[j] = rows[j] @ A[nf:2 * nf]
+            D[j] = rows[j] @ B[nf:2 * nf]
+    d = force_polynomials(u, interpolation)
+    y = _integrate_exact(A, B, d, dt).T @ C.T + u @ D.T
+    if lag_sensor >= 0 and sensor_tau > 0:     # one more state ẏ_l = (C_j x + D_j f − y_l)/τ_s, in its own run
+        j = lag_sensor                          # (so that the other sensors stay bit-identical)
+        Al = np.zeros((ns + 1, ns + 1))
+        Al[:ns, :ns] = A
+        Al[ns, :ns], Al[ns, ns] = C[j] / sensor_tau, -1.0 / sensor_tau
+        Bl = np.vstack([B, D[j][None, :] / sensor_tau])
+        y[:, j] = _integrate_exact(Al, Bl, d, dt)[ns]
     return y
+
+
+def _integrate_exact(A: np.ndarray, B: np.ndarray, d: np.ndarray, dt: float) -> np.ndarray:
+    """States (n_states, n) at the samples of ``ẋ = A x + B f`` from rest, ``f`` a cubic per sample interval.
+
+    ``d`` (n − 1, 4, m) holds the force and its derivatives (per sample) at the start of each interval
+    (:func:`force_polynomials`).  The one-sample map is the matrix exponential of ``A`` augmented with the
+    chain ``f → f' → f'' → f'''`` in sample units, diagonalised once; each eigen-coordinate is a first-order
+    recursion (:func:`scipy.signal.lfilter`).
+    """
+    ns, m = B.shape
+    na = ns + 4 * m
+    aug = np.zeros((na, na))
+    aug[:ns, :ns] = A * dt
+    aug[:ns, ns:ns + m] = B * dt
+    for j in range(3):
+        aug[ns + j * m:ns + (j + 1) * m, ns + (j + 1) * m:ns + (j + 2) * m] = np.eye(m)
+    E = sla.expm(aug)
+    Phi = E[:ns, :ns]
+    G = E[:ns, ns:]                             # response to (f, f', f'', f''') at the interval's start
+    lam, V = np.linalg.eig(Phi)
+    Wg = np.linalg.solve(V, G)
+    n = d.shape[0] + 1
+    Z = np.zeros((lam.size, n), dtype=complex)  # sample 0: at rest
+    drive = d.reshape(n - 1, 4 * m) @ Wg.T      # (n − 1, ns)
+    for i in range(lam.size):                   # z_{k+1} = λ z_k + W d_k
+        Z[i, 1:] = ss.lfilter([1.0], [1.0, -lam[i]], drive[:, i])
+    return (V @ Z).real
