@@ -13,7 +13,7 @@ import os
 import pickle
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 from pymoo.algorithms.moo.nsga2 import NSGA2
@@ -59,22 +59,49 @@ class ParetoSet:
     generations: int
 
 
-def knee_index(F: np.ndarray) -> int:
-    """Knee of a front: the point nearest the ideal point after normalising each objective to [0, 1]."""
-    F = np.asarray(F, dtype=float)
-    lo, hi = F.min(axis=0), F.max(axis=0)
-    span = np.where(hi > lo, hi - lo, 1.0)
-    return int(np.argmin(np.linalg.norm((F - lo) / span, axis=1)))
+#: Name of the stabilising objective (the θ-scheme's largest growth factor), see :mod:`identification.objectives`.
+GROWTH = "growth_factor"
 
 
-def knee_order(F: np.ndarray) -> np.ndarray:
-    """Indices of a front ordered by distance to its knee (knee first), in the normalisation of :func:`knee_index`."""
+def _knee_space(F: np.ndarray, names: Sequence[str] | None) -> tuple[np.ndarray, np.ndarray]:
+    """Fit objectives normalised to [0, 1] over the eligible points, and which points are eligible.
+
+    With a stabilising objective among ``names`` the knee is a compromise of the *fit* objectives among the
+    strictly stable candidates (growth factor below 1; else the stable ones, else all): the growth factor is
+    a constraint, not a term of the compromise — a nearly constant objective would otherwise pick the point.
+    """
     F = np.asarray(F, dtype=float)
-    lo, hi = F.min(axis=0), F.max(axis=0)
+    eligible = np.ones(F.shape[0], dtype=bool)
+    cols = np.arange(F.shape[1])
+    if names is not None and GROWTH in names and F.shape[1] > 1:
+        g = F[:, list(names).index(GROWTH)]
+        for limit in (1.0 - 1e-12, 1.0 + 1e-12):
+            if np.any(g <= limit):
+                eligible = g <= limit
+                break
+        cols = np.array([j for j, n in enumerate(names) if n != GROWTH])
+    Fe = F[:, cols]
+    lo, hi = Fe[eligible].min(axis=0), Fe[eligible].max(axis=0)
     span = np.where(hi > lo, hi - lo, 1.0)
-    G = (F - lo) / span
-    k = knee_index(F)
+    return (Fe - lo) / span, eligible
+
+
+def knee_index(F: np.ndarray, names: Sequence[str] | None = None) -> int:
+    """Knee of a front: the point nearest the ideal point after normalising each objective to [0, 1]
+    (with ``names``: of the fit objectives, among strictly stable points, see :func:`_knee_space`)."""
+    G, eligible = _knee_space(F, names)
+    d = np.linalg.norm(G, axis=1)
+    d[~eligible] = np.inf
+    return int(np.argmin(d))
+
+
+def knee_order(F: np.ndarray, names: Sequence[str] | None = None) -> np.ndarray:
+    """Indices of a front ordered by distance to its knee (knee first), in the normalisation of :func:`knee_index`;
+    points that are not eligible come last."""
+    G, eligible = _knee_space(F, names)
+    k = knee_index(F, names)
     d = np.linalg.norm(G - G[k], axis=1)
+    d[~eligible] += 1e6
     d[k] = -1.0  # the knee first, also when another point coincides with it
     return np.argsort(d, kind="stable")
 
@@ -158,5 +185,6 @@ def optimise(problem: IdentificationProblem, *, pop: int = 40, generations: int 
     F = np.atleast_2d(res.F)
     order = np.lexsort(F.T[::-1])
     X, F = X[order], F[order]
-    return ParetoSet(X, F, problem.parameter_names, problem.objective_names, knee_index(F),
+    knee = knee_index(F, problem.objective_names)
+    return ParetoSet(X, F, problem.parameter_names, problem.objective_names, knee,
                      problem.n_evaluations, int(algo.n_gen - 1))

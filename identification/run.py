@@ -7,7 +7,7 @@ Pareto points nearest the knee, knee first, refined by bounded
 ``scipy.optimize.least_squares`` on the same backend and workers, see
 :mod:`identification.polish`) → Pareto set and polished points with
 Cramér–Rao standard deviations, growth factor and stability per point, knee
-marked → ``pareto.json``, ``pareto.csv``, ``polished.csv``,
+marked → ``pareto.json``, ``pareto.csv``, ``polished.csv`` (when polished),
 ``identifiability.json``, plots, and exports of every Pareto and polished
 point (see :mod:`identification.export`).
 
@@ -318,7 +318,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
 
         def generation_done(gen: int, n_ev: int, X: np.ndarray, F: np.ndarray) -> None:
             if on_progress is not None:
-                on_progress(Progress("generation", gen, n_ev, X, F, knee_index(F)))
+                on_progress(Progress("generation", gen, n_ev, X, F, knee_index(F, names)))
 
         try:
             with make_runner(workers=workers, dask=dask) as runner:
@@ -378,7 +378,7 @@ def _polish_front(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, bud
     """Polish the ``k`` points nearest the knee (knee first): ``(from_index, x, F, evaluations, result)``."""
     out: list[tuple[int, np.ndarray, np.ndarray, int, Any]] = []
     n_done = pareto.n_evaluations
-    for step, i in enumerate(knee_order(pareto.F)[:k]):
+    for step, i in enumerate(knee_order(pareto.F, pareto.objective_names)[:k]):
         r = polish_point(evaluator, pareto.X[i], runner=runner, max_evaluations=budget)
         f = np.asarray(runner(evaluator, r.x[None, :]))[0]
         n_ev = r.n_evaluations + 1
@@ -448,15 +448,22 @@ def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: Native
         # at the reported point (the polished knee, else the knee): how much of its gap is the grid's
         "numerical_adequacy": res.adequacy.to_dict() if res.adequacy is not None else None,
     }
-    head = [*p.parameter_names, *p.objective_names, *[f"crb_{n}" for n in p.parameter_names],
-            "growth_factor", "stable"]
+    # the growth factor is a column once: as an objective when the stabilising objective is on, else on its own
+    extra = [] if "growth_factor" in p.objective_names else ["growth_factor"]
+    head = [*p.parameter_names, *p.objective_names, *[f"crb_{n}" for n in p.parameter_names], *extra, "stable"]
+
+    def row(q: dict[str, Any]) -> list[Any]:
+        return [*q["parameters"].values(), *q["objectives"].values(), *q["cramer_rao_std"].values(),
+                *([q["growth_factor"]] if extra else []), int(q["stable"])]
+
     _write_csv(res.out_dir / "pareto.csv", ["index", "knee", *head],
-               [[pt["index"], int(pt["knee"]), *pt["parameters"].values(), *pt["objectives"].values(),
-                 *pt["cramer_rao_std"].values(), pt["growth_factor"], int(pt["stable"])] for pt in points])
-    _write_csv(res.out_dir / "polished.csv", ["index", "from_index", *head, "n_evaluations", "success"],
-               [[q["index"], q["from_index"], *q["parameters"].values(), *q["objectives"].values(),
-                 *q["cramer_rao_std"].values(), q["growth_factor"], int(q["stable"]), q["n_evaluations"],
-                 int(q["success"])] for q in polished])
+               [[pt["index"], int(pt["knee"]), *row(pt)] for pt in points])
+    stale = res.out_dir / "polished.csv"
+    if polished:
+        _write_csv(stale, ["index", "from_index", *head, "n_evaluations", "success"],
+                   [[q["index"], q["from_index"], *row(q), q["n_evaluations"], int(q["success"])] for q in polished])
+    elif stale.exists():      # a resumed run without polish: no header-only file
+        stale.unlink()
     from .plots import plot_results
 
     plot_results(res, evaluator)

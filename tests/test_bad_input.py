@@ -225,6 +225,7 @@ def test_export_polished_of_a_run_without_polish_refuses(case, capsys):
     assert main(["identify", str(cfg), str(data), "--out", str(out), "--pop", "4", "--generations", "1",
                  "--no-progress", "--no-export", "--polish", "0"]) == 0
     capsys.readouterr()
+    assert not (out / "polished.csv").exists()              # no header-only file
     assert main(["export", str(out), "--polished", "--no-fmu"]) == 2
     assert "--polished: this run has no polished points (run `ebb identify` with --polish K)" in \
         one_line_error(capsys, "export")

@@ -145,7 +145,23 @@ def test_checkpoint_resume_gives_identical_front(tmp_path):
     np.testing.assert_array_equal(full.X, resumed.X)
     np.testing.assert_array_equal(full.F, resumed.F)
     assert resumed.generations == 5
-    assert knee_index(full.F) == full.knee
+    assert knee_index(full.F, full.objective_names) == full.knee
+
+
+def test_knee_is_a_compromise_of_the_fit_among_strictly_stable_points():
+    """The stabilising objective is a constraint, not a term of the compromise: on a front where the growth
+    factor barely varies it used to pull the knee to the worse-fitting, more damped end."""
+    from identification.optimise import knee_order
+
+    names = ("nrmse_y1", "nrmse_y2", "growth_factor")
+    F = np.array([[0.02, 0.01, 1.0 + 1e-6],      # best fit, but unstable: never the knee
+                  [0.10, 0.10, 0.99999],
+                  [0.50, 0.50, 0.99990],
+                  [1.00, 1.00, 0.99980]])
+    assert knee_index(F) == 2                     # all three objectives normalised: the growth factor decides
+    assert knee_index(F, names) == 1              # the fit's compromise among the strictly stable points
+    assert list(knee_order(F, names)) == [1, 2, 3, 0]
+    assert knee_index(F[:, :2], names[:2]) == 0   # without the stabilising objective: plain knee
 
 
 def test_statespace_export_roundtrip_and_balanced_truncation_bound(tmp_path):

@@ -41,6 +41,8 @@ def test_identify_writes_results_and_exports(case, capsys):
         assert set(p) >= {"parameters", "objectives", "cramer_rao_std", "growth_factor", "stable"}
     for f in ("pareto.csv", "identifiability.json", "pareto_front.png", "knee_fit.png", "checkpoint.pkl"):
         assert (out / f).exists(), f
+    header = (out / "pareto.csv").read_text().splitlines()[0].split(",")
+    assert header.count("growth_factor") == 1 and len(set(header)) == len(header)
     sys0 = load_statespace(out / "export" / "point_0.npz")
     assert list(sys0.output_labels) == ["y1", "y2"] and sys0.dt == 1e-4
 
