@@ -1,7 +1,9 @@
 """The beam FMU through fmpy: equivalence with ebb_model.simulate, semantics, errors.
 
-Independent truth: ``ebb_model.simulate`` of the same config (the FMU is a
-thin adapter, so it must reproduce the core to rounding), and for the field
+Reference: ``ebb_model.simulate`` of the same config — the same model through
+another adapter, not independent physics (the model itself is checked against
+independent truth in ``test_exact_scheme.py`` and ``test_accuracy.py``).  The
+FMU is a thin adapter, so it must reproduce the core to rounding; for the field
 outputs the core's ``field_matrix`` applied to a plain state recursion.
 """
 from __future__ import annotations
