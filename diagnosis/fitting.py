@@ -4,8 +4,11 @@ A :class:`GapProblem` bundles what every fit needs: the baseline config, its
 unknowns (:class:`identification.parameters.ParameterSpace`), the records with
 their windows and the per-sensor noise standard deviation.  A model is the
 baseline unknowns ``beta`` plus, optionally, one effect's search variables
-``s``; both are scaled to [0, 1] by their bounds for the optimiser
-(``scipy.optimize.least_squares``, trust-region reflective, bounded).
+``s``.  The fits are the identification's fitting engine
+(:mod:`identification.least_squares`: unknowns scaled by their bounds, refused
+candidates penalised, bounded least squares with a forward-difference Jacobian
+and the χ² resolution stop, differential evolution for the global search) on
+noise-normalised residuals.
 
 Errors are reported as *gap ratios*: the mean squared noise-normalised
 residual of a window, 1 at the noise floor.
@@ -16,21 +19,17 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
-
 from ebb_model.config import BeamConfig
 from ebb_model.errors import EbbError
 
+from identification.least_squares import Box, distinct_members, evolve, fit_least_squares, penalised
 from identification.parameters import ParameterSpace
 
 from .augmented import simulate_effects
 from .effects import AugmentedModel, Effect
 from .records import Record
 
-__all__ = ["GapProblem", "Fit", "PENALTY_RESIDUAL"]
-
-#: Residual assigned to every sample of a candidate that cannot be simulated (invalid or unstable).
-PENALTY_RESIDUAL = 1e3
+__all__ = ["GapProblem", "Fit"]
 
 
 @dataclass(frozen=True)
@@ -134,11 +133,10 @@ class GapProblem:
         try:
             sims = self.simulate(beta, effect, s, until="fit")
         except (EbbError, ValueError, np.linalg.LinAlgError):
-            return np.full(self.n_fit, PENALTY_RESIDUAL)
+            return penalised(None, self.n_fit)
         parts = [((y - r.outputs[:r.fit_end]) / self.noise_std).ravel()
                  for y, r in zip(sims, self.records) if y is not None]
-        res = np.concatenate(parts)
-        return res if np.all(np.isfinite(res)) else np.full(self.n_fit, PENALTY_RESIDUAL)
+        return penalised(np.concatenate(parts), self.n_fit)
 
     def heldout(self, beta: np.ndarray, effect: Effect | None = None, s: np.ndarray | None = None
                 ) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -160,33 +158,28 @@ class GapProblem:
         return np.mean(stacked ** 2, axis=0), res
 
     # ------------------------------------------------------------------ fits
+    def box(self, effect: Effect | None = None) -> Box:
+        """Bounds of the baseline unknowns (and of ``effect``'s variables)."""
+        lo, hi = np.asarray(self.space.lower, dtype=float), np.asarray(self.space.upper, dtype=float)
+        if effect is None:
+            return Box(lo, hi)
+        return Box(np.concatenate([lo, effect.lower]), np.concatenate([hi, effect.upper]))
+
+    def _stacked(self, z: np.ndarray, effect: Effect | None) -> np.ndarray:
+        p = self.space.dim
+        return self.residuals(z[:p], effect, z[p:] if effect is not None else None)
+
     def fit(self, beta0: np.ndarray, effect: Effect | None = None, s0: np.ndarray | None = None, *,
             max_evaluations: int = 300) -> Fit:
         """Bounded least-squares fit of the baseline unknowns (and the effect's variables) on the fit windows."""
-        sp = self.space
-        lo = np.asarray(sp.lower, dtype=float)
-        hi = np.asarray(sp.upper, dtype=float)
-        if effect is not None:
-            lo = np.concatenate([lo, effect.lower])
-            hi = np.concatenate([hi, effect.upper])
-        span = hi - lo
         z0 = np.asarray(beta0, dtype=float)
         if effect is not None:
             z0 = np.concatenate([z0, np.asarray(s0 if s0 is not None else effect.off, dtype=float)])
-        x0 = np.clip((z0 - lo) / span, 0.0, 1.0)
-        p = sp.dim
-        count = [0]
-
-        def fun(x: np.ndarray) -> np.ndarray:
-            count[0] += 1
-            z = lo + x * span
-            return self.residuals(z[:p], effect, z[p:] if effect is not None else None)
-
-        res = least_squares(fun, x0, bounds=(0.0, 1.0), x_scale="jac", diff_step=1e-6, xtol=1e-9,
-                            ftol=1e-9, gtol=1e-9, max_nfev=max_evaluations)
-        z = lo + res.x * span
-        r = res.fun
-        return Fit(z[:p], z[p:], float(r @ r), int(r.size), res.jac, r, count[0])
+        fit = fit_least_squares(lambda Z: np.array([self._stacked(z, effect) for z in Z]), z0, self.box(effect),
+                                max_evaluations=max_evaluations)
+        p = self.space.dim
+        return Fit(fit.x[:p], fit.x[p:], fit.rss, int(fit.residuals.size), fit.jac, fit.residuals,
+                   fit.n_evaluations)
 
     def baseline_basins(self, beta0: np.ndarray, *, n_basins: int = 3, seed: int = 0, maxiter: int = 20,
                         popsize: int = 8) -> list[np.ndarray]:
@@ -199,23 +192,15 @@ class GapProblem:
         population that lie apart from each other (> 0.15 of the bounds in some
         unknown) are returned as further starts, up to ``n_basins`` in all.
         """
-        lo, hi = np.asarray(self.space.lower, float), np.asarray(self.space.upper, float)
-        span = hi - lo
+        box = self.box()
 
-        def cost(x: np.ndarray) -> float:
-            r = self.residuals(lo + x * span)
+        def cost(beta: np.ndarray) -> float:
+            r = self.residuals(beta)
             return float(r @ r)
 
-        x0 = np.clip((np.asarray(beta0, float) - lo) / span, 0.0, 1.0)
-        res = _evolve(cost, x0, seed=seed, maxiter=maxiter, popsize=popsize)
-        picks = [res.x if res.fun <= cost(x0) else x0]
-        for i in np.argsort(res.population_energies):
-            cand = res.population[i]
-            if len(picks) >= n_basins:
-                break
-            if all(np.max(np.abs(cand - q)) > 0.15 for q in picks):
-                picks.append(cand)
-        return [lo + q * span for q in picks]
+        evo = evolve(cost, beta0, box, seed=seed, maxiter=maxiter, popsize=popsize)
+        first = evo.x if evo.cost <= cost(box.from_unit(box.to_unit(beta0))) else beta0
+        return distinct_members(evo, box, first, n_basins)
 
     def truncated(self, fraction: float) -> "GapProblem":
         """The same problem fitted on the first ``fraction`` of every fit window (held-out windows unchanged).
@@ -238,20 +223,14 @@ class GapProblem:
         evaluations used.  Meant for a :meth:`truncated` problem, where it is
         cheap and the cost has few basins.
         """
-        lo = np.concatenate([np.asarray(self.space.lower, float), np.asarray(effect.lower, float)])
-        hi = np.concatenate([np.asarray(self.space.upper, float), np.asarray(effect.upper, float)])
-        span = hi - lo
-        p = self.space.dim
-
-        def cost(x: np.ndarray) -> float:
-            z = lo + x * span
-            r = self.residuals(z[:p], effect, z[p:])
+        def cost(z: np.ndarray) -> float:
+            r = self._stacked(z, effect)
             return float(r @ r)
 
         z0 = np.concatenate([np.asarray(beta0, float), np.asarray(s0, float)])
-        res = _evolve(cost, np.clip((z0 - lo) / span, 0.0, 1.0), seed=seed, maxiter=maxiter, popsize=popsize)
-        z = lo + res.x * span
-        return z[:p], z[p:], int(res.nfev)
+        evo = evolve(cost, z0, self.box(effect), seed=seed, maxiter=maxiter, popsize=popsize)
+        p = self.space.dim
+        return evo.x[:p], evo.x[p:], evo.n_evaluations
 
     def scaled_jacobian(self, beta: np.ndarray, effect: Effect, s: np.ndarray, *, step: float = 1e-3,
                         r0: np.ndarray | None = None) -> np.ndarray:
@@ -273,11 +252,3 @@ class GapProblem:
             s1[j] += sign * ds
             J[:, j] = (self.residuals(beta, effect, s1) - r0) / (sign * step)
         return J
-
-
-def _evolve(cost: Any, x0: np.ndarray, *, seed: int, maxiter: int, popsize: int) -> Any:
-    """Differential evolution of ``cost`` over the unit cube, seeded with ``x0`` (no polish)."""
-    from scipy.optimize import differential_evolution
-
-    return differential_evolution(cost, [(0.0, 1.0)] * x0.size, x0=x0, popsize=popsize, maxiter=maxiter,
-                                  tol=1e-8, seed=seed, polish=False, init="sobol")

@@ -73,7 +73,7 @@ from scipy import optimize, signal, stats
 
 from ebb_model.errors import ConfigError, DataError
 
-from .noise import noise_estimate
+from identification.noise import noise_estimate
 
 __all__ = [
     "AmplitudeGap",
@@ -786,7 +786,7 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
         frequency resolution and the fit windows).
     noise_std
         Measurement-noise std per sensor (scalar or ``(n_out,)``); default: the
-        model-free estimate of :func:`diagnosis.noise.noise_estimate` with the
+        model-free estimate of :func:`identification.noise.noise_estimate` with the
         excited band taken from the input PSD.
     windows
         Number of equal time windows (≥ 3).

@@ -33,13 +33,13 @@ from ebb_model.assemble import field_config
 from ebb_model.simulate import fast_model, simulate
 
 from identification.data import Experiment
+from identification.noise import records_noise_std
 from identification.parameters import parameter_space
 from identification.run import load_identification_config, read_data
 
 from .effects import Scales, candidate_effects
 from .fitting import GapProblem
 from .localise import localise
-from .noise import noise_std as estimate_noise
 from .rank import BIC_MARGIN, GAP_THRESHOLD, Ranking, rank_effects
 from .records import Record, split_records
 
@@ -236,11 +236,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         if sigma.shape != (n_s,) or not np.all(np.isfinite(sigma) & (sigma > 0)):
             raise ConfigError(f"noise_std: need one positive number per sensor ({n_s})")
     else:
-        f_top = excited_band([r.inputs for r in records], dt)[1]
-        sigma = np.median(np.array([estimate_noise(r.outputs, dt, band=(0.0, f_top)) for r in records]), axis=0)
-        if not np.all(np.isfinite(sigma) & (sigma > 0)):
-            raise DataError("noise: could not estimate the measurement noise from the data (noise-free or "
-                            "constant records?); give noise_std in [identification]")
+        sigma = records_noise_std([r.inputs for r in records], [r.outputs for r in records], dt)
     problem = GapProblem(cfg, space, records, sigma)
     say("baseline fit")
     # a short global search first, seeded with the identification result (or the nominal values);

@@ -22,10 +22,11 @@ resolve (e.g. ``EI`` and ``N`` moving together).
 
 Noise variance
 --------------
-Given per sensor, or estimated from the data with the median absolute
-deviation of the second differences: for white noise ``Δ²y`` has variance
-``6σ²`` while a signal sampled far above its bandwidth contributes little, so
-``σ ≈ MAD(Δ²y) / (0.6745 √6)``.
+Given per sensor, or estimated from the data:
+:func:`identification.noise.records_noise_std`, the Welch floor above the
+band the inputs excite (the diagnosis' estimate too).  Noise-free records (a
+model's own output) have no floor; then a tiny positive stand-in keeps the
+matrix finite.
 """
 from __future__ import annotations
 
@@ -34,19 +35,12 @@ from typing import Sequence
 
 import numpy as np
 
-from ebb_model.errors import StabilityError
+from ebb_model.errors import DataError, StabilityError
 
 from .native import NativeEvaluator
+from .noise import records_noise_std
 
-__all__ = ["FisherReport", "estimate_noise_std", "sensitivities", "fisher_information", "cramer_rao_std"]
-
-
-def estimate_noise_std(y: np.ndarray) -> np.ndarray:
-    """Per-column noise standard deviation from the MAD of second differences."""
-    y = np.atleast_2d(np.asarray(y, dtype=float).T).T
-    d2 = np.diff(y, n=2, axis=0)
-    mad = np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0)
-    return mad / (0.6744897501960817 * np.sqrt(6.0))
+__all__ = ["FisherReport", "sensitivities", "fisher_information", "cramer_rao_std"]
 
 
 def _scales(evaluator: NativeEvaluator, x: np.ndarray) -> np.ndarray:
@@ -163,8 +157,12 @@ def fisher_information(evaluator: NativeEvaluator, x: np.ndarray, *,
     x = np.asarray(x, dtype=float)
     names = evaluator.space.names
     if noise_std is None:
-        meas = np.vstack([e.outputs for e in evaluator.experiments])
-        sigma = estimate_noise_std(meas)
+        exps = evaluator.experiments
+        meas = np.vstack([e.outputs for e in exps])
+        try:
+            sigma = records_noise_std([e.inputs for e in exps], [e.outputs for e in exps], evaluator.config.time.dt)
+        except DataError:
+            sigma = np.zeros(meas.shape[1])
         sigma = np.where(sigma > 0, sigma, 1e-12 * np.maximum(np.std(meas, axis=0), 1e-300))
     else:
         sigma = np.asarray(noise_std, dtype=float)

@@ -1,4 +1,4 @@
-"""Gap localisation (diagnosis.localise, diagnosis.noise, diagnosis.report_plots) on synthetic truth.
+"""Gap localisation (diagnosis.localise, identification.noise, diagnosis.report_plots) on synthetic truth.
 
 All signals are built here from analytic SDOF / multi-mode responses (scipy.signal, ZOH
 discretisation, which maps each continuous pole exactly) — not from the project's beam model —
@@ -15,7 +15,7 @@ import pytest
 from scipy import signal
 
 from diagnosis.localise import estimate_frf, localise
-from diagnosis.noise import noise_estimate, noise_std
+from identification.noise import noise_estimate, noise_std
 from ebb_model.errors import ConfigError, DataError
 
 DT = 1e-3

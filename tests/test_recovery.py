@@ -186,10 +186,12 @@ def test_identify_recovers_the_parameters_of_fe_data(case, tmp_path):
     clean = NativeEvaluator(cfg, space, experiments_from_arrays([("clean", case.u, case.y_clean)]))
     bias = polish(clean, truth).x - truth
     crb = best.cramer_rao_std
-    # the default noise estimate (second differences of the data) is conservative here: measured 1.75-1.82x the
-    # true noise (the record's own second differences are not negligible at dt = 1 ms), so the bounds are too
+    # the default noise estimate (the Welch floor above the excited band, identification.noise): measured 0.993 /
+    # 1.032 of the true noise (the second differences it replaced read 1.75-1.82x: the record's own curvature).
+    # Tolerance 10 %: ~70 quiet bins of ~11 Welch segments give the floor a ~2.6 % standard error in std.
     sigma = res.fisher_nominal.noise_std
-    assert np.all((sigma >= case.noise_std) & (sigma <= 2.0 * case.noise_std)), (sigma, case.noise_std)
+    np.testing.assert_allclose(sigma, case.noise_std, rtol=0.1)
+    print(f"\nnoise estimate / true noise: {sigma / case.noise_std}")
     crb_check = fisher_information(clean, best.x, noise_std=sigma).cramer_rao_std
     np.testing.assert_allclose(crb, crb_check, rtol=1e-6)
     crb = fisher_information(clean, best.x, noise_std=case.noise_std).cramer_rao_std   # with the true noise

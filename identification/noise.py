@@ -1,4 +1,4 @@
-"""Model-free estimate of the measurement noise of each sensor.
+"""Model-free estimate of the measurement noise of each sensor (identification and diagnosis alike).
 
 The level of white measurement noise is read off where the measured signal
 itself has no power: above the excited band and below the anti-alias roll-off
@@ -23,13 +23,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 from scipy import signal
 
 from ebb_model.errors import ConfigError, DataError
 
-__all__ = ["NoiseEstimate", "noise_estimate", "noise_std"]
+__all__ = ["NoiseEstimate", "noise_estimate", "noise_std", "records_noise_std"]
 
 #: Fraction of Nyquist above which anti-alias / decimation filters may pull the
 #: measured spectrum below the true noise floor: excluded from the quiet range.
@@ -158,3 +159,28 @@ def noise_estimate(y: np.ndarray, dt: float, *, band: tuple[float, float] | None
 def noise_std(y: np.ndarray, dt: float, *, band: tuple[float, float] | None = None) -> np.ndarray:
     """Per-sensor measurement-noise std, shape ``(n_out,)``; see :func:`noise_estimate`."""
     return noise_estimate(y, dt, band=band).std
+
+
+def records_noise_std(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], dt: float) -> np.ndarray:
+    """Per-sensor noise std of several records: the floor above the band the inputs excite, median over records.
+
+    The one estimate of the identification (Fisher information, Cramér–Rao bounds, the fit's gap ratio) and
+    of the diagnosis (noise-normalised residuals).  A lightly damped accelerometer record has signal up to
+    the top of the excited band and little above it: estimates from differences of the samples see the
+    signal too (measured 50× the noise variance on a record excited to fs/13), the floor above the band
+    does not.
+
+    Raises
+    ------
+    DataError
+        When the records give no positive, finite estimate (noise-free or constant records, or inputs
+        without power).
+    """
+    from ebb_model.adequacy import excited_band
+
+    f_top = excited_band(list(inputs), dt)[1]
+    sigma = np.median(np.array([noise_std(y, dt, band=(0.0, f_top)) for y in outputs]), axis=0)
+    if not np.all(np.isfinite(sigma) & (sigma > 0)):
+        raise DataError("noise: could not estimate the measurement noise from the data (noise-free or "
+                        "constant records?); give noise_std in [identification]")
+    return sigma
