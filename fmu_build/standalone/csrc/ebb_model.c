@@ -24,6 +24,7 @@
  */
 #include "ebb_beam.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -182,7 +183,33 @@ static void order(const double *w, int *idx, int n, int desc)
     }
 }
 
-/* the nm lowest w2 (and, if psi != NULL, the mass-normalised modes, nu x nm) of K psi = w2 M psi */
+/* Rayleigh quotients psi^T K psi / psi^T M psi in extended precision, as the eigenvalues.
+ * Both reductions leave each w2 with an error of about eps |psi|^T |K| |psi| / psi^T K psi (the backward error
+ * of the Cholesky factor: a cancellation factor that grows as kappa(K) for the smooth low modes), and the
+ * inverted one eps mu_max / mu_i for the high modes.  The quotient is second order in the vectors' error and,
+ * summed in long double, carries the cancellation with eps of long double: every w2 then is the eigenvalue of
+ * the assembled (double) K and M to about 1e-13.  Used where long double is wider than double (x86-64 gcc);
+ * elsewhere the solver's values stand. */
+static void rayleigh_refine(const fd_beam *b, int nm, double *w2, const double *psi)
+{
+    const int nu = b->nu;
+    for (int i = 0; i < nm; i++) {
+        long double num = 0.0L, den = 0.0L;
+        for (int r = 0; r < nu; r++) {
+            long double kr = 0.0L, mr = 0.0L;
+            for (int c = 0; c < nu; c++) {
+                const long double pc = psi[c * nm + i];
+                kr += (long double)b->K[r * nu + c] * pc;
+                mr += (long double)b->M[r * nu + c] * pc;
+            }
+            num += (long double)psi[r * nm + i] * kr;
+            den += (long double)psi[r * nm + i] * mr;
+        }
+        w2[i] = (double)(num / den);
+    }
+}
+
+/* the nm lowest w2 and the mass-normalised modes (nu x nm) of K psi = w2 M psi */
 static int lowest_modes(const fd_beam *b, int nm, double *w2, double *psi)
 {
     const int nu = b->nu;
@@ -209,7 +236,7 @@ static int lowest_modes(const fd_beam *b, int nm, double *w2, double *psi)
         order(mu, idx, nu, 0);
     }
     for (int i = 0; i < nm; i++) w2[i] = inverted ? 1.0 / mu[idx[i]] : mu[idx[i]];
-    if (psi) {
+    {
         for (int r = 0; r < nu; r++)
             for (int i = 0; i < nm; i++) psi[r * nm + i] = V[r * nu + idx[i]];
         ebb_back_transform(L, psi, nu, nm);            /* psi = L^-T v */
@@ -223,6 +250,7 @@ static int lowest_modes(const fd_beam *b, int nm, double *w2, double *psi)
             s = sqrt(s);
             for (int r = 0; r < nu; r++) psi[r * nm + i] /= s;
         }
+        if (LDBL_MANT_DIG > DBL_MANT_DIG) rayleigh_refine(b, nm, w2, psi);
     }
     rc = 0;
 done:
@@ -316,7 +344,7 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
     const int n = s->nodes;
     const int n2 = (2 * n + 1 <= 201) ? 2 * n + 1 : (n - 1) / 2;
     fd_beam a = {0}, b = {0};
-    double *psi = NULL, *w2c = NULL, *Cd = NULL, *work = NULL;
+    double *psi = NULL, *psic = NULL, *w2c = NULL, *Cd = NULL, *work = NULL;
     int rc = -1;
     if (fd_assemble(s, n, p, &a) != 0 || fd_assemble(s, n2, p, &b) != 0) {
         snprintf(msg, msglen, "out of memory");
@@ -329,8 +357,9 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
     out->w2 = malloc(sizeof(double) * (size_t)k);
     psi = malloc(sizeof(double) * (size_t)nuf * k);
     w2c = malloc(sizeof(double) * (size_t)mc);
-    if (!out->w2 || !psi || !w2c) { snprintf(msg, msglen, "out of memory"); goto done; }
-    if (lowest_modes(fine, k, out->w2, psi) != 0 || lowest_modes(coarse, mc, w2c, NULL) != 0) {
+    psic = malloc(sizeof(double) * (size_t)coarse->nu * mc);
+    if (!out->w2 || !psi || !w2c || !psic) { snprintf(msg, msglen, "out of memory"); goto done; }
+    if (lowest_modes(fine, k, out->w2, psi) != 0 || lowest_modes(coarse, mc, w2c, psic) != 0) {
         snprintf(msg, msglen, "the eigenvalue problem of the beam failed (mass matrix not positive definite "
                  "or no convergence): check rhoA, rhoI and the point masses");
         goto done;
@@ -424,7 +453,10 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
         if (!out->Phi || !out->Q || !out->H) { free(scale); snprintf(msg, msglen, "out of memory"); goto done; }
         for (int i = 0; i < k; i++) {
             const double sc = scale[i], d = out->Cm[i * k + i];
-            const double AT[4] = {0.0, sc * T, -out->w2[i] * T / sc, -d * T}, BT[2] = {0.0, T / sc};
+            /* the input column is scaled to 1 (the response is linear in it): the expm's absolute error is
+             * relative to the augmented matrix's norm, so a column of T/sc would lose digits in P */
+            const double AT[4] = {0.0, sc * T, -out->w2[i] * T / sc, -d * T}, BT[2] = {0.0, 1.0};
+            const double beta = T / sc;
             double Ph[4], Pq[8];
             if (van_loan(AT, BT, 2, 1, deg, Ph, Pq) != 0) {
                 free(scale);
@@ -436,8 +468,8 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
             double Pt[4][2] = {{0}};
             for (int j = 0; j < nt; j++)
                 for (int q = 0; q <= deg; q++) {
-                    Pt[j][0] += coef[j][q] * Pq[q * 2 + 0];
-                    Pt[j][1] += coef[j][q] * Pq[q * 2 + 1] * sc;
+                    Pt[j][0] += coef[j][q] * (Pq[q * 2 + 0] * beta);
+                    Pt[j][1] += coef[j][q] * (Pq[q * 2 + 1] * beta * sc);
                 }
             /* tap offsets: Q_0 <- tap 0 (+ Phi H), Q_1 <- tap -1, Q_2 <- tap -2; H <- tap +1 */
             for (int j = 0; j < nt; j++) {
@@ -473,6 +505,10 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
             for (int j = 0; j < k; j++) AT[(k + i) * nx + k + j] = -out->Cm[i * k + j] * scale[j] / scale[i] * T;
             for (int j = 0; j < m; j++) BT[(k + i) * m + j] = out->Fm[i * m + j] / scale[i] * T;
         }
+        double bmax = 0.0;                             /* input block scaled to 1 (see the per-mode case) */
+        for (size_t e = 0; e < (size_t)nx * m; e++) bmax = fmax(bmax, fabs(BT[e]));
+        const double beta = bmax > 0.0 ? bmax : 1.0;
+        for (size_t e = 0; e < (size_t)nx * m; e++) BT[e] /= beta;
         if (van_loan(AT, BT, nx, m, deg, Ph, Pq) != 0) {
             free(AT); free(BT); free(Ph); free(Pq); free(scale);
             snprintf(msg, msglen, "the matrix exponential of the modal system is not finite");
@@ -485,7 +521,7 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
                 out->Phi[r * nx + c] = Ph[r * nx + c] * sr / sc;
             }
             for (int q = 0; q <= deg; q++)
-                for (int j = 0; j < m; j++) Pq[((size_t)q * nx + r) * m + j] *= sr;
+                for (int j = 0; j < m; j++) Pq[((size_t)q * nx + r) * m + j] *= sr * beta;
         }
         for (int t = 0; t < nt; t++) {
             double *dst = taps[t] == 1 ? out->H : out->Q + (size_t)(-taps[t]) * nx * m;
@@ -553,7 +589,7 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
     rc = 0;
 done:
     fd_free(&a); fd_free(&b);
-    free(psi); free(w2c); free(Cd); free(work);
+    free(psi); free(psic); free(w2c); free(Cd); free(work);
     if (rc != 0) ebb_model_free(out);
     return rc;
 }
