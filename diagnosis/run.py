@@ -175,7 +175,8 @@ def _modes_hz(model: Any, k: int) -> list[float]:
 def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_dir: str | Path | None, *,
              holdout: Sequence[str | Path] = (), result: str | Path | None = None,
              holdout_fraction: float = 0.3, shortlist: int = 4, noise_std: Sequence[float] | None = None,
-             plots: bool = True, export: bool = True, progress: Callable[[str], None] | None = None) -> Diagnosis:
+             plots: bool = True, export: bool = True, standalone: bool = False,
+             progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Locate the sim-to-real gap, name the effect that explains it, and measure how far it closes.
 
     Parameters
@@ -204,6 +205,9 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         When the verdict names an effect, write the corrected model (baseline
         plus that effect, refitted) to ``out_dir/corrected/``: config,
         python-control StateSpace and FMU (:mod:`diagnosis.corrected`).
+    standalone
+        With ``export``, also write the corrected model as a standalone C FMU
+        (``corrected_standalone.fmu``; needs ``[time] scheme = "exact"``).
 
     Returns
     -------
@@ -218,6 +222,9 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
     if shortlist < 1:
         raise ConfigError(f"--shortlist must be >= 1, got {shortlist}")
+    if standalone and export and cfg.time.scheme != "exact":
+        raise ConfigError(f"--standalone: [time] scheme = {cfg.time.scheme!r}; the standalone FMU implements the "
+                          "scheme \"exact\" only")
     out = Path(out_dir) if out_dir is not None else None
     if out is not None:
         check_new_output_dir(out)
@@ -352,7 +359,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
             e = by_label[ranking.verdict]
             row = next(r for r in effect_rows if r["label"] == ranking.verdict)
             files = export_corrected(problem.model(rf.fit.beta, e, rf.fit.s), tmp / "corrected",
-                                     corrected_summary(cfg, space.to_dict(baseline.beta), row))
+                                     corrected_summary(cfg, space.to_dict(baseline.beta), row),
+                                     standalone=standalone)
             doc["corrected"] = {"directory": "corrected", "files": [f.name for f in files]}
         write_json(tmp / GAP_FILE, doc)
         if plots:
