@@ -359,3 +359,19 @@ def test_cli_export_writes_standalone_fmus(tmp_path, capsys):
     u = _inputs(cfg, 300, 11)
     ref = simulate(assemble(cfg, {"EI": 9.0, "N": 70.0}), u).outputs
     assert _rel_err(fmpy_outputs(fmu, u), ref) <= RTOL_CORE    # the point's values are the start values
+
+
+def test_field_outputs_are_the_deflection_at_every_node(tmp_path):
+    """``field=True``: ``w[0] … w[n+1]`` as displacement outputs at the grid nodes (as the pythonfmu FMU's)."""
+    from ebb_model.assemble import field_config
+
+    cfg = config_from_dict(mixed_config())
+    fmu = build_standalone_fmu(cfg, tmp_path / "field.fmu", field=True)
+    assert validate_fmu(str(fmu)) == []
+    names = [v.name for v in fmpy.read_model_description(str(fmu)).modelVariables if v.causality == "output"]
+    assert names == ["d1", "v1", "a1"] + [f"w[{i}]" for i in range(cfg.beam.nodes + 2)]
+    u = _inputs(cfg, 300, 12)
+    y = fmpy_outputs(fmu, u)
+    ref = simulate(assemble(field_config(cfg)), u).outputs
+    assert np.all(y[:, 3] == 0.0)                               # the pinned end does not move
+    assert _rel_err(np.delete(y, 3, axis=1), np.delete(ref, 3, axis=1)) <= RTOL_CORE

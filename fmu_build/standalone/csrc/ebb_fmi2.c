@@ -445,6 +445,13 @@ EBB_EXPORT fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference v
         } else if (role == ROLE_PARAMETER) {
             c->p[EBB_VAR_INDEX[r]] = value[i];          /* checked when the model is (re)built */
             c->stale = 1;
+        } else if (role == ROLE_STATE && (c->type == fmi2ModelExchange || (c->at_start && value[i] == 0.0))) {
+            /* model exchange: the state (start value 0, initial exact); co-simulation starts at rest only */
+            if (!isfinite(value[i])) {
+                status = fail(c, "fmi2SetReal", "state %s = %g is not a finite number", var_name(r), value[i]);
+                continue;
+            }
+            if (c->type == fmi2ModelExchange) c->x[EBB_VAR_INDEX[r]] = value[i];
         } else {
             status = fail(c, "fmi2SetReal", "variable %s (value reference %u) cannot be set", var_name(r), r);
         }
