@@ -428,3 +428,30 @@ def test_model_exchange_with_a_host_solver_and_a_continuous_input(fmus, configs)
                     t_eval=t_out, rtol=1e-12, atol=1e-18, jac=A)
     y_ref = np.array([mm.C @ x + mm.D @ u(t) for t, x in zip(t_out, ref.y.T)])
     assert _rel_err(np.array(y), y_ref) < 1e-7                 # measured 5.5e-10 (rtol 1e-8)
+
+
+def test_diagnosed_model_exports_a_standalone_fmu(tmp_path):
+    """``export_corrected(..., standalone=True)`` (``ebb diagnose --standalone``): the corrected beam in C."""
+    from diagnosis.corrected import export_corrected
+    from diagnosis.effects import AugmentedModel
+
+    cfg = load_config(SEED_TOML)
+    params = cfg.parameter_values() | {"EI": 10.5, "c": 0.2}
+    files = export_corrected(AugmentedModel(cfg, params), tmp_path / "corrected", {"effect": "test"}, fmu=False,
+                             standalone=True)
+    fmu = tmp_path / "corrected" / "corrected_standalone.fmu"
+    assert fmu in files
+    carries = json.loads((tmp_path / "corrected" / "corrected.json").read_text())["files"]
+    assert "corrected_standalone.fmu" in carries
+    u = _inputs(cfg, 300, 13)
+    assert _rel_err(fmpy_outputs(fmu, u), simulate(assemble(cfg, params), u).outputs) <= RTOL_CORE
+
+
+def test_failed_build_leaves_no_file(tmp_path, monkeypatch):
+    import fmu_build.standalone.builder as sb
+    from ebb_model.errors import FmuError
+
+    monkeypatch.setattr(sb, "CFLAGS", sb.CFLAGS + ("-Werror=this-flag-does-not-exist",))
+    with pytest.raises(FmuError, match="compiling the standalone FMU failed"):
+        build_standalone_fmu(SEED_TOML, tmp_path / "x.fmu")
+    assert list(tmp_path.iterdir()) == []

@@ -30,7 +30,7 @@ from pathlib import Path
 
 from ebb_model import BeamConfig, assemble, load_config
 from ebb_model.assemble import field_config
-from ebb_model.errors import FmuError
+from ebb_model.errors import ConfigError, FmuError
 
 from ..builder import _check_names, _check_output, _identity
 from .description import (C_HEADERS, C_SOURCES, build_description_xml, config_header, fmu_variables,
@@ -105,8 +105,6 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
     FmuError
         The output path is unusable, names clash, no C compiler, or writing the archive fails.
     """
-    from ebb_model.errors import ConfigError
-
     if isinstance(config, BeamConfig):
         cfg, base = config, "beam"
     else:
@@ -121,7 +119,6 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
     field_sensors = tuple(field_config(cfg).sensors[len(cfg.sensors):]) if field else ()
     identity = _identity(base)
     variables = fmu_variables(cfg, field_sensors)
-    sources = C_SOURCES + C_HEADERS + ("ebb_config.h",)
     xml = model_description_xml(variables, identity=identity, description=_description(cfg, field),
                                 dt=cfg.time.dt, sources=C_SOURCES)
 
@@ -149,5 +146,4 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
-    del sources
     return out
