@@ -207,7 +207,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         python-control StateSpace and FMU (:mod:`diagnosis.corrected`).
     standalone
         With ``export``, also write the corrected model as a standalone C FMU
-        (``corrected_standalone.fmu``; needs ``[time] scheme = "exact"``).
+        (``corrected_standalone.fmu``).
 
     Returns
     -------
@@ -222,9 +222,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
     if shortlist < 1:
         raise ConfigError(f"--shortlist must be >= 1, got {shortlist}")
-    if standalone and export and cfg.time.scheme != "exact":
-        raise ConfigError(f"--standalone: [time] scheme = {cfg.time.scheme!r}; the standalone FMU implements the "
-                          "scheme \"exact\" only")
+
     out = Path(out_dir) if out_dir is not None else None
     if out is not None:
         check_new_output_dir(out)

@@ -59,9 +59,8 @@ def export_points(result_dir: str | Path, points: Sequence[int] | str | None = N
     Raises
     ------
     ConfigError
-        No readable result, indices out of range, ``"all"`` of none,
-        ``reduce_order`` outside ``1 … nstates``, or ``standalone`` with
-        ``[time] scheme = "theta"`` — before anything is written.
+        No readable result, indices out of range, ``"all"`` of none, or
+        ``reduce_order`` outside ``1 … nstates`` — before anything is written.
     """
     d = Path(result_dir)
     try:
@@ -69,9 +68,6 @@ def export_points(result_dir: str | Path, points: Sequence[int] | str | None = N
     except (OSError, ValueError) as exc:
         raise ConfigError(f"{d}: no readable pareto.json ({exc})") from None
     cfg = config_from_dict(doc["config"], extra_sections=("identification",))
-    if standalone and cfg.time.scheme != "exact":
-        raise ConfigError(f"--standalone: [time] scheme = {cfg.time.scheme!r}; the standalone FMU implements the "
-                          "scheme \"exact\" only")
     pts = doc["points"]
     pol = doc.get("polished", [])
     if points is None and polished is None:

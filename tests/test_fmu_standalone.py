@@ -328,13 +328,16 @@ def test_cli_build_standalone_and_its_bad_input(tmp_path, capsys):
     out = tmp_path / "beam.fmu"
     assert main(["build-fmu", str(SEED_TOML), "--standalone", "--out", str(out)]) == 0
     assert validate_fmu(str(out)) == []
-    theta = tmp_path / "theta.toml"
-    theta.write_text(SEED_TOML.read_text().replace("[time]", "[time]\nscheme = \"theta\""))
-    capsys.readouterr()
-    assert main(["build-fmu", str(theta), "--standalone", "--out", str(tmp_path / "t.fmu")]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("ebb build-fmu: error:") and "[time] scheme" in err[0]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["beam.fmu", "theta.toml"]
+    unstable = tmp_path / "unstable.toml"                      # compression beyond the buckling load
+    unstable.write_text(SEED_TOML.read_text().replace("value = 50.0, bounds = [-100.0",
+                                                      "value = -2000.0, bounds = [-3000.0"))
+    for config, target, needle in ((unstable, tmp_path / "u.fmu", "N = -2000"),
+                                   (SEED_TOML, tmp_path / "missing" / "x.fmu", "does not exist")):
+        capsys.readouterr()
+        assert main(["build-fmu", str(config), "--standalone", "--out", str(target)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("ebb build-fmu: error:") and needle in err[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["beam.fmu", "unstable.toml"]
 
 
 def test_cli_export_writes_standalone_fmus(tmp_path, capsys):
@@ -455,3 +458,64 @@ def test_failed_build_leaves_no_file(tmp_path, monkeypatch):
     with pytest.raises(FmuError, match="compiling the standalone FMU failed"):
         build_standalone_fmu(SEED_TOML, tmp_path / "x.fmu")
     assert list(tmp_path.iterdir()) == []
+
+
+# ------------------------------------------------------------------------------------- the seed's θ-scheme
+def _theta_configs() -> dict[str, dict]:
+    from fmu_configs import substep_config
+
+    mixed = mixed_config()
+    mixed["time"] |= {"scheme": "theta", "input": "foh", "substeps": 3}
+    return {"substep": substep_config(), "mixed_theta": mixed}
+
+
+@pytest.mark.parametrize("name", ["substep", "mixed_theta"])
+def test_theta_scheme_equals_core(tmp_path, name):
+    """``[time] scheme = "theta"``: sub-steps, straight-line force between samples, all sensor kinds."""
+    from ebb_model.simulate import fast_model
+
+    cfg = config_from_dict(_theta_configs()[name])
+    fmu = build_standalone_fmu(cfg, tmp_path / "theta.fmu")
+    assert validate_fmu(str(fmu)) == []
+    u = _inputs(cfg, 1000, 2)
+    y = fmpy_outputs(fmu, u)
+    assert _rel_err(y, simulate(assemble(cfg), u).outputs) <= RTOL_CORE          # dense nodal realisation
+    assert _rel_err(y, simulate(fast_model(cfg), u).outputs) <= RTOL_CORE        # what `ebb simulate` runs
+    params = {"EI": 40.0, "c": 0.1} if name == "substep" else {"EI": 15.0, "N": 5.0}
+    assert _rel_err(fmpy_outputs(fmu, u, params=params), simulate(assemble(cfg, params), u).outputs) <= RTOL_CORE
+
+
+def test_theta_scheme_explicit_limit_names_theta(tmp_path, host):
+    d = load_config(SEED_TOML).to_dict()
+    d["time"] |= {"scheme": "theta", "theta": 0.0, "substeps": 4}
+    fmu = build_standalone_fmu(config_from_dict(d), tmp_path / "explicit.fmu")
+    proc = host_run(host, fmu, np.zeros((3, 1)), tmp_path / "run", params={"EI": 100.0}, env={})
+    assert proc.returncode == 3 and "fmi2ExitInitializationMode failed with status 3" in proc.stderr
+    assert "theta = 0 < 1/4" in proc.stderr and "EI = 100" in proc.stderr, proc.stderr
+
+
+def test_theta_model_exchange_is_the_nodal_system(tmp_path):
+    """Model exchange of a θ config: states are the nodal unknowns, ``q'' = M⁻¹(F u − C q' − K q)``."""
+    import ctypes
+
+    from ebb_model.discretisation import discretise
+
+    cfg = config_from_dict(_theta_configs()["mixed_theta"])
+    f, md = _me_instance(build_standalone_fmu(cfg, tmp_path / "me.fmu"))
+    nx = md.numberOfContinuousStates
+    assert [v.name for v in md.modelVariables if v.causality == "local"][:2] == ["nodes.q[1]", "nodes.q[2]"]
+    ptr = ctypes.POINTER(ctypes.c_double)
+    A = np.zeros((nx, nx))
+    for j in range(nx):
+        x = np.zeros(nx)
+        x[j] = 1.0
+        dx = np.zeros(nx)
+        f.setContinuousStates(x.ctypes.data_as(ptr), nx)
+        f.getDerivatives(dx.ctypes.data_as(ptr), nx)
+        A[:, j] = dx
+    f.freeInstance()
+    beam = discretise(cfg)
+    k = nx // 2
+    ref = np.linalg.solve(beam.M, np.hstack([beam.K, beam.C]))
+    np.testing.assert_allclose(-A[k:], ref, atol=1e-10 * np.abs(ref).max())
+    np.testing.assert_array_equal(A[:k, k:], np.eye(k))

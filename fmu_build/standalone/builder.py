@@ -1,8 +1,9 @@
 """Build the standalone C FMU of the beam: :func:`build_standalone_fmu`.
 
-The FMU needs no Python at run time.  It carries the C source of the same model as ``ebb_model`` (scheme
-``exact``): finite-difference assembly from the physical parameters, Richardson modes on two grids, each
-mode integrated exactly over a sample under the input polynomial (see ``csrc/ebb_model.c``), so ``EI``,
+The FMU needs no Python at run time.  It carries the C source of the same model as ``ebb_model``:
+finite-difference assembly from the physical parameters, then for the default scheme ``exact`` Richardson
+modes on two grids, each mode integrated exactly over a sample under the input polynomial, or the seed's
+θ-scheme on the nodal unknowns (``[time] scheme = "theta"``; see ``csrc/ebb_model.c``), so ``EI``,
 ``rhoA``, ``c``, ``eta``, ``N``, ``rhoI``, ``kf`` stay tunable parameters; only the structure (grid, ends,
 positions, point masses, ``dt``, input reconstruction) is generated into ``sources/ebb_config.h``.
 
@@ -13,8 +14,7 @@ Archive layout::
     sources/*.c, *.h               ebb_linalg.c, ebb_model.c, ebb_fmi2.c, ebb_beam.h, ebb_config.h
     sources/buildDescription.xml   the same file list (FMI 2.0.4 / 3.0 layout), for other platforms
 
-Decisions: the ``[time] scheme = "theta"`` model is not ported (a build asks for ``"exact"``, naming the
-field); the binary is compiled at build time, so gcc is needed to build, nothing to run.  The archive is
+Decisions: the binary is compiled at build time, so gcc is needed to build, nothing to run.  The archive is
 written to a temporary file next to ``out`` and renamed into place when complete: a failed build leaves no
 partial ``.fmu``.
 """
@@ -30,7 +30,7 @@ from pathlib import Path
 
 from ebb_model import BeamConfig, assemble, load_config
 from ebb_model.assemble import field_config
-from ebb_model.errors import ConfigError, FmuError
+from ebb_model.errors import FmuError
 
 from ..builder import _check_names, _check_output, _identity
 from .description import (C_HEADERS, C_SOURCES, build_description_xml, config_header, fmu_variables,
@@ -47,14 +47,16 @@ CFLAGS = ("-std=c99", "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-Wall")
 
 def _description(config: BeamConfig, field: bool) -> str:
     b, t = config.beam, config.time
-    return (f"Axially loaded Euler-Bernoulli beam (ebb_model, scheme exact, input {t.input_hold}): length "
+    scheme = "exact" if t.scheme == "exact" else f"theta {t.theta:g} with {t.substeps} sub-step(s)"
+    states = ("the modal coordinates and velocities of the Richardson modes" if t.scheme == "exact"
+              else "deflection and velocity of the grid's unknowns")
+    return (f"Axially loaded Euler-Bernoulli beam (ebb_model, scheme {scheme}, input {t.input_hold}): length "
             f"{b.length:g} m, {b.nodes} interior nodes, {b.left.kind}-{b.right.kind}, dt {t.dt:g} s; "
             f"{len(config.actuators)} force input(s), {len(config.sensors)} sensor output(s)"
             + (", deflection at every grid node" if field else "")
             + ". Standalone C (no Python at run time): the model is assembled from the parameters at "
               "initialisation. Co-simulation: communication steps must be integer multiples of dt (inputs held "
-              f"over the step). Model exchange: {2 * n_modes(config)} states, the modal coordinates and velocities "
-              "of the Richardson modes. Binary for linux64; sources/ compile elsewhere (C99 + libm).")
+              f"over the step). Model exchange: {2 * n_modes(config)} states, {states}. Binary for linux64; sources/ compile elsewhere (C99 + libm).")
 
 
 def compile_binary(sources: Path, target: Path, *, compiler: str = "gcc") -> None:
@@ -99,7 +101,7 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
     Raises
     ------
     ConfigError
-        The config file is missing or invalid, or uses ``[time] scheme = "theta"`` (not available as C).
+        The config file is missing or invalid.
     ParameterError, StabilityError
         The nominal parameters give no valid (stable) model.
     FmuError
@@ -112,9 +114,6 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
     out = Path(out)
     parent = _check_output(out)
     _check_names(cfg)
-    if cfg.time.scheme != "exact":
-        raise ConfigError(f"[time] scheme = {cfg.time.scheme!r}: the standalone FMU implements the default "
-                          "scheme \"exact\" only (set [time] scheme = \"exact\", or build the pythonfmu FMU)")
     assemble(cfg)                                       # the nominal parameters must give a valid, stable model
     field_sensors = tuple(field_config(cfg).sensors[len(cfg.sensors):]) if field else ()
     identity = _identity(base)

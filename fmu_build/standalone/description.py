@@ -7,7 +7,8 @@ FMU's): the parameters ``EI, rhoA, c, eta, N, rhoI, kf`` (tunable), one input pe
 per sensor [m, m/s, m/s2] (then the field outputs ``w[i]`` when asked for), the fixed set-up as calculated
 parameters (names, causality and units as the pythonfmu FMU's, plus ``time.input``), and for model exchange
 the continuous states ``modes.q[i]``, ``modes.qd[i]`` (``i = 1 … k``: the modal coordinates and velocities
-of the ``k`` Richardson modes, mass-normalised) and their derivatives ``der(modes.q[i])``, ``der(modes.qd[i])``.
+of the ``k`` Richardson modes, mass-normalised; scheme ``theta``: ``nodes.q[i]``, ``nodes.qd[i]``, deflection
+and velocity of the grid's ``k`` unknowns) and their derivatives ``der(...)``.
 
 ``ebb_config.h`` holds the **structure** only (grid, ends, positions, sensor kinds, point masses, ``dt``,
 input reconstruction, start values, the variable table): the matrices are assembled in C from the parameter
@@ -56,7 +57,7 @@ class Variable:
 
 
 def n_modes(config: BeamConfig) -> int:
-    """Modes of the exact scheme (= state pairs): the unknowns of the config's grid."""
+    """State pairs of model exchange: the unknowns of the config's grid (= the exact scheme's modes)."""
     b = config.beam
     return b.nodes + 2 - int(b.left.translation_fixed) - int(b.right.translation_fixed)
 
@@ -102,12 +103,23 @@ def fmu_variables(config: BeamConfig, field_sensors: Sequence[Sensor] = ()) -> l
         const(f"masses.{m.name}.x", float(m.x), f"position of point mass {m.name}", "m")
         const(f"masses.{m.name}.mass", float(m.mass), f"point mass {m.name}", "kg")
     k = n_modes(config)
-    for i in range(k):
-        out.append(Variable(f"modes.q[{i + 1}]", "Real", "state", i, 0.0, None,
-                            f"coordinate of Richardson mode {i + 1} (mass-normalised)"))
-    for i in range(k):
-        out.append(Variable(f"modes.qd[{i + 1}]", "Real", "state", k + i, 0.0, None,
-                            f"velocity of Richardson mode {i + 1}"))
+    if t.scheme == "theta":                 # the nodal unknowns of the config's grid
+        first = 1 if b.left.translation_fixed else 0
+        xs = [b.length * (first + i) / (b.nodes + 1) for i in range(k)]
+        for i in range(k):
+            out.append(Variable(f"nodes.q[{i + 1}]", "Real", "state", i, 0.0, "m",
+                                f"deflection at grid node x = {xs[i]:g} m"))
+        for i in range(k):
+            out.append(Variable(f"nodes.qd[{i + 1}]", "Real", "state", k + i, 0.0, "m/s",
+                                f"velocity at grid node x = {xs[i]:g} m (co-simulation: the scheme's "
+                                "(q^j - q^(j-1))/tau)"))
+    else:                                   # the Richardson modes
+        for i in range(k):
+            out.append(Variable(f"modes.q[{i + 1}]", "Real", "state", i, 0.0, None,
+                                f"coordinate of Richardson mode {i + 1} (mass-normalised)"))
+        for i in range(k):
+            out.append(Variable(f"modes.qd[{i + 1}]", "Real", "state", k + i, 0.0, None,
+                                f"velocity of Richardson mode {i + 1}"))
     for v in [v for v in out if v.role == "state"]:
         out.append(Variable(f"der({v.name})", "Real", "derivative", v.index, None, None, f"derivative of {v.name}"))
     return out
@@ -240,6 +252,9 @@ def config_header(config: BeamConfig, variables: Sequence[Variable], identity: F
         f"#define EBB_RIGHT_KR {_c_double(b.right.kr)}",
         f"#define EBB_DT {_c_double(t.dt)}",
         f"#define EBB_HOLD {_HOLDS[t.input_hold]}",
+        f"#define EBB_SCHEME {'EBB_THETA' if t.scheme == 'theta' else 'EBB_EXACT'}",
+        f"#define EBB_THETA_VALUE {_c_double(t.theta)}",
+        f"#define EBB_SUBSTEPS {int(t.substeps)}",
         f"#define EBB_NMODES {n_modes(config)}",
         f"#define EBB_NACT {len(config.actuators)}",
         f"#define EBB_NSENS {len(sensors)}",

@@ -22,6 +22,9 @@ enum { EBB_DISPLACEMENT = 0, EBB_VELOCITY = 1, EBB_ACCELERATION = 2 };
 /* force between samples ([time] input) */
 enum { EBB_ZOH = 0, EBB_FOH = 1, EBB_CUBIC = 2 };
 
+/* time schemes ([time] scheme) */
+enum { EBB_EXACT = 0, EBB_THETA = 1 };
+
 typedef struct {
     double kt, kr;            /* springs to ground, INFINITY = constrained */
 } ebb_end;
@@ -33,6 +36,9 @@ typedef struct {
     ebb_end left, right;
     double dt;
     int hold;                 /* EBB_ZOH, EBB_FOH, EBB_CUBIC */
+    int scheme;               /* EBB_EXACT, EBB_THETA */
+    double theta;             /* theta of the three-level scheme (EBB_THETA) */
+    int substeps;             /* sub-steps per sample (EBB_THETA) */
     int n_act;
     const double *act_x;
     int n_sens;
@@ -43,7 +49,9 @@ typedef struct {
     const double *mass_m;
 } ebb_structure;
 
-/* The discrete model of one parameter set, in the causal "xi" form of ebb_model:
+/* The discrete model of one parameter set, in the causal "xi" form of ebb_model
+ * (scheme exact: x = (q, qdot) of the Richardson modes; scheme theta: x = (q^j, v^{j-1/2}) of the nodal
+ * unknowns, dense, and for model exchange the nodal (q, qdot) with Kd = M^-1 K, Cm = M^-1 C, Fm = M^-1 F):
  *   xi[k+1] = Phi xi[k] + sum_j Q_j u[k-j]   (j = 0 .. delays),   y[k] = Cy xi[k] + Dy u[k],
  * with xi = x - H u (x = (q, qdot) of the Richardson modes).  mode-wise (proportional damping): 2x2 blocks
  * per mode acting on the modal force g = Fm u; dense otherwise.  The continuous-time modal system
@@ -53,6 +61,7 @@ typedef struct {
     int dense;                /* 0: proportional damping, per-mode blocks; 1: coupled, dense */
     int delays;               /* past samples the input reconstruction reads (2 for the cubic) */
     double *w2;               /* (k) extrapolated omega^2 */
+    double *Kd;               /* (k x k) stiffness of the ODE when not modal (theta: M^-1 K), else NULL */
     double *Cm;               /* (k x k) modal damping */
     double *Fm;               /* (k x m) modal forcing */
     double *Cc, *Dc;          /* (p x 2k), (p x m) continuous outputs on x = (q, qdot) */
@@ -70,6 +79,7 @@ void ebb_congruence(const double *L, const double *a, double *out, int n);  /* o
 void ebb_back_transform(const double *L, double *v, int n, int ncol);     /* v <- L^-T v (n x ncol) */
 int ebb_jacobi(double *a, double *v, double *w, int n);     /* symmetric eigen: a destroyed, v vectors (cols) */
 int ebb_expm(const double *a, double *e, int n);            /* e = exp(a), scaling and squaring, Pade [6/6] */
+int ebb_lu_solve(double *a, double *b, int n, int ncol);    /* b <- a^-1 b (a destroyed); -1 if singular */
 
 /* ---- model (ebb_model.c) ---- */
 /* Build the model for parameters p; on failure return nonzero with a message naming the parameter. */

@@ -9,8 +9,8 @@
  * y_k = Cy xi_k + Dy u_k; fmi2DoStep(t, h) needs h = n dt (n a positive integer, within 1e-6 dt) and applies n
  * samples with the input held.  At the start time the state is "at rest" for the current input (xi = -H u,
  * the input taken as constant before the record).
- * Model exchange: states x = (q, qdot) of the Richardson modes, qddot = -w2 q - Cm qdot + Fm u; outputs
- * y = Cc x + Dc u with the host's continuous input u.
+ * Model exchange: states x = (q, qdot) of the Richardson modes, qddot = -w2 q - Cm qdot + Fm u (scheme theta: the
+ * nodal unknowns, qddot = M^-1 (F u - C qdot - K q)); outputs y = Cc x + Dc u with the host's continuous input.
  * Errors (invalid or unstable parameters, a step that is not a multiple of dt, non-finite inputs, setting a
  * variable that cannot be set) return fmi2Error with a logged message that names the variable; never fmi2Fatal.
  */
@@ -76,7 +76,7 @@ enum { TYPE_REAL, TYPE_INTEGER, TYPE_STRING };
 
 static const ebb_structure STRUCTURE = {
     EBB_LENGTH, EBB_NODES, {EBB_LEFT_KT, EBB_LEFT_KR}, {EBB_RIGHT_KT, EBB_RIGHT_KR}, EBB_DT, EBB_HOLD,
-    EBB_NACT, EBB_ACT_X, EBB_NSENS, EBB_SENS_X, EBB_SENS_KIND, EBB_NMASS, EBB_MASS_X, EBB_MASS_M,
+    EBB_SCHEME, EBB_THETA_VALUE, EBB_SUBSTEPS, EBB_NACT, EBB_ACT_X, EBB_NSENS, EBB_SENS_X, EBB_SENS_KIND, EBB_NMASS, EBB_MASS_X, EBB_MASS_M,
 };
 
 typedef struct {
@@ -243,7 +243,9 @@ static void derivatives(Instance *c, const double *x, double *dx)
     const ebb_model *m = &c->mdl;
     const int k = m->k;
     for (int i = 0; i < k; i++) {
-        double acc = -m->w2[i] * x[i];
+        double acc = 0.0;
+        if (m->Kd) for (int j = 0; j < k; j++) acc -= m->Kd[i * k + j] * x[j];
+        else acc -= m->w2[i] * x[i];
         if (m->dense) for (int j = 0; j < k; j++) acc -= m->Cm[i * k + j] * x[k + j];
         else acc -= m->Cm[i * k + i] * x[k + i];
         for (int j = 0; j < m->m; j++) acc += m->Fm[i * m->m + j] * c->u[j];

@@ -8,7 +8,8 @@
  *                     once |a_pq| <= 1e-18 sqrt(|a_pp a_qq|) (converged to full relative precision);
  *   ebb_expm          matrix exponential by scaling and squaring with the diagonal [6/6] Pade approximant
  *                     (Golub & Van Loan, Alg. 9.3.1: ||A/2^s||_inf <= 1/2 keeps the approximant's relative
- *                     error below 3.4e-16), the Pade system solved by LU with partial pivoting.
+ *                     error below 3.4e-16), the Pade system solved by LU with partial pivoting;
+ *   ebb_lu_solve      Gaussian elimination with partial pivoting, several right-hand sides.
  *
  * Matrices are row-major double arrays.  Nothing here allocates except ebb_expm's workspace (malloc).
  */
@@ -141,8 +142,8 @@ static void matmul(const double *a, const double *b, double *c, int n)
         }
 }
 
-/* solve d x = b (n x n, b n x n, both overwritten; x in b), LU with partial pivoting; -1 if singular */
-static int lu_solve(double *d, double *b, int n)
+/* solve d x = b (d n x n, b n x ncol, both overwritten; x in b), LU with partial pivoting; -1 if singular */
+int ebb_lu_solve(double *d, double *b, int n, int ncol)
 {
     for (int col = 0; col < n; col++) {
         int piv = col;
@@ -151,8 +152,10 @@ static int lu_solve(double *d, double *b, int n)
         if (d[piv * n + col] == 0.0 || !isfinite(d[piv * n + col])) return -1;
         if (piv != col) {
             for (int j = 0; j < n; j++) {
-                double t = d[col * n + j]; d[col * n + j] = d[piv * n + j]; d[piv * n + j] = t;
-                t = b[col * n + j]; b[col * n + j] = b[piv * n + j]; b[piv * n + j] = t;
+                const double t = d[col * n + j]; d[col * n + j] = d[piv * n + j]; d[piv * n + j] = t;
+            }
+            for (int j = 0; j < ncol; j++) {
+                const double t = b[col * ncol + j]; b[col * ncol + j] = b[piv * ncol + j]; b[piv * ncol + j] = t;
             }
         }
         const double inv = 1.0 / d[col * n + col];
@@ -160,17 +163,17 @@ static int lu_solve(double *d, double *b, int n)
             const double f = d[i * n + col] * inv;
             if (f == 0.0) continue;
             for (int j = col; j < n; j++) d[i * n + j] -= f * d[col * n + j];
-            for (int j = 0; j < n; j++) b[i * n + j] -= f * b[col * n + j];
+            for (int j = 0; j < ncol; j++) b[i * ncol + j] -= f * b[col * ncol + j];
         }
     }
     for (int i = n - 1; i >= 0; i--) {
         for (int k = i + 1; k < n; k++) {
             const double f = d[i * n + k];
             if (f == 0.0) continue;
-            for (int j = 0; j < n; j++) b[i * n + j] -= f * b[k * n + j];
+            for (int j = 0; j < ncol; j++) b[i * ncol + j] -= f * b[k * ncol + j];
         }
         const double inv = 1.0 / d[i * n + i];
-        for (int j = 0; j < n; j++) b[i * n + j] *= inv;
+        for (int j = 0; j < ncol; j++) b[i * ncol + j] *= inv;
     }
     return 0;
 }
@@ -211,7 +214,7 @@ int ebb_expm(const double *a, double *e, int n)
             den[i] += sign * c * x[i];
         }
     }
-    int rc = lu_solve(den, num, n);                      /* num <- den^-1 num */
+    int rc = ebb_lu_solve(den, num, n, n);               /* num <- den^-1 num */
     if (rc == 0) {
         for (int k = 0; k < s; k++) {
             matmul(num, num, tmp, n);
