@@ -76,7 +76,8 @@ enum { TYPE_REAL, TYPE_INTEGER, TYPE_STRING };
 
 static const ebb_structure STRUCTURE = {
     EBB_LENGTH, EBB_NODES, {EBB_LEFT_KT, EBB_LEFT_KR}, {EBB_RIGHT_KT, EBB_RIGHT_KR}, EBB_DT, EBB_HOLD,
-    EBB_SCHEME, EBB_THETA_VALUE, EBB_SUBSTEPS, EBB_NACT, EBB_ACT_X, EBB_NSENS, EBB_SENS_X, EBB_SENS_KIND, EBB_NMASS, EBB_MASS_X, EBB_MASS_M,
+    EBB_SCHEME, EBB_THETA_VALUE, EBB_SUBSTEPS, EBB_NACT, EBB_ACT_X, EBB_NSENS, EBB_SENS_X, EBB_SENS_KIND,
+    EBB_NMASS, EBB_MASS_X, EBB_MASS_M,
 };
 
 typedef struct {
@@ -467,19 +468,22 @@ static fmi2Status refuse_set(fmi2Component comp, const char *function, const fmi
     return fail(comp, function, "variable %s (value reference %u) cannot be set", var_name(vr[0]), vr[0]);
 }
 
-EBB_EXPORT fmi2Status fmi2SetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[])
+EBB_EXPORT fmi2Status fmi2SetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
+                                     const fmi2Integer value[])
 {
     (void)value;
     return refuse_set(comp, "fmi2SetInteger", vr, nvr);
 }
 
-EBB_EXPORT fmi2Status fmi2SetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[])
+EBB_EXPORT fmi2Status fmi2SetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
+                                     const fmi2Boolean value[])
 {
     (void)value;
     return refuse_set(comp, "fmi2SetBoolean", vr, nvr);
 }
 
-EBB_EXPORT fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[])
+EBB_EXPORT fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
+                                    const fmi2String value[])
 {
     (void)value;
     return refuse_set(comp, "fmi2SetString", vr, nvr);
