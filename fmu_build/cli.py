@@ -33,7 +33,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "build-fmu",
         help="package the beam as an FMI 2.0 co-simulation FMU",
         description="Build an FMI 2.0 co-simulation FMU (Linux x86-64) of the beam described by CONFIG. "
-                    "The FMU runs on this Python interpreter (numpy, scipy and numba required).",
+                    "The FMU runs on this Python interpreter (numpy, scipy and numba required). With "
+                    "--standalone: an FMU in C (co-simulation and model exchange) that needs no Python.",
     )
     p.add_argument("config", metavar="CONFIG", help="TOML config file")
     p.add_argument("--out", required=True, metavar="FILE", help="the .fmu file to write")
