@@ -1,7 +1,11 @@
 /*
  * ebb_linalg.c -- the dense linear algebra of the standalone beam FMU (no LAPACK), textbook algorithms:
  *
- *   ebb_cholesky      Cholesky factorisation A = L L^T (Golub & Van Loan, Alg. 4.2.1, outer form);
+ *   ebb_cholesky      Cholesky factorisation A = L L^T (Golub & Van Loan, Alg. 4.2.1, outer form); a pivot below
+ *                     1e-11 of its diagonal entry counts as failure: a stiffness matrix with rigid-body modes
+ *                     (free-free beam) is singular, and round-off may leave a tiny positive pivot that would
+ *                     make the inverted eigenproblem meaningless (positive definite grids stay above 3e-9 up
+ *                     to 1000 nodes);
  *   ebb_congruence    L^-1 A L^-T by two triangular solves (reduction of K psi = w2 M psi to standard form);
  *   ebb_jacobi        cyclic Jacobi eigenvalue iteration for symmetric matrices (Golub & Van Loan, Sec. 8.5),
  *                     rotation angle from the smaller root of t^2 + 2 theta t - 1 = 0; a rotation is skipped
@@ -22,9 +26,10 @@
 int ebb_cholesky(double *a, int n)
 {
     for (int j = 0; j < n; j++) {
-        double d = a[j * n + j];
+        const double diag = a[j * n + j];
+        double d = diag;
         for (int k = 0; k < j; k++) d -= a[j * n + k] * a[j * n + k];
-        if (!(d > 0.0)) return -1;
+        if (!(d > 1e-11 * diag)) return -1;            /* not (numerically) positive definite */
         d = sqrt(d);
         a[j * n + j] = d;
         for (int i = j + 1; i < n; i++) {
