@@ -118,6 +118,11 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
     out = Path(out)
     parent = _check_output(out)
     _check_names(cfg)
+    taken = {a.name for a in cfg.actuators} | {x.name for x in cfg.sensors}
+    clashes = sorted(taken & {"modes", "nodes"})
+    if clashes:
+        raise FmuError(f"actuator/sensor names {clashes} clash with the standalone FMU's state names (modes.q[i], "
+                       "nodes.q[i])", function="build_standalone_fmu")
     if cfg.beam.nodes > MAX_NODES:
         raise ConfigError(f"beam.nodes = {cfg.beam.nodes}: the standalone FMU's dense C solvers take at most "
                           f"{MAX_NODES} nodes (initialisation time grows as nodes³)")
