@@ -222,7 +222,6 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
     if shortlist < 1:
         raise ConfigError(f"--shortlist must be >= 1, got {shortlist}")
-
     out = Path(out_dir) if out_dir is not None else None
     if out is not None:
         check_new_output_dir(out)

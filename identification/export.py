@@ -9,8 +9,8 @@
 by side), and the same per chosen polished point ``j`` as
 ``DIR/export/polished_<j>.*``.  With ``standalone=True`` each point also gets
 ``<stem>_standalone.fmu``, the C FMU of :mod:`fmu_build.standalone` (no Python
-at run time), beside the pythonfmu one (or alone with ``fmu=False``).  Optionally a balanced-truncation reduced model
-with its error bound.  Unstable points are listed in ``pareto.json`` but not
+at run time), beside the pythonfmu one (or alone with ``fmu=False``).
+Optionally a balanced-truncation reduced model with its error bound.  Unstable points are listed in ``pareto.json`` but not
 exported.
 """
 from __future__ import annotations
