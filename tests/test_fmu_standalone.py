@@ -539,3 +539,35 @@ def test_free_free_beam_takes_the_direct_eigenproblem(tmp_path, monkeypatch):
     monkeypatch.setattr(exact_modal, "_lowest_modes", lambda beam, n, *, vectors=True: sla.eigh(
         beam.K, beam.M, eigvals_only=not vectors, subset_by_index=(0, n - 1)))
     assert _rel_err(y, simulate(assemble(cfg), u).outputs) <= 1e-9
+
+
+def test_c_code_is_clean_under_address_and_undefined_behaviour_sanitizers(fmus, tmp_path):
+    """The C master and the FMU's sources compiled with ``-fsanitize=address,undefined``: co-simulation with a
+    3-sample step, parameters that make the damping non-proportional, and the θ-scheme; no report."""
+    flags = ["-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=undefined"]
+    host = tmp_path / "host_asan"
+    probe = subprocess.run(["gcc", *flags, "-o", str(host), str(HOSTS / "fmi2_host.c"), "-ldl"],
+                           capture_output=True, text=True)
+    if probe.returncode != 0:
+        pytest.skip(f"gcc has no sanitizer runtime here: {probe.stderr[-300:]}")
+    theta = build_standalone_fmu(config_from_dict(_theta_configs()["substep"]), tmp_path / "theta.fmu")
+    for name, fmu, params in (("seed", fmus["seed"], {"rhoI": 1e-3, "c": 0.5}), ("mixed", fmus["mixed"], {}),
+                              ("theta", theta, {"EI": 45.0})):
+        work = tmp_path / name
+        unzip = Path(fmpy.extract(str(fmu), unzipdir=str(work / "src")))
+        md = fmpy.read_model_description(str(unzip))
+        subprocess.run(["gcc", "-std=c99", *flags, "-shared", "-fPIC", "-o",
+                        str(unzip / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"),
+                        "ebb_linalg.c", "ebb_model.c", "ebb_fmi2.c", "-lm"], cwd=unzip / "sources", check=True,
+                       capture_output=True)
+        with zipfile.ZipFile(work / "asan.fmu", "w") as zf:
+            for f in sorted(unzip.rglob("*")):
+                if f.is_file():
+                    zf.write(f, f.relative_to(unzip).as_posix())
+        n_in = sum(v.causality == "input" for v in md.modelVariables)
+        u = np.random.default_rng(3).standard_normal((60, n_in))
+        step = 3 * float(md.defaultExperiment.stepSize)
+        proc = host_run(host, work / "asan.fmu", u, work / "run", params=params, step=step,
+                        env={"PATH": "/usr/bin:/bin"})
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        assert "runtime error" not in proc.stderr and "AddressSanitizer" not in proc.stderr, proc.stderr[-3000:]
