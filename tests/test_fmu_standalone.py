@@ -571,3 +571,17 @@ def test_c_code_is_clean_under_address_and_undefined_behaviour_sanitizers(fmus, 
                         env={"PATH": "/usr/bin:/bin"})
         assert proc.returncode == 0, proc.stderr[-3000:]
         assert "runtime error" not in proc.stderr and "AddressSanitizer" not in proc.stderr, proc.stderr[-3000:]
+
+
+def test_two_standalone_fmus_and_a_pythonfmu_one_side_by_side(fmus, configs, tmp_path):
+    """Both instances alive and stepped alternately in one process; then the C FMU next to the pythonfmu FMU."""
+    u = _inputs(configs["seed"], 300, 9)
+    np.save(tmp_path / "u.npy", u)
+    python_fmu = build_fmu(config_from_dict(mixed_config()), tmp_path / "py_mixed.fmu")
+    for other, name in ((fmus["mixed"], "c"), (python_fmu, "py")):
+        a, b = tmp_path / f"a_{name}.npy", tmp_path / f"b_{name}.npy"
+        proc = subprocess.run([sys.executable, str(LOOPS), "two", str(fmus["seed"]), str(other),
+                               str(tmp_path / "u.npy"), str(a), str(b)], capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        assert _rel_err(np.load(a), simulate(assemble(configs["seed"]), u).outputs) <= RTOL_CORE
+        assert _rel_err(np.load(b), simulate(assemble(configs["mixed"]), np.hstack([u, u])).outputs) <= RTOL_CORE
