@@ -16,7 +16,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
     d = diagnose(args.config, args.data, args.out, holdout=args.holdout or (), result=args.result,
                  holdout_fraction=args.holdout_fraction, shortlist=args.shortlist, plots=not args.no_plots,
-                 export=not args.no_export, progress=say)
+                 export=not args.no_export, standalone=args.standalone, progress=say)
     from .report import text_report
 
     print(text_report(d.document))
@@ -48,6 +48,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-plots", action="store_true", help="skip the report plots")
     p.add_argument("--no-export", action="store_true",
                    help="do not write the corrected model (config, StateSpace, FMU) when an effect is named")
+    p.add_argument("--standalone", action="store_true",
+                   help="also write the corrected model as a standalone C FMU (corrected_standalone.fmu)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=_cmd_diagnose)
 

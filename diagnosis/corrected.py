@@ -87,11 +87,12 @@ def corrected_statespace(model: AugmentedModel) -> DiscreteStateSpace | None:
 
 
 def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mapping[str, Any], *,
-                     fmu: bool = True) -> list[Path]:
+                     fmu: bool = True, standalone: bool = False) -> list[Path]:
     """Write the corrected model into ``out_dir`` (created); returns the written files (see the module docstring).
 
     ``summary`` (effect, parameters with units, held-out gap) is written to ``corrected.json`` with the list of
-    files and what each one carries.
+    files and what each one carries.  ``standalone`` adds ``corrected_standalone.fmu``, the standalone C FMU
+    (:mod:`fmu_build.standalone`, no Python at run time) of the corrected beam.
     """
     from ebb_model.tomlio import dumps as toml_dumps
     from identification.export_statespace import save_statespace
@@ -114,6 +115,12 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
         written.append(build_fmu(cfg, out / "corrected.fmu"))
         carries["corrected.fmu"] = "FMU of the corrected beam" + (" (without the lag: a signal effect outside "
                                                                   "the FMU's model)" if lags else "")
+    if standalone:
+        from fmu_build.standalone import build_standalone_fmu
+
+        written.append(build_standalone_fmu(cfg, out / "corrected_standalone.fmu"))
+        carries["corrected_standalone.fmu"] = "standalone C FMU of the corrected beam (no Python at run time)" + (
+            " (without the lag)" if lags else "")
     if sys is None:
         carries["note"] = ("axial drift and geometric stiffening are not time-invariant: no StateSpace; the FMU "
                            "carries the refitted beam without them")

@@ -175,7 +175,8 @@ def _modes_hz(model: Any, k: int) -> list[float]:
 def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_dir: str | Path | None, *,
              holdout: Sequence[str | Path] = (), result: str | Path | None = None,
              holdout_fraction: float = 0.3, shortlist: int = 4, noise_std: Sequence[float] | None = None,
-             plots: bool = True, export: bool = True, progress: Callable[[str], None] | None = None) -> Diagnosis:
+             plots: bool = True, export: bool = True, standalone: bool = False,
+             progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Locate the sim-to-real gap, name the effect that explains it, and measure how far it closes.
 
     Parameters
@@ -204,6 +205,9 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         When the verdict names an effect, write the corrected model (baseline
         plus that effect, refitted) to ``out_dir/corrected/``: config,
         python-control StateSpace and FMU (:mod:`diagnosis.corrected`).
+    standalone
+        With ``export``, also write the corrected model as a standalone C FMU
+        (``corrected_standalone.fmu``).
 
     Returns
     -------
@@ -348,7 +352,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
             e = by_label[ranking.verdict]
             row = next(r for r in effect_rows if r["label"] == ranking.verdict)
             files = export_corrected(problem.model(rf.fit.beta, e, rf.fit.s), tmp / "corrected",
-                                     corrected_summary(cfg, space.to_dict(baseline.beta), row))
+                                     corrected_summary(cfg, space.to_dict(baseline.beta), row),
+                                     standalone=standalone)
             doc["corrected"] = {"directory": "corrected", "files": [f.name for f in files]}
         write_json(tmp / GAP_FILE, doc)
         if plots:

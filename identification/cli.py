@@ -75,7 +75,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
     points = "all" if args.points == [] else args.points
     polished = "all" if args.polished == [] else args.polished
     files = export_points(args.dir, points, polished=polished, fmu=not args.no_fmu,
-                          reduce_order=args.reduce_order)
+                          reduce_order=args.reduce_order, standalone=args.standalone)
     for f in files:
         print(f"wrote {f}")
     return 0
@@ -116,6 +116,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="Pareto point indices; the flag alone: all (default: all, unless --polished is given)")
     p.add_argument("--polished", type=int, nargs="*", default=None,
                    help="polished point indices; the flag alone: all (default: all, unless --points is given)")
-    p.add_argument("--no-fmu", action="store_true", help="StateSpace only")
+    p.add_argument("--no-fmu", action="store_true", help="no pythonfmu FMU")
+    p.add_argument("--standalone", action="store_true",
+                   help="also write <point>_standalone.fmu: the standalone C FMU (no Python at run time)")
     p.add_argument("--reduce-order", type=int, default=None, help="also a balanced truncation of this order")
     p.set_defaults(func=_cmd_export)

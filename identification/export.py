@@ -7,8 +7,10 @@
 ``DIR/export/point_<i>.fmu`` with the identified values as start values (via
 :mod:`fmu_build`; each FMU gets its own model identifier so several load side
 by side), and the same per chosen polished point ``j`` as
-``DIR/export/polished_<j>.*``.  Optionally a balanced-truncation reduced model
-with its error bound.  Unstable points are listed in ``pareto.json`` but not
+``DIR/export/polished_<j>.*``.  With ``standalone=True`` each point also gets
+``<stem>_standalone.fmu``, the C FMU of :mod:`fmu_build.standalone` (no Python
+at run time), beside the pythonfmu one (or alone with ``fmu=False``).
+Optionally a balanced-truncation reduced model with its error bound.  Unstable points are listed in ``pareto.json`` but not
 exported.
 """
 from __future__ import annotations
@@ -47,7 +49,7 @@ def _chosen(what: str, selection: Sequence[int] | str | None, n: int) -> Sequenc
 
 def export_points(result_dir: str | Path, points: Sequence[int] | str | None = None, *,
                   polished: Sequence[int] | str | None = None, fmu: bool = True,
-                  reduce_order: int | None = None) -> list[Path]:
+                  reduce_order: int | None = None, standalone: bool = False) -> list[Path]:
     """Export Pareto and polished points of a result directory. Returns the written files.
 
     ``points`` and ``polished`` are index lists or ``"all"``.  With neither
@@ -114,4 +116,8 @@ def export_points(result_dir: str | Path, points: Sequence[int] | str | None = N
 
             c_fmu = c.with_parameters(**params)
             written.append(build_fmu(c_fmu, out / f"{stem}.fmu"))
+        if standalone:
+            from fmu_build.standalone import build_standalone_fmu
+
+            written.append(build_standalone_fmu(c.with_parameters(**params), out / f"{stem}_standalone.fmu"))
     return written

@@ -1,0 +1,110 @@
+"""µs per communication step through fmpy: the standalone C FMU against the pythonfmu FMU, same run.
+
+Case R1: ``examples/seed_clamped.toml`` (50 interior nodes, clamped-clamped, dt = 1e-4 s, one force, two
+displacement sensors; scheme exact with the cubic input).  Both FMUs are driven by the same loop as
+``bench_fmu.py`` (fmpy's ``FMU2Slave``: ``setReal(u) -> getReal(y) -> doStep(t, dt)`` on one instance,
+``reset()`` between repeats).  Reported: medians over repeats of the mean µs per step, and their ratio.
+Besides, for the standalone FMU: the model's own cost per sample (one ``doStep`` over all samples, so
+fmpy's per-call overhead drops out) and the time of ``fmi2ExitInitializationMode`` (assembly on two grids,
+eigen-solutions, exact discretisation).
+
+Usage::
+
+    python benchmarks/bench_fmu_standalone.py [--steps 20000] [--repeats 7] [--json out.json]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+ROOT = Path(__file__).resolve().parents[1]
+for p in (ROOT, ROOT / "benchmarks"):
+    if str(p) not in sys.path:
+        sys.path.insert(0, str(p))
+
+from bench_fmu import R1_CONFIG, time_steps  # noqa: E402
+from fmu_build import build_fmu  # noqa: E402
+from fmu_build.standalone import build_standalone_fmu  # noqa: E402
+
+
+def inner_costs(fmu_path: Path, *, samples: int, repeats: int) -> tuple[list[float], list[float]]:
+    """µs per sample inside one ``doStep(t, samples * dt)``, and ms of ``fmi2ExitInitializationMode``."""
+    unzipdir = extract(str(fmu_path))
+    md = read_model_description(unzipdir)
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    dt = float(md.defaultExperiment.stepSize)
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
+                    instanceName="inner")
+    per_sample, init_ms = [], []
+    fmu.instantiate()
+    try:
+        for rep in range(repeats + 1):
+            fmu.setupExperiment(startTime=0.0)
+            fmu.enterInitializationMode()
+            start = time.perf_counter()
+            fmu.exitInitializationMode()
+            init = time.perf_counter() - start
+            fmu.setReal([vr["F1"]], [1.0])
+            start = time.perf_counter()
+            fmu.doStep(0.0, samples * dt)
+            elapsed = time.perf_counter() - start
+            if rep > 0:
+                per_sample.append(elapsed / samples * 1e6)
+                init_ms.append(init * 1e3)
+            fmu.reset()
+        fmu.terminate()
+    finally:
+        fmu.freeInstance()
+    return per_sample, init_ms
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=20000, help="communication steps per repeat")
+    parser.add_argument("--repeats", type=int, default=7, help="timed repeats")
+    parser.add_argument("--json", type=Path, default=None, help="also write the figures to this JSON file")
+    args = parser.parse_args(argv)
+
+    with tempfile.TemporaryDirectory(prefix="bench_cfmu_") as tmp:
+        work = Path(tmp)
+        standalone = build_standalone_fmu(R1_CONFIG, work / "r1_standalone.fmu")
+        python = build_fmu(R1_CONFIG, work / "r1_pythonfmu.fmu")
+        c_us = time_steps(standalone, ["F1"], ["y1", "y2"], dt=1e-4, steps=args.steps, repeats=args.repeats)
+        py_us = time_steps(python, ["F1"], ["y1", "y2"], dt=1e-4, steps=args.steps, repeats=args.repeats)
+        inner_us, init_ms = inner_costs(standalone, samples=args.steps, repeats=args.repeats)
+
+    c_med, py_med = statistics.median(c_us), statistics.median(py_us)
+    figures = {
+        "case": "R1 (seed_clamped.toml: 50 interior nodes, clamped-clamped, dt 1e-4 s, 1 force, 2 sensors)",
+        "loop": "fmpy FMU2Slave: setReal(u), getReal(y), doStep(t, dt); one instance, reset between repeats",
+        "steps_per_repeat": args.steps,
+        "repeats": args.repeats,
+        "standalone_us_per_step": c_us,
+        "pythonfmu_us_per_step": py_us,
+        "standalone_median_us": c_med,
+        "pythonfmu_median_us": py_med,
+        "ratio_pythonfmu_over_standalone": py_med / c_med,
+        "standalone_inner_us_per_sample": statistics.median(inner_us),
+        "standalone_init_ms": statistics.median(init_ms),
+    }
+    print(f"standalone C FMU (R1)   : {c_med:7.2f} us/step  (median of {args.repeats} x {args.steps} steps)")
+    print(f"pythonfmu FMU (R1)      : {py_med:7.2f} us/step")
+    print(f"ratio pythonfmu / C     : {py_med / c_med:7.2f}")
+    print(f"C model alone           : {statistics.median(inner_us):7.3f} us/sample (one doStep of {args.steps} "
+          "samples)")
+    print(f"C initialisation        : {statistics.median(init_ms):7.2f} ms (fmi2ExitInitializationMode)")
+    if args.json:
+        args.json.write_text(json.dumps(figures, indent=2), encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
