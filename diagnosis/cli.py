@@ -16,7 +16,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
     d = diagnose(args.config, args.data, args.out, holdout=args.holdout or (), result=args.result,
                  holdout_fraction=args.holdout_fraction, shortlist=args.shortlist, plots=not args.no_plots,
-                 export=not args.no_export, standalone=args.standalone, progress=say)
+                 export=not args.no_export, standalone=args.standalone, workers=args.workers, progress=say)
     from .report import text_report
 
     print(text_report(d.document))
@@ -45,6 +45,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--result", default=None, metavar="DIR", help="an `ebb identify` result to start from")
     p.add_argument("--out", required=True, help="output directory (gap.json, plots); must not exist or be empty")
     p.add_argument("--shortlist", type=int, default=4, help="effects refitted after the score test (default 4)")
+    p.add_argument("--workers", type=int, default=2, metavar="K",
+                   help="processes refitting the shortlisted effects side by side (default 2)")
     p.add_argument("--no-plots", action="store_true", help="skip the report plots")
     p.add_argument("--no-export", action="store_true",
                    help="do not write the corrected model (config, StateSpace, FMU) when an effect is named")

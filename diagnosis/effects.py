@@ -43,7 +43,7 @@ import numpy as np
 from ebb_model.beam import End, PointMass
 from ebb_model.config import BeamConfig
 
-__all__ = ["Scales", "Effect", "AugmentedModel", "candidate_effects", "EFFECT_NAMES"]
+__all__ = ["Scales", "Effect", "AugmentedModel", "Catalogue", "candidate_effects", "EFFECT_NAMES"]
 
 #: Names of the effect families of the catalogue.
 EFFECT_NAMES: tuple[str, ...] = (
@@ -253,6 +253,25 @@ def _stretching(sc: Scales) -> Effect:
     return Effect("geometric_stiffening", None, ("EA",), (0.0,), (hi,), (0.0,),
                   "mid-plane stretching: amplitude-dependent axial force EA/(2L)∫w_x²dx", apply,
                   lambda s: {"EA": float(s[0])})
+
+
+@dataclass(frozen=True)
+class Catalogue:
+    """What :func:`candidate_effects` builds the candidates from — picklable, unlike the effects themselves
+    (their maps are closures), so worker processes rebuild the same effects from it.
+    """
+
+    config: BeamConfig
+    scales: Scales
+    identified: tuple[str, ...] = ()
+
+    def effects(self) -> tuple[Effect, ...]:
+        """The candidates, in catalogue order."""
+        return candidate_effects(self.config, self.scales, identified=self.identified)
+
+    def effect(self, label: str) -> Effect:
+        """The candidate called ``label``."""
+        return next(e for e in self.effects() if e.label == label)
 
 
 def candidate_effects(config: BeamConfig, scales: Scales, *, identified: tuple[str, ...] = ()

@@ -25,7 +25,10 @@ Refit and ranking
 The best-scoring effects are refitted together with the baseline unknowns on
 the fit windows, from the best of the score's step and a coarse grid of the
 effect.  When that local refit leaves more than 10 % of the fit windows'
-excess unexplained, the baseline may sit in a basin that only suited the
+excess unexplained — and more than :data:`GAP_THRESHOLD` above the noise
+floor, the level at which the verdict would be ``none`` (an excess of 0.7
+closed to 0.09 is explained: the rest is the noise estimate's and the
+model's own few per cent) — the baseline may sit in a basin that only suited the
 model without the effect: the refit is repeated from the other basins of the
 baseline's global search.  When still no shortlisted effect explains the gap,
 each is refitted once more by *continuation in the record length*: a global
@@ -44,13 +47,14 @@ reported as indistinguishable from it.
 """
 from __future__ import annotations
 
+from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 from scipy.stats import chi2
 
-from .effects import Effect
+from .effects import Catalogue, Effect
 from .fitting import Fit, GapProblem
 
 __all__ = ["EffectScore", "EffectRefit", "Ranking", "score_effect", "refit_effect", "rank_effects",
@@ -201,9 +205,10 @@ def _best_start(problem: GapProblem, baseline: Fit, effect: Effect, score: Effec
 
 
 def _explains(fit: Fit, baseline: Fit) -> bool:
-    """Whether ``fit`` leaves at most 10 % of the baseline's excess over the noise floor on the fit windows."""
+    """Whether ``fit`` leaves at most 10 % of the baseline's excess over the noise floor on the fit windows, or
+    less than :data:`GAP_THRESHOLD` (nothing the verdict would call a gap)."""
     excess_before = baseline.rss / baseline.n - 1.0
-    return excess_before <= GAP_THRESHOLD or fit.rss / fit.n - 1.0 <= 0.1 * excess_before
+    return excess_before <= GAP_THRESHOLD or fit.rss / fit.n - 1.0 <= max(0.1 * excess_before, GAP_THRESHOLD)
 
 
 def _continuation_fit(problem: GapProblem, starts: list[tuple[np.ndarray, np.ndarray]], effect: Effect,
@@ -288,8 +293,31 @@ def refit_effect(problem: GapProblem, baseline: Fit, heldout_before: np.ndarray,
     return _summarise(problem, baseline, heldout_before, effect, fit)
 
 
-def rank_effects(problem: GapProblem, baseline: Fit, effects: tuple[Effect, ...], *, shortlist: int = 4,
-                 max_evaluations: int = 300, progress: Any = None) -> Ranking:
+def _refit_task(problem: GapProblem, catalogue: Catalogue, label: str, baseline: Fit, score: EffectScore,
+                max_evaluations: int, previous: tuple[Fit, list] | None = None) -> tuple[Fit, list]:
+    """One shortlisted effect's refit, in this or a worker process: the local refit, or (given the local
+    refit as ``previous``) the continuation refit from it."""
+    effect = catalogue.effect(label)
+    if previous is None:
+        return _local_refit(problem, baseline, effect, score, max_evaluations)
+    return _continued(problem, *previous, effect, max_evaluations), []
+
+
+def _map_refits(executor: Executor | None, problem: GapProblem, catalogue: Catalogue, labels: list[str],
+                baseline: Fit, scores: dict[str, EffectScore], max_evaluations: int,
+                previous: dict[str, tuple[Fit, list]] | None = None) -> dict[str, tuple[Fit, list]]:
+    """:func:`_refit_task` for every label, on the executor's processes when given (same results: each refit is
+    deterministic)."""
+    args = [(problem, catalogue, lab, baseline, scores[lab], max_evaluations,
+             None if previous is None else previous[lab]) for lab in labels]
+    if executor is None or len(labels) < 2:
+        return {lab: _refit_task(*a) for lab, a in zip(labels, args)}
+    futures = [executor.submit(_refit_task, *a) for a in args]
+    return {lab: f.result() for lab, f in zip(labels, futures)}
+
+
+def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, shortlist: int = 4,
+                 max_evaluations: int = 300, progress: Any = None, executor: Executor | None = None) -> Ranking:
     """Score every effect, refit the ``shortlist`` best, rank and decide.
 
     Parameters
@@ -298,20 +326,24 @@ def rank_effects(problem: GapProblem, baseline: Fit, effects: tuple[Effect, ...]
         Records, baseline unknowns and noise level.
     baseline
         The fitted baseline (:meth:`GapProblem.fit` without effect).
-    effects
-        Candidates (:func:`diagnosis.effects.candidate_effects`).
+    catalogue
+        The candidate effects (:class:`diagnosis.effects.Catalogue`).
     shortlist
         How many of the best-scoring effects are refitted.
     max_evaluations
         Budget of each refit.
     progress
         Optional callable ``progress(message)``.
+    executor
+        Where the shortlisted effects are refitted side by side (a process pool); ``None``: one after another
+        in this process.
 
     Returns
     -------
     Ranking
     """
     say = progress or (lambda _m: None)
+    effects = catalogue.effects()
     before, _ = problem.heldout(baseline.beta)
     scores = {}
     for e in effects:
@@ -319,10 +351,16 @@ def rank_effects(problem: GapProblem, baseline: Fit, effects: tuple[Effect, ...]
         say(f"score {e.label}: {scores[e.label].lm:.4g}")
     by_score = sorted(effects, key=lambda e: -scores[e.label].lm)
     chosen = [e for e in by_score if scores[e.label].lm > 0][:shortlist]
-    local = {e.label: _local_refit(problem, baseline, e, scores[e.label], max_evaluations) for e in chosen}
+    labels = [e.label for e in chosen]
+    local = _map_refits(executor, problem, catalogue, labels, baseline, scores, max_evaluations)
+    for lab, (fit, _) in local.items():
+        say(f"local refit {lab}: fit RSS/n {baseline.rss / baseline.n:.4g} -> {fit.rss / fit.n:.4g} "
+            f"({fit.n_evaluations} evaluations)")
     if not any(_explains(fit, baseline) for fit, _ in local.values()):
         # no local refit explains the gap: the continuation refit for each (module docstring)
-        local = {e.label: (_continued(problem, *local[e.label], e, max_evaluations), []) for e in chosen}
+        local = _map_refits(executor, problem, catalogue, labels, baseline, scores, max_evaluations, local)
+        for lab, (fit, _) in local.items():
+            say(f"continuation refit {lab}: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
     refits = {e.label: _summarise(problem, baseline, before, e, local[e.label][0]) for e in chosen}
     for label, rf in refits.items():
         say(f"refit {label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "

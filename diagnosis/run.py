@@ -13,9 +13,12 @@ appears only when complete (built under a temporary name, then renamed).
 from __future__ import annotations
 
 import json
+import multiprocessing
+import signal
 import os
 import shutil
 import tempfile
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -37,7 +40,7 @@ from identification.noise import records_noise_std
 from identification.parameters import parameter_space
 from identification.run import load_identification_config, read_data
 
-from .effects import Scales, candidate_effects
+from .effects import Catalogue, Scales
 from .fitting import GapProblem
 from .localise import localise
 from .rank import BIC_MARGIN, GAP_THRESHOLD, Ranking, rank_effects
@@ -172,10 +175,28 @@ def _modes_hz(model: Any, k: int) -> list[float]:
     return [float(v) for v in freqs[:k]]
 
 
+def _refit_worker() -> None:
+    """Worker initialiser: one BLAS thread per process (the refits are the parallelism; more threads only
+    oversubscribe the cores), and Ctrl-C is the main process's to handle."""
+    from threadpoolctl import threadpool_limits
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threadpool_limits(limits=1, user_api="blas")
+
+
+def refit_pool(workers: int) -> ProcessPoolExecutor | None:
+    """Worker processes for the shortlisted effects' refits (``spawn``: no inherited locks or threads); ``None``
+    for ``workers <= 1``."""
+    if workers <= 1:
+        return None
+    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                               initializer=_refit_worker)
+
+
 def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_dir: str | Path | None, *,
              holdout: Sequence[str | Path] = (), result: str | Path | None = None,
              holdout_fraction: float = 0.3, shortlist: int = 4, noise_std: Sequence[float] | None = None,
-             plots: bool = True, export: bool = True, standalone: bool = False,
+             plots: bool = True, export: bool = True, standalone: bool = False, workers: int = 2,
              progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Locate the sim-to-real gap, name the effect that explains it, and measure how far it closes.
 
@@ -208,6 +229,9 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     standalone
         With ``export``, also write the corrected model as a standalone C FMU
         (``corrected_standalone.fmu``).
+    workers
+        Processes refitting the shortlisted effects side by side (default 2;
+        1: all in this process).  The result does not depend on it.
 
     Returns
     -------
@@ -219,6 +243,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         Bad config, data or settings — before anything is written.
     """
     say = progress or (lambda _m: None)
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ConfigError(f"workers: must be a whole number >= 1, got {workers!r}")
     cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
     if shortlist < 1:
         raise ConfigError(f"--shortlist must be >= 1, got {shortlist}")
@@ -262,21 +288,27 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                     omega_high=2 * np.pi * max(float(mf[-1]), f_hi),
                     duration=max(r.fit_end for r in fit_records) * dt,
                     stretch_max=_stretch_max(base_cfg, base_params, fit_records))
-    effects = candidate_effects(base_cfg, scales, identified=space.names)
-    ranking = rank_effects(problem, baseline, effects, shortlist=shortlist, progress=say)
-    for _ in range(2):
-        # an effect's refit may have moved the baseline unknowns into a better basin: then the
-        # baseline itself was not at its optimum, and every comparison must be made again
-        better = None
-        for rf in ranking.refits.values():
-            cand = problem.fit(rf.fit.beta)
-            if cand.rss < baseline.rss * (1.0 - 1e-3) and (better is None or cand.rss < better.rss):
-                better = cand
-        if better is None:
-            break
-        say(f"baseline re-fit from an effect's optimum: RSS {baseline.rss:.4g} -> {better.rss:.4g}; ranking again")
-        baseline = better
-        ranking = rank_effects(problem, baseline, effects, shortlist=shortlist, progress=say)
+    catalogue = Catalogue(base_cfg, scales, tuple(space.names))
+    effects = catalogue.effects()
+    executor = refit_pool(workers)
+    try:
+        ranking = rank_effects(problem, baseline, catalogue, shortlist=shortlist, progress=say, executor=executor)
+        for _ in range(2):
+            # an effect's refit may have moved the baseline unknowns into a better basin: then the
+            # baseline itself was not at its optimum, and every comparison must be made again
+            better = None
+            for rf in ranking.refits.values():
+                cand = problem.fit(rf.fit.beta)
+                if cand.rss < baseline.rss * (1.0 - 1e-3) and (better is None or cand.rss < better.rss):
+                    better = cand
+            if better is None:
+                break
+            say(f"baseline re-fit from an effect's optimum: RSS {baseline.rss:.4g} -> {better.rss:.4g}; ranking again")
+            baseline = better
+            ranking = rank_effects(problem, baseline, catalogue, shortlist=shortlist, progress=say, executor=executor)
+    finally:
+        if executor is not None:
+            executor.shutdown(cancel_futures=True)
     # the model's own discretisation error: a gap that refining the grid changes is not blamed on physics
     adequacy = numerical_adequacy(
         base_cfg, base_params, [(r.inputs[:r.fit_end], r.outputs[:r.fit_end]) for r in fit_records], sigma,

@@ -51,6 +51,11 @@ __all__ = ["exact_model", "exact_modal", "exact_statespace", "continuous_modes",
 _MAX_REFINED_NODES = 201
 
 
+#: Smallest ``ω²`` relative to ``tr K / tr M`` (about the grid's largest ``ω²``) for which ``K`` counts as
+#: positive definite in :func:`_lowest_modes` (the clamped 199-node grid's lowest mode: 3e-7).
+_SINGULAR_K = 1e-11
+
+
 def companion_config(config: BeamConfig) -> BeamConfig:
     """The second grid of the Richardson pair: half the spacing (``2n + 1`` nodes) while that grid has at most
     :data:`_MAX_REFINED_NODES` nodes, else twice the spacing (``(n − 1)//2`` nodes)."""
@@ -72,6 +77,9 @@ def _lowest_modes(beam: SemiDiscreteBeam, n_modes: int, *, vectors: bool = True)
     lowest modes (``κ ≈ 6e8`` on a 399-node grid: jitter that spoils difference Jacobians).  When ``K`` is
     positive definite the inverted problem ``M ψ = μ K ψ`` (``μ = 1/ω²``, largest first) resolves each
     ``ω²`` to a few ``eps`` relatively; otherwise (compression, free ends) the direct problem is used.
+    LAPACK's Cholesky of a numerically singular ``K`` (a free–free beam's rigid-body modes) need not fail;
+    an inverted problem whose smallest ``ω²`` is below :data:`_SINGULAR_K` of the grid's scale
+    ``tr K / tr M`` is such a case (it put a 24-node free–free beam's mode 3 2e-4 off) and goes direct too.
     """
     try:   # all pairs by divide and conquer ("gvd"): twice as fast as a subset by "gvx" at these sizes
         if vectors:
@@ -81,7 +89,7 @@ def _lowest_modes(beam: SemiDiscreteBeam, n_modes: int, *, vectors: bool = True)
             mu = sla.eigh(beam.M, beam.K, eigvals_only=True, driver="gvd")[-n_modes:]
     except np.linalg.LinAlgError:     # K not positive definite
         mu = None
-    if mu is None or np.any(mu <= 0):
+    if mu is None or np.any(mu <= 0) or 1.0 / mu.max() < _SINGULAR_K * np.trace(beam.K) / np.trace(beam.M):
         return sla.eigh(beam.K, beam.M, eigvals_only=not vectors, subset_by_index=(0, n_modes - 1))
     w2 = 1.0 / mu[::-1]
     if not vectors:

@@ -65,6 +65,7 @@ def test_diagnose_with_holdout_file_writes_gap_json_and_plots(bench, capsys):
 @pytest.mark.parametrize("extra,problem", [
     (["--holdout-fraction", "1.5"], "holdout-fraction"),
     (["--shortlist", "0"], "shortlist"),
+    (["--workers", "0"], "workers"),
     (["--result", "nowhere"], "pareto.json"),
 ])
 def test_bad_settings_exit_2_and_write_nothing(bench, tmp_path, capsys, extra, problem):
