@@ -134,8 +134,9 @@ class GapProblem:
             sims = self.simulate(beta, effect, s, until="fit")
         except (EbbError, ValueError, np.linalg.LinAlgError):
             return penalised(None, self.n_fit)
-        parts = [((y - r.outputs[:r.fit_end]) / self.noise_std).ravel()
-                 for y, r in zip(sims, self.records) if y is not None]
+        with np.errstate(over="ignore", invalid="ignore"):   # a diverging candidate is penalised below
+            parts = [((y - r.outputs[:r.fit_end]) / self.noise_std).ravel()
+                     for y, r in zip(sims, self.records) if y is not None]
         return penalised(np.concatenate(parts), self.n_fit)
 
     def heldout(self, beta: np.ndarray, effect: Effect | None = None, s: np.ndarray | None = None

@@ -138,7 +138,13 @@ def _band_closure(before: Sequence[np.ndarray], after: Sequence[np.ndarray], dt:
 
 def _numerical_verdict(ranking: Ranking, share: float, advice: str) -> Ranking:
     """The ranking with its verdict replaced by :data:`GRID_VERDICT` when the grid's share of the gap is above
-    :data:`NUMERICAL_SHARE_LIMIT`, or its reason qualified when the share is above a tenth."""
+    :data:`NUMERICAL_SHARE_LIMIT`, or its reason qualified when the share is above a tenth.
+
+    A held-out gap within :data:`~diagnosis.rank.GAP_THRESHOLD` of the noise floor is no gap: the verdict
+    stays ``none`` whatever share of that remainder the grid makes (a share of almost nothing).
+    """
+    if float(np.mean(ranking.heldout_before)) - 1.0 < GAP_THRESHOLD:
+        return ranking
     if share > NUMERICAL_SHARE_LIMIT:
         instead = f" (the best-ranked effect, {ranking.verdict}, is not blamed)" if ranking.verdict != "none" else ""
         return replace(ranking, verdict=GRID_VERDICT, reason=(

@@ -37,11 +37,11 @@ TRUTH = {"EI": 10.0, "rhoA": 1.0, "c": 2.0, "N": 20.0}
 PRIOR = {"EI": 11.2, "rhoA": 0.9, "c": 2.3, "N": 23.0}
 
 
-def bench_config():
-    """A clamped–pinned test bench: one force, two displacement sensors, EI, rhoA, c, N unknown."""
+def bench_config(kind: str = "displacement"):
+    """A clamped–pinned test bench: one force, two sensors of ``kind``, EI, rhoA, c, N unknown."""
     d = make_config("clamped", "pinned", nodes=60, dt=DT, substeps=4, **PRIOR,
                     actuators=[("F1", 0.55)],
-                    sensors=[("y1", 0.35, "displacement"), ("y2", 0.8, "displacement")]).to_dict()
+                    sensors=[("y1", 0.35, kind), ("y2", 0.8, kind)]).to_dict()
     d["parameters"]["EI"].update(bounds=[5.0, 20.0], identify=True)
     d["parameters"]["rhoA"].update(bounds=[0.5, 2.0], identify=True)
     d["parameters"]["c"].update(bounds=[0.2, 8.0], identify=True)
@@ -49,8 +49,8 @@ def bench_config():
     return config_from_dict(d, extra_sections=("identification",))
 
 
-def _write(tmp_path, cfg, effect, seed):
-    u = band_limited_input(N_SAMPLES, DT, 2.0, 60.0, seed=seed)
+def _write(tmp_path, cfg, effect, seed, f_max=60.0):
+    u = band_limited_input(N_SAMPLES, DT, 2.0, f_max, seed=seed)
     rec = synthesize(cfg, u, params=TRUTH, effect=effect, noise=0.01, seed=seed + 100)
     path = tmp_path / "measured.npz"
     np.savez(path, time=rec.time, F1=rec.inputs[:, 0], y1=rec.outputs[:, 0], y2=rec.outputs[:, 1])
@@ -102,4 +102,50 @@ def test_no_effect_gives_none(tmp_path):
     d = diagnose(cfg, [data], tmp_path / "gap", plots=False)
     assert d.verdict == "none", d.document["reason"]
     ratios = d.document["baseline"]["heldout_gap_ratio"]
+    assert all(v < 1.25 for v in ratios.values()), ratios
+
+
+#: The accelerometer family (issue 18): the same bench with two accelerometers, excited over 2–150 Hz (fs/13),
+#: damping ratios from 2 % at mode 1 down to 0.1 % at mode 5 (viscous c = 2 only).  Named right, ≥ 80 % of the
+#: held-out gap closed and the size within 10 % — measured: none → none (the baseline's held-out gap is within the
+#: noise threshold), foundation 100 % closed (kf 200.5 for 200), actuator lag 99.6 % (τ 0.4996 ms for 0.5),
+#: Kelvin–Voigt 100 % (η 6.01e-5 for 6e-5).  The compliant clamp and rotary inertia are still called a point
+#: mass (the baseline compensates them: N at its lower bound, or N +89 % and EI −12 % — the which-effect
+#: issue), so the suite reports them as expected failures until that issue lands.
+ACCEL_CASES = [
+    ("foundation", WithheldEffect("foundation", {"kf": 200.0})),
+    ("actuator_lag", WithheldEffect("actuator_lag", {"tau": 5e-4})),
+    ("kelvin_voigt", WithheldEffect("kelvin_voigt", {"eta": 6e-5})),
+    pytest.param("rotary_inertia", WithheldEffect("rotary_inertia", {"rhoI": 4e-4}),
+                 marks=pytest.mark.xfail(reason="rotary inertia on accelerometer records: named point_mass, "
+                                                "baseline N +89 % (the which-effect issue)", strict=False)),
+    pytest.param("boundary_rotational_left", WithheldEffect("boundary_rotational_left", {"kr": 200.0}),
+                 marks=pytest.mark.xfail(reason="compliant clamp on accelerometer records: named point_mass "
+                                                "(the which-effect issue)", strict=False)),
+]
+
+
+@pytest.mark.parametrize("label,effect", ACCEL_CASES)
+def test_accelerometer_family_names_the_effect(tmp_path, label, effect):
+    cfg = bench_config("acceleration")
+    data = _write(tmp_path, cfg, effect, seed=3, f_max=150.0)
+    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document
+    top = doc["effects"][0]
+    fitted = top["refit"]["effect_parameters"]
+    print(f"\n{label} (accelerometers): verdict {doc['verdict']}, closed {top['refit']['closed']:.4f}, "
+          f"fitted {fitted} (withheld {dict(effect.values)})")
+    assert doc["verdict"] == label, doc["reason"]
+    assert top["refit"]["closed"] >= 0.8, top["refit"]
+    for k, v in effect.values.items():
+        assert fitted[k] == pytest.approx(v, rel=SIZE_TOLERANCE), (k, fitted, effect.values)
+    assert doc["baseline"]["numerical_adequacy"]["max_numerical_share"] < 0.1, doc["baseline"]["numerical_adequacy"]
+
+
+def test_accelerometer_record_without_effect_gives_none(tmp_path):
+    cfg = bench_config("acceleration")
+    data = _write(tmp_path, cfg, None, seed=3, f_max=150.0)
+    d = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False)
+    ratios = d.document["baseline"]["heldout_gap_ratio"]
+    print(f"\nno effect (accelerometers): verdict {d.verdict}, held-out gap ratio {ratios}")
+    assert d.verdict == "none", d.document["reason"]
     assert all(v < 1.25 for v in ratios.values()), ratios
