@@ -6,7 +6,9 @@ displacement sensors; scheme exact with the cubic input).  Both FMUs are driven 
 ``reset()`` between repeats).  Reported: medians over repeats of the mean µs per step, and their ratio.
 Besides, for the standalone FMU: the model's own cost per sample (one ``doStep`` over all samples, so
 fmpy's per-call overhead drops out) and the time of ``fmi2ExitInitializationMode`` (assembly on two grids,
-eigen-solutions, exact discretisation).
+eigen-solutions, exact discretisation).  And the identification's FMU backend
+(:class:`identification.fmu_backend.FmuEvaluator`, one instance reused with ``reset()``) on each FMU: candidate
+evaluations per second (EI, ρA, N drawn inside R1's bounds, 2,000-sample record), same run.
 
 Usage::
 
@@ -66,6 +68,36 @@ def inner_costs(fmu_path: Path, *, samples: int, repeats: int) -> tuple[list[flo
     return per_sample, init_ms
 
 
+def backend_rates(fmus: dict[str, Path], *, candidates: int, samples: int, repeats: int) -> dict[str, list[float]]:
+    """Candidate evaluations per second of the identification's FMU backend on each FMU (same candidates)."""
+    import numpy as np
+
+    from ebb_model import assemble, simulate
+    from identification.fmu_backend import FmuEvaluator
+    from identification.native import experiments_from_arrays
+    from identification.parameters import parameter_space
+    from identification.run import load_identification_config
+
+    cfg = load_identification_config(R1_CONFIG)
+    space = parameter_space(cfg)
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal((samples, len(cfg.actuators)))
+    exps = experiments_from_arrays([("bench", u, simulate(assemble(cfg), u).outputs)])
+    lo, hi = np.asarray(space.nominal) * 0.8, np.asarray(space.nominal) * 1.2
+    X = lo + rng.random((candidates, space.dim)) * (hi - lo)
+    rates: dict[str, list[float]] = {}
+    for label, path in fmus.items():
+        ev = FmuEvaluator(str(path), cfg, space, exps)
+        ev.evaluate(X[:1])                                  # extract, instantiate, warm up
+        rates[label] = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            ev.evaluate(X)
+            rates[label].append(candidates / (time.perf_counter() - t0))
+        ev.close()
+    return rates
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=20000, help="communication steps per repeat")
@@ -80,6 +112,8 @@ def main(argv: list[str] | None = None) -> int:
         c_us = time_steps(standalone, ["F1"], ["y1", "y2"], dt=1e-4, steps=args.steps, repeats=args.repeats)
         py_us = time_steps(python, ["F1"], ["y1", "y2"], dt=1e-4, steps=args.steps, repeats=args.repeats)
         inner_us, init_ms = inner_costs(standalone, samples=args.steps, repeats=args.repeats)
+        rates = backend_rates({"standalone": standalone, "pythonfmu": python}, candidates=20, samples=2000,
+                              repeats=max(3, args.repeats // 2))
 
     c_med, py_med = statistics.median(c_us), statistics.median(py_us)
     figures = {
@@ -94,6 +128,7 @@ def main(argv: list[str] | None = None) -> int:
         "ratio_pythonfmu_over_standalone": py_med / c_med,
         "standalone_inner_us_per_sample": statistics.median(inner_us),
         "standalone_init_ms": statistics.median(init_ms),
+        "backend_evaluations_per_s": {k: statistics.median(v) for k, v in rates.items()},
     }
     print(f"standalone C FMU (R1)   : {c_med:7.2f} us/step  (median of {args.repeats} x {args.steps} steps)")
     print(f"pythonfmu FMU (R1)      : {py_med:7.2f} us/step")
@@ -101,6 +136,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"C model alone           : {statistics.median(inner_us):7.3f} us/sample (one doStep of {args.steps} "
           "samples)")
     print(f"C initialisation        : {statistics.median(init_ms):7.2f} ms (fmi2ExitInitializationMode)")
+    r_c, r_py = (statistics.median(rates[k]) for k in ("standalone", "pythonfmu"))
+    print(f"identification FMU backend: {r_c:7.1f} evaluations/s standalone, {r_py:7.1f} pythonfmu "
+          f"(ratio {r_c / r_py:5.2f}; 2,000 samples per evaluation)")
     if args.json:
         args.json.write_text(json.dumps(figures, indent=2), encoding="utf-8")
     return 0

@@ -231,6 +231,20 @@ def test_libcosim_equals_fmpy(fmus, configs, tmp_path, name):
     assert _rel_err(y, fmpy_outputs(fmus[name], u, protocol="after")) <= RTOL_SAME
 
 
+@pytest.mark.parametrize("name", ["seed", "mixed"])
+def test_ecos_equals_fmpy(fmus, configs, tmp_path, name):
+    """A second independent importer: ecos (ecospy from PyPI, its own C++ FMI 2.0 master), same loop."""
+    u = _inputs(configs[name], 600, 5)
+    params = {"EI": 11.0, "N": 30.0} if name == "seed" else {}
+    np.save(tmp_path / "u.npy", u)
+    cmd = [sys.executable, str(LOOPS), "ecos", str(fmus[name]), str(tmp_path / "u.npy"), str(tmp_path / "y.npy")]
+    proc = subprocess.run(cmd + [f"--param={k}={v}" for k, v in params.items()], capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    y = np.load(tmp_path / "y.npy")
+    assert _rel_err(y, fmpy_outputs(fmus[name], u, params=params, protocol="after")) <= RTOL_SAME
+
+
 # ---------------------------------------------------------------------------------------------- errors
 def test_errors_are_fmi2error_naming_the_cause(fmus, host, tmp_path):
     u = np.zeros((5, 1))

@@ -5,6 +5,7 @@ master can run in a fresh interpreter::
 
     python fmu_loops.py fmpy  FMU INPUTS.npy OUT.npy [--after] [--param NAME=VALUE ...]
     python fmu_loops.py cosim FMU INPUTS.npy OUT.npy [--param NAME=VALUE ...]
+    python fmu_loops.py ecos  FMU INPUTS.npy OUT.npy [--param NAME=VALUE ...]
     python fmu_loops.py two   FMU_A FMU_B INPUTS.npy OUT_A.npy OUT_B.npy
     python fmu_loops.py lifecycle FMU CYCLES          (prints JSON: RSS growth)
 
@@ -120,6 +121,39 @@ def cosim_outputs(fmu: str | os.PathLike, u: np.ndarray, *,
     return y
 
 
+def ecos_outputs(fmu: str | os.PathLike, u: np.ndarray, *,
+                 params: Mapping[str, float] | None = None) -> np.ndarray:
+    """Outputs read after each step ("after" protocol) in ecos (ecospy: a second C++ co-simulation master).
+
+    ecospy's library needs oneTBB (``libtbb.so.12``); the ``tbb`` wheel puts it in the environment's ``lib``,
+    which is not on the loader's path, so it is loaded (globally) first.
+    """
+    import ctypes
+    import sys
+
+    from fmpy import read_model_description
+
+    ctypes.CDLL(os.path.join(sys.prefix, "lib", "libtbb.so.12"), mode=ctypes.RTLD_GLOBAL)
+    from ecospy import EcosSimulation, EcosSimulationStructure
+
+    md = read_model_description(str(fmu))
+    ins, outs = _names(md, "input"), _names(md, "output")
+    structure = EcosSimulationStructure()
+    structure.add_model("beam", str(fmu))
+    if params:
+        structure.add_parameter_set("p", {f"beam::{k}": float(v) for k, v in params.items()})
+    u = np.asarray(u, dtype=float).reshape(len(u), -1)
+    y = np.empty((len(u), len(outs)))
+    with EcosSimulation(structure=structure, step_size=float(md.defaultExperiment.stepSize)) as sim:
+        sim.init(parameter_set="p" if params else None)
+        for k in range(len(u)):
+            for name, value in zip(ins, u[k]):
+                sim.set_real(f"beam::{name}", float(value))
+            sim.step()
+            y[k] = [sim.get_real(f"beam::{name}") for name in outs]
+    return y
+
+
 def compile_host(out_dir: Path) -> Path:
     """Compile the plain C master with gcc."""
     exe = Path(out_dir) / "fmi2_host"
@@ -205,6 +239,9 @@ def main(argv: list[str] | None = None) -> int:
     b = sub.add_parser("cosim")
     b.add_argument("fmu"); b.add_argument("inputs"); b.add_argument("out")
     b.add_argument("--param", action="append", default=[])
+    e = sub.add_parser("ecos")
+    e.add_argument("fmu"); e.add_argument("inputs"); e.add_argument("out")
+    e.add_argument("--param", action="append", default=[])
     c = sub.add_parser("two")
     c.add_argument("fmu_a"); c.add_argument("fmu_b"); c.add_argument("inputs")
     c.add_argument("out_a"); c.add_argument("out_b")
@@ -217,6 +254,8 @@ def main(argv: list[str] | None = None) -> int:
         np.save(args.out, y)
     elif args.cmd == "cosim":
         np.save(args.out, cosim_outputs(args.fmu, np.load(args.inputs), params=_params(args.param)))
+    elif args.cmd == "ecos":
+        np.save(args.out, ecos_outputs(args.fmu, np.load(args.inputs), params=_params(args.param)))
     elif args.cmd == "two":
         u = np.load(args.inputs)
         _two_side_by_side(args.fmu_a, args.fmu_b, u, args.out_a, args.out_b)
