@@ -43,7 +43,7 @@ from identification.run import load_identification_config, read_data
 from .effects import Catalogue, Scales
 from .fitting import GapProblem
 from .localise import localise
-from .rank import BIC_MARGIN, GAP_THRESHOLD, Ranking, rank_effects
+from .rank import BIC_MARGIN, GAP_THRESHOLD, Ranking, better_baseline, rank_effects
 from .records import Record, split_records
 
 __all__ = ["Diagnosis", "diagnose", "excited_band", "GAP_FILE", "GRID_VERDICT", "NUMERICAL_SHARE_LIMIT"]
@@ -299,19 +299,15 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     executor = refit_pool(workers)
     try:
         ranking = rank_effects(problem, baseline, catalogue, shortlist=shortlist, progress=say, executor=executor)
+        baseline = ranking.baseline
         for _ in range(2):
-            # an effect's refit may have moved the baseline unknowns into a better basin: then the
-            # baseline itself was not at its optimum, and every comparison must be made again
-            better = None
-            for rf in ranking.refits.values():
-                cand = problem.fit(rf.fit.beta)
-                if cand.rss < baseline.rss * (1.0 - 1e-3) and (better is None or cand.rss < better.rss):
-                    better = cand
+            # an effect's refit may have moved the baseline unknowns into a better basin (rank.better_baseline)
+            better = better_baseline(problem, baseline, [rf.fit for rf in ranking.refits.values()])
             if better is None:
                 break
             say(f"baseline re-fit from an effect's optimum: RSS {baseline.rss:.4g} -> {better.rss:.4g}; ranking again")
-            baseline = better
-            ranking = rank_effects(problem, baseline, catalogue, shortlist=shortlist, progress=say, executor=executor)
+            ranking = rank_effects(problem, better, catalogue, shortlist=shortlist, progress=say, executor=executor)
+            baseline = ranking.baseline
     finally:
         if executor is not None:
             executor.shutdown(cancel_futures=True)

@@ -50,9 +50,15 @@ CHI2_RESOLUTION = 1.0e-3
 DIFF_STEP = 1.0e-5
 
 
+#: Residuals beyond this are a diverging simulation, not a fit: penalised like a refused candidate (their
+#: squares would overflow the sum of squares).
+DIVERGED = 1e100
+
+
 def penalised(r: np.ndarray | None, n: int) -> np.ndarray:
-    """``r`` when it is a finite residual vector, else :data:`PENALTY` on all ``n`` samples."""
-    if r is None or r.size != n or not np.all(np.isfinite(r)):
+    """``r`` when it is a finite residual vector (every entry below :data:`DIVERGED`), else :data:`PENALTY` on
+    all ``n`` samples."""
+    if r is None or r.size != n or not np.all(np.abs(r) < DIVERGED):
         return np.full(n, PENALTY)
     return r
 
