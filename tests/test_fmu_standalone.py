@@ -8,6 +8,7 @@ records; two LAPACK drivers in Python itself differ by about as much (see the RE
 """
 from __future__ import annotations
 
+import ctypes
 import json
 import re
 import subprocess
@@ -59,6 +60,22 @@ def configs():
 @pytest.fixture(scope="module")
 def host(tmp_path_factory):
     return compile_host(tmp_path_factory.mktemp("host"))
+
+
+def _state_matrix(f, nx: int) -> np.ndarray:
+    """The model-exchange system matrix, column by column from unit states through ``fmi2GetDerivatives``
+    (frees the instance ``f``)."""
+    ptr = ctypes.POINTER(ctypes.c_double)
+    A = np.zeros((nx, nx))
+    for j in range(nx):
+        x = np.zeros(nx)
+        x[j] = 1.0
+        dx = np.zeros(nx)
+        f.setContinuousStates(x.ctypes.data_as(ptr), nx)
+        f.getDerivatives(dx.ctypes.data_as(ptr), nx)
+        A[:, j] = dx
+    f.freeInstance()
+    return A
 
 
 def _inputs(cfg, n: int, seed: int) -> np.ndarray:
@@ -314,21 +331,10 @@ def test_model_exchange_through_cvode_converges_to_the_continuous_reference(fmus
 
 def test_model_exchange_derivatives_are_the_modal_system(fmus, configs):
     """``fmi2GetDerivatives`` at unit states: the columns of ``[[0, I], [-Λ, -C_m]]`` of the Python model."""
-    import ctypes
-
     cfg = configs["mixed"]
     f, md = _me_instance(fmus["mixed"])
     nx = md.numberOfContinuousStates
-    A = np.zeros((nx, nx))
-    ptr = ctypes.POINTER(ctypes.c_double)
-    for j in range(nx):
-        x = np.zeros(nx)
-        x[j] = 1.0
-        dx = np.zeros(nx)
-        f.setContinuousStates(x.ctypes.data_as(ptr), nx)
-        f.getDerivatives(dx.ctypes.data_as(ptr), nx)
-        A[:, j] = dx
-    f.freeInstance()
+    A = _state_matrix(f, nx)
     mm = modal_matrices(cfg, cfg.parameter_values())
     k = nx // 2
     np.testing.assert_allclose(-np.diag(A[k:, :k]), mm.frequencies2, rtol=1e-9)
@@ -402,8 +408,6 @@ def _me_instance(fmu: Path):
 def test_model_exchange_with_a_host_solver_and_a_continuous_input(fmus, configs):
     """A host's own solver (scipy's Radau) integrates the FMU's ODE under a continuous two-tone input; the
     outputs agree with the same ODE of the Python model solved to a tight tolerance, within the host's."""
-    import ctypes
-
     from scipy.integrate import solve_ivp
 
     cfg = configs["mixed"]
@@ -510,24 +514,13 @@ def test_theta_scheme_explicit_limit_names_theta(tmp_path, host):
 
 def test_theta_model_exchange_is_the_nodal_system(tmp_path):
     """Model exchange of a θ config: states are the nodal unknowns, ``q'' = M⁻¹(F u − C q' − K q)``."""
-    import ctypes
-
     from ebb_model.discretisation import discretise
 
     cfg = config_from_dict(_theta_configs()["mixed_theta"])
     f, md = _me_instance(build_standalone_fmu(cfg, tmp_path / "me.fmu"))
     nx = md.numberOfContinuousStates
     assert [v.name for v in md.modelVariables if v.causality == "local"][:2] == ["nodes.q[1]", "nodes.q[2]"]
-    ptr = ctypes.POINTER(ctypes.c_double)
-    A = np.zeros((nx, nx))
-    for j in range(nx):
-        x = np.zeros(nx)
-        x[j] = 1.0
-        dx = np.zeros(nx)
-        f.setContinuousStates(x.ctypes.data_as(ptr), nx)
-        f.getDerivatives(dx.ctypes.data_as(ptr), nx)
-        A[:, j] = dx
-    f.freeInstance()
+    A = _state_matrix(f, nx)
     beam = discretise(cfg)
     k = nx // 2
     ref = np.linalg.solve(beam.M, np.hstack([beam.K, beam.C]))
