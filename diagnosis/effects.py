@@ -43,7 +43,8 @@ import numpy as np
 from ebb_model.beam import End, PointMass
 from ebb_model.config import BeamConfig
 
-__all__ = ["Scales", "Effect", "AugmentedModel", "Catalogue", "candidate_effects", "EFFECT_NAMES"]
+__all__ = ["Scales", "Effect", "AugmentedModel", "Catalogue", "candidate_effects", "pair_effect", "on_top_of", "EFFECT_NAMES",
+           "PAIR_SEPARATOR"]
 
 #: Names of the effect families of the catalogue.
 EFFECT_NAMES: tuple[str, ...] = (
@@ -255,6 +256,50 @@ def _stretching(sc: Scales) -> Effect:
                   lambda s: {"EA": float(s[0])})
 
 
+#: Joins the labels of two effects acting at once (``foundation+actuator_lag``).
+PAIR_SEPARATOR = "+"
+
+
+def pair_effect(first: Effect, second: Effect) -> Effect:
+    """Two effects at once: ``second`` applied to the model ``first`` made; search variables side by side.
+
+    The physical parameters are keyed ``"<label>.<parameter>"`` (both effects may have a ``tau``).
+    """
+    if first.name == second.name:
+        raise ValueError(f"a pair needs two different effects, got {first.label} twice")
+    k = first.dim
+
+    def apply(cfg: BeamConfig, params: dict[str, float], s: np.ndarray) -> AugmentedModel:
+        m1 = first.apply(cfg, params, s[:k])
+        m2 = second.apply(m1.config, m1.params, s[k:])
+        return AugmentedModel(m2.config, m2.params, actuator_tau=m1.actuator_tau or m2.actuator_tau,
+                              sensor_tau={**m1.sensor_tau, **m2.sensor_tau},
+                              drift_rate=m1.drift_rate or m2.drift_rate,
+                              stretching_EA=m1.stretching_EA or m2.stretching_EA)
+
+    def physical(s: np.ndarray) -> dict[str, float]:
+        return ({f"{first.label}.{n}": v for n, v in first.physical(s[:k]).items()}
+                | {f"{second.label}.{n}": v for n, v in second.physical(s[k:]).items()})
+
+    return Effect(f"{first.label}{PAIR_SEPARATOR}{second.label}", None,
+                  tuple(f"{first.label}.{v}" for v in first.variables)
+                  + tuple(f"{second.label}.{v}" for v in second.variables),
+                  first.lower + second.lower, first.upper + second.upper, first.off + second.off,
+                  f"{first.description}, and {second.description}", apply, physical)
+
+
+def on_top_of(first: Effect, s_first: np.ndarray, second: Effect) -> Effect:
+    """``second`` acting on the model with ``first`` held at ``s_first`` (the score test of a second effect at
+    the refit of the first); variables, bounds and label are ``second``'s."""
+    pair = pair_effect(first, second)
+    s_first = np.asarray(s_first, dtype=float)
+
+    def apply(cfg: BeamConfig, params: dict[str, float], s: np.ndarray) -> AugmentedModel:
+        return pair.apply(cfg, params, np.concatenate([s_first, s]))
+
+    return replace(second, _apply=apply)
+
+
 @dataclass(frozen=True)
 class Catalogue:
     """What :func:`candidate_effects` builds the candidates from — picklable, unlike the effects themselves
@@ -270,7 +315,10 @@ class Catalogue:
         return candidate_effects(self.config, self.scales, identified=self.identified)
 
     def effect(self, label: str) -> Effect:
-        """The candidate called ``label``."""
+        """The candidate called ``label`` (two labels joined by :data:`PAIR_SEPARATOR`: the pair)."""
+        if PAIR_SEPARATOR in label:
+            first, second = label.split(PAIR_SEPARATOR)
+            return pair_effect(self.effect(first), self.effect(second))
         return next(e for e in self.effects() if e.label == label)
 
 

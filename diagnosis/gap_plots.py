@@ -23,7 +23,7 @@ def plot_diagnosis(doc: Mapping[str, Any], problem: Any, ranking: Any, effects: 
     if rows:
         fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 0.5 * len(doc["effects"]) + 2))
         labels = [r["label"] for r in doc["effects"]][::-1]
-        a1.barh(labels, [max(r["score"], 1e-3) for r in doc["effects"]][::-1])
+        a1.barh(labels, [max(r["score"] or 0.0, 1e-3) for r in doc["effects"]][::-1])   # a pair has no score
         a1.set_xscale("log")
         a1.set_xlabel("score-test statistic (LM)")
         a2.barh([r["label"] for r in rows][::-1], [100 * (r["refit"]["closed"] or 0.0) for r in rows][::-1])

@@ -35,15 +35,32 @@ each is refitted once more by *continuation in the record length*: a global
 search (differential evolution) over the baseline unknowns and the effect
 together on the first :data:`CONTINUATION` fraction of every fit window, where
 a few-per-cent frequency error costs a fraction of a cycle instead of whole
-cycles, followed by local fits on ever longer windows.  The fit with the
+cycles, followed by local fits on ever longer windows — from the search's best
+and the earlier refits' optima, the better half of them going on to each
+longer window.  The fit with the
 lowest residual on the whole fit windows is kept.  Each refit gets BIC/AIC
 (``n ln(RSS/n) + k ln n``) and its gap ratio
 on the held-out windows.  Effects are ranked by held-out error among those
 whose BIC improves by more than :data:`BIC_MARGIN` (an extra parameter must
 pay for itself).  The verdict is ``none`` when the baseline's held-out gap is
-within :data:`GAP_THRESHOLD` of the noise floor or no candidate pays for
-itself; effects whose held-out improvement is within 5 % of the best are
-reported as indistinguishable from it.
+within :data:`GAP_THRESHOLD` of the noise floor.  An effect is named only when
+its refit closes at least :data:`NAMED_CLOSURE` of the held-out gap; when no
+candidate pays for itself or the best one closes less, the verdict is
+:data:`UNEXPLAINED` — the gap is real but no effect of the catalogue accounts
+for it, and the least-bad candidate is not named.  Effects whose held-out
+improvement is within 5 % of the best are reported as indistinguishable from
+it.
+
+Two effects at once
+-------------------
+When the best effect pays for itself but leaves more than 10 % of the fit
+windows' excess (and closes at least :data:`PAIR_MINIMUM` of the held-out
+gap), every other effect is score-tested again *at that effect's refit* — the
+baseline fit may have hidden it (a foundation absorbed into the axial load
+scores 0 at the baseline) — and the :data:`PAIR_PARTNERS` best are refitted
+together with it.  A pair is reported when it improves BIC over the single
+effect by :data:`BIC_MARGIN` and lowers the held-out error; it is then named
+(``first+second``) under the same :data:`NAMED_CLOSURE` rule.
 """
 from __future__ import annotations
 
@@ -54,16 +71,26 @@ from typing import Any
 import numpy as np
 from scipy.stats import chi2
 
-from .effects import Catalogue, Effect
+from .effects import PAIR_SEPARATOR, Catalogue, Effect, on_top_of
 from .fitting import Fit, GapProblem
 
-__all__ = ["EffectScore", "EffectRefit", "Ranking", "better_baseline", "score_effect", "refit_effect", "rank_effects",
-           "GAP_THRESHOLD", "BIC_MARGIN"]
+__all__ = ["EffectScore", "EffectRefit", "Ranking", "better_baseline", "settled", "score_effect", "refit_effect",
+           "rank_effects",
+           "GAP_THRESHOLD", "BIC_MARGIN", "NAMED_CLOSURE", "UNEXPLAINED"]
 
 #: Relative excess of the held-out residual variance over the noise floor below which there is no gap to explain.
 GAP_THRESHOLD = 0.25
 #: BIC improvement an effect must reach to count as paying for its parameters.
 BIC_MARGIN = 10.0
+#: Fraction of the held-out gap an effect's refit must close to be named as the cause.
+NAMED_CLOSURE = 0.8
+#: The verdict when there is a gap that no effect of the catalogue explains.
+UNEXPLAINED = "unexplained"
+#: How many further candidates (in ranking order) are tried as the second effect of a pair.
+PAIR_PARTNERS = 3
+#: Fraction of the held-out gap the best single effect must close before a pair with it is tried (two effects
+#: of like size each close about half of it alone; one that closes almost nothing is not half of a pair).
+PAIR_MINIMUM = 0.25
 #: Fractions of the fit windows of the continuation refit (the first one searched globally).
 CONTINUATION = (0.1, 0.3, 1.0)
 #: Positions tried for the point mass score (fractions of the search interval).
@@ -216,17 +243,17 @@ def _continuation_fit(problem: GapProblem, starts: list[tuple[np.ndarray, np.nda
     """Refit by continuation in the record length (see the module docstring); the best fit and evaluations used."""
     short = problem.truncated(CONTINUATION[0])
     beta_g, s_g, used = short.global_search(starts[0][0], effect, starts[0][1])
-    best: Fit | None = None
-    for beta, s in [(beta_g, s_g), *starts]:
-        for fraction in CONTINUATION:
-            stage = problem.truncated(fraction) if fraction < 1.0 else problem
-            f = stage.fit(beta, effect, s, max_evaluations=max_evaluations)
-            used += f.n_evaluations
-            beta, s = f.beta, f.s
-        if best is None or f.rss < best.rss:
-            best = f
-    assert best is not None
-    return best, used
+    chains = [(beta_g, s_g), *starts]
+    fits: list[Fit] = []
+    for i, fraction in enumerate(CONTINUATION):
+        if i > 0:
+            # successive halving: only the better half of the chains goes on to the longer windows
+            keep = sorted(range(len(fits)), key=lambda k: fits[k].rss)[:max(1, len(fits) // 2)]
+            chains = [(fits[k].beta, fits[k].s) for k in keep]
+        stage = problem.truncated(fraction) if fraction < 1.0 else problem
+        fits = [stage.fit(beta, effect, s, max_evaluations=max_evaluations) for beta, s in chains]
+        used += sum(f.n_evaluations for f in fits)
+    return min(fits, key=lambda f: f.rss), used
 
 
 def _local_refit(problem: GapProblem, baseline: Fit, effect: Effect, score: EffectScore, max_evaluations: int
@@ -316,21 +343,90 @@ def _map_refits(executor: Executor | None, problem: GapProblem, catalogue: Catal
     return {lab: f.result() for lab, f in zip(labels, futures)}
 
 
-def better_baseline(problem: GapProblem, baseline: Fit, fits: list[Fit]) -> Fit | None:
+def _pair_start(problem: GapProblem, first: Fit, pair: Effect, k: int) -> np.ndarray:
+    """Start of a pair's refit: the first effect's refit, the partner's switch variable (and position) the best
+    of a coarse grid with everything else held."""
+    lo, hi, off = (np.asarray(v, float)[k:] for v in (pair.lower, pair.upper, pair.off))
+    if off[0] <= lo[0]:
+        values = off[0] + (hi[0] - off[0]) * np.geomspace(1e-3, 1.0, 7)
+    else:
+        mag = (hi[0] - lo[0]) / 2 * np.geomspace(1e-3, 1.0, 4)
+        values = np.clip(np.concatenate([off[0] - mag, off[0] + mag]), lo[0], hi[0])
+    positions = [None] if off.size == 1 else list(np.linspace(lo[1], hi[1], _MASS_GRID))
+    best, best_rss = None, np.inf
+    for x in positions:
+        for v in values:
+            s2 = off.copy()
+            s2[0] = v
+            if x is not None:
+                s2[1] = x
+            s = np.concatenate([first.s, s2])
+            r = problem.residuals(first.beta, pair, s)
+            if float(r @ r) < best_rss:
+                best, best_rss = s, float(r @ r)
+    assert best is not None
+    return best
+
+
+def _pair_task(problem: GapProblem, catalogue: Catalogue, label: str, first: Fit, max_evaluations: int) -> Fit:
+    """Refit of a pair of effects (``first`` is the first effect's refit), in this or a worker process."""
+    pair = catalogue.effect(label)
+    start = _pair_start(problem, first, pair, first.s.size)
+    return problem.fit(first.beta, pair, start, max_evaluations=max_evaluations)
+
+
+def _best_pair(problem: GapProblem, baseline: Fit, before: np.ndarray, catalogue: Catalogue, single: EffectRefit,
+               partners: list[str], max_evaluations: int, executor: Executor | None, say: Any
+               ) -> EffectRefit | None:
+    """The pair of ``single`` and one of ``partners`` that pays for its extra parameters against ``single``
+    (BIC better by :data:`BIC_MARGIN`, lower held-out error), the best of them; ``None`` if none pays."""
+    labels = [f"{single.label}{PAIR_SEPARATOR}{p}" for p in partners]
+    args = [(problem, catalogue, lab, single.fit, max_evaluations) for lab in labels]
+    if executor is None or len(labels) < 2:
+        fits = [_pair_task(*a) for a in args]
+    else:
+        fits = [f.result() for f in [executor.submit(_pair_task, *a) for a in args]]
+    best = None
+    for lab, fit in zip(labels, fits):
+        rf = _summarise(problem, baseline, before, catalogue.effect(lab), fit)
+        say(f"pair refit {lab}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
+            f"dBIC vs {single.label} alone {rf.bic - single.bic:.1f}")
+        if (rf.bic < single.bic - BIC_MARGIN and np.mean(rf.heldout_after) < np.mean(single.heldout_after)
+                and (best is None or np.mean(rf.heldout_after) < np.mean(best.heldout_after))):
+            best = rf
+    return best
+
+
+def better_baseline(problem: GapProblem, baseline: Fit, fits: list[Fit], executor: Executor | None = None
+                    ) -> Fit | None:
     """The best baseline refitted from the baseline unknowns of ``fits`` when it beats ``baseline`` by more than
     0.1 % in RSS, else ``None``: an effect's refit may have moved the baseline unknowns into a better basin, and
-    then the baseline itself was not at its optimum (every comparison must be made again)."""
+    then the baseline itself was not at its optimum (every comparison must be made again).  The refits run on
+    ``executor``'s processes when given."""
+    if executor is None or len(fits) < 2:
+        candidates = [problem.fit(f.beta) for f in fits]
+    else:
+        candidates = [fut.result() for fut in [executor.submit(problem.fit, f.beta) for f in fits]]
     better = None
-    for f in fits:
-        cand = problem.fit(f.beta)
+    for cand in candidates:
         if cand.rss < baseline.rss * (1.0 - 1e-3) and (better is None or cand.rss < better.rss):
             better = cand
     return better
 
 
+def settled(ranking: Ranking) -> bool:
+    """Whether the named effect's refit leaves at most :data:`GAP_THRESHOLD` above the noise floor on the fit
+    windows: then a better baseline basin cannot change the verdict (another effect could at most tie), and the
+    search for one is not needed."""
+    if ranking.verdict not in ranking.refits:
+        return False
+    fit = ranking.refits[ranking.verdict].fit
+    return fit.rss / fit.n - 1.0 <= GAP_THRESHOLD
+
+
 def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, shortlist: int = 4,
                  max_evaluations: int = 300, progress: Any = None, executor: Executor | None = None,
-                 rebaseline: bool = True) -> Ranking:
+                 parallel: int = 1, rebaseline: bool = True) -> Ranking:
     """Score every effect, refit the ``shortlist`` best, rank and decide.
 
     Parameters
@@ -350,6 +446,10 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
     executor
         Where the shortlisted effects are refitted side by side (a process pool); ``None``: one after another
         in this process.
+    parallel
+        How many continuation refits run side by side (the executor's workers).  They run the most promising
+        first (lowest local-refit RSS), ``parallel`` at a time, and stop once one explains the gap: an effect
+        that brings the fit windows to the noise floor leaves nothing for another to close.
     rebaseline
         When no local refit explains the gap, first try the baseline from the local refits' baseline
         unknowns (:func:`better_baseline`); if that is better, rank again from it (once) before paying for
@@ -375,16 +475,26 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
         say(f"local refit {lab}: fit RSS/n {baseline.rss / baseline.n:.4g} -> {fit.rss / fit.n:.4g} "
             f"({fit.n_evaluations} evaluations)")
     if not any(_explains(fit, baseline) for fit, _ in local.values()):
-        better = better_baseline(problem, baseline, [fit for fit, _ in local.values()]) if rebaseline else None
+        better = (better_baseline(problem, baseline, [fit for fit, _ in local.values()], executor)
+                  if rebaseline else None)
         if better is not None:
             say(f"baseline re-fit from a local refit's optimum: RSS {baseline.rss:.4g} -> {better.rss:.4g}; "
                 f"ranking again")
             return rank_effects(problem, better, catalogue, shortlist=shortlist, max_evaluations=max_evaluations,
-                                progress=progress, executor=executor, rebaseline=False)
-        # no local refit explains the gap: the continuation refit for each (module docstring)
-        local = _map_refits(executor, problem, catalogue, labels, baseline, scores, max_evaluations, local)
-        for lab, (fit, _) in local.items():
-            say(f"continuation refit {lab}: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
+                                progress=progress, executor=executor, parallel=parallel, rebaseline=False)
+        # no local refit explains the gap: continuation refits (module docstring), the most promising first
+        pending = sorted(labels, key=lambda lab: local[lab][0].rss)
+        while pending:
+            group, pending = pending[:max(1, parallel)], pending[max(1, parallel):]
+            local.update(_map_refits(executor, problem, catalogue, group, baseline, scores, max_evaluations,
+                                     {lab: local[lab] for lab in group}))
+            for lab in group:
+                fit = local[lab][0]
+                say(f"continuation refit {lab}: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
+            if any(_explains(local[lab][0], baseline) for lab in group):
+                if pending:
+                    say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
+                break
     refits = {e.label: _summarise(problem, baseline, before, e, local[e.label][0]) for e in chosen}
     for label, rf in refits.items():
         say(f"refit {label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
@@ -402,13 +512,36 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
                        f"the held-out residual variance is only {excess:+.0%} above the noise floor "
                        f"(threshold {GAP_THRESHOLD:.0%}): nothing to explain")
     if not paying:
-        return Ranking(baseline, before, scores, refits, order, "none", [],
-                       f"the held-out residual variance is {excess:+.0%} above the noise floor, but no "
-                       f"candidate effect improves BIC by more than {BIC_MARGIN:g} and the held-out error")
+        return Ranking(baseline, before, scores, refits, order, UNEXPLAINED, [],
+                       f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the noise "
+                       f"variance, but no candidate effect improves BIC by more than {BIC_MARGIN:g} and the held-out "
+                       f"error")
     best = refits[paying[0]]
+    if not _explains(best.fit, baseline) and best.closed >= PAIR_MINIMUM:
+        # one effect leaves a significant remainder: a second one at once, when it pays for itself; the
+        # partners are scored afresh at the first effect's refit (the baseline may have hidden them)
+        first = catalogue.effect(paying[0])
+        rescored = {e.label: score_effect(problem, best.fit, on_top_of(first, best.fit.s, e)).lm
+                    for e in effects if e.name != first.name}
+        partners = [lab for lab in sorted(rescored, key=lambda k: -rescored[k]) if rescored[lab] > 0][:PAIR_PARTNERS]
+        say("second-effect scores at the " + paying[0] + " refit: "
+            + ", ".join(f"{lab} {rescored[lab]:.4g}" for lab in partners))
+        pair = _best_pair(problem, baseline, before, catalogue, best, partners, max_evaluations, executor, say)
+        if pair is not None:
+            refits[pair.label] = pair
+            order = [pair.label] + order
+            paying = [pair.label] + paying
+            best = pair
+    if not best.closed >= NAMED_CLOSURE:
+        return Ranking(baseline, before, scores, refits, order, UNEXPLAINED, [],
+                       f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the noise "
+                       f"variance and the best candidate, {paying[0]}, closes only {best.closed:.0%} of the gap "
+                       f"(an effect is named from {NAMED_CLOSURE:.0%})")
     gain = float(np.mean(before) - np.mean(best.heldout_after))
-    ties = [lab for lab in paying[1:]
-            if float(np.mean(before) - np.mean(refits[lab].heldout_after)) >= 0.95 * gain]
+    # a pair's own parts are not its rivals: the pair has paid for its second effect against the first
+    parts = set(paying[0].split(PAIR_SEPARATOR))
+    ties = [lab for lab in paying[1:] if PAIR_SEPARATOR not in lab and lab not in parts
+            and float(np.mean(before) - np.mean(refits[lab].heldout_after)) >= 0.95 * gain]
     reason = (f"{paying[0]} closes {best.closed:.0%} of the held-out gap "
               f"(gap ratio {np.mean(before):.3g} -> {np.mean(best.heldout_after):.3g}, dBIC {best.delta_bic:.1f})")
     if ties:

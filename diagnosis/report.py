@@ -29,10 +29,11 @@ def text_report(doc: Mapping[str, Any], *, top: int = 6) -> str:
     lines.append(f"  {'rank':>4}  {'effect':<32} {'score':>10}  {'dBIC':>9}  {'closed':>6}  parameters")
     for row in doc["effects"][:top]:
         rf = row.get("refit")
+        score = f"{row['score']:>10.4g}" if row["score"] is not None else f"{'(pair)':>10}"
         if rf:
             params = ", ".join(f"{k}={v:.4g}" for k, v in rf["effect_parameters"].items())
-            lines.append(f"  {row['rank']:>4}  {row['label']:<32} {row['score']:>10.4g}  {rf['delta_bic']:>9.1f}"
+            lines.append(f"  {row['rank']:>4}  {row['label']:<32} {score}  {rf['delta_bic']:>9.1f}"
                          f"  {_pct(rf['closed'])}  {params}")
         else:
-            lines.append(f"  {row['rank']:>4}  {row['label']:<32} {row['score']:>10.4g}  {'-':>9}  {'   -':>6}")
+            lines.append(f"  {row['rank']:>4}  {row['label']:<32} {score}  {'-':>9}  {'   -':>6}")
     return "\n".join(lines)

@@ -20,6 +20,7 @@ import shutil
 import tempfile
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -34,16 +35,17 @@ from ebb_model.outdir import check_new_output_dir
 from ebb_model.modal import discrete_frequencies
 from ebb_model.assemble import field_config
 from ebb_model.simulate import fast_model, simulate
+from ebb_model.threads import one_blas_thread, single_blas_thread
 
 from identification.data import Experiment
 from identification.noise import records_noise_std
 from identification.parameters import parameter_space
 from identification.run import load_identification_config, read_data
 
-from .effects import Catalogue, Scales
+from .effects import PAIR_SEPARATOR, Catalogue, Scales
 from .fitting import GapProblem
 from .localise import localise
-from .rank import BIC_MARGIN, GAP_THRESHOLD, Ranking, better_baseline, rank_effects
+from .rank import BIC_MARGIN, GAP_THRESHOLD, UNEXPLAINED, Ranking, better_baseline, rank_effects, settled
 from .records import Record, split_records
 
 __all__ = ["Diagnosis", "diagnose", "excited_band", "GAP_FILE", "GRID_VERDICT", "NUMERICAL_SHARE_LIMIT"]
@@ -65,7 +67,8 @@ class Diagnosis:
 
     @property
     def verdict(self) -> str:
-        """Label of the effect that explains the gap, or ``"none"``."""
+        """Label of the effect that explains the gap, ``"none"``, ``"unexplained"`` (a gap no effect of the
+        catalogue explains) or ``"grid"`` (the model's own discretisation error)."""
         return self.ranking.verdict
 
 
@@ -163,8 +166,11 @@ def corrected_summary(config: BeamConfig, baseline: dict[str, float], row: dict[
     from ebb_model.reference.withheld import EFFECT_CATALOGUE
 
     rf = row["refit"]
-    spec = EFFECT_CATALOGUE[row["effect"]]
-    units = dict(zip(spec.parameters, spec.units))
+    units: dict[str, str] = {}
+    for part in row["label"].split(PAIR_SEPARATOR):   # a pair's parameters are keyed "<label>.<parameter>"
+        spec = EFFECT_CATALOGUE[part.split("[")[0]]
+        prefix = f"{part}." if PAIR_SEPARATOR in row["label"] else ""
+        units |= {prefix + k: u for k, u in zip(spec.parameters, spec.units)}
     unit = lambda k: PARAMETER_UNITS.get(k, "m" if k.startswith("x_") else "")   # noqa: E731
     return {"effect": row["label"], "description": row["description"],
             "effect_parameters": {k: {"value": v, "unit": units.get(k, "")} for k, v in rf["effect_parameters"].items()},
@@ -184,10 +190,8 @@ def _modes_hz(model: Any, k: int) -> list[float]:
 def _refit_worker() -> None:
     """Worker initialiser: one BLAS thread per process (the refits are the parallelism; more threads only
     oversubscribe the cores), and Ctrl-C is the main process's to handle."""
-    from threadpoolctl import threadpool_limits
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    threadpool_limits(limits=1, user_api="blas")
+    single_blas_thread()
 
 
 def refit_pool(workers: int) -> ProcessPoolExecutor | None:
@@ -199,6 +203,7 @@ def refit_pool(workers: int) -> ProcessPoolExecutor | None:
                                initializer=_refit_worker)
 
 
+@one_blas_thread
 def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_dir: str | Path | None, *,
              holdout: Sequence[str | Path] = (), result: str | Path | None = None,
              holdout_fraction: float = 0.3, shortlist: int = 4, noise_std: Sequence[float] | None = None,
@@ -298,20 +303,26 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     effects = catalogue.effects()
     executor = refit_pool(workers)
     try:
-        ranking = rank_effects(problem, baseline, catalogue, shortlist=shortlist, progress=say, executor=executor)
+        rank = partial(rank_effects, problem, catalogue=catalogue, shortlist=shortlist, progress=say,
+                       executor=executor, parallel=workers)
+        ranking = rank(baseline)
         baseline = ranking.baseline
         for _ in range(2):
+            if settled(ranking):
+                break
             # an effect's refit may have moved the baseline unknowns into a better basin (rank.better_baseline)
-            better = better_baseline(problem, baseline, [rf.fit for rf in ranking.refits.values()])
+            say("baseline re-fit from the effects' optima")
+            better = better_baseline(problem, baseline, [rf.fit for rf in ranking.refits.values()], executor)
             if better is None:
                 break
             say(f"baseline re-fit from an effect's optimum: RSS {baseline.rss:.4g} -> {better.rss:.4g}; ranking again")
-            ranking = rank_effects(problem, better, catalogue, shortlist=shortlist, progress=say, executor=executor)
+            ranking = rank(better)
             baseline = ranking.baseline
     finally:
         if executor is not None:
             executor.shutdown(cancel_futures=True)
     # the model's own discretisation error: a gap that refining the grid changes is not blamed on physics
+    say("numerical adequacy of the model's grid")
     adequacy = numerical_adequacy(
         base_cfg, base_params, [(r.inputs[:r.fit_end], r.outputs[:r.fit_end]) for r in fit_records], sigma,
         band_hz=f_hi)
@@ -323,14 +334,20 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     base_all = problem.simulate(baseline.beta, until="all")
     locs = [localise(dt, r.inputs, r.outputs, y, cfg.output_names, mf, mz, noise_std=sigma)
             for r, y in zip(records, base_all)]
+    if ranking.verdict == UNEXPLAINED:
+        # what the localisation found is the user's lead, not the least-bad name
+        found = [f"{r.name}: {s}" for r, loc in zip(records, locs) for s in loc.summary[:2]]
+        if found:
+            ranking = replace(ranking, reason=f"{ranking.reason}; where the gap is: " + "; ".join(found))
     edges = np.concatenate([[0.0], 0.5 * (mf[1:] + mf[:-1]), [1.2 * f_hi], [0.5 / dt]])
     effect_rows = []
-    by_label = {e.label: e for e in effects}
+    by_label = {e.label: e for e in effects} | {lab: catalogue.effect(lab) for lab in ranking.refits}
     _, res_before = problem.heldout(baseline.beta)
     for rank_i, lab in enumerate(ranking.order, start=1):
-        e, sc = by_label[lab], ranking.scores[lab]
+        e, sc = by_label[lab], ranking.scores.get(lab)   # a pair has no score of its own
         row: dict[str, Any] = {"rank": rank_i, "label": lab, "effect": e.name, "target": e.target,
-                               "description": e.description, "score": sc.lm, "p_value": sc.p_value,
+                               "description": e.description, "score": None if sc is None else sc.lm,
+                               "p_value": None if sc is None else sc.p_value,
                                "shortlisted": lab in ranking.refits}
         rf = ranking.refits.get(lab)
         if rf is not None:

@@ -169,7 +169,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``ebb`` console script; returns the exit code."""
     import warnings
 
-    from threadpoolctl import threadpool_limits
+    from .threads import single_blas_thread
 
     from .errors import DataWarning, EbbError, Interrupted
 
@@ -184,8 +184,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("always", DataWarning)
             warnings.showwarning = one_line
-            # the matrices are small: BLAS threads only add overhead (and thrash on 2 cores)
-            with threadpool_limits(limits=1, user_api="blas"):
+            with single_blas_thread():
                 return int(args.func(args) or 0)
     except Interrupted as exc:
         print(f"{prog}: {exc}", file=sys.stderr)

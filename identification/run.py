@@ -34,6 +34,7 @@ import numpy as np
 from ebb_model import load_config, max_growth_factor
 from ebb_model.adequacy import NumericalAdequacy, numerical_adequacy
 from ebb_model.config import BeamConfig
+from ebb_model.threads import one_blas_thread
 from ebb_model.errors import ConfigError, StabilityError
 from ebb_model.jsonio import write_json
 from ebb_model.outdir import check_new_output_dir
@@ -220,6 +221,7 @@ def _check_out_dir(out: Path, resume: bool) -> Path:
     return check_new_output_dir(out)
 
 
+@one_blas_thread
 def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_dir: str | Path, *,
              backend: str = "auto", workers: int = 1, dask: str | None = None, pop: int = 40,
              generations: int = 30, seed: int = 1, resume: bool = False, force: bool = False,

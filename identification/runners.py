@@ -20,6 +20,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from ebb_model.threads import single_blas_thread
+
 __all__ = ["Runner", "SerialRunner", "ProcessRunner", "DaskRunner", "make_runner"]
 
 
@@ -28,9 +30,7 @@ class Evaluator(Protocol):  # pragma: no cover - typing only
 
 
 def _evaluate_chunk(evaluator: Evaluator, X: np.ndarray) -> np.ndarray:
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1, user_api="blas"):
+    with single_blas_thread():
         return evaluator.evaluate(X)
 
 

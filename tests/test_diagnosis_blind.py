@@ -162,3 +162,57 @@ def test_accelerometer_record_without_effect_gives_none(tmp_path):
     print(f"\nno effect (accelerometers): verdict {d.verdict}, held-out gap ratio {ratios}")
     assert d.verdict == "none", d.document["reason"]
     assert all(v < 1.25 for v in ratios.values()), ratios
+
+
+#: Effects outside the catalogue (issue 17): a grounded hardening spring (k3 w³ at 0.7 m; ~110–140 noise σ of
+#: response change) and a dry-friction contact (0.05 N at 0.45 m, slip velocity 0.1 mm/s; ~22 σ), both
+#: integrated by the generator's Newmark with Newton on the local element (converged: 0.02 σ between 8 and 16
+#: sub-steps).  The diagnosis must say "not in the catalogue" instead of naming the least-bad candidate.
+#: Measured: cubic spring — the best candidate (a pair at most) closes 6 % of the held-out gap; dry friction —
+#: the best single candidate closes 4 %.
+OUTSIDE_CASES = [
+    ("cubic_spring", WithheldEffect("cubic_spring", {"k3": 1e9, "x": 0.7})),
+    ("dry_friction", WithheldEffect("dry_friction", {"force": 0.05, "x": 0.45, "slip": 1e-4})),
+]
+
+
+@pytest.mark.parametrize("label,effect", OUTSIDE_CASES)
+def test_effect_outside_the_catalogue_is_not_named(tmp_path, label, effect):
+    cfg = bench_config()
+    data = _write(tmp_path, cfg, effect, seed=3)
+    d = diagnose(cfg, [data], tmp_path / "gap", plots=False)
+    doc = d.document
+    print(f"\n{label} (outside the catalogue): verdict {doc['verdict']}: {doc['reason']}")
+    assert doc["verdict"] == "unexplained", doc["reason"]
+    assert doc["reason"].startswith("not in the catalogue"), doc["reason"]
+    assert "where the gap is" in doc["reason"], doc["reason"]   # the localisation's lead, not a name
+    assert min(doc["baseline"]["heldout_gap_ratio"].values()) > 10.0   # a real gap, not "none"
+    assert "corrected" not in doc and not (tmp_path / "gap" / "corrected").exists()   # no model exported
+
+
+#: Two withheld effects at once (issue 17).  The foundation is absorbed by the baseline's axial load (N 40.9 for
+#: 20) and scores 0 at the baseline; scored again at the actuator lag's refit it is found.  Measured: actuator
+#: lag + foundation 99 % closed (τ 0.4945 ms, kf 205.5), Kelvin–Voigt + sensor lag 100 % (η 5.89e-5, τ 0.4998 ms).
+PAIR_CASES = [
+    ({"actuator_lag", "foundation"}, [WithheldEffect("foundation", {"kf": 200.0}),
+                                      WithheldEffect("actuator_lag", {"tau": 5e-4})]),
+    ({"kelvin_voigt", "sensor_lag[y2]"}, [WithheldEffect("kelvin_voigt", {"eta": 6e-5}),
+                                          WithheldEffect("sensor_lag", {"tau": 5e-4}, sensor="y2")]),
+]
+
+
+@pytest.mark.parametrize("labels,effects", PAIR_CASES, ids=["foundation+actuator_lag", "kelvin_voigt+sensor_lag"])
+def test_two_withheld_effects_are_named_as_a_pair(tmp_path, labels, effects):
+    cfg = bench_config()
+    data = _write(tmp_path, cfg, effects, seed=3)
+    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document
+    top = doc["effects"][0]
+    fitted = top["refit"]["effect_parameters"]
+    print(f"\n{sorted(labels)}: verdict {doc['verdict']}, closed {top['refit']['closed']:.4f}, fitted {fitted}")
+    assert set(doc["verdict"].split("+")) == labels, doc["reason"]
+    assert top["label"] == doc["verdict"] and top["refit"]["closed"] >= 0.8, top["refit"]
+    assert doc["indistinguishable"] == []   # the single effect is nested in the pair, not its rival
+    for e in effects:
+        label = f"{e.name}[{e.sensor}]" if e.sensor else e.name
+        for k, v in e.values.items():   # measured within 2.8 % (kf)
+            assert fitted[f"{label}.{k}"] == pytest.approx(v, rel=SIZE_TOLERANCE), (label, k, fitted)

@@ -171,7 +171,8 @@ def _band_cholesky_solve(L, b, x):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def _kernel(Mb, Cb, Kb, Gb, Phi, rows, kinds, F, dt, m, beta, gamma, rate, ea_over_l,
-            act_E, act_p, act_c1, lag_sensor, sen_E, sen_p, sen_c1, tol, maxit, y):  # pragma: no cover
+            act_E, act_p, act_c1, lag_sensor, sen_E, sen_p, sen_c1, rloc, k3, fc, v0, tol, maxit,
+            y):  # pragma: no cover
     n = Mb.shape[1]
     ni = F.shape[1]
     ns = (F.shape[0] - 1) // m + 1
@@ -184,6 +185,7 @@ def _kernel(Mb, Cb, Kb, Gb, Phi, rows, kinds, F, dt, m, beta, gamma, rate, ea_ov
     hg1 = h * (1.0 - gamma)
     lagged_force = act_E != 0.0 or act_p != 0.0 or act_c1 != 1.0
     nonlinear = ea_over_l != 0.0
+    local = k3 != 0.0 or fc != 0.0
     varying = nonlinear or rate != 0.0
 
     Sbase = Mb + gh * Cb + bh2 * Kb
@@ -219,6 +221,12 @@ def _kernel(Mb, Cb, Kb, Gb, Phi, rows, kinds, F, dt, m, beta, gamma, rate, ea_ov
     _band_cholesky_solve(L, rhs, acc)
     if not varying and not _band_cholesky(Sbase, L):
         return 2, 0, 0
+    zr = np.zeros(n)     # S^-1 r of the local element (constant: S is)
+    rzr = 0.0
+    if local:
+        _band_cholesky_solve(L, rloc, zr)
+        for r in range(n):
+            rzr += rloc[r] * zr[r]
 
     def sensor_value(o):
         sv = 0.0
@@ -265,7 +273,41 @@ def _kernel(Mb, Cb, Kb, Gb, Phi, rows, kinds, F, dt, m, beta, gamma, rate, ea_ov
                     sf += Phi[r, i] * g[i]
                 rhs[r] = sf - rhs[r] - tmp[r]
             t1 = (k + s1) * dt
-            if not varying:
+            if local:
+                # Newton on a with the local element's force r f(xi, xi'), xi = r^T q, xi' = r^T v:
+                # -R(a) = S a + r f - rhs; tangent S + (bh2 df/dxi + gh df/dxi') r r^T (Sherman-Morrison)
+                converged = False
+                for it in range(maxit):
+                    xi = 0.0
+                    xd = 0.0
+                    for r in range(n):
+                        xi += rloc[r] * (qp[r] + bh2 * acc[r])
+                        xd += rloc[r] * (vp[r] + gh * acc[r])
+                    th = math.tanh(xd / v0) if fc != 0.0 else 0.0
+                    f = k3 * xi * xi * xi + fc * th
+                    ct = bh2 * 3.0 * k3 * xi * xi + (gh * fc / v0 * (1.0 - th * th) if fc != 0.0 else 0.0)
+                    _sym_band_matvec(Sbase, acc, tmp)
+                    for r in range(n):
+                        res[r] = tmp[r] + f * rloc[r] - rhs[r]  # -R
+                    _band_cholesky_solve(L, res, z1)
+                    rz1 = 0.0
+                    for r in range(n):
+                        rz1 += rloc[r] * z1[r]
+                    coef = ct * rz1 / (1.0 + ct * rzr)
+                    dmax = 0.0
+                    qmax = 0.0
+                    for r in range(n):
+                        da = z1[r] - coef * zr[r]
+                        acc[r] -= da
+                        dmax = max(dmax, abs(da))
+                        qmax = max(qmax, abs(qp[r] + bh2 * acc[r]))
+                    if bh2 * dmax <= tol * qmax:
+                        converged = True
+                        n_iter += it + 1
+                        break
+                if not converged:
+                    return 5, k, n_iter
+            elif not varying:
                 _band_cholesky_solve(L, rhs, acc)
             elif not nonlinear:
                 dn = rate * t1
@@ -362,6 +404,10 @@ def newmark_banded(
     actuator_tau: float = 0.0,
     lag_sensor: int = -1,
     sensor_tau: float = 0.0,
+    local_row: np.ndarray | None = None,
+    k3: float = 0.0,
+    friction: float = 0.0,
+    slip_velocity: float = 1.0,
     beta: float = 0.25,
     gamma: float = 0.5,
     tol: float = 1e-12,
@@ -388,10 +434,14 @@ def newmark_banded(
         Axial-load drift rate [N/s] and :math:`EA/L` [N/m] of the stiffening.
     actuator_tau, lag_sensor, sensor_tau
         Actuator lag [s]; index of the lagged sensor (-1: none) and its lag [s].
+    local_row, k3, friction, slip_velocity
+        A local nonlinear element on the coordinate :math:`\xi = r^T q` (``local_row`` ``r``, e.g. the
+        displacement at a point): force :math:`r\,(k_3 \xi^3 + F_c \tanh(\dot\xi / v_0))` — a grounded
+        cubic spring and a (regularised) dry-friction contact.  Not combined with drift or stiffening.
     beta, gamma
         Newmark parameters.
     tol, maxit
-        Newton tolerance and iteration limit (stiffening only).
+        Newton tolerance and iteration limit (stiffening and the local element).
 
     Returns
     -------
@@ -411,11 +461,17 @@ def newmark_banded(
     if (F.shape[0] - 1) % substeps != 0:
         raise ValueError("F must have (n_samples - 1) * substeps + 1 rows")
     y = np.empty(((F.shape[0] - 1) // substeps + 1, rows.shape[0]))
+    rloc = np.zeros(M.shape[0]) if local_row is None else np.ascontiguousarray(local_row, dtype=float)
+    if (k3 != 0.0 or friction != 0.0) and (rate != 0.0 or ea_over_l != 0.0):
+        raise ValueError("the local nonlinear element is not combined with drift or stiffening")
+    if not slip_velocity > 0.0:
+        raise ValueError("slip_velocity must be > 0")
     status, k, _n_iter = _kernel(
         to_band(M), to_band(C), to_band(K), to_band(G),
         np.ascontiguousarray(Phi, dtype=float), np.ascontiguousarray(rows, dtype=float),
         np.ascontiguousarray(kinds, dtype=np.int64), F, float(dt), int(substeps), float(beta), float(gamma),
-        float(rate), float(ea_over_l), aE, ap, ac, int(lag_sensor), sE, sp, sc, float(tol), int(maxit), y,
+        float(rate), float(ea_over_l), aE, ap, ac, int(lag_sensor), sE, sp, sc, rloc, float(k3), float(friction),
+        float(slip_velocity), float(tol), int(maxit), y,
     )
     if status == 1:
         raise StabilityError("mass matrix is not positive definite")
@@ -430,5 +486,10 @@ def newmark_banded(
         raise StabilityError(
             f"geometric stiffening: Newton iteration did not converge at t = {k * dt:.6g} s "
             "(response too large for the time step; increase substeps)"
+        )
+    if status == 5:
+        raise StabilityError(
+            f"local nonlinear element: Newton iteration did not converge at t = {k * dt:.6g} s "
+            "(increase substeps or the slip velocity)"
         )
     return y

@@ -37,6 +37,9 @@ effect                              implementation
                                     Cholesky) every sub-step
 ``geometric_stiffening``            :math:`N = N_0 + \frac{EA}{2L} q^T G q`: Newton iteration per
                                     sub-step (tolerance ``1e-12``, Sherman–Morrison tangent)
+``cubic_spring``, ``dry_friction``  (outside the diagnosis catalogue) a local element on
+                                    :math:`\xi = w(x)`: force :math:`k_3\xi^3` or
+                                    :math:`F_c\tanh(\dot\xi/v_0)`; Newton per sub-step as above
 ==================================  =============================================================
 
 Conventions
@@ -422,7 +425,9 @@ def synthesize(
     }
     masses = [(m.mass, m.x) for m in config.masses]
     eta, rhoI, kf = p["eta"], p["rhoI"], p["kf"]
-    rate = ea = act_tau = sen_tau = 0.0
+    rate = ea = act_tau = sen_tau = k3 = friction = 0.0
+    slip = 1.0
+    local_x: float | None = None
     lag_sensor = -1
     for e in effects:
         v = e.values
@@ -454,6 +459,18 @@ def synthesize(
             rate = v["rate"]
         elif e.name == "geometric_stiffening":
             ea = v["EA"]
+        elif e.name in ("cubic_spring", "dry_friction"):
+            if local_x is not None:
+                raise ConfigError("effect: cubic_spring and dry_friction are not combined")
+            if not 0.0 <= v["x"] <= L:
+                raise ParameterError(f"effect {e.name}.x = {v['x']:g} m lies outside the beam [0, {L:g}] m")
+            local_x = v["x"]
+            if e.name == "cubic_spring":
+                k3 = v["k3"]
+            else:
+                if not v["slip"] > 0.0:
+                    raise ParameterError(f"effect dry_friction.slip must be > 0, got {v['slip']:g}")
+                friction, slip = v["force"], v["slip"]
         else:  # pragma: no cover - the catalogue and this dispatch are kept in step by the tests
             raise ConfigError(f"effect {e.name!r} is not implemented by the generator")
 
@@ -468,10 +485,14 @@ def synthesize(
     rows = np.vstack([beam.displacement_row(s.x) for s in config.sensors])
     kinds = np.array([SENSOR_KINDS.index(s.kind) for s in config.sensors], dtype=np.int64)
 
-    varying = {"axial_drift": rate != 0.0, "geometric_stiffening": ea != 0.0}
+    varying = {"axial_drift": rate != 0.0, "geometric_stiffening": ea != 0.0,
+               "cubic_spring": k3 != 0.0, "dry_friction": friction != 0.0}
     time_varying = [name for name, on in varying.items() if on]
+    if (k3 != 0.0 or friction != 0.0) and (rate != 0.0 or ea != 0.0):
+        raise ConfigError("effect: cubic_spring/dry_friction are not combined with axial_drift or "
+                          "geometric_stiffening")
     if integrator == "exact" and time_varying:
-        raise ParameterError(f"integrator 'exact' needs a time-invariant truth; {time_varying[0]} varies in time "
+        raise ParameterError(f"integrator 'exact' needs a linear time-invariant truth; {time_varying[0]} is not "
                              "(use 'newmark' or 'auto')")
     exact = integrator == "exact" or (integrator == "auto" and not time_varying)
     m = int(substeps)
@@ -485,6 +506,8 @@ def synthesize(
             return newmark_banded(
                 beam.M, beam.C, beam.K, beam.K_axial, Phi, rows, kinds, F, dt, k,
                 rate=rate, ea_over_l=ea / L, actuator_tau=act_tau, lag_sensor=lag_sensor, sensor_tau=sen_tau,
+                local_row=None if local_x is None else beam.displacement_row(local_x), k3=k3, friction=friction,
+                slip_velocity=slip,
             )
 
         y = (4.0 * run(2 * m) - run(m)) / 3.0 if richardson else run(m)

@@ -24,6 +24,18 @@ name                                    parameters         off value
 ``axial_drift``                         ``rate`` [N/s]     0
 ``geometric_stiffening``                ``EA`` [N]         0
 ======================================  =================  =====================================
+
+Effects *outside* the diagnosis catalogue (:data:`OUTSIDE_CATALOGUE`), for
+checking that the diagnosis says "not in the catalogue" instead of naming the
+least-bad candidate — both nonlinear, integrated with Newmark:
+
+======================================  =================  =====================================
+``cubic_spring``                        ``k3`` [N/m³],     grounded hardening spring
+                                        ``x`` [m]          :math:`k_3 w(x)^3`
+``dry_friction``                        ``force`` [N],     contact at ``x`` with Coulomb force
+                                        ``x`` [m],         :math:`F_c \tanh(\dot w(x)/v_0)`
+                                        ``slip`` [m/s]     (``slip`` = :math:`v_0` > 0)
+======================================  =================  =====================================
 """
 from __future__ import annotations
 
@@ -34,7 +46,8 @@ from typing import Mapping
 
 from ..errors import ConfigError, ParameterError
 
-__all__ = ["EffectSpec", "EFFECT_CATALOGUE", "EFFECT_NAMES", "WithheldEffect"]
+__all__ = ["EffectSpec", "EFFECT_CATALOGUE", "EFFECT_NAMES", "OUTSIDE_CATALOGUE", "OUTSIDE_NAMES",
+           "WithheldEffect"]
 
 
 @dataclass(frozen=True)
@@ -109,6 +122,28 @@ EFFECT_CATALOGUE: Mapping[str, EffectSpec] = MappingProxyType(
 #: Effect names, in catalogue order.
 EFFECT_NAMES: tuple[str, ...] = tuple(EFFECT_CATALOGUE)
 
+#: Effects the generator knows that the diagnosis catalogue does not (read-only).
+OUTSIDE_CATALOGUE: Mapping[str, EffectSpec] = MappingProxyType(
+    {
+        s.name: s
+        for s in (
+            _spec("cubic_spring", (("k3", "N/m3", "nonneg"), ("x", "m", "real")),
+                  "grounded hardening spring: force k3*w(x)^3 at x"),
+            _spec("dry_friction", (("force", "N", "nonneg"), ("x", "m", "real"), ("slip", "m/s", "nonneg")),
+                  "dry-friction contact at x: force force*tanh(w_t(x)/slip) against the motion"),
+        )
+    }
+)
+
+#: Names of the effects outside the diagnosis catalogue.
+OUTSIDE_NAMES: tuple[str, ...] = tuple(OUTSIDE_CATALOGUE)
+
+
+def _lookup(name: object) -> EffectSpec | None:
+    if not isinstance(name, str):
+        return None
+    return EFFECT_CATALOGUE.get(name) or OUTSIDE_CATALOGUE.get(name)
+
 
 @dataclass(frozen=True)
 class WithheldEffect:
@@ -117,7 +152,7 @@ class WithheldEffect:
     Parameters
     ----------
     name
-        Effect name from :data:`EFFECT_CATALOGUE`.
+        Effect name from :data:`EFFECT_CATALOGUE` or :data:`OUTSIDE_CATALOGUE`.
     values
         ``{parameter: value}`` with exactly the catalogue's parameters of the
         effect (stored as a read-only mapping of floats).
@@ -148,10 +183,10 @@ class WithheldEffect:
     sensor: str | None = None
 
     def __post_init__(self) -> None:
-        spec = EFFECT_CATALOGUE.get(self.name) if isinstance(self.name, str) else None
+        spec = _lookup(self.name)
         if spec is None:
             raise ConfigError(
-                f"effect: unknown effect {self.name!r}; allowed: {', '.join(EFFECT_NAMES)}"
+                f"effect: unknown effect {self.name!r}; allowed: {', '.join(EFFECT_NAMES + OUTSIDE_NAMES)}"
             )
         if not isinstance(self.values, Mapping):
             raise ConfigError(f"effect {self.name}: values must be a mapping, got {type(self.values).__name__}")
@@ -199,7 +234,9 @@ class WithheldEffect:
     @property
     def spec(self) -> EffectSpec:
         """The catalogue entry of this effect."""
-        return EFFECT_CATALOGUE[self.name]
+        spec = _lookup(self.name)
+        assert spec is not None   # validated on construction
+        return spec
 
     def __repr__(self) -> str:
         vals = ", ".join(f"{k}={v:g}" for k, v in self.values.items())
