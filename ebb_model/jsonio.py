@@ -1,6 +1,7 @@
 """JSON output shared by the CLI and the result writers: strict JSON (no NaN/inf), written atomically."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -13,7 +14,24 @@ __all__ = ["jsonable", "write_json"]
 
 
 def jsonable(v: Any) -> Any:
-    """Recursively convert to strict-JSON values: NaN → null, ±inf → "inf"/"-inf", NumPy → Python."""
+    """Recursively convert to strict-JSON values.
+
+    The one converter of the project: NaN → ``null``, ±inf → ``"inf"``/``"-inf"`` (``float()`` reads them back),
+    NumPy scalars and arrays → Python numbers and lists, dataclass instances → dicts of their fields, tuples →
+    lists.
+
+    Parameters
+    ----------
+    v : Any
+        Value to convert.
+
+    Returns
+    -------
+    Any
+        A value :func:`json.dumps` accepts with ``allow_nan=False``.
+    """
+    if dataclasses.is_dataclass(v) and not isinstance(v, type):
+        return {f.name: jsonable(getattr(v, f.name)) for f in dataclasses.fields(v)}
     if isinstance(v, np.generic):
         v = v.item()
     if isinstance(v, np.ndarray):
