@@ -21,6 +21,7 @@ from typing import Mapping, Sequence
 import numba
 import numpy as np
 
+from .atomic import atomic_path
 from .config import BeamConfig
 from .discretisation import discretise
 from .errors import DataError
@@ -138,14 +139,11 @@ class SimulationResult:
 
     def to_csv(self, path: str | Path) -> None:
         """Write ``time`` and one column per output (written atomically)."""
-        path = Path(path)
-        tmp = path.with_name(path.name + ".part")
-        with tmp.open("w", newline="") as fh:
+        with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["time", *self.output_names])
             for t, row in zip(self.time, self.outputs):
                 w.writerow([repr(float(t)), *(repr(float(v)) for v in row)])
-        tmp.replace(path)
 
 
 def _check_input(u: np.ndarray, ninputs: int) -> np.ndarray:

@@ -20,6 +20,7 @@ from pymoo.algorithms.moo.nsga2 import NSGA2
 from pymoo.algorithms.moo.nsga3 import NSGA3
 from pymoo.util.ref_dirs import get_reference_directions
 
+from ebb_model.atomic import atomic_path
 from ebb_model.errors import ConfigError
 
 from .problem import IdentificationProblem
@@ -121,12 +122,10 @@ def _algorithm(name: str, pop: int, n_obj: int):
 
 
 def _save_atomic(obj: object, path: Path) -> None:
-    tmp = path.with_name(path.name + ".part")
-    with tmp.open("wb") as fh:
+    with atomic_path(path) as tmp, tmp.open("wb") as fh:
         pickle.dump(obj, fh, protocol=pickle.HIGHEST_PROTOCOL)
         fh.flush()
         os.fsync(fh.fileno())
-    tmp.replace(path)
 
 
 def optimise(problem: IdentificationProblem, *, pop: int = 40, generations: int = 30, seed: int = 1,

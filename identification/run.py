@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import csv
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
@@ -33,6 +32,7 @@ import numpy as np
 
 from ebb_model import load_config, max_growth_factor
 from ebb_model.adequacy import NumericalAdequacy, numerical_adequacy
+from ebb_model.atomic import atomic_path
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError, StabilityError
 from ebb_model.jsonio import write_json
@@ -471,9 +471,7 @@ def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: Native
 
 
 def _write_csv(path: Path, header: list[str], rows: list[list[Any]]) -> None:
-    tmp = path.with_name(path.name + ".part")
-    with tmp.open("w", newline="") as fh:
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
         w.writerows(rows)
-    os.replace(tmp, path)
