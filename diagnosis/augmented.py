@@ -85,6 +85,7 @@ import numba
 import numpy as np
 import scipy.signal as ss
 
+from ebb_model.arrays import as_matrix
 from ebb_model.assemble import check_stable
 from ebb_model.config import BeamConfig
 from ebb_model.discretisation import SemiDiscreteBeam, discretise
@@ -122,17 +123,7 @@ def _finite(name: str, value: float) -> float:
 
 
 def _check_inputs(u: np.ndarray, config: BeamConfig) -> np.ndarray:
-    m = len(config.actuators)
-    u = np.asarray(u, dtype=float)
-    if u.ndim == 1 and m == 1:
-        u = u[:, None]
-    if u.ndim != 2 or u.shape[1] != m:
-        raise DataError(f"inputs have shape {u.shape}, expected (n_samples, {m}) for actuators "
-                        f"{', '.join(config.input_names)}")
-    if not np.all(np.isfinite(u)):
-        k, i = np.argwhere(~np.isfinite(u))[0]
-        raise DataError(f"inputs contain a non-finite value at sample {k}, input {config.input_names[i]!r}")
-    return np.ascontiguousarray(u)
+    return as_matrix(u, "inputs", shape=(None, len(config.actuators)), columns=config.input_names, column="input")
 
 
 # ---------------------------------------------------------------------------

@@ -21,10 +21,10 @@ from typing import Mapping, Sequence
 import numba
 import numpy as np
 
+from .arrays import as_matrix
 from .atomic import atomic_path
 from .config import BeamConfig
 from .discretisation import discretise
-from .errors import DataError
 from .exact_modal import exact_model
 from .modal_form import ModalStateSpace, modal_from_beam, modal_from_theta
 from .statespace import DiscreteStateSpace
@@ -146,18 +146,6 @@ class SimulationResult:
                 w.writerow([repr(float(t)), *(repr(float(v)) for v in row)])
 
 
-def _check_input(u: np.ndarray, ninputs: int) -> np.ndarray:
-    u = np.asarray(u, dtype=float)
-    if u.ndim == 1 and ninputs == 1:
-        u = u[:, None]
-    if u.ndim != 2 or u.shape[1] != ninputs:
-        raise DataError(f"input has shape {u.shape}, expected (n_samples, {ninputs})")
-    if not np.all(np.isfinite(u)):
-        bad = np.argwhere(~np.isfinite(u))[0]
-        raise DataError(f"input contains a non-finite value at sample {bad[0]}, column {bad[1]}")
-    return np.ascontiguousarray(u)
-
-
 def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
              x0: np.ndarray | None = None) -> SimulationResult:
     """Simulate a discrete system from rest (or from ``x0``) for the input samples ``u``.
@@ -180,7 +168,7 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
         ``y[k] = C x[k] + D u[k]`` at ``t_k = k dt``.
     """
     if isinstance(system, ModalStateSpace):
-        u = _check_input(u, system.D.shape[1])
+        u = as_matrix(u, "input", shape=(None, system.D.shape[1]))
         y = np.empty((u.shape[0], system.D.shape[0]))
         T, G, Cm = system.T, system.G, system.Cm
         if x0 is not None:
@@ -201,7 +189,7 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
                       np.ascontiguousarray(D), np.ascontiguousarray(U), y,
                       np.ascontiguousarray(z[:, 0]), np.ascontiguousarray(z[:, 1]))
     else:
-        u = _check_input(u, system.ninputs)
+        u = as_matrix(u, "input", shape=(None, system.ninputs))
         y = np.empty((u.shape[0], system.noutputs))
         if x0 is not None:
             x = np.asarray(x0, dtype=float).reshape(system.nstates)
@@ -271,7 +259,7 @@ def simulate_batch(config: BeamConfig, params: Sequence[Mapping[str, float]] | n
         sets = [dict(zip(names, map(float, row))) for row in params]
     else:
         sets = [dict(p) for p in params]
-    u = _check_input(u, len(config.actuators))
+    u = as_matrix(u, "input", shape=(None, len(config.actuators)))
     out = np.empty((len(sets), u.shape[0], len(config.sensors)))
     for i, p in enumerate(sets):
         out[i] = simulate(fast_model(config, p), u).outputs

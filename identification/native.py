@@ -12,6 +12,7 @@ from typing import Sequence
 import numpy as np
 
 from ebb_model import fast_model, max_growth_factor, simulate
+from ebb_model.arrays import as_matrix
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ParameterError
 
@@ -32,8 +33,8 @@ class ExperimentArrays:
 
 def experiments_from_arrays(items: Sequence[tuple[str, np.ndarray, np.ndarray]]) -> tuple[ExperimentArrays, ...]:
     """``(name, inputs, outputs)`` triples to :class:`ExperimentArrays` (1-D signals become columns)."""
-    return tuple(ExperimentArrays(n, np.atleast_2d(np.asarray(u, float).T).T,
-                                  np.atleast_2d(np.asarray(y, float).T).T) for n, u, y in items)
+    return tuple(ExperimentArrays(n, as_matrix(u, f"{n}: inputs", finite=False),
+                                  as_matrix(y, f"{n}: outputs", finite=False)) for n, u, y in items)
 
 
 @dataclass(frozen=True, eq=False)

@@ -32,6 +32,8 @@ from typing import Sequence
 
 import numpy as np
 
+from ebb_model.arrays import as_matrix
+
 __all__ = ["PENALTY", "nrmse", "objective_names", "output_errors"]
 
 #: Objective value given to unstable candidates (plus their spectral radius).
@@ -40,8 +42,8 @@ PENALTY = 1.0e3
 
 def nrmse(y_sim: np.ndarray, y_meas: np.ndarray) -> np.ndarray:
     """Normalised RMS error per column (see the module docstring)."""
-    y_sim = np.atleast_2d(np.asarray(y_sim, dtype=float).T).T
-    y_meas = np.atleast_2d(np.asarray(y_meas, dtype=float).T).T
+    y_sim = as_matrix(y_sim, "y_sim", finite=False)
+    y_meas = as_matrix(y_meas, "y_meas", finite=False)
     num = np.linalg.norm(y_sim - y_meas, axis=0)
     den = np.linalg.norm(y_meas - y_meas.mean(axis=0), axis=0)
     return num / np.where(den > 0, den, 1.0)

@@ -114,6 +114,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.interpolate import CubicSpline
 
+from ..arrays import as_matrix
 from ..config import BeamConfig
 from ..errors import ConfigError, DataError, ParameterError, StabilityError
 from .exact_fe import exact_fe_response
@@ -262,26 +263,7 @@ def _effects(effect: WithheldEffect | Sequence[WithheldEffect] | None) -> tuple[
     return items
 
 
-def _inputs(config: BeamConfig, inputs: np.ndarray) -> np.ndarray:
-    n_in = len(config.actuators)
-    try:
-        U = np.array(inputs, dtype=float)
-    except (TypeError, ValueError):
-        raise DataError("inputs must be a numeric array") from None
-    if U.ndim == 1 and n_in == 1:
-        U = U[:, None]
-    if U.ndim != 2 or U.shape[1] != n_in:
-        raise DataError(
-            f"inputs must have shape (n_samples, {n_in}) for the actuators "
-            f"{', '.join(config.input_names)}, got {np.shape(inputs)}"
-        )
-    if U.shape[0] < 2:
-        raise DataError(f"inputs must contain at least 2 samples, got {U.shape[0]}")
-    bad = np.argwhere(~np.isfinite(U))
-    if bad.size:
-        k, j = bad[0]
-        raise DataError(f"inputs: non-finite value at sample {k}, actuator {config.input_names[j]!r}")
-    return U
+
 
 
 def _force_at_substeps(U: np.ndarray, m: int, interpolation: str) -> np.ndarray:
@@ -411,7 +393,8 @@ def synthesize(
         raise ParameterError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
     p = _parameters(config, params)
     effects = _effects(effect)
-    U = _inputs(config, inputs)
+    U = as_matrix(inputs, "inputs", shape=(None, len(config.actuators)), columns=config.input_names, min_rows=2,
+                  column="actuator")
     L = float(config.beam.length)
     dt = float(config.time.dt)
 

@@ -17,6 +17,7 @@ from typing import Mapping
 
 import numpy as np
 
+from ebb_model.arrays import as_matrix
 from ebb_model.config import BeamConfig
 from ebb_model.errors import DataError
 from ebb_model.signals_io import check_time_vector
@@ -34,12 +35,7 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 
 
 def _matrix(name: str, value: object, n: int, k: int, where: str) -> np.ndarray:
-    a = np.asarray(value, dtype=float)
-    if a.ndim == 1 and k == 1:
-        a = a.reshape(-1, 1)
-    if a.ndim != 2 or a.shape != (n, k):
-        raise DataError(f"{where}: {name} has shape {a.shape}, expected ({n}, {k})")
-    return _frozen(a)
+    return as_matrix(value, f"{where}: {name}", shape=(n, k), finite=False, readonly=True)
 
 
 @dataclass(frozen=True, eq=False)
