@@ -1,15 +1,14 @@
 """Reading input signals from CSV files (a ``time`` column plus named columns)."""
 from __future__ import annotations
 
-import csv
-import math
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
+from .csvio import read_csv_table
 from .errors import DataError
-from .textio import printable, quote, read_text
+from .textio import printable, quote
 
 __all__ = ["read_signal_csv", "check_time_vector"]
 
@@ -47,6 +46,9 @@ def read_signal_csv(path: str | Path, columns: Sequence[str], *, dt: float | Non
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Read ``time`` and the named columns from a CSV file with a header row.
 
+    The file follows the rules of :func:`ebb_model.csvio.read_csv_table` (the same as every CSV
+    experiment file).
+
     Parameters
     ----------
     path
@@ -70,42 +72,17 @@ def read_signal_csv(path: str | Path, columns: Sequence[str], *, dt: float | Non
         Unreadable file, missing columns, non-numeric or non-finite values,
         non-monotonic time or inconsistent sample time.
     """
-    p = Path(path)
-    reader = csv.reader(read_text(p, DataError, what="CSV file").splitlines())
-    try:
-        header = [h.strip() for h in next(reader)]
-    except StopIteration:
-        raise DataError(f"{p}: empty file") from None
-    except csv.Error as exc:
-        raise DataError(f"{p}, line 1: not a CSV header ({exc})") from None
-    missing = [c for c in ("time", *columns) if c not in header]
+    table = read_csv_table(path, what="CSV file")
+    missing = [c for c in ("time", *columns) if c not in table.names]
     if missing:
-        raise DataError(f"{p}: missing column(s) {', '.join(missing)}; found {printable(', '.join(header))}")
-    idx = [header.index(c) for c in ("time", *columns)]
-    rows: list[list[float]] = []
-    try:
-        for lineno, row in enumerate(reader, start=2):
-            if not row or all(not c.strip() for c in row):
-                continue
-            if len(row) != len(header):
-                raise DataError(f"{p}, line {lineno}: {len(row)} fields, expected {len(header)}")
-            vals = []
-            for j in idx:
-                try:
-                    v = float(row[j])
-                except ValueError:
-                    raise DataError(f"{p}, line {lineno}, column {quote(header[j])}: not a number "
-                                    f"({quote(row[j])})") from None
-                if not math.isfinite(v):
-                    raise DataError(f"{p}, line {lineno}, column {quote(header[j])}: non-finite value "
-                                    f"{quote(row[j])}")
-                vals.append(v)
-            rows.append(vals)
-    except csv.Error as exc:
-        raise DataError(f"{p}, line {reader.line_num}: malformed CSV ({exc})") from None
-    if not rows:
-        raise DataError(f"{p}: no data rows")
-    arr = np.asarray(rows)
-    t = arr[:, 0]
-    check_time_vector(t, dt, where=f"{p}: time")
-    return t, arr[:, 1:]
+        raise DataError(f"{table.source}: missing column(s) {', '.join(missing)}; "
+                        f"found {printable(', '.join(table.names))}")
+    arr = table.data[:, [table.names.index(c) for c in ("time", *columns)]]
+    bad = np.argwhere(~np.isfinite(arr[:, 1:]))
+    if bad.size:
+        k, j = bad[0]
+        raise DataError(f"{table.source}, column {quote(columns[j])}: non-finite value {float(arr[k, j + 1])!r} "
+                        f"at sample {k}")
+    t = np.ascontiguousarray(arr[:, 0])
+    check_time_vector(t, dt, where=f"{table.source}: time")
+    return t, np.ascontiguousarray(arr[:, 1:])
