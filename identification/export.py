@@ -25,6 +25,7 @@ from ebb_model.jsonio import write_json
 
 from .export_statespace import balanced_truncation, save_statespace
 from .parameters import ParameterSpace
+from .settings import SECTION
 
 __all__ = ["export_points"]
 
@@ -67,7 +68,7 @@ def export_points(result_dir: str | Path, points: Sequence[int] | str | None = N
         doc = json.loads((d / "pareto.json").read_text())
     except (OSError, ValueError) as exc:
         raise ConfigError(f"{d}: no readable pareto.json ({exc})") from None
-    cfg = config_from_dict(doc["config"], extra_sections=("identification",))
+    cfg = config_from_dict(doc["config"], extra_sections=(SECTION,))
     pts = doc["points"]
     pol = doc.get("polished", [])
     if points is None and polished is None:

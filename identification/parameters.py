@@ -16,13 +16,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Any, Mapping
+from typing import Mapping
 
 import numpy as np
 
 from ebb_model.beam import PARAMETER_NAMES
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
+
+from .settings import identification_settings
 
 __all__ = ["ParameterSpace", "parameter_space"]
 
@@ -97,8 +99,7 @@ def parameter_space(config: BeamConfig, *, extra_positions: Mapping[str, tuple[f
             lo.append(spec.bounds[0])
             hi.append(spec.bounds[1])
             nom.append(spec.value)
-    ident: Any = config.extra.get("identification", {}) or {}
-    positions = dict(ident.get("positions", {}) if isinstance(ident, Mapping) else {})
+    positions = dict(identification_settings(config).positions)
     positions.update(extra_positions or {})
     points = {a.name: a.x for a in config.actuators} | {s.name: s.x for s in config.sensors}
     problems = []

@@ -26,11 +26,11 @@ import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ebb_model import load_config, max_growth_factor
+from ebb_model import max_growth_factor
 from ebb_model.adequacy import NumericalAdequacy, numerical_adequacy
 from ebb_model.atomic import atomic_path
 from ebb_model.config import BeamConfig
@@ -47,6 +47,7 @@ from .parameters import ParameterSpace, parameter_space
 from .polish import polish as polish_point
 from .problem import IdentificationProblem
 from .runners import Runner, make_runner
+from .settings import identification_settings, load_identification_config
 
 __all__ = ["BACKENDS", "IdentificationResult", "PolishedPoint", "Progress", "identify",
            "load_identification_config", "read_data"]
@@ -55,33 +56,11 @@ BACKENDS = ("auto", "native", "fmu")
 #: Largest fit residual (in noise variances, per sensor) at which the Cramér–Rao bound is reported as valid: the
 #: bound assumes the model explains the data up to the noise.
 CRB_GAP_LIMIT = 2.0
-_DATA_KEYS = ("mapping", "units", "gains", "remove_offset", "pre_trigger", "band", "resample", "format")
-
-
-def load_identification_config(path: str | Path) -> BeamConfig:
-    """Load a config whose ``[identification]`` table is kept for this layer."""
-    cfg = load_config(path, extra_sections=("identification",))
-    ident = cfg.extra.get("identification", {})
-    if not isinstance(ident, Mapping):
-        raise ConfigError("identification: must be a table")
-    allowed = ("positions", "data", "noise_std", "per", "stabilising")
-    bad = [f"identification.{k}: unknown key; allowed: {', '.join(allowed)}" for k in ident if k not in allowed]
-    data = ident.get("data", {})
-    if not isinstance(data, Mapping):
-        bad.append("identification.data: must be a table")
-    else:
-        bad += [f"identification.data.{k}: unknown key; allowed: {', '.join(_DATA_KEYS)}"
-                for k in data if k not in _DATA_KEYS]
-    if bad:
-        raise ConfigError(bad)
-    return cfg
-
-
 def read_data(config: BeamConfig, paths: Sequence[str | Path]) -> tuple[Experiment, ...]:
     """Load and check the experiments with the options of ``[identification.data]``."""
     if not paths:
         raise ConfigError("DATA: at least one data file is required")
-    opts = dict(config.extra.get("identification", {}).get("data", {}))
+    opts = dict(identification_settings(config).data)
     exps = load_experiments(list(paths), config, **opts)
     for e in exps:
         e.check_against(config)
@@ -257,7 +236,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         Bad config, data or settings — before anything is written.
     """
     cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
-    ident = dict(cfg.extra.get("identification", {}))
+    ident = identification_settings(cfg)
     if backend not in BACKENDS:
         raise ConfigError(f"--backend: unknown {backend!r}; allowed: {', '.join(BACKENDS)}")
     if algorithm not in ALGORITHMS:
@@ -273,12 +252,13 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     if isinstance(polish_evaluations, bool) or not isinstance(polish_evaluations, (int, np.integer)) \
             or polish_evaluations < 1:
         raise ConfigError(f"polish_evaluations must be an integer >= 1, got {polish_evaluations!r}")
-    per = per or ident.get("per", "sensor")
+    per = per or ident.per or "sensor"
     if per not in ("sensor", "experiment"):
         raise ConfigError(f"--per: unknown {per!r}; allowed: sensor, experiment")
     # the seed's stabilising objective (max growth factor of the θ-scheme) belongs to that scheme
-    stabilising = ident.get("stabilising", cfg.time.scheme == "theta") if stabilising is None else stabilising
-    noise_std = noise_std if noise_std is not None else ident.get("noise_std")
+    if stabilising is None:
+        stabilising = cfg.time.scheme == "theta" if ident.stabilising is None else ident.stabilising
+    noise_std = noise_std if noise_std is not None else ident.noise_std
     if noise_std is not None:
         noise_std = [float(v) for v in np.atleast_1d(noise_std)]
         if len(noise_std) != len(cfg.sensors) or not all(v > 0 and math.isfinite(v) for v in noise_std):
