@@ -17,6 +17,7 @@ from typing import Sequence
 import numpy as np
 
 from .arrays import as_matrix
+from .checks import finite_scalar
 from .errors import ConfigError
 
 __all__ = ["DiscreteStateSpace", "common_timebase", "with_input_delays"]
@@ -88,9 +89,7 @@ class DiscreteStateSpace:
         D = _matrix("D", self.D, (C.shape[0], B.shape[1]))
         if self.hold is not None:
             object.__setattr__(self, "hold", _matrix("hold", self.hold, (n, B.shape[1])))
-        dt = float(self.dt)
-        if not np.isfinite(dt) or dt <= 0:
-            raise ConfigError(f"dt must be a finite number > 0, got {self.dt!r}")
+        dt = finite_scalar("dt", self.dt, minimum=0.0, strict=True, error=ConfigError)
         object.__setattr__(self, "A", A)
         object.__setattr__(self, "B", B)
         object.__setattr__(self, "C", C)

@@ -29,6 +29,7 @@ import numpy as np
 from scipy import signal
 
 from ebb_model.arrays import as_matrix
+from ebb_model.checks import finite_scalar
 from ebb_model.errors import ConfigError, DataError
 
 __all__ = ["NoiseEstimate", "noise_estimate", "noise_std", "records_noise_std"]
@@ -116,8 +117,7 @@ def noise_estimate(y: np.ndarray, dt: float, *, band: tuple[float, float] | None
     -------
     NoiseEstimate
     """
-    if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
-        raise ConfigError(f"dt: must be a finite number > 0, got {dt!r}")
+    finite_scalar("dt", dt, minimum=0.0, strict=True, numbers_only=True, error=ConfigError)
     a = as_matrix(y, "y", min_rows=1)
     n = a.shape[0]
     fs = 1.0 / dt

@@ -115,6 +115,7 @@ import scipy.linalg as sla
 from scipy.interpolate import CubicSpline
 
 from ..arrays import as_matrix
+from ..checks import finite_scalar
 from ..config import BeamConfig
 from ..errors import ConfigError, DataError, ParameterError, StabilityError
 from .exact_fe import exact_fe_response
@@ -379,10 +380,7 @@ def synthesize(
         raise ParameterError(f"n_elements must be an integer >= 2, got {n_elements!r}")
     if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
         raise ParameterError(f"substeps must be an integer >= 1, got {substeps!r}")
-    if isinstance(noise, bool) or not isinstance(noise, (int, float, np.floating)) or not (
-        math.isfinite(float(noise)) and noise >= 0.0
-    ):
-        raise ParameterError(f"noise must be a finite number >= 0, got {noise!r}")
+    finite_scalar("noise", noise, minimum=0.0, numbers_only=True)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
         raise ParameterError(f"seed must be an integer, got {seed!r}")
     if not isinstance(richardson, (bool, np.bool_)):
