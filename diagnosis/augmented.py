@@ -91,6 +91,7 @@ from ebb_model.checks import finite_scalar
 from ebb_model.config import BeamConfig
 from ebb_model.discretisation import SemiDiscreteBeam, discretise
 from ebb_model.errors import ConfigError, DataError, ParameterError, StabilityError
+from ebb_model.parameter_values import resolve_parameters
 from ebb_model.simulate import fast_model, simulate
 from ebb_model.theta_scheme import ThetaCoefficients, one_step, theta_coefficients
 
@@ -197,7 +198,7 @@ def geometric_stiffness(config: BeamConfig, params: Mapping[str, float] | None =
     ``(K(N + s) - K(N))/s`` is exact up to round-off; ``s = EI/h²`` balances the
     two terms of ``K`` to keep that round-off at machine precision.
     """
-    p = config.parameter_values() | dict(params or {})
+    p = resolve_parameters(config, params)
     h = config.beam.length / (config.beam.nodes + 1)
     s = float(p["EI"]) / h ** 2
     K0 = discretise(config, p).K
@@ -348,7 +349,7 @@ def simulate_axial(config: BeamConfig, params: Mapping[str, float] | None, input
 
         return simulate_axial_exact(config, params, u, offset=offset, rate=rate, EA=EA,
                                     check_stability=check_stability)
-    p = config.parameter_values() | dict(params or {})
+    p = resolve_parameters(config, params)
     beam, _, co = _scheme(config, p)
     n = beam.n_unknowns
     if check_stability:
@@ -440,7 +441,7 @@ def simulate_effects(config: BeamConfig, params: Mapping[str, float] | None, inp
     if actuator_tau > 0.0:
         u = np.ascontiguousarray(first_order_lag(u, dt, actuator_tau))
     if drift_rate == 0.0 and stretching_EA == 0.0:
-        p = config.parameter_values() | dict(params or {})
+        p = resolve_parameters(config, params)
         model = fast_model(config, p)
         if check_stability:
             check_stable(config, p, model.spectral_radius())

@@ -111,6 +111,7 @@ def simulate_files(config_path: str | Path, input_csv: str | Path, out_csv: str 
     """
     from . import fast_model, load_config, simulate
     from .assemble import check_stable
+    from .parameter_values import resolve_parameters
     from .errors import ConfigError
     from .signals_io import read_signal_csv
     from .simulate import SimulationResult
@@ -120,7 +121,7 @@ def simulate_files(config_path: str | Path, input_csv: str | Path, out_csv: str 
     if not out.parent.is_dir():
         raise ConfigError(f"--out {out}: directory {out.parent} does not exist")
     t, u = read_signal_csv(input_csv, cfg.input_names, dt=cfg.time.dt)
-    p = cfg.parameter_values() | dict(params or {})
+    p = resolve_parameters(cfg, params)
     model = fast_model(cfg, p)
     check_stable(cfg, p, model.spectral_radius())
     res = simulate(model, u)

@@ -160,8 +160,9 @@ class BeamConfig:
             raise ParameterError(
                 [f"parameters.{k}: unknown parameter; allowed: {', '.join(PARAMETER_NAMES)}" for k in unknown]
             )
-        merged = self.parameter_values() | {k: float(v) for k, v in values.items()}
-        check_parameter_values(merged)
+        from .parameter_values import resolve_parameters
+
+        merged = resolve_parameters(self, {k: float(v) for k, v in values.items()})
         params = {k: replace(self.parameters[k], value=merged[k]) for k in PARAMETER_NAMES}
         return replace(self, parameters=MappingProxyType(params))
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +19,7 @@ def jsonable(v: Any) -> Any:
     """Recursively convert to strict-JSON values.
 
     The one converter of the project: NaN → ``null``, ±inf → ``"inf"``/``"-inf"`` (``float()`` reads them back),
-    NumPy scalars and arrays → Python numbers and lists, dataclass instances → dicts of their fields, tuples →
+    NumPy scalars and arrays → Python numbers and lists, dataclass instances and mappings → dicts, tuples →
     lists.
 
     Parameters
@@ -43,7 +44,7 @@ def jsonable(v: Any) -> Any:
         if math.isinf(v):
             return "inf" if v > 0 else "-inf"
         return v
-    if isinstance(v, dict):
+    if isinstance(v, Mapping):
         return {k: jsonable(x) for k, x in v.items()}
     if isinstance(v, (list, tuple)):
         return [jsonable(x) for x in v]

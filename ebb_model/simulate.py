@@ -27,6 +27,7 @@ from .config import BeamConfig
 from .discretisation import discretise
 from .exact_modal import exact_model
 from .modal_form import ModalStateSpace, modal_from_beam, modal_from_theta
+from .parameter_values import resolve_parameters
 from .statespace import DiscreteStateSpace
 from .theta_scheme import discretise_time
 
@@ -214,9 +215,10 @@ def fast_model(config: BeamConfig, params: Mapping[str, float] | None = None
     this never raises for want of one.  Stability is **not** checked here (see :func:`ebb_model.assemble`).
     """
     ts = config.time
+    p = resolve_parameters(config, params)
     if ts.scheme == "exact":
-        return exact_model(config, config.parameter_values() | dict(params or {}))
-    beam = discretise(config, params)
+        return exact_model(config, p)
+    beam = discretise(config, p)
     modal = modal_from_beam(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold)
     if modal is None:
         modal = modal_from_theta(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold)

@@ -218,8 +218,8 @@ class FmuEvaluator:
 
     def objectives(self, x: np.ndarray) -> np.ndarray:
         """Objective vector of candidate ``x`` (same definitions and penalties as the native backend)."""
-        cfg, params = self.space.apply(self.config, x)
         try:
+            cfg, params = self.space.apply(self.config, x)
             g = max_growth_factor(cfg, params) if self.stabilising else 0.0
         except ParameterError:
             return np.full(self.n_obj, 2 * PENALTY)  # as the native backend: never handed to the FMU
