@@ -88,7 +88,7 @@ def split_records(fit: Sequence[tuple[str, np.ndarray, np.ndarray]],
     if not fit:
         raise ConfigError("DATA: at least one record to fit is required")
     if not 0.0 < holdout_fraction <= 0.9:
-        raise ConfigError(f"--holdout-fraction must be in (0, 0.9], got {holdout_fraction:g}")
+        raise ConfigError(f"`holdout_fraction` must be in (0, 0.9], got {holdout_fraction:g}")
     out: list[Record] = []
     for name, u, y in fit:
         u, y = as_matrix(u, f"{name}: inputs", finite=False), as_matrix(y, f"{name}: outputs", finite=False)

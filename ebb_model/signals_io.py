@@ -1,16 +1,17 @@
-"""Reading input signals from CSV files (a ``time`` column plus named columns)."""
+"""Signals in CSV files: reading inputs (a ``time`` column plus named columns), simulating a config on them
+(:func:`simulate_files`, what ``ebb simulate`` does)."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
 from .csvio import read_csv_table
-from .errors import DataError
+from .errors import ConfigError, DataError
 from .textio import printable, quote
 
-__all__ = ["read_signal_csv", "check_time_vector"]
+__all__ = ["read_signal_csv", "check_time_vector", "simulate_files"]
 
 
 def check_time_vector(t: np.ndarray, dt: float | None = None, *, where: str = "time",
@@ -86,3 +87,47 @@ def read_signal_csv(path: str | Path, columns: Sequence[str], *, dt: float | Non
     t = np.ascontiguousarray(arr[:, 0])
     check_time_vector(t, dt, where=f"{table.source}: time")
     return t, np.ascontiguousarray(arr[:, 1:])
+
+
+def simulate_files(config_path: str | Path, input_csv: str | Path, out_csv: str | Path, *,
+                   params: Mapping[str, float] | None = None) -> Path:
+    """Read inputs from CSV, simulate on the fast path, write outputs to CSV (atomically).
+
+    Parameters
+    ----------
+    config_path : str or Path
+        TOML config file.
+    input_csv : str or Path
+        CSV with a ``time`` column sampled at the config's ``dt`` and one column per actuator
+        (:func:`read_signal_csv`).
+    out_csv : str or Path
+        CSV to write: ``time`` and one column per sensor.
+    params : mapping, optional
+        Parameter values instead of the config's nominal ones.
+
+    Returns
+    -------
+    Path
+        ``out_csv``.
+
+    Raises
+    ------
+    ConfigError, ParameterError, StabilityError, DataError
+        Nothing is written when anything fails.
+    """
+    from .assemble import check_stable
+    from .config import load_config
+    from .parameter_values import resolve_parameters
+    from .simulate import SimulationResult, fast_model, simulate
+
+    cfg = load_config(config_path)
+    out = Path(out_csv)
+    if not out.parent.is_dir():
+        raise ConfigError(f"`out_csv` {out}: directory {out.parent} does not exist")
+    t, u = read_signal_csv(input_csv, cfg.input_names, dt=cfg.time.dt)
+    p = resolve_parameters(cfg, params)
+    model = fast_model(cfg, p)
+    check_stable(cfg, p, model.spectral_radius())
+    res = simulate(model, u)
+    SimulationResult(t, res.outputs, res.output_names).to_csv(out)
+    return out

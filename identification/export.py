@@ -36,15 +36,15 @@ def _chosen(what: str, selection: Sequence[int] | str | None, n: int) -> Sequenc
         return []
     if isinstance(selection, str):
         if selection != "all":
-            raise ConfigError(f"--{what}: expected indices or 'all', got {selection!r}")
+            raise ConfigError(f"`{what}`: expected indices or 'all', got {selection!r}")
         if n == 0:
-            hint = " (run `ebb identify` with --polish K)" if what == "polished" else ""
-            raise ConfigError(f"--{what}: this run has no {what} points{hint}")
+            hint = " (run `identify` with `polish` K)" if what == "polished" else ""
+            raise ConfigError(f"`{what}`: this run has no {what} points{hint}")
         return range(n)
     chosen = [int(i) for i in selection]
     bad = [i for i in chosen if not 0 <= i < n]
     if bad:
-        raise ConfigError(f"--{what}: {bad} out of range" + (f" 0 … {n - 1}" if n else f" (no {what} points)"))
+        raise ConfigError(f"`{what}`: {bad} out of range" + (f" 0 … {n - 1}" if n else f" (no {what} points)"))
     return chosen
 
 
@@ -91,7 +91,7 @@ def export_points(result_dir: str | Path, points: Sequence[int] | str | None = N
     if reduce_order is not None and models:
         n_states = models[0][3].nstates
         if isinstance(reduce_order, bool) or not 1 <= reduce_order <= n_states:
-            raise ConfigError(f"--reduce-order: must lie in 1 … {n_states} (the model's states), "
+            raise ConfigError(f"`reduce_order`: must lie in 1 … {n_states} (the model's states), "
                               f"got {reduce_order}")
     out = d / "export"
     out.mkdir(exist_ok=True)

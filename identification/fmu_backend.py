@@ -151,7 +151,7 @@ class FmuEvaluator:
 
     def __post_init__(self) -> None:
         if any(self.space.is_position(n) for n in self.space.names):
-            raise ConfigError("--backend fmu: positions are fixed inside an FMU; identify them with the native "
+            raise ConfigError("`backend` fmu: positions are fixed inside an FMU; identify them with the native "
                               "backend")
         self.parameter_names = tuple(self.parameter_names or self.space.names)
         self.input_names = tuple(self.input_names or self.config.input_names)
@@ -159,7 +159,7 @@ class FmuEvaluator:
         if len(self.parameter_names) != self.space.dim:
             raise ConfigError(f"FMU parameter names: {len(self.parameter_names)} given, {self.space.dim} unknowns")
         if not Path(self.fmu_path).is_file():
-            raise ConfigError(f"--fmu {self.fmu_path}: no such file")
+            raise ConfigError(f"`fmu_path` {self.fmu_path}: no such file")
 
     @property
     def n_obj(self) -> int:

@@ -144,13 +144,13 @@ def optimise(problem: IdentificationProblem, *, pop: int = 40, generations: int 
         Bad settings, or ``resume`` without a checkpoint in ``out_dir``.
     """
     if pop < 4:
-        raise ConfigError(f"--pop must be >= 4, got {pop}")
+        raise ConfigError(f"`pop` must be >= 4, got {pop}")
     if generations < 1:
-        raise ConfigError(f"--generations must be >= 1, got {generations}")
+        raise ConfigError(f"`generations` must be >= 1, got {generations}")
     ckpt = Path(out_dir) / CHECKPOINT if out_dir is not None else None
     if resume:
         if ckpt is None or not ckpt.exists():
-            raise ConfigError(f"--resume: no checkpoint {ckpt} to resume from")
+            raise ConfigError(f"`resume`: no checkpoint {ckpt} to resume from")
         with ckpt.open("rb") as fh:
             algo = pickle.load(fh)
         problem = algo.problem

@@ -188,15 +188,15 @@ def _check_out_dir(out: Path, resume: bool) -> Path:
         if (out / CHECKPOINT).exists() and not finished:
             return out
         if finished:
-            raise ConfigError(f"--resume: the run in {out} has finished (pareto.json); nothing to resume")
-        raise ConfigError(f"--resume: {out} holds no interrupted `ebb identify` run (no {CHECKPOINT})")
+            raise ConfigError(f"`resume`: the run in {out} has finished (pareto.json); nothing to resume")
+        raise ConfigError(f"`resume`: {out} holds no interrupted `identify` run (no {CHECKPOINT})")
     if (out / CHECKPOINT).exists() and not finished:
-        raise ConfigError(f"--out {out}: holds an interrupted run; continue it with --resume, or choose a new "
+        raise ConfigError(f"`out_dir` {out}: holds an interrupted run; continue it with `resume`, or choose a new "
                           "directory")
     if finished:
-        raise ConfigError(f"--out {out}: holds a finished run; choose a new directory (export its points with "
-                          "`ebb export`)")
-    return check_new_output_dir(out)
+        raise ConfigError(f"`out_dir` {out}: holds a finished run; choose a new directory (export its points with "
+                          "`export_points`)")
+    return check_new_output_dir(out, name="out_dir")
 
 
 def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_dir: str | Path, *,
@@ -238,23 +238,23 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
     ident = identification_settings(cfg)
     if backend not in BACKENDS:
-        raise ConfigError(f"--backend: unknown {backend!r}; allowed: {', '.join(BACKENDS)}")
+        raise ConfigError(f"`backend`: unknown {backend!r}; allowed: {', '.join(BACKENDS)}")
     if algorithm not in ALGORITHMS:
-        raise ConfigError(f"--algorithm: unknown {algorithm!r}; allowed: {', '.join(ALGORITHMS)}")
+        raise ConfigError(f"`algorithm`: unknown {algorithm!r}; allowed: {', '.join(ALGORITHMS)}")
     if workers < 1:
-        raise ConfigError(f"--workers must be >= 1, got {workers}")
+        raise ConfigError(f"`workers` must be >= 1, got {workers}")
     if dask is not None:
         from .cluster import parse_local_address
 
         parse_local_address(dask)  # a malformed local:K fails here, before anything is written
     if isinstance(polish, bool) or not isinstance(polish, (int, np.integer)) or polish < 0:
-        raise ConfigError(f"--polish must be an integer >= 0, got {polish!r}")
+        raise ConfigError(f"`polish` must be an integer >= 0, got {polish!r}")
     if isinstance(polish_evaluations, bool) or not isinstance(polish_evaluations, (int, np.integer)) \
             or polish_evaluations < 1:
         raise ConfigError(f"polish_evaluations must be an integer >= 1, got {polish_evaluations!r}")
     per = per or ident.per or "sensor"
     if per not in ("sensor", "experiment"):
-        raise ConfigError(f"--per: unknown {per!r}; allowed: sensor, experiment")
+        raise ConfigError(f"`per`: unknown {per!r}; allowed: sensor, experiment")
     # the seed's stabilising objective (max growth factor of the θ-scheme) belongs to that scheme
     if stabilising is None:
         stabilising = cfg.time.scheme == "theta" if ident.stabilising is None else ident.stabilising
@@ -271,7 +271,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     if fisher0.singular and not force:
         raise ConfigError(["identifiability: the Fisher information matrix is singular at the nominal point "
                            f"(rank {fisher0.rank} of {space.dim})", *fisher0.messages,
-                           "remove or fix the unidentifiable unknowns, change sensors/inputs, or use --force"])
+                           "remove or fix the unidentifiable unknowns, change sensors/inputs, or use `force`"])
     names = objective_names(cfg.output_names, [e.name for e in exps], per=per, stabilising=bool(stabilising))
     search_evaluator: Any = evaluator
     tmp_fmu_dir = None

@@ -157,7 +157,7 @@ def test_reserved_signal_names_are_refused(tmp_path):
 
 
 def test_cli_in_process(tmp_path, capsys):
-    from ebb_model.cli import main
+    from ebb_cli import main
 
     out = tmp_path / "cli.fmu"
     assert main(["build-fmu", str(SEED_TOML), "--out", str(out), "--field"]) == 0
@@ -169,7 +169,7 @@ def test_cli_in_process(tmp_path, capsys):
 
 def test_cli_subprocess(tmp_path):
     out = tmp_path / "sub.fmu"
-    cmd = [sys.executable, "-m", "ebb_model.cli", "build-fmu", str(SEED_TOML), "--out", str(out)]
+    cmd = [sys.executable, "-m", "ebb_cli", "build-fmu", str(SEED_TOML), "--out", str(out)]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert validate_fmu(str(out)) == []
