@@ -88,6 +88,11 @@ def test_binaries_resources_and_embedded_config(seed_fmu):
     assert f"resources/{mid}_slave.py" in names
     assert any(n.startswith("resources/ebb_core_") and n.endswith("/assemble.py") for n in names)
     assert not any("__pycache__" in n for n in names)
+    # the model core only: no reference solutions, data generator, file readers or reports
+    core = {n.split("/", 2)[2] for n in names if n.startswith("resources/ebb_core_")}
+    assert "stability/bistritz.py" in core and "config.py" in core
+    assert not any(n.startswith("reference/") for n in core)
+    assert not core & {"signals_io.py", "csvio.py", "reports.py", "jsonio.py"}
     assert config_from_dict(spec["config"]) == load_config(SEED_TOML)
     assert mid in entry and "import" in entry
 
