@@ -28,16 +28,44 @@ output-error objective, so the values stay finite and ordered (never NaN).
 """
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
 from ebb_model.arrays import as_matrix
 
-__all__ = ["PENALTY", "nrmse", "objective_names", "output_errors"]
+__all__ = ["PENALTY", "SimulationOutcome", "nrmse", "objective_names", "output_errors"]
 
 #: Objective value given to unstable candidates (plus their spectral radius).
 PENALTY = 1.0e3
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationOutcome:
+    """What an evaluator's simulation of one candidate gave, whatever the backend.
+
+    Attributes
+    ----------
+    outputs
+        Simulated outputs per experiment, shape (n, n_sensors) each; empty when the candidate was not
+        simulated (unstable, or parameters refused by the FMU).
+    stable
+        Whether the candidate was simulated.
+    spectral_radius
+        Spectral radius of Φ when the backend knows it (native), NaN otherwise (FMU).
+    """
+
+    outputs: tuple[np.ndarray, ...]
+    stable: bool
+    spectral_radius: float = math.nan
+
+    @property
+    def penalty(self) -> float:
+        """Output-error objective of a candidate that was not simulated: :data:`PENALTY` plus its spectral
+        radius (1 when unknown)."""
+        return PENALTY + (self.spectral_radius if math.isfinite(self.spectral_radius) else 1.0)
 
 
 def nrmse(y_sim: np.ndarray, y_meas: np.ndarray) -> np.ndarray:

@@ -374,12 +374,12 @@ def _point_properties(cfg: BeamConfig, space: ParameterSpace, evaluator: NativeE
     """Cramér–Rao std, growth factor and stability of candidate ``x`` (native model)."""
     c, params = space.apply(cfg, x)
     g = float(max_growth_factor(c, params))
-    _, rho = evaluator.simulate(x)
+    stable = evaluator.simulate(x).stable
     try:
         crb = fisher_information(evaluator, x, noise_std=noise_std).cramer_rao_std
     except StabilityError:
         crb = np.full(space.dim, np.inf)
-    return crb, g, bool(rho <= 1 + 1e-9)
+    return crb, g, stable
 
 
 def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: NativeEvaluator,
