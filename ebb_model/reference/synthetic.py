@@ -115,6 +115,7 @@ import scipy.linalg as sla
 from scipy.interpolate import CubicSpline
 
 from ..arrays import as_matrix
+from ..atomic import atomic_path
 from ..checks import finite_scalar
 from ..config import BeamConfig
 from ..errors import ConfigError, DataError, ParameterError, StabilityError
@@ -209,7 +210,7 @@ class SyntheticRecord:
         y = self.outputs_clean if clean else self.outputs
         table = np.column_stack([self.time, self.inputs, y])
         try:
-            with p.open("w", newline="", encoding="utf-8") as fh:
+            with atomic_path(p) as tmp, tmp.open("w", newline="", encoding="utf-8") as fh:
                 wr = csv.writer(fh)
                 wr.writerow(("time",) + self.input_names + self.output_names)
                 for row in table:
