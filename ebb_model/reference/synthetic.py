@@ -103,10 +103,7 @@ Example
 """
 from __future__ import annotations
 
-import csv
 import math
-from dataclasses import dataclass
-from pathlib import Path
 from types import MappingProxyType
 from typing import Mapping, Sequence
 
@@ -115,7 +112,6 @@ import scipy.linalg as sla
 from scipy.interpolate import CubicSpline
 
 from ..arrays import as_matrix
-from ..atomic import atomic_path
 from ..checks import finite_scalar
 from ..config import BeamConfig
 from ..errors import ConfigError, DataError, ParameterError, StabilityError
@@ -123,6 +119,7 @@ from .exact_fe import exact_fe_response
 from .excitation import EXCITATION_KINDS, band_limited_input
 from .hermite_fe import SENSOR_KINDS, HermiteBeam, hermite_beam
 from .newmark_banded import newmark_banded
+from .record import SyntheticRecord
 from .withheld import EFFECT_CATALOGUE, EFFECT_NAMES, WithheldEffect
 
 __all__ = [
@@ -150,74 +147,6 @@ DEFAULT_SUBSTEPS = 8
 INTERPOLATIONS: tuple[str, ...] = ("cubic", "linear")
 #: Time integrators of the generator ("auto": exact for time-invariant truths, else Newmark).
 INTEGRATORS: tuple[str, ...] = ("auto", "exact", "newmark")
-
-
-@dataclass(frozen=True, eq=False)
-class SyntheticRecord:
-    """A synthetic experiment.
-
-    Attributes
-    ----------
-    time
-        Sample instants :math:`t_k = k\\,\\Delta t` [s], shape ``(n,)``.
-    inputs
-        The measured actuator forces [N] exactly as given, ``(n, n_inputs)``.
-    outputs_clean
-        Noise-free sensor outputs (SI units), ``(n, n_outputs)``.
-    outputs
-        ``outputs_clean`` plus white Gaussian noise.
-    noise_std
-        Standard deviation of the added noise per sensor, ``(n_outputs,)``.
-    input_names, output_names
-        Actuator and sensor names of the config, in column order.
-    parameters
-        Physical parameters used (config values with ``params`` overrides,
-        *without* the withheld effect).
-    effects
-        The withheld effects applied (empty: none).
-    n_elements, substeps, richardson, interpolation, integrator
-        Discretisation of the generator (``integrator``: ``"exact"`` or ``"newmark"``).
-    """
-
-    time: np.ndarray
-    inputs: np.ndarray
-    outputs_clean: np.ndarray
-    outputs: np.ndarray
-    noise_std: np.ndarray
-    input_names: tuple[str, ...]
-    output_names: tuple[str, ...]
-    parameters: Mapping[str, float]
-    effects: tuple[WithheldEffect, ...]
-    n_elements: int
-    substeps: int
-    richardson: bool
-    interpolation: str
-    integrator: str
-
-    @property
-    def dt(self) -> float:
-        """Sample interval [s]."""
-        return float(self.time[1] - self.time[0])
-
-    def to_csv(self, path: str | Path, *, clean: bool = False) -> Path:
-        """Write ``time``, the inputs and the (noisy, or ``clean``) outputs as a CSV file with a header row.
-
-        The file has one column per actuator and sensor, named as in the
-        config, so it loads with the project's CSV experiment reader.  The
-        withheld effect is deliberately **not** written.
-        """
-        p = Path(path)
-        y = self.outputs_clean if clean else self.outputs
-        table = np.column_stack([self.time, self.inputs, y])
-        try:
-            with atomic_path(p) as tmp, tmp.open("w", newline="", encoding="utf-8") as fh:
-                wr = csv.writer(fh)
-                wr.writerow(("time",) + self.input_names + self.output_names)
-                for row in table:
-                    wr.writerow([repr(float(v)) for v in row])
-        except OSError as exc:
-            raise DataError(f"{p}: cannot write ({exc.strerror or exc})") from None
-        return p
 
 
 # --------------------------------------------------------------------------
