@@ -105,7 +105,8 @@ _FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
 # validation helpers
 # ---------------------------------------------------------------------------
 def _check_inputs(u: np.ndarray, config: BeamConfig) -> np.ndarray:
-    return as_matrix(u, "inputs", shape=(None, len(config.actuators)), columns=config.input_names, column="input")
+    return as_matrix(u, "inputs", shape=(None, len(config.actuators)), columns=config.input_names,
+                     column="input")
 
 
 # ---------------------------------------------------------------------------

@@ -1,4 +1,5 @@
-"""``ebb diagnose`` and ``ebb demo``: parse, then call :func:`diagnosis.run.diagnose` / :func:`diagnosis.demo.run_demo`."""
+"""``ebb diagnose`` and ``ebb demo``: parse, then call :func:`diagnosis.run.diagnose` /
+:func:`diagnosis.demo.run_demo`."""
 from __future__ import annotations
 
 import argparse
