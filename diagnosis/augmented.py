@@ -85,10 +85,13 @@ import numba
 import numpy as np
 import scipy.signal as ss
 
+from ebb_model.arrays import as_matrix
 from ebb_model.assemble import check_stable
+from ebb_model.checks import finite_scalar
 from ebb_model.config import BeamConfig
 from ebb_model.discretisation import SemiDiscreteBeam, discretise
 from ebb_model.errors import ConfigError, DataError, ParameterError, StabilityError
+from ebb_model.parameter_values import resolve_parameters
 from ebb_model.simulate import fast_model, simulate
 from ebb_model.theta_scheme import ThetaCoefficients, one_step, theta_coefficients
 
@@ -101,38 +104,9 @@ _FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
 # ---------------------------------------------------------------------------
 # validation helpers
 # ---------------------------------------------------------------------------
-def _nonnegative(name: str, value: float) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(v) or v < 0:
-        raise ParameterError(f"{name} must be a finite number >= 0, got {value!r}")
-    return v
-
-
-def _finite(name: str, value: float) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise ParameterError(f"{name} must be finite, got {value!r}")
-    return v
-
-
 def _check_inputs(u: np.ndarray, config: BeamConfig) -> np.ndarray:
-    m = len(config.actuators)
-    u = np.asarray(u, dtype=float)
-    if u.ndim == 1 and m == 1:
-        u = u[:, None]
-    if u.ndim != 2 or u.shape[1] != m:
-        raise DataError(f"inputs have shape {u.shape}, expected (n_samples, {m}) for actuators "
-                        f"{', '.join(config.input_names)}")
-    if not np.all(np.isfinite(u)):
-        k, i = np.argwhere(~np.isfinite(u))[0]
-        raise DataError(f"inputs contain a non-finite value at sample {k}, input {config.input_names[i]!r}")
-    return np.ascontiguousarray(u)
+    return as_matrix(u, "inputs", shape=(None, len(config.actuators)), columns=config.input_names,
+                     column="input")
 
 
 # ---------------------------------------------------------------------------
@@ -193,8 +167,8 @@ def first_order_lag(x: np.ndarray, dt: float, tau: float, *, y0: np.ndarray | fl
     DataError
         ``x`` empty, of more than two dimensions or containing NaN/inf.
     """
-    tau = _nonnegative("lag time constant tau", tau)
-    dt_f = _finite("sample time dt", dt)
+    tau = finite_scalar("lag time constant tau", tau, minimum=0.0)
+    dt_f = finite_scalar("sample time dt", dt)
     if dt_f <= 0:
         raise ParameterError(f"sample time dt must be > 0, got {dt!r}")
     x = np.asarray(x, dtype=float)
@@ -225,7 +199,7 @@ def geometric_stiffness(config: BeamConfig, params: Mapping[str, float] | None =
     ``(K(N + s) - K(N))/s`` is exact up to round-off; ``s = EI/h²`` balances the
     two terms of ``K`` to keep that round-off at machine precision.
     """
-    p = config.parameter_values() | dict(params or {})
+    p = resolve_parameters(config, params)
     h = config.beam.length / (config.beam.nodes + 1)
     s = float(p["EI"]) / h ** 2
     K0 = discretise(config, p).K
@@ -366,8 +340,8 @@ def simulate_axial(config: BeamConfig, params: Mapping[str, float] | None, input
     ------
     ParameterError, DataError, StabilityError
     """
-    offset, rate = _finite("axial offset", offset), _finite("axial_drift.rate", rate)
-    EA = _nonnegative("geometric_stiffening.EA", EA)
+    offset, rate = finite_scalar("axial offset", offset), finite_scalar("axial_drift.rate", rate)
+    EA = finite_scalar("geometric_stiffening.EA", EA, minimum=0.0)
     u = _check_inputs(inputs, config)
     if config.time.scheme == "exact":
         if x0 is not None:
@@ -376,7 +350,7 @@ def simulate_axial(config: BeamConfig, params: Mapping[str, float] | None, input
 
         return simulate_axial_exact(config, params, u, offset=offset, rate=rate, EA=EA,
                                     check_stability=check_stability)
-    p = config.parameter_values() | dict(params or {})
+    p = resolve_parameters(config, params)
     beam, _, co = _scheme(config, p)
     n = beam.n_unknowns
     if check_stability:
@@ -453,22 +427,22 @@ def simulate_effects(config: BeamConfig, params: Mapping[str, float] | None, inp
     DataError
         Inputs of the wrong shape or with NaN/inf.
     """
-    actuator_tau = _nonnegative("actuator_lag.tau", actuator_tau)
-    drift_rate = _finite("axial_drift.rate", drift_rate)
-    stretching_EA = _nonnegative("geometric_stiffening.EA", stretching_EA)
+    actuator_tau = finite_scalar("actuator_lag.tau", actuator_tau, minimum=0.0)
+    drift_rate = finite_scalar("axial_drift.rate", drift_rate)
+    stretching_EA = finite_scalar("geometric_stiffening.EA", stretching_EA, minimum=0.0)
     sensor_tau = dict(sensor_tau or {})
     names = config.output_names
     unknown = sorted(set(sensor_tau) - set(names))
     if unknown:
         raise ConfigError(f"sensor_lag: unknown sensor(s) {', '.join(map(repr, unknown))}; "
                           f"sensors are {', '.join(names)}")
-    taus = {k: _nonnegative(f"sensor_lag[{k}].tau", v) for k, v in sensor_tau.items()}
+    taus = {k: finite_scalar(f"sensor_lag[{k}].tau", v, minimum=0.0) for k, v in sensor_tau.items()}
     u = _check_inputs(inputs, config)
     dt = config.time.dt
     if actuator_tau > 0.0:
         u = np.ascontiguousarray(first_order_lag(u, dt, actuator_tau))
     if drift_rate == 0.0 and stretching_EA == 0.0:
-        p = config.parameter_values() | dict(params or {})
+        p = resolve_parameters(config, params)
         model = fast_model(config, p)
         if check_stability:
             check_stable(config, p, model.spectral_radius())

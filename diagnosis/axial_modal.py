@@ -40,6 +40,7 @@ from ebb_model.config import BeamConfig
 from ebb_model.discretisation import discretise
 from ebb_model.errors import StabilityError
 from ebb_model.exact_modal import INPUT_TAPS, continuous_modes, input_weights, pole_integrals, refined_config
+from ebb_model.parameter_values import resolve_parameters
 
 __all__ = ["simulate_axial_exact"]
 
@@ -145,7 +146,7 @@ def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None,
     """
     from .augmented import geometric_stiffness
 
-    p = config.parameter_values() | dict(params or {})
+    p = resolve_parameters(config, params)
     cm = continuous_modes(config, p)
     dt = config.time.dt
     E, phi0, phi1 = pole_integrals(cm.poles, dt)

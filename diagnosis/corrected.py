@@ -24,6 +24,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ebb_model import DiscreteStateSpace, assemble
+from ebb_model.atomic import atomic_path
 from ebb_model.jsonio import write_json
 
 from .augmented import lag_coefficients
@@ -101,7 +102,8 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
     out.mkdir(parents=True, exist_ok=True)
     cfg = model.config.with_parameters(**model.params)
     written = [out / "corrected.toml"]
-    written[0].write_text(toml_dumps(cfg.to_dict()))
+    with atomic_path(written[0]) as tmp:
+        tmp.write_text(toml_dumps(cfg.to_dict()))
     carries: dict[str, str] = {"corrected.toml": "config with the refitted values (structural effects included)"}
     sys = corrected_statespace(model)
     lags = model.actuator_tau > 0.0 or any(t > 0.0 for t in model.sensor_tau.values())

@@ -66,12 +66,12 @@ WITHHELD = ("boundary_rotational_left", {"kr": 300.0})
 
 def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: bool = True) -> dict:
     """Run the demo into ``out`` (must not exist or be empty); print and return a short report."""
-    from ebb_model import load_config
     from ebb_model.reference.excitation import band_limited_input
     from ebb_model.reference.synthetic import synthesize
     from ebb_model.reference.withheld import WithheldEffect
     from identification.export import export_points
     from identification.run import identify
+    from identification.settings import load_identification_config
 
     from .report import text_report
     from .run import diagnose
@@ -82,7 +82,7 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
     t0 = time.perf_counter()
     cfg_path = out / "config.toml"
     cfg_path.write_text(DEMO_CONFIG)
-    cfg = load_config(cfg_path, extra_sections=("identification",))
+    cfg = load_identification_config(cfg_path)
 
     say("1/4 truth: Hermite FE, exact in time, with a withheld effect, 1 % noise")
     n = 4000 if quick else 6000

@@ -19,6 +19,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ebb_model.arrays import as_matrix
 from ebb_model.errors import ConfigError, DataError
 
 __all__ = ["Record", "split_records"]
@@ -87,10 +88,10 @@ def split_records(fit: Sequence[tuple[str, np.ndarray, np.ndarray]],
     if not fit:
         raise ConfigError("DATA: at least one record to fit is required")
     if not 0.0 < holdout_fraction <= 0.9:
-        raise ConfigError(f"--holdout-fraction must be in (0, 0.9], got {holdout_fraction:g}")
+        raise ConfigError(f"`holdout_fraction` must be in (0, 0.9], got {holdout_fraction:g}")
     out: list[Record] = []
     for name, u, y in fit:
-        u, y = np.atleast_2d(np.asarray(u, float).T).T, np.atleast_2d(np.asarray(y, float).T).T
+        u, y = as_matrix(u, f"{name}: inputs", finite=False), as_matrix(y, f"{name}: outputs", finite=False)
         n = u.shape[0]
         if holdout:
             out.append(Record(name, u, y, n, n))
@@ -101,6 +102,6 @@ def split_records(fit: Sequence[tuple[str, np.ndarray, np.ndarray]],
                                 "(need at least 64 samples in each window)")
             out.append(Record(name, u, y, cut, cut))
     for name, u, y in holdout:
-        u, y = np.atleast_2d(np.asarray(u, float).T).T, np.atleast_2d(np.asarray(y, float).T).T
+        u, y = as_matrix(u, f"{name}: inputs", finite=False), as_matrix(y, f"{name}: outputs", finite=False)
         out.append(Record(f"holdout:{name}", u, y, 0, 0))
     return tuple(out)

@@ -11,9 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ebb_model.arrays import as_matrix
 from ebb_model.errors import DataError
 
-from .localise import Localisation, _matrix, estimate_frf
+from .localise import Localisation, estimate_frf
 
 __all__ = ["plot_localisation"]
 
@@ -46,7 +47,7 @@ def plot_localisation(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray
         ``residuals.png``, ``frf.png``, ``windows.png``, ``amplitude.png``,
         ``correlation.png``, ``bands.png``.
     """
-    u2, y2, yh2 = _matrix(u, "u"), _matrix(y, "y"), _matrix(y_hat, "y_hat")
+    u2, y2, yh2 = as_matrix(u, "u"), as_matrix(y, "y"), as_matrix(y_hat, "y_hat")
     if y2.shape != yh2.shape or y2.shape[1] != len(loc.sensor_names) or u2.shape[0] != y2.shape[0] \
             or u2.shape[1] != len(loc.input_names):
         raise DataError(f"plot_localisation: data shapes u {u2.shape}, y {y2.shape}, y_hat {yh2.shape} do not "

@@ -13,10 +13,11 @@ from typing import Mapping
 
 import numpy as np
 
-from .config import BeamConfig, check_parameter_values
+from .config import BeamConfig
 from .discretisation import discretise
 from .errors import StabilityError
 from .exact_modal import exact_model
+from .parameter_values import resolve_parameters
 from .statespace import DiscreteStateSpace
 from .theta_scheme import discretise_time
 
@@ -30,7 +31,7 @@ def check_stable(config: BeamConfig, params: Mapping[str, float], spectral_radiu
         return
     from .stability.dispersion import stability_bounds
 
-    p = check_parameter_values(config.parameter_values() | dict(params))
+    p = resolve_parameters(config, params)
     bounds = stability_bounds(config, p)
     culprits = [f"{k} = {p[k]:g} lies outside the Bistritz bounds [{lo:g}, {hi:g}]"
                 for k, (lo, hi) in bounds.items() if lo == lo and not lo <= p[k] <= hi]
@@ -65,7 +66,7 @@ def assemble(config: BeamConfig, params: Mapping[str, float] | None = None, *,
     ------
     ParameterError, StabilityError
     """
-    p = config.parameter_values() | dict(params or {})
+    p = resolve_parameters(config, params)
     ts = config.time
     if ts.scheme == "exact":
         model = exact_model(config, p)
@@ -110,7 +111,7 @@ def assemble_modal(config: BeamConfig, params: Mapping[str, float] | None = None
     """
     from .simulate import fast_model
 
-    p = config.parameter_values() | dict(params or {})
+    p = resolve_parameters(config, params)
     # the field comes as extra displacement outputs at every grid node, so it gets
     # the same (first-order-hold) feedthrough as the sensors
     modal = fast_model(field_config(config) if field else config, p)

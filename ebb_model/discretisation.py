@@ -68,7 +68,8 @@ from typing import Mapping
 
 import numpy as np
 
-from .config import BeamConfig, check_parameter_values
+from .config import BeamConfig
+from .parameter_values import resolve_parameters
 
 __all__ = ["SemiDiscreteBeam", "discretise", "grid_nodes", "hat_weights", "rotary_mass"]
 
@@ -220,8 +221,7 @@ def discretise(config: BeamConfig, params: Mapping[str, float] | None = None) ->
     ParameterError
         When a parameter is missing, non-finite or out of its physical range.
     """
-    values = config.parameter_values() | dict(params or {})
-    p = check_parameter_values(values)
+    p = resolve_parameters(config, params)
     EI, rhoA, c, eta, N = p["EI"], p["rhoA"], p["c"], p["eta"], p["N"]
     rhoI, kf = p["rhoI"], p["kf"]
     L, n = config.beam.length, config.beam.nodes

@@ -29,6 +29,7 @@ from .config import BeamConfig
 from .discretisation import discretise
 from .exact_modal import _lowest_modes, companion_config, richardson_modes
 from .modal import discrete_frequencies
+from .parameter_values import resolve_parameters
 
 __all__ = ["GridAdvice", "grid_advice", "BANDWIDTH_FRACTION", "ZETA_FLOOR"]
 
@@ -129,7 +130,7 @@ def grid_advice(config: BeamConfig, params: Mapping[str, float] | None = None, *
                 band_hz: float | None = None) -> GridAdvice:
     """How well the config's grid resolves the modes up to ``band_hz`` (default: the first ``n_modes``),
     and which grid would (see the module docstring)."""
-    p = config.parameter_values() | dict(params or {})
+    p = resolve_parameters(config, params)
     f, zeta = discrete_frequencies(config, p)
     k = int(np.count_nonzero(f <= band_hz)) if band_hz is not None else min(n_modes, f.size)
     k = min(max(k, 1), f.size)

@@ -20,6 +20,7 @@ import scipy.linalg as sla
 from .config import BeamConfig
 from .discretisation import discretise
 from .modal_form import ModalStateSpace, is_proportional
+from .parameter_values import resolve_parameters
 from .statespace import DiscreteStateSpace
 
 __all__ = ["ModalAnalysis", "modes", "FrequencyResponse", "frequency_response", "discrete_frequencies"]
@@ -102,11 +103,12 @@ def discrete_frequencies(config: BeamConfig, params: Mapping[str, float] | None 
     from .exact_modal import modal_poles
     from .theta_scheme import discretise_time
 
+    p = resolve_parameters(config, params)
     if config.time.scheme == "exact":   # exact in time: the poles of the Richardson modes themselves
-        s = modal_poles(config, config.parameter_values() | dict(params or {}))
+        s = modal_poles(config, p)
         s = s[s.imag >= 0]
     else:
-        beam = discretise(config, params)
+        beam = discretise(config, p)
         tau = config.time.dt / config.time.substeps
         lam = discretise_time(beam, tau, config.time.theta, 1).poles()
         lam = lam[(lam.imag >= 0) & (np.abs(lam) > 0)]

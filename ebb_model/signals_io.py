@@ -1,17 +1,17 @@
-"""Reading input signals from CSV files (a ``time`` column plus named columns)."""
+"""Signals in CSV files: reading inputs (a ``time`` column plus named columns), simulating a config on them
+(:func:`simulate_files`, what ``ebb simulate`` does)."""
 from __future__ import annotations
 
-import csv
-import math
 from pathlib import Path
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
-from .errors import DataError
-from .textio import printable, quote, read_text
+from .csvio import read_csv_table
+from .errors import ConfigError, DataError
+from .textio import printable, quote
 
-__all__ = ["read_signal_csv", "check_time_vector"]
+__all__ = ["read_signal_csv", "check_time_vector", "simulate_files"]
 
 
 def check_time_vector(t: np.ndarray, dt: float | None = None, *, where: str = "time",
@@ -47,6 +47,9 @@ def read_signal_csv(path: str | Path, columns: Sequence[str], *, dt: float | Non
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Read ``time`` and the named columns from a CSV file with a header row.
 
+    The file follows the rules of :func:`ebb_model.csvio.read_csv_table` (the same as every CSV
+    experiment file).
+
     Parameters
     ----------
     path
@@ -70,42 +73,61 @@ def read_signal_csv(path: str | Path, columns: Sequence[str], *, dt: float | Non
         Unreadable file, missing columns, non-numeric or non-finite values,
         non-monotonic time or inconsistent sample time.
     """
-    p = Path(path)
-    reader = csv.reader(read_text(p, DataError, what="CSV file").splitlines())
-    try:
-        header = [h.strip() for h in next(reader)]
-    except StopIteration:
-        raise DataError(f"{p}: empty file") from None
-    except csv.Error as exc:
-        raise DataError(f"{p}, line 1: not a CSV header ({exc})") from None
-    missing = [c for c in ("time", *columns) if c not in header]
+    table = read_csv_table(path, what="CSV file")
+    missing = [c for c in ("time", *columns) if c not in table.names]
     if missing:
-        raise DataError(f"{p}: missing column(s) {', '.join(missing)}; found {printable(', '.join(header))}")
-    idx = [header.index(c) for c in ("time", *columns)]
-    rows: list[list[float]] = []
-    try:
-        for lineno, row in enumerate(reader, start=2):
-            if not row or all(not c.strip() for c in row):
-                continue
-            if len(row) != len(header):
-                raise DataError(f"{p}, line {lineno}: {len(row)} fields, expected {len(header)}")
-            vals = []
-            for j in idx:
-                try:
-                    v = float(row[j])
-                except ValueError:
-                    raise DataError(f"{p}, line {lineno}, column {quote(header[j])}: not a number "
-                                    f"({quote(row[j])})") from None
-                if not math.isfinite(v):
-                    raise DataError(f"{p}, line {lineno}, column {quote(header[j])}: non-finite value "
-                                    f"{quote(row[j])}")
-                vals.append(v)
-            rows.append(vals)
-    except csv.Error as exc:
-        raise DataError(f"{p}, line {reader.line_num}: malformed CSV ({exc})") from None
-    if not rows:
-        raise DataError(f"{p}: no data rows")
-    arr = np.asarray(rows)
-    t = arr[:, 0]
-    check_time_vector(t, dt, where=f"{p}: time")
-    return t, arr[:, 1:]
+        raise DataError(f"{table.source}: missing column(s) {', '.join(missing)}; "
+                        f"found {printable(', '.join(table.names))}")
+    arr = table.data[:, [table.names.index(c) for c in ("time", *columns)]]
+    bad = np.argwhere(~np.isfinite(arr[:, 1:]))
+    if bad.size:
+        k, j = bad[0]
+        raise DataError(f"{table.source}, column {quote(columns[j])}: non-finite value {float(arr[k, j + 1])!r} "
+                        f"at sample {k}")
+    t = np.ascontiguousarray(arr[:, 0])
+    check_time_vector(t, dt, where=f"{table.source}: time")
+    return t, np.ascontiguousarray(arr[:, 1:])
+
+
+def simulate_files(config_path: str | Path, input_csv: str | Path, out_csv: str | Path, *,
+                   params: Mapping[str, float] | None = None) -> Path:
+    """Read inputs from CSV, simulate on the fast path, write outputs to CSV (atomically).
+
+    Parameters
+    ----------
+    config_path : str or Path
+        TOML config file.
+    input_csv : str or Path
+        CSV with a ``time`` column sampled at the config's ``dt`` and one column per actuator
+        (:func:`read_signal_csv`).
+    out_csv : str or Path
+        CSV to write: ``time`` and one column per sensor.
+    params : mapping, optional
+        Parameter values instead of the config's nominal ones.
+
+    Returns
+    -------
+    Path
+        ``out_csv``.
+
+    Raises
+    ------
+    ConfigError, ParameterError, StabilityError, DataError
+        Nothing is written when anything fails.
+    """
+    from .assemble import check_stable
+    from .config import load_config
+    from .parameter_values import resolve_parameters
+    from .simulate import SimulationResult, fast_model, simulate
+
+    cfg = load_config(config_path)
+    out = Path(out_csv)
+    if not out.parent.is_dir():
+        raise ConfigError(f"`out_csv` {out}: directory {out.parent} does not exist")
+    t, u = read_signal_csv(input_csv, cfg.input_names, dt=cfg.time.dt)
+    p = resolve_parameters(cfg, params)
+    model = fast_model(cfg, p)
+    check_stable(cfg, p, model.spectral_radius())
+    res = simulate(model, u)
+    SimulationResult(t, res.outputs, res.output_names).to_csv(out)
+    return out

@@ -21,11 +21,13 @@ from typing import Mapping, Sequence
 import numba
 import numpy as np
 
+from .arrays import as_matrix
+from .atomic import atomic_path
 from .config import BeamConfig
 from .discretisation import discretise
-from .errors import DataError
 from .exact_modal import exact_model
 from .modal_form import ModalStateSpace, modal_from_beam, modal_from_theta
+from .parameter_values import resolve_parameters
 from .statespace import DiscreteStateSpace
 from .theta_scheme import discretise_time
 
@@ -138,26 +140,11 @@ class SimulationResult:
 
     def to_csv(self, path: str | Path) -> None:
         """Write ``time`` and one column per output (written atomically)."""
-        path = Path(path)
-        tmp = path.with_name(path.name + ".part")
-        with tmp.open("w", newline="") as fh:
+        with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["time", *self.output_names])
             for t, row in zip(self.time, self.outputs):
                 w.writerow([repr(float(t)), *(repr(float(v)) for v in row)])
-        tmp.replace(path)
-
-
-def _check_input(u: np.ndarray, ninputs: int) -> np.ndarray:
-    u = np.asarray(u, dtype=float)
-    if u.ndim == 1 and ninputs == 1:
-        u = u[:, None]
-    if u.ndim != 2 or u.shape[1] != ninputs:
-        raise DataError(f"input has shape {u.shape}, expected (n_samples, {ninputs})")
-    if not np.all(np.isfinite(u)):
-        bad = np.argwhere(~np.isfinite(u))[0]
-        raise DataError(f"input contains a non-finite value at sample {bad[0]}, column {bad[1]}")
-    return np.ascontiguousarray(u)
 
 
 def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
@@ -182,7 +169,7 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
         ``y[k] = C x[k] + D u[k]`` at ``t_k = k dt``.
     """
     if isinstance(system, ModalStateSpace):
-        u = _check_input(u, system.D.shape[1])
+        u = as_matrix(u, "input", shape=(None, system.D.shape[1]))
         y = np.empty((u.shape[0], system.D.shape[0]))
         T, G, Cm = system.T, system.G, system.Cm
         if x0 is not None:
@@ -203,7 +190,7 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
                       np.ascontiguousarray(D), np.ascontiguousarray(U), y,
                       np.ascontiguousarray(z[:, 0]), np.ascontiguousarray(z[:, 1]))
     else:
-        u = _check_input(u, system.ninputs)
+        u = as_matrix(u, "input", shape=(None, system.ninputs))
         y = np.empty((u.shape[0], system.noutputs))
         if x0 is not None:
             x = np.asarray(x0, dtype=float).reshape(system.nstates)
@@ -228,9 +215,10 @@ def fast_model(config: BeamConfig, params: Mapping[str, float] | None = None
     this never raises for want of one.  Stability is **not** checked here (see :func:`ebb_model.assemble`).
     """
     ts = config.time
+    p = resolve_parameters(config, params)
     if ts.scheme == "exact":
-        return exact_model(config, config.parameter_values() | dict(params or {}))
-    beam = discretise(config, params)
+        return exact_model(config, p)
+    beam = discretise(config, p)
     modal = modal_from_beam(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold)
     if modal is None:
         modal = modal_from_theta(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold)
@@ -273,7 +261,7 @@ def simulate_batch(config: BeamConfig, params: Sequence[Mapping[str, float]] | n
         sets = [dict(zip(names, map(float, row))) for row in params]
     else:
         sets = [dict(p) for p in params]
-    u = _check_input(u, len(config.actuators))
+    u = as_matrix(u, "input", shape=(None, len(config.actuators)))
     out = np.empty((len(sets), u.shape[0], len(config.sensors)))
     for i, p in enumerate(sets):
         out[i] = simulate(fast_model(config, p), u).outputs

@@ -5,8 +5,8 @@
     x[k+1] = A x[k] + B u[k], \\qquad y[k] = C x[k] + D u[k], \\qquad t_k = k\\,dt.
 
 Following python-control's ``statesp.py`` habit, every matrix passes through
-one normaliser (:func:`_matrix`) that makes a read-only float 2-D copy and
-checks its shape; operations return new objects.  Signals carry names from
+one normaliser (:func:`ebb_model.arrays.as_matrix`) that makes a read-only
+float 2-D copy and checks its shape; operations return new objects.  Signals carry names from
 the start (actuator and sensor names of the config).
 """
 from __future__ import annotations
@@ -16,23 +16,16 @@ from typing import Sequence
 
 import numpy as np
 
+from .arrays import as_matrix
+from .checks import finite_scalar
 from .errors import ConfigError
 
 __all__ = ["DiscreteStateSpace", "common_timebase", "with_input_delays"]
 
 
 def _matrix(name: str, value, shape: tuple[int | None, int | None]) -> np.ndarray:
-    """Read-only float64 2-D copy of ``value`` with the expected shape."""
-    a = np.array(value, dtype=float, copy=True)
-    if a.ndim != 2:
-        raise ConfigError(f"{name} must be 2-D, got {a.ndim}-D array")
-    exp = tuple(a.shape[i] if s is None else s for i, s in enumerate(shape))
-    if a.shape != exp:
-        raise ConfigError(f"{name} has shape {a.shape}, expected {exp}")
-    if not np.all(np.isfinite(a)):
-        raise ConfigError(f"{name} contains non-finite entries")
-    a.setflags(write=False)
-    return a
+    """Read-only float64 2-D copy of ``value`` with the expected shape (a :class:`ConfigError` otherwise)."""
+    return as_matrix(value, name, shape=shape, vector=False, readonly=True, error=ConfigError, row="row")
 
 
 def _names(kind: str, names: Sequence[str] | None, n: int, prefix: str) -> tuple[str, ...]:
@@ -96,9 +89,7 @@ class DiscreteStateSpace:
         D = _matrix("D", self.D, (C.shape[0], B.shape[1]))
         if self.hold is not None:
             object.__setattr__(self, "hold", _matrix("hold", self.hold, (n, B.shape[1])))
-        dt = float(self.dt)
-        if not np.isfinite(dt) or dt <= 0:
-            raise ConfigError(f"dt must be a finite number > 0, got {self.dt!r}")
+        dt = finite_scalar("dt", self.dt, minimum=0.0, strict=True, error=ConfigError)
         object.__setattr__(self, "A", A)
         object.__setattr__(self, "B", B)
         object.__setattr__(self, "C", C)

@@ -125,7 +125,7 @@ def swap_difference(ev: NativeEvaluator, x: np.ndarray) -> float:
     c, params = ev.space.apply(ev.config, xs)
     u = ev.experiments[0].inputs
     a = em.simulate(em.fast_model(c, params), u).outputs
-    b = ev.simulate(np.asarray(x, dtype=float))[0][0]
+    b = ev.simulate(np.asarray(x, dtype=float)).outputs[0]
     return float(np.linalg.norm(a - b) / np.linalg.norm(b))
 
 
@@ -147,7 +147,7 @@ def run_case(data: Path, out: Path, *, quick: bool, seed: int, pop: int | None, 
     half = len(y) // 2
 
     def fit(x: np.ndarray) -> dict[str, float]:
-        sims, _ = ev.simulate(np.asarray(x, dtype=float))
+        sims = ev.simulate(np.asarray(x, dtype=float)).outputs
         return {"nrmse": float(nrmse(sims[0], y)[0]), "nrmse_second_half": float(nrmse(sims[0][half:], y[half:])[0])}
 
     t0 = time.perf_counter()

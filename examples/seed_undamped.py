@@ -45,6 +45,7 @@ from typing import Any, Sequence
 import numpy as np
 
 import ebb_model as em
+from ebb_model.parameter_values import resolve_parameters
 from identification.parameters import parameter_space
 from identification.run import identify, load_identification_config
 
@@ -61,7 +62,7 @@ SETTINGS = {"full": {"samples": 3000, "pop": 40, "generations": 60},
 
 def classify(cfg: em.BeamConfig, params: dict[str, float]) -> dict[str, Any]:
     """Growth factor, decay rate, spectral radius, Bistritz margin and verdict of one parameter set."""
-    full = cfg.parameter_values() | params
+    full = resolve_parameters(cfg, params)
     g = em.max_growth_factor(cfg, full)
     tau = cfg.time.dt / cfg.time.substeps
     rho = em.fast_model(cfg, full).spectral_radius()

@@ -6,11 +6,9 @@ Flat functional API in FMPy's style::
     build_fmu("examples/seed_clamped.toml", "beam.fmu", field=False)
     build_standalone_fmu("examples/seed_clamped.toml", "beam_c.fmu")   # C, no Python at run time
 
-and the ``ebb build-fmu`` sub-command (:func:`add_parser`,
-:func:`run_build_fmu`).  See the "FMU" section of the project README.
+The ``ebb build-fmu`` sub-command lives in :mod:`ebb_cli.fmu`.  See the "FMU" section of the project README.
 """
 from .builder import build_fmu
-from .cli import add_parser, run_build_fmu
 from .standalone import build_standalone_fmu
 
-__all__ = ["build_fmu", "build_standalone_fmu", "add_parser", "run_build_fmu"]
+__all__ = ["build_fmu", "build_standalone_fmu"]

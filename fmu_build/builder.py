@@ -29,6 +29,7 @@ import pythonfmu
 
 from ebb_model import PARAMETER_NAMES, BeamConfig, assemble, load_config
 from ebb_model.assemble import assemble_modal
+from ebb_model.atomic import atomic_path
 from ebb_model.errors import FmuError
 
 from . import slave_template
@@ -141,7 +142,7 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
     else:
         cfg, base = load_config(config), Path(config).stem
     out = Path(out)
-    parent = _check_output(out)
+    _check_output(out)
     _check_names(cfg)
     system = assemble(cfg)  # nominal parameters must give a valid, stable model
     runtime = find_python_runtime()
@@ -157,9 +158,8 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
         "build_python": sys.executable,
     }
 
-    tmp_path = parent / f".{out.name}.{uuid.uuid4().hex[:8]}.part"
     try:
-        with tempfile.TemporaryDirectory(prefix="ebb_fmu_") as staging_dir:
+        with tempfile.TemporaryDirectory(prefix="ebb_fmu_") as staging_dir, atomic_path(out) as tmp_path:
             staging = Path(staging_dir)
             resources = staging / "resources"
             write_resources(resources, identity=identity, spec=spec)
@@ -183,10 +183,6 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
                 for f in sorted(staging.rglob("*")):
                     if f.is_file() and "__pycache__" not in f.parts:
                         zf.write(f, f.relative_to(staging).as_posix())
-        os.replace(tmp_path, out)
     except OSError as exc:
         raise FmuError(f"{out}: cannot write the FMU ({exc.strerror or exc})", function="build_fmu") from None
-    finally:
-        if tmp_path.exists():
-            tmp_path.unlink()
     return out

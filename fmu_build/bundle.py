@@ -6,7 +6,7 @@ Layout written by :func:`write_resources`::
       slavemodule.txt          name of the entry module (read by pythonfmu's binary)
       <modelIdentifier>.py     entry module: imports the slave class, nothing else
       <modelIdentifier>_slave.py  the slave (slave_template.py, class renamed)
-      <core_package>/          a private copy of ebb_model's sources
+      <core_package>/          a private copy of the ebb_model modules the slave imports
       pythonfmu/               pythonfmu's Python runtime (as pythonfmu's own builder does)
       ebb_fmu.json             the config (JSON) and build options
 
@@ -22,6 +22,10 @@ uninstalled, and two FMUs (or an FMU and the project itself) never share a
 ``sys.modules`` entry, so each runs exactly the core it was built and tested
 with.  ``ebb_model`` uses relative imports internally; any absolute
 ``import ebb_model...`` statement in the copy is rewritten to the new name.
+
+Only the model core goes in: :func:`core_modules` follows the imports (at module level and inside functions)
+from the modules the slave imports (:data:`~fmu_build.slave_template.CORE_MODULES`), so the reference
+solutions, the data generator and the file readers stay out.
 """
 from __future__ import annotations
 
@@ -31,7 +35,7 @@ import json
 import shutil
 import tokenize
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Collection, Mapping, Sequence
 
 import pythonfmu
 
@@ -41,7 +45,7 @@ from ebb_model.errors import FmuError
 from . import slave_template
 from .model_description import FmuIdentity
 
-__all__ = ["write_resources", "copy_package", "render_slave", "render_entry"]
+__all__ = ["write_resources", "copy_package", "core_modules", "render_slave", "render_entry"]
 
 _SKIP_DIRS = {"__pycache__"}
 
@@ -130,7 +134,65 @@ def _rename_imports(source: str, old: str, new: str) -> str:
     return "".join(text)
 
 
-def copy_package(src: Path, dest: Path, *, old_name: str, new_name: str) -> None:
+def _module_file(src: Path, parts: tuple[str, ...]) -> Path | None:
+    """The source file of module ``parts`` of the package in ``src`` (``None``: no such module)."""
+    path = src.joinpath(*parts)
+    if (path / "__init__.py").is_file():
+        return path / "__init__.py"
+    if path.with_suffix(".py").is_file():
+        return path.with_suffix(".py")
+    return None
+
+
+def core_modules(src: Path, package: str, entries: Sequence[str]) -> list[Path]:
+    """Source files of the package in ``src`` that ``entries`` need: their import closure within the package.
+
+    Every import statement of a reached module counts, at module level or inside a function (a function the
+    slave calls may import lazily); ``from . import name`` counts when ``name`` is a module. The packages
+    containing a reached module are reached too.
+
+    Parameters
+    ----------
+    src : Path
+        Package directory (contains ``__init__.py``).
+    package : str
+        The package's import name (for absolute self-imports).
+    entries : sequence of str
+        Modules imported from outside, relative to the package: ``""`` for the package, ``".beam"``.
+
+    Returns
+    -------
+    list of Path
+        Sorted source files.
+    """
+    todo = [tuple(m.split(".")[1:]) for m in entries]
+    seen: set[Path] = set()
+    while todo:
+        parts = todo.pop()
+        path = _module_file(src, parts)
+        if path is None or path in seen:
+            continue
+        seen.add(path)
+        todo += [parts[:i] for i in range(len(parts))]
+        here = parts if path.name == "__init__.py" else parts[:-1]
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = here[:len(here) - (node.level - 1)]
+                    module = base + tuple(node.module.split(".")) if node.module else base
+                elif node.module and node.module.split(".")[0] == package:
+                    module = tuple(node.module.split(".")[1:])
+                else:
+                    continue
+                todo.append(module)
+                todo += [module + (a.name,) for a in node.names]
+            elif isinstance(node, ast.Import):
+                todo += [tuple(a.name.split(".")[1:]) for a in node.names if a.name.split(".")[0] == package]
+    return sorted(seen)
+
+
+def copy_package(src: Path, dest: Path, *, old_name: str, new_name: str,
+                 only: Collection[Path] | None = None) -> None:
     """Copy the package directory ``src`` to ``dest``, renaming absolute self-imports.
 
     Parameters
@@ -141,8 +203,12 @@ def copy_package(src: Path, dest: Path, *, old_name: str, new_name: str) -> None
         Directory to create.
     old_name, new_name
         The package's import name and the name of the copy.
+    only
+        The files to copy (e.g. :func:`core_modules`); default every file.
     """
     for path in sorted(src.rglob("*")):
+        if only is not None and path not in only:
+            continue
         rel = path.relative_to(src)
         if any(part in _SKIP_DIRS for part in rel.parts) or path.is_dir():
             continue
@@ -176,7 +242,9 @@ def write_resources(resources: Path, *, identity: FmuIdentity, spec: Mapping[str
     (resources / slave_template.SPEC_FILE).write_text(json.dumps(spec, indent=2, allow_nan=False),
                                                        encoding="utf-8")
     core_src = Path(ebb_model.__file__).parent
-    copy_package(core_src, resources / identity.core_package, old_name="ebb_model", new_name=identity.core_package)
+    needed = core_modules(core_src, "ebb_model", slave_template.CORE_MODULES)
+    copy_package(core_src, resources / identity.core_package, old_name="ebb_model", new_name=identity.core_package,
+                 only=set(needed))
     runtime = resources / "pythonfmu"
     runtime.mkdir()
     for f in Path(pythonfmu.__file__).parent.glob("*.py"):

@@ -73,11 +73,15 @@ import numpy as np  # noqa: E402 - after the requirement check
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String  # noqa: E402
 from pythonfmu.enums import Fmi2Status  # noqa: E402
 
-__all__ = ["BeamSlave", "CORE_PACKAGE", "SPEC_FILE", "STEP_TOLERANCE", "FIELD_NAME", "REQUIRED_PACKAGES"]
+__all__ = ["BeamSlave", "CORE_PACKAGE", "CORE_MODULES", "SPEC_FILE", "STEP_TOLERANCE", "FIELD_NAME",
+           "REQUIRED_PACKAGES"]
 
 #: Package that provides ``config_from_dict``, ``assemble`` and ``field_matrix``.
 #: The builder rewrites this line to the FMU's bundled copy.
 CORE_PACKAGE = "ebb_model"
+
+#: The core's modules the slave imports (``""``: the package itself); the FMU bundles them and what they import.
+CORE_MODULES = ("", ".beam")
 
 #: A step ``h`` is accepted when ``|h/dt - n| <= STEP_TOLERANCE`` for an integer ``n >= 1``.
 STEP_TOLERANCE = 1e-6
@@ -85,8 +89,7 @@ STEP_TOLERANCE = 1e-6
 #: Base name of the deflection outputs ``w[0] ... w[nodes+1]`` (``field=True``).
 FIELD_NAME = "w"
 
-_core = importlib.import_module(CORE_PACKAGE)
-_beam = importlib.import_module(CORE_PACKAGE + ".beam")
+_core, _beam = (importlib.import_module(CORE_PACKAGE + m) for m in CORE_MODULES)
 
 
 class BeamSlave(Fmi2Slave):

@@ -58,7 +58,7 @@ def parse_local_address(address: str) -> int | None:
         return None  # a scheduler address, e.g. tcp://10.0.0.5:8786 or localhost:8786
     m = _LOCAL.fullmatch(address)
     if m is None or int(m.group(1)) < 1:
-        raise ConfigError(f"--dask {address!r}: expected a scheduler address or local:K with K >= 1 workers")
+        raise ConfigError(f"`dask` {address!r}: expected a scheduler address or local:K with K >= 1 workers")
     return int(m.group(1))
 
 

@@ -19,6 +19,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ebb_model import DiscreteStateSpace
+from ebb_model.atomic import atomic_path
 from ebb_model.beam import PARAMETER_UNITS
 from ebb_model.errors import ConfigError, StabilityError
 from ebb_model.jsonio import jsonable
@@ -31,7 +32,6 @@ def save_statespace(sys: DiscreteStateSpace, path: str | Path, *, name: str = ""
                     ) -> Path:
     """Write ``sys`` to ``path`` (``.npz``), atomically, with its name, parameter values (and units) and config."""
     path = Path(path)
-    tmp = path.with_name(path.name + ".part.npz")
     meta = {"name": name or path.stem,
             "parameters": {k: float(v) for k, v in (parameters or {}).items()},
             "units": {k: PARAMETER_UNITS.get(k, "m" if k.startswith("x_") else "")
@@ -39,10 +39,10 @@ def save_statespace(sys: DiscreteStateSpace, path: str | Path, *, name: str = ""
             "signal_units": {**{u: "N" for u in sys.input_names},
                              **({s.name: s.unit for s in _sensors(config)} if config else {})},
             "config": jsonable(dict(config)) if config else None}
-    np.savez(tmp, A=sys.A, B=sys.B, C=sys.C, D=sys.D, dt=np.array(sys.dt),
-             inputs=np.array(sys.input_names), outputs=np.array(sys.output_names),
-             states=np.array(sys.state_names), metadata=np.array(json.dumps(meta)))
-    tmp.replace(path)
+    with atomic_path(path, suffix=".npz") as tmp:
+        np.savez(tmp, A=sys.A, B=sys.B, C=sys.C, D=sys.D, dt=np.array(sys.dt),
+                 inputs=np.array(sys.input_names), outputs=np.array(sys.output_names),
+                 states=np.array(sys.state_names), metadata=np.array(json.dumps(meta)))
     return path
 
 

@@ -69,11 +69,11 @@ def sensitivities(evaluator: NativeEvaluator, x: np.ndarray, *, rel_step: float 
     def at(j: int, step: float) -> list[np.ndarray]:
         xs = x.copy()
         xs[j] += step
-        y, _ = evaluator.simulate(xs)
-        if not y:
+        sim = evaluator.simulate(xs)
+        if not sim.stable:
             raise StabilityError(f"the model is unstable next to the point (parameter {evaluator.space.names[j]}); "
                                  "the Fisher information is not defined there")
-        return y
+        return list(sim.outputs)
 
     for j in range(dim):
         h = rel_step * s[j]

@@ -40,7 +40,7 @@ from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError, FmuError, ParameterError
 
 from .native import ExperimentArrays
-from .objectives import PENALTY, output_errors
+from .objectives import PENALTY, SimulationOutcome, output_errors
 from .parameters import ParameterSpace
 
 __all__ = ["FmuEvaluator"]
@@ -151,7 +151,7 @@ class FmuEvaluator:
 
     def __post_init__(self) -> None:
         if any(self.space.is_position(n) for n in self.space.names):
-            raise ConfigError("--backend fmu: positions are fixed inside an FMU; identify them with the native "
+            raise ConfigError("`backend` fmu: positions are fixed inside an FMU; identify them with the native "
                               "backend")
         self.parameter_names = tuple(self.parameter_names or self.space.names)
         self.input_names = tuple(self.input_names or self.config.input_names)
@@ -159,7 +159,7 @@ class FmuEvaluator:
         if len(self.parameter_names) != self.space.dim:
             raise ConfigError(f"FMU parameter names: {len(self.parameter_names)} given, {self.space.dim} unknowns")
         if not Path(self.fmu_path).is_file():
-            raise ConfigError(f"--fmu {self.fmu_path}: no such file")
+            raise ConfigError(f"`fmu_path` {self.fmu_path}: no such file")
 
     @property
     def n_obj(self) -> int:
@@ -186,8 +186,9 @@ class FmuEvaluator:
         """Free this process's FMU instances of this run, if any (a later evaluation creates a new one)."""
         _registry().release(self.token)
 
-    def simulate(self, x: np.ndarray) -> tuple[list[np.ndarray], bool]:
-        """Outputs per experiment for candidate ``x``; empty list when the FMU refuses the parameters."""
+    def simulate(self, x: np.ndarray) -> SimulationOutcome:
+        """Outputs per experiment for candidate ``x``; not simulated when the FMU refuses the parameters (the
+        spectral radius is not known here)."""
         inst = self._instance()
         fmu = inst.fmu
         vr_p = [inst.vr[n] for n in self.parameter_names]
@@ -205,7 +206,7 @@ class FmuEvaluator:
                 fmu.setReal(vr_p, [float(v) for v in x])
                 fmu.exitInitializationMode()
             except Exception:  # noqa: BLE001 - fmpy raises on fmi2Error: parameters refused
-                return [], False
+                return SimulationOutcome((), False)
             y = np.empty((e.inputs.shape[0], len(vr_y)))
             t = 0.0
             for k in range(e.inputs.shape[0]):
@@ -214,23 +215,23 @@ class FmuEvaluator:
                 fmu.doStep(currentCommunicationPoint=t, communicationStepSize=dt)
                 t = (k + 1) * dt
             outs.append(y)
-        return outs, True
+        return SimulationOutcome(tuple(outs), True)
 
     def objectives(self, x: np.ndarray) -> np.ndarray:
         """Objective vector of candidate ``x`` (same definitions and penalties as the native backend)."""
-        cfg, params = self.space.apply(self.config, x)
         try:
+            cfg, params = self.space.apply(self.config, x)
             g = max_growth_factor(cfg, params) if self.stabilising else 0.0
         except ParameterError:
             return np.full(self.n_obj, 2 * PENALTY)  # as the native backend: never handed to the FMU
         n_err = self.n_obj - int(self.stabilising)
-        sims, ok = self.simulate(x)
-        if not ok:
-            errs = np.full(n_err, PENALTY + 1.0)
+        sim = self.simulate(x)
+        if not sim.stable:
+            errs = np.full(n_err, sim.penalty)
         else:
-            errs = output_errors(sims, [e.outputs for e in self.experiments], per=self.per)
+            errs = output_errors(sim.outputs, [e.outputs for e in self.experiments], per=self.per)
             if not np.all(np.isfinite(errs)):
-                errs = np.full(n_err, PENALTY + 1.0)
+                errs = np.full(n_err, sim.penalty)
         return np.concatenate([errs, [g]]) if self.stabilising else errs
 
     def evaluate(self, X: np.ndarray) -> np.ndarray:

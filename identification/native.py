@@ -7,15 +7,16 @@ every experiment and to the objective vector.  It is a plain picklable value
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
 from ebb_model import fast_model, max_growth_factor, simulate
+from ebb_model.arrays import as_matrix
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ParameterError
 
-from .objectives import PENALTY, output_errors
+from .objectives import PENALTY, SimulationOutcome, output_errors
 from .parameters import ParameterSpace
 
 __all__ = ["ExperimentArrays", "NativeEvaluator", "experiments_from_arrays"]
@@ -32,8 +33,8 @@ class ExperimentArrays:
 
 def experiments_from_arrays(items: Sequence[tuple[str, np.ndarray, np.ndarray]]) -> tuple[ExperimentArrays, ...]:
     """``(name, inputs, outputs)`` triples to :class:`ExperimentArrays` (1-D signals become columns)."""
-    return tuple(ExperimentArrays(n, np.atleast_2d(np.asarray(u, float).T).T,
-                                  np.atleast_2d(np.asarray(y, float).T).T) for n, u, y in items)
+    return tuple(ExperimentArrays(n, as_matrix(u, f"{n}: inputs", finite=False),
+                                  as_matrix(y, f"{n}: outputs", finite=False)) for n, u, y in items)
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,32 +67,33 @@ class NativeEvaluator:
         n = len(self.config.sensors) if self.per == "sensor" else len(self.experiments)
         return n + int(self.stabilising)
 
-    def simulate(self, x: np.ndarray) -> tuple[list[np.ndarray], float]:
-        """Simulated outputs per experiment and the spectral radius of Φ for candidate ``x``."""
+    def simulate(self, x: np.ndarray) -> SimulationOutcome:
+        """Simulated outputs per experiment and the spectral radius of Φ for candidate ``x`` (not simulated
+        when it exceeds one)."""
         return self._simulate(*self.space.apply(self.config, x))
 
-    def _simulate(self, cfg: BeamConfig, params: dict[str, float]) -> tuple[list[np.ndarray], float]:
+    def _simulate(self, cfg: BeamConfig, params: Mapping[str, float]) -> SimulationOutcome:
         model = fast_model(cfg, params)
         rho = model.spectral_radius()
         if rho > 1.0 + 1e-9:
-            return [], rho
-        return [simulate(model, e.inputs).outputs for e in self.experiments], rho
+            return SimulationOutcome((), False, rho)
+        return SimulationOutcome(tuple(simulate(model, e.inputs).outputs for e in self.experiments), True, rho)
 
     def objectives(self, x: np.ndarray) -> np.ndarray:
         """Objective vector of candidate ``x`` (finite, penalised when unstable)."""
         try:
             cfg, params = self.space.apply(self.config, x)
             g = max_growth_factor(cfg, params) if self.stabilising else 0.0
-            sims, rho = self._simulate(cfg, params)
+            sim = self._simulate(cfg, params)
         except ParameterError:
             return np.full(self.n_obj, 2 * PENALTY)
         n_err = self.n_obj - int(self.stabilising)
-        if not sims:
-            errs = np.full(n_err, PENALTY + rho)
+        if not sim.stable:
+            errs = np.full(n_err, sim.penalty)
         else:
-            errs = output_errors(sims, [e.outputs for e in self.experiments], per=self.per)
+            errs = output_errors(sim.outputs, [e.outputs for e in self.experiments], per=self.per)
             if not np.all(np.isfinite(errs)):
-                errs = np.full(n_err, PENALTY + rho)
+                errs = np.full(n_err, sim.penalty)
         return np.concatenate([errs, [g]]) if self.stabilising else errs
 
     def evaluate(self, X: np.ndarray) -> np.ndarray:

@@ -28,6 +28,8 @@ from typing import Sequence
 import numpy as np
 from scipy import signal
 
+from ebb_model.arrays import as_matrix
+from ebb_model.checks import finite_scalar
 from ebb_model.errors import ConfigError, DataError
 
 __all__ = ["NoiseEstimate", "noise_estimate", "noise_std", "records_noise_std"]
@@ -62,16 +64,7 @@ class NoiseEstimate:
     f_range: tuple[float, float] | None
 
 
-def _as_2d(y: np.ndarray | list, name: str = "y") -> np.ndarray:
-    a = np.asarray(y, dtype=float)
-    if a.ndim == 1:
-        a = a[:, None]
-    if a.ndim != 2 or a.shape[0] == 0 or a.shape[1] == 0:
-        raise DataError(f"{name}: expected shape (n_samples,) or (n_samples, n_channels), got {np.shape(y)}")
-    bad = np.argwhere(~np.isfinite(a))
-    if len(bad):
-        raise DataError(f"{name}: non-finite value at sample {bad[0, 0]}, column {bad[0, 1]}")
-    return a
+
 
 
 def _difference_mad(y: np.ndarray) -> np.ndarray:
@@ -124,9 +117,8 @@ def noise_estimate(y: np.ndarray, dt: float, *, band: tuple[float, float] | None
     -------
     NoiseEstimate
     """
-    if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
-        raise ConfigError(f"dt: must be a finite number > 0, got {dt!r}")
-    a = _as_2d(y)
+    finite_scalar("dt", dt, minimum=0.0, strict=True, numbers_only=True, error=ConfigError)
+    a = as_matrix(y, "y", min_rows=1)
     n = a.shape[0]
     fs = 1.0 / dt
     fn = fs / 2.0

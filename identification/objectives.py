@@ -28,20 +28,50 @@ output-error objective, so the values stay finite and ordered (never NaN).
 """
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
-__all__ = ["PENALTY", "nrmse", "objective_names", "output_errors"]
+from ebb_model.arrays import as_matrix
+
+__all__ = ["PENALTY", "SimulationOutcome", "nrmse", "objective_names", "output_errors"]
 
 #: Objective value given to unstable candidates (plus their spectral radius).
 PENALTY = 1.0e3
 
 
+@dataclass(frozen=True, eq=False)
+class SimulationOutcome:
+    """What an evaluator's simulation of one candidate gave, whatever the backend.
+
+    Attributes
+    ----------
+    outputs
+        Simulated outputs per experiment, shape (n, n_sensors) each; empty when the candidate was not
+        simulated (unstable, or parameters refused by the FMU).
+    stable
+        Whether the candidate was simulated.
+    spectral_radius
+        Spectral radius of Φ when the backend knows it (native), NaN otherwise (FMU).
+    """
+
+    outputs: tuple[np.ndarray, ...]
+    stable: bool
+    spectral_radius: float = math.nan
+
+    @property
+    def penalty(self) -> float:
+        """Output-error objective of a candidate that was not simulated: :data:`PENALTY` plus its spectral
+        radius (1 when unknown)."""
+        return PENALTY + (self.spectral_radius if math.isfinite(self.spectral_radius) else 1.0)
+
+
 def nrmse(y_sim: np.ndarray, y_meas: np.ndarray) -> np.ndarray:
     """Normalised RMS error per column (see the module docstring)."""
-    y_sim = np.atleast_2d(np.asarray(y_sim, dtype=float).T).T
-    y_meas = np.atleast_2d(np.asarray(y_meas, dtype=float).T).T
+    y_sim = as_matrix(y_sim, "y_sim", finite=False)
+    y_meas = as_matrix(y_meas, "y_meas", finite=False)
     num = np.linalg.norm(y_sim - y_meas, axis=0)
     den = np.linalg.norm(y_meas - y_meas.mean(axis=0), axis=0)
     return num / np.where(den > 0, den, 1.0)

@@ -20,6 +20,7 @@ from pymoo.algorithms.moo.nsga2 import NSGA2
 from pymoo.algorithms.moo.nsga3 import NSGA3
 from pymoo.util.ref_dirs import get_reference_directions
 
+from ebb_model.atomic import atomic_path
 from ebb_model.errors import ConfigError
 
 from .problem import IdentificationProblem
@@ -121,12 +122,10 @@ def _algorithm(name: str, pop: int, n_obj: int):
 
 
 def _save_atomic(obj: object, path: Path) -> None:
-    tmp = path.with_name(path.name + ".part")
-    with tmp.open("wb") as fh:
+    with atomic_path(path) as tmp, tmp.open("wb") as fh:
         pickle.dump(obj, fh, protocol=pickle.HIGHEST_PROTOCOL)
         fh.flush()
         os.fsync(fh.fileno())
-    tmp.replace(path)
 
 
 def optimise(problem: IdentificationProblem, *, pop: int = 40, generations: int = 30, seed: int = 1,
@@ -145,13 +144,13 @@ def optimise(problem: IdentificationProblem, *, pop: int = 40, generations: int 
         Bad settings, or ``resume`` without a checkpoint in ``out_dir``.
     """
     if pop < 4:
-        raise ConfigError(f"--pop must be >= 4, got {pop}")
+        raise ConfigError(f"`pop` must be >= 4, got {pop}")
     if generations < 1:
-        raise ConfigError(f"--generations must be >= 1, got {generations}")
+        raise ConfigError(f"`generations` must be >= 1, got {generations}")
     ckpt = Path(out_dir) / CHECKPOINT if out_dir is not None else None
     if resume:
         if ckpt is None or not ckpt.exists():
-            raise ConfigError(f"--resume: no checkpoint {ckpt} to resume from")
+            raise ConfigError(f"`resume`: no checkpoint {ckpt} to resume from")
         with ckpt.open("rb") as fh:
             algo = pickle.load(fh)
         problem = algo.problem

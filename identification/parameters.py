@@ -16,13 +16,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Any, Mapping
+from typing import Mapping
 
 import numpy as np
 
 from ebb_model.beam import PARAMETER_NAMES
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
+from ebb_model.parameter_values import ParameterValues, resolve_parameters
+
+from .settings import identification_settings
 
 __all__ = ["ParameterSpace", "parameter_space"]
 
@@ -51,12 +54,21 @@ class ParameterSpace:
         """Whether ``name`` is a position unknown (``x_<actuator or sensor>``)."""
         return name.startswith("x_")
 
-    def apply(self, config: BeamConfig, x: np.ndarray) -> tuple[BeamConfig, dict[str, float]]:
-        """Config with moved positions and the physical parameter values of candidate ``x``."""
+    def apply(self, config: BeamConfig, x: np.ndarray) -> tuple[BeamConfig, ParameterValues]:
+        """Config with moved positions and the physical parameter values of candidate ``x``, resolved once.
+
+        Raises
+        ------
+        ValueError
+            ``x`` has the wrong shape.
+        ParameterError
+            The candidate's parameter values are not physical (see
+            :func:`ebb_model.parameter_values.resolve_parameters`).
+        """
         x = np.asarray(x, dtype=float)
         if x.shape != (self.dim,):
             raise ValueError(f"candidate has shape {x.shape}, expected ({self.dim},)")
-        params = config.parameter_values()
+        params: dict[str, float] = {}
         moves: dict[str, float] = {}
         for name, v in zip(self.names, x):
             if self.is_position(name):
@@ -69,7 +81,7 @@ class ParameterSpace:
                 actuators=tuple(replace(a, x=moves.get(a.name, a.x)) for a in config.actuators),
                 sensors=tuple(replace(s, x=moves.get(s.name, s.x)) for s in config.sensors),
             )
-        return config, params
+        return config, resolve_parameters(config, params)
 
     def to_dict(self, x: np.ndarray) -> dict[str, float]:
         """``{name: value}`` of a candidate."""
@@ -97,8 +109,7 @@ def parameter_space(config: BeamConfig, *, extra_positions: Mapping[str, tuple[f
             lo.append(spec.bounds[0])
             hi.append(spec.bounds[1])
             nom.append(spec.value)
-    ident: Any = config.extra.get("identification", {}) or {}
-    positions = dict(ident.get("positions", {}) if isinstance(ident, Mapping) else {})
+    positions = dict(identification_settings(config).positions)
     positions.update(extra_positions or {})
     points = {a.name: a.x for a in config.actuators} | {s.name: s.x for s in config.sensors}
     problems = []

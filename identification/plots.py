@@ -62,8 +62,8 @@ def plot_results(res: Any, evaluator: Any) -> list[str]:
     plt.close(fig)
     files.append("pareto_front.png")
 
-    sims, _ = evaluator.simulate(p.X[p.knee])
-    sims_pol = evaluator.simulate(polished[0].x)[0] if polished else []
+    sims = evaluator.simulate(p.X[p.knee]).outputs
+    sims_pol = evaluator.simulate(polished[0].x).outputs if polished else ()
     if sims:
         e0 = evaluator.experiments[0]
         n_out = e0.outputs.shape[1]

@@ -86,9 +86,9 @@ class ResidualEvaluator:
         """Residual vector of candidate ``x``, penalised when the model refuses it."""
         exps, scale = self.evaluator.experiments, self.scale
         try:
-            sims, _ = self.evaluator.simulate(np.asarray(x, dtype=float))
+            sims = self.evaluator.simulate(np.asarray(x, dtype=float)).outputs
         except ParameterError:
-            sims = []
+            sims = ()
         if not sims:
             return penalised(None, self.n_residuals)
         return penalised(np.concatenate([((y - e.outputs) / scale).ravel() for y, e in zip(sims, exps)]),

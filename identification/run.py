@@ -24,15 +24,15 @@ from __future__ import annotations
 
 import csv
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ebb_model import load_config, max_growth_factor
+from ebb_model import max_growth_factor
 from ebb_model.adequacy import NumericalAdequacy, numerical_adequacy
+from ebb_model.atomic import atomic_path
 from ebb_model.config import BeamConfig
 from ebb_model.threads import one_blas_thread
 from ebb_model.errors import ConfigError, StabilityError
@@ -48,6 +48,7 @@ from .parameters import ParameterSpace, parameter_space
 from .polish import polish as polish_point
 from .problem import IdentificationProblem
 from .runners import Runner, make_runner
+from .settings import identification_settings, load_identification_config
 
 __all__ = ["BACKENDS", "IdentificationResult", "PolishedPoint", "Progress", "identify",
            "load_identification_config", "read_data"]
@@ -56,33 +57,11 @@ BACKENDS = ("auto", "native", "fmu")
 #: Largest fit residual (in noise variances, per sensor) at which the Cramér–Rao bound is reported as valid: the
 #: bound assumes the model explains the data up to the noise.
 CRB_GAP_LIMIT = 2.0
-_DATA_KEYS = ("mapping", "units", "gains", "remove_offset", "pre_trigger", "band", "resample", "format")
-
-
-def load_identification_config(path: str | Path) -> BeamConfig:
-    """Load a config whose ``[identification]`` table is kept for this layer."""
-    cfg = load_config(path, extra_sections=("identification",))
-    ident = cfg.extra.get("identification", {})
-    if not isinstance(ident, Mapping):
-        raise ConfigError("identification: must be a table")
-    allowed = ("positions", "data", "noise_std", "per", "stabilising")
-    bad = [f"identification.{k}: unknown key; allowed: {', '.join(allowed)}" for k in ident if k not in allowed]
-    data = ident.get("data", {})
-    if not isinstance(data, Mapping):
-        bad.append("identification.data: must be a table")
-    else:
-        bad += [f"identification.data.{k}: unknown key; allowed: {', '.join(_DATA_KEYS)}"
-                for k in data if k not in _DATA_KEYS]
-    if bad:
-        raise ConfigError(bad)
-    return cfg
-
-
 def read_data(config: BeamConfig, paths: Sequence[str | Path]) -> tuple[Experiment, ...]:
     """Load and check the experiments with the options of ``[identification.data]``."""
     if not paths:
         raise ConfigError("DATA: at least one data file is required")
-    opts = dict(config.extra.get("identification", {}).get("data", {}))
+    opts = dict(identification_settings(config).data)
     exps = load_experiments(list(paths), config, **opts)
     for e in exps:
         e.check_against(config)
@@ -210,15 +189,15 @@ def _check_out_dir(out: Path, resume: bool) -> Path:
         if (out / CHECKPOINT).exists() and not finished:
             return out
         if finished:
-            raise ConfigError(f"--resume: the run in {out} has finished (pareto.json); nothing to resume")
-        raise ConfigError(f"--resume: {out} holds no interrupted `ebb identify` run (no {CHECKPOINT})")
+            raise ConfigError(f"`resume`: the run in {out} has finished (pareto.json); nothing to resume")
+        raise ConfigError(f"`resume`: {out} holds no interrupted `identify` run (no {CHECKPOINT})")
     if (out / CHECKPOINT).exists() and not finished:
-        raise ConfigError(f"--out {out}: holds an interrupted run; continue it with --resume, or choose a new "
+        raise ConfigError(f"`out_dir` {out}: holds an interrupted run; continue it with `resume`, or choose a new "
                           "directory")
     if finished:
-        raise ConfigError(f"--out {out}: holds a finished run; choose a new directory (export its points with "
-                          "`ebb export`)")
-    return check_new_output_dir(out)
+        raise ConfigError(f"`out_dir` {out}: holds a finished run; choose a new directory (export its points with "
+                          "`export_points`)")
+    return check_new_output_dir(out, name="out_dir")
 
 
 @one_blas_thread
@@ -259,28 +238,29 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         Bad config, data or settings — before anything is written.
     """
     cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
-    ident = dict(cfg.extra.get("identification", {}))
+    ident = identification_settings(cfg)
     if backend not in BACKENDS:
-        raise ConfigError(f"--backend: unknown {backend!r}; allowed: {', '.join(BACKENDS)}")
+        raise ConfigError(f"`backend`: unknown {backend!r}; allowed: {', '.join(BACKENDS)}")
     if algorithm not in ALGORITHMS:
-        raise ConfigError(f"--algorithm: unknown {algorithm!r}; allowed: {', '.join(ALGORITHMS)}")
+        raise ConfigError(f"`algorithm`: unknown {algorithm!r}; allowed: {', '.join(ALGORITHMS)}")
     if workers < 1:
-        raise ConfigError(f"--workers must be >= 1, got {workers}")
+        raise ConfigError(f"`workers` must be >= 1, got {workers}")
     if dask is not None:
         from .cluster import parse_local_address
 
         parse_local_address(dask)  # a malformed local:K fails here, before anything is written
     if isinstance(polish, bool) or not isinstance(polish, (int, np.integer)) or polish < 0:
-        raise ConfigError(f"--polish must be an integer >= 0, got {polish!r}")
+        raise ConfigError(f"`polish` must be an integer >= 0, got {polish!r}")
     if isinstance(polish_evaluations, bool) or not isinstance(polish_evaluations, (int, np.integer)) \
             or polish_evaluations < 1:
         raise ConfigError(f"polish_evaluations must be an integer >= 1, got {polish_evaluations!r}")
-    per = per or ident.get("per", "sensor")
+    per = per or ident.per or "sensor"
     if per not in ("sensor", "experiment"):
-        raise ConfigError(f"--per: unknown {per!r}; allowed: sensor, experiment")
+        raise ConfigError(f"`per`: unknown {per!r}; allowed: sensor, experiment")
     # the seed's stabilising objective (max growth factor of the θ-scheme) belongs to that scheme
-    stabilising = ident.get("stabilising", cfg.time.scheme == "theta") if stabilising is None else stabilising
-    noise_std = noise_std if noise_std is not None else ident.get("noise_std")
+    if stabilising is None:
+        stabilising = cfg.time.scheme == "theta" if ident.stabilising is None else ident.stabilising
+    noise_std = noise_std if noise_std is not None else ident.noise_std
     if noise_std is not None:
         noise_std = [float(v) for v in np.atleast_1d(noise_std)]
         if len(noise_std) != len(cfg.sensors) or not all(v > 0 and math.isfinite(v) for v in noise_std):
@@ -293,7 +273,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     if fisher0.singular and not force:
         raise ConfigError(["identifiability: the Fisher information matrix is singular at the nominal point "
                            f"(rank {fisher0.rank} of {space.dim})", *fisher0.messages,
-                           "remove or fix the unidentifiable unknowns, change sensors/inputs, or use --force"])
+                           "remove or fix the unidentifiable unknowns, change sensors/inputs, or use `force`"])
     names = objective_names(cfg.output_names, [e.name for e in exps], per=per, stabilising=bool(stabilising))
     search_evaluator: Any = evaluator
     tmp_fmu_dir = None
@@ -396,12 +376,12 @@ def _point_properties(cfg: BeamConfig, space: ParameterSpace, evaluator: NativeE
     """Cramér–Rao std, growth factor and stability of candidate ``x`` (native model)."""
     c, params = space.apply(cfg, x)
     g = float(max_growth_factor(c, params))
-    _, rho = evaluator.simulate(x)
+    stable = evaluator.simulate(x).stable
     try:
         crb = fisher_information(evaluator, x, noise_std=noise_std).cramer_rao_std
     except StabilityError:
         crb = np.full(space.dim, np.inf)
-    return crb, g, bool(rho <= 1 + 1e-9)
+    return crb, g, stable
 
 
 def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: NativeEvaluator,
@@ -473,9 +453,7 @@ def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: Native
 
 
 def _write_csv(path: Path, header: list[str], rows: list[list[Any]]) -> None:
-    tmp = path.with_name(path.name + ".part")
-    with tmp.open("w", newline="") as fh:
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
         w.writerows(rows)
-    os.replace(tmp, path)

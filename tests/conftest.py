@@ -113,7 +113,7 @@ def run_identify_signalled(cfg: Path, data: Path, out: Path, sig: int, after_gen
             if algo.n_gen - 1 >= {after_generation}:
                 os.kill(os.getpid(), {int(sig)})
         opt._save_atomic = save_then_signal
-        from ebb_model.cli import main
+        from ebb_cli import main
         sys.exit(main(sys.argv[1:]))
     """)
     return subprocess.run([sys.executable, "-c", script, "identify", str(cfg), str(data), "--out", str(out),

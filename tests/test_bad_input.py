@@ -17,7 +17,7 @@ import scipy.io
 
 import ebb_model as em
 from ebb_model import load_config
-from ebb_model.cli import main
+from ebb_cli import main
 from ebb_model.errors import DataError, DataWarning, EbbError, StabilityError
 from identification.data import load_experiment
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from ebb_model import ConfigError, ParameterError, assemble, config_from_dict, load_config, simulate_config
-from ebb_model.cli import main
+from ebb_cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = ROOT / "examples" / "seed_clamped.toml"
@@ -204,12 +204,12 @@ def test_cli_simulate_bad_input_exit_2_and_no_output(tmp_path, case, capsys):
 
 def test_cli_subprocess_exit_codes(tmp_path):
     env = dict(os.environ)
-    ok = subprocess.run([sys.executable, "-m", "ebb_model.cli", "modes", str(SEED)], capture_output=True,
+    ok = subprocess.run([sys.executable, "-m", "ebb_cli", "modes", str(SEED)], capture_output=True,
                         text=True, env=env, timeout=300)
     assert ok.returncode == 0, ok.stderr
     assert "verdict: stable" in ok.stdout
     bad = _write(tmp_path / "c.toml", SEED.read_text().replace("nodes = 50", "nodes = 2"))
-    r = subprocess.run([sys.executable, "-m", "ebb_model.cli", "modes", str(bad)], capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "ebb_cli", "modes", str(bad)], capture_output=True,
                        text=True, env=env, timeout=300)
     assert r.returncode == 2
     assert "beam.nodes" in r.stderr and "Traceback" not in r.stderr

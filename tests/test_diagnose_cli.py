@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from ebb_model.cli import main
+from ebb_cli import main
 from ebb_model.reference.excitation import band_limited_input
 from ebb_model.reference.synthetic import synthesize
 from ebb_model.reference.withheld import WithheldEffect

@@ -88,6 +88,11 @@ def test_binaries_resources_and_embedded_config(seed_fmu):
     assert f"resources/{mid}_slave.py" in names
     assert any(n.startswith("resources/ebb_core_") and n.endswith("/assemble.py") for n in names)
     assert not any("__pycache__" in n for n in names)
+    # the model core only: no reference solutions, data generator, file readers or reports
+    core = {n.split("/", 2)[2] for n in names if n.startswith("resources/ebb_core_")}
+    assert "stability/bistritz.py" in core and "config.py" in core
+    assert not any(n.startswith("reference/") for n in core)
+    assert not core & {"signals_io.py", "csvio.py", "reports.py", "jsonio.py"}
     assert config_from_dict(spec["config"]) == load_config(SEED_TOML)
     assert mid in entry and "import" in entry
 
@@ -157,7 +162,7 @@ def test_reserved_signal_names_are_refused(tmp_path):
 
 
 def test_cli_in_process(tmp_path, capsys):
-    from ebb_model.cli import main
+    from ebb_cli import main
 
     out = tmp_path / "cli.fmu"
     assert main(["build-fmu", str(SEED_TOML), "--out", str(out), "--field"]) == 0
@@ -169,7 +174,7 @@ def test_cli_in_process(tmp_path, capsys):
 
 def test_cli_subprocess(tmp_path):
     out = tmp_path / "sub.fmu"
-    cmd = [sys.executable, "-m", "ebb_model.cli", "build-fmu", str(SEED_TOML), "--out", str(out)]
+    cmd = [sys.executable, "-m", "ebb_cli", "build-fmu", str(SEED_TOML), "--out", str(out)]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert validate_fmu(str(out)) == []

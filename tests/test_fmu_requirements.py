@@ -94,7 +94,7 @@ def test_c_master_names_a_build_interpreter_that_has_moved(tmp_path):
     exe = compile_host(tmp_path)
     python = make_interpreter(tmp_path / "builder")
     fmu = tmp_path / "moved.fmu"
-    subprocess.run([str(python), "-m", "ebb_model.cli", "build-fmu", str(SEED_TOML), "--out", str(fmu)],
+    subprocess.run([str(python), "-m", "ebb_cli", "build-fmu", str(SEED_TOML), "--out", str(fmu)],
                    check=True, capture_output=True, text=True, timeout=300)
     u = np.zeros((5, 1))
     ok = host_run(exe, fmu, u, tmp_path / "before")

@@ -31,7 +31,7 @@ from fmu_configs import ROOT, SEED_TOML, mixed_config  # noqa: E402
 from fmu_loops import compile_host, fmpy_outputs, host_run  # noqa: E402
 
 from ebb_model import assemble, config_from_dict, load_config, simulate  # noqa: E402
-from ebb_model.cli import main  # noqa: E402
+from ebb_cli import main  # noqa: E402
 from ebb_model.exact_modal import modal_matrices  # noqa: E402
 from fmu_build import build_fmu  # noqa: E402
 from fmu_build.standalone import build_standalone_fmu  # noqa: E402

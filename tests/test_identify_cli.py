@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import ebb_model as em
-from ebb_model.cli import main
+from ebb_cli import main
 from identification.export_statespace import load_statespace
 
 from conftest import IDENTIFY_CFG as CFG

@@ -2,11 +2,12 @@
 serialised to JSON in one place."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
+
+from ebb_model.jsonio import jsonable
 
 
 # ----------------------------------------------------------------------------------------------
@@ -174,8 +175,8 @@ class Localisation:
     summary: tuple[str, ...]
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain JSON-able dict (NaN/inf → None, tuples → lists)."""
-        return _jsonable({f.name: getattr(self, f.name) for f in fields(self)})
+        """Plain JSON-able dict (:func:`ebb_model.jsonio.jsonable`: NaN → None, ±inf → "inf", tuples → lists)."""
+        return jsonable({f.name: getattr(self, f.name) for f in fields(self)})
 
     def table(self) -> list[tuple[str, str, str, str]]:
         """Rows ``(sensor, where, quantity, value)``; the first row is the header."""
@@ -232,21 +233,3 @@ class Localisation:
 
 def _pct(x: float) -> str:
     return "n/a" if not np.isfinite(x) else f"{x:.0%}"
-
-
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if hasattr(x, "__dataclass_fields__"):
-        return {f.name: _jsonable(getattr(x, f.name)) for f in fields(x)}
-    if isinstance(x, (list, tuple, np.ndarray)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, (bool, np.bool_)):
-        return bool(x)
-    if isinstance(x, (int, np.integer)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        return float(x) if math.isfinite(x) else None
-    return x
-
-

@@ -13,6 +13,7 @@
 * :mod:`.excitation` -- band-limited multisine / chirp inputs.
 * :mod:`.synthetic` -- :func:`synthesize`: synthetic "measured" records with a
   withheld effect, independent of the finite-difference model.
+* :mod:`.record` -- :class:`SyntheticRecord`, the generator's result (CSV export).
 """
 from __future__ import annotations
 

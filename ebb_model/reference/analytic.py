@@ -85,6 +85,7 @@ from typing import Callable, Mapping
 import numpy as np
 from scipy.optimize import brentq
 
+from ..checks import finite_scalar
 from ..errors import ConfigError, ParameterError
 
 __all__ = [
@@ -297,12 +298,7 @@ def characteristic_function(left: str, right: str, U: float, Omega: np.ndarray |
 # root finding
 # --------------------------------------------------------------------------
 def _validate_U(U: float, U_cr: float) -> float:
-    try:
-        U = float(U)
-    except (TypeError, ValueError):
-        raise ParameterError(f"U must be a real number, got {U!r}") from None
-    if not math.isfinite(U):
-        raise ParameterError(f"U must be finite, got {U!r}")
+    U = finite_scalar("U", U)
     if U <= -U_cr:
         raise ParameterError(
             f"U = {U:g} is at or beyond the critical buckling load -U_cr = {-U_cr:g}; "
@@ -476,10 +472,8 @@ def analytic_frequencies_hz(
         Ascending frequencies in Hz.
     """
     for name, val in (("length", length), ("EI", EI), ("rhoA", rhoA)):
-        if not (isinstance(val, (int, float, np.floating, np.integer)) and math.isfinite(val) and val > 0):
-            raise ParameterError(f"{name} must be a finite number > 0, got {val!r}")
-    if not math.isfinite(N):
-        raise ParameterError(f"N must be finite, got {N!r}")
+        finite_scalar(name, val, minimum=0.0, strict=True, numbers_only=True)
+    finite_scalar("N", N)
     U = N * length**2 / EI
     Om = analytic_omegas(left, right, U, n_modes)
     return Om / (2.0 * np.pi * length**2) * math.sqrt(EI / rhoA)

@@ -29,6 +29,7 @@ import scipy.linalg as sla
 import scipy.signal as ss
 from scipy.interpolate import CubicSpline
 
+from ..arrays import as_matrix
 from ..errors import DataError
 from .hermite_fe import SENSOR_KINDS, HermiteBeam
 
@@ -83,10 +84,8 @@ def exact_fe_response(beam: HermiteBeam, inputs: np.ndarray, dt: float, actuator
         Index of a sensor whose quantity reaches the output through a first-order lag of time constant
         ``sensor_tau`` [s] (``-1``: none); one extra state.
     """
-    u = np.atleast_2d(np.asarray(inputs, dtype=float).T).T
+    u = as_matrix(inputs, "inputs", shape=(None, len(actuators)), finite=False, column="actuator")
     n, m = u.shape
-    if m != len(actuators):
-        raise DataError(f"inputs have {m} columns, expected one per actuator ({len(actuators)})")
     nf = beam.M.shape[0]
     F = np.column_stack([beam.load_vector(a) for a in actuators])
     Minv_K = np.linalg.solve(beam.M, beam.K)

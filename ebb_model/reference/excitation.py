@@ -27,6 +27,7 @@ import math
 
 import numpy as np
 
+from ..checks import finite_scalar
 from ..errors import ParameterError
 
 __all__ = ["EXCITATION_KINDS", "band_limited_input"]
@@ -39,15 +40,6 @@ def _positive_int(name: str, v: object, minimum: int) -> int:
     if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < minimum:
         raise ParameterError(f"{name} must be an integer >= {minimum}, got {v!r}")
     return int(v)
-
-
-def _finite(name: str, v: object) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
-        raise ParameterError(f"{name} must be a number, got {v!r}")
-    f = float(v)
-    if not math.isfinite(f):
-        raise ParameterError(f"{name} must be finite, got {v!r}")
-    return f
 
 
 def band_limited_input(
@@ -99,24 +91,24 @@ def band_limited_input(
     """
     n = _positive_int("n", n, 4)
     n_inputs = _positive_int("n_inputs", n_inputs, 1)
-    dt = _finite("dt", dt)
+    dt = finite_scalar("dt", dt, numbers_only=True)
     if dt <= 0.0:
         raise ParameterError(f"dt must be > 0, got {dt:g}")
-    f_lo = _finite("f_lo", f_lo)
-    f_hi = _finite("f_hi", f_hi)
+    f_lo = finite_scalar("f_lo", f_lo, numbers_only=True)
+    f_hi = finite_scalar("f_hi", f_hi, numbers_only=True)
     nyq = 0.5 / dt
     if not 0.0 <= f_lo < f_hi <= nyq * (1.0 + 1e-12):
         raise ParameterError(
             f"band [f_lo, f_hi] = [{f_lo:g}, {f_hi:g}] Hz must satisfy 0 <= f_lo < f_hi <= Nyquist = {nyq:g} Hz"
         )
-    amplitude = _finite("amplitude", amplitude)
+    amplitude = finite_scalar("amplitude", amplitude, numbers_only=True)
     if amplitude <= 0.0:
         raise ParameterError(f"amplitude must be > 0, got {amplitude:g}")
     if kind not in EXCITATION_KINDS:
         raise ParameterError(f"kind must be one of {', '.join(EXCITATION_KINDS)}, got {kind!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
         raise ParameterError(f"seed must be an integer, got {seed!r}")
-    fade = _finite("fade", fade)
+    fade = finite_scalar("fade", fade, numbers_only=True)
     if not 0.0 <= fade <= 0.5:
         raise ParameterError(f"fade must lie in [0, 0.5], got {fade:g}")
     n_fade = round(fade * n)

@@ -84,6 +84,7 @@ from typing import Sequence
 import numpy as np
 import scipy.linalg as sla
 
+from ..checks import finite_scalar
 from ..errors import ConfigError, DataError, ParameterError
 
 __all__ = [
@@ -304,17 +305,6 @@ class HermiteBeam:
         return np.sqrt(np.maximum(lam, 0.0)) / (2.0 * np.pi)
 
 
-def _check_positive(name: str, value: float, *, allow_zero: bool = False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a real number, got {value!r}") from None
-    if not math.isfinite(v) or v < 0.0 or (v == 0.0 and not allow_zero):
-        need = ">= 0" if allow_zero else "> 0"
-        raise ParameterError(f"{name} must be finite and {need}, got {value!r}")
-    return v
-
-
 def _check_end(name: str, end: tuple[float, float]) -> tuple[float, float]:
     try:
         kt, kr = end
@@ -381,22 +371,17 @@ def hermite_beam(
     -------
     HermiteBeam
     """
-    L = _check_positive("length", length)
+    L = finite_scalar("length", length, minimum=0.0, strict=True)
     if isinstance(n_elements, bool) or not isinstance(n_elements, (int, np.integer)) or n_elements < 1:
         raise ParameterError(f"n_elements must be an integer >= 1, got {n_elements!r}")
     ne = int(n_elements)
-    EI = _check_positive("EI", EI)
-    rhoA = _check_positive("rhoA", rhoA)
-    try:
-        N = float(N)
-    except (TypeError, ValueError):
-        raise ParameterError(f"N must be a real number, got {N!r}") from None
-    if not math.isfinite(N):
-        raise ParameterError(f"N must be finite, got {N!r}")
-    c = _check_positive("c", c, allow_zero=True)
-    eta = _check_positive("eta", eta, allow_zero=True)
-    rhoI = _check_positive("rhoI", rhoI, allow_zero=True)
-    kf = _check_positive("kf", kf, allow_zero=True)
+    EI = finite_scalar("EI", EI, minimum=0.0, strict=True)
+    rhoA = finite_scalar("rhoA", rhoA, minimum=0.0, strict=True)
+    N = finite_scalar("N", N)
+    c = finite_scalar("c", c, minimum=0.0)
+    eta = finite_scalar("eta", eta, minimum=0.0)
+    rhoI = finite_scalar("rhoI", rhoI, minimum=0.0)
+    kf = finite_scalar("kf", kf, minimum=0.0)
     kt0, kr0 = _check_end("left", left)
     kt1, kr1 = _check_end("right", right)
 
@@ -418,7 +403,7 @@ def hermite_beam(
             m, xm = item
         except (TypeError, ValueError):
             raise ParameterError(f"point mass must be a (mass, x) pair, got {item!r}") from None
-        m = _check_positive("point mass", m, allow_zero=True)
+        m = finite_scalar("point mass", m, minimum=0.0)
         phi = _global_shape_vector(xm, L, ne)
         Mp += m * np.outer(phi, phi)
 
@@ -570,11 +555,11 @@ def newmark_simulate(
         raise DataError("u must contain at least one sample")
     if not np.all(np.isfinite(U)):
         raise DataError("u contains non-finite values")
-    dt = _check_positive("dt", dt)
+    dt = finite_scalar("dt", dt, minimum=0.0, strict=True)
     if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
         raise ParameterError(f"substeps must be an integer >= 1, got {substeps!r}")
-    beta = _check_positive("beta", beta)
-    gamma = _check_positive("gamma", gamma)
+    beta = finite_scalar("beta", beta, minimum=0.0, strict=True)
+    gamma = finite_scalar("gamma", gamma, minimum=0.0, strict=True)
     if interpolation not in ("hold", "linear"):
         raise ParameterError(f"interpolation must be 'hold' or 'linear', got {interpolation!r}")
     linear = interpolation == "linear"

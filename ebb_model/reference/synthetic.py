@@ -106,10 +106,7 @@ Example
 """
 from __future__ import annotations
 
-import csv
 import math
-from dataclasses import dataclass
-from pathlib import Path
 from types import MappingProxyType
 from typing import Mapping, Sequence
 
@@ -117,12 +114,15 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.interpolate import CubicSpline
 
+from ..arrays import as_matrix
+from ..checks import finite_scalar
 from ..config import BeamConfig
 from ..errors import ConfigError, DataError, ParameterError, StabilityError
 from .exact_fe import exact_fe_response
 from .excitation import EXCITATION_KINDS, band_limited_input
 from .hermite_fe import SENSOR_KINDS, HermiteBeam, hermite_beam
 from .newmark_banded import newmark_banded
+from .record import SyntheticRecord
 from .withheld import EFFECT_CATALOGUE, EFFECT_NAMES, WithheldEffect
 
 __all__ = [
@@ -150,74 +150,6 @@ DEFAULT_SUBSTEPS = 8
 INTERPOLATIONS: tuple[str, ...] = ("cubic", "linear")
 #: Time integrators of the generator ("auto": exact for time-invariant truths, else Newmark).
 INTEGRATORS: tuple[str, ...] = ("auto", "exact", "newmark")
-
-
-@dataclass(frozen=True, eq=False)
-class SyntheticRecord:
-    """A synthetic experiment.
-
-    Attributes
-    ----------
-    time
-        Sample instants :math:`t_k = k\\,\\Delta t` [s], shape ``(n,)``.
-    inputs
-        The measured actuator forces [N] exactly as given, ``(n, n_inputs)``.
-    outputs_clean
-        Noise-free sensor outputs (SI units), ``(n, n_outputs)``.
-    outputs
-        ``outputs_clean`` plus white Gaussian noise.
-    noise_std
-        Standard deviation of the added noise per sensor, ``(n_outputs,)``.
-    input_names, output_names
-        Actuator and sensor names of the config, in column order.
-    parameters
-        Physical parameters used (config values with ``params`` overrides,
-        *without* the withheld effect).
-    effects
-        The withheld effects applied (empty: none).
-    n_elements, substeps, richardson, interpolation, integrator
-        Discretisation of the generator (``integrator``: ``"exact"`` or ``"newmark"``).
-    """
-
-    time: np.ndarray
-    inputs: np.ndarray
-    outputs_clean: np.ndarray
-    outputs: np.ndarray
-    noise_std: np.ndarray
-    input_names: tuple[str, ...]
-    output_names: tuple[str, ...]
-    parameters: Mapping[str, float]
-    effects: tuple[WithheldEffect, ...]
-    n_elements: int
-    substeps: int
-    richardson: bool
-    interpolation: str
-    integrator: str
-
-    @property
-    def dt(self) -> float:
-        """Sample interval [s]."""
-        return float(self.time[1] - self.time[0])
-
-    def to_csv(self, path: str | Path, *, clean: bool = False) -> Path:
-        """Write ``time``, the inputs and the (noisy, or ``clean``) outputs as a CSV file with a header row.
-
-        The file has one column per actuator and sensor, named as in the
-        config, so it loads with the project's CSV experiment reader.  The
-        withheld effect is deliberately **not** written.
-        """
-        p = Path(path)
-        y = self.outputs_clean if clean else self.outputs
-        table = np.column_stack([self.time, self.inputs, y])
-        try:
-            with p.open("w", newline="", encoding="utf-8") as fh:
-                wr = csv.writer(fh)
-                wr.writerow(("time",) + self.input_names + self.output_names)
-                for row in table:
-                    wr.writerow([repr(float(v)) for v in row])
-        except OSError as exc:
-            raise DataError(f"{p}: cannot write ({exc.strerror or exc})") from None
-        return p
 
 
 # --------------------------------------------------------------------------
@@ -265,26 +197,7 @@ def _effects(effect: WithheldEffect | Sequence[WithheldEffect] | None) -> tuple[
     return items
 
 
-def _inputs(config: BeamConfig, inputs: np.ndarray) -> np.ndarray:
-    n_in = len(config.actuators)
-    try:
-        U = np.array(inputs, dtype=float)
-    except (TypeError, ValueError):
-        raise DataError("inputs must be a numeric array") from None
-    if U.ndim == 1 and n_in == 1:
-        U = U[:, None]
-    if U.ndim != 2 or U.shape[1] != n_in:
-        raise DataError(
-            f"inputs must have shape (n_samples, {n_in}) for the actuators "
-            f"{', '.join(config.input_names)}, got {np.shape(inputs)}"
-        )
-    if U.shape[0] < 2:
-        raise DataError(f"inputs must contain at least 2 samples, got {U.shape[0]}")
-    bad = np.argwhere(~np.isfinite(U))
-    if bad.size:
-        k, j = bad[0]
-        raise DataError(f"inputs: non-finite value at sample {k}, actuator {config.input_names[j]!r}")
-    return U
+
 
 
 def _force_at_substeps(U: np.ndarray, m: int, interpolation: str) -> np.ndarray:
@@ -400,10 +313,7 @@ def synthesize(
         raise ParameterError(f"n_elements must be an integer >= 2, got {n_elements!r}")
     if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
         raise ParameterError(f"substeps must be an integer >= 1, got {substeps!r}")
-    if isinstance(noise, bool) or not isinstance(noise, (int, float, np.floating)) or not (
-        math.isfinite(float(noise)) and noise >= 0.0
-    ):
-        raise ParameterError(f"noise must be a finite number >= 0, got {noise!r}")
+    finite_scalar("noise", noise, minimum=0.0, numbers_only=True)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
         raise ParameterError(f"seed must be an integer, got {seed!r}")
     if not isinstance(richardson, (bool, np.bool_)):
@@ -414,7 +324,8 @@ def synthesize(
         raise ParameterError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
     p = _parameters(config, params)
     effects = _effects(effect)
-    U = _inputs(config, inputs)
+    U = as_matrix(inputs, "inputs", shape=(None, len(config.actuators)), columns=config.input_names, min_rows=2,
+                  column="actuator")
     L = float(config.beam.length)
     dt = float(config.time.dt)
 

@@ -144,6 +144,8 @@ from typing import Any, Sequence, Union
 
 import numpy as np
 
+from ..checks import finite_scalar
+
 __all__ = ["ZeroLocation", "bistritz", "bistritz_sequence"]
 
 #: Default relative tolerance of the floating-point zero tests.
@@ -249,13 +251,7 @@ def _parse(coefficients: Any) -> tuple[list[_Number], bool]:
 def _check_tol(tol: float | None) -> float:
     if tol is None:
         return DEFAULT_TOL
-    try:
-        t = float(tol)
-    except (TypeError, ValueError):
-        raise ValueError(f"bistritz: tol must be a non-negative real number, got {tol!r}") from None
-    if not (math.isfinite(t) and t >= 0.0):
-        raise ValueError(f"bistritz: tol must be a finite number >= 0, got {tol!r}")
-    return t
+    return finite_scalar("bistritz: tol", tol, minimum=0.0, error=ValueError)
 
 
 # --------------------------------------------------------------------------

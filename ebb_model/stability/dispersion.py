@@ -49,7 +49,8 @@ from typing import Mapping
 import numpy as np
 
 from ..beam import PARAMETER_NAMES
-from ..config import BeamConfig, check_parameter_values
+from ..config import BeamConfig
+from ..parameter_values import resolve_parameters
 from .bistritz import bistritz
 
 #: Relative zero tolerance of the Bistritz test on the dispersion polynomials.
@@ -192,7 +193,7 @@ def critical_wavenumbers(config: BeamConfig, params: Mapping[str, float] | None 
     one, the vertex of ``k`` at ``s_2 = -N/(2EI)`` is where a compressed beam
     on a Winkler foundation buckles first.
     """
-    p = check_parameter_values(config.parameter_values() | dict(params or {}))
+    p = resolve_parameters(config, params)
     tau = config.time.dt / config.time.substeps
     lo, hi = _s2_range(config)
     T, _ = _bistritz_polynomials(p, tau, config.time.theta)
@@ -214,7 +215,7 @@ def max_growth_factor(config: BeamConfig, params: Mapping[str, float] | None = N
     Evaluated at ``n_kappa`` equidistant wavenumbers in ``[π/L, π/h]`` plus
     the :func:`critical_wavenumbers`.
     """
-    p = check_parameter_values(config.parameter_values() | dict(params or {}))
+    p = resolve_parameters(config, params)
     h = config.beam.length / (config.beam.nodes + 1)
     tau = config.time.dt / config.time.substeps
     co = dispersion_coefficients(p, h=h, tau=tau, theta=config.time.theta,
@@ -245,7 +246,7 @@ def stability_bounds(config: BeamConfig, params: Mapping[str, float] | None = No
         can satisfy the conditions (another parameter violates one that does
         not depend on it).
     """
-    p0 = check_parameter_values(config.parameter_values() | dict(params or {}))
+    p0 = resolve_parameters(config, params)
     tau = config.time.dt / config.time.substeps
     s_lo, s_hi = _s2_range(config)
     T, der = _bistritz_polynomials(p0, tau, config.time.theta)
@@ -281,7 +282,7 @@ def grid_omega_max(config: BeamConfig, params: Mapping[str, float] | None = None
     Rotary inertia lowers it: ``ω_max² ≈ 4EI/(h² rhoI)`` once ``rhoI ≫ rhoA h²/4``.
     Returns 0 when ``k ≤ 0`` at both ends.
     """
-    p = check_parameter_values(config.parameter_values() | dict(params or {}))
+    p = resolve_parameters(config, params)
     w2 = max((p["EI"] * s * s + p["N"] * s + p["kf"]) / (p["rhoA"] + p["rhoI"] * s) for s in _s2_range(config))
     return math.sqrt(w2) if w2 > 0 else 0.0
 
@@ -358,7 +359,7 @@ def analyse_stability(config: BeamConfig, params: Mapping[str, float] | None = N
     tol
         Relative tolerance for ``|z| ≤ 1`` and ``ρ(Φ) ≤ 1``.
     """
-    p = check_parameter_values(config.parameter_values() | dict(params or {}))
+    p = resolve_parameters(config, params)
     h = config.beam.length / (config.beam.nodes + 1)
     tau = config.time.dt / config.time.substeps
     kap = _analysis_kappas(config, p, n_kappa)

@@ -24,12 +24,12 @@ import os
 import shutil
 import subprocess
 import tempfile
-import uuid
 import zipfile
 from pathlib import Path
 
 from ebb_model import BeamConfig, assemble, load_config
 from ebb_model.assemble import field_config
+from ebb_model.atomic import atomic_path
 from ebb_model.errors import ConfigError, FmuError
 
 from ..builder import _check_names, _check_output, _identity
@@ -116,7 +116,7 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
     else:
         cfg, base = load_config(config), Path(config).stem
     out = Path(out)
-    parent = _check_output(out)
+    _check_output(out)
     _check_names(cfg)
     taken = {a.name for a in cfg.actuators} | {x.name for x in cfg.sensors}
     clashes = sorted(taken & {"modes", "nodes"})
@@ -133,9 +133,8 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
     xml = model_description_xml(variables, identity=identity, description=_description(cfg, field),
                                 dt=cfg.time.dt, sources=C_SOURCES)
 
-    tmp_path = parent / f".{out.name}.{uuid.uuid4().hex[:8]}.part"
     try:
-        with tempfile.TemporaryDirectory(prefix="ebb_cfmu_") as staging_dir:
+        with tempfile.TemporaryDirectory(prefix="ebb_cfmu_") as staging_dir, atomic_path(out) as tmp_path:
             staging = Path(staging_dir)
             src = staging / "sources"
             src.mkdir()
@@ -150,11 +149,7 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
                 for f in sorted(staging.rglob("*")):
                     if f.is_file():
                         zf.write(f, f.relative_to(staging).as_posix())
-        os.replace(tmp_path, out)
     except OSError as exc:
         raise FmuError(f"{out}: cannot write the FMU ({exc.strerror or exc})",
                        function="build_standalone_fmu") from None
-    finally:
-        if tmp_path.exists():
-            tmp_path.unlink()
     return out

@@ -17,6 +17,8 @@ from typing import Mapping
 
 import numpy as np
 
+from ebb_model.arrays import as_matrix
+from ebb_model.atomic import atomic_path
 from ebb_model.config import BeamConfig
 from ebb_model.errors import DataError
 from ebb_model.signals_io import check_time_vector
@@ -34,12 +36,7 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 
 
 def _matrix(name: str, value: object, n: int, k: int, where: str) -> np.ndarray:
-    a = np.asarray(value, dtype=float)
-    if a.ndim == 1 and k == 1:
-        a = a.reshape(-1, 1)
-    if a.ndim != 2 or a.shape != (n, k):
-        raise DataError(f"{where}: {name} has shape {a.shape}, expected ({n}, {k})")
-    return _frozen(a)
+    return as_matrix(value, f"{where}: {name}", shape=(n, k), finite=False, readonly=True)
 
 
 @dataclass(frozen=True, eq=False)
@@ -247,7 +244,7 @@ class Experiment:
             arrays[s] = np.asarray(self.inputs[:, j])
         for j, s in enumerate(self.output_names):
             arrays[s] = np.asarray(self.outputs[:, j])
-        with p.open("wb") as fh:
+        with atomic_path(p) as tmp, tmp.open("wb") as fh:
             np.savez(fh, **arrays, **{NPZ_META_KEY: np.array(json.dumps(meta))})
         return p
 
@@ -256,7 +253,8 @@ class Experiment:
         p = Path(path)
         header = ",".join(("time",) + self.input_names + self.output_names)
         data = np.column_stack([self.time, self.inputs, self.outputs])
-        np.savetxt(p, data, delimiter=",", header=header, comments="", fmt="%.17g")
+        with atomic_path(p) as tmp:
+            np.savetxt(tmp, data, delimiter=",", header=header, comments="", fmt="%.17g")
         return p
 
     def __repr__(self) -> str:

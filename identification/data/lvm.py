@@ -40,11 +40,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ebb_model.csvio import parse_block
 from ebb_model.errors import DataError, DataWarning
 
 from .csv_format import read_text
 from .table import RawTable, printed_resolution
-from .textblock import column_resolutions, edge_lines, parse_block
+from .textblock import column_resolutions, edge_lines
 
 __all__ = ["read_lvm"]
 

@@ -1,14 +1,15 @@
-"""``ebb diagnose`` and ``ebb demo``: parse, then call :func:`diagnosis.run.diagnose` / :func:`diagnosis.demo.run_demo`."""
+"""``ebb diagnose`` and ``ebb demo``: parse, then call :func:`diagnosis.run.diagnose` /
+:func:`diagnosis.demo.run_demo`."""
 from __future__ import annotations
 
 import argparse
 import sys
 
-__all__ = ["add_parser"]
+__all__ = ["add_parsers"]
 
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
-    from .run import diagnose
+    from diagnosis.run import diagnose
 
     def say(msg: str) -> None:
         if not args.quiet:
@@ -17,7 +18,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     d = diagnose(args.config, args.data, args.out, holdout=args.holdout or (), result=args.result,
                  holdout_fraction=args.holdout_fraction, shortlist=args.shortlist, plots=not args.no_plots,
                  export=not args.no_export, standalone=args.standalone, workers=args.workers, progress=say)
-    from .report import text_report
+    from diagnosis.report import text_report
 
     print(text_report(d.document))
     print(f"wrote {d.out_dir / 'gap.json'}")
@@ -27,14 +28,14 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from .demo import run_demo
+    from diagnosis.demo import run_demo
 
     run_demo(args.out, quick=args.quick, progress=not args.quiet)
     return 0
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Register the diagnosis subcommands on the ``ebb`` parser."""
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    """Register ``diagnose`` and ``demo`` on the ``ebb`` parser."""
     p = sub.add_parser("diagnose", help="where model and data disagree, which effect explains it, how far it closes")
     p.add_argument("config", help="TOML config (the baseline model; identify = true unknowns with bounds)")
     p.add_argument("data", nargs="+", help="measured records to fit (.csv, .npz, .mat, .lvm, .uff)")

@@ -1,18 +1,19 @@
-"""``ebb identify`` and ``ebb export``: parse, then call :func:`identification.run.identify` / ``export_points``."""
+"""``ebb identify`` and ``ebb export``: parse, then call :func:`identification.run.identify` /
+:func:`identification.export.export_points`."""
 from __future__ import annotations
 
 import argparse
 import json
 from pathlib import Path
 
-__all__ = ["add_parser"]
+__all__ = ["add_parsers"]
 
 
 def _cmd_identify(args: argparse.Namespace) -> int:
     from ebb_model.errors import Interrupted
-
-    from .optimise import CHECKPOINT
-    from .run import identify
+    from identification.optimise import CHECKPOINT
+    from identification.report import identified_lines
+    from identification.run import identify
 
     try:
         res = identify(args.config, args.data, args.out, backend=args.backend, workers=args.workers,
@@ -44,32 +45,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     return 0
 
 
-def identified_lines(res) -> list[str]:
-    """The identified model as printed: values with Cramér–Rao standard deviations, units and the fit quality
-    the bound assumes."""
-    from ebb_model.beam import PARAMETER_UNITS
-
-    ident = res.identified
-    lines = [f"identified model ({ident['from']}):"]
-    for k, v in ident["parameters"].items():
-        unit = PARAMETER_UNITS.get(k, "m" if k.startswith("x_") else "")
-        lines.append(f"  {k:<6} = {v:.6g} ± {ident['cramer_rao_std'][k]:.2g} {unit}  (Cramér–Rao std)")
-    gap = ident.get("fit_gap_ratio")
-    if gap:
-        worst = max(gap.values())
-        lines.append("  fit residual in noise variances (1 = noise floor): "
-                     + ", ".join(f"{k} {v:.3g}" for k, v in gap.items()))
-        if not ident["cramer_rao_valid"]:
-            lines.append(f"  caution: the fit leaves {worst:.3g} noise variances; the Cramér–Rao bound assumes a fit "
-                         "at the noise floor and understates the uncertainty here (model or data do not match yet: "
-                         "see `ebb diagnose`)")
-    if res.adequacy is not None:
-        lines.append("  " + res.adequacy.summary())
-    return lines
-
-
 def _cmd_export(args: argparse.Namespace) -> int:
-    from .export import export_points
+    from identification.export import export_points
 
     # a flag without indices means all of its kind ("--polished": every polished point)
     points = "all" if args.points == [] else args.points
@@ -81,8 +58,8 @@ def _cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Register the identification subcommands on the ``ebb`` parser."""
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    """Register ``identify`` and ``export`` on the ``ebb`` parser."""
     p = sub.add_parser("identify", help="multi-objective identification of the config's unknowns from data")
     p.add_argument("config", help="TOML config with identify = true parameters")
     p.add_argument("data", nargs="+", help="data files (.csv, .npz, .mat, .lvm, .uff)")

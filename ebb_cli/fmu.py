@@ -1,0 +1,39 @@
+"""``ebb build-fmu``: parse, then call :func:`fmu_build.build_fmu` (or, with ``--standalone``,
+:func:`fmu_build.build_standalone_fmu`)."""
+from __future__ import annotations
+
+import argparse
+
+__all__ = ["add_parsers"]
+
+
+def _cmd_build_fmu(args: argparse.Namespace) -> int:
+    if args.standalone:
+        from fmu_build.standalone import build_standalone_fmu
+
+        path = build_standalone_fmu(args.config, args.out, field=args.field)
+    else:
+        from fmu_build import build_fmu
+
+        path = build_fmu(args.config, args.out, field=args.field)
+    print(path)
+    return 0
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    """Register ``build-fmu CONFIG --out FILE [--field] [--standalone]`` on the ``ebb`` parser."""
+    p = sub.add_parser(
+        "build-fmu",
+        help="package the beam as an FMI 2.0 co-simulation FMU",
+        description="Build an FMI 2.0 co-simulation FMU (Linux x86-64) of the beam described by CONFIG. "
+                    "The FMU runs on this Python interpreter (numpy, scipy and numba required). With "
+                    "--standalone: an FMU in C (co-simulation and model exchange) that needs no Python.",
+    )
+    p.add_argument("config", metavar="CONFIG", help="TOML config file")
+    p.add_argument("--out", required=True, metavar="FILE", help="the .fmu file to write")
+    p.add_argument("--field", action="store_true",
+                   help="also output the deflection w[i] at every grid node")
+    p.add_argument("--standalone", action="store_true",
+                   help="build the standalone C FMU instead (model exchange and co-simulation, no Python at run "
+                        "time; the model's C source is inside, compiled with gcc for linux64)")
+    p.set_defaults(func=_cmd_build_fmu)

@@ -1,0 +1,156 @@
+"""The value objects of a beam config: geometry, time settings, parameters, and the :class:`BeamConfig`.
+
+Immutable and validated when made by :func:`ebb_model.config_validation.config_from_dict` (the TOML layout is
+described in :mod:`ebb_model.config`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from types import MappingProxyType
+from typing import Any, Mapping
+
+from .beam import PARAMETER_NAMES, Actuator, End, PointMass, Sensor
+from .errors import ParameterError
+
+__all__ = ["ParameterSpec", "BeamGeometry", "TimeSettings", "BeamConfig", "SCHEMES", "INPUT_HOLDS",
+           "DEFAULT_INPUT"]
+
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """A physical parameter: nominal value, optional search bounds, identify flag."""
+
+    value: float
+    bounds: tuple[float, float] | None = None
+    identify: bool = False
+
+
+@dataclass(frozen=True)
+class BeamGeometry:
+    """Length [m], number of interior grid points and the two ends."""
+
+    length: float
+    nodes: int
+    left: End
+    right: End
+
+
+#: Time-stepping schemes: the seed's FD + θ-scheme, and the accurate realisation of :mod:`ebb_model.exact_modal`.
+SCHEMES = ("theta", "exact")
+#: Reconstructions of the input between samples (``[time] input``); ``cubic`` is the exact scheme's only.
+INPUT_HOLDS = ("cubic", "foh", "zoh")
+#: Default ``[time] input`` per scheme: the cubic through four samples for the exact scheme (a band-limited
+#: force is smooth; the straight line is 2 % off in amplitude at fs/13), the seed's straight line for θ.
+DEFAULT_INPUT = {"exact": "cubic", "theta": "foh"}
+
+
+@dataclass(frozen=True)
+class TimeSettings:
+    """Sample time ``dt`` [s], ``theta`` of the three-level scheme, sub-steps per sample, input hold, scheme.
+
+    ``scheme = "exact"`` (default) is :mod:`ebb_model.exact_modal` (two-grid Richardson modes integrated
+    exactly over each sample; ``theta`` and ``substeps`` do not apply); ``scheme = "theta"`` is the seed's
+    FD + θ-scheme (``theta`` and ``substeps`` apply, with its Bistritz stability analysis).
+    ``input_hold`` (``[time] input``) is the force between samples, :data:`DEFAULT_INPUT` per scheme.
+    """
+
+    dt: float
+    theta: float = 0.25
+    substeps: int = 1
+    input_hold: str = "cubic"
+    scheme: str = "exact"
+
+
+@dataclass(frozen=True)
+class BeamConfig:
+    """A complete, validated beam set-up.  Immutable; use :meth:`with_parameters`."""
+
+    beam: BeamGeometry
+    time: TimeSettings
+    parameters: Mapping[str, ParameterSpec]
+    actuators: tuple[Actuator, ...]
+    sensors: tuple[Sensor, ...]
+    masses: tuple[PointMass, ...] = ()
+    extra: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+
+    # ------------------------------------------------------------------ access
+    def parameter_values(self) -> dict[str, float]:
+        """Nominal parameter values ``{"EI": ..., "rhoA": ..., ...}``."""
+        return {k: self.parameters[k].value for k in PARAMETER_NAMES}
+
+    @property
+    def input_names(self) -> tuple[str, ...]:
+        """Actuator names, in order (the model's inputs)."""
+        return tuple(a.name for a in self.actuators)
+
+    @property
+    def output_names(self) -> tuple[str, ...]:
+        """Sensor names, in order (the model's outputs)."""
+        return tuple(s.name for s in self.sensors)
+
+    def with_parameters(self, **values: float) -> "BeamConfig":
+        """Return a copy with new nominal parameter values (validated)."""
+        unknown = sorted(set(values) - set(PARAMETER_NAMES))
+        if unknown:
+            raise ParameterError(
+                [f"parameters.{k}: unknown parameter; allowed: {', '.join(PARAMETER_NAMES)}" for k in unknown]
+            )
+        from .parameter_values import resolve_parameters
+
+        merged = resolve_parameters(self, {k: float(v) for k, v in values.items()})
+        params = {k: replace(self.parameters[k], value=merged[k]) for k in PARAMETER_NAMES}
+        return replace(self, parameters=MappingProxyType(params))
+
+    # ----------------------------------------------------------- serialisation
+    def __reduce__(self):
+        """Pickle through the validated dict form (mapping proxies do not pickle)."""
+        from .config_validation import _rebuild_config
+
+        return (_rebuild_config, (self.to_dict(), tuple(self.extra)))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON/TOML-serialisable dict; :func:`config_from_dict` inverts it.
+
+        Infinite spring stiffnesses are written as the string ``"inf"``
+        (JSON has no infinity).
+        """
+
+        def num(v: float) -> float | str:
+            return "inf" if math.isinf(v) else v
+
+        beam: dict[str, Any] = {
+            "length": self.beam.length,
+            "nodes": self.beam.nodes,
+            "left": self.beam.left.kind,
+            "right": self.beam.right.kind,
+        }
+        for side, end in (("left", self.beam.left), ("right", self.beam.right)):
+            if end.kind == "elastic":
+                beam[f"{side}_kt"] = num(end.kt)
+                beam[f"{side}_kr"] = num(end.kr)
+        params: dict[str, Any] = {}
+        for k in PARAMETER_NAMES:
+            p = self.parameters[k]
+            d: dict[str, Any] = {"value": p.value}
+            if p.bounds is not None:
+                d["bounds"] = list(p.bounds)
+            if p.identify:
+                d["identify"] = True
+            params[k] = d
+        time = {"dt": self.time.dt, "theta": self.time.theta, "substeps": self.time.substeps,
+                "scheme": self.time.scheme}
+        if self.time.input_hold != DEFAULT_INPUT[self.time.scheme]:   # the default follows the scheme
+            time["input"] = self.time.input_hold
+        out: dict[str, Any] = {
+            "beam": beam,
+            "time": time,
+            "parameters": params,
+            "actuators": [{"name": a.name, "x": a.x} for a in self.actuators],
+            "sensors": [{"name": s.name, "x": s.x, "kind": s.kind} for s in self.sensors],
+        }
+        if self.masses:
+            out["masses"] = [{"name": m.name, "x": m.x, "mass": m.mass} for m in self.masses]
+        for k, v in self.extra.items():
+            out[k] = v
+        return out

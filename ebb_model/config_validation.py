@@ -1,0 +1,366 @@
+"""Reading and validating a beam config: TOML or nested dicts in, :class:`~ebb_model.config_types.BeamConfig` out.
+
+Validation reports **every** problem at once (FMPy's ``validate_fmu`` habit), each naming its field, in one
+:class:`~ebb_model.errors.ConfigError`. The TOML layout is described in :mod:`ebb_model.config`.
+"""
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any, Mapping
+
+from .beam import END_KINDS, PARAMETER_NAMES, SENSOR_KINDS, Actuator, End, PointMass, Sensor
+from .config_types import DEFAULT_INPUT, INPUT_HOLDS, SCHEMES, BeamConfig, BeamGeometry, ParameterSpec, TimeSettings
+from .errors import ConfigError, ParameterError
+from .textio import read_text
+
+__all__ = ["load_config", "config_from_dict", "check_parameter_values"]
+
+_NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+#: Lower limits of the physical parameters (exclusive for EI, rhoA).
+_POSITIVE = ("EI", "rhoA")
+_NONNEGATIVE = ("c", "eta", "rhoI", "kf")
+
+#: Values of the optional parameters when a config omits them (each switches its effect off).
+_DEFAULTS: Mapping[str, float] = MappingProxyType({"c": 0.0, "eta": 0.0, "N": 0.0, "rhoI": 0.0, "kf": 0.0})
+
+
+def load_config(path: str | Path, *, extra_sections: tuple[str, ...] = ()) -> BeamConfig:
+    """Read and validate a TOML config file.
+
+    Parameters
+    ----------
+    path
+        The TOML file.
+    extra_sections
+        Top-level tables that a higher layer (e.g. identification) reads
+        itself; they are kept verbatim in :attr:`BeamConfig.extra`.  Any other
+        unknown key is an error.
+
+    Raises
+    ------
+    ConfigError
+        Listing every problem found, each naming its field.
+    """
+    p = Path(path)
+    text = read_text(p, ConfigError, what="config file")
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{p}: not valid TOML ({exc})") from None
+    return config_from_dict(data, extra_sections=extra_sections)
+
+
+class _Problems:
+    """Collects validation problems so that all are reported at once."""
+
+    def __init__(self) -> None:
+        self.items: list[str] = []
+
+    def add(self, where: str, msg: str) -> None:
+        self.items.append(f"{where}: {msg}")
+
+    def number(self, where: str, v: Any, *, allow_inf: bool = False) -> float | None:
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            if allow_inf and isinstance(v, str) and v.strip().lower() in ("inf", "+inf", "infinity"):
+                return math.inf
+            self.add(where, f"must be a number, got {v!r}")
+            return None
+        f = float(v)
+        if math.isnan(f) or (math.isinf(f) and not allow_inf):
+            self.add(where, f"must be a finite number, got {v!r}")
+            return None
+        return f
+
+    def unknown_keys(self, where: str, d: Mapping[str, Any], allowed: tuple[str, ...]) -> None:
+        for k in d:
+            if k not in allowed:
+                self.add(f"{where}.{k}" if where else k, f"unknown key; allowed: {', '.join(allowed)}")
+
+
+def _table(pr: _Problems, data: Mapping[str, Any], key: str, required: bool = True) -> Mapping[str, Any]:
+    v = data.get(key)
+    if v is None:
+        if required:
+            pr.add(f"[{key}]", "missing table")
+        return {}
+    if not isinstance(v, Mapping):
+        pr.add(key, f"must be a table, got {type(v).__name__}")
+        return {}
+    return v
+
+
+def _end(pr: _Problems, beam: Mapping[str, Any], side: str) -> End | None:
+    kind = beam.get(side)
+    if kind is None:
+        pr.add(f"beam.{side}", f"missing; one of {', '.join(END_KINDS)}")
+        return None
+    if kind not in END_KINDS:
+        pr.add(f"beam.{side}", f"unknown boundary condition {kind!r}; allowed: {', '.join(END_KINDS)}")
+        return None
+    springs: dict[str, float | None] = {}
+    for s in ("kt", "kr"):
+        key = f"{side}_{s}"
+        if key in beam:
+            if kind != "elastic":
+                pr.add(f"beam.{key}", f"only allowed when beam.{side} = \"elastic\" (it is {kind!r})")
+                continue
+            v = pr.number(f"beam.{key}", beam[key], allow_inf=True)
+            if v is not None and v < 0:
+                pr.add(f"beam.{key}", f"must be >= 0 (0 ... inf), got {v}")
+                v = None
+            springs[s] = v
+        elif kind == "elastic":
+            pr.add(f"beam.{key}", f"required when beam.{side} = \"elastic\" (a stiffness in [0, inf])")
+    if kind == "elastic":
+        if springs.get("kt") is None or springs.get("kr") is None:
+            return None
+        return End.of("elastic", springs["kt"], springs["kr"])
+    return End.of(kind)
+
+
+def check_parameter_values(values: Mapping[str, Any], *, where: str = "parameters") -> dict[str, float]:
+    """Check physical parameter values; return them as floats.
+
+    Raises
+    ------
+    ParameterError
+        Naming every invalid parameter: missing, non-finite, ``EI <= 0``,
+        ``rhoA <= 0``, ``c < 0``, ``eta < 0``, ``rhoI < 0``, ``kf < 0``.
+    """
+    pr = _Problems()
+    out: dict[str, float] = {}
+    for k in values:
+        if k not in PARAMETER_NAMES:
+            pr.add(f"{where}.{k}", f"unknown parameter; allowed: {', '.join(PARAMETER_NAMES)}")
+    for k in PARAMETER_NAMES:
+        if k not in values:
+            pr.add(f"{where}.{k}", "missing")
+            continue
+        v = pr.number(f"{where}.{k}", values[k])
+        if v is None:
+            continue
+        if k in _POSITIVE and not v > 0:
+            pr.add(f"{where}.{k}", f"must be > 0, got {v:g}")
+        elif k in _NONNEGATIVE and v < 0:
+            pr.add(f"{where}.{k}", f"must be >= 0, got {v:g}")
+        else:
+            out[k] = v
+    if pr.items:
+        raise ParameterError(pr.items)
+    return out
+
+
+def _parameters(pr: _Problems, table: Mapping[str, Any]) -> dict[str, ParameterSpec]:
+    specs: dict[str, ParameterSpec] = {}
+    defaults = _DEFAULTS
+    for k in table:
+        if k not in PARAMETER_NAMES:
+            pr.add(f"parameters.{k}", f"unknown parameter; allowed: {', '.join(PARAMETER_NAMES)}")
+    for k in PARAMETER_NAMES:
+        where = f"parameters.{k}"
+        raw = table.get(k)
+        if raw is None:
+            if k in defaults:
+                specs[k] = ParameterSpec(defaults[k])
+            else:
+                pr.add(where, "missing (give { value = ... })")
+            continue
+        if not isinstance(raw, Mapping):
+            raw = {"value": raw}
+        pr.unknown_keys(where, raw, ("value", "bounds", "identify"))
+        value = pr.number(f"{where}.value", raw.get("value")) if "value" in raw else None
+        if "value" not in raw:
+            pr.add(f"{where}.value", "missing")
+        if value is not None:
+            if k in _POSITIVE and not value > 0:
+                pr.add(f"{where}.value", f"must be > 0, got {value:g}")
+                value = None
+            elif k in _NONNEGATIVE and value < 0:
+                pr.add(f"{where}.value", f"must be >= 0, got {value:g}")
+                value = None
+        bounds = None
+        if "bounds" in raw:
+            b = raw["bounds"]
+            if not isinstance(b, (list, tuple)) or len(b) != 2:
+                pr.add(f"{where}.bounds", f"must be [lo, hi], got {b!r}")
+            else:
+                lo = pr.number(f"{where}.bounds[0]", b[0])
+                hi = pr.number(f"{where}.bounds[1]", b[1])
+                if lo is not None and hi is not None:
+                    if not lo < hi:
+                        pr.add(f"{where}.bounds", f"lower bound must be < upper bound, got [{lo:g}, {hi:g}]")
+                    elif k in _POSITIVE and lo <= 0:
+                        pr.add(f"{where}.bounds", f"lower bound must be > 0 for {k}, got {lo:g}")
+                    elif k in _NONNEGATIVE and lo < 0:
+                        pr.add(f"{where}.bounds", f"lower bound must be >= 0 for {k}, got {lo:g}")
+                    else:
+                        bounds = (lo, hi)
+                        if value is not None and not lo <= value <= hi:
+                            pr.add(f"{where}.value", f"{value:g} lies outside bounds [{lo:g}, {hi:g}]")
+        identify = raw.get("identify", False)
+        if not isinstance(identify, bool):
+            pr.add(f"{where}.identify", f"must be true or false, got {identify!r}")
+            identify = False
+        if identify and "bounds" not in raw:
+            pr.add(f"{where}.bounds", "required when identify = true")
+        if value is not None:
+            specs[k] = ParameterSpec(value, bounds, identify)
+    return specs
+
+
+def _points(pr: _Problems, data: Mapping[str, Any], key: str, length: float | None,
+            fields: tuple[str, ...], required: bool) -> list[dict[str, Any]]:
+    raw = data.get(key, [])
+    if not isinstance(raw, list):
+        pr.add(key, f"must be an array of tables ([[{key}]]), got {type(raw).__name__}")
+        return []
+    if required and not raw:
+        pr.add(f"[[{key}]]", "at least one entry is required")
+    out = []
+    for i, item in enumerate(raw):
+        where = f"{key}[{i}]"
+        if not isinstance(item, Mapping):
+            pr.add(where, "must be a table")
+            continue
+        pr.unknown_keys(where, item, fields)
+        name = item.get("name")
+        if name is None:
+            pr.add(f"{where}.name", "missing")
+        elif not isinstance(name, str) or not _NAME_RE.match(name):
+            pr.add(f"{where}.name", f"must be an identifier (letters, digits, _), got {name!r}")
+            name = None
+        if "x" not in item:
+            pr.add(f"{where}.x", "missing (position along the beam, m)")
+            x = None
+        else:
+            x = pr.number(f"{where}.x", item["x"])
+        if x is not None and length is not None and not 0.0 <= x <= length:
+            pr.add(f"{where}.x", f"position {x:g} m lies outside the beam [0, {length:g}] m")
+            x = None
+        out.append({"name": name, "x": x, "raw": item, "where": where})
+    return out
+
+
+def _rebuild_config(data: dict[str, Any], extra_sections: tuple[str, ...]) -> BeamConfig:
+    return config_from_dict(data, extra_sections=extra_sections)
+
+
+def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...] = ()) -> BeamConfig:
+    """Validate a config given as nested dicts (e.g. parsed TOML or JSON).
+
+    Raises
+    ------
+    ConfigError
+        Listing every problem found, each naming its field.
+    """
+    pr = _Problems()
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"config: must be a table, got {type(data).__name__}")
+    allowed = ("beam", "time", "parameters", "actuators", "sensors", "masses") + tuple(extra_sections)
+    pr.unknown_keys("", data, allowed)
+
+    beam_t = _table(pr, data, "beam")
+    pr.unknown_keys("beam", beam_t, ("length", "nodes", "left", "right",
+                                     "left_kt", "left_kr", "right_kt", "right_kr"))
+    length = None
+    if "length" not in beam_t:
+        pr.add("beam.length", "missing (m)")
+    else:
+        length = pr.number("beam.length", beam_t["length"])
+        if length is not None and not length > 0:
+            pr.add("beam.length", f"must be > 0, got {length:g}")
+            length = None
+    nodes = beam_t.get("nodes")
+    if nodes is None:
+        pr.add("beam.nodes", "missing (number of interior grid points, >= 4)")
+    elif isinstance(nodes, bool) or not isinstance(nodes, int) or nodes < 4:
+        pr.add("beam.nodes", f"must be an integer >= 4, got {nodes!r}")
+        nodes = None
+    elif nodes > 5000:
+        pr.add("beam.nodes", f"must be <= 5000, got {nodes}")
+        nodes = None
+    left = _end(pr, beam_t, "left") if beam_t else None
+    right = _end(pr, beam_t, "right") if beam_t else None
+
+    time_t = _table(pr, data, "time")
+    pr.unknown_keys("time", time_t, ("dt", "theta", "substeps", "input", "scheme"))
+    scheme = time_t.get("scheme", TimeSettings.scheme)
+    if scheme not in SCHEMES:
+        pr.add("time.scheme", f"must be one of {', '.join(SCHEMES)}, got {scheme!r}")
+    input_hold = time_t.get("input", DEFAULT_INPUT.get(scheme, "foh"))
+    if input_hold not in INPUT_HOLDS:
+        pr.add("time.input", "must be \"cubic\" (cubic through the samples, exact scheme), \"foh\" (straight "
+                             f"line between samples) or \"zoh\" (sample held), got {input_hold!r}")
+    elif input_hold == "cubic" and scheme == "theta":
+        pr.add("time.input", "\"cubic\" needs scheme = \"exact\"; the theta-scheme takes \"foh\" or \"zoh\"")
+    dt = None
+    if "dt" not in time_t:
+        pr.add("time.dt", "missing (sample time, s)")
+    else:
+        dt = pr.number("time.dt", time_t["dt"])
+        if dt is not None and not dt > 0:
+            pr.add("time.dt", f"must be > 0, got {dt:g}")
+            dt = None
+    theta = pr.number("time.theta", time_t.get("theta", 0.25))
+    if theta is not None and not 0.0 <= theta <= 1.0:
+        pr.add("time.theta", f"must lie in [0, 1], got {theta:g}")
+        theta = None
+    substeps = time_t.get("substeps", 1)
+    if isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1:
+        pr.add("time.substeps", f"must be an integer >= 1, got {substeps!r}")
+        substeps = None
+
+    params = _parameters(pr, _table(pr, data, "parameters"))
+
+    acts = _points(pr, data, "actuators", length, ("name", "x"), required=True)
+    sens = _points(pr, data, "sensors", length, ("name", "x", "kind"), required=True)
+    mass = _points(pr, data, "masses", length, ("name", "x", "mass"), required=False)
+    sensors: list[Sensor] = []
+    for s in sens:
+        kind = s["raw"].get("kind", "displacement")
+        if kind not in SENSOR_KINDS:
+            pr.add(f"{s['where']}.kind", f"unknown sensor kind {kind!r}; allowed: {', '.join(SENSOR_KINDS)}")
+        elif s["name"] is not None and s["x"] is not None:
+            sensors.append(Sensor(s["name"], s["x"], kind))
+    masses: list[PointMass] = []
+    for m in mass:
+        if "mass" not in m["raw"]:
+            pr.add(f"{m['where']}.mass", "missing (kg)")
+            continue
+        mv = pr.number(f"{m['where']}.mass", m["raw"]["mass"])
+        if mv is not None and mv < 0:
+            pr.add(f"{m['where']}.mass", f"must be >= 0, got {mv:g}")
+        elif mv is not None and m["name"] is not None and m["x"] is not None:
+            masses.append(PointMass(m["name"], m["x"], mv))
+    actuators = [Actuator(a["name"], a["x"]) for a in acts if a["name"] is not None and a["x"] is not None]
+
+    names = [a["name"] for a in acts] + [s["name"] for s in sens] + [m["name"] for m in mass]
+    seen: set[str] = set()
+    for n in names:
+        if n is None:
+            continue
+        if n in seen:
+            pr.add("names", f"{n!r} is used more than once (actuator, sensor and mass names must be unique)")
+        seen.add(n)
+        if n in PARAMETER_NAMES:
+            pr.add("names", f"{n!r} clashes with a parameter name")
+
+    if pr.items:
+        raise ConfigError(pr.items)
+    assert length is not None and nodes is not None and left is not None and right is not None
+    assert dt is not None and theta is not None and substeps is not None
+    extra = {k: data[k] for k in extra_sections if k in data}
+    return BeamConfig(
+        beam=BeamGeometry(length, nodes, left, right),
+        time=TimeSettings(dt, theta, substeps, input_hold, scheme),
+        parameters=MappingProxyType(params),
+        actuators=tuple(actuators),
+        sensors=tuple(sensors),
+        masses=tuple(masses),
+        extra=MappingProxyType(extra),
+    )

@@ -1,0 +1,16 @@
+"""Export target ``standalone``: the standalone C FMU of the model (``<stem>_standalone.fmu``; no Python at run
+time, :func:`fmu_build.standalone.build_standalone_fmu`)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from . import ExportItem
+
+__all__ = ["write"]
+
+
+def write(item: ExportItem, out_dir: Path) -> list[Path]:
+    """Write ``<stem>_standalone.fmu`` into ``out_dir``; return it."""
+    from fmu_build.standalone import build_standalone_fmu
+
+    return [build_standalone_fmu(item.config.with_parameters(**item.params), out_dir / f"{item.stem}_standalone.fmu")]

@@ -1,0 +1,96 @@
+"""The config's ``[identification]`` table, read and checked in one place.
+
+.. code-block:: toml
+
+    [identification]
+    per = "sensor"            # objectives per sensor (default) or per experiment
+    stabilising = false       # add the seed's stabilising objective (default: with the theta scheme only)
+    noise_std = [1e-6, 1e-6]  # one per sensor; default estimated from the data
+    positions = { F1 = [0.2, 0.4] }   # identify an actuator/sensor position within bounds [m]
+
+    [identification.data]     # options of identification.data.load_experiments
+    mapping = { F1 = "force" }
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from ebb_model import load_config
+from ebb_model.config import BeamConfig
+from ebb_model.errors import ConfigError
+
+__all__ = ["SECTION", "IdentificationSettings", "identification_settings", "load_identification_config"]
+
+#: Name of the config table this layer owns.
+SECTION = "identification"
+_KEYS = ("positions", "data", "noise_std", "per", "stabilising")
+_DATA_KEYS = ("mapping", "units", "gains", "remove_offset", "pre_trigger", "band", "resample", "format")
+
+
+@dataclass(frozen=True)
+class IdentificationSettings:
+    """The entries of ``[identification]`` (``None`` or empty where the table does not give them).
+
+    Attributes
+    ----------
+    positions
+        ``{actuator or sensor name: [lo, hi]}``, checked by :func:`identification.parameters.parameter_space`.
+    data
+        Keyword options of :func:`identification.data.load_experiments`.
+    noise_std
+        Noise standard deviation per sensor, as given.
+    per
+        ``"sensor"`` or ``"experiment"``, as given.
+    stabilising
+        Whether to add the stabilising objective, as given.
+    """
+
+    positions: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    data: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    noise_std: Any = None
+    per: str | None = None
+    stabilising: bool | None = None
+
+
+def identification_settings(config: BeamConfig) -> IdentificationSettings:
+    """Read the ``[identification]`` table of ``config`` (kept by :func:`load_identification_config`).
+
+    Raises
+    ------
+    ConfigError
+        The table (or its ``data`` table) is not a table, or has unknown keys — every problem at once.
+    """
+    ident = config.extra.get(SECTION, {}) or {}
+    if not isinstance(ident, Mapping):
+        raise ConfigError(f"{SECTION}: must be a table")
+    bad = [f"{SECTION}.{k}: unknown key; allowed: {', '.join(_KEYS)}" for k in ident if k not in _KEYS]
+    data = ident.get("data", {})
+    if not isinstance(data, Mapping):
+        bad.append(f"{SECTION}.data: must be a table")
+    else:
+        bad += [f"{SECTION}.data.{k}: unknown key; allowed: {', '.join(_DATA_KEYS)}"
+                for k in data if k not in _DATA_KEYS]
+    if bad:
+        raise ConfigError(bad)
+    positions = ident.get("positions", {})
+    return IdentificationSettings(
+        positions=MappingProxyType(dict(positions) if isinstance(positions, Mapping) else {}),
+        data=MappingProxyType(dict(data)), noise_std=ident.get("noise_std"), per=ident.get("per"),
+        stabilising=ident.get("stabilising"))
+
+
+def load_identification_config(path: str | Path) -> BeamConfig:
+    """Load a config whose ``[identification]`` table is kept for this layer (and checked).
+
+    Raises
+    ------
+    ConfigError
+        Invalid config, or an invalid ``[identification]`` table.
+    """
+    cfg = load_config(path, extra_sections=(SECTION,))
+    identification_settings(cfg)
+    return cfg
