@@ -41,6 +41,7 @@ from identification.data import Experiment
 from identification.noise import records_noise_std
 from identification.parameters import parameter_space
 from identification.run import load_identification_config, read_data
+from identification.settings import identification_settings
 
 from .effects import PAIR_SEPARATOR, Catalogue, Scales
 from .fitting import GapProblem
@@ -85,9 +86,9 @@ def _start_from_result(result: str | Path, names: Sequence[str]) -> np.ndarray:
         params = point["parameters"]
         return np.array([float(params[n]) for n in names])
     except FileNotFoundError:
-        raise ConfigError(f"--result {result}: no pareto.json (run `ebb identify` first)") from None
+        raise ConfigError(f"`result` {result}: no pareto.json (run `ebb identify` first)") from None
     except (KeyError, ValueError, TypeError, IndexError, json.JSONDecodeError) as exc:
-        raise ConfigError(f"--result {path}: unreadable identification result ({exc!s}); "
+        raise ConfigError(f"`result` {path}: unreadable identification result ({exc!s}); "
                           f"expected the parameters {', '.join(names)}") from None
 
 
@@ -258,7 +259,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         raise ConfigError(f"workers: must be a whole number >= 1, got {workers!r}")
     cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
     if shortlist < 1:
-        raise ConfigError(f"--shortlist must be >= 1, got {shortlist}")
+        raise ConfigError(f"`shortlist` must be >= 1, got {shortlist}")
     out = Path(out_dir) if out_dir is not None else None
     if out is not None:
         check_new_output_dir(out)
@@ -271,7 +272,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     dt = cfg.time.dt
     n_s = len(cfg.sensors)
     if noise_std is None:
-        noise_std = cfg.extra.get("identification", {}).get("noise_std")
+        noise_std = identification_settings(cfg).noise_std
     if noise_std is not None:
         sigma = np.asarray(noise_std, dtype=float).ravel()
         if sigma.shape != (n_s,) or not np.all(np.isfinite(sigma) & (sigma > 0)):

@@ -5,6 +5,8 @@ import argparse
 import sys
 from typing import Any, Sequence
 
+from ebb_model.threads import single_blas_thread
+
 from . import diagnosis, fmu, identification, model
 from .messages import flag_table, render
 
@@ -36,8 +38,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     import warnings
 
-    from threadpoolctl import threadpool_limits
-
     from ebb_model.errors import DataWarning, EbbError, Interrupted
 
     parser = build_parser()
@@ -52,8 +52,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("always", DataWarning)
             warnings.showwarning = one_line
-            # the matrices are small: BLAS threads only add overhead (and thrash on 2 cores)
-            with threadpool_limits(limits=1, user_api="blas"):
+            with single_blas_thread():   # every subcommand (ebb_model.threads)
                 return int(args.func(args) or 0)
     except Interrupted as exc:
         print(f"{prog}: {exc}", file=sys.stderr)

@@ -12,6 +12,7 @@ from scipy import fft as sfft
 from scipy import optimize, signal
 
 from ebb_model.errors import ConfigError, DataError
+from ebb_model.arrays import as_matrix
 
 from .thresholds import EXCITE_REL
 
@@ -19,18 +20,8 @@ from .thresholds import EXCITE_REL
 # validation
 # ----------------------------------------------------------------------------------------------
 def _matrix(a: Any, name: str) -> np.ndarray:
-    try:
-        m = np.asarray(a, dtype=float)
-    except (TypeError, ValueError):
-        raise DataError(f"{name}: not a numeric array") from None
-    if m.ndim == 1:
-        m = m[:, None]
-    if m.ndim != 2 or m.shape[1] == 0:
-        raise DataError(f"{name}: expected shape (n_samples,) or (n_samples, n_channels), got {np.shape(a)}")
-    bad = np.argwhere(~np.isfinite(m))
-    if len(bad):
-        raise DataError(f"{name}: non-finite value (NaN/inf) at sample {bad[0, 0]}, column {bad[0, 1]}")
-    return m
+    """``(n_samples, n_channels)`` float array of ``a`` (:func:`ebb_model.arrays.as_matrix`)."""
+    return as_matrix(a, name)
 
 
 def _names(names: Sequence[str] | None, k: int, what: str, default: str) -> tuple[str, ...]:
