@@ -1,4 +1,4 @@
-"""The catalogue of unmodelled effects, as understood by the blind data generator.
+r"""The catalogue of unmodelled effects, as understood by the blind data generator.
 
 The shared vocabulary of issue 5 (names, parameters, units, "off" values) is
 written down here once for :mod:`ebb_model.reference.synthetic`; the diagnosis
