@@ -1,0 +1,130 @@
+"""Which effect, first step: the score test of an effect at the fitted baseline.
+
+Score (Lagrange-multiplier) test
+--------------------------------
+At the fitted baseline (residuals ``r``, noise-normalised, Jacobian ``J_β``
+w.r.t. the baseline unknowns) the effect's variable ``s`` is at its "off"
+value.  With ``J_s`` the derivative of the residuals w.r.t. ``s`` there and
+``J̃ = (I − P_β) J_s`` its part that the baseline unknowns cannot mimic
+(``P_β`` the projector onto the columns of ``J_β`` — this is the score
+"scaled by the Fisher information" with the nuisance parameters profiled out),
+the statistic
+
+.. math::  LM = \\frac{(\\tilde J^T r)^2}{\\tilde J^T \\tilde J}
+
+is the drop of the residual sum of squares a Gauss–Newton step in ``s`` (with
+the baseline re-adjusted) predicts; it is χ²₁ when the effect is absent and the
+residual is white noise.  One-sided effects (a spring, a mass, a lag cannot be
+negative) score 0 when the first-order improvement needs ``s`` below its off
+value.  The point mass has a position that is undefined when the mass is 0 (a
+nuisance present only under the alternative): its score is the supremum over a
+grid of positions.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2
+
+from .effects import Effect
+from .fitting import Fit, GapProblem
+
+__all__ = ["EffectScore", "MASS_GRID", "score_effect", "trial_values"]
+
+#: Positions tried for the point mass score (fractions of the search interval).
+MASS_GRID = 13
+
+
+@dataclass(frozen=True)
+class EffectScore:
+    """Score-test outcome of one effect at the baseline."""
+
+    label: str
+    lm: float
+    p_value: float
+    start: np.ndarray          # suggested start of the refit (Gauss–Newton step), search variables
+    n_evaluations: int
+    alternatives: tuple[np.ndarray, ...] = ()   # further starts (e.g. another point-mass position)
+
+
+def _orthogonal(J: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    return J - Q @ (Q.T @ J)
+
+
+def _lm(Jt: np.ndarray, r: np.ndarray, one_sided: bool) -> tuple[float, float]:
+    """LM statistic and Gauss–Newton step for one column."""
+    d = float(Jt @ Jt)
+    if d <= 0:
+        return 0.0, 0.0
+    g = float(Jt @ r)
+    step = -g / d
+    if one_sided and step <= 0:
+        return 0.0, 0.0
+    return g * g / d, step
+
+
+def score_effect(problem: GapProblem, baseline: Fit, effect: Effect) -> EffectScore:
+    """Score test of ``effect`` at the fitted ``baseline`` (see the module docstring)."""
+    Q, _ = np.linalg.qr(baseline.jac) if baseline.jac.size else (np.zeros((baseline.n, 0)), None)
+    r = baseline.residuals
+    lo, hi = np.asarray(effect.lower), np.asarray(effect.upper)
+    off = np.asarray(effect.off, dtype=float)
+    one_sided = bool(off[0] <= lo[0])
+    span = hi - lo
+    evals = 0
+    starts: list[np.ndarray] = []
+    # at the "off" value the augmented model is the baseline: its residuals are known
+    if effect.dim == 1:
+        J = problem.scaled_jacobian(baseline.beta, effect, off, r0=r)
+        evals += 1
+        lm, step = _lm(_orthogonal(J, Q)[:, 0], r, one_sided)
+        start = off + np.clip(step, -0.5, 0.5) * span
+    else:
+        # switch variable 0 with nuisance variables (point mass: position) — sup over a grid
+        grid: list[tuple[float, float, np.ndarray]] = []
+        for frac in np.linspace(0.0, 1.0, MASS_GRID):
+            s = off.copy()
+            s[1] = lo[1] + frac * span[1]
+            J = problem.scaled_jacobian(baseline.beta, effect, s, r0=r)[:, :1]
+            evals += 1
+            lm_i, step_i = _lm(_orthogonal(J, Q)[:, 0], r, one_sided)
+            grid.append((lm_i, step_i, s))
+        grid.sort(key=lambda g: -g[0])
+        lm, step, s_best = grid[0]
+        start = s_best.copy()
+        start[0] = off[0] + np.clip(step, -0.5, 0.5) * span[0]
+        # the best position well apart from the first as an alternative start of the refit
+        for lm_j, step_j, s_j in grid[1:]:
+            if abs(s_j[1] - s_best[1]) > 0.2 * span[1] and lm_j > 0:
+                alt = s_j.copy()
+                alt[0] = off[0] + np.clip(step_j, -0.5, 0.5) * span[0]
+                starts.append(np.clip(alt, lo, hi))
+                break
+    start = np.clip(start, lo, hi)
+    p = float(chi2.sf(lm, 1))
+    if effect.dim > 1:
+        p = min(1.0, p * MASS_GRID)   # Bonferroni over the position grid (conservative)
+    return EffectScore(effect.label, float(lm), p, start, evals, tuple(starts))
+
+
+def trial_values(lower: np.ndarray, upper: np.ndarray, off: np.ndarray) -> list[np.ndarray]:
+    """A coarse grid of an effect's variables around "off": the switch variable on a geometric grid up to its
+    bound (both ways for a two-sided effect), times :data:`MASS_GRID` positions when there is a second variable.
+    The linearisation at "off" can badly misjudge a large effect; refits start from the best of these."""
+    lo, hi, off = (np.asarray(v, dtype=float) for v in (lower, upper, off))
+    if off[0] <= lo[0]:
+        values = off[0] + (hi[0] - off[0]) * np.geomspace(1e-3, 1.0, 7)
+    else:
+        mag = (hi[0] - lo[0]) / 2 * np.geomspace(1e-3, 1.0, 4)
+        values = np.clip(np.concatenate([off[0] - mag, off[0] + mag]), lo[0], hi[0])
+    positions = [None] if off.size == 1 else list(np.linspace(lo[1], hi[1], MASS_GRID))
+    out = []
+    for x in positions:
+        for v in values:
+            s = off.copy()
+            s[0] = v
+            if x is not None:
+                s[1] = x
+            out.append(s)
+    return out
