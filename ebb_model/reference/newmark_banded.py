@@ -170,6 +170,20 @@ def _band_cholesky_solve(L, b, x):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
+def _rank_one_correction(acc, z1, z, coef, qp, bh2, tol):  # pragma: no cover - compiled
+    """Newton correction ``acc -= z1 - coef z`` (Sherman–Morrison solve of a rank-one tangent); True when the
+    displacement correction ``bh2 |da|`` is below ``tol`` times the new displacement."""
+    dmax = 0.0
+    qmax = 0.0
+    for r in range(acc.shape[0]):
+        da = z1[r] - coef * z[r]
+        acc[r] -= da
+        dmax = max(dmax, abs(da))
+        qmax = max(qmax, abs(qp[r] + bh2 * acc[r]))
+    return bh2 * dmax <= tol * qmax
+
+
+@numba.njit(cache=True, nogil=True)
 def _kernel(Mb, Cb, Kb, Gb, Phi, rows, kinds, F, dt, m, beta, gamma, rate, ea_over_l,
             act_E, act_p, act_c1, lag_sensor, sen_E, sen_p, sen_c1, rloc, k3, fc, v0, tol, maxit,
             y):  # pragma: no cover
@@ -293,15 +307,7 @@ def _kernel(Mb, Cb, Kb, Gb, Phi, rows, kinds, F, dt, m, beta, gamma, rate, ea_ov
                     rz1 = 0.0
                     for r in range(n):
                         rz1 += rloc[r] * z1[r]
-                    coef = ct * rz1 / (1.0 + ct * rzr)
-                    dmax = 0.0
-                    qmax = 0.0
-                    for r in range(n):
-                        da = z1[r] - coef * zr[r]
-                        acc[r] -= da
-                        dmax = max(dmax, abs(da))
-                        qmax = max(qmax, abs(qp[r] + bh2 * acc[r]))
-                    if bh2 * dmax <= tol * qmax:
+                    if _rank_one_correction(acc, z1, zr, ct * rz1 / (1.0 + ct * rzr), qp, bh2, tol):
                         converged = True
                         n_iter += it + 1
                         break
@@ -360,16 +366,7 @@ def _kernel(Mb, Cb, Kb, Gb, Phi, rows, kinds, F, dt, m, beta, gamma, rate, ea_ov
                     for r in range(n):
                         wz1 += w[r] * z1[r]
                         wz2 += w[r] * z2[r]
-                    coef = cb * wz1 / (1.0 + cb * wz2)
-                    dmax = 0.0
-                    qmax = 0.0
-                    for r in range(n):
-                        da = z1[r] - coef * z2[r]
-                        acc[r] -= da
-                        dmax = max(dmax, abs(da))
-                        qv = abs(qp[r] + bh2 * acc[r])
-                        qmax = max(qmax, qv)
-                    if bh2 * dmax <= tol * qmax:
+                    if _rank_one_correction(acc, z1, z2, cb * wz1 / (1.0 + cb * wz2), qp, bh2, tol):
                         converged = True
                         n_iter += it + 1
                         break
