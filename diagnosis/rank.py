@@ -29,8 +29,19 @@ its refit closes at least :data:`NAMED_CLOSURE` of the held-out gap; when no
 candidate pays for itself or the best one closes less, the verdict is
 :data:`UNEXPLAINED` — the gap is real but no effect of the catalogue accounts
 for it, and the least-bad candidate is not named.  Effects whose held-out
-improvement is within 5 % of the best are reported as indistinguishable from
-it.
+improvement is within 5 % of the best and whose held-out error is not
+measurably higher (by at most :data:`GAP_THRESHOLD` or a quarter of the
+best's excess) are reported as indistinguishable from it.
+
+Modal pattern
+-------------
+When no local refit explains the gap, the measured modes
+(:mod:`diagnosis.modal_estimate`) are matched by every structural effect with
+the baseline unknowns profiled out (:mod:`diagnosis.modal_pattern`), and the
+:data:`PATTERN_CANDIDATES` best matches are refitted from their match — in
+the right basin even when the baseline had compensated the effect and its
+one-sided score was 0.  Only then come the other baseline basins and the
+continuation refits.
 
 Two effects at once
 -------------------
@@ -47,12 +58,13 @@ from __future__ import annotations
 
 from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from .effects import PAIR_SEPARATOR, Catalogue, Effect, on_top_of
 from .fitting import Fit, GapProblem
+from .modal_pattern import ModalEvidence, PatternFit, pattern_fits
 from .score import EffectScore, score_effect, trial_values
 
 __all__ = ["EffectRefit", "Ranking", "better_baseline", "settled", "refit_effect", "rank_effects",
@@ -73,6 +85,11 @@ PAIR_PARTNERS = 3
 PAIR_MINIMUM = 0.25
 #: Fractions of the fit windows of the continuation refit (the first one searched globally).
 CONTINUATION = (0.1, 0.3, 1.0)
+#: How many of the best modal-pattern matches are refitted from their match (module docstring).
+PATTERN_CANDIDATES = 2
+#: A further pattern candidate is refitted only when its χ² is within this factor of the best match's (or of
+#: 2 per mode, a match within the errors).
+PATTERN_RIVAL = 10.0
 @dataclass(frozen=True)
 class EffectRefit:
     """Refit of one shortlisted effect together with the baseline unknowns."""
@@ -101,6 +118,8 @@ class Ranking:
     verdict: str
     indistinguishable: list[str] = field(default_factory=list)
     reason: str = ""
+    patterns: dict[str, PatternFit] = field(default_factory=dict)   # modal-pattern fits, when they were needed
+    modal: ModalEvidence | None = None
 
 
 def _best_start(problem: GapProblem, baseline: Fit, effect: Effect, score: EffectScore) -> np.ndarray:
@@ -140,16 +159,24 @@ def _continuation_fit(problem: GapProblem, starts: list[tuple[np.ndarray, np.nda
     return min(fits, key=lambda f: f.rss), used
 
 
-def _local_refit(problem: GapProblem, baseline: Fit, effect: Effect, score: EffectScore, max_evaluations: int
-                 ) -> tuple[Fit, list[tuple[np.ndarray, np.ndarray]]]:
-    """Refit from the score's start and, if that leaves the gap, from the baseline's other basins.
+def _local_refit(problem: GapProblem, baseline: Fit, effect: Effect, score: EffectScore, max_evaluations: int,
+                 basins: bool = True) -> tuple[Fit, list[tuple[np.ndarray, np.ndarray]]]:
+    """Refit from the score's start and (``basins``), if that leaves the gap, from the baseline's other basins.
 
     Returns the best fit (its ``n_evaluations`` counting every fit) and the
     starts tried after the first refit's optimum (for a continuation refit).
     """
     fit = problem.fit(baseline.beta, effect, _best_start(problem, baseline, effect, score),
                       max_evaluations=max_evaluations)
-    starts: list[tuple[np.ndarray, np.ndarray]] = []
+    return _basin_refits(problem, baseline, effect, score, fit, [], max_evaluations) if basins else (fit, [])
+
+
+def _basin_refits(problem: GapProblem, baseline: Fit, effect: Effect, score: EffectScore, fit: Fit,
+                  starts: list[tuple[np.ndarray, np.ndarray]], max_evaluations: int
+                  ) -> tuple[Fit, list[tuple[np.ndarray, np.ndarray]]]:
+    """``fit``, or the refit from the baseline's other basins when that is better and ``fit`` leaves the gap;
+    ``starts`` gains the starts tried."""
+    starts = list(starts)
     if not _explains(fit, baseline):
         # the baseline unknowns may sit in a basin that only suited the model without the effect
         used = fit.n_evaluations
@@ -205,22 +232,64 @@ def refit_effect(problem: GapProblem, baseline: Fit, heldout_before: np.ndarray,
 
 
 def _refit_task(problem: GapProblem, catalogue: Catalogue, label: str, baseline: Fit, score: EffectScore,
-                max_evaluations: int, previous: tuple[Fit, list] | None = None) -> tuple[Fit, list]:
-    """One shortlisted effect's refit, in this or a worker process: the local refit, or (given the local
-    refit as ``previous``) the continuation refit from it."""
+                max_evaluations: int, previous: tuple[Fit, list] | None = None, stage: str = "local"
+                ) -> tuple[Fit, list]:
+    """One shortlisted effect's refit, in this or a worker process: the local refit (``"local"``: with the
+    other basins, ``"first"``: without), or, given the refit so far as ``previous``, the other basins'
+    refits (``"basins"``) or the continuation refit (``"continuation"``)."""
     effect = catalogue.effect(label)
     if previous is None:
-        return _local_refit(problem, baseline, effect, score, max_evaluations)
+        return _local_refit(problem, baseline, effect, score, max_evaluations, basins=stage == "local")
+    if stage == "basins":
+        return _basin_refits(problem, baseline, effect, score, *previous, max_evaluations)
     return _continued(problem, *previous, effect, max_evaluations), []
+
+
+def _start_task(problem: GapProblem, catalogue: Catalogue, label: str, start: PatternFit, max_evaluations: int
+                ) -> tuple[Fit, list]:
+    """Refit of one effect from its modal-pattern match, in this or a worker process."""
+    fit = problem.fit(start.beta, catalogue.effect(label), start.s, max_evaluations=max_evaluations)
+    return fit, [(start.beta, start.s)]
+
+
+def _pattern_stage(problem: GapProblem, baseline: Fit, catalogue: Catalogue, evidence: ModalEvidence,
+                   local: dict[str, tuple[Fit, list]], max_evaluations: int, executor: Executor | None, say: Any
+                   ) -> dict[str, PatternFit]:
+    """Match the measured modes by every structural effect and refit the :data:`PATTERN_CANDIDATES` best
+    matches from their match (module docstring); ``local`` gains (or keeps the better of) their refits."""
+    patterns = pattern_fits(problem, evidence, baseline.beta, catalogue, executor)
+    base = patterns["baseline"].chi2
+    say("modal pattern chi2 (" + f"{evidence.n_modes} modes; baseline {base:.4g}): "
+        + ", ".join(f"{lab} {pf.chi2:.4g}" for lab, pf in patterns.items() if lab != "baseline"))
+    ranked = sorted((lab for lab in patterns if lab != "baseline" and patterns[lab].chi2 < base - BIC_MARGIN),
+                    key=lambda lab: patterns[lab].chi2)[:PATTERN_CANDIDATES]
+    if ranked:   # a match far worse than the best one does not match: 2 per mode is a match within the errors
+        limit = PATTERN_RIVAL * max(patterns[ranked[0]].chi2, 2.0 * evidence.n_modes)
+        ranked = [lab for lab in ranked if patterns[lab].chi2 <= limit]
+    args = [(problem, catalogue, lab, patterns[lab], max_evaluations) for lab in ranked]
+    if executor is None or len(args) < 2:
+        fits = [_start_task(*a) for a in args]
+    else:
+        fits = [f.result() for f in [executor.submit(_start_task, *a) for a in args]]
+    for lab, (fit, starts) in zip(ranked, fits):
+        say(f"refit {lab} from its modal match: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
+        if lab in local:
+            old, old_starts = local[lab]
+            best = fit if fit.rss < old.rss else old
+            local[lab] = (replace(best, n_evaluations=old.n_evaluations + fit.n_evaluations), old_starts + starts)
+        else:
+            local[lab] = (fit, starts)
+    return patterns
 
 
 def _map_refits(executor: Executor | None, problem: GapProblem, catalogue: Catalogue, labels: list[str],
                 baseline: Fit, scores: dict[str, EffectScore], max_evaluations: int,
-                previous: dict[str, tuple[Fit, list]] | None = None) -> dict[str, tuple[Fit, list]]:
+                previous: dict[str, tuple[Fit, list]] | None = None, stage: str = "local"
+                ) -> dict[str, tuple[Fit, list]]:
     """:func:`_refit_task` for every label, on the executor's processes when given (same results: each refit is
     deterministic)."""
     args = [(problem, catalogue, lab, baseline, scores[lab], max_evaluations,
-             None if previous is None else previous[lab]) for lab in labels]
+             None if previous is None else previous[lab], stage) for lab in labels]
     if executor is None or len(labels) < 2:
         return {lab: _refit_task(*a) for lab, a in zip(labels, args)}
     futures = [executor.submit(_refit_task, *a) for a in args]
@@ -295,7 +364,8 @@ def settled(ranking: Ranking) -> bool:
 
 def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, shortlist: int = 4,
                  max_evaluations: int = 300, progress: Any = None, executor: Executor | None = None,
-                 parallel: int = 1, rebaseline: bool = True) -> Ranking:
+                 parallel: int = 1, rebaseline: bool = True,
+                 modal: Callable[[np.ndarray], ModalEvidence] | None = None) -> Ranking:
     """Score every effect, refit the ``shortlist`` best, rank and decide.
 
     Parameters
@@ -324,6 +394,9 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
         unknowns (:func:`better_baseline`); if that is better, rank again from it (once) before paying for
         the continuation refits — which would otherwise run twice, from the worse baseline and again.
         The returned :attr:`Ranking.baseline` is the baseline the ranking used.
+    modal
+        The measured modes with their uncertainties for baseline unknowns ``beta`` (called only when no local
+        refit explains the gap): then the modal-pattern stage runs first (module docstring).
 
     Returns
     -------
@@ -339,10 +412,22 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
     by_score = sorted(effects, key=lambda e: -scores[e.label].lm)
     chosen = [e for e in by_score if scores[e.label].lm > 0][:shortlist]
     labels = [e.label for e in chosen]
-    local = _map_refits(executor, problem, catalogue, labels, baseline, scores, max_evaluations)
+    # with the modal pattern at hand, the other basins wait until it has been tried (it is cheaper)
+    local = _map_refits(executor, problem, catalogue, labels, baseline, scores, max_evaluations,
+                        stage="local" if modal is None else "first")
     for lab, (fit, _) in local.items():
         say(f"local refit {lab}: fit RSS/n {baseline.rss / baseline.n:.4g} -> {fit.rss / fit.n:.4g} "
             f"({fit.n_evaluations} evaluations)")
+    patterns: dict[str, PatternFit] = {}
+    evidence = None
+    if modal is not None and not any(_explains(fit, baseline) for fit, _ in local.values()):
+        evidence = modal(baseline.beta)
+        patterns = _pattern_stage(problem, baseline, catalogue, evidence, local, max_evaluations, executor, say)
+        chosen += [e for e in effects if e.label in local and e not in chosen]
+        labels = [e.label for e in chosen]
+        if not any(_explains(fit, baseline) for fit, _ in local.values()):
+            local = _map_refits(executor, problem, catalogue, labels, baseline, scores, max_evaluations, local,
+                                stage="basins")
     if not any(_explains(fit, baseline) for fit, _ in local.values()):
         better = (better_baseline(problem, baseline, [fit for fit, _ in local.values()], executor)
                   if rebaseline else None)
@@ -350,13 +435,14 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
             say(f"baseline re-fit from a local refit's optimum: RSS {baseline.rss:.4g} -> {better.rss:.4g}; "
                 f"ranking again")
             return rank_effects(problem, better, catalogue, shortlist=shortlist, max_evaluations=max_evaluations,
-                                progress=progress, executor=executor, parallel=parallel, rebaseline=False)
+                                progress=progress, executor=executor, parallel=parallel, rebaseline=False,
+                                modal=modal)
         # no local refit explains the gap: continuation refits (module docstring), the most promising first
         pending = sorted(labels, key=lambda lab: local[lab][0].rss)
         while pending:
             group, pending = pending[:max(1, parallel)], pending[max(1, parallel):]
             local.update(_map_refits(executor, problem, catalogue, group, baseline, scores, max_evaluations,
-                                     {lab: local[lab] for lab in group}))
+                                     {lab: local[lab] for lab in group}, stage="continuation"))
             for lab in group:
                 fit = local[lab][0]
                 say(f"continuation refit {lab}: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
@@ -379,12 +465,14 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
     if excess < GAP_THRESHOLD:
         return Ranking(baseline, before, scores, refits, order, "none", [],
                        f"the held-out residual variance is only {excess:+.0%} above the noise floor "
-                       f"(threshold {GAP_THRESHOLD:.0%}): nothing to explain")
+                       f"(threshold {GAP_THRESHOLD:.0%}): nothing to explain",
+                   patterns=patterns, modal=evidence)
     if not paying:
         return Ranking(baseline, before, scores, refits, order, UNEXPLAINED, [],
                        f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the noise "
                        f"variance, but no candidate effect improves BIC by more than {BIC_MARGIN:g} and the held-out "
-                       f"error")
+                       f"error",
+                   patterns=patterns, modal=evidence)
     best = refits[paying[0]]
     if not _explains(best.fit, baseline) and best.closed >= PAIR_MINIMUM:
         # one effect leaves a significant remainder: a second one at once, when it pays for itself; the
@@ -405,14 +493,20 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
         return Ranking(baseline, before, scores, refits, order, UNEXPLAINED, [],
                        f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the noise "
                        f"variance and the best candidate, {paying[0]}, closes only {best.closed:.0%} of the gap "
-                       f"(an effect is named from {NAMED_CLOSURE:.0%})")
+                       f"(an effect is named from {NAMED_CLOSURE:.0%})",
+                   patterns=patterns, modal=evidence)
     gain = float(np.mean(before) - np.mean(best.heldout_after))
     # a pair's own parts are not its rivals: the pair has paid for its second effect against the first
     parts = set(paying[0].split(PAIR_SEPARATOR))
+    # a rival ties when it closes nearly as much and what it leaves is not measurably more (a rival leaving
+    # 349 noise variances where the best leaves 1.1 is decided, even though both close 97-100 %)
+    left = float(np.mean(best.heldout_after))
     ties = [lab for lab in paying[1:] if PAIR_SEPARATOR not in lab and lab not in parts
-            and float(np.mean(before) - np.mean(refits[lab].heldout_after)) >= 0.95 * gain]
+            and float(np.mean(before) - np.mean(refits[lab].heldout_after)) >= 0.95 * gain
+            and float(np.mean(refits[lab].heldout_after)) - left <= max(GAP_THRESHOLD, 0.25 * (left - 1.0))]
     reason = (f"{paying[0]} closes {best.closed:.0%} of the held-out gap "
               f"(gap ratio {np.mean(before):.3g} -> {np.mean(best.heldout_after):.3g}, dBIC {best.delta_bic:.1f})")
     if ties:
         reason += "; the data cannot distinguish it from " + ", ".join(ties)
-    return Ranking(baseline, before, scores, refits, order, paying[0], ties, reason)
+    return Ranking(baseline, before, scores, refits, order, paying[0], ties, reason,
+                   patterns=patterns, modal=evidence)

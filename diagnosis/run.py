@@ -46,6 +46,8 @@ from identification.settings import identification_settings
 from .effects import PAIR_SEPARATOR, Catalogue, Scales
 from .fitting import GapProblem
 from .localise import localise
+from .modal_estimate import MeasuredModes, estimate_modes
+from .modal_pattern import ModalEvidence, modal_evidence
 from .rank import BIC_MARGIN, GAP_THRESHOLD, UNEXPLAINED, Ranking, better_baseline, rank_effects, settled
 from .records import Record, split_records
 
@@ -182,6 +184,23 @@ def corrected_summary(config: BeamConfig, baseline: dict[str, float], row: dict[
             "sensors": {s.name: s.unit for s in config.sensors}}
 
 
+def _modal_source(problem: GapProblem, freq_hz: np.ndarray, damping: np.ndarray, above_hz: np.ndarray
+                  ) -> Callable[[np.ndarray], ModalEvidence]:
+    """The measured modes' evidence at baseline unknowns ``beta`` (:mod:`diagnosis.modal_pattern`); the modes
+    are estimated from the fit windows once, when first asked for, starting from the baseline's ``freq_hz``."""
+    measured: list[MeasuredModes] = []
+
+    def evidence(beta: np.ndarray) -> ModalEvidence:
+        if not measured:
+            fit = [r for r in problem.records if r.has_fit]
+            measured.append(estimate_modes([r.inputs[:r.fit_end] for r in fit], [r.outputs[:r.fit_end] for r in fit],
+                                           problem.noise_std, problem.config.time.dt, freq_hz, damping,
+                                           above_hz=above_hz))
+        return modal_evidence(problem, beta, measured[0])
+
+    return evidence
+
+
 def _modes_hz(model: Any, k: int) -> list[float]:
     """The first ``k`` modal frequencies [Hz] of an augmented model (its beam; lags and drift do not move them)."""
     freqs, _ = discrete_frequencies(model.config, model.params)
@@ -305,7 +324,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     executor = refit_pool(workers)
     try:
         rank = partial(rank_effects, problem, catalogue=catalogue, shortlist=shortlist, progress=say,
-                       executor=executor, parallel=workers)
+                       executor=executor, parallel=workers,
+                       modal=_modal_source(problem, mf, mz, freqs[~in_band][:1]))
         ranking = rank(baseline)
         baseline = ranking.baseline
         for _ in range(2):
@@ -368,6 +388,10 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                 # cross-check against an independent modal test
                 "model_modes_hz": _modes_hz(problem.model(rf.fit.beta, e, rf.fit.s), len(mf) + 1),
             }
+        pf = ranking.patterns.get(lab)
+        if pf is not None:
+            row["modal_pattern"] = {"chi2": pf.chi2, "freq_hz": [float(v) for v in pf.freq_hz],
+                                    "damping": [float(v) for v in pf.damping]}
         effect_rows.append(row)
     p = space.dim
     doc: dict[str, Any] = {
@@ -386,6 +410,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
             "numerical_adequacy": adequacy.to_dict(),
             "grid_advice": advice.to_dict() | {"summary": advice.summary()},
         },
+        "measured_modes": None if ranking.modal is None else ranking.modal.measured.to_dict() | {
+            "baseline_pattern_chi2": ranking.patterns["baseline"].chi2},
         "localisation": {r.name: loc.to_dict() for r, loc in zip(records, locs)},
         "summary": [s for loc in locs for s in loc.summary],
         "effects": effect_rows,

@@ -118,16 +118,9 @@ ACCEL_CASES = [
     ("foundation", WithheldEffect("foundation", {"kf": 200.0})),
     ("actuator_lag", WithheldEffect("actuator_lag", {"tau": 5e-4})),
     ("kelvin_voigt", WithheldEffect("kelvin_voigt", {"eta": 6e-5})),
-    pytest.param("rotary_inertia", WithheldEffect("rotary_inertia", {"rhoI": 4e-4}),
-                 marks=pytest.mark.xfail(reason="rotary inertia on accelerometer records: named point_mass, "
-                                                "baseline N +89 % (the which-effect issue)", strict=False)),
-    pytest.param("boundary_rotational_left", WithheldEffect("boundary_rotational_left", {"kr": 200.0}),
-                 marks=pytest.mark.xfail(reason="compliant clamp on accelerometer records: named point_mass "
-                                                "(the which-effect issue)", strict=False)),
-    pytest.param("boundary_translational_right", WithheldEffect("boundary_translational_right", {"kt": 5e4}),
-                 marks=pytest.mark.xfail(reason="translational spring at the pinned end on accelerometer records: "
-                                                "named point_mass (0.67 kg at 0.98 m, 97.7 % closed; the "
-                                                "which-effect issue)", strict=False)),
+    ("rotary_inertia", WithheldEffect("rotary_inertia", {"rhoI": 4e-4})),
+    ("boundary_rotational_left", WithheldEffect("boundary_rotational_left", {"kr": 200.0})),
+    ("boundary_translational_right", WithheldEffect("boundary_translational_right", {"kt": 5e4})),
     ("point_mass", WithheldEffect("point_mass", {"mass": 0.1, "x": 0.7})),
     ("sensor_lag[y2]", WithheldEffect("sensor_lag", {"tau": 5e-4}, sensor="y2")),
     ("axial_drift", WithheldEffect("axial_drift", {"rate": 3.0})),

@@ -1,0 +1,219 @@
+r"""Which effect, by its modal pattern: how each candidate moves the frequencies and damping ratios of the modes.
+
+Effects that act through the mass and stiffness distribution all shift the
+modes, and a baseline fit absorbs part of every shift into EI, ρA and N; what
+tells them apart is *how the shift depends on the mode* — a foundation adds the
+same amount to every ω², rotary inertia grows with the wavenumber squared, a
+point mass follows the mode shape squared at its position, a compliant clamp
+moves the low modes most, Kelvin–Voigt damping ratios grow with ω.
+
+For every structural effect of the catalogue (and for the baseline alone) the
+measured modes (:mod:`diagnosis.modal_estimate`) are fitted by the model's
+own discrete modes, :func:`ebb_model.modal.discrete_frequencies`, over the
+baseline unknowns *and* the effect together — the baseline is profiled out
+globally, not linearised at the point where it compensated the effect:
+
+.. math::  \chi^2_E = \min_{\beta, s} \sum_i
+           \Big(\frac{f_i(\beta, s) - \hat f_i}{\sigma_{f,i}}\Big)^2
+         + \Big(\frac{\zeta_i(\beta, s) - \hat\zeta_i}{\sigma_{\zeta,i}}\Big)^2
+         + \Big\lVert\frac{\beta - \hat\beta}{\beta_{hi} - \beta_{lo}}\Big\rVert^2 .
+
+The uncertainties are the estimate's standard errors combined with the
+model's own discretisation error of each mode (the change of its frequency and
+damping on the refined grid of :func:`ebb_model.adequacy.refined_grid`: the
+grid's pattern is thus part of every comparison, and an effect must explain
+more than it).  The last term only settles the directions the modes cannot see
+(EI and ρA move the frequencies only through their ratio).  The fit starts
+from the best of a coarse grid of the effect
+(:func:`diagnosis.score.trial_values`); its optimum is a start of the effect's
+time-domain refit that lies in the right basin even when the baseline had
+compensated the effect — a one-sided score test then sees nothing, the modal
+pattern still does.  Signal-level effects (lags, drift, stretching) do not
+move the linear modes and have no pattern of their own.
+"""
+from __future__ import annotations
+
+from concurrent.futures import Executor
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize
+
+from ebb_model.adequacy import refined_grid
+from ebb_model.errors import EbbError
+from ebb_model.modal import discrete_frequencies
+
+from .effects import Catalogue, Effect
+from .fitting import GapProblem
+from .modal_estimate import MeasuredModes
+from .score import trial_values
+
+__all__ = ["ModalEvidence", "PatternFit", "modal_evidence", "pattern_fit", "pattern_fits", "moves_modes"]
+
+#: Relative floor of the damping ratios' uncertainty (the estimate of a damping ratio carries what the
+#: oscillator model leaves out, e.g. the small phase of a lag).
+DAMPING_FLOOR = 0.005
+#: How many of the grid's best starts are polished.
+STARTS = 2
+#: Value of χ² for a model that cannot be evaluated.
+FAILED = 1e12
+
+
+@dataclass(frozen=True)
+class ModalEvidence:
+    """Measured modes and the uncertainty each comparison with the model allows (module docstring)."""
+
+    measured: MeasuredModes
+    freq_sigma: np.ndarray
+    damping_sigma: np.ndarray
+
+    @property
+    def n_modes(self) -> int:
+        """Number of compared modes."""
+        return int(self.measured.freq_hz.size)
+
+
+@dataclass(frozen=True)
+class PatternFit:
+    """Best match of the measured modes by one effect (or the baseline alone, ``label == "baseline"``)."""
+
+    label: str
+    chi2: float
+    beta: np.ndarray
+    s: np.ndarray
+    freq_hz: np.ndarray
+    damping: np.ndarray
+
+
+def _modes(problem: GapProblem, beta: np.ndarray, effect: Effect | None, s: np.ndarray | None, m: int,
+           *, refined: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    model = problem.model(beta, effect, s)
+    cfg = refined_grid(model.config) if refined else model.config
+    f, z = discrete_frequencies(cfg, model.params)
+    if f.size < m:
+        raise EbbError(f"the model has {f.size} modes, {m} measured")
+    return f[:m], z[:m]
+
+
+def modal_evidence(problem: GapProblem, beta: np.ndarray, measured: MeasuredModes) -> ModalEvidence:
+    """The measured modes with their comparison uncertainty: standard error and the model grid's own error
+    of each mode at ``beta`` (module docstring)."""
+    m = measured.freq_hz.size
+    f, z = _modes(problem, beta, None, None, m)
+    f_fine, z_fine = _modes(problem, beta, None, None, m, refined=True)
+    sf = np.hypot(measured.freq_std, np.abs(f_fine - f))
+    sz = np.sqrt(measured.damping_std ** 2 + (z_fine - z) ** 2 + (DAMPING_FLOOR * measured.damping) ** 2)
+    return ModalEvidence(measured, np.maximum(sf, 1e-9 * measured.freq_hz), np.maximum(sz, 1e-12))
+
+
+def moves_modes(problem: GapProblem, beta: np.ndarray, effect: Effect) -> bool:
+    """Whether ``effect`` changes the linear beam (a structural effect) rather than a signal or the axial force."""
+    s = np.asarray(trial_values(effect.lower, effect.upper, effect.off)[-1])
+    cfg, params = problem.space.apply(problem.config, np.asarray(beta, dtype=float))
+    moved = effect.apply(cfg, params, s)
+    return moved.config is not cfg or moved.params != params
+
+
+def _residual(problem: GapProblem, ev: ModalEvidence, beta0: np.ndarray, span: np.ndarray, effect: Effect | None,
+              z: np.ndarray) -> np.ndarray:
+    p = beta0.size
+    prior = (z[:p] - beta0) / span
+    try:
+        f, zeta = _modes(problem, z[:p], effect, z[p:] if effect is not None else None, ev.n_modes)
+    except (EbbError, ValueError, np.linalg.LinAlgError):
+        return np.concatenate([np.full(2 * ev.n_modes, np.sqrt(FAILED / (2 * ev.n_modes))), prior])
+    return np.concatenate([(f - ev.measured.freq_hz) / ev.freq_sigma,
+                           (zeta - ev.measured.damping) / ev.damping_sigma, prior])
+
+
+def _free(problem: GapProblem, effect: Effect | None) -> np.ndarray:
+    """Which variables the pattern fit moves: all but ρA when EI is an unknown too (the modes see only their
+    ratio, and the time-domain refit then sets the scale from the amplitudes)."""
+    names = list(problem.space.names)
+    free = np.array([not (n == "rhoA" and "EI" in names) for n in names])
+    return np.concatenate([free, np.ones(0 if effect is None else effect.dim, dtype=bool)])
+
+
+def pattern_fit(problem: GapProblem, evidence: ModalEvidence, beta0: np.ndarray, effect: Effect | None = None,
+                *, max_evaluations: int = 200) -> PatternFit:
+    """Least-squares match of the measured modes by the baseline unknowns and ``effect`` (module docstring),
+    from ``beta0`` and the best :data:`STARTS` values of the effect's coarse grid."""
+    box = problem.box(effect)
+    lo, hi = np.asarray(box.lower, dtype=float), np.asarray(box.upper, dtype=float)
+    beta0 = np.asarray(beta0, dtype=float)
+    p = beta0.size
+    span = hi[:p] - lo[:p]
+    free = _free(problem, effect)
+    held = np.concatenate([beta0, np.asarray(effect.off if effect is not None else [], dtype=float)])
+
+    def full(x: np.ndarray) -> np.ndarray:
+        z = held.copy()
+        z[free] = x
+        return z
+
+    def res(x: np.ndarray) -> np.ndarray:
+        return _residual(problem, evidence, beta0, span, effect, full(x))
+
+    if effect is None:
+        starts = [held[free]]
+    else:
+        grid = [np.concatenate([beta0, s])[free] for s in trial_values(effect.lower, effect.upper, effect.off)]
+        costs = [float(r @ r) for r in map(res, grid)]
+        starts = [grid[i] for i in np.argsort(costs)[:STARTS]]
+    def polish(x0: np.ndarray) -> optimize.OptimizeResult:
+        return optimize.least_squares(res, np.clip(x0, lo[free], hi[free]), bounds=(lo[free], hi[free]),
+                                      x_scale=(hi - lo)[free], max_nfev=max_evaluations)
+
+    best = min((polish(x0) for x0 in starts), key=lambda sol: sol.cost)
+    if not np.all(free[:p]):
+        # the scale the modes cannot see, from the amplitudes: multiplying every force-like constant by λ
+        # divides the response by λ and leaves the modes alone
+        lam = _amplitude_scale(problem, effect, full(best.x))
+        if lam is not None:
+            held[:p][~free[:p]] = np.clip(held[:p][~free[:p]] * lam, lo[:p][~free[:p]], hi[:p][~free[:p]])
+            x0 = best.x.copy()
+            x0[:int(np.sum(free[:p]))] *= lam
+            best = polish(x0)
+    z = full(best.x)
+    s = z[p:]
+    try:
+        f, zeta = _modes(problem, z[:p], effect, s if effect is not None else None, evidence.n_modes)
+    except (EbbError, ValueError, np.linalg.LinAlgError):
+        f = zeta = np.full(evidence.n_modes, np.nan)
+    return PatternFit("baseline" if effect is None else effect.label, float(2 * best.cost), z[:p], s, f, zeta)
+
+
+def _amplitude_scale(problem: GapProblem, effect: Effect | None, z: np.ndarray) -> float | None:
+    """``λ`` with measured ≈ simulated / λ on the fit windows (least squares), ``None`` if it cannot be had."""
+    p = problem.space.dim
+    try:
+        sims = problem.simulate(z[:p], effect, z[p:] if effect is not None else None)
+    except (EbbError, ValueError, np.linalg.LinAlgError):
+        return None
+    num = den = 0.0
+    for y, r in zip(sims, problem.records):
+        if y is not None:
+            a, b = y / problem.noise_std, r.outputs[:r.fit_end] / problem.noise_std
+            num, den = num + float(np.sum(a * b)), den + float(np.sum(a * a))
+    if not (num > 0 and den > 0 and np.isfinite(num / den)):
+        return None
+    return den / num
+
+
+def _pattern_task(problem: GapProblem, evidence: ModalEvidence, beta: np.ndarray, catalogue: Catalogue,
+                  label: str | None) -> PatternFit:
+    """One pattern fit, in this or a worker process (effects are rebuilt from their label: they do not pickle)."""
+    return pattern_fit(problem, evidence, beta, None if label is None else catalogue.effect(label))
+
+
+def pattern_fits(problem: GapProblem, evidence: ModalEvidence, beta: np.ndarray, catalogue: Catalogue,
+                 executor: Executor | None = None) -> dict[str, PatternFit]:
+    """The baseline's (key ``"baseline"``) and every structural effect's pattern fit from the baseline
+    unknowns ``beta``, on ``executor``'s processes when given."""
+    labels: list[str | None] = [None] + [e.label for e in catalogue.effects() if moves_modes(problem, beta, e)]
+    args = [(problem, evidence, beta, catalogue, lab) for lab in labels]
+    if executor is None:
+        fits = [_pattern_task(*a) for a in args]
+    else:
+        fits = [f.result() for f in [executor.submit(_pattern_task, *a) for a in args]]
+    return {f.label: f for f in fits}
