@@ -35,6 +35,7 @@ from __future__ import annotations
 
 from concurrent.futures import Executor
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 from scipy import optimize
@@ -48,13 +49,15 @@ from .fitting import GapProblem
 from .modal_estimate import MeasuredModes
 from .score import trial_values
 
-__all__ = ["ModalEvidence", "PatternFit", "modal_evidence", "pattern_fit", "pattern_fits", "moves_modes"]
+__all__ = ["ModalEvidence", "PatternFit", "modal_evidence", "pattern_fit", "pattern_fits", "moves_modes",
+           "time_invariant"]
 
 #: Relative floor of the damping ratios' uncertainty (the estimate of a damping ratio carries what the
 #: oscillator model leaves out, e.g. the small phase of a lag).
 DAMPING_FLOOR = 0.005
-#: How many of the grid's best starts are polished.
-STARTS = 2
+#: How many of the grid's best starts are polished when the effect has a position (the pattern's cost is
+#: sharp: a point mass 4 cm off its position on the grid's best start can end in another basin); two otherwise.
+STARTS = 4
 #: Value of χ² for a model that cannot be evaluated.
 FAILED = 1e12
 
@@ -114,6 +117,14 @@ def moves_modes(problem: GapProblem, beta: np.ndarray, effect: Effect) -> bool:
     return moved.config is not cfg or moved.params != params
 
 
+def time_invariant(problem: GapProblem, beta: np.ndarray, effect: Effect) -> bool:
+    """Whether ``effect`` keeps the model linear and time-invariant (everything but a drifting axial load and
+    stretching): then the measured modes' oscillators can represent what it does to the records."""
+    s = np.asarray(trial_values(effect.lower, effect.upper, effect.off)[-1])
+    moved = problem.model(beta, effect, s)
+    return moved.drift_rate == 0.0 and moved.stretching_EA == 0.0
+
+
 def _residual(problem: GapProblem, ev: ModalEvidence, beta0: np.ndarray, span: np.ndarray, effect: Effect | None,
               z: np.ndarray) -> np.ndarray:
     p = beta0.size
@@ -132,6 +143,37 @@ def _free(problem: GapProblem, effect: Effect | None) -> np.ndarray:
     names = list(problem.space.names)
     free = np.array([not (n == "rhoA" and "EI" in names) for n in names])
     return np.concatenate([free, np.ones(0 if effect is None else effect.dim, dtype=bool)])
+
+
+def _jacobian(res: Callable[[np.ndarray], np.ndarray], x: np.ndarray, k: int, span: np.ndarray) -> np.ndarray:
+    """Forward-difference Jacobian of ``res`` w.r.t. the first ``k`` variables at ``x``."""
+    r0 = res(x)
+    cols = []
+    for j in range(k):
+        dx = 1e-6 * span[j]
+        x1 = x.copy()
+        x1[j] += dx
+        cols.append((res(x1) - r0) / dx)
+    return np.column_stack(cols)
+
+
+def _profiled(res: Callable[[np.ndarray], np.ndarray], x: np.ndarray, J: np.ndarray, lo: np.ndarray,
+              hi: np.ndarray, steps: int = 2) -> tuple[np.ndarray, float]:
+    """``x`` with its first ``J.shape[1]`` (baseline) variables moved by Gauss–Newton steps of fixed ``J``,
+    kept while the cost falls; the point and its cost."""
+    k = J.shape[1]
+    r = res(x)
+    cost = float(r @ r)
+    for _ in range(steps):
+        step = np.linalg.lstsq(J, -r, rcond=None)[0]
+        x1 = x.copy()
+        x1[:k] = np.clip(x[:k] + step, lo[:k], hi[:k])
+        r1 = res(x1)
+        c1 = float(r1 @ r1)
+        if not c1 < cost:
+            break
+        x, r, cost = x1, r1, c1
+    return x, cost
 
 
 def pattern_fit(problem: GapProblem, evidence: ModalEvidence, beta0: np.ndarray, effect: Effect | None = None,
@@ -157,9 +199,16 @@ def pattern_fit(problem: GapProblem, evidence: ModalEvidence, beta0: np.ndarray,
     if effect is None:
         starts = [held[free]]
     else:
-        grid = [np.concatenate([beta0, s])[free] for s in trial_values(effect.lower, effect.upper, effect.off)]
-        costs = [float(r @ r) for r in map(res, grid)]
-        starts = [grid[i] for i in np.argsort(costs)[:STARTS]]
+        # every value of the effect's grid with the baseline re-adjusted (two Gauss–Newton steps with the
+        # baseline's Jacobian at the start): the baseline may sit where it compensated the effect
+        nb = int(np.sum(free[:p]))
+        x_off = held[free]
+        J = _jacobian(res, x_off, nb, (hi - lo)[free][:nb])
+        raw = [np.concatenate([beta0, s])[free] for s in trial_values(effect.lower, effect.upper, effect.off)]
+        grid = [_profiled(res, x, J, lo[free], hi[free]) for x in raw]
+        # the best re-adjusted values, and the best two as they were (a re-adjustment can also mislead)
+        starts = [g[0] for g in sorted(grid, key=lambda g: g[1])[:STARTS if effect.dim > 1 else 2]]
+        starts += [raw[i] for i in np.argsort([float(r @ r) for r in map(res, raw)])[:2]]
     def polish(x0: np.ndarray) -> optimize.OptimizeResult:
         return optimize.least_squares(res, np.clip(x0, lo[free], hi[free]), bounds=(lo[free], hi[free]),
                                       x_scale=(hi - lo)[free], max_nfev=max_evaluations)
@@ -210,7 +259,8 @@ def pattern_fits(problem: GapProblem, evidence: ModalEvidence, beta: np.ndarray,
                  executor: Executor | None = None) -> dict[str, PatternFit]:
     """The baseline's (key ``"baseline"``) and every structural effect's pattern fit from the baseline
     unknowns ``beta``, on ``executor``'s processes when given."""
-    labels: list[str | None] = [None] + [e.label for e in catalogue.effects() if moves_modes(problem, beta, e)]
+    moving = sorted((e for e in catalogue.effects() if moves_modes(problem, beta, e)), key=lambda e: -e.dim)
+    labels: list[str | None] = [e.label for e in moving] + [None]   # the costliest first
     args = [(problem, evidence, beta, catalogue, lab) for lab in labels]
     if executor is None:
         fits = [_pattern_task(*a) for a in args]

@@ -64,7 +64,7 @@ import numpy as np
 
 from .effects import PAIR_SEPARATOR, Catalogue, Effect, on_top_of
 from .fitting import Fit, GapProblem
-from .modal_pattern import ModalEvidence, PatternFit, pattern_fits
+from .modal_pattern import ModalEvidence, PatternFit, pattern_fits, time_invariant
 from .score import EffectScore, score_effect, trial_values
 
 __all__ = ["EffectRefit", "Ranking", "better_baseline", "settled", "refit_effect", "rank_effects",
@@ -252,26 +252,22 @@ def _start_task(problem: GapProblem, catalogue: Catalogue, label: str, start: Pa
     return fit, [(start.beta, start.s)]
 
 
-def _pattern_stage(problem: GapProblem, baseline: Fit, catalogue: Catalogue, evidence: ModalEvidence,
-                   local: dict[str, tuple[Fit, list]], max_evaluations: int, executor: Executor | None, say: Any
-                   ) -> dict[str, PatternFit]:
-    """Match the measured modes by every structural effect and refit the :data:`PATTERN_CANDIDATES` best
-    matches from their match (module docstring); ``local`` gains (or keeps the better of) their refits."""
-    patterns = pattern_fits(problem, evidence, baseline.beta, catalogue, executor)
-    base = patterns["baseline"].chi2
-    say("modal pattern chi2 (" + f"{evidence.n_modes} modes; baseline {base:.4g}): "
-        + ", ".join(f"{lab} {pf.chi2:.4g}" for lab, pf in patterns.items() if lab != "baseline"))
-    ranked = sorted((lab for lab in patterns if lab != "baseline" and patterns[lab].chi2 < base - BIC_MARGIN),
-                    key=lambda lab: patterns[lab].chi2)[:PATTERN_CANDIDATES]
-    if ranked:   # a match far worse than the best one does not match: 2 per mode is a match within the errors
-        limit = PATTERN_RIVAL * max(patterns[ranked[0]].chi2, 2.0 * evidence.n_modes)
-        ranked = [lab for lab in ranked if patterns[lab].chi2 <= limit]
-    args = [(problem, catalogue, lab, patterns[lab], max_evaluations) for lab in ranked]
+def _linear(evidence: ModalEvidence | None) -> bool:
+    """Whether the measured modes' oscillators reproduce the records (within :data:`GAP_THRESHOLD` of the noise
+    floor): if not, no linear time-invariant effect can explain the gap (unknown evidence: assume they do)."""
+    return evidence is None or evidence.measured.gap_ratio <= 1.0 + GAP_THRESHOLD
+
+
+def _refit_from_matches(problem: GapProblem, catalogue: Catalogue, patterns: dict[str, PatternFit],
+                        labels: list[str], local: dict[str, tuple[Fit, list]], max_evaluations: int,
+                        executor: Executor | None, say: Any) -> None:
+    """Refit ``labels`` from their modal match, side by side; ``local`` gains (or keeps the better of) them."""
+    args = [(problem, catalogue, lab, patterns[lab], max_evaluations) for lab in labels]
     if executor is None or len(args) < 2:
         fits = [_start_task(*a) for a in args]
     else:
         fits = [f.result() for f in [executor.submit(_start_task, *a) for a in args]]
-    for lab, (fit, starts) in zip(ranked, fits):
+    for lab, (fit, starts) in zip(labels, fits):
         say(f"refit {lab} from its modal match: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
         if lab in local:
             old, old_starts = local[lab]
@@ -279,6 +275,34 @@ def _pattern_stage(problem: GapProblem, baseline: Fit, catalogue: Catalogue, evi
             local[lab] = (replace(best, n_evaluations=old.n_evaluations + fit.n_evaluations), old_starts + starts)
         else:
             local[lab] = (fit, starts)
+
+
+def _pattern_stage(problem: GapProblem, baseline: Fit, catalogue: Catalogue, evidence: ModalEvidence,
+                   local: dict[str, tuple[Fit, list]], max_evaluations: int, executor: Executor | None, say: Any
+                   ) -> dict[str, PatternFit]:
+    """Match the measured modes by every structural effect and refit the :data:`PATTERN_CANDIDATES` best
+    matches from their match (module docstring); ``local`` gains (or keeps the better of) their refits."""
+    if not _linear(evidence):
+        say(f"measured modes: their fit leaves {evidence.measured.gap_ratio:.3g} noise variances — the records are "
+            f"not those of a linear time-invariant system, no modal pattern to compare")
+        return {}
+    patterns = pattern_fits(problem, evidence, baseline.beta, catalogue, executor)
+    base = patterns["baseline"].chi2
+    say(f"measured modes {np.round(evidence.measured.freq_hz, 3)} Hz (their fit leaves "
+        f"{evidence.measured.gap_ratio:.3g} noise variances); modal pattern chi2 (" + f"{evidence.n_modes} modes; baseline {base:.4g}): "
+        + ", ".join(f"{lab} {pf.chi2:.4g}" for lab, pf in patterns.items() if lab != "baseline"))
+    matching = sorted((lab for lab in patterns if lab != "baseline" and patterns[lab].chi2 < base - BIC_MARGIN),
+                      key=lambda lab: patterns[lab].chi2)
+    ranked = matching[:PATTERN_CANDIDATES]
+    if ranked:   # a match far worse than the best one does not match: 2 per mode is a match within the errors
+        limit = PATTERN_RIVAL * max(patterns[ranked[0]].chi2, 2.0 * evidence.n_modes)
+        ranked = [lab for lab in ranked if patterns[lab].chi2 <= limit]
+    _refit_from_matches(problem, catalogue, patterns, ranked, local, max_evaluations, executor, say)
+    rest = [lab for lab in matching if lab not in ranked][:PATTERN_CANDIDATES]
+    if rest and not any(_explains(local[lab][0], baseline) for lab in ranked):
+        # the closest matches do not explain the records: the next ones (a pattern fit can stop short of its
+        # optimum, and its match still lies in the right basin for the time-domain refit)
+        _refit_from_matches(problem, catalogue, patterns, rest, local, max_evaluations, executor, say)
     return patterns
 
 
@@ -426,8 +450,11 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
         chosen += [e for e in effects if e.label in local and e not in chosen]
         labels = [e.label for e in chosen]
         if not any(_explains(fit, baseline) for fit, _ in local.values()):
-            local = _map_refits(executor, problem, catalogue, labels, baseline, scores, max_evaluations, local,
-                                stage="basins")
+            # (a better basin cannot make a linear time-invariant effect explain records no such model can)
+            tried = [lab for lab in labels if _linear(evidence)
+                     or not time_invariant(problem, baseline.beta, catalogue.effect(lab))]
+            local.update(_map_refits(executor, problem, catalogue, tried, baseline, scores, max_evaluations,
+                                     {lab: local[lab] for lab in tried}, stage="basins"))
     if not any(_explains(fit, baseline) for fit, _ in local.values()):
         better = (better_baseline(problem, baseline, [fit for fit, _ in local.values()], executor)
                   if rebaseline else None)
@@ -439,6 +466,19 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
                                 modal=modal)
         # no local refit explains the gap: continuation refits (module docstring), the most promising first
         pending = sorted(labels, key=lambda lab: local[lab][0].rss)
+        if not _linear(evidence):
+            # no set of linear oscillators reproduces the records: no linear time-invariant effect can
+            lti = [lab for lab in pending if time_invariant(problem, baseline.beta, catalogue.effect(lab))]
+            if lti:
+                say(f"continuation refits of {', '.join(lti)} skipped: the measured modes' own fit leaves "
+                    f"{evidence.measured.gap_ratio:.3g} noise variances, beyond any linear time-invariant effect")
+            pending = [lab for lab in pending if lab not in lti]
+        if patterns:
+            # a structural effect's basin is where its modal pattern put it: continuation cannot add to that
+            matched = [lab for lab in pending if lab in patterns]
+            if matched:
+                say(f"continuation refits of {', '.join(matched)} skipped: refitted from their modal match")
+            pending = [lab for lab in pending if lab not in matched]
         while pending:
             group, pending = pending[:max(1, parallel)], pending[max(1, parallel):]
             local.update(_map_refits(executor, problem, catalogue, group, baseline, scores, max_evaluations,

@@ -410,8 +410,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
             "numerical_adequacy": adequacy.to_dict(),
             "grid_advice": advice.to_dict() | {"summary": advice.summary()},
         },
-        "measured_modes": None if ranking.modal is None else ranking.modal.measured.to_dict() | {
-            "baseline_pattern_chi2": ranking.patterns["baseline"].chi2},
+        "measured_modes": None if ranking.modal is None else ranking.modal.measured.to_dict() | (
+            {"baseline_pattern_chi2": ranking.patterns["baseline"].chi2} if ranking.patterns else {}),
         "localisation": {r.name: loc.to_dict() for r, loc in zip(records, locs)},
         "summary": [s for loc in locs for s in loc.summary],
         "effects": effect_rows,
