@@ -1,6 +1,9 @@
 """Which effect: the score test (:mod:`diagnosis.score`) shortlists; refit, information criteria and held-out
 error rank.
 
+(Over 500 lines: the refit stages — local, modal match, other basins, continuation, pairs — share the
+``_explains`` test and the refit bookkeeping; the pattern fits themselves live in :mod:`diagnosis.modal_pattern`.)
+
 Refit and ranking
 -----------------
 The best-scoring effects are refitted together with the baseline unknowns on

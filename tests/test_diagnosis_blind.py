@@ -110,10 +110,10 @@ def test_no_effect_gives_none(tmp_path):
 #: held-out gap closed and the size within 10 % — measured: none → none (the baseline's held-out gap is within the
 #: noise threshold), foundation 100 % closed (kf 200.5 for 200), actuator lag 99.6 % (τ 0.4996 ms for 0.5),
 #: Kelvin–Voigt 100 % (η 6.01e-5 for 6e-5), point mass 100 % (0.0996 kg at 0.69997 m), sensor lag on y2 99.9 %
-#: (τ 0.493 ms), axial drift 99.98 % (3.008 N/s), geometric stiffening 99.8 % (EA 1.99e6).  The compliant clamp,
-#: rotary inertia and a translational spring at the pinned end are still called a point mass (the baseline
-#: compensates them: N at its lower bound, or N +89 % and EI −12 %; the spring as 0.67 kg at 0.98 m — the
-#: which-effect issue), so the suite reports them as expected failures until that issue lands.
+#: (τ 0.493 ms), axial drift 99.98 % (3.008 N/s), geometric stiffening 99.8 % (EA 1.99e6); and, found by their
+#: modal pattern where the baseline had compensated them and their one-sided score was 0 (all were called a
+#: point mass before): the compliant clamp 100 % (kr 203 for 200), rotary inertia 100 % (ρI 3.99e-4), a
+#: translational spring at the pinned end 100 % (kt 4.98e4 for 5e4).
 ACCEL_CASES = [
     ("foundation", WithheldEffect("foundation", {"kf": 200.0})),
     ("actuator_lag", WithheldEffect("actuator_lag", {"tau": 5e-4})),
