@@ -4,6 +4,8 @@ that effect is modelled (checked on held-out data).
 
 Data flow: identified model + data → :mod:`.localise` (where) →
 :mod:`.effects` / :mod:`.augmented` (candidate effects, simulated natively) →
-:mod:`.rank` (score test, refit, information criteria, held-out error) →
+:mod:`.score` (score test) → :mod:`.modal_estimate` / :mod:`.modal_pattern` (measured modes,
+each effect's modal pattern) → :mod:`.refits` (refit stages) → :mod:`.rank` (information criteria, held-out
+error, the verdict) →
 :mod:`.run` (``gap.json`` and report plots).
 """

@@ -95,7 +95,8 @@ from ebb_model.parameter_values import resolve_parameters
 from ebb_model.simulate import fast_model, simulate
 from ebb_model.theta_scheme import ThetaCoefficients, one_step, theta_coefficients
 
-__all__ = ["first_order_lag", "lag_coefficients", "geometric_stiffness", "simulate_axial", "simulate_effects", "stretch_integral"]
+__all__ = ["first_order_lag", "lag_coefficients", "geometric_stiffness", "simulate_axial", "simulate_effects",
+           "stretch_integral"]
 
 _KIND_CODE = {"displacement": 0, "velocity": 1, "acceleration": 2}
 _FASTMATH = {"reassoc", "contract", "nsz", "arcp"}

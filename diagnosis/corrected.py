@@ -91,12 +91,15 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
                      fmu: bool = True, standalone: bool = False) -> list[Path]:
     """Write the corrected model into ``out_dir`` (created); returns the written files (see the module docstring).
 
-    ``summary`` (effect, parameters with units, held-out gap) is written to ``corrected.json`` with the list of
-    files and what each one carries.  ``standalone`` adds ``corrected_standalone.fmu``, the standalone C FMU
-    (:mod:`fmu_build.standalone`, no Python at run time) of the corrected beam.
+    The model files are the export targets of identified models (:data:`identification.export.TARGETS`):
+    ``statespace`` (when the corrected model is time-invariant), ``fmu`` and (``standalone``) the standalone C FMU
+    (:mod:`fmu_build.standalone`, no Python at run time, ``corrected_standalone.fmu``).  ``summary`` (effect,
+    parameters with units, held-out gap) is written to ``corrected.json`` with the list of files and what each
+    one carries.
     """
     from ebb_model.tomlio import dumps as toml_dumps
-    from identification.export_statespace import save_statespace
+    from identification.export import export_target
+    from identification.export_targets import ExportItem
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -107,22 +110,18 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
     carries: dict[str, str] = {"corrected.toml": "config with the refitted values (structural effects included)"}
     sys = corrected_statespace(model)
     lags = model.actuator_tau > 0.0 or any(t > 0.0 for t in model.sensor_tau.values())
-    if sys is not None:
-        written.append(save_statespace(sys, out / "corrected.npz", name="corrected", parameters=model.params,
-                                       config=cfg.to_dict()))
-        carries["corrected.npz"] = "StateSpace of the corrected model" + (" (lag states in series)" if lags else "")
-    if fmu:
-        from fmu_build import build_fmu
-
-        written.append(build_fmu(cfg, out / "corrected.fmu"))
-        carries["corrected.fmu"] = "FMU of the corrected beam" + (" (without the lag: a signal effect outside "
-                                                                  "the FMU's model)" if lags else "")
-    if standalone:
-        from fmu_build.standalone import build_standalone_fmu
-
-        written.append(build_standalone_fmu(cfg, out / "corrected_standalone.fmu"))
-        carries["corrected_standalone.fmu"] = "standalone C FMU of the corrected beam (no Python at run time)" + (
-            " (without the lag)" if lags else "")
+    without_lag = " (without the lag: a signal effect outside the FMU's model)" if lags else ""
+    targets = {"statespace": ("corrected.npz", "StateSpace of the corrected model"
+                              + (" (lag states in series)" if lags else "")) if sys is not None else None,
+               "fmu": ("corrected.fmu", "FMU of the corrected beam" + without_lag) if fmu else None,
+               "standalone": ("corrected_standalone.fmu", "standalone C FMU of the corrected beam (no Python at "
+                              "run time)" + without_lag) if standalone else None}
+    item = ExportItem("corrected", "corrected", cfg, model.params,
+                      sys if sys is not None else assemble(model.config, model.params))
+    for name, what in targets.items():
+        if what is not None:
+            written.extend(export_target(name)(item, out))
+            carries[what[0]] = what[1]
     if sys is None:
         carries["note"] = ("axial drift and geometric stiffening are not time-invariant: no StateSpace; the FMU "
                            "carries the refitted beam without them")

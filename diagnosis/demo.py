@@ -16,10 +16,14 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ebb_model.outdir import check_new_output_dir
+
+if TYPE_CHECKING:
+    from .result import GapReport
 
 __all__ = ["DEMO_CONFIG", "run_demo"]
 
@@ -103,11 +107,11 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
     say("4/4 diagnose the remaining gap (blind); export the corrected model")
     d = diagnose(cfg_path, [data], out / "diagnosis", result=out / "identify",
                  progress=(lambda m: print(f"    {m}")) if progress else None)
-    report = text_report(d.document)
+    report = text_report(d.report)
     truth_label = WITHHELD[0]
-    lines = ["", *comparison_table(identified, d.document, TRUTH, WITHHELD),
+    lines = ["", *comparison_table(identified, d.report, TRUTH, WITHHELD),
              "exports:  " + ", ".join(str(f) for f in files),
-             *([f"corrected model: {out / 'diagnosis' / 'corrected'}"] if "corrected" in d.document else []),
+             *([f"corrected model: {out / 'diagnosis' / 'corrected'}"] if d.report.corrected_files else []),
              "", report, "",
              f"withheld effect: {truth_label} -> diagnosis {'RIGHT' if d.verdict == truth_label else 'WRONG'}",
              f"elapsed: {time.perf_counter() - t0:.0f} s; results in {out}"]
@@ -118,28 +122,28 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
             "exports": [str(f) for f in files], "document": d.document}
 
 
-def comparison_table(identified: dict[str, float], doc: dict, truth: dict[str, float],
+def comparison_table(identified: dict[str, float], report: GapReport, truth: dict[str, float],
                      withheld: tuple[str, dict[str, float]]) -> list[str]:
     """Identified, corrected (diagnosis' refit with its effect) and true values side by side, with units, and
     the held-out gap before/after."""
     from ebb_model.beam import PARAMETER_UNITS
     from ebb_model.reference.withheld import EFFECT_CATALOGUE
 
-    row = next((r for r in doc["effects"] if r["label"] == doc["verdict"]), None)
-    refit = row["refit"] if row else None
-    corrected = refit["baseline_parameters"] if refit else {}
+    row = report.row(report.verdict)
+    refit = row.refit if row is not None else None
+    corrected = refit.baseline_parameters if refit is not None else {}
     lines = [f"{'':<28}{'unit':<10}{'identified':>12}{'corrected':>12}{'truth':>12}"]
     for k, v in identified.items():
         c = f"{corrected[k]:.4g}" if k in corrected else "-"
         lines.append(f"{k:<28}{PARAMETER_UNITS.get(k, ''):<10}{v:>12.4g}{c:>12}{truth.get(k, float('nan')):>12.4g}")
     name, values = withheld
     spec = EFFECT_CATALOGUE[name]
-    found = refit["effect_parameters"] if refit and row["effect"] == name else {}
+    found = refit.effect_parameters if refit is not None and row.effect == name else {}
     for p, unit in zip(spec.parameters, spec.units):
         c = f"{found[p]:.4g}" if p in found else "-"
         lines.append(f"{name + '.' + p:<28}{unit:<10}{'-':>12}{c:>12}{values[p]:>12.4g}")
-    if refit:
-        before = ", ".join(f"{k} {v:.3g}" for k, v in refit["heldout_gap_ratio_before"].items())
-        after = ", ".join(f"{k} {v:.3g}" for k, v in refit["heldout_gap_ratio_after"].items())
+    if refit is not None:
+        before = ", ".join(f"{k} {v:.3g}" for k, v in refit.heldout_gap_ratio_before.items())
+        after = ", ".join(f"{k} {v:.3g}" for k, v in refit.heldout_gap_ratio_after.items())
         lines.append(f"held-out gap ratio (1 = noise floor): {before} -> corrected {after}")
     return lines

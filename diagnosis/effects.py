@@ -43,8 +43,8 @@ import numpy as np
 from ebb_model.beam import End, PointMass
 from ebb_model.config import BeamConfig
 
-__all__ = ["Scales", "Effect", "AugmentedModel", "Catalogue", "candidate_effects", "pair_effect", "on_top_of", "EFFECT_NAMES",
-           "PAIR_SEPARATOR"]
+__all__ = ["Scales", "Effect", "AugmentedModel", "Catalogue", "candidate_effects", "pair_effect", "on_top_of",
+           "EFFECT_NAMES", "PAIR_SEPARATOR"]
 
 #: Names of the effect families of the catalogue.
 EFFECT_NAMES: tuple[str, ...] = (

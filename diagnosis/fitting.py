@@ -16,9 +16,9 @@ residual of a window, 1 at the noise floor.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any
 
 import numpy as np
+
 from ebb_model.config import BeamConfig
 from ebb_model.errors import EbbError
 

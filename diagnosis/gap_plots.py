@@ -6,10 +6,12 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from .result import GapReport
+
 __all__ = ["plot_diagnosis"]
 
 
-def plot_diagnosis(doc: Mapping[str, Any], problem: Any, ranking: Any, effects: Mapping[str, Any],
+def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, effects: Mapping[str, Any],
                    localisations: Sequence[Any], out_dir: Path) -> list[Path]:
     """Write ``effects.png``, ``heldout_residuals.png`` and the localisation plots into ``out_dir``."""
     import matplotlib
@@ -19,17 +21,17 @@ def plot_diagnosis(doc: Mapping[str, Any], problem: Any, ranking: Any, effects: 
 
     out_dir = Path(out_dir)
     paths: list[Path] = []
-    rows = [r for r in doc["effects"] if r.get("refit")]
+    rows = [r for r in report.effects if r.refit is not None]
     if rows:
-        fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 0.5 * len(doc["effects"]) + 2))
-        labels = [r["label"] for r in doc["effects"]][::-1]
-        a1.barh(labels, [max(r["score"] or 0.0, 1e-3) for r in doc["effects"]][::-1])   # a pair has no score
+        fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 0.5 * len(report.effects) + 2))
+        labels = [r.label for r in report.effects][::-1]
+        a1.barh(labels, [max(r.score or 0.0, 1e-3) for r in report.effects][::-1])   # a pair has no score
         a1.set_xscale("log")
         a1.set_xlabel("score-test statistic (LM)")
-        a2.barh([r["label"] for r in rows][::-1], [100 * (r["refit"]["closed"] or 0.0) for r in rows][::-1])
+        a2.barh([r.label for r in rows][::-1], [100 * (r.refit.closed or 0.0) for r in rows][::-1])
         a2.axvline(80, color="k", lw=0.5, ls="--")
         a2.set_xlabel("held-out gap closed after refit [%]")
-        fig.suptitle(f"verdict: {doc['verdict']}")
+        fig.suptitle(f"verdict: {report.verdict}")
         fig.tight_layout()
         paths.append(out_dir / "effects.png")
         fig.savefig(paths[-1], dpi=100)

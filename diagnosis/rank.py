@@ -1,39 +1,27 @@
-"""Which effect: the score test (:mod:`diagnosis.score`) shortlists; refit, information criteria and held-out
-error rank.
-
-(Over 500 lines: the refit stages — local, modal match, other basins, continuation, pairs — share the
-``_explains`` test and the refit bookkeeping; the pattern fits themselves live in :mod:`diagnosis.modal_pattern`.)
+"""Which effect: the score test (:mod:`diagnosis.score`) shortlists; refits (:mod:`diagnosis.refits`),
+information criteria and held-out error rank.
 
 Refit and ranking
 -----------------
 The best-scoring effects are refitted together with the baseline unknowns on
-the fit windows, from the best of the score's step and a coarse grid of the
-effect.  When that local refit leaves more than 10 % of the fit windows'
-excess unexplained — and more than :data:`GAP_THRESHOLD` above the noise
-floor, the level at which the verdict would be ``none`` (an excess of 0.7
-closed to 0.09 is explained: the rest is the noise estimate's and the
-model's own few per cent) — the baseline may sit in a basin that only suited the
-model without the effect: the refit is repeated from the other basins of the
-baseline's global search.  When still no shortlisted effect explains the gap,
-each is refitted once more by *continuation in the record length*: a global
-search (differential evolution) over the baseline unknowns and the effect
-together on the first :data:`CONTINUATION` fraction of every fit window, where
-a few-per-cent frequency error costs a fraction of a cycle instead of whole
-cycles, followed by local fits on ever longer windows — from the search's best
-and the earlier refits' optima, the better half of them going on to each
-longer window.  The fit with the
-lowest residual on the whole fit windows is kept.  Each refit gets BIC/AIC
-(``n ln(RSS/n) + k ln n``) and its gap ratio
-on the held-out windows.  Effects are ranked by held-out error among those
-whose BIC improves by more than :data:`BIC_MARGIN` (an extra parameter must
-pay for itself).  The verdict is ``none`` when the baseline's held-out gap is
-within :data:`GAP_THRESHOLD` of the noise floor.  An effect is named only when
-its refit closes at least :data:`NAMED_CLOSURE` of the held-out gap; when no
-candidate pays for itself or the best one closes less, the verdict is
-:data:`UNEXPLAINED` — the gap is real but no effect of the catalogue accounts
-for it, and the least-bad candidate is not named.  Effects whose held-out
-improvement is within 5 % of the best and whose held-out error is not
-measurably higher (by at most :data:`GAP_THRESHOLD` or a quarter of the
+the fit windows (the local refit).  When no local refit leaves at most 10 % of
+the fit windows' excess unexplained — and more than :data:`GAP_THRESHOLD`
+above the noise floor, the level at which the verdict would be ``none`` (an
+excess of 0.7 closed to 0.09 is explained: the rest is the noise estimate's
+and the model's own few per cent) — the modal pattern is tried (below), then
+the refit is repeated from the other basins of the baseline's global search,
+and when still no shortlisted effect explains the gap, each is refitted once
+more by continuation in the record length (:mod:`diagnosis.refits`), the most
+promising first, until one explains it.  Effects are ranked by held-out error
+among those whose BIC improves by more than :data:`BIC_MARGIN` (an extra
+parameter must pay for itself).  The verdict is ``none`` when the baseline's
+held-out gap is within :data:`GAP_THRESHOLD` of the noise floor.  An effect is
+named only when its refit closes at least :data:`NAMED_CLOSURE` of the
+held-out gap; when no candidate pays for itself or the best one closes less,
+the verdict is :data:`UNEXPLAINED` — the gap is real but no effect of the
+catalogue accounts for it, and the least-bad candidate is not named.  Effects
+whose held-out improvement is within 5 % of the best and whose held-out error
+is not measurably higher (by at most :data:`GAP_THRESHOLD` or a quarter of the
 best's excess) are reported as indistinguishable from it.
 
 Modal pattern
@@ -65,16 +53,15 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .effects import PAIR_SEPARATOR, Catalogue, Effect, on_top_of
+from .effects import PAIR_SEPARATOR, Catalogue, on_top_of
 from .fitting import Fit, GapProblem
 from .modal_pattern import ModalEvidence, PatternFit, pattern_fits, time_invariant
-from .score import EffectScore, score_effect, trial_values
+from .refits import (GAP_THRESHOLD, EffectRefit, better_baseline, explains, map_refits, pair_refit,
+                     refit_from_match, summarise)
+from .score import EffectScore, score_effect
 
-__all__ = ["EffectRefit", "Ranking", "better_baseline", "settled", "refit_effect", "rank_effects",
-           "GAP_THRESHOLD", "BIC_MARGIN", "NAMED_CLOSURE", "UNEXPLAINED"]
+__all__ = ["Ranking", "settled", "rank_effects", "BIC_MARGIN", "NAMED_CLOSURE", "UNEXPLAINED"]
 
-#: Relative excess of the held-out residual variance over the noise floor below which there is no gap to explain.
-GAP_THRESHOLD = 0.25
 #: BIC improvement an effect must reach to count as paying for its parameters.
 BIC_MARGIN = 10.0
 #: Fraction of the held-out gap an effect's refit must close to be named as the cause.
@@ -86,27 +73,11 @@ PAIR_PARTNERS = 3
 #: Fraction of the held-out gap the best single effect must close before a pair with it is tried (two effects
 #: of like size each close about half of it alone; one that closes almost nothing is not half of a pair).
 PAIR_MINIMUM = 0.25
-#: Fractions of the fit windows of the continuation refit (the first one searched globally).
-CONTINUATION = (0.1, 0.3, 1.0)
 #: How many of the best modal-pattern matches are refitted from their match (module docstring).
 PATTERN_CANDIDATES = 2
 #: A further pattern candidate is refitted only when its χ² is within this factor of the best match's (or of
 #: 2 per mode, a match within the errors).
 PATTERN_RIVAL = 10.0
-@dataclass(frozen=True)
-class EffectRefit:
-    """Refit of one shortlisted effect together with the baseline unknowns."""
-
-    label: str
-    fit: Fit
-    physical: dict[str, float]
-    bic: float
-    aic: float
-    delta_bic: float
-    delta_aic: float
-    heldout_after: np.ndarray   # gap ratio per sensor on the held-out windows
-    closed: float               # fraction of the held-out gap closed (overall)
-    closed_per_sensor: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,136 +96,6 @@ class Ranking:
     modal: ModalEvidence | None = None
 
 
-def _best_start(problem: GapProblem, baseline: Fit, effect: Effect, score: EffectScore) -> np.ndarray:
-    """The start of a refit with the lowest RSS among the score's Gauss–Newton step(s) and a coarse grid of the
-    effect (:func:`~diagnosis.score.trial_values`), the baseline unknowns held at their fitted values."""
-    candidates = [score.start, *score.alternatives, *trial_values(effect.lower, effect.upper, effect.off)]
-
-    def rss(s: np.ndarray) -> float:
-        r = problem.residuals(baseline.beta, effect, s)
-        return float(r @ r)
-
-    return min(candidates, key=rss)
-
-
-def _explains(fit: Fit, baseline: Fit) -> bool:
-    """Whether ``fit`` leaves at most 10 % of the baseline's excess over the noise floor on the fit windows, or
-    less than :data:`GAP_THRESHOLD` (nothing the verdict would call a gap)."""
-    excess_before = baseline.rss / baseline.n - 1.0
-    return excess_before <= GAP_THRESHOLD or fit.rss / fit.n - 1.0 <= max(0.1 * excess_before, GAP_THRESHOLD)
-
-
-def _continuation_fit(problem: GapProblem, starts: list[tuple[np.ndarray, np.ndarray]], effect: Effect,
-                      max_evaluations: int) -> tuple[Fit, int]:
-    """Refit by continuation in the record length (see the module docstring); the best fit and evaluations used."""
-    short = problem.truncated(CONTINUATION[0])
-    beta_g, s_g, used = short.global_search(starts[0][0], effect, starts[0][1])
-    chains = [(beta_g, s_g), *starts]
-    fits: list[Fit] = []
-    for i, fraction in enumerate(CONTINUATION):
-        if i > 0:
-            # successive halving: only the better half of the chains goes on to the longer windows
-            keep = sorted(range(len(fits)), key=lambda k: fits[k].rss)[:max(1, len(fits) // 2)]
-            chains = [(fits[k].beta, fits[k].s) for k in keep]
-        stage = problem.truncated(fraction) if fraction < 1.0 else problem
-        fits = [stage.fit(beta, effect, s, max_evaluations=max_evaluations) for beta, s in chains]
-        used += sum(f.n_evaluations for f in fits)
-    return min(fits, key=lambda f: f.rss), used
-
-
-def _local_refit(problem: GapProblem, baseline: Fit, effect: Effect, score: EffectScore, max_evaluations: int,
-                 basins: bool = True) -> tuple[Fit, list[tuple[np.ndarray, np.ndarray]]]:
-    """Refit from the score's start and (``basins``), if that leaves the gap, from the baseline's other basins.
-
-    Returns the best fit (its ``n_evaluations`` counting every fit) and the
-    starts tried after the first refit's optimum (for a continuation refit).
-    """
-    fit = problem.fit(baseline.beta, effect, _best_start(problem, baseline, effect, score),
-                      max_evaluations=max_evaluations)
-    return _basin_refits(problem, baseline, effect, score, fit, [], max_evaluations) if basins else (fit, [])
-
-
-def _basin_refits(problem: GapProblem, baseline: Fit, effect: Effect, score: EffectScore, fit: Fit,
-                  starts: list[tuple[np.ndarray, np.ndarray]], max_evaluations: int
-                  ) -> tuple[Fit, list[tuple[np.ndarray, np.ndarray]]]:
-    """``fit``, or the refit from the baseline's other basins when that is better and ``fit`` leaves the gap;
-    ``starts`` gains the starts tried."""
-    starts = list(starts)
-    if not _explains(fit, baseline):
-        # the baseline unknowns may sit in a basin that only suited the model without the effect
-        used = fit.n_evaluations
-        starts.append((fit.beta, fit.s))
-        for beta_alt in problem.other_starts:
-            s_alt = _best_start(problem, replace(baseline, beta=beta_alt), effect, score)
-            starts.append((beta_alt, s_alt))
-            alt = problem.fit(beta_alt, effect, s_alt, max_evaluations=max_evaluations)
-            used += alt.n_evaluations
-            if alt.rss < fit.rss:
-                fit = alt
-        fit = replace(fit, n_evaluations=used)
-    return fit, starts
-
-
-def _continued(problem: GapProblem, fit: Fit, starts: list[tuple[np.ndarray, np.ndarray]], effect: Effect,
-               max_evaluations: int) -> Fit:
-    """``fit``, or the continuation refit from it and ``starts`` when that fits the whole windows better."""
-    others = [st for st in starts if not (np.array_equal(st[0], fit.beta) and np.array_equal(st[1], fit.s))]
-    cont, used = _continuation_fit(problem, [(fit.beta, fit.s), *others], effect, max_evaluations)
-    best = cont if cont.rss < fit.rss else fit
-    return replace(best, n_evaluations=fit.n_evaluations + used)
-
-
-def _summarise(problem: GapProblem, baseline: Fit, heldout_before: np.ndarray, effect: Effect, fit: Fit
-               ) -> EffectRefit:
-    """Held-out error, % closed and information criteria of an effect's refit."""
-    p = problem.space.dim
-    after, _ = problem.heldout(fit.beta, effect, fit.s)
-    b_excess = heldout_before - 1.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        per = np.where(b_excess > 1e-12, (heldout_before - after) / b_excess, np.nan)
-    tot_b, tot_a = float(np.mean(heldout_before)), float(np.mean(after))
-    closed = (tot_b - tot_a) / (tot_b - 1.0) if tot_b > 1.0 else float("nan")
-    bic = fit.bic(p + effect.dim)
-    aic = fit.aic(p + effect.dim)
-    return EffectRefit(effect.label, fit, effect.physical(fit.s), bic, aic,
-                       bic - baseline.bic(p), aic - baseline.aic(p), after, float(closed), per)
-
-
-def refit_effect(problem: GapProblem, baseline: Fit, heldout_before: np.ndarray, effect: Effect,
-                 score: EffectScore, *, max_evaluations: int = 300, continuation: bool = True) -> EffectRefit:
-    """Refit the baseline unknowns and ``effect`` from the score's start; held-out error after.
-
-    Falls back on the other basins of the baseline and (``continuation``) on
-    the continuation in the record length when the local refit leaves more
-    than 10 % of the fit windows' excess unexplained (module docstring).
-    """
-    fit, starts = _local_refit(problem, baseline, effect, score, max_evaluations)
-    if continuation and not _explains(fit, baseline):
-        fit = _continued(problem, fit, starts, effect, max_evaluations)
-    return _summarise(problem, baseline, heldout_before, effect, fit)
-
-
-def _refit_task(problem: GapProblem, catalogue: Catalogue, label: str, baseline: Fit, score: EffectScore,
-                max_evaluations: int, previous: tuple[Fit, list] | None = None, stage: str = "local"
-                ) -> tuple[Fit, list]:
-    """One shortlisted effect's refit, in this or a worker process: the local refit (``"local"``: with the
-    other basins, ``"first"``: without), or, given the refit so far as ``previous``, the other basins'
-    refits (``"basins"``) or the continuation refit (``"continuation"``)."""
-    effect = catalogue.effect(label)
-    if previous is None:
-        return _local_refit(problem, baseline, effect, score, max_evaluations, basins=stage == "local")
-    if stage == "basins":
-        return _basin_refits(problem, baseline, effect, score, *previous, max_evaluations)
-    return _continued(problem, *previous, effect, max_evaluations), []
-
-
-def _start_task(problem: GapProblem, catalogue: Catalogue, label: str, start: PatternFit, max_evaluations: int
-                ) -> tuple[Fit, list]:
-    """Refit of one effect from its modal-pattern match, in this or a worker process."""
-    fit = problem.fit(start.beta, catalogue.effect(label), start.s, max_evaluations=max_evaluations)
-    return fit, [(start.beta, start.s)]
-
-
 def _linear(evidence: ModalEvidence | None) -> bool:
     """Whether the measured modes' oscillators reproduce the records (within :data:`GAP_THRESHOLD` of the noise
     floor): if not, no linear time-invariant effect can explain the gap (unknown evidence: assume they do)."""
@@ -267,9 +108,9 @@ def _refit_from_matches(problem: GapProblem, catalogue: Catalogue, patterns: dic
     """Refit ``labels`` from their modal match, side by side; ``local`` gains (or keeps the better of) them."""
     args = [(problem, catalogue, lab, patterns[lab], max_evaluations) for lab in labels]
     if executor is None or len(args) < 2:
-        fits = [_start_task(*a) for a in args]
+        fits = [refit_from_match(*a) for a in args]
     else:
-        fits = [f.result() for f in [executor.submit(_start_task, *a) for a in args]]
+        fits = [f.result() for f in [executor.submit(refit_from_match, *a) for a in args]]
     for lab, (fit, starts) in zip(labels, fits):
         say(f"refit {lab} from its modal match: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
         if lab in local:
@@ -292,7 +133,8 @@ def _pattern_stage(problem: GapProblem, baseline: Fit, catalogue: Catalogue, evi
     patterns = pattern_fits(problem, evidence, baseline.beta, catalogue, executor)
     base = patterns["baseline"].chi2
     say(f"measured modes {np.round(evidence.measured.freq_hz, 3)} Hz (their fit leaves "
-        f"{evidence.measured.gap_ratio:.3g} noise variances); modal pattern chi2 (" + f"{evidence.n_modes} modes; baseline {base:.4g}): "
+        f"{evidence.measured.gap_ratio:.3g} noise variances); modal pattern chi2 ({evidence.n_modes} modes; "
+        f"baseline {base:.4g}): "
         + ", ".join(f"{lab} {pf.chi2:.4g}" for lab, pf in patterns.items() if lab != "baseline"))
     matching = sorted((lab for lab in patterns if lab != "baseline" and patterns[lab].chi2 < base - BIC_MARGIN),
                       key=lambda lab: patterns[lab].chi2)
@@ -302,42 +144,11 @@ def _pattern_stage(problem: GapProblem, baseline: Fit, catalogue: Catalogue, evi
         ranked = [lab for lab in ranked if patterns[lab].chi2 <= limit]
     _refit_from_matches(problem, catalogue, patterns, ranked, local, max_evaluations, executor, say)
     rest = [lab for lab in matching if lab not in ranked][:PATTERN_CANDIDATES]
-    if rest and not any(_explains(local[lab][0], baseline) for lab in ranked):
+    if rest and not any(explains(local[lab][0], baseline) for lab in ranked):
         # the closest matches do not explain the records: the next ones (a pattern fit can stop short of its
         # optimum, and its match still lies in the right basin for the time-domain refit)
         _refit_from_matches(problem, catalogue, patterns, rest, local, max_evaluations, executor, say)
     return patterns
-
-
-def _map_refits(executor: Executor | None, problem: GapProblem, catalogue: Catalogue, labels: list[str],
-                baseline: Fit, scores: dict[str, EffectScore], max_evaluations: int,
-                previous: dict[str, tuple[Fit, list]] | None = None, stage: str = "local"
-                ) -> dict[str, tuple[Fit, list]]:
-    """:func:`_refit_task` for every label, on the executor's processes when given (same results: each refit is
-    deterministic)."""
-    args = [(problem, catalogue, lab, baseline, scores[lab], max_evaluations,
-             None if previous is None else previous[lab], stage) for lab in labels]
-    if executor is None or len(labels) < 2:
-        return {lab: _refit_task(*a) for lab, a in zip(labels, args)}
-    futures = [executor.submit(_refit_task, *a) for a in args]
-    return {lab: f.result() for lab, f in zip(labels, futures)}
-
-
-def _pair_start(problem: GapProblem, first: Fit, pair: Effect, k: int) -> np.ndarray:
-    """Start of a pair's refit: the first effect's refit, the partner's variables the best of a coarse grid
-    (:func:`~diagnosis.score.trial_values`) with everything else held."""
-    def rss(s2: np.ndarray) -> float:
-        r = problem.residuals(first.beta, pair, np.concatenate([first.s, s2]))
-        return float(r @ r)
-
-    return np.concatenate([first.s, min(trial_values(pair.lower[k:], pair.upper[k:], pair.off[k:]), key=rss)])
-
-
-def _pair_task(problem: GapProblem, catalogue: Catalogue, label: str, first: Fit, max_evaluations: int) -> Fit:
-    """Refit of a pair of effects (``first`` is the first effect's refit), in this or a worker process."""
-    pair = catalogue.effect(label)
-    start = _pair_start(problem, first, pair, first.s.size)
-    return problem.fit(first.beta, pair, start, max_evaluations=max_evaluations)
 
 
 def _best_pair(problem: GapProblem, baseline: Fit, before: np.ndarray, catalogue: Catalogue, single: EffectRefit,
@@ -348,35 +159,18 @@ def _best_pair(problem: GapProblem, baseline: Fit, before: np.ndarray, catalogue
     labels = [f"{single.label}{PAIR_SEPARATOR}{p}" for p in partners]
     args = [(problem, catalogue, lab, single.fit, max_evaluations) for lab in labels]
     if executor is None or len(labels) < 2:
-        fits = [_pair_task(*a) for a in args]
+        fits = [pair_refit(*a) for a in args]
     else:
-        fits = [f.result() for f in [executor.submit(_pair_task, *a) for a in args]]
+        fits = [f.result() for f in [executor.submit(pair_refit, *a) for a in args]]
     best = None
     for lab, fit in zip(labels, fits):
-        rf = _summarise(problem, baseline, before, catalogue.effect(lab), fit)
+        rf = summarise(problem, baseline, before, catalogue.effect(lab), fit)
         say(f"pair refit {lab}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
             f"dBIC vs {single.label} alone {rf.bic - single.bic:.1f}")
         if (rf.bic < single.bic - BIC_MARGIN and np.mean(rf.heldout_after) < np.mean(single.heldout_after)
                 and (best is None or np.mean(rf.heldout_after) < np.mean(best.heldout_after))):
             best = rf
     return best
-
-
-def better_baseline(problem: GapProblem, baseline: Fit, fits: list[Fit], executor: Executor | None = None
-                    ) -> Fit | None:
-    """The best baseline refitted from the baseline unknowns of ``fits`` when it beats ``baseline`` by more than
-    0.1 % in RSS, else ``None``: an effect's refit may have moved the baseline unknowns into a better basin, and
-    then the baseline itself was not at its optimum (every comparison must be made again).  The refits run on
-    ``executor``'s processes when given."""
-    if executor is None or len(fits) < 2:
-        candidates = [problem.fit(f.beta) for f in fits]
-    else:
-        candidates = [fut.result() for fut in [executor.submit(problem.fit, f.beta) for f in fits]]
-    better = None
-    for cand in candidates:
-        if cand.rss < baseline.rss * (1.0 - 1e-3) and (better is None or cand.rss < better.rss):
-            better = cand
-    return better
 
 
 def settled(ranking: Ranking) -> bool:
@@ -440,25 +234,25 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
     chosen = [e for e in by_score if scores[e.label].lm > 0][:shortlist]
     labels = [e.label for e in chosen]
     # with the modal pattern at hand, the other basins wait until it has been tried (it is cheaper)
-    local = _map_refits(executor, problem, catalogue, labels, baseline, scores, max_evaluations,
+    local = map_refits(executor, problem, catalogue, labels, baseline, scores, max_evaluations,
                         stage="local" if modal is None else "first")
     for lab, (fit, _) in local.items():
         say(f"local refit {lab}: fit RSS/n {baseline.rss / baseline.n:.4g} -> {fit.rss / fit.n:.4g} "
             f"({fit.n_evaluations} evaluations)")
     patterns: dict[str, PatternFit] = {}
     evidence = None
-    if modal is not None and not any(_explains(fit, baseline) for fit, _ in local.values()):
+    if modal is not None and not any(explains(fit, baseline) for fit, _ in local.values()):
         evidence = modal(baseline.beta)
         patterns = _pattern_stage(problem, baseline, catalogue, evidence, local, max_evaluations, executor, say)
         chosen += [e for e in effects if e.label in local and e not in chosen]
         labels = [e.label for e in chosen]
-        if not any(_explains(fit, baseline) for fit, _ in local.values()):
+        if not any(explains(fit, baseline) for fit, _ in local.values()):
             # (a better basin cannot make a linear time-invariant effect explain records no such model can)
             tried = [lab for lab in labels if _linear(evidence)
                      or not time_invariant(problem, baseline.beta, catalogue.effect(lab))]
-            local.update(_map_refits(executor, problem, catalogue, tried, baseline, scores, max_evaluations,
+            local.update(map_refits(executor, problem, catalogue, tried, baseline, scores, max_evaluations,
                                      {lab: local[lab] for lab in tried}, stage="basins"))
-    if not any(_explains(fit, baseline) for fit, _ in local.values()):
+    if not any(explains(fit, baseline) for fit, _ in local.values()):
         better = (better_baseline(problem, baseline, [fit for fit, _ in local.values()], executor)
                   if rebaseline else None)
         if better is not None:
@@ -467,7 +261,7 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
             return rank_effects(problem, better, catalogue, shortlist=shortlist, max_evaluations=max_evaluations,
                                 progress=progress, executor=executor, parallel=parallel, rebaseline=False,
                                 modal=modal)
-        # no local refit explains the gap: continuation refits (module docstring), the most promising first
+        # no local refit explains the gap: continuation refits (diagnosis.refits), the most promising first
         pending = sorted(labels, key=lambda lab: local[lab][0].rss)
         if not _linear(evidence):
             # no set of linear oscillators reproduces the records: no linear time-invariant effect can
@@ -484,16 +278,16 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
             pending = [lab for lab in pending if lab not in matched]
         while pending:
             group, pending = pending[:max(1, parallel)], pending[max(1, parallel):]
-            local.update(_map_refits(executor, problem, catalogue, group, baseline, scores, max_evaluations,
+            local.update(map_refits(executor, problem, catalogue, group, baseline, scores, max_evaluations,
                                      {lab: local[lab] for lab in group}, stage="continuation"))
             for lab in group:
                 fit = local[lab][0]
                 say(f"continuation refit {lab}: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
-            if any(_explains(local[lab][0], baseline) for lab in group):
+            if any(explains(local[lab][0], baseline) for lab in group):
                 if pending:
                     say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
                 break
-    refits = {e.label: _summarise(problem, baseline, before, e, local[e.label][0]) for e in chosen}
+    refits = {e.label: summarise(problem, baseline, before, e, local[e.label][0]) for e in chosen}
     for label, rf in refits.items():
         say(f"refit {label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
             f"dBIC {rf.delta_bic:.1f}")
@@ -517,7 +311,7 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
                        f"error",
                    patterns=patterns, modal=evidence)
     best = refits[paying[0]]
-    if not _explains(best.fit, baseline) and best.closed >= PAIR_MINIMUM:
+    if not explains(best.fit, baseline) and best.closed >= PAIR_MINIMUM:
         # one effect leaves a significant remainder: a second one at once, when it pays for itself; the
         # partners are scored afresh at the first effect's refit (the baseline may have hidden them)
         first = catalogue.effect(paying[0])

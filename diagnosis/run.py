@@ -22,12 +22,12 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
 from ebb_model.config import BeamConfig
-from ebb_model.errors import ConfigError, DataError
+from ebb_model.errors import ConfigError
 from ebb_model.adequacy import excited_band, numerical_adequacy
 from ebb_model.grid_advice import grid_advice
 from ebb_model.jsonio import write_json
@@ -48,8 +48,11 @@ from .fitting import GapProblem
 from .localise import localise
 from .modal_estimate import MeasuredModes, estimate_modes
 from .modal_pattern import ModalEvidence, modal_evidence
-from .rank import BIC_MARGIN, GAP_THRESHOLD, UNEXPLAINED, Ranking, better_baseline, rank_effects, settled
+from .rank import BIC_MARGIN, UNEXPLAINED, Ranking, rank_effects, settled
+from .refits import GAP_THRESHOLD, better_baseline
 from .records import Record, split_records
+from .result import (BandClosure, BaselineSummary, DiagnosisSettings, EffectRow, GapReport, PatternMatch,
+                     RefitSummary)
 
 __all__ = ["Diagnosis", "diagnose", "excited_band", "GAP_FILE", "GRID_VERDICT", "NUMERICAL_SHARE_LIMIT"]
 
@@ -62,17 +65,23 @@ NUMERICAL_SHARE_LIMIT = 0.5
 
 @dataclass(frozen=True, eq=False)
 class Diagnosis:
-    """Outcome of :func:`diagnose`: the ranking and the JSON document written to ``gap.json``."""
+    """Outcome of :func:`diagnose`: the ranking, what was found (:class:`~diagnosis.result.GapReport`) and where it
+    was written."""
 
     ranking: Ranking
-    document: dict[str, Any]
+    report: GapReport
     out_dir: Path | None
 
     @property
     def verdict(self) -> str:
         """Label of the effect that explains the gap, ``"none"``, ``"unexplained"`` (a gap no effect of the
         catalogue explains) or ``"grid"`` (the model's own discretisation error)."""
-        return self.ranking.verdict
+        return self.report.verdict
+
+    @property
+    def document(self) -> dict[str, Any]:
+        """The ``gap.json`` document (:meth:`GapReport.to_dict`)."""
+        return self.report.to_dict()
 
 
 def _ordered(config: BeamConfig, e: Experiment) -> tuple[str, np.ndarray, np.ndarray]:
@@ -112,7 +121,7 @@ def _stretch_max(config: BeamConfig, params: dict[str, float], records: Sequence
 
 
 def _band_closure(before: Sequence[np.ndarray], after: Sequence[np.ndarray], dt: float,
-                  edges: np.ndarray) -> list[dict[str, Any]]:
+                  edges: np.ndarray) -> tuple[BandClosure, ...]:
     """Held-out gap ratio per frequency band before/after, and the fraction of the band's gap closed.
 
     For noise-normalised residuals, white unit-variance noise has an expected
@@ -136,17 +145,16 @@ def _band_closure(before: Sequence[np.ndarray], after: Sequence[np.ndarray], dt:
     for i in range(nb):
         b = eb[i] / cnt[i] if cnt[i] else float("nan")
         a = ea[i] / cnt[i] if cnt[i] else float("nan")
-        rows.append({"band_hz": [float(edges[i]), float(edges[i + 1])], "gap_ratio_before": float(b),
-                     "gap_ratio_after": float(a),
-                     "closed": float((b - a) / (b - 1.0)) if b > 1.05 else None})
-    return rows
+        rows.append(BandClosure((float(edges[i]), float(edges[i + 1])), float(b), float(a),
+                                float((b - a) / (b - 1.0)) if b > 1.05 else None))
+    return tuple(rows)
 
 
 def _numerical_verdict(ranking: Ranking, share: float, advice: str) -> Ranking:
     """The ranking with its verdict replaced by :data:`GRID_VERDICT` when the grid's share of the gap is above
     :data:`NUMERICAL_SHARE_LIMIT`, or its reason qualified when the share is above a tenth.
 
-    A held-out gap within :data:`~diagnosis.rank.GAP_THRESHOLD` of the noise floor is no gap: the verdict
+    A held-out gap within :data:`~diagnosis.refits.GAP_THRESHOLD` of the noise floor is no gap: the verdict
     stays ``none`` whatever share of that remainder the grid makes (a share of almost nothing).
     """
     if float(np.mean(ranking.heldout_before)) - 1.0 < GAP_THRESHOLD:
@@ -162,25 +170,26 @@ def _numerical_verdict(ranking: Ranking, share: float, advice: str) -> Ranking:
     return ranking
 
 
-def corrected_summary(config: BeamConfig, baseline: dict[str, float], row: dict[str, Any]) -> dict[str, Any]:
+def corrected_summary(config: BeamConfig, baseline: Mapping[str, float], row: EffectRow) -> dict[str, Any]:
     """What ``corrected.json`` says: the effect and its parameters with units, the refitted baseline, and the
     held-out gap before/after."""
     from ebb_model.beam import PARAMETER_UNITS
     from ebb_model.reference.withheld import EFFECT_CATALOGUE
 
-    rf = row["refit"]
+    rf = row.refit
+    assert rf is not None, "only a refitted effect is exported"
     units: dict[str, str] = {}
-    for part in row["label"].split(PAIR_SEPARATOR):   # a pair's parameters are keyed "<label>.<parameter>"
+    for part in row.label.split(PAIR_SEPARATOR):   # a pair's parameters are keyed "<label>.<parameter>"
         spec = EFFECT_CATALOGUE[part.split("[")[0]]
-        prefix = f"{part}." if PAIR_SEPARATOR in row["label"] else ""
+        prefix = f"{part}." if PAIR_SEPARATOR in row.label else ""
         units |= {prefix + k: u for k, u in zip(spec.parameters, spec.units)}
     unit = lambda k: PARAMETER_UNITS.get(k, "m" if k.startswith("x_") else "")   # noqa: E731
-    return {"effect": row["label"], "description": row["description"],
-            "effect_parameters": {k: {"value": v, "unit": units.get(k, "")} for k, v in rf["effect_parameters"].items()},
-            "parameters": {k: {"value": v, "unit": unit(k)} for k, v in rf["baseline_parameters"].items()},
+    return {"effect": row.label, "description": row.description,
+            "effect_parameters": {k: {"value": v, "unit": units.get(k, "")} for k, v in rf.effect_parameters.items()},
+            "parameters": {k: {"value": v, "unit": unit(k)} for k, v in rf.baseline_parameters.items()},
             "baseline_without_effect": {k: {"value": v, "unit": unit(k)} for k, v in baseline.items()},
-            "heldout_gap_ratio_before": rf["heldout_gap_ratio_before"],
-            "heldout_gap_ratio_after": rf["heldout_gap_ratio_after"], "closed": rf["closed"],
+            "heldout_gap_ratio_before": dict(rf.heldout_gap_ratio_before),
+            "heldout_gap_ratio_after": dict(rf.heldout_gap_ratio_after), "closed": rf.closed,
             "sensors": {s.name: s.unit for s in config.sensors}}
 
 
@@ -331,7 +340,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         for _ in range(2):
             if settled(ranking):
                 break
-            # an effect's refit may have moved the baseline unknowns into a better basin (rank.better_baseline)
+            # an effect's refit may have moved the baseline unknowns into a better basin (refits.better_baseline)
             say("baseline re-fit from the effects' optima")
             better = better_baseline(problem, baseline, [rf.fit for rf in ranking.refits.values()], executor)
             if better is None:
@@ -364,84 +373,59 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     effect_rows = []
     by_label = {e.label: e for e in effects} | {lab: catalogue.effect(lab) for lab in ranking.refits}
     _, res_before = problem.heldout(baseline.beta)
+    names = cfg.output_names
     for rank_i, lab in enumerate(ranking.order, start=1):
         e, sc = by_label[lab], ranking.scores.get(lab)   # a pair has no score of its own
-        row: dict[str, Any] = {"rank": rank_i, "label": lab, "effect": e.name, "target": e.target,
-                               "description": e.description, "score": None if sc is None else sc.lm,
-                               "p_value": None if sc is None else sc.p_value,
-                               "shortlisted": lab in ranking.refits}
         rf = ranking.refits.get(lab)
+        refit = None
         if rf is not None:
             _, res_after = problem.heldout(rf.fit.beta, e, rf.fit.s)
-            row["refit"] = {
-                "effect_parameters": rf.physical,
-                "baseline_parameters": space.to_dict(rf.fit.beta),
-                "delta_bic": rf.delta_bic, "delta_aic": rf.delta_aic,
-                "heldout_gap_ratio_before": dict(zip(cfg.output_names, map(float, ranking.heldout_before))),
-                "heldout_gap_ratio_after": dict(zip(cfg.output_names, map(float, rf.heldout_after))),
-                "closed": rf.closed,
-                "closed_per_sensor": {n: (None if not np.isfinite(v) else float(v))
-                                      for n, v in zip(cfg.output_names, rf.closed_per_sensor)},
-                "closed_per_band": _band_closure(res_before, res_after, dt, edges),
-                "n_evaluations": rf.fit.n_evaluations,
-                # the refitted model's modes (the baseline's in-band ones and the next), for a
-                # cross-check against an independent modal test
-                "model_modes_hz": _modes_hz(problem.model(rf.fit.beta, e, rf.fit.s), len(mf) + 1),
-            }
+            refit = RefitSummary(
+                rf.physical, space.to_dict(rf.fit.beta), rf.delta_bic, rf.delta_aic,
+                dict(zip(names, map(float, ranking.heldout_before))), dict(zip(names, map(float, rf.heldout_after))),
+                rf.closed, {n: (None if not np.isfinite(v) else float(v)) for n, v in zip(names, rf.closed_per_sensor)},
+                _band_closure(res_before, res_after, dt, edges), rf.fit.n_evaluations,
+                tuple(_modes_hz(problem.model(rf.fit.beta, e, rf.fit.s), len(mf) + 1)))
         pf = ranking.patterns.get(lab)
-        if pf is not None:
-            row["modal_pattern"] = {"chi2": pf.chi2, "freq_hz": [float(v) for v in pf.freq_hz],
-                                    "damping": [float(v) for v in pf.damping]}
-        effect_rows.append(row)
+        match = None if pf is None else PatternMatch(pf.chi2, tuple(map(float, pf.freq_hz)),
+                                                     tuple(map(float, pf.damping)))
+        effect_rows.append(EffectRow(rank_i, lab, e.name, e.target, e.description, None if sc is None else sc.lm,
+                                     None if sc is None else sc.p_value, lab in ranking.refits, refit, match))
     p = space.dim
-    doc: dict[str, Any] = {
-        "verdict": ranking.verdict,
-        "reason": ranking.reason,
-        "indistinguishable": ranking.indistinguishable,
-        "noise_std": dict(zip(cfg.output_names, map(float, sigma))),
-        "excited_band_hz": [f_lo, f_hi],
-        "baseline": {
-            "parameters": space.to_dict(baseline.beta),
-            "fit_gap_ratio": float(baseline.rss / baseline.n),
-            "heldout_gap_ratio": dict(zip(cfg.output_names, map(float, ranking.heldout_before))),
-            "bic": baseline.bic(p),
-            "n_evaluations": baseline.n_evaluations,
-            "model_modes_hz": [float(v) for v in mf],
-            "numerical_adequacy": adequacy.to_dict(),
-            "grid_advice": advice.to_dict() | {"summary": advice.summary()},
-        },
-        "measured_modes": None if ranking.modal is None else ranking.modal.measured.to_dict() | (
-            {"baseline_pattern_chi2": ranking.patterns["baseline"].chi2} if ranking.patterns else {}),
-        "localisation": {r.name: loc.to_dict() for r, loc in zip(records, locs)},
-        "summary": [s for loc in locs for s in loc.summary],
-        "effects": effect_rows,
-        "settings": {"holdout": [str(h) for h in holdout], "holdout_fraction": None if holdout else holdout_fraction,
-                     "shortlist": shortlist, "gap_threshold": GAP_THRESHOLD, "bic_margin": BIC_MARGIN,
-                     "numerical_share_limit": NUMERICAL_SHARE_LIMIT},
-    }
+    report = GapReport(
+        ranking.verdict, ranking.reason, tuple(ranking.indistinguishable), dict(zip(names, map(float, sigma))),
+        (f_lo, f_hi),
+        BaselineSummary(space.to_dict(baseline.beta), float(baseline.rss / baseline.n),
+                        dict(zip(names, map(float, ranking.heldout_before))), baseline.bic(p),
+                        baseline.n_evaluations, tuple(map(float, mf)), adequacy, advice),
+        None if ranking.modal is None else ranking.modal.measured,
+        ranking.patterns["baseline"].chi2 if ranking.patterns else None,
+        {r.name: loc for r, loc in zip(records, locs)}, tuple(s for loc in locs for s in loc.summary),
+        tuple(effect_rows),
+        DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, shortlist,
+                          GAP_THRESHOLD, BIC_MARGIN, NUMERICAL_SHARE_LIMIT))
     if out is None:
-        return Diagnosis(ranking, doc, None)
+        return Diagnosis(ranking, report, None)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         rf = ranking.refits.get(ranking.verdict)
         if export and rf is not None:
             from .corrected import export_corrected
 
-            e = by_label[ranking.verdict]
-            row = next(r for r in effect_rows if r["label"] == ranking.verdict)
-            files = export_corrected(problem.model(rf.fit.beta, e, rf.fit.s), tmp / "corrected",
-                                     corrected_summary(cfg, space.to_dict(baseline.beta), row),
+            files = export_corrected(problem.model(rf.fit.beta, by_label[ranking.verdict], rf.fit.s),
+                                     tmp / "corrected", corrected_summary(cfg, space.to_dict(baseline.beta),
+                                                                          report.row(ranking.verdict)),
                                      standalone=standalone)
-            doc["corrected"] = {"directory": "corrected", "files": [f.name for f in files]}
-        write_json(tmp / GAP_FILE, doc)
+            report = replace(report, corrected_files=tuple(f.name for f in files))
+        write_json(tmp / GAP_FILE, report.to_dict())
         if plots:
             from .gap_plots import plot_diagnosis
 
-            plot_diagnosis(doc, problem, ranking, by_label, locs, tmp)
+            plot_diagnosis(report, problem, ranking, by_label, locs, tmp)
         if out.exists():
             out.rmdir()
         os.replace(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return Diagnosis(ranking, doc, out)
+    return Diagnosis(ranking, report, out)

@@ -20,9 +20,9 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
                  export=not args.no_export, standalone=args.standalone, workers=args.workers, progress=say)
     from diagnosis.report import text_report
 
-    print(text_report(d.document))
+    print(text_report(d.report))
     print(f"wrote {d.out_dir / 'gap.json'}")
-    if "corrected" in d.document:
+    if d.report.corrected_files:
         print(f"wrote the corrected model (config, StateSpace, FMU) to {d.out_dir / 'corrected'}")
     return 0
 

@@ -79,30 +79,30 @@ def run_case(data: Path, out: Path, *, quick: bool, **_: Any) -> dict[str, Any]:
     impulse = data.with_name("impulse_test_fft.lvm")
     measured_modes = impulse_test_modes(impulse) if impulse.is_file() else []
     d = diagnose(cfg, [data], out / "gap", plots=not quick, progress=print)
-    doc = d.document
+    rep = d.report
     rows = []
-    for e in doc["effects"]:
-        rf = e.get("refit")
+    for e in rep.effects:
+        rf = e.refit
         if rf is None:
             continue
-        rows.append({"label": e["label"], "parameters": rf["effect_parameters"],
-                     "baseline_parameters": rf["baseline_parameters"], "closed": rf["closed"],
-                     "delta_bic": rf["delta_bic"],
-                     "heldout_after": list(rf["heldout_gap_ratio_after"].values())[0],
-                     "modes": _modal_error(rf["model_modes_hz"], measured_modes)})
-    base = doc["baseline"]
+        rows.append({"label": e.label, "parameters": dict(rf.effect_parameters),
+                     "baseline_parameters": dict(rf.baseline_parameters), "closed": rf.closed,
+                     "delta_bic": rf.delta_bic,
+                     "heldout_after": list(rf.heldout_gap_ratio_after.values())[0],
+                     "modes": _modal_error(rf.model_modes_hz, measured_modes)})
+    base = rep.baseline
     space = parameter_space(cfg)
     on_bounds = [n for n, lo, hi in zip(space.names, space.lower, space.upper)
-                 if min(abs(base["parameters"][n] - lo), abs(hi - base["parameters"][n])) <= 0.01 * (hi - lo)]
+                 if min(abs(base.parameters[n] - lo), abs(hi - base.parameters[n])) <= 0.01 * (hi - lo)]
     consistent = [r["label"] for r in rows if r["closed"] >= 0.5
-                  and r["modes"]["max_abs_error"] <= _modal_error(base["model_modes_hz"], measured_modes)[
+                  and r["modes"]["max_abs_error"] <= _modal_error(base.model_modes_hz, measured_modes)[
                       "max_abs_error"] + 0.01]
     return {"config": str(CONFIG), "data": str(data), "impulse_test": str(impulse),
-            "noise_std_config": doc["noise_std"]["accel"], "noise_std_adjacent_periods": noise_check,
-            "verdict": doc["verdict"], "reason": doc["reason"], "summary": doc["summary"],
+            "noise_std_config": rep.noise_std["accel"], "noise_std_adjacent_periods": noise_check,
+            "verdict": rep.verdict, "reason": rep.reason, "summary": list(rep.summary),
             "consistent_with_impulse_test": consistent, "baseline_on_bounds": on_bounds,
-            "baseline": {"parameters": base["parameters"], "heldout": base["heldout_gap_ratio"]["accel"],
-                         "modes": _modal_error(base["model_modes_hz"], measured_modes)},
+            "baseline": {"parameters": dict(base.parameters), "heldout": base.heldout_gap_ratio["accel"],
+                         "modes": _modal_error(base.model_modes_hz, measured_modes)},
             "impulse_modes_hz": measured_modes, "refits": rows,
             "beam_mass_nominal_kg": cfg.parameters["rhoA"].value * cfg.beam.length, "length": cfg.beam.length}
 

@@ -23,7 +23,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ebb_model.config import BeamConfig
-from ebb_model.reference.hermite_fe import hermite_beam, newmark_simulate
+from ebb_model.reference import hermite_beam, newmark_simulate
 
 __all__ = ["half_sine_pulse", "fe_measurements", "write_csv"]
 

@@ -33,7 +33,7 @@ import pytest
 
 import ebb_model as em
 from ebb_model.config import BeamConfig
-from ebb_model.reference.hermite_fe import hermite_beam, newmark_simulate
+from ebb_model.reference import hermite_beam, newmark_simulate
 from identification.fisher import fisher_information
 from identification.native import NativeEvaluator, experiments_from_arrays
 from identification.parameters import parameter_space

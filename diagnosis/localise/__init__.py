@@ -10,8 +10,8 @@ from __future__ import annotations
 from .core import localise
 from .results import (AmplitudeGap, BandGap, CrossCorrelation, Localisation, ModeGap, SensorGap, Whiteness,
                       WindowGap)
-from .spectra import FrfEstimate, _matrix, choose_nperseg, estimate_frf
-from .trends import residual_correlations
+from .spectra import FrfEstimate, choose_nperseg, estimate_frf
+from .residual_tests import residual_correlations
 
 __all__ = [
     "AmplitudeGap",

@@ -1,5 +1,5 @@
-"""Trends and residual tests of the localisation: time and amplitude trends, Hilbert envelopes, residual
-whiteness and input cross-correlation."""
+"""Trends of the localisation: drift over time windows and amplitude dependence over envelope levels, against
+the best linear approximation (Hilbert envelopes, local complex gains, trend tests)."""
 from __future__ import annotations
 
 import math
@@ -9,8 +9,9 @@ import numpy as np
 from scipy import fft as sfft
 from scipy import signal, stats
 
-
-from .thresholds import Z99
+from .results import AmplitudeGap, WindowGap
+from .spectra import FrfEstimate, _linear_prediction
+from .thresholds import _SUB, MIN_GAIN, MIN_PHASE_DEG, MIN_RMS_CHANGE
 
 # ----------------------------------------------------------------------------------------------
 # small statistics helpers
@@ -75,82 +76,95 @@ def _mean_t(v: Sequence[float]) -> tuple[float, float]:
     return float(a.mean()), float(2 * stats.t.sf(abs(a.mean()) / (sd / math.sqrt(len(a))), len(a) - 1))
 
 
-def _autocorr_full(x: np.ndarray) -> np.ndarray:
-    """Biased autocorrelation ``Σ_t x(t) x(t+k)`` for k = 0 … n-1 (columns)."""
-    n = x.shape[0]
-    nf = sfft.next_fast_len(2 * n)
-    X = sfft.rfft(x, nf, axis=0)
-    return sfft.irfft(np.abs(X) ** 2, nf, axis=0)[:n]
-
-
-def residual_correlations(r: np.ndarray, u: np.ndarray, max_lag: int
-                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Normalised residual autocorrelation and residual–input cross-correlation with bands.
-
-    Parameters
-    ----------
-    r
-        Residuals ``(n, n_out)``.
-    u
-        Inputs ``(n, n_in)``.
-    max_lag
-        Largest lag ``m``.
-
-    Returns
-    -------
-    acf
-        ``(m, n_out)`` autocorrelation at lags ``1 … m``.
-    xcf
-        ``(2m+1, n_out, n_in)`` cross-correlation ``Σ r(t) u(t-k) / √(Σr² Σu²)``, ``k = -m … m``.
-    xband
-        ``(n_out, n_in)`` 99 % band half-widths of ``xcf``.
-    chi2, dof
-        ``(n_out, n_in)`` portmanteau statistic ``n r^T C⁺ r`` over all lags, with
-        ``C`` the Bartlett covariance of the lags under independence (so lags
-        correlated through a coloured input are not counted twice), and its
-        degrees of freedom (rank kept in ``C⁺``); ``chi2 ~ χ²(dof)`` under independence.
-    """
-    n = r.shape[0]
-    rc = r - r.mean(axis=0)
-    uc = u - u.mean(axis=0)
-    ar = _autocorr_full(rc)
-    au = _autocorr_full(uc)
-    r0 = ar[0]
-    u0 = au[0]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rho_r = np.where(r0 > 0, ar / np.where(r0 > 0, r0, 1.0), 0.0)
-        rho_u = au / u0
-    acf = rho_r[1:max_lag + 1]
-    nf = sfft.next_fast_len(2 * n)
-    R = sfft.rfft(rc, nf, axis=0)
-    U = sfft.rfft(uc, nf, axis=0)
-    cc = sfft.irfft(R[:, :, None] * U[:, None, :].conj(), nf, axis=0)  # cc[k] = Σ_t r(t+k) u(t)... see below
-    lags = np.arange(-max_lag, max_lag + 1)
-    # Σ_t r(t) u(t-k) = Σ_s r(s+k) u(s) = cc[k mod nf]
-    xc = cc[lags % nf]
-    norm = np.sqrt(np.maximum(r0, 1e-300)[:, None] * u0[None, :])
-    xcf = np.where(r0[None, :, None] > 0, xc / norm[None], 0.0)
-    L = int(min(n // 5, 20 * max_lag))
-    # Bartlett: cov(√n r(k), √n r(j)) = g(k - j) = Σ_τ ρ_r(τ) ρ_u(τ + k - j) under independence
-    m2 = 2 * max_lag
-    lr = np.concatenate([rho_r[L:0:-1], rho_r[:L + 1]], axis=0)  # lags -L … L
-    lu_full = rho_u[:L + m2 + 1]
-    lu = np.concatenate([lu_full[:0:-1], lu_full], axis=0)  # lags -(L+2m) … L+2m
-    n_out, n_in = r.shape[1], u.shape[1]
-    xband = np.empty((n_out, n_in))
-    chi2 = np.empty((n_out, n_in))
-    dof = np.zeros((n_out, n_in), dtype=int)
+def window_and_amplitude_gaps(dt: float, u2: np.ndarray, y2: np.ndarray, yh2: np.ndarray, fp_m: FrfEstimate,
+                              sig: np.ndarray, snames: Sequence[str], windows: int, amplitude_bins: int,
+                              alpha: float) -> tuple[list[WindowGap], list[AmplitudeGap]]:
+    """Drift per time window and amplitude dependence per envelope level, both against the best linear
+    approximation (see :mod:`diagnosis.localise.core`)."""
+    n, n_out = y2.shape
+    r = y2 - yh2
+    yc2 = y2 - y2.mean(axis=0)
+    yhc = yh2 - yh2.mean(axis=0)
+    # linear prediction of y from u through the *measured* FRF: the best linear approximation.
+    # The amplitude test compares y with it, so linear model errors (frequency-dependent gain
+    # and phase, which would otherwise alias into envelope bins for multisines and sweeps) cancel.
+    ylin = _linear_prediction(dt, u2, fp_m)
+    ylq = _hilbert(ylin)
+    env = np.hypot(ylin, ylq)
+    idx_w = np.array_split(np.arange(n), windows)
+    tc = np.array([(w[0] + w[-1]) / 2 * dt for w in idx_w])
+    span = tc[-1] - tc[0]
+    n_drift = 3 * n_out
+    n_nl = 2 * n_out
+    wins: list[WindowGap] = []
+    amps: list[AmplitudeGap] = []
     for o in range(n_out):
-        for j in range(n_in):
-            g = np.correlate(lu[:, j], lr[:, o], mode="valid")  # g[i] ↔ lag difference i - 2m
-            xband[o, j] = Z99 * math.sqrt(max(g[m2], 0.25) / n)
-            cov = g[np.abs(np.arange(-max_lag, max_lag + 1)[:, None] - np.arange(-max_lag, max_lag + 1)[None, :])
-                    + m2]
-            lam, vec = np.linalg.eigh(0.5 * (cov + cov.T))
-            keep = lam > 1e-3 * max(lam.max(), 1e-300)
-            proj = vec[:, keep].T @ xcf[:, o, j]
-            chi2[o, j] = float(n * np.sum(proj ** 2 / lam[keep]))
-            dof[o, j] = int(np.count_nonzero(keep))
-    return acf, xcf, xband, chi2, dof
-
-
+        rms = np.array([math.sqrt(float(np.mean(r[w, o] ** 2))) for w in idx_w])
+        # drift is judged against the time-invariant best linear approximation ylin, so a
+        # non-stationary input (sweep) with a time-invariant model error cannot fake a trend
+        lrms = np.array([math.sqrt(float(np.mean((yc2[w, o] - ylin[w, o]) ** 2))) for w in idx_w])
+        cw = np.array([_local_gain(yc2[w, o], ylin[w, o], ylq[w, o]) for w in idx_w])
+        gw = np.abs(cw)
+        pw = np.degrees(np.unwrap(np.angle(cw)))
+        # sampling variance of a window value from _SUB sub-windows of each window (pooled)
+        vr, vg, vp = [], [], []
+        for w, c in zip(idx_w, cw):
+            subs = np.array_split(w, _SUB)
+            cs = np.array([_local_gain(yc2[q, o], ylin[q, o], ylq[q, o]) for q in subs])
+            rs = np.array([math.sqrt(float(np.mean((yc2[q, o] - ylin[q, o]) ** 2))) for q in subs])
+            vr.append(np.var(rs, ddof=1) / _SUB)
+            vg.append(np.var(np.abs(cs), ddof=1) / _SUB)
+            vp.append(np.var(np.degrees(np.angle(cs / c)), ddof=1) / _SUB)
+        dof_sub = windows * (_SUB - 1)
+        s_r, p_r = _trend(tc, lrms, float(np.mean(vr)), dof_sub)
+        s_g, p_g = _trend(tc, gw, float(np.mean(vg)), dof_sub)
+        s_p, p_p = _trend(tc, pw, float(np.mean(vp)), dof_sub)
+        rms_change = s_r * span / float(np.mean(lrms)) if np.mean(lrms) > 0 else 0.0
+        drift = ((p_r * n_drift < alpha and abs(rms_change) >= MIN_RMS_CHANGE)
+                 or (p_g * n_drift < alpha and abs(s_g * span) >= MIN_GAIN / 2)
+                 or (p_p * n_drift < alpha and abs(s_p * span) >= MIN_PHASE_DEG / 2))
+        wins.append(WindowGap(snames[o], tuple(map(float, tc)), tuple(map(float, rms)), tuple(map(float, lrms)),
+                              tuple(map(float, gw)), tuple(map(float, pw)), float(rms_change), p_r,
+                              float(s_g * span), p_g, float(s_p * span), p_p, bool(drift)))
+        # within-window slopes of the local gain of y over the linear prediction vs ln(envelope)
+        gs, ps = [], []
+        for w in idx_w:
+            lab = _quantile_bins(env[w, o], amplitude_bins)
+            lv, gg, pp = [], [], []
+            for b in range(amplitude_bins):
+                s = w[lab == b]
+                if len(s) < 8 or np.mean(env[s, o]) <= 0:
+                    continue
+                cb = _local_gain(yc2[s, o], ylin[s, o], ylq[s, o])
+                lv.append(math.log(float(np.mean(env[s, o]))))
+                gg.append(abs(cb))
+                pp.append(np.angle(cb))
+            if len(lv) >= 2 and np.ptp(lv) > 0:
+                lv_a = np.array(lv)
+                gs.append(float(np.polyfit(lv_a, gg, 1)[0]))
+                ps.append(float(np.polyfit(lv_a, np.degrees(np.unwrap(pp)), 1)[0]))
+        g_sl, g_p = _mean_t(gs)
+        p_sl, p_p2 = _mean_t(ps)
+        # record-wide bins for the table and plots
+        lab = _quantile_bins(env[:, o], amplitude_bins)
+        lvl, rr, rel, gb, pb = [], [], [], [], []
+        for b in range(amplitude_bins):
+            s = np.flatnonzero(lab == b)
+            if len(s) < 8:
+                continue
+            cb = _local_gain(yc2[s, o], ylin[s, o], ylq[s, o])
+            lvl.append(float(np.mean(env[s, o])))
+            rr.append(math.sqrt(float(np.mean(r[s, o] ** 2))))
+            rel.append(rr[-1] / max(math.sqrt(float(np.mean(yhc[s, o] ** 2))), 1e-300))
+            gb.append(abs(cb))
+            pb.append(math.degrees(np.angle(cb)))
+        corr = np.array(rr) ** 2 - sig[o] ** 2
+        okb = (corr > 0) & (np.array(lvl) > 0)
+        expo = float(np.polyfit(np.log(np.array(lvl)[okb]), 0.5 * np.log(corr[okb]), 1)[0]) \
+            if np.count_nonzero(okb) >= 2 else float("nan")
+        log_range = math.log(lvl[-1] / lvl[0]) if len(lvl) >= 2 and lvl[0] > 0 else 0.0
+        nonlin = bool((np.isfinite(g_p) and g_p * n_nl < alpha and abs(g_sl * log_range) >= MIN_GAIN / 2)
+                      or (np.isfinite(p_p2) and p_p2 * n_nl < alpha and abs(p_sl * log_range) >= MIN_PHASE_DEG / 2))
+        amps.append(AmplitudeGap(snames[o], tuple(lvl), tuple(rr), tuple(rel), tuple(gb), tuple(pb), expo,
+                                 g_sl, g_p, p_sl, p_p2, nonlin))
+    return wins, amps

@@ -5,7 +5,8 @@
 * :mod:`.hermite_fe` -- cubic Hermite finite-element model of the damped,
   axially loaded beam (optionally with rotary inertia and a Winkler
   foundation) with elastic supports, point masses, point forces and point
-  sensors, plus a dense Newmark time integrator.
+  sensors.
+* :mod:`.newmark_dense` -- dense Newmark time integrator of that model.
 * :mod:`.newmark_banded` -- compiled banded Newmark integrator with actuator
   and sensor lags, axial-load drift and geometric stiffening.
 * :mod:`.withheld` -- the catalogue of unmodelled effects and
@@ -35,8 +36,8 @@ from .hermite_fe import (
     element_matrices,
     hermite_beam,
     hermite_shape_functions,
-    newmark_simulate,
 )
+from .newmark_dense import newmark_simulate
 from .synthetic import SyntheticRecord, synthesize
 from .withheld import EFFECT_CATALOGUE, EFFECT_NAMES, EffectSpec, WithheldEffect
 

@@ -23,7 +23,6 @@ RMS ``amplitude``.
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 

@@ -1,0 +1,188 @@
+"""The diagnosis' result as typed values, and its one serialisation (``gap.json``).
+
+:class:`GapReport` is what :func:`diagnosis.run.diagnose` found — the verdict and its reason, the baseline, the
+measured modes, where the gap is (:class:`~diagnosis.localise.Localisation` per record) and every effect's row
+(:class:`EffectRow`: score, refit, modal pattern).  The text report, the plots and the command line read these
+fields; :meth:`GapReport.to_dict` is the ``gap.json`` document (strict JSON: :func:`ebb_model.jsonio.jsonable`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+from ebb_model.adequacy import NumericalAdequacy
+from ebb_model.grid_advice import GridAdvice
+from ebb_model.jsonio import jsonable
+
+from .localise import Localisation
+from .modal_estimate import MeasuredModes
+
+__all__ = ["BandClosure", "RefitSummary", "PatternMatch", "EffectRow", "BaselineSummary", "DiagnosisSettings",
+           "GapReport"]
+
+
+@dataclass(frozen=True)
+class BandClosure:
+    """Held-out gap ratio in one frequency band before and after an effect's refit (1 = the noise floor);
+    ``closed`` is ``None`` where the band had no gap to close."""
+
+    band_hz: tuple[float, float]
+    gap_ratio_before: float
+    gap_ratio_after: float
+    closed: float | None
+
+
+@dataclass(frozen=True)
+class RefitSummary:
+    """An effect's refit together with the baseline unknowns (:mod:`diagnosis.refits`), per sensor by name.
+
+    ``model_modes_hz`` are the refitted model's modes (the baseline's in-band ones and the next), for a
+    cross-check against an independent modal test.
+    """
+
+    effect_parameters: Mapping[str, float]
+    baseline_parameters: Mapping[str, float]
+    delta_bic: float
+    delta_aic: float
+    heldout_gap_ratio_before: Mapping[str, float]
+    heldout_gap_ratio_after: Mapping[str, float]
+    closed: float
+    closed_per_sensor: Mapping[str, float | None]
+    closed_per_band: tuple[BandClosure, ...]
+    n_evaluations: int
+    model_modes_hz: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class PatternMatch:
+    """An effect's modal-pattern fit to the measured modes (:mod:`diagnosis.modal_pattern`)."""
+
+    chi2: float
+    freq_hz: tuple[float, ...]
+    damping: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class EffectRow:
+    """One candidate effect in ranking order: its score test and, when refitted, its refit and modal match.
+
+    ``score`` and ``p_value`` are ``None`` for a pair (it has no score test of its own).
+    """
+
+    rank: int
+    label: str
+    effect: str
+    target: str
+    description: str
+    score: float | None
+    p_value: float | None
+    shortlisted: bool
+    refit: RefitSummary | None = None
+    modal_pattern: PatternMatch | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready row (``refit`` and ``modal_pattern`` only when there is one)."""
+        row = {k: jsonable(v) for k, v in vars(self).items() if k not in ("refit", "modal_pattern")}
+        if self.refit is not None:
+            row["refit"] = jsonable(self.refit)
+        if self.modal_pattern is not None:
+            row["modal_pattern"] = jsonable(self.modal_pattern)
+        return row
+
+
+@dataclass(frozen=True)
+class BaselineSummary:
+    """The baseline fit (the model without effect): parameters, gap ratios (1 = the noise floor), BIC, its in-band
+    modes, and how much of its gap is the model's own grid (:mod:`ebb_model.adequacy`,
+    :mod:`ebb_model.grid_advice`)."""
+
+    parameters: Mapping[str, float]
+    fit_gap_ratio: float
+    heldout_gap_ratio: Mapping[str, float]
+    bic: float
+    n_evaluations: int
+    model_modes_hz: tuple[float, ...]
+    numerical_adequacy: NumericalAdequacy
+    grid_advice: GridAdvice
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary."""
+        return {"parameters": jsonable(self.parameters), "fit_gap_ratio": jsonable(self.fit_gap_ratio),
+                "heldout_gap_ratio": jsonable(self.heldout_gap_ratio), "bic": jsonable(self.bic),
+                "n_evaluations": self.n_evaluations, "model_modes_hz": jsonable(self.model_modes_hz),
+                "numerical_adequacy": self.numerical_adequacy.to_dict(),
+                "grid_advice": self.grid_advice.to_dict() | {"summary": self.grid_advice.summary()}}
+
+
+@dataclass(frozen=True)
+class DiagnosisSettings:
+    """The settings a diagnosis ran with (held-out records or fraction, shortlist, thresholds)."""
+
+    holdout: tuple[str, ...]
+    holdout_fraction: float | None
+    shortlist: int
+    gap_threshold: float
+    bic_margin: float
+    numerical_share_limit: float
+
+
+@dataclass(frozen=True)
+class GapReport:
+    """What the diagnosis found (module docstring).
+
+    Attributes
+    ----------
+    verdict, reason
+        The effect's label, ``"none"``, ``"unexplained"`` or ``"grid"``, and why.
+    indistinguishable
+        Effects the data cannot tell from the verdict.
+    noise_std, excited_band_hz
+        Noise standard deviation per sensor and the excited frequency band.
+    baseline
+        The baseline fit.
+    measured_modes, baseline_pattern_chi2
+        The measured modes and the baseline's modal-pattern χ², when the modal pattern was needed.
+    localisation, summary
+        Where the gap is, per record, and its summary lines.
+    effects
+        Every candidate in ranking order.
+    settings
+        The settings of the run.
+    corrected_files
+        The corrected model's files (in ``corrected/`` beside ``gap.json``), when it was exported.
+    """
+
+    verdict: str
+    reason: str
+    indistinguishable: tuple[str, ...]
+    noise_std: Mapping[str, float]
+    excited_band_hz: tuple[float, float]
+    baseline: BaselineSummary
+    measured_modes: MeasuredModes | None
+    baseline_pattern_chi2: float | None
+    localisation: Mapping[str, Localisation]
+    summary: tuple[str, ...]
+    effects: tuple[EffectRow, ...]
+    settings: DiagnosisSettings
+    corrected_files: tuple[str, ...] | None = field(default=None)
+
+    def row(self, label: str) -> EffectRow | None:
+        """The row of effect ``label`` (``None`` if it is not in the catalogue)."""
+        return next((r for r in self.effects if r.label == label), None)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``gap.json`` document."""
+        modes = None
+        if self.measured_modes is not None:
+            modes = self.measured_modes.to_dict() | (
+                {} if self.baseline_pattern_chi2 is None else {"baseline_pattern_chi2": self.baseline_pattern_chi2})
+        doc: dict[str, Any] = {
+            "verdict": self.verdict, "reason": self.reason, "indistinguishable": list(self.indistinguishable),
+            "noise_std": jsonable(self.noise_std), "excited_band_hz": jsonable(self.excited_band_hz),
+            "baseline": self.baseline.to_dict(), "measured_modes": jsonable(modes),
+            "localisation": {name: loc.to_dict() for name, loc in self.localisation.items()},
+            "summary": list(self.summary), "effects": [r.to_dict() for r in self.effects],
+            "settings": jsonable(self.settings)}
+        if self.corrected_files is not None:
+            doc["corrected"] = {"directory": "corrected", "files": list(self.corrected_files)}
+        return doc
