@@ -1,0 +1,76 @@
+"""Wall time of the gap diagnosis on the blind family's records (``tests/test_diagnosis_blind.py``).
+
+Each case's record is generated first (not timed: the independent FE truth is the test's, not the diagnosis'
+cost), then :func:`diagnosis.run.diagnose` runs blind with its defaults (two worker processes) and its wall time
+is printed with the verdict.  The median and the largest time over the chosen cases close the table.
+
+Run as ``python benchmarks/bench_diagnosis.py [CASE ...]`` (default: every case; ``--list`` names them).
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+import test_diagnosis_blind as blind  # noqa: E402
+
+from diagnosis.run import diagnose  # noqa: E402
+
+
+def cases() -> dict[str, tuple[str, float, object, set[str]]]:
+    """``{name: (sensor kind, band top [Hz], withheld effect(s), right verdicts)}`` of the blind family."""
+    out: dict[str, tuple[str, float, object, set[str]]] = {}
+    for c in blind.CASES:
+        label, effect = c.values if hasattr(c, "values") else c
+        out[f"disp-{label}"] = ("displacement", 60.0, effect, {label})
+    for label, effect in blind.ACCEL_CASES:
+        out[f"accel-{label}"] = ("acceleration", 150.0, effect, {label})
+    for label, effect in blind.WIDE_CASES:
+        out[f"wide-{label}"] = ("displacement", 150.0, effect, {label})
+    out["disp-none"] = ("displacement", 60.0, None, {"none"})
+    out["accel-none"] = ("acceleration", 150.0, None, {"none"})
+    for label, effect in blind.OUTSIDE_CASES:
+        out[f"outside-{label}"] = ("displacement", 60.0, effect, {"unexplained"})
+    for labels, effects in blind.PAIR_CASES:
+        out["pair-" + "+".join(sorted(labels))] = ("displacement", 60.0, effects, {"+".join(sorted(labels))})
+    return out
+
+
+def main() -> None:
+    """Time the chosen cases and print the table."""
+    table = cases()
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("cases", nargs="*", help="case names (default: all)")
+    ap.add_argument("--list", action="store_true", help="list the case names")
+    args = ap.parse_args()
+    if args.list:
+        print("\n".join(table))
+        return
+    chosen = args.cases or list(table)
+    unknown = [c for c in chosen if c not in table]
+    if unknown:
+        ap.error(f"unknown case(s) {unknown}; --list names them")
+    seed = {"disp-none": 5}
+    times = []
+    print(f"{'case':<44}{'diagnosis [s]':>14}  verdict")
+    for name in chosen:
+        kind, f_max, effect, right = table[name]
+        with tempfile.TemporaryDirectory() as tmp:
+            cfg = blind.bench_config(kind)
+            data = blind._write(Path(tmp), cfg, effect, seed=seed.get(name, 3), f_max=f_max)
+            t0 = time.perf_counter()
+            d = diagnose(cfg, [data], None, plots=False, export=False)
+            dt = time.perf_counter() - t0
+        verdict = "+".join(sorted(d.verdict.split("+")))
+        times.append(dt)
+        print(f"{name:<44}{dt:>14.1f}  {d.verdict} ({'right' if verdict in right else 'WRONG'})", flush=True)
+    print(f"median {statistics.median(times):.1f} s, largest {max(times):.1f} s over {len(times)} case(s)")
+
+
+if __name__ == "__main__":
+    main()
