@@ -43,7 +43,13 @@ baseline fit may have hidden it (a foundation absorbed into the axial load
 scores 0 at the baseline) — and the :data:`PAIR_PARTNERS` best are refitted
 together with it.  A pair is reported when it improves BIC over the single
 effect by :data:`BIC_MARGIN` and lowers the held-out error; it is then named
-(``first+second``) under the same :data:`NAMED_CLOSURE` rule.
+(``first+second``) under the same :data:`NAMED_CLOSURE` rule.  The pair is
+tried before the continuation refits (from the best local refit, when that
+effect is linear time-invariant: the nonlinear simulation of drift and
+stretching makes their pairs dearer than their continuation): when it
+explains the gap, they are skipped — no single effect is left to find.  A
+pair must pay against its first effect refitted alone from the pair's
+optimum (:func:`_pair_with`).
 """
 from __future__ import annotations
 
@@ -173,6 +179,48 @@ def _best_pair(problem: GapProblem, baseline: Fit, before: np.ndarray, catalogue
     return best
 
 
+def _pair_with(problem: GapProblem, baseline: Fit, before: np.ndarray, catalogue: Catalogue, single: EffectRefit,
+               max_evaluations: int, executor: Executor | None, say: Any
+               ) -> tuple[EffectRefit | None, EffectRefit | None]:
+    """The best pair of ``single`` and a second effect that pays for itself (:func:`_best_pair`), the partners
+    score-tested afresh at ``single``'s refit (the baseline may have hidden them), and ``single``'s effect
+    refitted alone from that pair's optimum when this beats ``single``'s refit (else ``None``).
+
+    A pair must pay against its first effect refitted alone *from the pair's optimum*: a pair refit also
+    re-optimises the first effect, and when ``single`` had stopped short of its optimum (a local refit left
+    830 noise variances where the effect alone reaches 1.09) the pair's gain is that, with nothing for the
+    second effect to add.  Such a pair is not returned (``None``).
+    """
+    first = catalogue.effect(single.label)
+    rescored = {e.label: score_effect(problem, single.fit, on_top_of(first, single.fit.s, e)).lm
+                for e in catalogue.effects() if e.name != first.name}
+    partners = [lab for lab in sorted(rescored, key=lambda k: -rescored[k]) if rescored[lab] > 0][:PAIR_PARTNERS]
+    say(f"second-effect scores at the {single.label} refit: "
+        + ", ".join(f"{lab} {rescored[lab]:.4g}" for lab in partners))
+    pair = _best_pair(problem, baseline, before, catalogue, single, partners, max_evaluations, executor, say)
+    if pair is None:
+        return None, None
+    fit = problem.fit(pair.fit.beta, first, pair.fit.s[:first.dim], max_evaluations=max_evaluations)
+    alone = summarise(problem, baseline, before, first, fit)
+    say(f"{single.label} alone from the pair's optimum: fit RSS/n {fit.rss / fit.n:.4g}, "
+        f"dBIC of the pair against it {pair.bic - alone.bic:.1f}")
+    improved = fit.rss < single.fit.rss * (1.0 - 1e-3)     # beyond the refits' own last digits
+    return (pair if pair.bic < alone.bic - BIC_MARGIN else None), (alone if improved else None)
+
+
+def _same_fit(a: Fit, b: Fit) -> bool:
+    """Whether two refits ended at the same point (a later stage that did not improve keeps the point)."""
+    return a.rss == b.rss and np.array_equal(a.beta, b.beta) and np.array_equal(a.s, b.s)
+
+
+def _paying(refits: dict[str, EffectRefit], before: np.ndarray) -> list[str]:
+    """The effects whose refit pays for its parameters (BIC by :data:`BIC_MARGIN`) and lowers the held-out
+    error, the lowest held-out error first."""
+    paying = [lab for lab, rf in refits.items()
+              if rf.delta_bic < -BIC_MARGIN and np.mean(rf.heldout_after) < np.mean(before)]
+    return sorted(paying, key=lambda lab: float(np.mean(refits[lab].heldout_after)))
+
+
 def settled(ranking: Ranking) -> bool:
     """Whether the named effect's refit leaves at most :data:`GAP_THRESHOLD` above the noise floor on the fit
     windows: then a better baseline basin cannot change the verdict (another effect could at most tie), and the
@@ -252,6 +300,7 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
                      or not time_invariant(problem, baseline.beta, catalogue.effect(lab))]
             local.update(map_refits(executor, problem, catalogue, tried, baseline, scores, max_evaluations,
                                      {lab: local[lab] for lab in tried}, stage="basins"))
+    early: tuple[Fit, EffectRefit | None] | None = None    # (the single's fit, its best pair) tried early
     if not any(explains(fit, baseline) for fit, _ in local.values()):
         better = (better_baseline(problem, baseline, [fit for fit, _ in local.values()], executor)
                   if rebaseline else None)
@@ -261,8 +310,27 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
             return rank_effects(problem, better, catalogue, shortlist=shortlist, max_evaluations=max_evaluations,
                                 progress=progress, executor=executor, parallel=parallel, rebaseline=False,
                                 modal=modal)
+        # two effects before continuation: a pair that explains the records leaves no single effect to find
+        # (when the lead is linear time-invariant: pairs with drift or stretching need the costly nonlinear
+        # simulation, dearer than their continuation)
+        now = {lab: summarise(problem, baseline, before, catalogue.effect(lab), local[lab][0]) for lab in labels}
+        lead = _paying(now, before)[:1]
+        if (lead and now[lead[0]].closed >= PAIR_MINIMUM
+                and time_invariant(problem, baseline.beta, catalogue.effect(lead[0]))):
+            pair, alone = _pair_with(problem, baseline, before, catalogue, now[lead[0]], max_evaluations,
+                                     executor, say)
+            if alone is not None:
+                local[lead[0]] = (alone.fit, local[lead[0]][1])
+            early = (now[lead[0]].fit, pair)     # (a single improved here is paired again at the end)
         # no local refit explains the gap: continuation refits (diagnosis.refits), the most promising first
         pending = sorted(labels, key=lambda lab: local[lab][0].rss)
+        if early is not None and early[1] is not None and explains(early[1].fit, baseline):
+            say(f"continuation refits of {', '.join(pending)} skipped: the pair {early[1].label} explains the gap")
+            pending = []
+        elif any(explains(fit, baseline) for fit, _ in local.values()):
+            say(f"continuation refits of {', '.join(pending)} skipped: {lead[0]} refitted from a pair's optimum "
+                f"explains the gap")
+            pending = []
         if not _linear(evidence):
             # no set of linear oscillators reproduces the records: no linear time-invariant effect can
             lti = [lab for lab in pending if time_invariant(problem, baseline.beta, catalogue.effect(lab))]
@@ -291,10 +359,8 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
     for label, rf in refits.items():
         say(f"refit {label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
             f"dBIC {rf.delta_bic:.1f}")
-    paying = [lab for lab, rf in refits.items()
-              if rf.delta_bic < -BIC_MARGIN and np.mean(rf.heldout_after) < np.mean(before)]
+    paying = _paying(refits, before)
     others = [lab for lab in refits if lab not in paying]
-    paying.sort(key=lambda lab: float(np.mean(refits[lab].heldout_after)))
     others.sort(key=lambda lab: float(np.mean(refits[lab].heldout_after)))
     rest = [e.label for e in by_score if e.label not in refits]
     order = paying + others + rest
@@ -312,15 +378,14 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
                    patterns=patterns, modal=evidence)
     best = refits[paying[0]]
     if not explains(best.fit, baseline) and best.closed >= PAIR_MINIMUM:
-        # one effect leaves a significant remainder: a second one at once, when it pays for itself; the
-        # partners are scored afresh at the first effect's refit (the baseline may have hidden them)
-        first = catalogue.effect(paying[0])
-        rescored = {e.label: score_effect(problem, best.fit, on_top_of(first, best.fit.s, e)).lm
-                    for e in effects if e.name != first.name}
-        partners = [lab for lab in sorted(rescored, key=lambda k: -rescored[k]) if rescored[lab] > 0][:PAIR_PARTNERS]
-        say("second-effect scores at the " + paying[0] + " refit: "
-            + ", ".join(f"{lab} {rescored[lab]:.4g}" for lab in partners))
-        pair = _best_pair(problem, baseline, before, catalogue, best, partners, max_evaluations, executor, say)
+        # one effect leaves a significant remainder: a second one at once, when it pays for itself (tried
+        # already before the continuation refits when this single's fit has not changed since)
+        if early is not None and _same_fit(early[0], best.fit):
+            pair = early[1]
+        else:
+            pair, alone = _pair_with(problem, baseline, before, catalogue, best, max_evaluations, executor, say)
+            if alone is not None:     # the first effect alone, from the pair's optimum, beats its refit
+                refits[alone.label] = best = alone
         if pair is not None:
             refits[pair.label] = pair
             order = [pair.label] + order

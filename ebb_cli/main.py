@@ -1,21 +1,20 @@
 """The ``ebb`` parser and its exit codes: 0 done, 2 bad input (one line), 130 interrupted (Ctrl-C)."""
 from __future__ import annotations
 
-import argparse
 import sys
 from typing import Any, Sequence
 
 from ebb_model.threads import single_blas_thread
 
 from . import diagnosis, fmu, identification, model
-from .messages import flag_table, render
+from .messages import FlagParser, render
 
 __all__ = ["build_parser", "main"]
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``ebb`` argument parser with every subcommand."""
-    parser = argparse.ArgumentParser(prog="ebb", description="Euler-Bernoulli beam under axial load: "
+def build_parser() -> FlagParser:
+    """The ``ebb`` argument parser with every subcommand (and their flags: :attr:`FlagParser.flags`)."""
+    parser = FlagParser(prog="ebb", description="Euler-Bernoulli beam under axial load: "
                                      "model, FMU, identification and sim-to-real gap diagnosis.")
     sub = parser.add_subparsers(dest="command", required=True)
     for layer in (model, fmu, identification, diagnosis):
@@ -43,7 +42,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     prog = f"ebb {args.command}"
-    flags = flag_table(parser)
+    flags = parser.flags
 
     def one_line(message: Warning | str, category: type[Warning], *_a: Any, **_k: Any) -> None:
         print(f"{prog}: warning: {render(str(message), flags)}", file=sys.stderr)

@@ -8,10 +8,12 @@ mentions flags and the command line never mentions Python keywords.
 from __future__ import annotations
 
 import argparse
+import functools
 import re
 from collections.abc import Mapping
+from typing import Any
 
-__all__ = ["COMMANDS", "KEYWORD_ALIASES", "flag_table", "render"]
+__all__ = ["COMMANDS", "KEYWORD_ALIASES", "FlagParser", "render"]
 
 #: API function → subcommand.
 COMMANDS: Mapping[str, str] = {
@@ -26,17 +28,37 @@ KEYWORD_ALIASES: Mapping[str, str] = {
 _QUOTED = re.compile(r"`([A-Za-z_][A-Za-z0-9_]*)`")
 
 
-def flag_table(parser: argparse.ArgumentParser) -> dict[str, str]:
-    """``{destination: flag}`` of every optional argument of every subcommand of ``parser``."""
-    flags: dict[str, str] = {}
-    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
-    for sub in subs:
-        for p in sub.choices.values():
-            for action in p._actions:
-                long = [s for s in action.option_strings if s.startswith("--")]
-                if long and action.dest != "help":
-                    flags.setdefault(action.dest, long[0])
-    return flags
+class FlagParser(argparse.ArgumentParser):
+    """An :class:`argparse.ArgumentParser` that records the long flag of every optional argument by its
+    destination, its subcommands' and mutually exclusive groups' included (:attr:`flags`, shared by them).
+
+    Only argparse's public interface is used: the returned actions of ``add_argument`` and the
+    ``parser_class`` of ``add_subparsers``.
+    """
+
+    def __init__(self, *args: Any, flags: dict[str, str] | None = None, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        #: ``{destination: flag}`` of every optional argument, for :func:`render`.
+        self.flags: dict[str, str] = {} if flags is None else flags
+
+    def _record(self, action: argparse.Action) -> argparse.Action:
+        long = [s for s in action.option_strings if s.startswith("--")]
+        if long and action.dest != "help":
+            self.flags.setdefault(action.dest, long[0])
+        return action
+
+    def add_argument(self, *args: Any, **kwargs: Any) -> argparse.Action:   # noqa: D102 - as argparse's
+        return self._record(super().add_argument(*args, **kwargs))
+
+    def add_mutually_exclusive_group(self, **kwargs: Any) -> Any:          # noqa: D102 - as argparse's
+        group = super().add_mutually_exclusive_group(**kwargs)
+        add = group.add_argument
+        group.add_argument = lambda *a, **k: self._record(add(*a, **k))      # type: ignore[method-assign]
+        return group
+
+    def add_subparsers(self, **kwargs: Any) -> Any:                         # noqa: D102 - as argparse's
+        kwargs.setdefault("parser_class", functools.partial(FlagParser, flags=self.flags))
+        return super().add_subparsers(**kwargs)
 
 
 def render(message: str, flags: Mapping[str, str]) -> str:
@@ -47,7 +69,7 @@ def render(message: str, flags: Mapping[str, str]) -> str:
     message : str
         An API message.
     flags : mapping
-        ``{destination: flag}`` (:func:`flag_table`).
+        ``{destination: flag}`` (:attr:`FlagParser.flags`).
 
     Returns
     -------

@@ -348,16 +348,66 @@ def continuous_modes(config: BeamConfig, params: Mapping[str, float]) -> Continu
     return ContinuousModes(s, V, B_modal, mm.C, mm.D, mm.shapes, w2)
 
 
-def modal_poles(config: BeamConfig, params: Mapping[str, float]) -> np.ndarray:
+def modal_poles(config: BeamConfig, params: Mapping[str, float], lowest: int | None = None) -> np.ndarray:
     """The continuous-time poles of :func:`modal_matrices` (closed form when the damping is proportional).
 
     Unlike :func:`continuous_modes` this needs no eigenvectors, so it never fails for an ill-conditioned basis.
+    With ``lowest``, only the poles of the ``lowest`` lowest modes are needed: when the damping couples the
+    modes they are then found by :func:`_coupled_poles` (each refined from its decoupled value, a few
+    ``k × k`` solves instead of the ``2k × 2k`` eigenvalue problem) and only they are returned; otherwise
+    (decoupled modes, or the refinement declined) all of them.
     """
     mm = modal_matrices(config, params)
     if mm.damping is not None:
         root = np.sqrt((mm.damping ** 2 / 4 - mm.frequencies2).astype(complex))
         return np.concatenate([-mm.damping / 2 + root, -mm.damping / 2 - root])
+    if lowest is not None:
+        s = _coupled_poles(mm.frequencies2, mm.Cm, lowest)
+        if s is not None:
+            return np.concatenate([s, s.conj()])
     return np.linalg.eigvals(_state_matrix(mm.frequencies2, mm.Cm))
+
+
+#: Newton iterations allowed per pole (quadratic from the decoupled value, off by the coupling squared).
+_NEWTON_STEPS = 8
+
+
+def _coupled_poles(w2: np.ndarray, Cm: np.ndarray, n: int) -> np.ndarray | None:
+    r"""The upper poles of the ``n`` lowest modes of ``q̈ + C_m q̇ + Λ q = 0`` to round-off, or ``None``.
+
+    Each is a root of ``det Q(s)``, ``Q(s) = s² I + s C_m + Λ``, found by Newton's iteration
+    ``s ← s − 1 / tr(Q(s)⁻¹ Q'(s))`` from the decoupled pole ``−d_i/2 + i√(ω_i² − d_i²/4)`` (``d_i`` the
+    diagonal of ``C_m``).  ``None`` — the caller solves the full eigenvalue problem — when a wanted mode is not
+    underdamped, when an iteration does not converge, or when a root left the half-gap around its start
+    (it might have converged to a neighbour's pole).
+    """
+    k = w2.size
+    if n >= k or not np.all(np.diff(w2[:n + 1]) > 0):
+        return None
+    d = np.diag(Cm)
+    if np.any(d[:n + 1] ** 2 / 4 >= w2[:n + 1]) or np.any(w2[:n + 1] <= 0):
+        return None
+    start = -d[:n] / 2 + 1j * np.sqrt(w2[:n] - d[:n] ** 2 / 4)
+    w = np.sqrt(w2[:n + 1])
+    gap = 0.5 * np.minimum(np.diff(w)[:n], np.concatenate([[w[0]], np.diff(w)[:n - 1]]))
+    eye = np.eye(k)
+    out = np.empty(n, dtype=complex)
+    for i, s in enumerate(start):
+        for _ in range(_NEWTON_STEPS):
+            Q = s * s * eye + s * Cm + np.diag(w2)
+            try:
+                step = 1.0 / np.trace(np.linalg.solve(Q, 2.0 * s * eye + Cm))
+            except np.linalg.LinAlgError:      # s is a root to round-off
+                step = 0.0
+            s = s - step
+            if abs(step) <= 1e-14 * abs(s):
+                break
+        else:
+            return None
+        if not abs(s - start[i]) < gap[i]:
+            return None
+        out[i] = s
+    return out
 
 
 def _state_matrix(w2: np.ndarray, Cm: np.ndarray) -> np.ndarray:

@@ -89,8 +89,8 @@ def modes(config: BeamConfig, params: Mapping[str, float] | None = None,
     return ModalAnalysis(w / (2 * np.pi), np.asarray(zeta, dtype=float), _normalise(shapes), beam.x, prop)
 
 
-def discrete_frequencies(config: BeamConfig, params: Mapping[str, float] | None = None
-                         ) -> tuple[np.ndarray, np.ndarray]:
+def discrete_frequencies(config: BeamConfig, params: Mapping[str, float] | None = None,
+                         n_modes: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Frequencies [Hz] and damping ratios of the fully discrete model (θ-scheme or exact scheme).
 
     Computed from the eigenvalues ``λ`` of the *one-sub-step* map (sub-step
@@ -98,14 +98,16 @@ def discrete_frequencies(config: BeamConfig, params: Mapping[str, float] | None 
     ``|arg λ| < π``, so nothing aliases (the per-sample Φ = S^m would fold
     modes above the sampling rate's Nyquist frequency).  One value per
     conjugate pair, sorted by frequency; the difference to :func:`modes` is the
-    scheme's period elongation.
+    scheme's period elongation.  With ``n_modes``, the ``n_modes`` lowest only
+    (the exact scheme then needs only their poles:
+    :func:`ebb_model.exact_modal.modal_poles`).
     """
     from .exact_modal import modal_poles
     from .theta_scheme import discretise_time
 
     p = resolve_parameters(config, params)
     if config.time.scheme == "exact":   # exact in time: the poles of the Richardson modes themselves
-        s = modal_poles(config, p)
+        s = modal_poles(config, p, n_modes)
         s = s[s.imag >= 0]
     else:
         beam = discretise(config, p)
@@ -116,7 +118,7 @@ def discrete_frequencies(config: BeamConfig, params: Mapping[str, float] | None 
     w = np.abs(s)
     with np.errstate(divide="ignore", invalid="ignore"):
         zeta = np.where(w > 0, -s.real / w, np.nan)
-    order = np.argsort(w)
+    order = np.argsort(w)[:n_modes]
     return w[order] / (2 * np.pi), zeta[order]
 
 
