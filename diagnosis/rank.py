@@ -44,10 +44,11 @@ scores 0 at the baseline) — and the :data:`PAIR_PARTNERS` best are refitted
 together with it.  A pair is reported when it improves BIC over the single
 effect by :data:`BIC_MARGIN` and lowers the held-out error; it is then named
 (``first+second``) under the same :data:`NAMED_CLOSURE` rule.  The pair is
-tried before the continuation refits (from the best local refit, when that
-effect is linear time-invariant: the nonlinear simulation of drift and
-stretching makes their pairs dearer than their continuation): when it
-explains the gap, they are skipped — no single effect is left to find.  A
+tried before the other baseline basins and the continuation refits (from the
+best local refit, when that effect is linear time-invariant: the nonlinear
+simulation of drift and stretching makes their pairs dearer than their
+continuation): when it explains the gap, they are skipped — no single effect
+is left to find.  A
 pair must pay against its first effect refitted alone from the pair's
 optimum (:func:`_pair_with`).
 """
@@ -208,6 +209,32 @@ def _pair_with(problem: GapProblem, baseline: Fit, before: np.ndarray, catalogue
     return (pair if pair.bic < alone.bic - BIC_MARGIN else None), (alone if improved else None)
 
 
+def _early_pair(problem: GapProblem, baseline: Fit, before: np.ndarray, catalogue: Catalogue, labels: list[str],
+                local: dict[str, tuple[Fit, list]], max_evaluations: int, executor: Executor | None, say: Any
+                ) -> tuple[Fit, EffectRefit | None] | None:
+    """Two effects before the other basins and the continuation refits (module docstring): the best local
+    refit's effect paired, when it pays, closes :data:`PAIR_MINIMUM` and is linear time-invariant (pairs with
+    drift or stretching need the costly nonlinear simulation, dearer than their continuation).  Returns
+    ``(that refit, its best pair or None)``, or ``None`` when not tried; ``local`` gains the effect refitted
+    alone from the pair's optimum when that is better."""
+    now = {lab: summarise(problem, baseline, before, catalogue.effect(lab), local[lab][0]) for lab in labels}
+    lead = _paying(now, before)[:1]
+    if not (lead and now[lead[0]].closed >= PAIR_MINIMUM
+            and time_invariant(problem, baseline.beta, catalogue.effect(lead[0]))):
+        return None
+    pair, alone = _pair_with(problem, baseline, before, catalogue, now[lead[0]], max_evaluations, executor, say)
+    if alone is not None:
+        local[lead[0]] = (alone.fit, local[lead[0]][1])
+    if pair is not None and explains(pair.fit, baseline):
+        say(f"the pair {pair.label} explains the gap: no other basins, re-baselining or continuation refits")
+    return now[lead[0]].fit, pair     # (a single improved here is paired again at the end)
+
+
+def _pair_explains(early: tuple[Fit, EffectRefit | None] | None, baseline: Fit) -> bool:
+    """Whether the pair tried early explains the gap."""
+    return early is not None and early[1] is not None and explains(early[1].fit, baseline)
+
+
 def _same_fit(a: Fit, b: Fit) -> bool:
     """Whether two refits ended at the same point (a later stage that did not improve keeps the point)."""
     return a.rss == b.rss and np.array_equal(a.beta, b.beta) and np.array_equal(a.s, b.s)
@@ -289,19 +316,22 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
             f"({fit.n_evaluations} evaluations)")
     patterns: dict[str, PatternFit] = {}
     evidence = None
+    early: tuple[Fit, EffectRefit | None] | None = None    # (the single's fit, its best pair) tried early
     if modal is not None and not any(explains(fit, baseline) for fit, _ in local.values()):
         evidence = modal(baseline.beta)
         patterns = _pattern_stage(problem, baseline, catalogue, evidence, local, max_evaluations, executor, say)
         chosen += [e for e in effects if e.label in local and e not in chosen]
         labels = [e.label for e in chosen]
         if not any(explains(fit, baseline) for fit, _ in local.values()):
+            early = _early_pair(problem, baseline, before, catalogue, labels, local, max_evaluations, executor,
+                                say)
+        if not any(explains(fit, baseline) for fit, _ in local.values()) and not _pair_explains(early, baseline):
             # (a better basin cannot make a linear time-invariant effect explain records no such model can)
             tried = [lab for lab in labels if _linear(evidence)
                      or not time_invariant(problem, baseline.beta, catalogue.effect(lab))]
             local.update(map_refits(executor, problem, catalogue, tried, baseline, scores, max_evaluations,
                                      {lab: local[lab] for lab in tried}, stage="basins"))
-    early: tuple[Fit, EffectRefit | None] | None = None    # (the single's fit, its best pair) tried early
-    if not any(explains(fit, baseline) for fit, _ in local.values()):
+    if not any(explains(fit, baseline) for fit, _ in local.values()) and not _pair_explains(early, baseline):
         better = (better_baseline(problem, baseline, [fit for fit, _ in local.values()], executor)
                   if rebaseline else None)
         if better is not None:
@@ -310,26 +340,13 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
             return rank_effects(problem, better, catalogue, shortlist=shortlist, max_evaluations=max_evaluations,
                                 progress=progress, executor=executor, parallel=parallel, rebaseline=False,
                                 modal=modal)
-        # two effects before continuation: a pair that explains the records leaves no single effect to find
-        # (when the lead is linear time-invariant: pairs with drift or stretching need the costly nonlinear
-        # simulation, dearer than their continuation)
-        now = {lab: summarise(problem, baseline, before, catalogue.effect(lab), local[lab][0]) for lab in labels}
-        lead = _paying(now, before)[:1]
-        if (lead and now[lead[0]].closed >= PAIR_MINIMUM
-                and time_invariant(problem, baseline.beta, catalogue.effect(lead[0]))):
-            pair, alone = _pair_with(problem, baseline, before, catalogue, now[lead[0]], max_evaluations,
-                                     executor, say)
-            if alone is not None:
-                local[lead[0]] = (alone.fit, local[lead[0]][1])
-            early = (now[lead[0]].fit, pair)     # (a single improved here is paired again at the end)
+        if evidence is None:     # (the modal stage, when it ran, has tried the pair already)
+            early = _early_pair(problem, baseline, before, catalogue, labels, local, max_evaluations, executor,
+                                say)
         # no local refit explains the gap: continuation refits (diagnosis.refits), the most promising first
         pending = sorted(labels, key=lambda lab: local[lab][0].rss)
-        if early is not None and early[1] is not None and explains(early[1].fit, baseline):
-            say(f"continuation refits of {', '.join(pending)} skipped: the pair {early[1].label} explains the gap")
-            pending = []
-        elif any(explains(fit, baseline) for fit, _ in local.values()):
-            say(f"continuation refits of {', '.join(pending)} skipped: {lead[0]} refitted from a pair's optimum "
-                f"explains the gap")
+        if _pair_explains(early, baseline) or any(explains(fit, baseline) for fit, _ in local.values()):
+            say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
             pending = []
         if not _linear(evidence):
             # no set of linear oscillators reproduces the records: no linear time-invariant effect can
