@@ -48,9 +48,8 @@ tried before the other baseline basins and the continuation refits (from the
 best local refit, when that effect is linear time-invariant: the nonlinear
 simulation of drift and stretching makes their pairs dearer than their
 continuation): when it explains the gap, they are skipped — no single effect
-is left to find.  A
-pair must pay against its first effect refitted alone from the pair's
-optimum (:func:`_pair_with`).
+is left to find.  A pair must pay against its first effect refitted alone
+from the pair's optimum (:func:`_pair_with`).
 """
 from __future__ import annotations
 
