@@ -30,8 +30,9 @@ evaluations, the best one to convergence; only the compared modes are
 computed, :func:`ebb_model.modal.discrete_frequencies` with ``n_modes``).  Its
 optimum is a start of the effect's time-domain refit that lies in the right
 basin even when the baseline had compensated the effect — a one-sided score
-test then sees nothing, the modal pattern still does.  Signal-level effects (lags, drift, stretching) do not
-move the linear modes and have no pattern of their own.
+test then sees nothing, the modal pattern still does.  Signal-level effects
+(lags, drift, stretching) do not move the linear modes and have no pattern of
+their own.
 """
 from __future__ import annotations
 

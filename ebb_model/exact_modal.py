@@ -390,11 +390,11 @@ def _coupled_poles(w2: np.ndarray, Cm: np.ndarray, n: int) -> np.ndarray | None:
     start = -d[:n] / 2 + 1j * np.sqrt(w2[:n] - d[:n] ** 2 / 4)
     w = np.sqrt(w2[:n + 1])
     gap = 0.5 * np.minimum(np.diff(w)[:n], np.concatenate([[w[0]], np.diff(w)[:n - 1]]))
-    eye = np.eye(k)
+    eye, lam = np.eye(k), np.diag(w2)
     out = np.empty(n, dtype=complex)
     for i, s in enumerate(start):
         for _ in range(_NEWTON_STEPS):
-            Q = s * s * eye + s * Cm + np.diag(w2)
+            Q = s * s * eye + s * Cm + lam
             try:
                 step = 1.0 / np.trace(np.linalg.solve(Q, 2.0 * s * eye + Cm))
             except np.linalg.LinAlgError:      # s is a root to round-off

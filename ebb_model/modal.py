@@ -19,6 +19,7 @@ import scipy.linalg as sla
 
 from .config import BeamConfig
 from .discretisation import discretise
+from .errors import ConfigError
 from .modal_form import ModalStateSpace, is_proportional
 from .parameter_values import resolve_parameters
 from .statespace import DiscreteStateSpace
@@ -105,6 +106,9 @@ def discrete_frequencies(config: BeamConfig, params: Mapping[str, float] | None 
     from .exact_modal import modal_poles
     from .theta_scheme import discretise_time
 
+    if n_modes is not None and (isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer))
+                                or n_modes < 1):
+        raise ConfigError(f"`n_modes` must be a positive integer, got {n_modes!r}")
     p = resolve_parameters(config, params)
     if config.time.scheme == "exact":   # exact in time: the poles of the Richardson modes themselves
         s = modal_poles(config, p, n_modes)

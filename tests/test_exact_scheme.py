@@ -352,3 +352,10 @@ def test_lowest_poles_of_damping_coupled_modes_equal_the_full_eigenproblem(cfg_f
     # eigenvalue solver's round-off on the balanced companion matrix; a neighbour's pole would be off by 1e0
     np.testing.assert_allclose(f5, f_all[:5], rtol=1e-12)
     np.testing.assert_allclose(z5, z_all[:5], rtol=1e-9)
+
+
+@pytest.mark.parametrize("bad", [0, -3, 2.5, True, "5"])
+def test_discrete_frequencies_rejects_an_impossible_number_of_modes(cfg_factory, bad):
+    cfg = cfg_factory("clamped", "pinned", nodes=20, scheme="exact")
+    with pytest.raises(em.ConfigError, match="n_modes"):
+        em.discrete_frequencies(cfg, None, bad)
