@@ -1,22 +1,16 @@
 r"""Native simulation of the signal-level and axial-force effects of the catalogue.
 
-Structural effects (end springs, point mass, Kelvin–Voigt damping, rotary
-inertia, foundation) are config changes simulated by the model core.  This
-module adds the four effects that are *not* a change of the linear
-time-invariant beam:
+The simulation engine of :class:`diagnosis.effects.AugmentedModel`: the
+structural effects (end springs, point mass, Kelvin–Voigt damping, rotary
+inertia, foundation) are config changes simulated by the model core; the
+signal-level parts (:class:`diagnosis.effects.Signal`) act on the inputs and
+outputs themselves (e.g. :mod:`diagnosis.effects.lag`), and their axial-force
+terms (:class:`diagnosis.effects.AxialLoad`: a drift ``rate``, mid-plane
+stretching ``EA``, from :mod:`diagnosis.effects.axial`) are integrated here:
 
-``actuator_lag`` (``tau``)
-    The force the beam feels is the measured force through ``1/(τ s + 1)``:
-    :func:`first_order_lag` is applied to the input samples before simulating.
-``sensor_lag`` (``tau``, ``sensor``)
-    That sensor's reading is the simulated quantity (displacement, velocity or
-    acceleration — the filter is LTI, so it acts on the quantity itself)
-    through ``1/(τ s + 1)``.
-``axial_drift`` (``rate``)
-    :math:`N(t) = N + \text{rate}\cdot t`, ``t`` from the record start.
-``geometric_stiffening`` (``EA``)
-    :math:`N(t) = N + \frac{EA}{2L}\int_0^L w_x^2\,dx` (mid-plane stretching;
-    physically meaningful only when both ends are axially restrained).
+.. math::
+
+    N(t) = N + \text{rate}\cdot t + \frac{EA}{2L}\int_0^L w_x^2\,dx .
 
 Axial-force perturbation
 ------------------------
@@ -77,26 +71,27 @@ two sub-steps), set-up included, on one core.
 """
 from __future__ import annotations
 
-import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 
 import numba
 import numpy as np
-import scipy.signal as ss
 
 from ebb_model.arrays import as_matrix
 from ebb_model.assemble import check_stable
 from ebb_model.checks import finite_scalar
 from ebb_model.config import BeamConfig
 from ebb_model.discretisation import SemiDiscreteBeam, discretise
-from ebb_model.errors import ConfigError, DataError, ParameterError, StabilityError
+from ebb_model.errors import ConfigError, DataError, StabilityError
 from ebb_model.parameter_values import resolve_parameters
 from ebb_model.simulate import fast_model, simulate
 from ebb_model.theta_scheme import ThetaCoefficients, one_step, theta_coefficients
 
-__all__ = ["first_order_lag", "lag_coefficients", "geometric_stiffness", "simulate_axial", "simulate_effects",
-           "stretch_integral"]
+from .axial_modal import simulate_axial_exact
+from .axial_terms import geometric_stiffness
+from .effects.base import AxialLoad, Signal
+
+__all__ = ["simulate_axial", "simulate_effects"]
 
 _KIND_CODE = {"displacement": 0, "velocity": 1, "acceleration": 2}
 _FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
@@ -111,115 +106,8 @@ def _check_inputs(u: np.ndarray, config: BeamConfig) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------
-# first-order lag
-# ---------------------------------------------------------------------------
-def lag_coefficients(r: float) -> tuple[float, float, float]:
-    """``a = e^{-r}``, ``b0 = 1 - (1-a)/r`` and ``b1 = (1-a)/r - a`` for ``r = dt/τ`` (no cancellation)."""
-    a = math.exp(-r)
-    if r < 1e-2:  # series of (r - 1 + e^{-r})/r and ((1-e^{-r}) - r e^{-r})/r
-        b0 = r * (1 / 2 - r / 6 + r * r / 24 - r ** 3 / 120 + r ** 4 / 720)
-        b1 = r * (1 / 2 - r / 3 + r * r / 8 - r ** 3 / 30 + r ** 4 / 144)
-    else:
-        one_minus_a = -math.expm1(-r)
-        b0 = 1.0 - one_minus_a / r
-        b1 = one_minus_a / r - a
-    return a, b0, b1
-
-
-def first_order_lag(x: np.ndarray, dt: float, tau: float, *, y0: np.ndarray | float | None = None) -> np.ndarray:
-    r"""Samples of the output of ``1/(τ s + 1)`` driven by the piecewise-linear interpolant of ``x``.
-
-    The exact discretisation for a first-order-hold input: on
-    :math:`[t_k, t_{k+1}]` the input is the straight line between ``x[k]``
-    and ``x[k+1]``, and with :math:`a = e^{-dt/τ}`
-
-    .. math::
-
-        y_{k+1} = a\,y_k + \Bigl(1 - \tfrac{τ}{dt}(1-a)\Bigr) x_{k+1}
-                  + \Bigl(\tfrac{τ}{dt}(1-a) - a\Bigr) x_k ,
-
-    which reproduces the continuous response of any piecewise-linear input
-    exactly (ramps and constants in particular) and has unit DC gain.
-
-    Parameters
-    ----------
-    x
-        Samples, shape (n,) or (n, m) (one column per signal), uniformly
-        spaced by ``dt``.
-    dt
-        Sample time [s], > 0.
-    tau
-        Time constant [s], >= 0; ``tau = 0`` returns a copy of ``x``.
-    y0
-        Initial output ``y[0]``.  Default ``None``: the filter starts in the
-        steady state of ``x[0]`` (``y[0] = x[0]``, i.e. the input is taken as
-        constant before the record), so a constant signal passes unchanged.
-        Pass ``0`` for a filter at rest from zero.
-
-    Returns
-    -------
-    numpy.ndarray
-        Filtered samples, same shape as ``x``.
-
-    Raises
-    ------
-    ParameterError
-        ``tau`` negative or non-finite, ``dt`` not a finite number > 0.
-    DataError
-        ``x`` empty, of more than two dimensions or containing NaN/inf.
-    """
-    tau = finite_scalar("lag time constant tau", tau, minimum=0.0)
-    dt_f = finite_scalar("sample time dt", dt)
-    if dt_f <= 0:
-        raise ParameterError(f"sample time dt must be > 0, got {dt!r}")
-    x = np.asarray(x, dtype=float)
-    if x.ndim not in (1, 2) or x.shape[0] == 0:
-        raise DataError(f"lag input must have shape (n,) or (n, m) with n >= 1, got {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise DataError(f"lag input contains a non-finite value at sample {int(np.argwhere(~np.isfinite(x))[0][0])}")
-    start = x[0] if y0 is None else np.broadcast_to(np.asarray(y0, dtype=float), x.shape[1:])
-    if not np.all(np.isfinite(start)):
-        raise DataError("lag initial output y0 must be finite")
-    if tau == 0.0:
-        return x.copy()
-    a, b0, b1 = lag_coefficients(dt_f / tau)
-    # y[k] = b0 x[k] + b1 x[k-1] + a y[k-1]; zi chosen so that y[0] = start
-    zi = np.asarray(start - b0 * x[0], dtype=float)[None, ...]
-    y, _ = ss.lfilter([b0, b1], [1.0, -a], x, axis=0, zi=zi)
-    return y
-
-
-# ---------------------------------------------------------------------------
 # axial-force perturbation
 # ---------------------------------------------------------------------------
-def geometric_stiffness(config: BeamConfig, params: Mapping[str, float] | None = None) -> np.ndarray:
-    r"""The finite-difference geometric stiffness :math:`K_g = \partial K/\partial N` (n_u × n_u).
-
-    ``K`` of :func:`ebb_model.discretisation.discretise` is affine in ``N``
-    (the ghost-node relations included), so the difference quotient
-    ``(K(N + s) - K(N))/s`` is exact up to round-off; ``s = EI/h²`` balances the
-    two terms of ``K`` to keep that round-off at machine precision.
-    """
-    p = resolve_parameters(config, params)
-    h = config.beam.length / (config.beam.nodes + 1)
-    s = float(p["EI"]) / h ** 2
-    K0 = discretise(config, p).K
-    K1 = discretise(config, p | {"N": float(p["N"]) + s}).K
-    return (K1 - K0) / s
-
-
-def stretch_integral(config: BeamConfig, q: np.ndarray) -> np.ndarray:
-    r"""``∫₀ᴸ w_x² dx`` of nodal deflections ``q`` (…, n_u), exact for their piecewise-linear interpolant."""
-    beam = discretise(config)
-    q = np.asarray(q, dtype=float)
-    if q.ndim == 0 or q.shape[-1] != beam.n_unknowns:
-        raise DataError(f"nodal deflections must have {beam.n_unknowns} values in the last axis, got {q.shape}")
-    w = np.zeros(q.shape[:-1] + (beam.x.size,))
-    w[..., beam.unknown] = q
-    h = config.beam.length / (config.beam.nodes + 1)
-    return np.sum(np.diff(w, axis=-1) ** 2, axis=-1) / h
-
-
 @numba.njit(cache=True, nogil=True, fastmath=_FASTMATH)
 def _axial_kernel(Kt, Ct, KGt, Bt, P, kinds, u, substeps, foh, tau, offset, rate, ea_coef,
                   first, n_nodes, h, q0, v0, y):  # pragma: no cover - compiled
@@ -347,8 +235,6 @@ def simulate_axial(config: BeamConfig, params: Mapping[str, float] | None, input
     if config.time.scheme == "exact":
         if x0 is not None:
             raise ConfigError("x0: a nodal initial state applies to the θ-scheme only (time.scheme = \"theta\")")
-        from .axial_modal import simulate_axial_exact
-
         return simulate_axial_exact(config, params, u, offset=offset, rate=rate, EA=EA,
                                     check_stability=check_stability)
     p = resolve_parameters(config, params)
@@ -381,11 +267,13 @@ def simulate_axial(config: BeamConfig, params: Mapping[str, float] | None, input
     return y
 
 
-def simulate_effects(config: BeamConfig, params: Mapping[str, float] | None, inputs: np.ndarray, *,
-                     actuator_tau: float = 0.0, sensor_tau: Mapping[str, float] | None = None,
-                     drift_rate: float = 0.0, stretching_EA: float = 0.0,
-                     check_stability: bool = False) -> np.ndarray:
-    """Simulate the beam with the signal-level and axial-force effects of the catalogue.
+def simulate_effects(config: BeamConfig, params: Mapping[str, float] | None, inputs: np.ndarray,
+                     signals: Sequence[Signal] = (), *, check_stability: bool = False) -> np.ndarray:
+    """Simulate the beam with the signal-level parts of effects (:class:`diagnosis.effects.Signal`).
+
+    The measured inputs pass through each part's :meth:`~diagnosis.effects.Signal.inputs` in order, the beam
+    is simulated under the parts' axial-force terms together, and its outputs pass through each part's
+    :meth:`~diagnosis.effects.Signal.outputs` in order.
 
     Parameters
     ----------
@@ -393,16 +281,8 @@ def simulate_effects(config: BeamConfig, params: Mapping[str, float] | None, inp
         The (possibly structurally augmented) set-up and parameter values.
     inputs
         Measured actuator forces (n_samples, n_inputs).
-    actuator_tau
-        ``actuator_lag.tau`` [s]: every input passes through ``1/(τ s + 1)``
-        (:func:`first_order_lag`, steady start) before reaching the beam.
-    sensor_tau
-        ``sensor_lag.tau`` [s] per sensor name: that output passes through
-        ``1/(τ s + 1)`` (steady start at its first sample).
-    drift_rate
-        ``axial_drift.rate`` [N/s].
-    stretching_EA
-        ``geometric_stiffening.EA`` [N], >= 0.
+    signals
+        The signal-level parts (an :class:`~diagnosis.effects.AugmentedModel`'s ``signals``); none: the beam.
     check_stability
         Raise :class:`~ebb_model.errors.StabilityError` for an unstable scheme
         or a diverging simulation (off by default, like
@@ -415,34 +295,24 @@ def simulate_effects(config: BeamConfig, params: Mapping[str, float] | None, inp
 
     Notes
     -----
-    With ``drift_rate == stretching_EA == 0`` the beam is simulated on the
-    modal fast path (:func:`ebb_model.simulate.fast_model`), otherwise by
-    :func:`simulate_axial`.
+    Without axial-force terms the beam is simulated on the modal fast path
+    (:func:`ebb_model.simulate.fast_model`), otherwise by :func:`simulate_axial`.
 
     Raises
     ------
     ConfigError
-        An unknown sensor name in ``sensor_tau``.
-    ParameterError
-        A negative or non-finite time constant, rate or ``EA``.
+        A part names a sensor the config does not have.
     DataError
         Inputs of the wrong shape or with NaN/inf.
+    StabilityError
+        With ``check_stability``: an unstable scheme or a diverging simulation.
     """
-    actuator_tau = finite_scalar("actuator_lag.tau", actuator_tau, minimum=0.0)
-    drift_rate = finite_scalar("axial_drift.rate", drift_rate)
-    stretching_EA = finite_scalar("geometric_stiffening.EA", stretching_EA, minimum=0.0)
-    sensor_tau = dict(sensor_tau or {})
-    names = config.output_names
-    unknown = sorted(set(sensor_tau) - set(names))
-    if unknown:
-        raise ConfigError(f"sensor_lag: unknown sensor(s) {', '.join(map(repr, unknown))}; "
-                          f"sensors are {', '.join(names)}")
-    taus = {k: finite_scalar(f"sensor_lag[{k}].tau", v, minimum=0.0) for k, v in sensor_tau.items()}
     u = _check_inputs(inputs, config)
     dt = config.time.dt
-    if actuator_tau > 0.0:
-        u = np.ascontiguousarray(first_order_lag(u, dt, actuator_tau))
-    if drift_rate == 0.0 and stretching_EA == 0.0:
+    for part in signals:
+        u = part.inputs(u, dt)
+    load = sum((part.axial() for part in signals), AxialLoad())
+    if load.zero:
         p = resolve_parameters(config, params)
         model = fast_model(config, p)
         if check_stability:
@@ -451,10 +321,7 @@ def simulate_effects(config: BeamConfig, params: Mapping[str, float] | None, inp
         if check_stability and not np.all(np.isfinite(y)):
             raise StabilityError("the simulation diverged (non-finite outputs)")
     else:
-        y = simulate_axial(config, params, u, rate=drift_rate, EA=stretching_EA,
-                           check_stability=check_stability)
-    for name, tau in taus.items():
-        if tau > 0.0:
-            i = names.index(name)
-            y[:, i] = first_order_lag(y[:, i], dt, tau)
+        y = simulate_axial(config, params, u, rate=load.rate, EA=load.EA, check_stability=check_stability)
+    for part in signals:
+        y = part.outputs(y, dt, config.output_names)
     return y

@@ -11,7 +11,7 @@ force ``δN(t)`` is the modal load
     \delta N = \delta N_0 + \text{rate}\,t + \frac{EA}{2L}\,\eta^T \Psi^T G \Psi\,\eta,
 
 with the refined grid's geometric stiffness ``K_g = ∂K/∂N`` and ``G`` the matrix of ``∫ w_x² dx`` of the
-piecewise-linear grid deflection (as :func:`diagnosis.augmented.stretch_integral`).  ``g`` enters each
+piecewise-linear grid deflection (as :func:`diagnosis.axial_terms.stretch_integral`).  ``g`` enters each
 pole's exact one-sample update like a force, linear between samples (the measured force with the config's
 input reconstruction, e.g. the cubic); its value at the
 end of the sample is predicted with the value at its start and corrected once (trapezoidal accuracy in the
@@ -41,6 +41,8 @@ from ebb_model.discretisation import discretise
 from ebb_model.errors import StabilityError
 from ebb_model.exact_modal import INPUT_TAPS, continuous_modes, input_weights, pole_integrals, refined_config
 from ebb_model.parameter_values import resolve_parameters
+
+from .axial_terms import geometric_stiffness, stretch_matrix
 
 __all__ = ["simulate_axial_exact"]
 
@@ -118,20 +120,6 @@ def _rows(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return ptr, cols.astype(np.int64), np.ascontiguousarray(A[rows, cols], dtype=np.complex128)
 
 
-def _stretch_matrix(config: BeamConfig) -> np.ndarray:
-    """``G`` with ``qᵀ G q = ∫ w_x² dx`` of the piecewise-linear grid deflection (unknowns ``q``)."""
-    beam = discretise(config)
-    n_nodes = beam.x.size
-    Dm = np.zeros((n_nodes - 1, beam.n_unknowns))
-    for j, node in enumerate(beam.unknown):
-        if node > 0:
-            Dm[node - 1, j] += 1.0
-        if node < n_nodes - 1:
-            Dm[node, j] -= 1.0
-    h = config.beam.length / (config.beam.nodes + 1)
-    return Dm.T @ Dm / h
-
-
 def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None, u: np.ndarray, *,
                          offset: float = 0.0, rate: float = 0.0, EA: float = 0.0,
                          check_stability: bool = True) -> np.ndarray:
@@ -144,8 +132,6 @@ def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None,
     StabilityError
         The base model is unstable, or the perturbed simulation diverged.
     """
-    from .augmented import geometric_stiffness
-
     p = resolve_parameters(config, params)
     cm = continuous_modes(config, p)
     dt = config.time.dt
@@ -164,7 +150,7 @@ def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None,
     kp = max(1, int(np.count_nonzero(cm.frequencies2 < (math.pi / dt) ** 2)))  # below Nyquist
     psi = cm.shapes[:, :kp]
     Kg = psi.T @ geometric_stiffness(fine, p) @ psi
-    Gm = psi.T @ _stretch_matrix(fine) @ psi
+    Gm = psi.T @ stretch_matrix(fine) @ psi
     k = cm.shapes.shape[1]
     Bg = np.linalg.solve(cm.V, np.vstack([np.zeros((k, kp)), np.eye(k, kp)]))
     Vq = np.ascontiguousarray(cm.V[:kp])

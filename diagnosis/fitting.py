@@ -117,9 +117,7 @@ class GapProblem:
             if stop == 0:
                 out.append(None)
                 continue
-            out.append(simulate_effects(m.config, m.params, r.inputs[:stop], actuator_tau=m.actuator_tau,
-                                        sensor_tau=m.sensor_tau, drift_rate=m.drift_rate,
-                                        stretching_EA=m.stretching_EA))
+            out.append(simulate_effects(m.config, m.params, r.inputs[:stop], m.signals))
         return out
 
     @property

@@ -133,7 +133,7 @@ def time_invariant(problem: GapProblem, beta: np.ndarray, effect: Effect) -> boo
     stretching): then the measured modes' oscillators can represent what it does to the records."""
     s = np.asarray(trial_values(effect.lower, effect.upper, effect.off)[-1])
     moved = problem.model(beta, effect, s)
-    return moved.drift_rate == 0.0 and moved.stretching_EA == 0.0
+    return moved.time_invariant
 
 
 def _residual(problem: GapProblem, ev: ModalEvidence, beta0: np.ndarray, span: np.ndarray, effect: Effect | None,

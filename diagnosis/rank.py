@@ -55,11 +55,12 @@ from __future__ import annotations
 
 from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
+from functools import partial
 from typing import Any, Callable
 
 import numpy as np
 
-from .effects import PAIR_SEPARATOR, Catalogue, on_top_of
+from .effects import PAIR_SEPARATOR, Catalogue, Effect, on_top_of
 from .fitting import Fit, GapProblem
 from .modal_pattern import ModalEvidence, PatternFit, pattern_fits, time_invariant
 from .refits import (GAP_THRESHOLD, EffectRefit, better_baseline, explains, map_refits, pair_refit,
@@ -102,23 +103,63 @@ class Ranking:
     modal: ModalEvidence | None = None
 
 
+@dataclass(frozen=True, eq=False)
+class _Search:
+    """What the stages of one ranking share: the problem, the baseline and its held-out gap, the scores, the
+    refits' budget and where they run, and the progress callback."""
+
+    problem: GapProblem
+    baseline: Fit
+    catalogue: Catalogue
+    effects: dict[str, Effect]               # the candidates by label, in catalogue order
+    before: np.ndarray                        # the baseline's held-out gap ratios
+    scores: dict[str, EffectScore]
+    max_evaluations: int
+    executor: Executor | None
+    say: Callable[[str], None]
+
+    def refit(self, labels: list[str], previous: dict[str, tuple[Fit, list]] | None = None, *, stage: str
+              ) -> dict[str, tuple[Fit, list]]:
+        """The refits of ``labels`` at ``stage`` (:func:`diagnosis.refits.map_refits`)."""
+        return map_refits(self.executor, self.problem, self.catalogue, labels, self.baseline, self.scores,
+                          self.max_evaluations, previous, stage=stage)
+
+    def explained(self, local: dict[str, tuple[Fit, list]]) -> bool:
+        """Whether one of the refits explains the gap."""
+        return any(explains(fit, self.baseline) for fit, _ in local.values())
+
+    def summary(self, effect: Effect, fit: Fit) -> EffectRefit:
+        """The refit's held-out gap, BIC and closure (:func:`diagnosis.refits.summarise`)."""
+        return summarise(self.problem, self.baseline, self.before, effect, fit)
+
+    def time_invariant(self, label: str) -> bool:
+        """Whether the effect keeps the model linear and time-invariant."""
+        return time_invariant(self.problem, self.baseline.beta, self.catalogue.effect(label))
+
+    def side_by_side(self, task: Callable[..., Any], args: list[tuple]) -> list[Any]:
+        """``task(*a)`` for each of ``args``, on the executor's processes when there are two or more."""
+        if self.executor is None or len(args) < 2:
+            return [task(*a) for a in args]
+        return [f.result() for f in [self.executor.submit(task, *a) for a in args]]
+
+
 def _linear(evidence: ModalEvidence | None) -> bool:
     """Whether the measured modes' oscillators reproduce the records (within :data:`GAP_THRESHOLD` of the noise
     floor): if not, no linear time-invariant effect can explain the gap (unknown evidence: assume they do)."""
     return evidence is None or evidence.measured.gap_ratio <= 1.0 + GAP_THRESHOLD
 
 
-def _refit_from_matches(problem: GapProblem, catalogue: Catalogue, patterns: dict[str, PatternFit],
-                        labels: list[str], local: dict[str, tuple[Fit, list]], max_evaluations: int,
-                        executor: Executor | None, say: Any) -> None:
+# ---------------------------------------------------------------------------
+# stage: the modal pattern
+# ---------------------------------------------------------------------------
+def _refit_from_matches(run: _Search, patterns: dict[str, PatternFit], labels: list[str],
+                        local: dict[str, tuple[Fit, list]]) -> None:
     """Refit ``labels`` from their modal match, side by side; ``local`` gains (or keeps the better of) them."""
-    args = [(problem, catalogue, lab, patterns[lab], max_evaluations) for lab in labels]
-    if executor is None or len(args) < 2:
-        fits = [refit_from_match(*a) for a in args]
-    else:
-        fits = [f.result() for f in [executor.submit(refit_from_match, *a) for a in args]]
+    fits = run.side_by_side(refit_from_match, [(run.problem, run.catalogue, lab, patterns[lab], run.max_evaluations)
+                                               for lab in labels])
     for lab, (fit, starts) in zip(labels, fits):
-        say(f"refit {lab} from its modal match: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
+        run.say(f"refit {lab} from its modal match: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} "
+                f"evaluations)")
         if lab in local:
             old, old_starts = local[lab]
             best = fit if fit.rss < old.rss else old
@@ -127,61 +168,77 @@ def _refit_from_matches(problem: GapProblem, catalogue: Catalogue, patterns: dic
             local[lab] = (fit, starts)
 
 
-def _pattern_stage(problem: GapProblem, baseline: Fit, catalogue: Catalogue, evidence: ModalEvidence,
-                   local: dict[str, tuple[Fit, list]], max_evaluations: int, executor: Executor | None, say: Any
+def _pattern_stage(run: _Search, evidence: ModalEvidence, local: dict[str, tuple[Fit, list]]
                    ) -> dict[str, PatternFit]:
     """Match the measured modes by every structural effect and refit the :data:`PATTERN_CANDIDATES` best
     matches from their match (module docstring); ``local`` gains (or keeps the better of) their refits."""
     if not _linear(evidence):
-        say(f"measured modes: their fit leaves {evidence.measured.gap_ratio:.3g} noise variances — the records are "
-            f"not those of a linear time-invariant system, no modal pattern to compare")
+        run.say(f"measured modes: their fit leaves {evidence.measured.gap_ratio:.3g} noise variances — the records "
+                f"are not those of a linear time-invariant system, no modal pattern to compare")
         return {}
-    patterns = pattern_fits(problem, evidence, baseline.beta, catalogue, executor)
+    patterns = pattern_fits(run.problem, evidence, run.baseline.beta, run.catalogue, run.executor)
     base = patterns["baseline"].chi2
-    say(f"measured modes {np.round(evidence.measured.freq_hz, 3)} Hz (their fit leaves "
-        f"{evidence.measured.gap_ratio:.3g} noise variances); modal pattern chi2 ({evidence.n_modes} modes; "
-        f"baseline {base:.4g}): "
-        + ", ".join(f"{lab} {pf.chi2:.4g}" for lab, pf in patterns.items() if lab != "baseline"))
+    run.say(f"measured modes {np.round(evidence.measured.freq_hz, 3)} Hz (their fit leaves "
+            f"{evidence.measured.gap_ratio:.3g} noise variances); modal pattern chi2 ({evidence.n_modes} modes; "
+            f"baseline {base:.4g}): "
+            + ", ".join(f"{lab} {pf.chi2:.4g}" for lab, pf in patterns.items() if lab != "baseline"))
     matching = sorted((lab for lab in patterns if lab != "baseline" and patterns[lab].chi2 < base - BIC_MARGIN),
                       key=lambda lab: patterns[lab].chi2)
     ranked = matching[:PATTERN_CANDIDATES]
     if ranked:   # a match far worse than the best one does not match: 2 per mode is a match within the errors
         limit = PATTERN_RIVAL * max(patterns[ranked[0]].chi2, 2.0 * evidence.n_modes)
         ranked = [lab for lab in ranked if patterns[lab].chi2 <= limit]
-    _refit_from_matches(problem, catalogue, patterns, ranked, local, max_evaluations, executor, say)
+    _refit_from_matches(run, patterns, ranked, local)
     rest = [lab for lab in matching if lab not in ranked][:PATTERN_CANDIDATES]
-    if rest and not any(explains(local[lab][0], baseline) for lab in ranked):
+    if rest and not any(explains(local[lab][0], run.baseline) for lab in ranked):
         # the closest matches do not explain the records: the next ones (a pattern fit can stop short of its
         # optimum, and its match still lies in the right basin for the time-domain refit)
-        _refit_from_matches(problem, catalogue, patterns, rest, local, max_evaluations, executor, say)
+        _refit_from_matches(run, patterns, rest, local)
     return patterns
 
 
-def _best_pair(problem: GapProblem, baseline: Fit, before: np.ndarray, catalogue: Catalogue, single: EffectRefit,
-               partners: list[str], max_evaluations: int, executor: Executor | None, say: Any
-               ) -> EffectRefit | None:
+def _modal_stage(run: _Search, evidence: ModalEvidence, labels: list[str], local: dict[str, tuple[Fit, list]]
+                 ) -> tuple[dict[str, PatternFit], list[str], _Early]:
+    """The modal pattern, then a pair, then the other baseline basins, each only while the gap is unexplained
+    (module docstring).  Returns the pattern fits, the refitted labels (the shortlist and the matches, in
+    catalogue order after the shortlist) and the early pair; ``local`` gains the refits."""
+    patterns = _pattern_stage(run, evidence, local)
+    labels = labels + [lab for lab in run.effects if lab in local and lab not in labels]
+    early: _Early = None
+    if not run.explained(local):
+        early = _early_pair(run, labels, local)
+    if not run.explained(local) and not _pair_explains(early, run.baseline):
+        # (a better basin cannot make a linear time-invariant effect explain records no such model can)
+        tried = [lab for lab in labels if _linear(evidence) or not run.time_invariant(lab)]
+        local.update(run.refit(tried, {lab: local[lab] for lab in tried}, stage="basins"))
+    return patterns, labels, early
+
+
+# ---------------------------------------------------------------------------
+# stage: two effects at once
+# ---------------------------------------------------------------------------
+#: An early pair: ``(the single's fit it was tried at, its best pair or None)``; ``None`` when not tried.
+_Early = tuple[Fit, EffectRefit | None] | None
+
+
+def _best_pair(run: _Search, single: EffectRefit, partners: list[str]) -> EffectRefit | None:
     """The pair of ``single`` and one of ``partners`` that pays for its extra parameters against ``single``
     (BIC better by :data:`BIC_MARGIN`, lower held-out error), the best of them; ``None`` if none pays."""
     labels = [f"{single.label}{PAIR_SEPARATOR}{p}" for p in partners]
-    args = [(problem, catalogue, lab, single.fit, max_evaluations) for lab in labels]
-    if executor is None or len(labels) < 2:
-        fits = [pair_refit(*a) for a in args]
-    else:
-        fits = [f.result() for f in [executor.submit(pair_refit, *a) for a in args]]
+    fits = run.side_by_side(pair_refit, [(run.problem, run.catalogue, lab, single.fit, run.max_evaluations)
+                                         for lab in labels])
     best = None
     for lab, fit in zip(labels, fits):
-        rf = summarise(problem, baseline, before, catalogue.effect(lab), fit)
-        say(f"pair refit {lab}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
-            f"dBIC vs {single.label} alone {rf.bic - single.bic:.1f}")
+        rf = run.summary(run.catalogue.effect(lab), fit)
+        run.say(f"pair refit {lab}: held-out gap ratio {np.mean(run.before):.3g} -> "
+                f"{np.mean(rf.heldout_after):.3g}, dBIC vs {single.label} alone {rf.bic - single.bic:.1f}")
         if (rf.bic < single.bic - BIC_MARGIN and np.mean(rf.heldout_after) < np.mean(single.heldout_after)
                 and (best is None or np.mean(rf.heldout_after) < np.mean(best.heldout_after))):
             best = rf
     return best
 
 
-def _pair_with(problem: GapProblem, baseline: Fit, before: np.ndarray, catalogue: Catalogue, single: EffectRefit,
-               max_evaluations: int, executor: Executor | None, say: Any
-               ) -> tuple[EffectRefit | None, EffectRefit | None]:
+def _pair_with(run: _Search, single: EffectRefit) -> tuple[EffectRefit | None, EffectRefit | None]:
     """The best pair of ``single`` and a second effect that pays for itself (:func:`_best_pair`), the partners
     score-tested afresh at ``single``'s refit (the baseline may have hidden them), and ``single``'s effect
     refitted alone from that pair's optimum when this beats ``single``'s refit (else ``None``).
@@ -191,45 +248,41 @@ def _pair_with(problem: GapProblem, baseline: Fit, before: np.ndarray, catalogue
     830 noise variances where the effect alone reaches 1.09) the pair's gain is that, with nothing for the
     second effect to add.  Such a pair is not returned (``None``).
     """
-    first = catalogue.effect(single.label)
-    rescored = {e.label: score_effect(problem, single.fit, on_top_of(first, single.fit.s, e)).lm
-                for e in catalogue.effects() if e.name != first.name}
+    first = run.catalogue.effect(single.label)
+    rescored = {e.label: score_effect(run.problem, single.fit, on_top_of(first, single.fit.s, e)).lm
+                for e in run.effects.values() if e.name != first.name}
     partners = [lab for lab in sorted(rescored, key=lambda k: -rescored[k]) if rescored[lab] > 0][:PAIR_PARTNERS]
-    say(f"second-effect scores at the {single.label} refit: "
-        + ", ".join(f"{lab} {rescored[lab]:.4g}" for lab in partners))
-    pair = _best_pair(problem, baseline, before, catalogue, single, partners, max_evaluations, executor, say)
+    run.say(f"second-effect scores at the {single.label} refit: "
+            + ", ".join(f"{lab} {rescored[lab]:.4g}" for lab in partners))
+    pair = _best_pair(run, single, partners)
     if pair is None:
         return None, None
-    fit = problem.fit(pair.fit.beta, first, pair.fit.s[:first.dim], max_evaluations=max_evaluations)
-    alone = summarise(problem, baseline, before, first, fit)
-    say(f"{single.label} alone from the pair's optimum: fit RSS/n {fit.rss / fit.n:.4g}, "
-        f"dBIC of the pair against it {pair.bic - alone.bic:.1f}")
+    fit = run.problem.fit(pair.fit.beta, first, pair.fit.s[:first.dim], max_evaluations=run.max_evaluations)
+    alone = run.summary(first, fit)
+    run.say(f"{single.label} alone from the pair's optimum: fit RSS/n {fit.rss / fit.n:.4g}, "
+            f"dBIC of the pair against it {pair.bic - alone.bic:.1f}")
     improved = fit.rss < single.fit.rss * (1.0 - 1e-3)     # beyond the refits' own last digits
     return (pair if pair.bic < alone.bic - BIC_MARGIN else None), (alone if improved else None)
 
 
-def _early_pair(problem: GapProblem, baseline: Fit, before: np.ndarray, catalogue: Catalogue, labels: list[str],
-                local: dict[str, tuple[Fit, list]], max_evaluations: int, executor: Executor | None, say: Any
-                ) -> tuple[Fit, EffectRefit | None] | None:
+def _early_pair(run: _Search, labels: list[str], local: dict[str, tuple[Fit, list]]) -> _Early:
     """Two effects before the other basins and the continuation refits (module docstring): the best local
     refit's effect paired, when it pays, closes :data:`PAIR_MINIMUM` and is linear time-invariant (pairs with
-    drift or stretching need the costly nonlinear simulation, dearer than their continuation).  Returns
-    ``(that refit, its best pair or None)``, or ``None`` when not tried; ``local`` gains the effect refitted
-    alone from the pair's optimum when that is better."""
-    now = {lab: summarise(problem, baseline, before, catalogue.effect(lab), local[lab][0]) for lab in labels}
-    lead = _paying(now, before)[:1]
-    if not (lead and now[lead[0]].closed >= PAIR_MINIMUM
-            and time_invariant(problem, baseline.beta, catalogue.effect(lead[0]))):
+    drift or stretching need the costly nonlinear simulation, dearer than their continuation).  ``local``
+    gains the effect refitted alone from the pair's optimum when that is better."""
+    now = {lab: run.summary(run.catalogue.effect(lab), local[lab][0]) for lab in labels}
+    lead = _paying(now, run.before)[:1]
+    if not (lead and now[lead[0]].closed >= PAIR_MINIMUM and run.time_invariant(lead[0])):
         return None
-    pair, alone = _pair_with(problem, baseline, before, catalogue, now[lead[0]], max_evaluations, executor, say)
+    pair, alone = _pair_with(run, now[lead[0]])
     if alone is not None:
         local[lead[0]] = (alone.fit, local[lead[0]][1])
-    if pair is not None and explains(pair.fit, baseline):
-        say(f"the pair {pair.label} explains the gap: no other basins, re-baselining or continuation refits")
+    if pair is not None and explains(pair.fit, run.baseline):
+        run.say(f"the pair {pair.label} explains the gap: no other basins, re-baselining or continuation refits")
     return now[lead[0]].fit, pair     # (a single improved here is paired again at the end)
 
 
-def _pair_explains(early: tuple[Fit, EffectRefit | None] | None, baseline: Fit) -> bool:
+def _pair_explains(early: _Early, baseline: Fit) -> bool:
     """Whether the pair tried early explains the gap."""
     return early is not None and early[1] is not None and explains(early[1].fit, baseline)
 
@@ -239,12 +292,109 @@ def _same_fit(a: Fit, b: Fit) -> bool:
     return a.rss == b.rss and np.array_equal(a.beta, b.beta) and np.array_equal(a.s, b.s)
 
 
+# ---------------------------------------------------------------------------
+# stage: continuation in the record length
+# ---------------------------------------------------------------------------
+def _continuation_stage(run: _Search, labels: list[str], local: dict[str, tuple[Fit, list]], early: _Early,
+                        evidence: ModalEvidence | None, patterns: dict[str, PatternFit], parallel: int) -> None:
+    """Continuation refits (:mod:`diagnosis.refits`), the most promising first, ``parallel`` at a time, until one
+    explains the gap; skipped for effects no continuation can help.  ``local`` gains them."""
+    pending = sorted(labels, key=lambda lab: local[lab][0].rss)
+    if _pair_explains(early, run.baseline) or run.explained(local):
+        run.say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
+        pending = []
+    if not _linear(evidence):
+        # no set of linear oscillators reproduces the records: no linear time-invariant effect can
+        lti = [lab for lab in pending if run.time_invariant(lab)]
+        if lti:
+            run.say(f"continuation refits of {', '.join(lti)} skipped: the measured modes' own fit leaves "
+                    f"{evidence.measured.gap_ratio:.3g} noise variances, beyond any linear time-invariant effect")
+        pending = [lab for lab in pending if lab not in lti]
+    if patterns:
+        # a structural effect's basin is where its modal pattern put it: continuation cannot add to that
+        matched = [lab for lab in pending if lab in patterns]
+        if matched:
+            run.say(f"continuation refits of {', '.join(matched)} skipped: refitted from their modal match")
+        pending = [lab for lab in pending if lab not in matched]
+    while pending:
+        group, pending = pending[:max(1, parallel)], pending[max(1, parallel):]
+        local.update(run.refit(group, {lab: local[lab] for lab in group}, stage="continuation"))
+        for lab in group:
+            fit = local[lab][0]
+            run.say(f"continuation refit {lab}: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
+        if any(explains(local[lab][0], run.baseline) for lab in group):
+            if pending:
+                run.say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
+            break
+
+
+# ---------------------------------------------------------------------------
+# the verdict
+# ---------------------------------------------------------------------------
 def _paying(refits: dict[str, EffectRefit], before: np.ndarray) -> list[str]:
     """The effects whose refit pays for its parameters (BIC by :data:`BIC_MARGIN`) and lowers the held-out
     error, the lowest held-out error first."""
     paying = [lab for lab, rf in refits.items()
               if rf.delta_bic < -BIC_MARGIN and np.mean(rf.heldout_after) < np.mean(before)]
     return sorted(paying, key=lambda lab: float(np.mean(refits[lab].heldout_after)))
+
+
+def _decide(run: _Search, by_score: list[str], labels: list[str], local: dict[str, tuple[Fit, list]],
+            early: _Early, patterns: dict[str, PatternFit], evidence: ModalEvidence | None) -> Ranking:
+    """Rank the refits, try a pair when the best leaves a significant remainder, and name the cause."""
+    before, baseline, say = run.before, run.baseline, run.say
+    refits = {lab: run.summary(run.effects[lab], local[lab][0]) for lab in labels}
+    for label, rf in refits.items():
+        say(f"refit {label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
+            f"dBIC {rf.delta_bic:.1f}")
+    paying = _paying(refits, before)
+    others = [lab for lab in refits if lab not in paying]
+    others.sort(key=lambda lab: float(np.mean(refits[lab].heldout_after)))
+    order = paying + others + [lab for lab in by_score if lab not in refits]
+    ranking = partial(Ranking, baseline, before, run.scores, refits, patterns=patterns, modal=evidence)
+    excess = float(np.mean(before)) - 1.0
+    if excess < GAP_THRESHOLD:
+        return ranking(order, "none", [], f"the held-out residual variance is only {excess:+.0%} above the noise "
+                       f"floor (threshold {GAP_THRESHOLD:.0%}): nothing to explain")
+    if not paying:
+        return ranking(order, UNEXPLAINED, [],
+                       f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the noise "
+                       f"variance, but no candidate effect improves BIC by more than {BIC_MARGIN:g} and the held-out "
+                       f"error")
+    best = refits[paying[0]]
+    if not explains(best.fit, baseline) and best.closed >= PAIR_MINIMUM:
+        # one effect leaves a significant remainder: a second one at once, when it pays for itself (tried
+        # already before the continuation refits when this single's fit has not changed since)
+        if early is not None and _same_fit(early[0], best.fit):
+            pair = early[1]
+        else:
+            pair, alone = _pair_with(run, best)
+            if alone is not None:     # the first effect alone, from the pair's optimum, beats its refit
+                refits[alone.label] = best = alone
+        if pair is not None:
+            refits[pair.label] = pair
+            order = [pair.label] + order
+            paying = [pair.label] + paying
+            best = pair
+    if not best.closed >= NAMED_CLOSURE:
+        return ranking(order, UNEXPLAINED, [],
+                       f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the noise "
+                       f"variance and the best candidate, {paying[0]}, closes only {best.closed:.0%} of the gap "
+                       f"(an effect is named from {NAMED_CLOSURE:.0%})")
+    gain = float(np.mean(before) - np.mean(best.heldout_after))
+    # a pair's own parts are not its rivals: the pair has paid for its second effect against the first
+    parts = set(paying[0].split(PAIR_SEPARATOR))
+    # a rival ties when it closes nearly as much and what it leaves is not measurably more (a rival leaving
+    # 349 noise variances where the best leaves 1.1 is decided, even though both close 97-100 %)
+    left = float(np.mean(best.heldout_after))
+    ties = [lab for lab in paying[1:] if PAIR_SEPARATOR not in lab and lab not in parts
+            and float(np.mean(before) - np.mean(refits[lab].heldout_after)) >= 0.95 * gain
+            and float(np.mean(refits[lab].heldout_after)) - left <= max(GAP_THRESHOLD, 0.25 * (left - 1.0))]
+    reason = (f"{paying[0]} closes {best.closed:.0%} of the held-out gap "
+              f"(gap ratio {np.mean(before):.3g} -> {np.mean(best.heldout_after):.3g}, dBIC {best.delta_bic:.1f})")
+    if ties:
+        reason += "; the data cannot distinguish it from " + ", ".join(ties)
+    return ranking(order, paying[0], ties, reason)
 
 
 def settled(ranking: Ranking) -> bool:
@@ -298,39 +448,27 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
     Ranking
     """
     say = progress or (lambda _m: None)
-    effects = catalogue.effects()
+    effects = {e.label: e for e in catalogue.effects()}
     before, _ = problem.heldout(baseline.beta)
     scores = {}
-    for e in effects:
-        scores[e.label] = score_effect(problem, baseline, e)
-        say(f"score {e.label}: {scores[e.label].lm:.4g}")
-    by_score = sorted(effects, key=lambda e: -scores[e.label].lm)
-    chosen = [e for e in by_score if scores[e.label].lm > 0][:shortlist]
-    labels = [e.label for e in chosen]
+    for lab, e in effects.items():
+        scores[lab] = score_effect(problem, baseline, e)
+        say(f"score {lab}: {scores[lab].lm:.4g}")
+    run = _Search(problem, baseline, catalogue, effects, before, scores, max_evaluations, executor, say)
+    by_score = sorted(effects, key=lambda lab: -scores[lab].lm)
+    labels = [lab for lab in by_score if scores[lab].lm > 0][:shortlist]
     # with the modal pattern at hand, the other basins wait until it has been tried (it is cheaper)
-    local = map_refits(executor, problem, catalogue, labels, baseline, scores, max_evaluations,
-                        stage="local" if modal is None else "first")
+    local = run.refit(labels, stage="local" if modal is None else "first")
     for lab, (fit, _) in local.items():
         say(f"local refit {lab}: fit RSS/n {baseline.rss / baseline.n:.4g} -> {fit.rss / fit.n:.4g} "
             f"({fit.n_evaluations} evaluations)")
     patterns: dict[str, PatternFit] = {}
     evidence = None
-    early: tuple[Fit, EffectRefit | None] | None = None    # (the single's fit, its best pair) tried early
-    if modal is not None and not any(explains(fit, baseline) for fit, _ in local.values()):
+    early: _Early = None
+    if modal is not None and not run.explained(local):
         evidence = modal(baseline.beta)
-        patterns = _pattern_stage(problem, baseline, catalogue, evidence, local, max_evaluations, executor, say)
-        chosen += [e for e in effects if e.label in local and e not in chosen]
-        labels = [e.label for e in chosen]
-        if not any(explains(fit, baseline) for fit, _ in local.values()):
-            early = _early_pair(problem, baseline, before, catalogue, labels, local, max_evaluations, executor,
-                                say)
-        if not any(explains(fit, baseline) for fit, _ in local.values()) and not _pair_explains(early, baseline):
-            # (a better basin cannot make a linear time-invariant effect explain records no such model can)
-            tried = [lab for lab in labels if _linear(evidence)
-                     or not time_invariant(problem, baseline.beta, catalogue.effect(lab))]
-            local.update(map_refits(executor, problem, catalogue, tried, baseline, scores, max_evaluations,
-                                     {lab: local[lab] for lab in tried}, stage="basins"))
-    if not any(explains(fit, baseline) for fit, _ in local.values()) and not _pair_explains(early, baseline):
+        patterns, labels, early = _modal_stage(run, evidence, labels, local)
+    if not run.explained(local) and not _pair_explains(early, baseline):
         better = (better_baseline(problem, baseline, [fit for fit, _ in local.values()], executor)
                   if rebaseline else None)
         if better is not None:
@@ -340,91 +478,6 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
                                 progress=progress, executor=executor, parallel=parallel, rebaseline=False,
                                 modal=modal)
         if evidence is None:     # (the modal stage, when it ran, has tried the pair already)
-            early = _early_pair(problem, baseline, before, catalogue, labels, local, max_evaluations, executor,
-                                say)
-        # no local refit explains the gap: continuation refits (diagnosis.refits), the most promising first
-        pending = sorted(labels, key=lambda lab: local[lab][0].rss)
-        if _pair_explains(early, baseline) or any(explains(fit, baseline) for fit, _ in local.values()):
-            say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
-            pending = []
-        if not _linear(evidence):
-            # no set of linear oscillators reproduces the records: no linear time-invariant effect can
-            lti = [lab for lab in pending if time_invariant(problem, baseline.beta, catalogue.effect(lab))]
-            if lti:
-                say(f"continuation refits of {', '.join(lti)} skipped: the measured modes' own fit leaves "
-                    f"{evidence.measured.gap_ratio:.3g} noise variances, beyond any linear time-invariant effect")
-            pending = [lab for lab in pending if lab not in lti]
-        if patterns:
-            # a structural effect's basin is where its modal pattern put it: continuation cannot add to that
-            matched = [lab for lab in pending if lab in patterns]
-            if matched:
-                say(f"continuation refits of {', '.join(matched)} skipped: refitted from their modal match")
-            pending = [lab for lab in pending if lab not in matched]
-        while pending:
-            group, pending = pending[:max(1, parallel)], pending[max(1, parallel):]
-            local.update(map_refits(executor, problem, catalogue, group, baseline, scores, max_evaluations,
-                                     {lab: local[lab] for lab in group}, stage="continuation"))
-            for lab in group:
-                fit = local[lab][0]
-                say(f"continuation refit {lab}: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
-            if any(explains(local[lab][0], baseline) for lab in group):
-                if pending:
-                    say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
-                break
-    refits = {e.label: summarise(problem, baseline, before, e, local[e.label][0]) for e in chosen}
-    for label, rf in refits.items():
-        say(f"refit {label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
-            f"dBIC {rf.delta_bic:.1f}")
-    paying = _paying(refits, before)
-    others = [lab for lab in refits if lab not in paying]
-    others.sort(key=lambda lab: float(np.mean(refits[lab].heldout_after)))
-    rest = [e.label for e in by_score if e.label not in refits]
-    order = paying + others + rest
-    excess = float(np.mean(before)) - 1.0
-    if excess < GAP_THRESHOLD:
-        return Ranking(baseline, before, scores, refits, order, "none", [],
-                       f"the held-out residual variance is only {excess:+.0%} above the noise floor "
-                       f"(threshold {GAP_THRESHOLD:.0%}): nothing to explain",
-                   patterns=patterns, modal=evidence)
-    if not paying:
-        return Ranking(baseline, before, scores, refits, order, UNEXPLAINED, [],
-                       f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the noise "
-                       f"variance, but no candidate effect improves BIC by more than {BIC_MARGIN:g} and the held-out "
-                       f"error",
-                   patterns=patterns, modal=evidence)
-    best = refits[paying[0]]
-    if not explains(best.fit, baseline) and best.closed >= PAIR_MINIMUM:
-        # one effect leaves a significant remainder: a second one at once, when it pays for itself (tried
-        # already before the continuation refits when this single's fit has not changed since)
-        if early is not None and _same_fit(early[0], best.fit):
-            pair = early[1]
-        else:
-            pair, alone = _pair_with(problem, baseline, before, catalogue, best, max_evaluations, executor, say)
-            if alone is not None:     # the first effect alone, from the pair's optimum, beats its refit
-                refits[alone.label] = best = alone
-        if pair is not None:
-            refits[pair.label] = pair
-            order = [pair.label] + order
-            paying = [pair.label] + paying
-            best = pair
-    if not best.closed >= NAMED_CLOSURE:
-        return Ranking(baseline, before, scores, refits, order, UNEXPLAINED, [],
-                       f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the noise "
-                       f"variance and the best candidate, {paying[0]}, closes only {best.closed:.0%} of the gap "
-                       f"(an effect is named from {NAMED_CLOSURE:.0%})",
-                   patterns=patterns, modal=evidence)
-    gain = float(np.mean(before) - np.mean(best.heldout_after))
-    # a pair's own parts are not its rivals: the pair has paid for its second effect against the first
-    parts = set(paying[0].split(PAIR_SEPARATOR))
-    # a rival ties when it closes nearly as much and what it leaves is not measurably more (a rival leaving
-    # 349 noise variances where the best leaves 1.1 is decided, even though both close 97-100 %)
-    left = float(np.mean(best.heldout_after))
-    ties = [lab for lab in paying[1:] if PAIR_SEPARATOR not in lab and lab not in parts
-            and float(np.mean(before) - np.mean(refits[lab].heldout_after)) >= 0.95 * gain
-            and float(np.mean(refits[lab].heldout_after)) - left <= max(GAP_THRESHOLD, 0.25 * (left - 1.0))]
-    reason = (f"{paying[0]} closes {best.closed:.0%} of the held-out gap "
-              f"(gap ratio {np.mean(before):.3g} -> {np.mean(best.heldout_after):.3g}, dBIC {best.delta_bic:.1f})")
-    if ties:
-        reason += "; the data cannot distinguish it from " + ", ".join(ties)
-    return Ranking(baseline, before, scores, refits, order, paying[0], ties, reason,
-                   patterns=patterns, modal=evidence)
+            early = _early_pair(run, labels, local)
+        _continuation_stage(run, labels, local, early, evidence, patterns, parallel)
+    return _decide(run, by_score, labels, local, early, patterns, evidence)

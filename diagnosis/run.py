@@ -43,6 +43,7 @@ from identification.parameters import parameter_space
 from identification.run import load_identification_config, read_data
 from identification.settings import identification_settings
 
+from .axial_terms import stretch_of_nodes
 from .effects import PAIR_SEPARATOR, Catalogue, Scales
 from .fitting import GapProblem
 from .localise import localise
@@ -108,7 +109,7 @@ def _stretch_max(config: BeamConfig, params: dict[str, float], records: Sequence
 
     The deflection at every grid node (:func:`ebb_model.field_config`) and the
     integral of its piecewise-linear interpolant — the quadrature the
-    stretching simulation itself uses (:func:`diagnosis.augmented.stretch_integral`).
+    stretching simulation itself uses (:func:`diagnosis.axial_terms.stretch_of_nodes`).
     """
     n_s = len(config.sensors)
     model = fast_model(field_config(config), params)
@@ -116,7 +117,7 @@ def _stretch_max(config: BeamConfig, params: dict[str, float], records: Sequence
     best = 0.0
     for r in records:
         w = simulate(model, r.inputs).outputs[:, n_s:]
-        best = max(best, float(np.max(np.sum(np.diff(w, axis=1) ** 2, axis=1) / h)))
+        best = max(best, float(np.max(stretch_of_nodes(w, h))))
     return best
 
 

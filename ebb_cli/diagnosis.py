@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from .messages import Subcommands
+
 __all__ = ["add_parsers"]
 
 
@@ -34,7 +36,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parsers(sub: argparse._SubParsersAction) -> None:
+def add_parsers(sub: Subcommands) -> None:
     """Register ``diagnose`` and ``demo`` on the ``ebb`` parser."""
     p = sub.add_parser("diagnose", help="where model and data disagree, which effect explains it, how far it closes")
     p.add_argument("config", help="TOML config (the baseline model; identify = true unknowns with bounds)")

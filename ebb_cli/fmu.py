@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from .messages import Subcommands
+
 __all__ = ["add_parsers"]
 
 
@@ -20,7 +22,7 @@ def _cmd_build_fmu(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parsers(sub: argparse._SubParsersAction) -> None:
+def add_parsers(sub: Subcommands) -> None:
     """Register ``build-fmu CONFIG --out FILE [--field] [--standalone]`` on the ``ebb`` parser."""
     p = sub.add_parser(
         "build-fmu",

@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from .messages import Subcommands
+
 __all__ = ["add_parsers"]
 
 
@@ -58,7 +60,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parsers(sub: argparse._SubParsersAction) -> None:
+def add_parsers(sub: Subcommands) -> None:
     """Register ``identify`` and ``export`` on the ``ebb`` parser."""
     p = sub.add_parser("identify", help="multi-objective identification of the config's unknowns from data")
     p.add_argument("config", help="TOML config with identify = true parameters")

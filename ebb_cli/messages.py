@@ -11,9 +11,9 @@ import argparse
 import functools
 import re
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, Protocol
 
-__all__ = ["COMMANDS", "KEYWORD_ALIASES", "FlagParser", "render"]
+__all__ = ["COMMANDS", "KEYWORD_ALIASES", "FlagParser", "Subcommands", "render"]
 
 #: API function → subcommand.
 COMMANDS: Mapping[str, str] = {
@@ -26,6 +26,13 @@ KEYWORD_ALIASES: Mapping[str, str] = {
     "result_dir": "dir", "fmu_path": "fmu",
 }
 _QUOTED = re.compile(r"`([A-Za-z_][A-Za-z0-9_]*)`")
+
+
+class Subcommands(Protocol):
+    """What a layer's ``add_parsers`` is given: the object ``add_subparsers`` returns (its public method)."""
+
+    def add_parser(self, name: str, **kwargs: Any) -> FlagParser:  # noqa: D102 - as argparse's
+        ...
 
 
 class FlagParser(argparse.ArgumentParser):
@@ -56,7 +63,7 @@ class FlagParser(argparse.ArgumentParser):
         group.add_argument = lambda *a, **k: self._record(add(*a, **k))      # type: ignore[method-assign]
         return group
 
-    def add_subparsers(self, **kwargs: Any) -> Any:                         # noqa: D102 - as argparse's
+    def add_subparsers(self, **kwargs: Any) -> Subcommands:                 # noqa: D102 - as argparse's
         kwargs.setdefault("parser_class", functools.partial(FlagParser, flags=self.flags))
         return super().add_subparsers(**kwargs)
 

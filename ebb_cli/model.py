@@ -6,6 +6,8 @@ import argparse
 import json
 from typing import Sequence
 
+from .messages import Subcommands
+
 __all__ = ["add_parsers", "parse_params"]
 
 
@@ -65,7 +67,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parsers(sub: argparse._SubParsersAction) -> None:
+def add_parsers(sub: Subcommands) -> None:
     """Register ``modes`` and ``simulate`` on the ``ebb`` parser."""
     p = sub.add_parser("modes", help="natural frequencies, damping and stability of a config")
     p.add_argument("config", help="TOML config file")

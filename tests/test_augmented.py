@@ -1,4 +1,4 @@
-"""Native simulation of the signal-level and axial-force effects (diagnosis.augmented).
+"""Native simulation of the signal-level and axial-force effects (diagnosis.augmented, diagnosis.effects).
 
 Every check is against an independent truth: closed-form responses of the
 first-order lag, the frequency response 1/(1 + iωτ), the assembled LTI θ-scheme
@@ -18,13 +18,10 @@ import scipy.signal as ss
 from conftest import make_config as _make_config
 from scipy.special import ellipk
 
-from diagnosis.augmented import (
-    first_order_lag,
-    geometric_stiffness,
-    simulate_axial,
-    simulate_effects,
-    stretch_integral,
-)
+from diagnosis.augmented import simulate_axial, simulate_effects
+from diagnosis.axial_terms import geometric_stiffness, stretch_integral
+from diagnosis.effects.axial import AxialDrift, Stretching
+from diagnosis.effects.lag import ActuatorLag, SensorLag, first_order_lag
 from ebb_model import (
     ConfigError,
     DataError,
@@ -148,7 +145,7 @@ def test_effects_all_off_is_fast_path():
     cfg = make_config("clamped", "free", nodes=40, c=0.5, substeps=2, sensors=THREE_KINDS)
     u = np.random.default_rng(2).standard_normal((2000, 1))
     ref = simulate_config(cfg, u).outputs
-    y = simulate_effects(cfg, None, u, sensor_tau={"d": 0.0})
+    y = simulate_effects(cfg, None, u, (SensorLag("d", 0.0),))
     np.testing.assert_allclose(y, ref, rtol=1e-12, atol=0)
 
 
@@ -250,7 +247,7 @@ def test_axial_drift_tracks_analytic_frequency(left, right, EI, N0, rate, subste
     m = int(math.pi / omega1(N0) / dt)  # half-sine pulse of half a period: mostly mode 1
     u = np.zeros((n, 1))
     u[:m, 0] = np.sin(np.pi * np.arange(m) / m)
-    y = simulate_effects(cfg, None, u, drift_rate=rate)[:, 0]
+    y = simulate_effects(cfg, None, u, (AxialDrift(rate),))[:, 0]
     t = np.arange(n) * dt
     tc = _upward_crossings(t, y)
     tm = 0.5 * (tc[1:] + tc[:-1])
@@ -307,7 +304,7 @@ def test_geometric_stiffening_linear_at_small_amplitude():
     lin = simulate_config(cfg, u).outputs
 
     def deviation(scale: float) -> float:
-        y = simulate_effects(cfg, None, scale * u, stretching_EA=1e6)
+        y = simulate_effects(cfg, None, scale * u, (Stretching(1e6),))
         return float(np.max(np.abs(y - scale * lin) / np.max(np.abs(scale * lin), axis=0)))
 
     assert deviation(1.0) < 1e-8                      # ~0.1 µm deflection: linear
@@ -327,8 +324,8 @@ def test_lag_on_beam_frequency_response(where):
     omega = 2 * np.pi * freq
     u = np.sin(omega * t)[:, None]
     base = simulate_effects(cfg, None, u)
-    kw = {"actuator_tau": tau} if where == "actuator" else {"sensor_tau": {"a": tau}}
-    y = simulate_effects(cfg, None, u, **kw)
+    part = ActuatorLag(tau) if where == "actuator" else SensorLag("a", tau)
+    y = simulate_effects(cfg, None, u, (part,))
     keep = t > 0.5  # transients gone (ζω ≈ 10 /s → e^-5)
     expected = 1.0 / (1.0 + 1j * omega * tau)
     for j, name in enumerate(("d", "v", "a")):
@@ -354,28 +351,28 @@ def test_bad_input_errors():
     with pytest.raises(DataError, match="non-finite"):
         first_order_lag(np.array([0.0, np.nan]), 1e-4, 1e-3)
     with pytest.raises(ParameterError, match="actuator_lag.tau"):
-        simulate_effects(cfg, None, u, actuator_tau=-1e-3)
+        simulate_effects(cfg, None, u, (ActuatorLag(-1e-3),))
     with pytest.raises(ConfigError, match="nope"):
-        simulate_effects(cfg, None, u, sensor_tau={"nope": 1e-3})
+        simulate_effects(cfg, None, u, (SensorLag("nope", 1e-3),))
     with pytest.raises(ParameterError, match=r"sensor_lag\[y1\].tau"):
-        simulate_effects(cfg, None, u, sensor_tau={"y1": float("inf")})
+        simulate_effects(cfg, None, u, (SensorLag("y1", float("inf")),))
     with pytest.raises(ParameterError, match="axial_drift.rate"):
-        simulate_effects(cfg, None, u, drift_rate=float("nan"))
+        simulate_effects(cfg, None, u, (AxialDrift(float("nan")),))
     with pytest.raises(ParameterError, match="geometric_stiffening.EA"):
-        simulate_effects(cfg, None, u, stretching_EA=-5.0)
+        simulate_effects(cfg, None, u, (Stretching(-5.0),))
     bad = u.copy()
     bad[7, 0] = np.nan
     with pytest.raises(DataError, match="sample 7"):
-        simulate_effects(cfg, None, bad, drift_rate=1.0)
+        simulate_effects(cfg, None, bad, (AxialDrift(1.0),))
     with pytest.raises(DataError, match="shape"):
         simulate_effects(cfg, None, np.zeros((100, 2)))
     with pytest.raises(DataError, match="x0"):
         simulate_axial(cfg, None, u, x0=np.zeros(3))
     with pytest.raises(ParameterError, match="EI"):
-        simulate_effects(cfg, {"EI": -1.0}, u, drift_rate=1.0)
+        simulate_effects(cfg, {"EI": -1.0}, u, (AxialDrift(1.0),))
 
 
 def test_unstable_scheme_is_reported():
     cfg = make_config(nodes=40, theta=0.0, dt=1e-3)  # explicit scheme far beyond its step limit
     with pytest.raises(StabilityError):
-        simulate_effects(cfg, None, np.zeros((50, 1)), drift_rate=1.0, check_stability=True)
+        simulate_effects(cfg, None, np.zeros((50, 1)), (AxialDrift(1.0),), check_stability=True)

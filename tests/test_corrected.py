@@ -16,6 +16,8 @@ import ebb_model as em
 from diagnosis.augmented import simulate_effects
 from diagnosis.corrected import corrected_statespace, export_corrected
 from diagnosis.effects import AugmentedModel
+from diagnosis.effects.axial import AxialDrift, Stretching
+from diagnosis.effects.lag import ActuatorLag, SensorLag
 from ebb_model.reference.excitation import band_limited_input
 from ebb_model.tomlio import dumps
 from identification.export_statespace import load_metadata, load_statespace
@@ -30,25 +32,27 @@ def bench(**kw):
 
 
 @pytest.mark.parametrize("input_hold", ["cubic", "foh"])
-@pytest.mark.parametrize("lag", [{"actuator_tau": 2e-3}, {"sensor_tau": {"a2": 1.5e-3}},
-                                 {"actuator_tau": 1e-3, "sensor_tau": {"y1": 3e-3}}])
+@pytest.mark.parametrize("lag", [(ActuatorLag(2e-3),), (SensorLag("a2", 1.5e-3),),
+                                 (ActuatorLag(1e-3), SensorLag("y1", 3e-3)),
+                                 (SensorLag("y1", 3e-3), ActuatorLag(1e-3))])
 def test_lag_statespace_equals_the_diagnosis_simulation(lag, input_hold):
     d = bench().to_dict()
     d["time"]["input"] = input_hold
     cfg = em.config_from_dict(d)
     u = band_limited_input(1200, cfg.time.dt, 2.0, 150.0, seed=3)
     u[0] = 0.3                                   # a start away from zero exercises the "at rest" convention
-    model = AugmentedModel(cfg, cfg.parameter_values(), **lag)
+    model = AugmentedModel(cfg, cfg.parameter_values(), lag)
     sys = corrected_statespace(model)
-    y_ref = simulate_effects(cfg, cfg.parameter_values(), u, **lag)
+    y_ref = simulate_effects(cfg, cfg.parameter_values(), u, lag)
     y = em.simulate(sys, u).outputs
     np.testing.assert_allclose(y, y_ref, rtol=0, atol=1e-11 * np.abs(y_ref).max())
 
 
 def test_time_varying_effects_have_no_statespace():
     cfg = bench()
-    assert corrected_statespace(AugmentedModel(cfg, cfg.parameter_values(), drift_rate=2.0)) is None
-    assert corrected_statespace(AugmentedModel(cfg, cfg.parameter_values(), stretching_EA=1e6)) is None
+    assert corrected_statespace(AugmentedModel(cfg, cfg.parameter_values(), (AxialDrift(2.0),))) is None
+    stretched = AugmentedModel(cfg, cfg.parameter_values(), (ActuatorLag(1e-3), Stretching(1e6)))
+    assert corrected_statespace(stretched) is None
 
 
 def test_config_toml_round_trips():

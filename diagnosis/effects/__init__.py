@@ -1,0 +1,120 @@
+"""The library of candidate unmodelled effects (what the diagnosis can name).
+
+Each :class:`Effect` is an extension of the identified beam model with its own
+search variables, bounds and an "off" value at which the model reduces to the
+baseline exactly.  Applying an effect to a baseline (config, parameters) gives
+an :class:`AugmentedModel`: a config (structural effects are plain config
+changes — end springs, a point mass, Kelvin–Voigt damping, rotary inertia, a
+Winkler foundation — so the native fast path and the FMU both simulate them)
+plus signal-level parts (:class:`Signal`: actuator/sensor lag, axial-load
+drift, geometric stiffening) that say themselves what they do to the inputs,
+the outputs, the axial force and a StateSpace.
+
+Search variables are dimensionless where that makes bounds independent of the
+beam at hand (:class:`Scales` carries the beam's own scales); every effect
+reports its physical parameters (:meth:`Effect.physical`) in the units of the
+catalogue:
+
+=============================  ===================  ==========================================
+effect                         physical parameters  search variable (off value)
+=============================  ===================  ==========================================
+boundary_rotational_<side>     kr [N m/rad]         constrained end: c = EI/(kr L) (0);
+                                                    free rotation: s = kr L/EI (0)
+boundary_translational_<side>  kt [N/m]             constrained: c = EI/(kt L³) (0);
+                                                    free: s = kt L³/EI (0)
+point_mass                     mass [kg], x [m]     μ = mass/(ρA L) (0), x
+kelvin_voigt                   eta [s]              eta (0)
+rotary_inertia                 rhoI [kg m]          r² = rhoI/(ρA L²) (0)
+foundation                     kf [N/m²]            κ = kf L⁴/EI (0)
+actuator_lag                   tau [s]              tau (0)
+sensor_lag[<sensor>]           tau [s]              tau (0)
+axial_drift                    rate [N/s]           rate (0, two-sided)
+geometric_stiffening           EA [N]               EA (0); only with both ends axially fixed
+=============================  ===================  ==========================================
+
+Adding an effect
+----------------
+One module in this package ending in its :class:`Family` (the family names and
+``candidates(config, scales, identified) -> tuple[Effect, ...]``), and its line
+in :data:`FAMILIES`.  A structural effect changes the config or parameters in
+its ``apply``; a signal-level effect returns a :class:`Signal` subclass of its
+own (see :mod:`.lag` and :mod:`.axial`).  Nothing else in the diagnosis names
+an effect.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ebb_model.config import BeamConfig
+
+from . import axial, beam_terms, boundary, lag, point_mass
+from .base import (
+    PAIR_SEPARATOR,
+    AugmentedModel,
+    AxialLoad,
+    Effect,
+    Family,
+    Scales,
+    Signal,
+    on_top_of,
+    pair_effect,
+    signal_effect,
+)
+
+__all__ = ["Scales", "Effect", "AugmentedModel", "AxialLoad", "Signal", "Family", "Catalogue", "candidate_effects",
+           "pair_effect", "on_top_of", "signal_effect", "FAMILIES", "EFFECT_NAMES", "PAIR_SEPARATOR"]
+
+#: The catalogue, in report order: one entry per family module.
+FAMILIES: tuple[Family, ...] = (
+    boundary.FAMILY,
+    point_mass.FAMILY,
+    beam_terms.FAMILY,
+    lag.FAMILY,
+    axial.FAMILY,
+)
+
+#: Names of the effect families of the catalogue.
+EFFECT_NAMES: tuple[str, ...] = tuple(name for family in FAMILIES for name in family.names)
+
+
+@dataclass(frozen=True)
+class Catalogue:
+    """What :func:`candidate_effects` builds the candidates from — picklable, unlike the effects themselves
+    (their maps are closures), so worker processes rebuild the same effects from it.
+    """
+
+    config: BeamConfig
+    scales: Scales
+    identified: tuple[str, ...] = ()
+
+    def effects(self) -> tuple[Effect, ...]:
+        """The candidates, in catalogue order."""
+        return candidate_effects(self.config, self.scales, identified=self.identified)
+
+    def effect(self, label: str) -> Effect:
+        """The candidate called ``label`` (two labels joined by :data:`PAIR_SEPARATOR`: the pair)."""
+        if PAIR_SEPARATOR in label:
+            first, second = label.split(PAIR_SEPARATOR)
+            return pair_effect(self.effect(first), self.effect(second))
+        return next(e for e in self.effects() if e.label == label)
+
+
+def candidate_effects(config: BeamConfig, scales: Scales, *, identified: tuple[str, ...] = ()
+                      ) -> tuple[Effect, ...]:
+    """The catalogue's effects that can be tested on this set-up.
+
+    Parameters
+    ----------
+    config
+        Baseline set-up (ends, sensors, masses).
+    scales
+        Beam and record scales (:class:`Scales`) fixing the search bounds.
+    identified
+        Names of the baseline unknowns: an effect whose parameter is already
+        identified (e.g. ``eta``) is not a candidate.
+
+    Returns
+    -------
+    tuple of Effect
+    """
+    return tuple(e for family in FAMILIES for e in family.candidates(config, scales, tuple(identified)))

@@ -1,0 +1,245 @@
+"""What an effect of the catalogue is: search variables, and the model it makes of a baseline.
+
+An :class:`Effect` maps search values ``s`` and a baseline ``(config, params)`` to an :class:`AugmentedModel`:
+a config and parameters (structural effects change these: end springs, a point mass, beam terms) plus the
+:class:`Signal` parts no config can express (lags on the way in or out, laws of the axial force).  The
+simulation (:func:`diagnosis.augmented.simulate_effects`) and the corrected model's StateSpace
+(:func:`diagnosis.corrected.corrected_statespace`) ask each signal part what it does, so a new signal-level
+effect is its own module in this package: a :class:`Signal` subclass and the family that builds it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Callable, Mapping
+
+import numpy as np
+
+from ebb_model.config import BeamConfig
+from ebb_model.statespace import DiscreteStateSpace
+
+__all__ = ["Scales", "AxialLoad", "Signal", "AugmentedModel", "Effect", "Family", "signal_effect", "pair_effect",
+           "on_top_of", "PAIR_SEPARATOR"]
+
+#: Joins the labels of two effects acting at once (``foundation+actuator_lag``).
+PAIR_SEPARATOR = "+"
+
+
+@dataclass(frozen=True)
+class Scales:
+    """Scales of the baseline beam and record that set the effects' search bounds.
+
+    Attributes
+    ----------
+    EI, rhoA, N, length
+        Identified baseline values and beam length.
+    omega_low, omega_high
+        Lowest and highest modal angular frequency [rad/s] inside the excited band.
+    duration
+        Length of the fitted record [s].
+    stretch_max
+        Largest ``∫ w_x² dx`` of the baseline response over the record (for the
+        geometric-stiffening bound); 0 when unknown.
+    """
+
+    EI: float
+    rhoA: float
+    N: float
+    length: float
+    omega_low: float
+    omega_high: float
+    duration: float
+    stretch_max: float = 0.0
+
+
+@dataclass(frozen=True)
+class AxialLoad:
+    r"""Terms of the extra axial force :math:`\delta N(t) = \text{rate}\cdot t + \frac{EA}{2L}\int_0^L w_x^2\,dx`.
+
+    The laws the axial simulation (:func:`diagnosis.augmented.simulate_axial`) integrates; the terms of several
+    signal parts add.
+    """
+
+    rate: float = 0.0
+    EA: float = 0.0
+
+    def __add__(self, other: AxialLoad) -> AxialLoad:
+        return AxialLoad(self.rate + other.rate, self.EA + other.EA)
+
+    @property
+    def zero(self) -> bool:
+        """No extra axial force: the beam stays linear and time-invariant."""
+        return self.rate == 0.0 and self.EA == 0.0
+
+
+@dataclass(frozen=True)
+class Signal:
+    """A signal-level part of an effect: what no change of the beam's config can express.
+
+    Subclasses override what they act on; the defaults leave everything unchanged.  Values are checked when
+    the part is made (raise :class:`~ebb_model.errors.ParameterError` naming the effect).
+    """
+
+    #: Words for reports ("the actuator's first-order lag").
+    description = "a signal-level effect"
+
+    def inputs(self, u: np.ndarray, dt: float) -> np.ndarray:
+        """The force the beam feels from the measured inputs ``u`` (n_samples, n_inputs)."""
+        return u
+
+    def outputs(self, y: np.ndarray, dt: float, names: tuple[str, ...]) -> np.ndarray:
+        """What the sensors ``names`` record of the beam's outputs ``y`` (n_samples, n_sensors); a new array."""
+        return y
+
+    def axial(self) -> AxialLoad:
+        """This part's terms of the extra axial force (none by default)."""
+        return AxialLoad()
+
+    def in_series(self, sys: DiscreteStateSpace) -> DiscreteStateSpace | None:
+        """The discrete system with this part in series, equal to the simulation of :meth:`inputs` and
+        :meth:`outputs`; ``None`` when the part is not linear time-invariant (then there is no such system)."""
+        return sys if self.axial().zero else None
+
+    @property
+    def time_invariant(self) -> bool:
+        """Whether the model stays linear and time-invariant with this part."""
+        return self.axial().zero
+
+
+@dataclass(frozen=True)
+class AugmentedModel:
+    """A baseline model with effects applied, ready for :func:`diagnosis.augmented.simulate_effects`.
+
+    Attributes
+    ----------
+    config, params
+        The beam (structural effects included) and its parameter values.
+    signals
+        The signal-level parts, in the order they act (inputs first to last, then outputs likewise).
+    """
+
+    config: BeamConfig
+    params: dict[str, float]
+    signals: tuple[Signal, ...] = ()
+
+    @property
+    def axial(self) -> AxialLoad:
+        """The signal parts' axial-force terms together."""
+        return sum((s.axial() for s in self.signals), AxialLoad())
+
+    @property
+    def time_invariant(self) -> bool:
+        """Whether every signal part keeps the model linear and time-invariant."""
+        return all(s.time_invariant for s in self.signals)
+
+
+@dataclass(frozen=True, eq=False)
+class Effect:
+    """A candidate unmodelled effect.
+
+    Attributes
+    ----------
+    name
+        Catalogue family (one of :data:`diagnosis.effects.EFFECT_NAMES`).
+    target
+        Sensor name for ``sensor_lag``; ``None`` otherwise.
+    variables
+        Names of the search variables.
+    lower, upper, off
+        Bounds and "off" value of each search variable (``off`` lies on a bound
+        for one-sided effects, inside for two-sided ones such as drift).
+    description
+        One line for reports.
+    """
+
+    name: str
+    target: str | None
+    variables: tuple[str, ...]
+    lower: tuple[float, ...]
+    upper: tuple[float, ...]
+    off: tuple[float, ...]
+    description: str
+    _apply: Callable[[BeamConfig, dict[str, float], np.ndarray], AugmentedModel] = field(repr=False)
+    _physical: Callable[[np.ndarray], dict[str, float]] = field(repr=False)
+
+    @property
+    def label(self) -> str:
+        """Unique label, e.g. ``sensor_lag[y2]``."""
+        return f"{self.name}[{self.target}]" if self.target else self.name
+
+    @property
+    def dim(self) -> int:
+        """Number of search variables."""
+        return len(self.variables)
+
+    def apply(self, config: BeamConfig, params: Mapping[str, float], s: np.ndarray) -> AugmentedModel:
+        """The baseline ``(config, params)`` with this effect at search values ``s``."""
+        s = np.asarray(s, dtype=float)
+        if s.shape != (self.dim,):
+            raise ValueError(f"{self.label}: expected {self.dim} values, got shape {s.shape}")
+        return self._apply(config, dict(params), s)
+
+    def physical(self, s: np.ndarray) -> dict[str, float]:
+        """Physical parameters (catalogue units) of search values ``s``."""
+        return self._physical(np.asarray(s, dtype=float))
+
+
+@dataclass(frozen=True)
+class Family:
+    """A catalogue entry: the effect families a module names, and its builder of candidates.
+
+    ``candidates(config, scales, identified)`` returns the module's effects that apply to this set-up (none
+    whose parameter is already among the baseline unknowns ``identified``).
+    """
+
+    names: tuple[str, ...]
+    candidates: Callable[[BeamConfig, Scales, tuple[str, ...]], tuple[Effect, ...]]
+
+
+def signal_effect(name: str, target: str | None, variable: str, bounds: tuple[float, float], off: float,
+                  description: str, part: Callable[[float], Signal], parameter: str) -> Effect:
+    """A one-variable signal-level effect: the search value ``s`` is the physical ``parameter`` itself, and
+    ``part(s)`` the signal part (none at the off value, so the "off" model is the baseline exactly)."""
+
+    def apply(cfg: BeamConfig, params: dict[str, float], s: np.ndarray) -> AugmentedModel:
+        value = float(s[0])
+        return AugmentedModel(cfg, params, () if value == off else (part(value),))
+
+    return Effect(name, target, (variable,), (bounds[0],), (bounds[1],), (off,), description, apply,
+                  lambda s: {parameter: float(s[0])})
+
+
+def pair_effect(first: Effect, second: Effect) -> Effect:
+    """Two effects at once: ``second`` applied to the model ``first`` made; search variables side by side.
+
+    The physical parameters are keyed ``"<label>.<parameter>"`` (both effects may have a ``tau``).
+    """
+    if first.name == second.name:
+        raise ValueError(f"a pair needs two different effects, got {first.label} twice")
+    k = first.dim
+
+    def apply(cfg: BeamConfig, params: dict[str, float], s: np.ndarray) -> AugmentedModel:
+        m1 = first.apply(cfg, params, s[:k])
+        m2 = second.apply(m1.config, m1.params, s[k:])
+        return AugmentedModel(m2.config, m2.params, m1.signals + m2.signals)
+
+    def physical(s: np.ndarray) -> dict[str, float]:
+        return ({f"{first.label}.{n}": v for n, v in first.physical(s[:k]).items()}
+                | {f"{second.label}.{n}": v for n, v in second.physical(s[k:]).items()})
+
+    return Effect(f"{first.label}{PAIR_SEPARATOR}{second.label}", None,
+                  tuple(f"{first.label}.{v}" for v in first.variables)
+                  + tuple(f"{second.label}.{v}" for v in second.variables),
+                  first.lower + second.lower, first.upper + second.upper, first.off + second.off,
+                  f"{first.description}, and {second.description}", apply, physical)
+
+
+def on_top_of(first: Effect, s_first: np.ndarray, second: Effect) -> Effect:
+    """``second`` acting on the model with ``first`` held at ``s_first`` (the score test of a second effect at
+    the refit of the first); variables, bounds and label are ``second``'s."""
+    pair = pair_effect(first, second)
+    s_first = np.asarray(s_first, dtype=float)
+
+    def apply(cfg: BeamConfig, params: dict[str, float], s: np.ndarray) -> AugmentedModel:
+        return pair.apply(cfg, params, np.concatenate([s_first, s]))
+
+    return replace(second, _apply=apply)

@@ -1,0 +1,112 @@
+"""The effects catalogue as a registry: its families, and a new signal-level effect added in one place.
+
+The diagnosis names no effect outside ``diagnosis/effects/``: the simulation, the pairs and the corrected
+model's StateSpace ask each signal part what it does.  A calibration error of one sensor (a gain), written
+here as a user would write a new module, runs through all of them with no other code.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+import ebb_model as em
+from diagnosis.augmented import simulate_effects
+from diagnosis.corrected import corrected_statespace
+from diagnosis.effects import (EFFECT_NAMES, FAMILIES, AugmentedModel, Scales, Signal, candidate_effects,
+                               pair_effect, signal_effect)
+from diagnosis.effects.lag import ActuatorLag, first_order_lag
+from ebb_model.reference.excitation import band_limited_input
+from ebb_model.statespace import DiscreteStateSpace
+
+from conftest import make_config
+
+
+def bench(left: str = "clamped", right: str = "pinned"):
+    return make_config(left, right, nodes=20, dt=5e-4, EI=10.0, rhoA=1.0, c=2.0, N=20.0,
+                       actuators=[("F1", 0.55)],
+                       sensors=[("y1", 0.35, "displacement"), ("a2", 0.8, "acceleration")])
+
+
+SCALES = Scales(EI=10.0, rhoA=1.0, N=20.0, length=1.0, omega_low=20.0, omega_high=900.0, duration=0.6,
+                stretch_max=1e-6)
+
+
+@dataclass(frozen=True)
+class SensorGain(Signal):
+    """A sensor that reads ``gain`` times its quantity (a calibration error) — the test's new effect."""
+
+    sensor: str
+    gain: float
+    description = "a sensor's gain error"
+
+    def outputs(self, y: np.ndarray, dt: float, names: tuple[str, ...]) -> np.ndarray:
+        y = y.copy()
+        y[:, list(names).index(self.sensor)] *= self.gain
+        return y
+
+    def in_series(self, sys: DiscreteStateSpace) -> DiscreteStateSpace:
+        i = list(sys.output_names).index(self.sensor)
+        C, D = sys.C.copy(), sys.D.copy()
+        C[i] *= self.gain
+        D[i] *= self.gain
+        return DiscreteStateSpace(sys.A, sys.B, C, D, sys.dt, sys.input_names, sys.output_names,
+                                  sys.state_names, sys.hold)
+
+
+def test_families_build_the_catalogue_in_report_order():
+    labels = [e.label for e in candidate_effects(bench("clamped", "clamped"), SCALES)]
+    assert labels == ["boundary_rotational_left", "boundary_translational_left", "boundary_rotational_right",
+                      "boundary_translational_right", "point_mass", "kelvin_voigt", "rotary_inertia",
+                      "foundation", "actuator_lag", "sensor_lag[y1]", "sensor_lag[a2]", "axial_drift",
+                      "geometric_stiffening"]
+    assert {e.name for e in candidate_effects(bench("clamped", "clamped"), SCALES)} == set(EFFECT_NAMES)
+    assert len(EFFECT_NAMES) == len(set(EFFECT_NAMES)) == 12 and len(FAMILIES) == 5
+    # an identified parameter is no candidate; stretching needs both ends axially fixed
+    free = [e.label for e in candidate_effects(bench("clamped", "free"), SCALES, identified=("eta",))]
+    assert "kelvin_voigt" not in free and "geometric_stiffening" not in free and "axial_drift" in free
+
+
+def test_every_effect_is_the_baseline_when_off():
+    cfg = bench("clamped", "clamped")
+    params = cfg.parameter_values()
+    for effect in candidate_effects(cfg, SCALES):
+        model = effect.apply(cfg, params, np.array(effect.off))
+        assert model.config == cfg and model.params == params and model.signals == (), effect.label
+
+
+def test_a_new_signal_effect_needs_no_other_code():
+    cfg = bench()
+    params = cfg.parameter_values()
+    u = band_limited_input(1200, cfg.time.dt, 2.0, 150.0, seed=5)
+    gain = signal_effect("sensor_gain", "a2", "gain", (0.5, 2.0), 1.0, "gain error of sensor a2",
+                         lambda g: SensorGain("a2", g), "gain")
+    lag = ActuatorLag(1.5e-3)
+    both = pair_effect(signal_effect("actuator_lag", None, "tau", (0.0, 1e-2), 0.0, "lag", ActuatorLag, "tau"),
+                       gain)
+    model = both.apply(cfg, params, np.array([lag.tau, 1.1]))
+    assert model.signals == (lag, SensorGain("a2", 1.1)) and model.time_invariant
+    assert both.physical(np.array([lag.tau, 1.1])) == {"actuator_lag.tau": lag.tau, "sensor_gain[a2].gain": 1.1}
+
+    # the simulation: lag on the inputs, the beam, the gain on a2 (composed by hand here)
+    y = simulate_effects(model.config, model.params, u, model.signals)
+    beam = em.simulate(em.assemble(cfg), first_order_lag(u, cfg.time.dt, lag.tau)).outputs
+    np.testing.assert_allclose(y[:, 0], beam[:, 0], rtol=0, atol=1e-12 * np.abs(beam[:, 0]).max())
+    np.testing.assert_allclose(y[:, 1], 1.1 * beam[:, 1], rtol=0, atol=1e-12 * np.abs(beam[:, 1]).max())
+
+    # the corrected model's StateSpace: both parts in series, equal to the simulation to round-off
+    sys = corrected_statespace(model)
+    assert sys.nstates == em.assemble(cfg).nstates + 1          # the lag's state; the gain has none
+    y_sys = em.simulate(sys, u).outputs
+    assert np.max(np.abs(y_sys - y) / np.abs(y).max(axis=0)) < 1e-11
+
+
+def test_axial_terms_add_and_end_time_invariance():
+    from diagnosis.effects.axial import AxialDrift, Stretching
+
+    model = AugmentedModel(bench(), {}, (AxialDrift(2.0), ActuatorLag(1e-3), Stretching(5e5), AxialDrift(-0.5)))
+    assert (model.axial.rate, model.axial.EA) == (1.5, 5e5)
+    assert not model.time_invariant and corrected_statespace(model) is None
+    with pytest.raises(em.ParameterError, match="geometric_stiffening.EA"):
+        Stretching(-1.0)
