@@ -46,8 +46,9 @@ from __future__ import annotations
 
 from .config_types import (DEFAULT_INPUT, INPUT_HOLDS, SCHEMES, BeamConfig, BeamGeometry, ParameterSpec,
                            TimeSettings)
-# _rebuild_config: configs pickled before the split (e.g. in checkpoints) name it here
-from .config_validation import _rebuild_config, check_parameter_values, config_from_dict, load_config  # noqa: F401
+# _rebuild_config: configs pickled before BeamConfig pickled itself (e.g. in checkpoints) name it here
+from .config_validation import _rebuild_config, config_from_dict, load_config  # noqa: F401
+from .parameter_values import check_parameter_values
 
 __all__ = [
     "ParameterSpec",

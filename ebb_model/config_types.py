@@ -12,6 +12,7 @@ from typing import Any, Mapping
 
 from .beam import PARAMETER_NAMES, Actuator, End, PointMass, Sensor
 from .errors import ParameterError
+from .parameter_values import resolve_parameters
 
 __all__ = ["ParameterSpec", "BeamGeometry", "TimeSettings", "BeamConfig", "SCHEMES", "INPUT_HOLDS",
            "DEFAULT_INPUT"]
@@ -96,18 +97,18 @@ class BeamConfig:
             raise ParameterError(
                 [f"parameters.{k}: unknown parameter; allowed: {', '.join(PARAMETER_NAMES)}" for k in unknown]
             )
-        from .parameter_values import resolve_parameters
-
         merged = resolve_parameters(self, {k: float(v) for k, v in values.items()})
         params = {k: replace(self.parameters[k], value=merged[k]) for k in PARAMETER_NAMES}
         return replace(self, parameters=MappingProxyType(params))
 
     # ----------------------------------------------------------- serialisation
-    def __reduce__(self):
-        """Pickle through the validated dict form (mapping proxies do not pickle)."""
-        from .config_validation import _rebuild_config
+    def __getstate__(self) -> dict[str, Any]:
+        """The fields, the read-only mappings as dicts (mapping proxies do not pickle)."""
+        return {k: dict(v) if isinstance(v, MappingProxyType) else v for k, v in self.__dict__.items()}
 
-        return (_rebuild_config, (self.to_dict(), tuple(self.extra)))
+    def __setstate__(self, state: Mapping[str, Any]) -> None:
+        for k, v in state.items():
+            object.__setattr__(self, k, MappingProxyType(v) if k in ("parameters", "extra") else v)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON/TOML-serialisable dict; :func:`config_from_dict` inverts it.

@@ -15,15 +15,13 @@ from typing import Any, Mapping
 from .beam import END_KINDS, PARAMETER_NAMES, SENSOR_KINDS, Actuator, End, PointMass, Sensor
 from .config_types import DEFAULT_INPUT, INPUT_HOLDS, SCHEMES, BeamConfig, BeamGeometry, ParameterSpec, TimeSettings
 from .errors import ConfigError, ParameterError
+from .parameter_values import NON_NEGATIVE, POSITIVE
+from .problems import Problems
 from .textio import read_text
 
-__all__ = ["load_config", "config_from_dict", "check_parameter_values"]
+__all__ = ["load_config", "config_from_dict"]
 
 _NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-
-#: Lower limits of the physical parameters (exclusive for EI, rhoA).
-_POSITIVE = ("EI", "rhoA")
-_NONNEGATIVE = ("c", "eta", "rhoI", "kf")
 
 #: Values of the optional parameters when a config omits them (each switches its effect off).
 _DEFAULTS: Mapping[str, float] = MappingProxyType({"c": 0.0, "eta": 0.0, "N": 0.0, "rhoI": 0.0, "kf": 0.0})
@@ -55,34 +53,7 @@ def load_config(path: str | Path, *, extra_sections: tuple[str, ...] = ()) -> Be
     return config_from_dict(data, extra_sections=extra_sections)
 
 
-class _Problems:
-    """Collects validation problems so that all are reported at once."""
-
-    def __init__(self) -> None:
-        self.items: list[str] = []
-
-    def add(self, where: str, msg: str) -> None:
-        self.items.append(f"{where}: {msg}")
-
-    def number(self, where: str, v: Any, *, allow_inf: bool = False) -> float | None:
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            if allow_inf and isinstance(v, str) and v.strip().lower() in ("inf", "+inf", "infinity"):
-                return math.inf
-            self.add(where, f"must be a number, got {v!r}")
-            return None
-        f = float(v)
-        if math.isnan(f) or (math.isinf(f) and not allow_inf):
-            self.add(where, f"must be a finite number, got {v!r}")
-            return None
-        return f
-
-    def unknown_keys(self, where: str, d: Mapping[str, Any], allowed: tuple[str, ...]) -> None:
-        for k in d:
-            if k not in allowed:
-                self.add(f"{where}.{k}" if where else k, f"unknown key; allowed: {', '.join(allowed)}")
-
-
-def _table(pr: _Problems, data: Mapping[str, Any], key: str, required: bool = True) -> Mapping[str, Any]:
+def _table(pr: Problems, data: Mapping[str, Any], key: str, required: bool = True) -> Mapping[str, Any]:
     v = data.get(key)
     if v is None:
         if required:
@@ -94,7 +65,7 @@ def _table(pr: _Problems, data: Mapping[str, Any], key: str, required: bool = Tr
     return v
 
 
-def _end(pr: _Problems, beam: Mapping[str, Any], side: str) -> End | None:
+def _end(pr: Problems, beam: Mapping[str, Any], side: str) -> End | None:
     kind = beam.get(side)
     if kind is None:
         pr.add(f"beam.{side}", f"missing; one of {', '.join(END_KINDS)}")
@@ -123,39 +94,7 @@ def _end(pr: _Problems, beam: Mapping[str, Any], side: str) -> End | None:
     return End.of(kind)
 
 
-def check_parameter_values(values: Mapping[str, Any], *, where: str = "parameters") -> dict[str, float]:
-    """Check physical parameter values; return them as floats.
-
-    Raises
-    ------
-    ParameterError
-        Naming every invalid parameter: missing, non-finite, ``EI <= 0``,
-        ``rhoA <= 0``, ``c < 0``, ``eta < 0``, ``rhoI < 0``, ``kf < 0``.
-    """
-    pr = _Problems()
-    out: dict[str, float] = {}
-    for k in values:
-        if k not in PARAMETER_NAMES:
-            pr.add(f"{where}.{k}", f"unknown parameter; allowed: {', '.join(PARAMETER_NAMES)}")
-    for k in PARAMETER_NAMES:
-        if k not in values:
-            pr.add(f"{where}.{k}", "missing")
-            continue
-        v = pr.number(f"{where}.{k}", values[k])
-        if v is None:
-            continue
-        if k in _POSITIVE and not v > 0:
-            pr.add(f"{where}.{k}", f"must be > 0, got {v:g}")
-        elif k in _NONNEGATIVE and v < 0:
-            pr.add(f"{where}.{k}", f"must be >= 0, got {v:g}")
-        else:
-            out[k] = v
-    if pr.items:
-        raise ParameterError(pr.items)
-    return out
-
-
-def _parameters(pr: _Problems, table: Mapping[str, Any]) -> dict[str, ParameterSpec]:
+def _parameters(pr: Problems, table: Mapping[str, Any]) -> dict[str, ParameterSpec]:
     specs: dict[str, ParameterSpec] = {}
     defaults = _DEFAULTS
     for k in table:
@@ -177,10 +116,10 @@ def _parameters(pr: _Problems, table: Mapping[str, Any]) -> dict[str, ParameterS
         if "value" not in raw:
             pr.add(f"{where}.value", "missing")
         if value is not None:
-            if k in _POSITIVE and not value > 0:
+            if k in POSITIVE and not value > 0:
                 pr.add(f"{where}.value", f"must be > 0, got {value:g}")
                 value = None
-            elif k in _NONNEGATIVE and value < 0:
+            elif k in NON_NEGATIVE and value < 0:
                 pr.add(f"{where}.value", f"must be >= 0, got {value:g}")
                 value = None
         bounds = None
@@ -194,9 +133,9 @@ def _parameters(pr: _Problems, table: Mapping[str, Any]) -> dict[str, ParameterS
                 if lo is not None and hi is not None:
                     if not lo < hi:
                         pr.add(f"{where}.bounds", f"lower bound must be < upper bound, got [{lo:g}, {hi:g}]")
-                    elif k in _POSITIVE and lo <= 0:
+                    elif k in POSITIVE and lo <= 0:
                         pr.add(f"{where}.bounds", f"lower bound must be > 0 for {k}, got {lo:g}")
-                    elif k in _NONNEGATIVE and lo < 0:
+                    elif k in NON_NEGATIVE and lo < 0:
                         pr.add(f"{where}.bounds", f"lower bound must be >= 0 for {k}, got {lo:g}")
                     else:
                         bounds = (lo, hi)
@@ -213,7 +152,7 @@ def _parameters(pr: _Problems, table: Mapping[str, Any]) -> dict[str, ParameterS
     return specs
 
 
-def _points(pr: _Problems, data: Mapping[str, Any], key: str, length: float | None,
+def _points(pr: Problems, data: Mapping[str, Any], key: str, length: float | None,
             fields: tuple[str, ...], required: bool) -> list[dict[str, Any]]:
     raw = data.get(key, [])
     if not isinstance(raw, list):
@@ -258,7 +197,7 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
     ConfigError
         Listing every problem found, each naming its field.
     """
-    pr = _Problems()
+    pr = Problems()
     if not isinstance(data, Mapping):
         raise ConfigError(f"config: must be a table, got {type(data).__name__}")
     allowed = ("beam", "time", "parameters", "actuators", "sensors", "masses") + tuple(extra_sections)

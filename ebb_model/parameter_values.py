@@ -8,14 +8,57 @@ without a second check.
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
-from .config import check_parameter_values
+from .beam import PARAMETER_NAMES
+from .errors import ParameterError
+from .problems import Problems
 
-if TYPE_CHECKING:  # pragma: no cover
-    from .config import BeamConfig
+__all__ = ["ParameterValues", "resolve_parameters", "check_parameter_values", "POSITIVE", "NON_NEGATIVE"]
 
-__all__ = ["ParameterValues", "resolve_parameters"]
+class Nominal(Protocol):
+    """What :func:`resolve_parameters` needs of a config: its nominal values (a
+    :class:`~ebb_model.config.BeamConfig` has them)."""
+
+    def parameter_values(self) -> dict[str, float]:  # noqa: D102 - as BeamConfig's
+        ...
+
+
+#: Parameters that must be positive (``EI``, ``rhoA``) and those that must not be negative.
+POSITIVE = ("EI", "rhoA")
+NON_NEGATIVE = ("c", "eta", "rhoI", "kf")
+
+
+def check_parameter_values(values: Mapping[str, Any], *, where: str = "parameters") -> dict[str, float]:
+    """Check physical parameter values; return them as floats.
+
+    Raises
+    ------
+    ParameterError
+        Naming every invalid parameter: missing, non-finite, ``EI <= 0``,
+        ``rhoA <= 0``, ``c < 0``, ``eta < 0``, ``rhoI < 0``, ``kf < 0``.
+    """
+    pr = Problems()
+    out: dict[str, float] = {}
+    for k in values:
+        if k not in PARAMETER_NAMES:
+            pr.add(f"{where}.{k}", f"unknown parameter; allowed: {', '.join(PARAMETER_NAMES)}")
+    for k in PARAMETER_NAMES:
+        if k not in values:
+            pr.add(f"{where}.{k}", "missing")
+            continue
+        v = pr.number(f"{where}.{k}", values[k])
+        if v is None:
+            continue
+        if k in POSITIVE and not v > 0:
+            pr.add(f"{where}.{k}", f"must be > 0, got {v:g}")
+        elif k in NON_NEGATIVE and v < 0:
+            pr.add(f"{where}.{k}", f"must be >= 0, got {v:g}")
+        else:
+            out[k] = v
+    if pr.items:
+        raise ParameterError(pr.items)
+    return out
 
 
 class ParameterValues(Mapping[str, float]):
@@ -52,7 +95,7 @@ class ParameterValues(Mapping[str, float]):
         self._values = dict(state)
 
 
-def resolve_parameters(config: BeamConfig, params: Mapping[str, Any] | None = None) -> ParameterValues:
+def resolve_parameters(config: Nominal, params: Mapping[str, Any] | None = None) -> ParameterValues:
     """The config's nominal parameter values overridden by ``params``, checked.
 
     Parameters
