@@ -33,7 +33,19 @@ def synthetic(cfg, n=1500, noise=0.01, seed=0):
 
 def test_config_pickles():
     cfg = seed_like()
-    assert pickle.loads(pickle.dumps(cfg)).to_dict() == cfg.to_dict()
+    back = pickle.loads(pickle.dumps(cfg))
+    assert back == cfg and back.to_dict() == cfg.to_dict()
+    assert type(back.parameters) is type(cfg.parameters)          # read-only again after the round trip
+    with pytest.raises(TypeError):
+        back.parameters["EI"] = None
+    # checkpoints written before the config pickled itself hold "call _rebuild_config(dict form, extra)"
+    from ebb_model.config_validation import _rebuild_config
+
+    class OldPickle:
+        def __reduce__(self):
+            return (_rebuild_config, (cfg.to_dict(), ()))
+
+    assert pickle.loads(pickle.dumps(OldPickle())) == cfg
 
 
 def test_nrmse_definition():
