@@ -13,6 +13,7 @@ from scipy import optimize, signal
 
 from ebb_model.errors import ConfigError, DataError
 from ebb_model.arrays import as_matrix
+from ebb_model.checks import finite_scalar
 
 from .thresholds import EXCITE_REL
 
@@ -38,13 +39,7 @@ def _names(names: Sequence[str] | None, k: int, what: str, default: str) -> tupl
 
 
 def _check_dt(dt: Any) -> float:
-    try:
-        v = float(dt)
-    except (TypeError, ValueError):
-        raise ConfigError(f"dt: must be a number > 0, got {dt!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise ConfigError(f"dt: must be a finite number > 0, got {dt!r}")
-    return v
+    return finite_scalar("dt", dt, minimum=0.0, strict=True, error=ConfigError)
 
 
 # ----------------------------------------------------------------------------------------------
