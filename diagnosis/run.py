@@ -44,9 +44,9 @@ from identification.run import load_identification_config, read_data
 from identification.settings import identification_settings
 
 from .axial_terms import stretch_of_nodes
-from .effects import PAIR_SEPARATOR, Catalogue, Scales
-from .fitting import GapProblem
-from .localise import localise
+from .effects import PAIR_SEPARATOR, Catalogue, Effect, Scales
+from .fitting import Fit, GapProblem
+from .localise import Localisation, localise
 from .modal_estimate import MeasuredModes, estimate_modes
 from .modal_pattern import ModalEvidence, modal_evidence
 from .rank import BIC_MARGIN, UNEXPLAINED, Ranking, rank_effects, settled
@@ -299,15 +299,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     space = parameter_space(cfg)
     beta0 = _start_from_result(result, space.names) if result is not None else np.asarray(space.nominal)
     dt = cfg.time.dt
-    n_s = len(cfg.sensors)
-    if noise_std is None:
-        noise_std = identification_settings(cfg).noise_std
-    if noise_std is not None:
-        sigma = np.asarray(noise_std, dtype=float).ravel()
-        if sigma.shape != (n_s,) or not np.all(np.isfinite(sigma) & (sigma > 0)):
-            raise ConfigError(f"noise_std: need one positive number per sensor ({n_s})")
-    else:
-        sigma = records_noise_std([r.inputs for r in records], [r.outputs for r in records], dt)
+    sigma = _noise_level(cfg, records, noise_std)
     problem = GapProblem(cfg, space, records, sigma)
     say("baseline fit")
     # a short global search first, seeded with the identification result (or the nominal values);
@@ -331,27 +323,9 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                     stretch_max=_stretch_max(base_cfg, base_params, fit_records))
     catalogue = Catalogue(base_cfg, scales, tuple(space.names))
     effects = catalogue.effects()
-    executor = refit_pool(workers)
-    try:
-        rank = partial(rank_effects, problem, catalogue=catalogue, shortlist=shortlist, progress=say,
-                       executor=executor, parallel=workers,
-                       modal=_modal_source(problem, mf, mz, freqs[~in_band][:1]))
-        ranking = rank(baseline)
-        baseline = ranking.baseline
-        for _ in range(2):
-            if settled(ranking):
-                break
-            # an effect's refit may have moved the baseline unknowns into a better basin (refits.better_baseline)
-            say("baseline re-fit from the effects' optima")
-            better = better_baseline(problem, baseline, [rf.fit for rf in ranking.refits.values()], executor)
-            if better is None:
-                break
-            say(f"baseline re-fit from an effect's optimum: RSS {baseline.rss:.4g} -> {better.rss:.4g}; ranking again")
-            ranking = rank(better)
-            baseline = ranking.baseline
-    finally:
-        if executor is not None:
-            executor.shutdown(cancel_futures=True)
+    ranking = _ranking(problem, baseline, catalogue, shortlist, workers,
+                       _modal_source(problem, mf, mz, freqs[~in_band][:1]), say)
+    baseline = ranking.baseline
     # the model's own discretisation error: a gap that refining the grid changes is not blamed on physics
     say("numerical adequacy of the model's grid")
     adequacy = numerical_adequacy(
@@ -370,28 +344,10 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         found = [f"{r.name}: {s}" for r, loc in zip(records, locs) for s in loc.summary[:2]]
         if found:
             ranking = replace(ranking, reason=f"{ranking.reason}; where the gap is: " + "; ".join(found))
-    edges = np.concatenate([[0.0], 0.5 * (mf[1:] + mf[:-1]), [1.2 * f_hi], [0.5 / dt]])
-    effect_rows = []
     by_label = {e.label: e for e in effects} | {lab: catalogue.effect(lab) for lab in ranking.refits}
-    _, res_before = problem.heldout(baseline.beta)
+    edges = np.concatenate([[0.0], 0.5 * (mf[1:] + mf[:-1]), [1.2 * f_hi], [0.5 / dt]])
+    effect_rows = _effect_rows(problem, ranking, by_label, edges, len(mf) + 1)
     names = cfg.output_names
-    for rank_i, lab in enumerate(ranking.order, start=1):
-        e, sc = by_label[lab], ranking.scores.get(lab)   # a pair has no score of its own
-        rf = ranking.refits.get(lab)
-        refit = None
-        if rf is not None:
-            _, res_after = problem.heldout(rf.fit.beta, e, rf.fit.s)
-            refit = RefitSummary(
-                rf.physical, space.to_dict(rf.fit.beta), rf.delta_bic, rf.delta_aic,
-                dict(zip(names, map(float, ranking.heldout_before))), dict(zip(names, map(float, rf.heldout_after))),
-                rf.closed, {n: (None if not np.isfinite(v) else float(v)) for n, v in zip(names, rf.closed_per_sensor)},
-                _band_closure(res_before, res_after, dt, edges), rf.fit.n_evaluations,
-                tuple(_modes_hz(problem.model(rf.fit.beta, e, rf.fit.s), len(mf) + 1)))
-        pf = ranking.patterns.get(lab)
-        match = None if pf is None else PatternMatch(pf.chi2, tuple(map(float, pf.freq_hz)),
-                                                     tuple(map(float, pf.damping)))
-        effect_rows.append(EffectRow(rank_i, lab, e.name, e.target, e.description, None if sc is None else sc.lm,
-                                     None if sc is None else sc.p_value, lab in ranking.refits, refit, match))
     p = space.dim
     report = GapReport(
         ranking.verdict, ranking.reason, tuple(ranking.indistinguishable), dict(zip(names, map(float, sigma))),
@@ -407,16 +363,92 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                           GAP_THRESHOLD, BIC_MARGIN, NUMERICAL_SHARE_LIMIT))
     if out is None:
         return Diagnosis(ranking, report, None)
+    report = _write(out, problem, ranking, report, by_label, locs, plots=plots, export=export,
+                    standalone=standalone)
+    return Diagnosis(ranking, report, out)
+
+
+def _noise_level(cfg: BeamConfig, records: Sequence[Record], noise_std: Sequence[float] | None) -> np.ndarray:
+    """Noise standard deviation per sensor: given, the config's ``[identification] noise_std``, or estimated
+    from the records (the noise floor above the excited band)."""
+    n_s = len(cfg.sensors)
+    if noise_std is None:
+        noise_std = identification_settings(cfg).noise_std
+    if noise_std is None:
+        return records_noise_std([r.inputs for r in records], [r.outputs for r in records], cfg.time.dt)
+    sigma = np.asarray(noise_std, dtype=float).ravel()
+    if sigma.shape != (n_s,) or not np.all(np.isfinite(sigma) & (sigma > 0)):
+        raise ConfigError(f"noise_std: need one positive number per sensor ({n_s})")
+    return sigma
+
+
+def _ranking(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortlist: int, workers: int,
+             modal: Callable[[np.ndarray], ModalEvidence], say: Callable[[str], None]) -> Ranking:
+    """:func:`diagnosis.rank.rank_effects` on ``workers`` processes, ranked again (up to twice) from a better
+    baseline basin that an effect's refit revealed, until the named effect's refit settles the gap."""
+    executor = refit_pool(workers)
+    try:
+        rank = partial(rank_effects, problem, catalogue=catalogue, shortlist=shortlist, progress=say,
+                       executor=executor, parallel=workers, modal=modal)
+        ranking = rank(baseline)
+        for _ in range(2):
+            if settled(ranking):
+                break
+            # an effect's refit may have moved the baseline unknowns into a better basin (refits.better_baseline)
+            say("baseline re-fit from the effects' optima")
+            better = better_baseline(problem, ranking.baseline, [rf.fit for rf in ranking.refits.values()], executor)
+            if better is None:
+                break
+            say(f"baseline re-fit from an effect's optimum: RSS {ranking.baseline.rss:.4g} -> {better.rss:.4g}; "
+                f"ranking again")
+            ranking = rank(better)
+    finally:
+        if executor is not None:
+            executor.shutdown(cancel_futures=True)
+    return ranking
+
+
+def _effect_rows(problem: GapProblem, ranking: Ranking, by_label: Mapping[str, Effect], edges: np.ndarray,
+                 n_modes: int) -> tuple[EffectRow, ...]:
+    """The report's row of every effect in ranking order: score, and for refitted ones what the refit closes
+    (per sensor and per band between ``edges``) and its first ``n_modes`` modal frequencies."""
+    names, dt, space = problem.config.output_names, problem.config.time.dt, problem.space
+    _, res_before = problem.heldout(ranking.baseline.beta)
+    rows = []
+    for rank_i, lab in enumerate(ranking.order, start=1):
+        e, sc = by_label[lab], ranking.scores.get(lab)   # a pair has no score of its own
+        rf = ranking.refits.get(lab)
+        refit = None
+        if rf is not None:
+            _, res_after = problem.heldout(rf.fit.beta, e, rf.fit.s)
+            refit = RefitSummary(
+                rf.physical, space.to_dict(rf.fit.beta), rf.delta_bic, rf.delta_aic,
+                dict(zip(names, map(float, ranking.heldout_before))), dict(zip(names, map(float, rf.heldout_after))),
+                rf.closed, {n: (None if not np.isfinite(v) else float(v)) for n, v in zip(names, rf.closed_per_sensor)},
+                _band_closure(res_before, res_after, dt, edges), rf.fit.n_evaluations,
+                tuple(_modes_hz(problem.model(rf.fit.beta, e, rf.fit.s), n_modes)))
+        pf = ranking.patterns.get(lab)
+        match = None if pf is None else PatternMatch(pf.chi2, tuple(map(float, pf.freq_hz)),
+                                                     tuple(map(float, pf.damping)))
+        rows.append(EffectRow(rank_i, lab, e.name, e.target, e.description, None if sc is None else sc.lm,
+                              None if sc is None else sc.p_value, lab in ranking.refits, refit, match))
+    return tuple(rows)
+
+
+def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, by_label: Mapping[str, Effect],
+           locs: Sequence[Localisation], *, plots: bool, export: bool, standalone: bool) -> GapReport:
+    """Write ``gap.json``, the plots and the corrected model into ``out`` at once (a temporary directory renamed
+    at the end: nothing partial is left on error or interrupt); returns the report with the files it wrote."""
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         rf = ranking.refits.get(ranking.verdict)
         if export and rf is not None:
             from .corrected import export_corrected
 
-            files = export_corrected(problem.model(rf.fit.beta, by_label[ranking.verdict], rf.fit.s),
-                                     tmp / "corrected", corrected_summary(cfg, space.to_dict(baseline.beta),
-                                                                          report.row(ranking.verdict)),
-                                     standalone=standalone)
+            model = problem.model(rf.fit.beta, by_label[ranking.verdict], rf.fit.s)
+            summary = corrected_summary(problem.config, problem.space.to_dict(ranking.baseline.beta),
+                                        report.row(ranking.verdict))
+            files = export_corrected(model, tmp / "corrected", summary, standalone=standalone)
             report = replace(report, corrected_files=tuple(f.name for f in files))
         write_json(tmp / GAP_FILE, report.to_dict())
         if plots:
@@ -429,4 +461,4 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return Diagnosis(ranking, report, out)
+    return report

@@ -5,7 +5,6 @@ Validation reports **every** problem at once (FMPy's ``validate_fmu`` habit), ea
 """
 from __future__ import annotations
 
-import math
 import re
 import tomllib
 from pathlib import Path
@@ -14,7 +13,7 @@ from typing import Any, Mapping
 
 from .beam import END_KINDS, PARAMETER_NAMES, SENSOR_KINDS, Actuator, End, PointMass, Sensor
 from .config_types import DEFAULT_INPUT, INPUT_HOLDS, SCHEMES, BeamConfig, BeamGeometry, ParameterSpec, TimeSettings
-from .errors import ConfigError, ParameterError
+from .errors import ConfigError
 from .parameter_values import NON_NEGATIVE, POSITIVE
 from .problems import Problems
 from .textio import read_text

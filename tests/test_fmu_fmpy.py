@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent / "fmu_hosts"))
 from fmu_configs import SEED_TOML, mixed_config, substep_config  # noqa: E402
 from fmu_loops import fmpy_outputs  # noqa: E402
 
-from ebb_model import DiscreteStateSpace, assemble, config_from_dict, field_matrix, load_config, simulate  # noqa: E402
+from ebb_model import assemble, config_from_dict, field_matrix, load_config, simulate  # noqa: E402
 from ebb_model.assemble import field_config  # noqa: E402
 from fmu_build import build_fmu  # noqa: E402
 

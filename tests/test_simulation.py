@@ -150,7 +150,7 @@ def test_bad_inputs_to_simulate():
 @pytest.mark.parametrize("spec", [dict(right="free", c=0.3, substeps=4), dict(N=60.0, eta=1e-4)],
                          ids=["proportional", "general"])
 def test_modal_realisation_equals_nodal_including_field(spec):
-    from ebb_model import assemble_modal, field_matrix
+    from ebb_model import assemble_modal
 
     # the θ-scheme: the nodal realisation and its non-causal reference recursion are that scheme's
     cfg = make_config(nodes=24, sensors=[("a", 0.8, "acceleration"), ("v", 0.4, "velocity")], scheme="theta",
