@@ -29,6 +29,7 @@ format     extensions      channels named by
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable, Literal, Mapping
 
@@ -49,7 +50,7 @@ from .table import RawTable
 from .timebase import regularise_time, resample_uniform
 from .units import to_si_factor
 
-__all__ = ["load_experiment", "load_experiments", "FORMATS", "EXTENSIONS", "OFFSET_MODES"]
+__all__ = ["load_experiment", "load_experiments", "DataFormat", "FORMATS", "EXTENSIONS", "OFFSET_MODES"]
 
 
 def _read_uff58(path: Path) -> RawTable:
@@ -57,18 +58,26 @@ def _read_uff58(path: Path) -> RawTable:
     return read_uff58(path)
 
 
-#: format name -> reader
-FORMATS: Mapping[str, Callable[[Path], RawTable]] = {
-    "csv": read_csv,
-    "npz": read_npz,
-    "mat": read_mat,
-    "lvm": read_lvm,
-    "uff58": _read_uff58,
+@dataclass(frozen=True)
+class DataFormat:
+    """A data format: its reader (a file to a :class:`RawTable`) and the file extensions that select it."""
+
+    read: Callable[[Path], RawTable]
+    extensions: tuple[str, ...]
+
+
+#: The data formats by name — a new format is its reader module and one line here.
+FORMATS: Mapping[str, DataFormat] = {
+    "csv": DataFormat(read_csv, (".csv",)),
+    "npz": DataFormat(read_npz, (".npz",)),
+    "mat": DataFormat(read_mat, (".mat",)),
+    "lvm": DataFormat(read_lvm, (".lvm",)),
+    "uff58": DataFormat(_read_uff58, (".uff", ".unv")),
 }
 #: file extension -> format name
-EXTENSIONS: Mapping[str, str] = {".csv": "csv", ".npz": "npz", ".mat": "mat", ".lvm": "lvm",
-                                 ".uff": "uff58", ".unv": "uff58"}
-_FORMAT_ALIASES = {"uff": "uff58", "unv": "uff58"}
+EXTENSIONS: Mapping[str, str] = {ext: name for name, f in FORMATS.items() for ext in f.extensions}
+#: a format may also be named by one of its extensions without the dot (``format = "unv"``)
+_FORMAT_ALIASES = {ext[1:]: name for ext, name in EXTENSIONS.items()}
 #: accepted values of ``remove_offset`` (``True`` means ``"mean"``, ``None`` means ``False``)
 OFFSET_MODES = (False, "mean", "pre-trigger")
 
@@ -243,7 +252,7 @@ def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None 
     fmt = _format_of(p, format)
     mode = _offset_mode(p, remove_offset, pre_trigger)
     cmap, cunits, cgains = _check_options(p, config, mapping, units, gains)
-    table = FORMATS[fmt](p)
+    table = FORMATS[fmt].read(p)
     src = table.source
 
     # ---- time
