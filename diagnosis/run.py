@@ -38,10 +38,9 @@ from ebb_model.simulate import fast_model, simulate
 from ebb_model.threads import one_blas_thread, single_blas_thread
 
 from identification.data import Experiment
-from identification.noise import records_noise_std
+from identification.noise import given_noise_std, records_noise_std
 from identification.parameters import parameter_space
 from identification.run import load_identification_config, read_data
-from identification.settings import identification_settings
 
 from .axial_terms import stretch_of_nodes
 from .effects import PAIR_SEPARATOR, Catalogue, Effect, Scales
@@ -371,14 +370,9 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
 def _noise_level(cfg: BeamConfig, records: Sequence[Record], noise_std: Sequence[float] | None) -> np.ndarray:
     """Noise standard deviation per sensor: given, the config's ``[identification] noise_std``, or estimated
     from the records (the noise floor above the excited band)."""
-    n_s = len(cfg.sensors)
-    if noise_std is None:
-        noise_std = identification_settings(cfg).noise_std
-    if noise_std is None:
+    sigma = given_noise_std(cfg, noise_std)
+    if sigma is None:
         return records_noise_std([r.inputs for r in records], [r.outputs for r in records], cfg.time.dt)
-    sigma = np.asarray(noise_std, dtype=float).ravel()
-    if sigma.shape != (n_s,) or not np.all(np.isfinite(sigma) & (sigma > 0)):
-        raise ConfigError(f"noise_std: need one positive number per sensor ({n_s})")
     return sigma
 
 

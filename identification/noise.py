@@ -23,16 +23,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 from scipy import signal
 
 from ebb_model.arrays import as_matrix
 from ebb_model.checks import finite_scalar
+from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError, DataError
 
-__all__ = ["NoiseEstimate", "noise_estimate", "noise_std", "records_noise_std"]
+from .settings import identification_settings
+
+__all__ = ["NoiseEstimate", "noise_estimate", "noise_std", "records_noise_std", "given_noise_std"]
 
 #: Fraction of Nyquist above which anti-alias / decimation filters may pull the
 #: measured spectrum below the true noise floor: excluded from the quiet range.
@@ -176,3 +179,29 @@ def records_noise_std(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray
         raise DataError("noise: could not estimate the measurement noise from the data (noise-free or "
                         "constant records?); give noise_std in [identification]")
     return sigma
+
+
+def given_noise_std(config: BeamConfig, noise_std: Any = None) -> np.ndarray | None:
+    """The noise standard deviation per sensor that the caller gives, else the config's ``[identification]
+    noise_std``; ``None`` when neither gives one (then :func:`records_noise_std` estimates it from the data).
+
+    Raises
+    ------
+    ConfigError
+        Not one finite number > 0 per sensor (strings, booleans, NaN, a wrong count).
+    """
+    if noise_std is None:
+        noise_std = identification_settings(config).noise_std
+    if noise_std is None:
+        return None
+    n = len(config.sensors)
+    try:
+        values = list(np.ravel(np.asarray(noise_std, dtype=object)))
+    except ValueError:           # a ragged nesting of lists
+        values = []
+    numbers = [v for v in values if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)]
+    sigma = np.array(numbers, dtype=float)
+    if len(numbers) != len(values) or sigma.shape != (n,) or not np.all(np.isfinite(sigma) & (sigma > 0)):
+        raise ConfigError(f"noise_std: need one positive number per sensor ({n}), got {noise_std!r}")
+    return sigma
+

@@ -23,7 +23,6 @@ run leaves nothing behind.
 from __future__ import annotations
 
 import csv
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -48,6 +47,7 @@ from .parameters import ParameterSpace, parameter_space
 from .polish import polish as polish_point
 from .problem import IdentificationProblem
 from .runners import Runner, make_runner
+from .noise import given_noise_std
 from .settings import identification_settings, load_identification_config
 
 __all__ = ["BACKENDS", "IdentificationResult", "PolishedPoint", "Progress", "identify",
@@ -260,11 +260,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     # the seed's stabilising objective (max growth factor of the θ-scheme) belongs to that scheme
     if stabilising is None:
         stabilising = cfg.time.scheme == "theta" if ident.stabilising is None else ident.stabilising
-    noise_std = noise_std if noise_std is not None else ident.noise_std
-    if noise_std is not None:
-        noise_std = [float(v) for v in np.atleast_1d(noise_std)]
-        if len(noise_std) != len(cfg.sensors) or not all(v > 0 and math.isfinite(v) for v in noise_std):
-            raise ConfigError(f"noise_std: need one positive number per sensor ({len(cfg.sensors)})")
+    noise_std = given_noise_std(cfg, noise_std)
     out = _check_out_dir(Path(out_dir), resume)
     exps = read_data(cfg, data)
     space: ParameterSpace = parameter_space(cfg)

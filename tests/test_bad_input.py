@@ -195,6 +195,20 @@ def test_wrong_sample_time_names_the_config_key(case, capsys):
     assert "resample = true under [identification.data]" in line and "pass resample" not in line
 
 
+@pytest.mark.parametrize("value", ['["abc", 1e-3]', '"abc"', "true", "[1e-3]", "[1e-3, -1e-3]", "[[1e-3], [1, 2]]",
+                                   "[1e-3, nan]"])
+def test_noise_std_that_is_not_one_positive_number_per_sensor(case, capsys, value):
+    cfg, data, tmp = case
+    bad = tmp / "noise.toml"
+    bad.write_text(cfg.read_text() + f"\n[identification]\nnoise_std = {value}\n")
+    for command in ("identify", "diagnose"):
+        out = tmp / f"out_{command}"
+        assert main([command, str(bad), str(data), "--out", str(out), "--no-progress" if command == "identify"
+                     else "--quiet"]) == 2
+        assert "noise_std: need one positive number per sensor (2), got" in one_line_error(capsys, command)
+        assert not out.exists()
+
+
 @pytest.fixture(scope="module")
 def finished_run(tmp_path_factory):
     """A finished ``ebb identify`` run with one polished point, no exports yet."""
