@@ -74,11 +74,17 @@ def identification_settings(config: BeamConfig) -> IdentificationSettings:
     else:
         bad += [f"{SECTION}.data.{k}: unknown key; allowed: {', '.join(_DATA_KEYS)}"
                 for k in data if k not in _DATA_KEYS]
+    positions = ident.get("positions", {})
+    if not isinstance(positions, Mapping):
+        bad.append(f"{SECTION}.positions: must be a table {{name = [lo, hi]}}, got {positions!r}")
+    if not isinstance(ident.get("stabilising", False), bool):
+        bad.append(f"{SECTION}.stabilising: must be true or false, got {ident['stabilising']!r}")
+    if not isinstance(ident.get("per", ""), str):
+        bad.append(f"{SECTION}.per: must be \"sensor\" or \"experiment\", got {ident['per']!r}")
     if bad:
         raise ConfigError(bad)
-    positions = ident.get("positions", {})
     return IdentificationSettings(
-        positions=MappingProxyType(dict(positions) if isinstance(positions, Mapping) else {}),
+        positions=MappingProxyType(dict(positions)),
         data=MappingProxyType(dict(data)), noise_std=ident.get("noise_std"), per=ident.get("per"),
         stabilising=ident.get("stabilising"))
 

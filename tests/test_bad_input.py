@@ -209,6 +209,22 @@ def test_noise_std_that_is_not_one_positive_number_per_sensor(case, capsys, valu
         assert not out.exists()
 
 
+@pytest.mark.parametrize("entry,message", [
+    ('stabilising = "no"', "identification.stabilising: must be true or false, got 'no'"),
+    ("stabilising = 0", "identification.stabilising: must be true or false, got 0"),
+    ("per = 3", 'identification.per: must be "sensor" or "experiment", got 3'),
+    ("positions = 5", "identification.positions: must be a table {name = [lo, hi]}, got 5"),
+])
+def test_identification_table_values_of_the_wrong_type(case, capsys, entry, message):
+    """Before, ``stabilising = "no"`` switched the objective on and ``positions = 5`` was ignored, silently."""
+    cfg, data, tmp = case
+    bad = tmp / "ident.toml"
+    bad.write_text(cfg.read_text() + f"\n[identification]\n{entry}\n")
+    assert main(["identify", str(bad), str(data), "--out", str(tmp / "out"), "--no-progress"]) == 2
+    assert one_line_error(capsys, "identify") == f"ebb identify: error: {message}"
+    assert not (tmp / "out").exists()
+
+
 @pytest.fixture(scope="module")
 def finished_run(tmp_path_factory):
     """A finished ``ebb identify`` run with one polished point, no exports yet."""
