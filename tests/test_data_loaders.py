@@ -156,6 +156,13 @@ def test_gains_apply_after_units_and_before_offset_removal(tmp_path):
             load_experiment(p, cfg(), gains={"F1": bad})
     with pytest.raises(DataError, match=r"gains: 'F9' is not a signal of the config"):
         load_experiment(p, cfg(), gains={"F9": 2.0})
+    # a value where a table belongs (``gains = 5`` under [identification.data]) was a TypeError traceback
+    for key in ("mapping", "units", "gains"):
+        with pytest.raises(DataError, match=rf"g\.csv: {key}: must be a table {{signal = \.\.\.}}, got 5"):
+            load_experiment(p, cfg(), **{key: 5})
+    # ``resample = "yes"`` was taken as true
+    with pytest.raises(DataError, match=r"g\.csv: resample must be true or false, got 'yes'"):
+        load_experiment(p, cfg(), resample="yes")
 
 
 def test_band_keeps_in_band_tones_and_removes_the_rest(tmp_path):

@@ -123,6 +123,12 @@ def _check_options(path: Path, config: BeamConfig, mapping: Mapping[str, Key] | 
                    ) -> tuple[dict[str, Key], dict[str, str], dict[str, float]]:
     signals = config.input_names + config.output_names
     problems: list[str] = []
+    tables = {"mapping": mapping, "units": units, "gains": gains}
+    for name, table in tables.items():
+        if table is not None and not isinstance(table, Mapping):
+            problems.append(f"{name}: must be a table {{signal = ...}}, got {table!r}")
+            tables[name] = None
+    mapping, units, gains = tables["mapping"], tables["units"], tables["gains"]
     m = dict(mapping or {})
     for k, v in m.items():
         if k not in signals and k != "time":
@@ -252,6 +258,8 @@ def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None 
     fmt = _format_of(p, format)
     mode = _offset_mode(p, remove_offset, pre_trigger)
     cmap, cunits, cgains = _check_options(p, config, mapping, units, gains)
+    if not isinstance(resample, (bool, np.bool_)):
+        raise DataError(f"{p}: resample must be true or false, got {resample!r}")
     table = FORMATS[fmt].read(p)
     src = table.source
 
