@@ -14,13 +14,19 @@ from typing import Any, Mapping
 from .beam import END_KINDS, PARAMETER_NAMES, SENSOR_KINDS, Actuator, End, PointMass, Sensor
 from .config_types import DEFAULT_INPUT, INPUT_HOLDS, SCHEMES, BeamConfig, BeamGeometry, ParameterSpec, TimeSettings
 from .errors import ConfigError
-from .parameter_values import NON_NEGATIVE, POSITIVE
+from .parameter_values import NON_NEGATIVE, POSITIVE, range_problem
 from .problems import Problems
 from .textio import read_text
 
 __all__ = ["load_config", "config_from_dict"]
 
 _NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+#: Beam lengths [m] the model accepts: nanobeams to bridges, far inside the floating-point range of its
+#: grid terms (``h⁴`` overflows from about 1e77 m); beyond, a length is a typo, not a beam.
+LENGTH_RANGE = (1e-9, 1e6)
+#: The longest sample time [s] the model accepts (a record sampled slower than this is a typo).
+MAX_DT = 1e3
 
 #: Values of the optional parameters when a config omits them (each switches its effect off).
 _DEFAULTS: Mapping[str, float] = MappingProxyType({"c": 0.0, "eta": 0.0, "N": 0.0, "rhoI": 0.0, "kf": 0.0})
@@ -114,13 +120,9 @@ def _parameters(pr: Problems, table: Mapping[str, Any]) -> dict[str, ParameterSp
         value = pr.number(f"{where}.value", raw.get("value")) if "value" in raw else None
         if "value" not in raw:
             pr.add(f"{where}.value", "missing")
-        if value is not None:
-            if k in POSITIVE and not value > 0:
-                pr.add(f"{where}.value", f"must be > 0, got {value:g}")
-                value = None
-            elif k in NON_NEGATIVE and value < 0:
-                pr.add(f"{where}.value", f"must be >= 0, got {value:g}")
-                value = None
+        if value is not None and (problem := range_problem(k, value)) is not None:
+            pr.add(f"{where}.value", problem)
+            value = None
         bounds = None
         if "bounds" in raw:
             b = raw["bounds"]
@@ -136,6 +138,8 @@ def _parameters(pr: Problems, table: Mapping[str, Any]) -> dict[str, ParameterSp
                         pr.add(f"{where}.bounds", f"lower bound must be > 0 for {k}, got {lo:g}")
                     elif k in NON_NEGATIVE and lo < 0:
                         pr.add(f"{where}.bounds", f"lower bound must be >= 0 for {k}, got {lo:g}")
+                    elif (problem := range_problem(k, lo) or range_problem(k, hi)) is not None:
+                        pr.add(f"{where}.bounds", f"each bound {problem}")
                     else:
                         bounds = (lo, hi)
                         if value is not None and not lo <= value <= hi:
@@ -210,8 +214,8 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
         pr.add("beam.length", "missing (m)")
     else:
         length = pr.number("beam.length", beam_t["length"])
-        if length is not None and not length > 0:
-            pr.add("beam.length", f"must be > 0, got {length:g}")
+        if length is not None and not LENGTH_RANGE[0] <= length <= LENGTH_RANGE[1]:
+            pr.add("beam.length", f"must lie in {LENGTH_RANGE[0]:g} … {LENGTH_RANGE[1]:g} m, got {length:g}")
             length = None
     nodes = beam_t.get("nodes")
     if nodes is None:
@@ -228,8 +232,9 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
     time_t = _table(pr, data, "time")
     pr.unknown_keys("time", time_t, ("dt", "theta", "substeps", "input", "scheme"))
     scheme = time_t.get("scheme", TimeSettings.scheme)
-    if scheme not in SCHEMES:
+    if not isinstance(scheme, str) or scheme not in SCHEMES:
         pr.add("time.scheme", f"must be one of {', '.join(SCHEMES)}, got {scheme!r}")
+        scheme = TimeSettings.scheme
     input_hold = time_t.get("input", DEFAULT_INPUT.get(scheme, "foh"))
     if input_hold not in INPUT_HOLDS:
         pr.add("time.input", "must be \"cubic\" (cubic through the samples, exact scheme), \"foh\" (straight "
@@ -241,8 +246,8 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
         pr.add("time.dt", "missing (sample time, s)")
     else:
         dt = pr.number("time.dt", time_t["dt"])
-        if dt is not None and not dt > 0:
-            pr.add("time.dt", f"must be > 0, got {dt:g}")
+        if dt is not None and not 0 < dt <= MAX_DT:
+            pr.add("time.dt", f"must be > 0 and at most {MAX_DT:g} s, got {dt:g}")
             dt = None
     theta = pr.number("time.theta", time_t.get("theta", 0.25))
     if theta is not None and not 0.0 <= theta <= 1.0:

@@ -69,7 +69,12 @@ from typing import Mapping
 import numpy as np
 
 from .config import BeamConfig
+from .errors import ParameterError
 from .parameter_values import resolve_parameters
+
+#: The largest point mass, in units of the beam's mass per grid cell ``ρA h``, that keeps the mass matrix
+#: numerically positive definite (its Cholesky factor fails from about ``1/eps ≈ 1e16``).
+MAX_MASS_RATIO = 1e12
 
 __all__ = ["SemiDiscreteBeam", "discretise", "grid_nodes", "hat_weights", "rotary_mass"]
 
@@ -219,7 +224,8 @@ def discretise(config: BeamConfig, params: Mapping[str, float] | None = None) ->
     Raises
     ------
     ParameterError
-        When a parameter is missing, non-finite or out of its physical range.
+        When a parameter is missing, non-finite or out of its physical range, or a point mass so heavy that
+        the mass matrix would be numerically singular.
     """
     p = resolve_parameters(config, params)
     EI, rhoA, c, eta, N = p["EI"], p["rhoA"], p["c"], p["eta"], p["N"]
@@ -258,6 +264,10 @@ def discretise(config: BeamConfig, params: Mapping[str, float] | None = None) ->
     if rhoI != 0.0:
         M += rhoI * rotary_mass(n, h, unknown)
     for m in config.masses:
+        if m.mass > MAX_MASS_RATIO * rhoA * h:
+            raise ParameterError(f"masses.{m.name}: {m.mass:g} kg is more than {MAX_MASS_RATIO:g} times the "
+                                 f"beam's mass per grid cell ({rhoA * h:g} kg): the mass matrix would be "
+                                 f"numerically singular")
         phi = hat_weights(m.x, L, n)[unknown]
         M += m.mass * np.outer(phi, phi)
     # symmetrise away round-off (the exact matrices are symmetric)

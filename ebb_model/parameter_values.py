@@ -14,7 +14,8 @@ from .beam import PARAMETER_NAMES
 from .errors import ParameterError
 from .problems import Problems
 
-__all__ = ["ParameterValues", "resolve_parameters", "check_parameter_values", "POSITIVE", "NON_NEGATIVE"]
+__all__ = ["ParameterValues", "resolve_parameters", "check_parameter_values", "range_problem", "POSITIVE",
+           "NON_NEGATIVE", "MAX_MAGNITUDE", "MIN_POSITIVE"]
 
 class Nominal(Protocol):
     """What :func:`resolve_parameters` needs of a config: its nominal values (a
@@ -27,6 +28,25 @@ class Nominal(Protocol):
 #: Parameters that must be positive (``EI``, ``rhoA``) and those that must not be negative.
 POSITIVE = ("EI", "rhoA")
 NON_NEGATIVE = ("c", "eta", "rhoI", "kf")
+#: Magnitudes of parameter values the model accepts: every physical beam (nanotubes to bridges) lies far
+#: inside, and no matrix, pole or stability polynomial of the model overflows within them (400 random
+#: combinations of 1e-30 … 1e30 with sample times 1e-9 … 1e3 s ran clean; 1e300 overflowed).
+MAX_MAGNITUDE = 1e30
+#: The smallest ``EI`` and ``rhoA`` accepted.
+MIN_POSITIVE = 1e-30
+
+
+def range_problem(name: str, value: float) -> str | None:
+    """Why ``value`` is no physical value of parameter ``name`` (its sign or magnitude); ``None`` when it is."""
+    if name in POSITIVE and not value > 0:
+        return f"must be > 0, got {value:g}"
+    if name in NON_NEGATIVE and value < 0:
+        return f"must be >= 0, got {value:g}"
+    if name in POSITIVE and value < MIN_POSITIVE:
+        return f"must be at least {MIN_POSITIVE:g} (far below any physical beam), got {value:g}"
+    if abs(value) > MAX_MAGNITUDE:
+        return f"must be at most {MAX_MAGNITUDE:g} in magnitude (far beyond any physical beam), got {value:g}"
+    return None
 
 
 def check_parameter_values(values: Mapping[str, Any], *, where: str = "parameters") -> dict[str, float]:
@@ -36,7 +56,8 @@ def check_parameter_values(values: Mapping[str, Any], *, where: str = "parameter
     ------
     ParameterError
         Naming every invalid parameter: missing, non-finite, ``EI <= 0``,
-        ``rhoA <= 0``, ``c < 0``, ``eta < 0``, ``rhoI < 0``, ``kf < 0``.
+        ``rhoA <= 0``, ``c < 0``, ``eta < 0``, ``rhoI < 0``, ``kf < 0``, or a magnitude outside
+        :data:`MIN_POSITIVE` … :data:`MAX_MAGNITUDE` (:func:`range_problem`).
     """
     pr = Problems()
     out: dict[str, float] = {}
@@ -50,10 +71,9 @@ def check_parameter_values(values: Mapping[str, Any], *, where: str = "parameter
         v = pr.number(f"{where}.{k}", values[k])
         if v is None:
             continue
-        if k in POSITIVE and not v > 0:
-            pr.add(f"{where}.{k}", f"must be > 0, got {v:g}")
-        elif k in NON_NEGATIVE and v < 0:
-            pr.add(f"{where}.{k}", f"must be >= 0, got {v:g}")
+        problem = range_problem(k, v)
+        if problem is not None:
+            pr.add(f"{where}.{k}", problem)
         else:
             out[k] = v
     if pr.items:

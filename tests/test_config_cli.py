@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ebb_model import ConfigError, ParameterError, assemble, config_from_dict, load_config, simulate_config
+from ebb_model import (ConfigError, ParameterError, assemble, config_from_dict, discretise, load_config,
+                       simulate_config)
 from ebb_cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -40,6 +41,16 @@ BAD = [
     ("nodes 3", lambda d: d["beam"].update(nodes=3), "beam.nodes"),
     ("nan EI", lambda d: d["parameters"].update(EI={"value": math.nan}), "parameters.EI.value"),
     ("inf length", lambda d: d["beam"].update(length=math.inf), "beam.length"),
+    ("length beyond any beam", lambda d: d["beam"].update(length=1e80), "beam.length: must lie in 1e-09 … 1e+06 m"),
+    ("zero length", lambda d: d["beam"].update(length=0.0), "beam.length: must lie in"),
+    ("dt beyond any record", lambda d: d["time"].update(dt=1e300), "time.dt: must be > 0 and at most 1000 s"),
+    ("scheme not a string", lambda d: d["time"].update(scheme=[1]), "time.scheme: must be one of theta, exact"),
+    ("EI beyond any beam", lambda d: d["parameters"].update(EI={"value": 1e300}),
+     "parameters.EI.value: must be at most 1e+30 in magnitude"),
+    ("rhoA below any beam", lambda d: d["parameters"].update(rhoA={"value": 1e-300}),
+     "parameters.rhoA.value: must be at least 1e-30"),
+    ("N bound beyond any beam", lambda d: d["parameters"].update(N={"value": 1.0, "bounds": [-1e300, 5.0]}),
+     "parameters.N.bounds: each bound must be at most 1e+30 in magnitude"),
     ("unknown key", lambda d: d["beam"].update(colour="red"), "beam.colour"),
     ("unknown table", lambda d: d.update(solver={}), "solver"),
     ("unknown parameter", lambda d: d["parameters"].update(E={"value": 1.0}), "parameters.E"),
@@ -213,3 +224,18 @@ def test_cli_subprocess_exit_codes(tmp_path):
                        text=True, env=env, timeout=300)
     assert r.returncode == 2
     assert "beam.nodes" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_impossible_magnitudes_are_parameter_errors_not_linear_algebra_failures():
+    """A point mass 1e30 kg broke the Cholesky factor of M (LinAlgError); EI = 1e300 overflowed the matrices."""
+    d = base()
+    d["masses"] = [{"name": "m", "x": 0.5, "mass": 1e30}]
+    with pytest.raises(ParameterError, match=r"masses\.m: 1e\+30 kg is more than 1e\+12 times the beam's mass "
+                                                 r"per grid cell .*numerically singular"):
+        assemble(config_from_dict(d))
+    cfg = config_from_dict(base())
+    with pytest.raises(ParameterError, match=r"parameters\.EI: must be at most 1e\+30 in magnitude"):
+        assemble(cfg, {"EI": 1e300})
+    with pytest.raises(ParameterError, match=r"parameters\.rhoA: must be at least 1e-30"):
+        discretise(cfg, {"rhoA": 1e-300})
+
