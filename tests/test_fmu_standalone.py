@@ -269,7 +269,8 @@ def test_errors_are_fmi2error_naming_the_cause(fmus, host, tmp_path):
     assert bad_step.returncode == 3 and "fmi2DoStep failed with status 3" in bad_step.stderr
     assert "multiple of the sample time" in bad_step.stderr
     for params, name in (({"EI": -1.0}, "EI"), ({"rhoA": float("nan")}, "rhoA"), ({"c": -2.0}, "c"),
-                         ({"N": -2000.0}, "N")):              # N: compression beyond the buckling load
+                         ({"N": -2000.0}, "N"),               # N: compression beyond the buckling load
+                         ({"EI": 1e300}, "EI"), ({"rhoA": 1e-300}, "rhoA")):   # the API's magnitude limits
         proc = host_run(host, fmus["seed"], u, tmp_path / name, params=params, env={})
         assert proc.returncode == 3, proc.stderr
         assert "fmi2ExitInitializationMode failed with status 3" in proc.stderr
@@ -278,6 +279,15 @@ def test_errors_are_fmi2error_naming_the_cause(fmus, host, tmp_path):
     proc = host_run(host, fmus["seed"], nan_input, tmp_path / "nan", env={})
     assert proc.returncode == 3 and "fmi2SetReal failed with status 3" in proc.stderr
     assert "F1" in proc.stderr and "not a finite number" in proc.stderr
+
+
+def test_the_c_model_accepts_the_magnitudes_the_api_accepts():
+    from ebb_model.parameter_values import MAX_MAGNITUDE, MIN_POSITIVE
+    from fmu_build.standalone.builder import SOURCE_DIR
+
+    header = (SOURCE_DIR / "ebb_beam.h").read_text()
+    defined = dict(re.findall(r"#define (EBB_MAX_MAGNITUDE|EBB_MIN_POSITIVE) (\S+)", header))
+    assert float(defined["EBB_MAX_MAGNITUDE"]) == MAX_MAGNITUDE and float(defined["EBB_MIN_POSITIVE"]) == MIN_POSITIVE
 
 
 def test_errors_through_fmpy(fmus):

@@ -16,6 +16,11 @@
 /* parameter order, as ebb_model.beam.PARAMETER_NAMES */
 enum { EBB_EI, EBB_RHOA, EBB_C, EBB_ETA, EBB_N, EBB_RHOI, EBB_KF, EBB_NPARAM };
 
+/* accepted magnitudes of the parameters, as ebb_model.parameter_values.MAX_MAGNITUDE and MIN_POSITIVE
+   (EI and rhoA); a test compares them */
+#define EBB_MAX_MAGNITUDE 1e30
+#define EBB_MIN_POSITIVE 1e-30
+
 /* sensor kinds */
 enum { EBB_DISPLACEMENT = 0, EBB_VELOCITY = 1, EBB_ACCELERATION = 2 };
 

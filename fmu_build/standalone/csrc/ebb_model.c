@@ -299,6 +299,16 @@ static int check_parameters(const double *p, char *msg, size_t msglen)
             snprintf(msg, msglen, "parameter %s = %g is invalid: must be >= 0", PARAM_NAMES[i], p[i]);
             return -1;
         }
+        if ((i == EBB_EI || i == EBB_RHOA) && p[i] < EBB_MIN_POSITIVE) {
+            snprintf(msg, msglen, "parameter %s = %g is invalid: must be at least %g (far below any physical "
+                     "beam)", PARAM_NAMES[i], p[i], EBB_MIN_POSITIVE);
+            return -1;
+        }
+        if (fabs(p[i]) > EBB_MAX_MAGNITUDE) {
+            snprintf(msg, msglen, "parameter %s = %g is invalid: must be at most %g in magnitude (far beyond any "
+                     "physical beam)", PARAM_NAMES[i], p[i], EBB_MAX_MAGNITUDE);
+            return -1;
+        }
     }
     return 0;
 }
