@@ -51,6 +51,7 @@ from .effects import Catalogue, Effect
 from .fitting import GapProblem
 from .modal_estimate import MeasuredModes
 from .score import trial_values
+from .workers import side_by_side
 
 __all__ = ["ModalEvidence", "PatternFit", "modal_evidence", "pattern_fit", "pattern_fits", "moves_modes",
            "time_invariant"]
@@ -277,8 +278,4 @@ def pattern_fits(problem: GapProblem, evidence: ModalEvidence, beta: np.ndarray,
     moving = sorted((e for e in catalogue.effects() if moves_modes(problem, beta, e)), key=lambda e: -e.dim)
     labels: list[str | None] = [e.label for e in moving] + [None]   # the costliest first
     args = [(problem, evidence, beta, catalogue, lab) for lab in labels]
-    if executor is None:
-        fits = [_pattern_task(*a) for a in args]
-    else:
-        fits = [f.result() for f in [executor.submit(_pattern_task, *a) for a in args]]
-    return {f.label: f for f in fits}
+    return {f.label: f for f in side_by_side(executor, _pattern_task, args)}

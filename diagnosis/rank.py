@@ -66,6 +66,7 @@ from .modal_pattern import ModalEvidence, PatternFit, pattern_fits, time_invaria
 from .refits import (GAP_THRESHOLD, EffectRefit, better_baseline, explains, map_refits, pair_refit,
                      refit_from_match, summarise)
 from .score import EffectScore, score_effect
+from .workers import side_by_side
 
 __all__ = ["Ranking", "settled", "rank_effects", "BIC_MARGIN", "NAMED_CLOSURE", "UNEXPLAINED"]
 
@@ -137,10 +138,8 @@ class _Search:
         return time_invariant(self.problem, self.baseline.beta, self.catalogue.effect(label))
 
     def side_by_side(self, task: Callable[..., Any], args: list[tuple]) -> list[Any]:
-        """``task(*a)`` for each of ``args``, on the executor's processes when there are two or more."""
-        if self.executor is None or len(args) < 2:
-            return [task(*a) for a in args]
-        return [f.result() for f in [self.executor.submit(task, *a) for a in args]]
+        """``task(*a)`` for each of ``args`` (:func:`diagnosis.workers.side_by_side`)."""
+        return side_by_side(self.executor, task, args)
 
 
 def _linear(evidence: ModalEvidence | None) -> bool:

@@ -37,6 +37,7 @@ from .effects import Catalogue, Effect
 from .fitting import Fit, GapProblem
 from .modal_pattern import PatternFit
 from .score import EffectScore, trial_values
+from .workers import side_by_side
 
 __all__ = ["EffectRefit", "explains", "summarise", "map_refits", "refit_from_match", "pair_refit",
            "better_baseline", "GAP_THRESHOLD", "CONTINUATION"]
@@ -187,10 +188,7 @@ def map_refits(executor: Executor | None, problem: GapProblem, catalogue: Catalo
     deterministic)."""
     args = [(problem, catalogue, lab, baseline, scores[lab], max_evaluations,
              None if previous is None else previous[lab], stage) for lab in labels]
-    if executor is None or len(labels) < 2:
-        return {lab: _refit_task(*a) for lab, a in zip(labels, args)}
-    futures = [executor.submit(_refit_task, *a) for a in args]
-    return {lab: f.result() for lab, f in zip(labels, futures)}
+    return dict(zip(labels, side_by_side(executor, _refit_task, args)))
 
 
 def _pair_start(problem: GapProblem, first: Fit, pair: Effect, k: int) -> np.ndarray:
@@ -216,10 +214,7 @@ def better_baseline(problem: GapProblem, baseline: Fit, fits: list[Fit], executo
     0.1 % in RSS, else ``None``: an effect's refit may have moved the baseline unknowns into a better basin, and
     then the baseline itself was not at its optimum (every comparison must be made again).  The refits run on
     ``executor``'s processes when given."""
-    if executor is None or len(fits) < 2:
-        candidates = [problem.fit(f.beta) for f in fits]
-    else:
-        candidates = [fut.result() for fut in [executor.submit(problem.fit, f.beta) for f in fits]]
+    candidates = side_by_side(executor, problem.fit, [(f.beta,) for f in fits])
     better = None
     for cand in candidates:
         if cand.rss < baseline.rss * (1.0 - 1e-3) and (better is None or cand.rss < better.rss):

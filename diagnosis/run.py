@@ -13,12 +13,9 @@ appears only when complete (built under a temporary name, then renamed).
 from __future__ import annotations
 
 import json
-import multiprocessing
-import signal
 import os
 import shutil
 import tempfile
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
@@ -35,7 +32,7 @@ from ebb_model.outdir import check_new_output_dir
 from ebb_model.modal import discrete_frequencies
 from ebb_model.assemble import field_config
 from ebb_model.simulate import fast_model, simulate
-from ebb_model.threads import one_blas_thread, single_blas_thread
+from ebb_model.threads import one_blas_thread
 
 from identification.data import Experiment
 from identification.noise import given_noise_std, records_noise_std
@@ -53,6 +50,7 @@ from .refits import GAP_THRESHOLD, better_baseline
 from .records import Record, split_records
 from .result import (BandClosure, BaselineSummary, DiagnosisSettings, EffectRow, GapReport, PatternMatch,
                      RefitSummary)
+from .workers import refit_pool
 
 __all__ = ["Diagnosis", "diagnose", "excited_band", "GAP_FILE", "GRID_VERDICT", "NUMERICAL_SHARE_LIMIT"]
 
@@ -214,22 +212,6 @@ def _modes_hz(model: Any, k: int) -> list[float]:
     """The first ``k`` modal frequencies [Hz] of an augmented model (its beam; lags and drift do not move them)."""
     freqs, _ = discrete_frequencies(model.config, model.params)
     return [float(v) for v in freqs[:k]]
-
-
-def _refit_worker() -> None:
-    """Worker initialiser: one BLAS thread per process (the refits are the parallelism; more threads only
-    oversubscribe the cores), and Ctrl-C is the main process's to handle."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    single_blas_thread()
-
-
-def refit_pool(workers: int) -> ProcessPoolExecutor | None:
-    """Worker processes for the shortlisted effects' refits (``spawn``: no inherited locks or threads); ``None``
-    for ``workers <= 1``."""
-    if workers <= 1:
-        return None
-    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_refit_worker)
 
 
 @one_blas_thread
