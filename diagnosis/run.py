@@ -168,20 +168,26 @@ def _numerical_verdict(ranking: Ranking, share: float, advice: str) -> Ranking:
     return ranking
 
 
-def corrected_summary(config: BeamConfig, baseline: Mapping[str, float], row: EffectRow) -> dict[str, Any]:
-    """What ``corrected.json`` says: the effect and its parameters with units, the refitted baseline, and the
-    held-out gap before/after."""
+def corrected_summary(config: BeamConfig, baseline: Mapping[str, float], row: EffectRow, effect: Effect
+                      ) -> dict[str, Any]:
+    """What ``corrected.json`` says: the effect and its parameters with units (the effect's own,
+    :attr:`Effect.units`), the refitted baseline, and the held-out gap before/after.
+
+    Raises
+    ------
+    ValueError
+        ``row`` has no refit (only a refitted effect is exported).
+    """
     from ebb_model.beam import PARAMETER_UNITS
-    from ebb_model.reference.withheld import EFFECT_CATALOGUE
 
     rf = row.refit
-    assert rf is not None, "only a refitted effect is exported"
-    units: dict[str, str] = {}
-    for part in row.label.split(PAIR_SEPARATOR):   # a pair's parameters are keyed "<label>.<parameter>"
-        spec = EFFECT_CATALOGUE[part.split("[")[0]]
-        prefix = f"{part}." if PAIR_SEPARATOR in row.label else ""
-        units |= {prefix + k: u for k, u in zip(spec.parameters, spec.units)}
-    unit = lambda k: PARAMETER_UNITS.get(k, "m" if k.startswith("x_") else "")   # noqa: E731
+    if rf is None:
+        raise ValueError(f"{row.label}: only a refitted effect is exported")
+    units = effect.units
+
+    def unit(k: str) -> str:
+        return PARAMETER_UNITS.get(k, "m" if k.startswith("x_") else "")
+
     return {"effect": row.label, "description": row.description,
             "effect_parameters": {k: {"value": v, "unit": units.get(k, "")} for k, v in rf.effect_parameters.items()},
             "parameters": {k: {"value": v, "unit": unit(k)} for k, v in rf.baseline_parameters.items()},
@@ -423,7 +429,7 @@ def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, 
 
             model = problem.model(rf.fit.beta, by_label[ranking.verdict], rf.fit.s)
             summary = corrected_summary(problem.config, problem.space.to_dict(ranking.baseline.beta),
-                                        report.row(ranking.verdict))
+                                        report.row(ranking.verdict), by_label[ranking.verdict])
             files = export_corrected(model, tmp / "corrected", summary, standalone=standalone)
             report = replace(report, corrected_files=tuple(f.name for f in files))
         write_json(tmp / GAP_FILE, report.to_dict())

@@ -81,9 +81,9 @@ def test_a_new_signal_effect_needs_no_other_code():
     params = cfg.parameter_values()
     u = band_limited_input(1200, cfg.time.dt, 2.0, 150.0, seed=5)
     gain = signal_effect("sensor_gain", "a2", "gain", (0.5, 2.0), 1.0, "gain error of sensor a2",
-                         lambda g: SensorGain("a2", g), "gain")
+                         lambda g: SensorGain("a2", g), "gain", "1")
     lag = ActuatorLag(1.5e-3)
-    both = pair_effect(signal_effect("actuator_lag", None, "tau", (0.0, 1e-2), 0.0, "lag", ActuatorLag, "tau"),
+    both = pair_effect(signal_effect("actuator_lag", None, "tau", (0.0, 1e-2), 0.0, "lag", ActuatorLag, "tau", "s"),
                        gain)
     model = both.apply(cfg, params, np.array([lag.tau, 1.1]))
     assert model.signals == (lag, SensorGain("a2", 1.1)) and model.time_invariant
@@ -110,3 +110,58 @@ def test_axial_terms_add_and_end_time_invariance():
     assert not model.time_invariant and corrected_statespace(model) is None
     with pytest.raises(em.ParameterError, match="geometric_stiffening.EA"):
         Stretching(-1.0)
+
+
+def sensor_gain_candidates(config, scales: Scales, identified: tuple[str, ...]):
+    """The new family's builder, as its module would define it: one gain error per sensor (off: 1)."""
+    return tuple(signal_effect("sensor_gain", s.name, "gain", (0.5, 2.0), 1.0, f"gain error of sensor {s.name}",
+                               lambda g, name=s.name: SensorGain(name, g), "gain", "1")
+                 for s in config.sensors)
+
+
+def test_diagnose_names_and_exports_an_effect_added_the_documented_way(tmp_path, monkeypatch, capsys):
+    """A new family — its module (above) and its registry line (``FAMILIES``) — is named by ``ebb diagnose``
+    and exported as the corrected model, its units from the effect itself (not from the data generator).
+
+    The record: the independent FE generator with no withheld effect, then sensor ``y2`` read 15 % high (a
+    calibration error, applied to the generated readings as a miscalibrated sensor does).
+    """
+    import json
+
+    import diagnosis.effects as catalogue
+    from ebb_cli import main
+    from ebb_model.reference.synthetic import synthesize
+    from test_diagnose_cli import _toml
+    from test_diagnosis_blind import DT, bench_config
+
+    from diagnosis.effects.base import Family
+
+    monkeypatch.setattr(catalogue, "FAMILIES", FAMILIES + (Family(("sensor_gain",), sensor_gain_candidates),))
+    cfg = bench_config()
+    (tmp_path / "bench.toml").write_text(_toml(cfg))
+    files = []
+    for seed in (31, 32):
+        u = band_limited_input(3000, DT, 2.0, 60.0, seed=seed)
+        rec = synthesize(cfg, u, noise=0.01, seed=seed)
+        path = tmp_path / f"rec{seed}.csv"
+        rec.to_csv(path)
+        lines = path.read_text().splitlines()
+        header = lines[0].split(",")
+        k = header.index("y2")
+        rows = [[float(v) for v in line.split(",")] for line in lines[1:]]
+        for r in rows:
+            r[k] *= 1.15
+        path.write_text("\n".join([lines[0]] + [",".join(repr(v) for v in r) for r in rows]) + "\n")
+        files.append(path)
+    out = tmp_path / "gap"
+    # one process: the registry line is this test's (worker processes would read the module's own)
+    rc = main(["diagnose", str(tmp_path / "bench.toml"), str(files[0]), "--holdout", str(files[1]),
+               "--out", str(out), "--quiet", "--workers", "1", "--no-plots"])
+    assert rc == 0, capsys.readouterr().err
+    doc = json.loads((out / "gap.json").read_text())
+    assert doc["verdict"] == "sensor_gain[y2]"
+    top = doc["effects"][0]
+    assert abs(top["refit"]["effect_parameters"]["gain"] - 1.15) < 0.01 and top["refit"]["closed"] >= 0.8
+    corrected = json.loads((out / "corrected" / "corrected.json").read_text())
+    assert corrected["effect"] == "sensor_gain[y2]"
+    assert corrected["effect_parameters"]["gain"]["unit"] == "1"

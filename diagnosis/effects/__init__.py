@@ -43,7 +43,9 @@ an effect.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
 
 from ebb_model.config import BeamConfig
 
@@ -79,24 +81,58 @@ EFFECT_NAMES: tuple[str, ...] = tuple(name for family in FAMILIES for name in fa
 
 @dataclass(frozen=True)
 class Catalogue:
-    """What :func:`candidate_effects` builds the candidates from — picklable, unlike the effects themselves
-    (their maps are closures), so worker processes rebuild the same effects from it.
+    """The candidate effects of one baseline, built once and looked up by label (the one index of effects).
+
+    Picklable, unlike the effects themselves (their maps are closures): worker processes receive the
+    catalogue's inputs and rebuild the same effects from them.
+
+    Attributes
+    ----------
+    config, scales, identified
+        What :func:`candidate_effects` builds the candidates from.
+    families
+        The catalogue's families (default: :data:`FAMILIES` as registered when the catalogue is made).
     """
 
     config: BeamConfig
     scales: Scales
     identified: tuple[str, ...] = ()
+    families: tuple[Family, ...] = field(default_factory=lambda: FAMILIES)
+
+    @cached_property
+    def _index(self) -> dict[str, Effect]:
+        return {e.label: e for family in self.families
+                for e in family.candidates(self.config, self.scales, tuple(self.identified))}
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {k: v for k, v in self.__dict__.items() if k != "_index"}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
 
     def effects(self) -> tuple[Effect, ...]:
-        """The candidates, in catalogue order."""
-        return candidate_effects(self.config, self.scales, identified=self.identified)
+        """The single candidates, in catalogue order."""
+        return tuple(e for lab, e in self._index.items() if PAIR_SEPARATOR not in lab)
+
+    def pair(self, first: str, second: str) -> Effect:
+        """The pair of the candidates ``first`` and ``second`` (``second`` acting on the model ``first``
+        makes), made once."""
+        label = f"{first}{PAIR_SEPARATOR}{second}"
+        if label not in self._index:
+            self._index[label] = pair_effect(self.effect(first), self.effect(second))
+        return self._index[label]
 
     def effect(self, label: str) -> Effect:
-        """The candidate called ``label`` (two labels joined by :data:`PAIR_SEPARATOR`: the pair)."""
-        if PAIR_SEPARATOR in label:
-            first, second = label.split(PAIR_SEPARATOR)
-            return pair_effect(self.effect(first), self.effect(second))
-        return next(e for e in self.effects() if e.label == label)
+        """The candidate or pair called ``label`` (a pair's label: two labels joined by :data:`PAIR_SEPARATOR`).
+
+        Raises
+        ------
+        KeyError
+            No such candidate on this set-up.
+        """
+        if label not in self._index and PAIR_SEPARATOR in label:
+            return self.pair(*label.split(PAIR_SEPARATOR))
+        return self._index[label]
 
 
 def candidate_effects(config: BeamConfig, scales: Scales, *, identified: tuple[str, ...] = ()
@@ -117,4 +153,4 @@ def candidate_effects(config: BeamConfig, scales: Scales, *, identified: tuple[s
     -------
     tuple of Effect
     """
-    return tuple(e for family in FAMILIES for e in family.candidates(config, scales, tuple(identified)))
+    return Catalogue(config, scales, tuple(identified)).effects()

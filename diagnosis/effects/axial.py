@@ -57,12 +57,12 @@ def candidates(config: BeamConfig, scales: Scales, identified: tuple[str, ...]) 
     euler = sc.EI * math.pi ** 2 / sc.length ** 2
     r = euler / max(sc.duration, 1e-12)
     out = [signal_effect("axial_drift", None, "rate", (-r, r), 0.0,
-                         "slow drift of the axial load over the record (e.g. thermal)", AxialDrift, "rate")]
+                         "slow drift of the axial load over the record (e.g. thermal)", AxialDrift, "rate", "N/s")]
     if config.beam.left.translation_fixed and config.beam.right.translation_fixed:
         hi = 10.0 * euler * 2.0 * sc.length / sc.stretch_max if sc.stretch_max > 0 else 1e12 * sc.EI
         out.append(signal_effect("geometric_stiffening", None, "EA", (0.0, hi), 0.0,
                                  "mid-plane stretching: amplitude-dependent axial force EA/(2L)∫w_x²dx",
-                                 Stretching, "EA"))
+                                 Stretching, "EA", "N"))
     return tuple(out)
 
 

@@ -149,6 +149,9 @@ class Effect:
         for one-sided effects, inside for two-sided ones such as drift).
     description
         One line for reports.
+    units
+        Unit of each physical parameter (:meth:`physical`'s keys), in the catalogue's notation (``N.m/rad``,
+        ``kg``, ``N/m2``) — what the corrected model's files and the reports print beside the values.
     """
 
     name: str
@@ -158,6 +161,7 @@ class Effect:
     upper: tuple[float, ...]
     off: tuple[float, ...]
     description: str
+    units: Mapping[str, str]
     _apply: Callable[[BeamConfig, dict[str, float], np.ndarray], AugmentedModel] = field(repr=False)
     _physical: Callable[[np.ndarray], dict[str, float]] = field(repr=False)
 
@@ -196,22 +200,24 @@ class Family:
 
 
 def signal_effect(name: str, target: str | None, variable: str, bounds: tuple[float, float], off: float,
-                  description: str, part: Callable[[float], Signal], parameter: str) -> Effect:
-    """A one-variable signal-level effect: the search value ``s`` is the physical ``parameter`` itself, and
-    ``part(s)`` the signal part (none at the off value, so the "off" model is the baseline exactly)."""
+                  description: str, part: Callable[[float], Signal], parameter: str, unit: str) -> Effect:
+    """A one-variable signal-level effect: the search value ``s`` is the physical ``parameter`` itself (in
+    ``unit``), and ``part(s)`` the signal part (none at the off value, so the "off" model is the baseline
+    exactly)."""
 
     def apply(cfg: BeamConfig, params: dict[str, float], s: np.ndarray) -> AugmentedModel:
         value = float(s[0])
         return AugmentedModel(cfg, params, () if value == off else (part(value),))
 
-    return Effect(name, target, (variable,), (bounds[0],), (bounds[1],), (off,), description, apply,
-                  lambda s: {parameter: float(s[0])})
+    return Effect(name, target, (variable,), (bounds[0],), (bounds[1],), (off,), description, {parameter: unit},
+                  apply, lambda s: {parameter: float(s[0])})
 
 
 def pair_effect(first: Effect, second: Effect) -> Effect:
     """Two effects at once: ``second`` applied to the model ``first`` made; search variables side by side.
 
-    The physical parameters are keyed ``"<label>.<parameter>"`` (both effects may have a ``tau``).
+    The physical parameters (and their units) are keyed ``"<label>.<parameter>"`` (both effects may have a
+    ``tau``).
     """
     if first.name == second.name:
         raise ValueError(f"a pair needs two different effects, got {first.label} twice")
@@ -230,7 +236,8 @@ def pair_effect(first: Effect, second: Effect) -> Effect:
                   tuple(f"{first.label}.{v}" for v in first.variables)
                   + tuple(f"{second.label}.{v}" for v in second.variables),
                   first.lower + second.lower, first.upper + second.upper, first.off + second.off,
-                  f"{first.description}, and {second.description}", apply, physical)
+                  f"{first.description}, and {second.description}",
+                  {f"{e.label}.{n}": u for e in (first, second) for n, u in e.units.items()}, apply, physical)
 
 
 def on_top_of(first: Effect, s_first: np.ndarray, second: Effect) -> Effect:

@@ -53,7 +53,8 @@ def _boundary(config: BeamConfig, sc: Scales, side: str, dof: str) -> Effect:
         return {key: stiffness(s)}
 
     return Effect(f"boundary_{dof}_{side}", None, (var,), (0.0,), (hi,), (0.0,),
-                  f"{dof} {what} at the {side} end ({end.kind})", apply, physical)
+                  f"{dof} {what} at the {side} end ({end.kind})", {key: "N.m/rad" if key == "kr" else "N/m"},
+                  apply, physical)
 
 
 def candidates(config: BeamConfig, scales: Scales, identified: tuple[str, ...]) -> tuple[Effect, ...]:

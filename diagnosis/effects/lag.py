@@ -190,9 +190,9 @@ def candidates(config: BeamConfig, scales: Scales, identified: tuple[str, ...]) 
     hi = 3.0 / scales.omega_high
     return ((signal_effect("actuator_lag", None, "tau", (0.0, hi), 0.0,
                            "first-order lag between the measured force and the force the beam feels",
-                           ActuatorLag, "tau"),)
+                           ActuatorLag, "tau", "s"),)
             + tuple(signal_effect("sensor_lag", s.name, "tau", (0.0, hi), 0.0, f"first-order lag of sensor {s.name}",
-                                  lambda tau, name=s.name: SensorLag(name, tau), "tau")
+                                  lambda tau, name=s.name: SensorLag(name, tau), "tau", "s")
                     for s in config.sensors))
 
 

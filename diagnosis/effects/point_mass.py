@@ -25,7 +25,7 @@ def candidates(config: BeamConfig, scales: Scales, identified: tuple[str, ...]) 
         return AugmentedModel(replace(cfg, masses=tuple(cfg.masses) + (m,)), params)
 
     return (Effect("point_mass", None, ("mass_ratio", "x"), (0.0, 0.02 * L), (1.0, 0.98 * L), (0.0, 0.5 * L),
-                   "attached point mass (sensor, shaker, load cell, clamp block)", apply,
+                   "attached point mass (sensor, shaker, load cell, clamp block)", {"mass": "kg", "x": "m"}, apply,
                    lambda s: {"mass": float(s[0] * unit), "x": float(s[1])}),)
 
 
