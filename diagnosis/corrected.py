@@ -19,21 +19,25 @@ refitted beam without the effect (``corrected.json`` says so).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Mapping
+from types import MappingProxyType
+from typing import Any, Mapping, Sequence
 
 from ebb_model import DiscreteStateSpace, assemble
 from ebb_model.atomic import atomic_path
 from ebb_model.jsonio import write_json
+from identification.export_targets import DEFAULT_TARGETS
 
 from .effects import AugmentedModel
 
 __all__ = ["corrected_statespace", "export_corrected"]
 
 
-def corrected_statespace(model: AugmentedModel) -> DiscreteStateSpace | None:
+def corrected_statespace(model: AugmentedModel, beam: DiscreteStateSpace | None = None
+                         ) -> DiscreteStateSpace | None:
     """The corrected model as one discrete system, or ``None`` when it is not time-invariant (drift, stretching).
 
-    The beam's system with each signal part in series (:meth:`diagnosis.effects.Signal.in_series`).
+    The beam's system (``beam``, assembled from the model when not given) with each signal part in series
+    (:meth:`diagnosis.effects.Signal.in_series`).
 
     Raises
     ------
@@ -42,26 +46,41 @@ def corrected_statespace(model: AugmentedModel) -> DiscreteStateSpace | None:
     """
     if not model.time_invariant:
         return None
-    sys = assemble(model.config, model.params)
+    sys = assemble(model.config, model.params) if beam is None else beam
     for part in model.signals:
         sys = part.in_series(sys)
     return sys
 
 
+#: What each export target of :data:`identification.export_targets.TARGETS` writes of the corrected model, and what that
+#: file carries (``{parts}``: the model's signal-level parts, ``{without}``: the FMU's note about them).
+_CARRIES: Mapping[str, tuple[str, str]] = MappingProxyType({
+    "statespace": ("corrected.npz", "StateSpace of the corrected model{parts}"),
+    "fmu": ("corrected.fmu", "FMU of the corrected beam{without}"),
+    "standalone": ("corrected_standalone.fmu", "standalone C FMU of the corrected beam (no Python at run time)"
+                                               "{without}"),
+})
+
+
 def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mapping[str, Any], *,
-                     fmu: bool = True, standalone: bool = False) -> list[Path]:
+                     targets: Sequence[str] = DEFAULT_TARGETS) -> list[Path]:
     """Write the corrected model into ``out_dir`` (created); returns the written files (see the module docstring).
 
-    The model files are the export targets of identified models (:data:`identification.export.TARGETS`):
-    ``statespace`` (when the corrected model is time-invariant), ``fmu`` and (``standalone``) the standalone C FMU
-    (:mod:`fmu_build.standalone`, no Python at run time, ``corrected_standalone.fmu``).  ``summary`` (effect,
-    parameters with units, held-out gap) is written to ``corrected.json`` with the list of files and what each
-    one carries.
+    The model files are written by the export targets named in ``targets`` (:data:`identification.export_targets.TARGETS`:
+    ``statespace`` — only when the corrected model is time-invariant —, ``fmu``, ``standalone``), from one assembly
+    of the corrected beam.  ``summary`` (effect, parameters with units, held-out gap) is written to
+    ``corrected.json`` with the list of files and what each one carries.
+
+    Raises
+    ------
+    ConfigError
+        An unknown target name (before anything is written).
     """
     from ebb_model.tomlio import dumps as toml_dumps
-    from identification.export import export_target
+    from identification.export_targets import check_targets, export_target
     from identification.export_targets import ExportItem
 
+    targets = check_targets(targets)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     cfg = model.config.with_parameters(**model.params)
@@ -69,20 +88,20 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
     with atomic_path(written[0]) as tmp:
         tmp.write_text(toml_dumps(cfg.to_dict()))
     carries: dict[str, str] = {"corrected.toml": "config with the refitted values (structural effects included)"}
-    sys = corrected_statespace(model)
+    beam = assemble(model.config, model.params)
+    sys = corrected_statespace(model, beam)
     parts = "; ".join(dict.fromkeys(part.description for part in model.signals))
-    without_lag = f" (without {parts}: a signal effect outside the FMU's model)" if parts else ""
-    targets = {"statespace": ("corrected.npz", "StateSpace of the corrected model"
-                              + (f" ({parts} as states in series)" if parts else "")) if sys is not None else None,
-               "fmu": ("corrected.fmu", "FMU of the corrected beam" + without_lag) if fmu else None,
-               "standalone": ("corrected_standalone.fmu", "standalone C FMU of the corrected beam (no Python at "
-                              "run time)" + without_lag) if standalone else None}
-    item = ExportItem("corrected", "corrected", cfg, model.params,
-                      sys if sys is not None else assemble(model.config, model.params))
-    for name, what in targets.items():
-        if what is not None:
-            written.extend(export_target(name)(item, out))
-            carries[what[0]] = what[1]
+    words = {"parts": f" ({parts} as states in series)" if parts else "",
+             "without": f" (without {parts}: a signal effect outside the FMU's model)" if parts else ""}
+    item = ExportItem("corrected", "corrected", cfg, model.params, sys if sys is not None else beam,
+                      beam_system=beam)
+    for name in targets:
+        if name == "statespace" and sys is None:
+            continue
+        written.extend(export_target(name)(item, out))
+        if name in _CARRIES:
+            file, what = _CARRIES[name]
+            carries[file] = what.format(**words)
     if sys is None:
         carries["note"] = (f"{parts} not time-invariant: no StateSpace; the FMU carries the refitted beam "
                            "without it")

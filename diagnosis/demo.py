@@ -102,10 +102,10 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
     identified = res.best
 
     say("3/4 export the identified model (polished knee): FMU + python-control StateSpace")
-    files = export_points(out / "identify", polished=[0])
+    files = export_points(res, polished=[0])
 
     say("4/4 diagnose the remaining gap (blind); export the corrected model")
-    d = diagnose(cfg_path, [data], out / "diagnosis", result=out / "identify",
+    d = diagnose(cfg_path, [data], out / "diagnosis", result=res,
                  progress=(lambda m: print(f"    {m}")) if progress else None)
     report = text_report(d.report)
     truth_label = WITHHELD[0]

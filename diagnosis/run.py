@@ -12,7 +12,6 @@ appears only when complete (built under a temporary name, then renamed).
 """
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import tempfile
@@ -35,8 +34,10 @@ from ebb_model.simulate import fast_model, simulate
 from ebb_model.threads import one_blas_thread
 
 from identification.data import Experiment
+from identification.export_targets import DEFAULT_TARGETS, check_targets
 from identification.noise import given_noise_std, records_noise_std
 from identification.parameters import parameter_space
+from identification.result import IdentificationResult
 from identification.run import load_identification_config, read_data
 
 from .axial_terms import stretch_of_nodes
@@ -87,18 +88,19 @@ def _ordered(config: BeamConfig, e: Experiment) -> tuple[str, np.ndarray, np.nda
     return e.name, np.asarray(e.inputs, dtype=float), np.asarray(e.outputs, dtype=float)[:, idx]
 
 
-def _start_from_result(result: str | Path, names: Sequence[str]) -> np.ndarray:
-    path = Path(result) / "pareto.json"
-    try:
-        doc = json.loads(path.read_text())
-        point = (doc.get("polished") or [None])[0] or doc["points"][int(doc["knee"])]
-        params = point["parameters"]
-        return np.array([float(params[n]) for n in names])
-    except FileNotFoundError:
-        raise ConfigError(f"`result` {result}: no pareto.json (run `ebb identify` first)") from None
-    except (KeyError, ValueError, TypeError, IndexError, json.JSONDecodeError) as exc:
-        raise ConfigError(f"`result` {path}: unreadable identification result ({exc!s}); "
-                          f"expected the parameters {', '.join(names)}") from None
+def _start_from_result(result: IdentificationResult | str | Path, names: Sequence[str]) -> np.ndarray:
+    """The identified model's values (:attr:`IdentificationResult.best`) of the unknowns ``names``."""
+    if not isinstance(result, IdentificationResult):
+        try:
+            result = IdentificationResult.read(result)
+        except ConfigError as exc:
+            raise ConfigError(f"`result` {exc}") from None
+    best = result.best
+    missing = [n for n in names if n not in best]
+    if missing:
+        raise ConfigError(f"`result` {result.out_dir}: the identification has no values of {', '.join(missing)}; "
+                          f"expected the parameters {', '.join(names)}")
+    return np.array([float(best[n]) for n in names])
 
 
 def _stretch_max(config: BeamConfig, params: dict[str, float], records: Sequence[Record]) -> float:
@@ -222,9 +224,9 @@ def _modes_hz(model: Any, k: int) -> list[float]:
 
 @one_blas_thread
 def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_dir: str | Path | None, *,
-             holdout: Sequence[str | Path] = (), result: str | Path | None = None,
+             holdout: Sequence[str | Path] = (), result: IdentificationResult | str | Path | None = None,
              holdout_fraction: float = 0.3, shortlist: int = 4, noise_std: Sequence[float] | None = None,
-             plots: bool = True, export: bool = True, standalone: bool = False, workers: int = 2,
+             plots: bool = True, export: bool = True, targets: Sequence[str] = DEFAULT_TARGETS, workers: int = 2,
              progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Locate the sim-to-real gap, name the effect that explains it, and measure how far it closes.
 
@@ -242,8 +244,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         Records held out entirely; without them the last ``holdout_fraction``
         of every record is held out.
     result
-        An ``ebb identify`` output directory: the baseline fit starts from its
-        (polished) knee instead of the nominal values.
+        An identification result, or an ``ebb identify`` output directory: the baseline fit starts from its
+        identified model (the polished knee) instead of the nominal values.
     shortlist
         Number of best-scoring effects that are refitted.
     noise_std
@@ -254,9 +256,10 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         When the verdict names an effect, write the corrected model (baseline
         plus that effect, refitted) to ``out_dir/corrected/``: config,
         python-control StateSpace and FMU (:mod:`diagnosis.corrected`).
-    standalone
-        With ``export``, also write the corrected model as a standalone C FMU
-        (``corrected_standalone.fmu``).
+    targets
+        With ``export``, the export targets of the corrected model
+        (:data:`identification.export_targets.TARGETS`; ``standalone`` adds
+        ``corrected_standalone.fmu``, the standalone C FMU).
     workers
         Processes refitting the shortlisted effects side by side (default 2;
         1: all in this process).  The result does not depend on it.
@@ -276,6 +279,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
     if shortlist < 1:
         raise ConfigError(f"`shortlist` must be >= 1, got {shortlist}")
+    targets = check_targets(targets)
     out = Path(out_dir) if out_dir is not None else None
     if out is not None:
         check_new_output_dir(out)
@@ -351,7 +355,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     if out is None:
         return Diagnosis(ranking, report, None)
     report = _write(out, problem, ranking, report, by_label, locs, plots=plots, export=export,
-                    standalone=standalone)
+                    targets=targets)
     return Diagnosis(ranking, report, out)
 
 
@@ -418,7 +422,7 @@ def _effect_rows(problem: GapProblem, ranking: Ranking, by_label: Mapping[str, E
 
 
 def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, by_label: Mapping[str, Effect],
-           locs: Sequence[Localisation], *, plots: bool, export: bool, standalone: bool) -> GapReport:
+           locs: Sequence[Localisation], *, plots: bool, export: bool, targets: Sequence[str]) -> GapReport:
     """Write ``gap.json``, the plots and the corrected model into ``out`` at once (a temporary directory renamed
     at the end: nothing partial is left on error or interrupt); returns the report with the files it wrote."""
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
@@ -430,7 +434,7 @@ def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, 
             model = problem.model(rf.fit.beta, by_label[ranking.verdict], rf.fit.s)
             summary = corrected_summary(problem.config, problem.space.to_dict(ranking.baseline.beta),
                                         report.row(ranking.verdict), by_label[ranking.verdict])
-            files = export_corrected(model, tmp / "corrected", summary, standalone=standalone)
+            files = export_corrected(model, tmp / "corrected", summary, targets=targets)
             report = replace(report, corrected_files=tuple(f.name for f in files))
         write_json(tmp / GAP_FILE, report.to_dict())
         if plots:

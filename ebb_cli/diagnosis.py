@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .messages import Subcommands
+from .messages import Subcommands, add_target_argument
 
 __all__ = ["add_parsers"]
 
@@ -19,7 +19,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
     d = diagnose(args.config, args.data, args.out, holdout=args.holdout or (), result=args.result,
                  holdout_fraction=args.holdout_fraction, shortlist=args.shortlist, plots=not args.no_plots,
-                 export=not args.no_export, standalone=args.standalone, workers=args.workers, progress=say)
+                 export=not args.no_export, targets=args.target, workers=args.workers, progress=say)
     from diagnosis.report import text_report
 
     print(text_report(d.report))
@@ -53,8 +53,7 @@ def add_parsers(sub: Subcommands) -> None:
     p.add_argument("--no-plots", action="store_true", help="skip the report plots")
     p.add_argument("--no-export", action="store_true",
                    help="do not write the corrected model (config, StateSpace, FMU) when an effect is named")
-    p.add_argument("--standalone", action="store_true",
-                   help="also write the corrected model as a standalone C FMU (corrected_standalone.fmu)")
+    add_target_argument(p, "export targets of the corrected model")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=_cmd_diagnose)
 

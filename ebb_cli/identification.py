@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from .messages import Subcommands
+from .messages import Subcommands, add_target_argument
 
 __all__ = ["add_parsers"]
 
@@ -23,7 +23,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
                        resume=args.resume, force=args.force, algorithm=args.algorithm,
                        progress=not args.no_progress, export=not args.no_export, fmu=args.fmu,
                        fmu_parameters=args.fmu_parameters, fmu_inputs=args.fmu_inputs,
-                       fmu_outputs=args.fmu_outputs, polish=args.polish)
+                       fmu_outputs=args.fmu_outputs, polish=args.polish, targets=args.target)
     except KeyboardInterrupt:
         if (Path(args.out) / CHECKPOINT).exists():
             raise Interrupted(f"interrupted; resume with --resume (checkpoint kept in {args.out})") from None
@@ -49,12 +49,13 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
 def _cmd_export(args: argparse.Namespace) -> int:
     from identification.export import export_points
+    from identification.result import IdentificationResult
 
     # a flag without indices means all of its kind ("--polished": every polished point)
     points = "all" if args.points == [] else args.points
     polished = "all" if args.polished == [] else args.polished
-    files = export_points(args.dir, points, polished=polished, fmu=not args.no_fmu,
-                          reduce_order=args.reduce_order, standalone=args.standalone)
+    files = export_points(IdentificationResult.read(args.dir), points, polished=polished, targets=args.target,
+                          reduce_order=args.reduce_order)
     for f in files:
         print(f"wrote {f}")
     return 0
@@ -88,6 +89,7 @@ def add_parsers(sub: Subcommands) -> None:
     p.add_argument("--force", action="store_true", help="run even if the Fisher matrix is singular")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-export", action="store_true", help="skip the exports at the end")
+    add_target_argument(p, "export targets of every Pareto and polished point")
     p.set_defaults(func=_cmd_identify)
     p = sub.add_parser("export", help="export Pareto points of a result directory (StateSpace, FMU)")
     p.add_argument("dir", help="result directory of 'ebb identify'")
@@ -95,8 +97,6 @@ def add_parsers(sub: Subcommands) -> None:
                    help="Pareto point indices; the flag alone: all (default: all, unless --polished is given)")
     p.add_argument("--polished", type=int, nargs="*", default=None,
                    help="polished point indices; the flag alone: all (default: all, unless --points is given)")
-    p.add_argument("--no-fmu", action="store_true", help="no pythonfmu FMU")
-    p.add_argument("--standalone", action="store_true",
-                   help="also write <point>_standalone.fmu: the standalone C FMU (no Python at run time)")
+    add_target_argument(p, "export targets")
     p.add_argument("--reduce-order", type=int, default=None, help="also a balanced truncation of this order")
     p.set_defaults(func=_cmd_export)

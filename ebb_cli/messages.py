@@ -13,7 +13,7 @@ import re
 from collections.abc import Mapping
 from typing import Any, Protocol
 
-__all__ = ["COMMANDS", "KEYWORD_ALIASES", "FlagParser", "Subcommands", "render"]
+__all__ = ["COMMANDS", "KEYWORD_ALIASES", "FlagParser", "Subcommands", "add_target_argument", "render"]
 
 #: API function → subcommand.
 COMMANDS: Mapping[str, str] = {
@@ -23,7 +23,7 @@ COMMANDS: Mapping[str, str] = {
 #: API keyword → destination of its flag, where the two differ.
 KEYWORD_ALIASES: Mapping[str, str] = {
     "out_dir": "out", "out_csv": "out", "input_csv": "input", "band_hz": "band", "params": "param",
-    "result_dir": "dir", "fmu_path": "fmu",
+    "result_dir": "dir", "fmu_path": "fmu", "targets": "target",
 }
 _QUOTED = re.compile(r"`([A-Za-z_][A-Za-z0-9_]*)`")
 
@@ -91,3 +91,11 @@ def render(message: str, flags: Mapping[str, str]) -> str:
         return flag if flag is not None else m.group(0)
 
     return _QUOTED.sub(word, message)
+
+
+def add_target_argument(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--target NAME [NAME ...]``: export targets by name (the API's ``targets``), default the API's."""
+    from identification.export_targets import DEFAULT_TARGETS, TARGETS
+
+    parser.add_argument("--target", nargs="+", default=list(DEFAULT_TARGETS), metavar="NAME",
+                        help=f"{what}: {' | '.join(TARGETS)} (default: {' '.join(DEFAULT_TARGETS)})")

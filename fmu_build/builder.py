@@ -27,7 +27,7 @@ from pathlib import Path
 
 import pythonfmu
 
-from ebb_model import PARAMETER_NAMES, BeamConfig, assemble, load_config
+from ebb_model import PARAMETER_NAMES, BeamConfig, DiscreteStateSpace, assemble, load_config
 from ebb_model.assemble import assemble_modal
 from ebb_model.atomic import atomic_path
 from ebb_model.errors import FmuError
@@ -103,7 +103,7 @@ def _check_output(out: Path) -> Path:
 
 
 def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLike[str], *,
-              field: bool = False) -> Path:
+              field: bool = False, system: DiscreteStateSpace | None = None) -> Path:
     """Build the beam FMU (FMI 2.0 co-simulation, Linux x86-64).
 
     Parameters
@@ -115,6 +115,9 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
     field
         Also output the deflection ``w[i]`` at every grid node (boundary
         nodes included), in addition to the sensors.
+    system
+        The config's system at its nominal values (:func:`ebb_model.assemble`), when the caller has it already
+        (an export hands one assembled model to every target); assembled here otherwise.
 
     Returns
     -------
@@ -144,7 +147,8 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
     out = Path(out)
     _check_output(out)
     _check_names(cfg)
-    system = assemble(cfg)  # nominal parameters must give a valid, stable model
+    if system is None:
+        system = assemble(cfg)  # nominal parameters must give a valid, stable model
     runtime = find_python_runtime()
     identity = _identity(base)
     description = _description(cfg, sys.executable, runtime.version, field)
@@ -173,7 +177,9 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
                            runtime=runtime, guid=identity.guid)
 
             slave = slave_template.BeamSlave(instance_name="build", resources=str(resources))
-            realised = assemble_modal(cfg, field=field)  # what the slave iterates, field outputs included
+            # the feedthrough's zero pattern: the system's D (the slave's realisation has the same D), or with
+            # field outputs what the slave iterates
+            realised = assemble_modal(cfg, field=True) if field else system
             feedthrough = feedthrough_from_D(realised.D, realised.output_names, realised.input_names)
             xml = finish_model_description(slave.to_xml(), identity=identity, description=description,
                                            units=slave.variable_units, feedthrough=feedthrough)

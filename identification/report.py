@@ -6,7 +6,7 @@ from typing import TYPE_CHECKING
 from ebb_model.beam import PARAMETER_UNITS
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .run import IdentificationResult
+    from .result import IdentificationResult
 
 __all__ = ["identified_lines"]
 

@@ -30,7 +30,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from ebb_model import max_growth_factor
-from ebb_model.adequacy import NumericalAdequacy, numerical_adequacy
+from ebb_model.adequacy import numerical_adequacy
 from ebb_model.atomic import atomic_path
 from ebb_model.config import BeamConfig
 from ebb_model.threads import one_blas_thread
@@ -39,13 +39,15 @@ from ebb_model.jsonio import write_json
 from ebb_model.outdir import check_new_output_dir
 
 from .data import Experiment, load_experiments
-from .fisher import FisherReport, fisher_information
+from .export_targets import DEFAULT_TARGETS, check_targets
+from .fisher import fisher_information
 from .native import ExperimentArrays, NativeEvaluator
 from .objectives import objective_names
 from .optimise import ALGORITHMS, CHECKPOINT, ParetoSet, knee_index, knee_order, optimise
 from .parameters import ParameterSpace, parameter_space
 from .polish import polish as polish_point
 from .problem import IdentificationProblem
+from .result import RESULT_FILE, IdentificationResult, PolishedPoint
 from .runners import Runner, make_runner
 from .noise import given_noise_std
 from .settings import identification_settings, load_identification_config
@@ -54,9 +56,6 @@ __all__ = ["BACKENDS", "IdentificationResult", "PolishedPoint", "Progress", "ide
            "load_identification_config", "read_data"]
 
 BACKENDS = ("auto", "native", "fmu")
-#: Largest fit residual (in noise variances, per sensor) at which the Cramér–Rao bound is reported as valid: the
-#: bound assumes the model explains the data up to the noise.
-CRB_GAP_LIMIT = 2.0
 def read_data(config: BeamConfig, paths: Sequence[str | Path]) -> tuple[Experiment, ...]:
     """Load and check the experiments with the options of ``[identification.data]``."""
     if not paths:
@@ -66,39 +65,6 @@ def read_data(config: BeamConfig, paths: Sequence[str | Path]) -> tuple[Experime
     for e in exps:
         e.check_against(config)
     return exps
-
-
-@dataclass(frozen=True, eq=False)
-class PolishedPoint:
-    """A Pareto point after the local polish.
-
-    Attributes
-    ----------
-    from_index
-        Index of the Pareto point it started from (into ``pareto.X``).
-    x, objectives
-        Polished parameters and their objective values.
-    cramer_rao_std
-        Cramér–Rao standard deviations at ``x``.
-    growth_factor, stable
-        Stabilising objective and stability of the discrete beam at ``x``.
-    n_evaluations
-        Model evaluations of this polish (including its Jacobians and the
-        final objective evaluation).
-    cost, success, message
-        Final sum of squared normalised residuals and ``least_squares``'s verdict.
-    """
-
-    from_index: int
-    x: np.ndarray
-    objectives: np.ndarray
-    cramer_rao_std: np.ndarray
-    growth_factor: float
-    stable: bool
-    n_evaluations: int
-    cost: float
-    success: bool
-    message: str
 
 
 @dataclass(frozen=True)
@@ -120,60 +86,6 @@ class Progress:
     knee: int
 
 
-@dataclass(frozen=True, eq=False)
-class IdentificationResult:
-    """Outcome of :func:`identify`."""
-
-    pareto: ParetoSet
-    fisher_nominal: FisherReport
-    cramer_rao_std: np.ndarray
-    growth_factors: np.ndarray
-    stable: np.ndarray
-    out_dir: Path
-    polished: tuple[PolishedPoint, ...] = ()
-    adequacy: NumericalAdequacy | None = None   # numerical share of the gap at :attr:`best`
-
-    @property
-    def knee(self) -> dict[str, float]:
-        """Parameters of the knee point of the GA's front."""
-        p = self.pareto
-        return dict(zip(p.parameter_names, map(float, p.X[p.knee])))
-
-    @property
-    def best(self) -> dict[str, float]:
-        """Parameters of the polished knee when polished, otherwise of the knee."""
-        if not self.polished:
-            return self.knee
-        return dict(zip(self.pareto.parameter_names, map(float, self.polished[0].x)))
-
-    @property
-    def identified(self) -> dict[str, Any]:
-        """*The* identified model: the polished knee (else the GA's knee, marked as not polished), its
-        Cramér–Rao standard deviations and the fit quality they assume (``cramer_rao_valid``: the fit's residual
-        is within :data:`CRB_GAP_LIMIT` noise variances of every sensor)."""
-        names = self.pareto.parameter_names
-        if self.polished:
-            q = self.polished[0]
-            source, x, crb = f"polished knee, from Pareto point {q.from_index}", q.x, q.cramer_rao_std
-        else:
-            i = self.pareto.knee
-            source, x, crb = f"knee of the GA front, Pareto point {i}, NOT polished", self.pareto.X[i], \
-                self.cramer_rao_std[i]
-        doc: dict[str, Any] = {"from": source, "polished": bool(self.polished),
-                               "parameters": dict(zip(names, map(float, x))),
-                               "cramer_rao_std": dict(zip(names, map(float, crb)))}
-        if self.adequacy is not None:
-            gap = dict(zip(self.adequacy.sensors, map(float, self.adequacy.gap)))
-            doc["fit_gap_ratio"] = gap
-            doc["cramer_rao_valid"] = bool(max(gap.values(), default=0.0) <= CRB_GAP_LIMIT)
-        return doc
-
-    @property
-    def n_evaluations(self) -> int:
-        """Model evaluations of the search: GA plus polish."""
-        return int(self.pareto.n_evaluations + sum(q.n_evaluations for q in self.polished))
-
-
 def _arrays(config: BeamConfig, exps: Sequence[Experiment]) -> tuple[ExperimentArrays, ...]:
     out = []
     for e in exps:
@@ -184,7 +96,7 @@ def _arrays(config: BeamConfig, exps: Sequence[Experiment]) -> tuple[ExperimentA
 
 def _check_out_dir(out: Path, resume: bool) -> Path:
     """The result directory: new (absent or empty) for a run, an interrupted run's for ``resume``."""
-    finished = (out / "pareto.json").exists()
+    finished = (out / RESULT_FILE).exists()
     if resume:
         if (out / CHECKPOINT).exists() and not finished:
             return out
@@ -208,7 +120,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
              noise_std: Sequence[float] | None = None, progress: bool = True, export: bool = True,
              fmu: str | Path | None = None, fmu_parameters: Sequence[str] | None = None,
              fmu_inputs: Sequence[str] | None = None, fmu_outputs: Sequence[str] | None = None,
-             polish: int = 1, polish_evaluations: int = 200,
+             polish: int = 1, polish_evaluations: int = 200, targets: Sequence[str] = DEFAULT_TARGETS,
              on_progress: Callable[[Progress], None] | None = None) -> IdentificationResult:
     """Identify the unknowns of ``config`` from ``data``; write results into ``out_dir``.
 
@@ -229,7 +141,9 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     come on top and are counted).  The default, 1, polishes the knee: that
     is *the* identified model (:attr:`IdentificationResult.best`, ``identified``
     in ``pareto.json``); ``polish = 0`` reports the GA's knee, marked as not
-    polished.  ``on_progress`` receives a
+    polished.  ``export`` writes every Pareto and polished point through the
+    export ``targets`` (:data:`identification.export.TARGETS`) into
+    ``out_dir/export``.  ``on_progress`` receives a
     :class:`Progress` after every generation and every polished point.
 
     Raises
@@ -261,6 +175,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     if stabilising is None:
         stabilising = cfg.time.scheme == "theta" if ident.stabilising is None else ident.stabilising
     noise_std = given_noise_std(cfg, noise_std)
+    targets = check_targets(targets)
     out = _check_out_dir(Path(out_dir), resume)
     exps = read_data(cfg, data)
     space: ParameterSpace = parameter_space(cfg)
@@ -325,14 +240,14 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         best_x = polished_raw[0][1] if polished_raw else pareto.X[pareto.knee]
         adequacy = numerical_adequacy(*space.apply(cfg, best_x),
                                       [(e.inputs, e.outputs) for e in evaluator.experiments], fisher0.noise_std)
-        res = IdentificationResult(pareto, fisher0, np.array(crb), np.array(g), np.array(st), out, tuple(polished),
-                                   adequacy)
-        _write_results(res, cfg, evaluator,
-                       Path(config).stem if not isinstance(config, BeamConfig) else "beam")
+        res = IdentificationResult(cfg, space, pareto, np.array(crb), np.array(g), np.array(st), out,
+                                   Path(config).stem if not isinstance(config, BeamConfig) else "beam",
+                                   tuple(polished), adequacy, fisher0)
+        _write_results(res, evaluator)
         if export:
             from .export import export_points
 
-            export_points(out)
+            export_points(res, targets=targets)
     except KeyboardInterrupt:
         # resumable once a generation is checkpointed; before that, leave nothing behind (the
         # directory was absent or empty: _check_out_dir)
@@ -380,52 +295,11 @@ def _point_properties(cfg: BeamConfig, space: ParameterSpace, evaluator: NativeE
     return crb, g, stable
 
 
-def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: NativeEvaluator,
-                   config_name: str) -> None:
-    p = res.pareto
-    points = []
-    for i, (x, f) in enumerate(zip(p.X, p.F)):
-        points.append({
-            "index": i,
-            "knee": i == p.knee,
-            "parameters": dict(zip(p.parameter_names, map(float, x))),
-            "objectives": dict(zip(p.objective_names, map(float, f))),
-            "cramer_rao_std": {k: float(v) for k, v in zip(p.parameter_names, res.cramer_rao_std[i])},
-            "growth_factor": float(res.growth_factors[i]),
-            "stable": bool(res.stable[i]),
-        })
-    polished = []
-    for j, q in enumerate(res.polished):
-        polished.append({
-            "index": j,
-            "from_index": int(q.from_index),
-            "parameters": dict(zip(p.parameter_names, map(float, q.x))),
-            "objectives": dict(zip(p.objective_names, map(float, q.objectives))),
-            "cramer_rao_std": {k: float(v) for k, v in zip(p.parameter_names, q.cramer_rao_std)},
-            "growth_factor": float(q.growth_factor),
-            "stable": bool(q.stable),
-            "n_evaluations": int(q.n_evaluations),
-            "cost": float(q.cost),
-            "success": bool(q.success),
-            "message": q.message,
-        })
-    n_polish = sum(q["n_evaluations"] for q in polished)
-    doc = {
-        "config": cfg.to_dict(),
-        "config_name": config_name,
-        "identified": res.identified,
-        "parameter_names": list(p.parameter_names),
-        "objective_names": list(p.objective_names),
-        "knee": int(p.knee),
-        "n_evaluations": int(p.n_evaluations + n_polish),
-        "n_evaluations_ga": int(p.n_evaluations),
-        "n_evaluations_polish": int(n_polish),
-        "generations": int(p.generations),
-        "points": points,
-        "polished": polished,
-        # at the reported point (the polished knee, else the knee): how much of its gap is the grid's
-        "numerical_adequacy": res.adequacy.to_dict() if res.adequacy is not None else None,
-    }
+def _write_results(res: IdentificationResult, evaluator: NativeEvaluator) -> None:
+    """``pareto.csv``, ``polished.csv`` (when polished), the plots, and last ``pareto.json`` (it marks the run as
+    finished)."""
+    doc = res.to_dict()
+    points, polished, p = doc["points"], doc["polished"], res.pareto
     # the growth factor is a column once: as an objective when the stabilising objective is on, else on its own
     extra = [] if "growth_factor" in p.objective_names else ["growth_factor"]
     head = [*p.parameter_names, *p.objective_names, *[f"crb_{n}" for n in p.parameter_names], *extra, "stable"]
@@ -445,7 +319,7 @@ def _write_results(res: IdentificationResult, cfg: BeamConfig, evaluator: Native
     from .plots import plot_results
 
     plot_results(res, evaluator)
-    write_json(res.out_dir / "pareto.json", doc)  # last: it marks the run as finished
+    write_json(res.out_dir / RESULT_FILE, doc)  # last: it marks the run as finished
 
 
 def _write_csv(path: Path, header: list[str], rows: list[list[Any]]) -> None:

@@ -243,7 +243,7 @@ def finished_run(tmp_path_factory):
 
 def test_export_polished_without_indices_exports_every_polished_point(finished_run, capsys):
     _, out = finished_run
-    assert main(["export", str(out), "--polished", "--no-fmu"]) == 0
+    assert main(["export", str(out), "--polished", "--target", "statespace"]) == 0
     written = sorted(p.name for p in (out / "export").iterdir())
     assert written == ["polished_0.npz"], written
     capsys.readouterr()
@@ -256,7 +256,7 @@ def test_export_polished_of_a_run_without_polish_refuses(case, capsys):
                  "--no-progress", "--no-export", "--polish", "0"]) == 0
     capsys.readouterr()
     assert not (out / "polished.csv").exists()              # no header-only file
-    assert main(["export", str(out), "--polished", "--no-fmu"]) == 2
+    assert main(["export", str(out), "--polished", "--target", "statespace"]) == 2
     assert "--polished: this run has no polished points (run `ebb identify` with --polish K)" in \
         one_line_error(capsys, "export")
     assert not (out / "export").exists()
@@ -267,7 +267,7 @@ def test_export_reduce_order_out_of_range(finished_run, capsys):
     n = em.assemble(em.load_config(tmp / "cfg.toml")).nstates     # 2 × 16 modes + 2 delays of the cubic input
     assert n == 34
     for order in ("0", "10000"):
-        assert main(["export", str(out), "--points", "0", "--no-fmu", "--reduce-order", order]) == 2
+        assert main(["export", str(out), "--points", "0", "--target", "statespace", "--reduce-order", order]) == 2
         assert f"--reduce-order: must lie in 1 … {n} (the model's states)" in one_line_error(capsys, "export")
 
 

@@ -374,10 +374,11 @@ def test_cli_export_writes_standalone_fmus(tmp_path, capsys):
     cfg = load_config(SEED_TOML)
     result = tmp_path / "result"
     result.mkdir()
-    points = [{"parameters": {"EI": 12.0, "N": 40.0}}, {"parameters": {"EI": 9.0, "N": 70.0}}]
+    rhoA = cfg.parameters["rhoA"].value          # the config's third unknown, at its nominal value
+    points = [{"parameters": {"EI": 12.0, "rhoA": rhoA, "N": 40.0}}, {"parameters": {"EI": 9.0, "rhoA": rhoA, "N": 70.0}}]
     (result / "pareto.json").write_text(json.dumps({"config": cfg.to_dict(), "points": points,
-                                                    "parameter_names": ["EI", "N"], "config_name": "seed"}))
-    assert main(["export", str(result), "--points", "1", "--no-fmu", "--standalone"]) == 0
+                                                    "parameter_names": ["EI", "rhoA", "N"], "config_name": "seed"}))
+    assert main(["export", str(result), "--points", "1", "--target", "standalone"]) == 0
     fmu = result / "export" / "point_1_standalone.fmu"
     assert fmu.is_file() and not (result / "export" / "point_1.fmu").exists()
     u = _inputs(cfg, 300, 11)
@@ -462,14 +463,15 @@ def test_model_exchange_with_a_host_solver_and_a_continuous_input(fmus, configs)
 
 
 def test_diagnosed_model_exports_a_standalone_fmu(tmp_path):
-    """``export_corrected(..., standalone=True)`` (``ebb diagnose --standalone``): the corrected beam in C."""
+    """``export_corrected(..., targets=[..., "standalone"])`` (``ebb diagnose --target standalone``): the
+    corrected beam in C."""
     from diagnosis.corrected import export_corrected
     from diagnosis.effects import AugmentedModel
 
     cfg = load_config(SEED_TOML)
     params = cfg.parameter_values() | {"EI": 10.5, "c": 0.2}
-    files = export_corrected(AugmentedModel(cfg, params), tmp_path / "corrected", {"effect": "test"}, fmu=False,
-                             standalone=True)
+    files = export_corrected(AugmentedModel(cfg, params), tmp_path / "corrected", {"effect": "test"},
+                             targets=["statespace", "standalone"])
     fmu = tmp_path / "corrected" / "corrected_standalone.fmu"
     assert fmu in files
     carries = json.loads((tmp_path / "corrected" / "corrected.json").read_text())["files"]

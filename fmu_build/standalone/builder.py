@@ -27,7 +27,7 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from ebb_model import BeamConfig, assemble, load_config
+from ebb_model import BeamConfig, DiscreteStateSpace, assemble, load_config
 from ebb_model.assemble import field_config
 from ebb_model.atomic import atomic_path
 from ebb_model.errors import ConfigError, FmuError
@@ -84,7 +84,7 @@ def compile_binary(sources: Path, target: Path, *, compiler: str = "gcc") -> Non
 
 
 def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLike[str], *,
-                         field: bool = False) -> Path:
+                         field: bool = False, system: DiscreteStateSpace | None = None) -> Path:
     """Build the standalone FMU (FMI 2.0, model exchange and co-simulation; C, no Python at run time).
 
     Parameters
@@ -96,6 +96,9 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
         Path of the ``.fmu`` file to write (replaced if it exists).
     field
         Also output the deflection ``w[i]`` at every grid node (displacement outputs at the nodes).
+    system
+        The config's system at its nominal values, when the caller has it already (it is the check that the
+        nominal values give a valid, stable model; assembled here otherwise).
 
     Returns
     -------
@@ -126,7 +129,8 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
     if cfg.beam.nodes > MAX_NODES:
         raise ConfigError(f"beam.nodes = {cfg.beam.nodes}: the standalone FMU's dense C solvers take at most "
                           f"{MAX_NODES} nodes (initialisation time grows as nodes³)")
-    assemble(cfg)                                       # the nominal parameters must give a valid, stable model
+    if system is None:
+        assemble(cfg)                                   # the nominal parameters must give a valid, stable model
     field_sensors = tuple(field_config(cfg).sensors[len(cfg.sensors):]) if field else ()
     identity = _identity(base)
     variables = fmu_variables(cfg, field_sensors)

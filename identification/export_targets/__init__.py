@@ -1,4 +1,4 @@
-"""Export targets of identified models: one module per target, registered in :data:`identification.export.TARGETS`.
+"""Export targets of identified models: one module per target, registered in :data:`TARGETS`.
 
 A target module provides ``write(item: ExportItem, out_dir: Path) -> list[Path]``, which writes the files of one
 identified model into ``out_dir`` (named after ``item.stem``) and returns them. Adding a target is one module
@@ -9,14 +9,53 @@ pythonfmu FMU; ``standalone`` — the standalone C FMU (no Python at run time).
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+import importlib
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
 from ebb_model import BeamConfig, DiscreteStateSpace
+from ebb_model.errors import ConfigError
 
-__all__ = ["ExportItem"]
+__all__ = ["DEFAULT_TARGETS", "ExportItem", "TARGETS", "check_targets", "export_target"]
+
+#: Export targets: name → module of :mod:`identification.export_targets` providing ``write(item, out_dir)``.
+TARGETS: Mapping[str, str] = MappingProxyType({
+    "statespace": "identification.export_targets.statespace",   # python-control StateSpace (.npz)
+    "fmu": "identification.export_targets.fmu",                 # pythonfmu FMU
+    "standalone": "identification.export_targets.standalone",   # standalone C FMU
+})
+#: What ``identify``, ``export`` and the corrected model write when no target is named.
+DEFAULT_TARGETS: tuple[str, ...] = ("statespace", "fmu")
+
+
+def export_target(name: str) -> Callable[[ExportItem, Path], list[Path]]:
+    """The ``write`` function of export target ``name``.
+
+    Raises
+    ------
+    ConfigError
+        ``name`` is not in :data:`TARGETS` (the message lists them).
+    """
+    return importlib.import_module(TARGETS[check_targets([name])[0]]).write
+
+
+def check_targets(targets: Sequence[str]) -> tuple[str, ...]:
+    """``targets`` as a tuple of known export target names (before anything is written).
+
+    Raises
+    ------
+    ConfigError
+        A name not in :data:`TARGETS` (the message lists them), or a string instead of a list of names.
+    """
+    if isinstance(targets, str):
+        raise ConfigError(f"`targets`: expected a list of target names, got the string {targets!r}")
+    unknown = [t for t in targets if t not in TARGETS]
+    if unknown:
+        raise ConfigError(f"`targets`: unknown export target {unknown[0]!r}; allowed: {', '.join(TARGETS)}")
+    return tuple(targets)
 
 
 @dataclass(frozen=True, eq=False)
@@ -34,9 +73,12 @@ class ExportItem:
     params
         Identified physical parameter values.
     system
-        The assembled state-space system at ``params``.
+        The model as a discrete system: the beam assembled at ``params``, once for every target (with a corrected
+        model's signal-level parts in series, when it has them).
     options
         Target options (``reduce_order`` for ``statespace``).
+    beam_system
+        The beam alone (what an FMU carries), when ``system`` is more than the beam; ``None``: ``system``.
     """
 
     stem: str
@@ -45,3 +87,9 @@ class ExportItem:
     params: Mapping[str, float]
     system: DiscreteStateSpace
     options: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    beam_system: DiscreteStateSpace | None = None
+
+    @property
+    def beam(self) -> DiscreteStateSpace:
+        """The beam's own system at ``params`` (what the FMU targets build from)."""
+        return self.system if self.beam_system is None else self.beam_system

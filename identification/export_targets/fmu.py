@@ -13,4 +13,5 @@ def write(item: ExportItem, out_dir: Path) -> list[Path]:
     """Write ``<stem>.fmu`` into ``out_dir``; return it."""
     from fmu_build import build_fmu
 
-    return [build_fmu(item.config.with_parameters(**item.params), out_dir / f"{item.stem}.fmu")]
+    return [build_fmu(item.config.with_parameters(**item.params), out_dir / f"{item.stem}.fmu",
+                      system=item.beam)]

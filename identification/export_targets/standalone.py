@@ -13,4 +13,5 @@ def write(item: ExportItem, out_dir: Path) -> list[Path]:
     """Write ``<stem>_standalone.fmu`` into ``out_dir``; return it."""
     from fmu_build.standalone import build_standalone_fmu
 
-    return [build_standalone_fmu(item.config.with_parameters(**item.params), out_dir / f"{item.stem}_standalone.fmu")]
+    return [build_standalone_fmu(item.config.with_parameters(**item.params), out_dir / f"{item.stem}_standalone.fmu",
+                                 system=item.beam)]

@@ -1,0 +1,270 @@
+"""The identification's result as one typed value: what :func:`identification.run.identify` returns, what
+``pareto.json`` holds (:meth:`IdentificationResult.to_dict`) and what export and diagnosis read back
+(:meth:`IdentificationResult.read`).
+
+The schema of ``pareto.json`` is written and read here only:
+
+``config``, ``config_name``
+    The identification config (``[identification]`` included) and the name of its file.
+``identified``
+    *The* identified model (:attr:`IdentificationResult.identified`).
+``parameter_names``, ``objective_names``, ``knee``, ``generations``
+    The unknowns, the objectives, the knee's index into ``points``, the GA's generations.
+``n_evaluations``, ``n_evaluations_ga``, ``n_evaluations_polish``
+    Model evaluations of the search (GA plus polish), and of each part.
+``points``, ``polished``
+    Every Pareto point and every polished point: parameters, objectives, Cramér–Rao standard deviations,
+    growth factor and stability (polished points also their start, evaluations and the local solver's verdict).
+``numerical_adequacy``
+    The grid's share of the gap at the identified model (:class:`~ebb_model.adequacy.NumericalAdequacy`).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from ebb_model.adequacy import NumericalAdequacy
+from ebb_model.config import BeamConfig, config_from_dict
+from ebb_model.errors import ConfigError
+
+from .fisher import FisherReport
+from .optimise import ParetoSet
+from .parameters import ParameterSpace, parameter_space
+from .settings import SECTION
+
+__all__ = ["CRB_GAP_LIMIT", "IdentificationResult", "PolishedPoint", "RESULT_FILE"]
+
+#: The result's file in an ``identify`` output directory.
+RESULT_FILE = "pareto.json"
+#: Largest fit residual (in noise variances, per sensor) at which the Cramér–Rao bound is reported as valid: the
+#: bound assumes the model explains the data up to the noise.
+CRB_GAP_LIMIT = 2.0
+
+
+@dataclass(frozen=True, eq=False)
+class PolishedPoint:
+    """A Pareto point after the local polish.
+
+    Attributes
+    ----------
+    from_index
+        Index of the Pareto point it started from (into ``pareto.X``).
+    x, objectives
+        Polished parameters and their objective values.
+    cramer_rao_std
+        Cramér–Rao standard deviations at ``x``.
+    growth_factor, stable
+        Stabilising objective and stability of the discrete beam at ``x``.
+    n_evaluations
+        Model evaluations of this polish (including its Jacobians and the
+        final objective evaluation).
+    cost, success, message
+        Final sum of squared normalised residuals and ``least_squares``'s verdict.
+    """
+
+    from_index: int
+    x: np.ndarray
+    objectives: np.ndarray
+    cramer_rao_std: np.ndarray
+    growth_factor: float
+    stable: bool
+    n_evaluations: int
+    cost: float
+    success: bool
+    message: str
+
+
+@dataclass(frozen=True, eq=False)
+class IdentificationResult:
+    """Outcome of :func:`identification.run.identify`, or of a finished run read back (:meth:`read`).
+
+    Attributes
+    ----------
+    config, space
+        The identification config and its unknowns (:func:`identification.parameters.parameter_space`).
+    pareto
+        The GA's non-dominated set.
+    cramer_rao_std, growth_factors, stable
+        Per Pareto point.
+    out_dir
+        Where the run wrote its files.
+    config_name
+        Name of the config (its file's stem; ``beam`` for a config given as a value): titles of exported models.
+    polished
+        The polished points, knee first.
+    adequacy
+        Numerical share of the gap at :attr:`best`.
+    fisher_nominal
+        Fisher information at the nominal point (``None`` for a result read back: ``identifiability.json``
+        keeps its summary only).
+    """
+
+    config: BeamConfig
+    space: ParameterSpace
+    pareto: ParetoSet
+    cramer_rao_std: np.ndarray
+    growth_factors: np.ndarray
+    stable: np.ndarray
+    out_dir: Path
+    config_name: str = "beam"
+    polished: tuple[PolishedPoint, ...] = ()
+    adequacy: NumericalAdequacy | None = None
+    fisher_nominal: FisherReport | None = None
+
+    @property
+    def knee(self) -> dict[str, float]:
+        """Parameters of the knee point of the GA's front."""
+        p = self.pareto
+        return dict(zip(p.parameter_names, map(float, p.X[p.knee])))
+
+    @property
+    def best(self) -> dict[str, float]:
+        """Parameters of the polished knee when polished, otherwise of the knee."""
+        if not self.polished:
+            return self.knee
+        return dict(zip(self.pareto.parameter_names, map(float, self.polished[0].x)))
+
+    @property
+    def identified(self) -> dict[str, Any]:
+        """*The* identified model: the polished knee (else the GA's knee, marked as not polished), its
+        Cramér–Rao standard deviations and the fit quality they assume (``cramer_rao_valid``: the fit's residual
+        is within :data:`CRB_GAP_LIMIT` noise variances of every sensor)."""
+        names = self.pareto.parameter_names
+        if self.polished:
+            q = self.polished[0]
+            source, x, crb = f"polished knee, from Pareto point {q.from_index}", q.x, q.cramer_rao_std
+        else:
+            i = self.pareto.knee
+            source, x, crb = f"knee of the GA front, Pareto point {i}, NOT polished", self.pareto.X[i], \
+                self.cramer_rao_std[i]
+        doc: dict[str, Any] = {"from": source, "polished": bool(self.polished),
+                               "parameters": dict(zip(names, map(float, x))),
+                               "cramer_rao_std": dict(zip(names, map(float, crb)))}
+        if self.adequacy is not None:
+            gap = dict(zip(self.adequacy.sensors, map(float, self.adequacy.gap)))
+            doc["fit_gap_ratio"] = gap
+            doc["cramer_rao_valid"] = bool(max(gap.values(), default=0.0) <= CRB_GAP_LIMIT)
+        return doc
+
+    @property
+    def n_evaluations(self) -> int:
+        """Model evaluations of the search: GA plus polish."""
+        return int(self.pareto.n_evaluations + sum(q.n_evaluations for q in self.polished))
+
+    def models(self, points: Sequence[int] = (), polished: Sequence[int] = ()
+               ) -> list[tuple[str, BeamConfig, dict[str, float]]]:
+        """``(stem, config, parameter values)`` of the chosen Pareto points (``point_<i>``) and polished points
+        (``polished_<j>``), positions moved for identified positions."""
+        chosen = [(f"point_{i}", self.pareto.X[i]) for i in points]
+        chosen += [(f"polished_{j}", self.polished[j].x) for j in polished]
+        out = []
+        for stem, x in chosen:
+            cfg, params = self.space.apply(self.config, x)
+            out.append((stem, cfg, dict(params)))
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``pareto.json`` document (the module docstring gives its schema)."""
+        p = self.pareto
+        points = [{"index": i, "knee": i == p.knee, **self._point(x, f, self.cramer_rao_std[i],
+                                                                   self.growth_factors[i], self.stable[i])}
+                  for i, (x, f) in enumerate(zip(p.X, p.F))]
+        polished = [{"index": j, "from_index": int(q.from_index),
+                     **self._point(q.x, q.objectives, q.cramer_rao_std, q.growth_factor, q.stable),
+                     "n_evaluations": int(q.n_evaluations), "cost": float(q.cost), "success": bool(q.success),
+                     "message": q.message} for j, q in enumerate(self.polished)]
+        n_polish = sum(q["n_evaluations"] for q in polished)
+        return {
+            "config": self.config.to_dict(),
+            "config_name": self.config_name,
+            "identified": self.identified,
+            "parameter_names": list(p.parameter_names),
+            "objective_names": list(p.objective_names),
+            "knee": int(p.knee),
+            "n_evaluations": int(p.n_evaluations + n_polish),
+            "n_evaluations_ga": int(p.n_evaluations),
+            "n_evaluations_polish": int(n_polish),
+            "generations": int(p.generations),
+            "points": points,
+            "polished": polished,
+            # at the reported point (the polished knee, else the knee): how much of its gap is the grid's
+            "numerical_adequacy": self.adequacy.to_dict() if self.adequacy is not None else None,
+        }
+
+    def _point(self, x: np.ndarray, f: np.ndarray, crb: np.ndarray, growth: float, stable: bool
+               ) -> dict[str, Any]:
+        p = self.pareto
+        return {"parameters": dict(zip(p.parameter_names, map(float, x))),
+                "objectives": dict(zip(p.objective_names, map(float, f))),
+                "cramer_rao_std": {k: float(v) for k, v in zip(p.parameter_names, crb)},
+                "growth_factor": float(growth), "stable": bool(stable)}
+
+    @classmethod
+    def read(cls, result_dir: str | Path) -> IdentificationResult:
+        """The finished run in ``result_dir`` (its ``pareto.json``).
+
+        Raises
+        ------
+        ConfigError
+            No ``pareto.json``, or one that is not a result of this tool (the message names the file and what
+            is wrong).
+        """
+        d = Path(result_dir)
+        path = d / RESULT_FILE
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise ConfigError(f"{d}: no {RESULT_FILE} (run `ebb identify` first)") from None
+        except (OSError, UnicodeDecodeError, ValueError) as exc:
+            raise ConfigError(f"{path}: unreadable identification result ({exc})") from None
+        try:
+            return cls._from_dict(doc, d)
+        except ConfigError as exc:
+            raise ConfigError(f"{path}: {exc}") from None
+        except (KeyError, IndexError, TypeError, ValueError, AttributeError) as exc:
+            raise ConfigError(f"{path}: unreadable identification result ({type(exc).__name__}: {exc})") from None
+
+    @classmethod
+    def _from_dict(cls, doc: Mapping[str, Any], out_dir: Path) -> IdentificationResult:
+        cfg = config_from_dict(doc["config"], extra_sections=(SECTION,))
+        space = parameter_space(cfg)
+        names = tuple(doc["parameter_names"])
+        if names != tuple(space.names):
+            raise ConfigError(f"parameter_names {list(names)} are not the config's unknowns {list(space.names)}")
+        objectives = tuple(doc.get("objective_names", ()))
+
+        def vec(q: Mapping[str, Any], key: str, keys: Sequence[str]) -> np.ndarray:
+            values = q.get(key) or {}
+            return np.array([float(values.get(k, np.nan)) for k in keys], dtype=float).reshape(len(keys))
+
+        pts = list(doc["points"])
+        X = np.array([vec(q, "parameters", names) for q in pts]).reshape(len(pts), len(names))
+        F = np.array([vec(q, "objectives", objectives) for q in pts]).reshape(len(pts), len(objectives))
+        pareto = ParetoSet(X, F, names, objectives, int(doc.get("knee", 0)),
+                           int(doc.get("n_evaluations_ga", doc.get("n_evaluations", 0))),
+                           int(doc.get("generations", 0)))
+        polished = tuple(
+            PolishedPoint(int(q.get("from_index", 0)), vec(q, "parameters", names), vec(q, "objectives", objectives),
+                          vec(q, "cramer_rao_std", names), float(q.get("growth_factor", np.nan)),
+                          bool(q.get("stable", True)), int(q.get("n_evaluations", 0)), float(q.get("cost", np.nan)),
+                          bool(q.get("success", True)), str(q.get("message", "")))
+            for q in doc.get("polished") or ())
+        return cls(cfg, space, pareto, np.array([vec(q, "cramer_rao_std", names) for q in pts]),
+                   np.array([float(q.get("growth_factor", np.nan)) for q in pts]),
+                   np.array([bool(q.get("stable", True)) for q in pts]), out_dir,
+                   str(doc.get("config_name") or out_dir.name), polished, _adequacy(doc.get("numerical_adequacy")))
+
+
+def _adequacy(doc: Mapping[str, Any] | None) -> NumericalAdequacy | None:
+    """:class:`NumericalAdequacy` from its :meth:`~NumericalAdequacy.to_dict`."""
+    if not doc:
+        return None
+    sensors = tuple(doc["sensors"])
+    per = doc["sensors"]
+    return NumericalAdequacy(sensors, np.array([float(per[s]["gap_ratio"]) for s in sensors]),
+                             np.array([float(per[s]["gap_ratio_refined"]) for s in sensors]),
+                             np.array([float(per[s]["change"]) for s in sensors]), int(doc["refined_nodes"]))
