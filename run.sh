@@ -2,6 +2,7 @@
 # One entry point for a fresh machine (Python 3.11, pip, gcc):
 #   bash run.sh demo   - the main job on the embedded default example
 #   bash run.sh test   - the test suite
+#   bash run.sh lint   - ruff and the type check of the public API (configured in pyproject.toml)
 #   bash run.sh lock   - refresh requirements.lock (the exact versions installed by demo and test)
 # Each command creates/refreshes the virtual environment .venv first.
 set -euo pipefail
@@ -54,11 +55,16 @@ case "$cmd" in
         shift || true
         "$PY" -m pytest -q "$@"
         ;;
+    lint)
+        setup
+        "$VENV/bin/ruff" check .
+        "$VENV/bin/mypy"
+        ;;
     lock)
         lock
         ;;
     *)
-        echo "usage: bash run.sh demo|test [pytest args]|lock" >&2
+        echo "usage: bash run.sh demo|test [pytest args]|lint|lock" >&2
         exit 2
         ;;
 esac

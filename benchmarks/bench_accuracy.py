@@ -75,7 +75,8 @@ def main() -> None:
               res(truth(u, 48)), "| 64 elements", res(truth(u, 64)), "(time: exact for the spline force)")
         print("Residual at the true parameters, noise variances per accelerometer (target <= 1.5):")
         for nodes in (30, 60, 120, 240):
-            print(f"  exact  {nodes:4d} nodes (cubic input)  {res(em.simulate(em.fast_model(config(nodes, 'exact')), u).outputs)}")
+            y_c = em.simulate(em.fast_model(config(nodes, "exact")), u).outputs
+            print(f"  exact  {nodes:4d} nodes (cubic input)  {res(y_c)}")
             y_f = em.simulate(em.fast_model(config(nodes, "exact", input_hold="foh")), u).outputs
             print(f"  exact  {nodes:4d} nodes (foh input)    {res(y_f)}")
             for sub in (1, 4, 16):

@@ -66,10 +66,11 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
                      targets: Sequence[str] = DEFAULT_TARGETS) -> list[Path]:
     """Write the corrected model into ``out_dir`` (created); returns the written files (see the module docstring).
 
-    The model files are written by the export targets named in ``targets`` (:data:`identification.export_targets.TARGETS`:
-    ``statespace`` — only when the corrected model is time-invariant —, ``fmu``, ``standalone``), from one assembly
-    of the corrected beam.  ``summary`` (effect, parameters with units, held-out gap) is written to
-    ``corrected.json`` with the list of files and what each one carries.
+    The model files are written by the export targets named in ``targets``
+    (:data:`identification.export_targets.TARGETS`: ``statespace`` — only when the corrected model is
+    time-invariant —, ``fmu``, ``standalone``), from one assembly of the corrected beam.  ``summary`` (effect,
+    parameters with units, held-out gap) is written to ``corrected.json`` with the list of files and what each
+    one carries.
 
     Raises
     ------

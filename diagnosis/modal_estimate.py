@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import linalg, optimize, signal
 
 __all__ = ["MeasuredModes", "estimate_modes"]
@@ -130,7 +131,7 @@ class _Problem:
 
 
 def estimate_modes(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], noise_std: np.ndarray, dt: float,
-                   freq_hz: Sequence[float], damping: Sequence[float], *, above_hz: Sequence[float] = (),
+                   freq_hz: ArrayLike, damping: ArrayLike, *, above_hz: ArrayLike = (),
                    search: float = SEARCH) -> MeasuredModes:
     """Fit the frequency and damping of every mode in ``freq_hz`` to the records (module docstring).
 

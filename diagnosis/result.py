@@ -72,7 +72,7 @@ class EffectRow:
     rank: int
     label: str
     effect: str
-    target: str
+    target: str | None
     description: str
     score: float | None
     p_value: float | None

@@ -18,7 +18,7 @@ import tempfile
 from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence, cast
 
 import numpy as np
 
@@ -41,7 +41,7 @@ from identification.result import IdentificationResult
 from identification.run import load_identification_config, read_data
 
 from .axial_terms import stretch_of_nodes
-from .effects import PAIR_SEPARATOR, Catalogue, Effect, Scales
+from .effects import Catalogue, Effect, Scales
 from .fitting import Fit, GapProblem
 from .localise import Localisation, localise
 from .modal_estimate import MeasuredModes, estimate_modes
@@ -103,7 +103,7 @@ def _start_from_result(result: IdentificationResult | str | Path, names: Sequenc
     return np.array([float(best[n]) for n in names])
 
 
-def _stretch_max(config: BeamConfig, params: dict[str, float], records: Sequence[Record]) -> float:
+def _stretch_max(config: BeamConfig, params: Mapping[str, float], records: Sequence[Record]) -> float:
     """Largest ``∫ w_x² dx`` of the baseline response over the records.
 
     The deflection at every grid node (:func:`ebb_model.field_config`) and the
@@ -170,7 +170,7 @@ def _numerical_verdict(ranking: Ranking, share: float, advice: str) -> Ranking:
     return ranking
 
 
-def corrected_summary(config: BeamConfig, baseline: Mapping[str, float], row: EffectRow, effect: Effect
+def corrected_summary(config: BeamConfig, baseline: Mapping[str, float], row: EffectRow | None, effect: Effect
                       ) -> dict[str, Any]:
     """What ``corrected.json`` says: the effect and its parameters with units (the effect's own,
     :attr:`Effect.units`), the refitted baseline, and the held-out gap before/after.
@@ -182,9 +182,9 @@ def corrected_summary(config: BeamConfig, baseline: Mapping[str, float], row: Ef
     """
     from ebb_model.beam import PARAMETER_UNITS
 
-    rf = row.refit
-    if rf is None:
-        raise ValueError(f"{row.label}: only a refitted effect is exported")
+    rf = None if row is None else row.refit
+    if row is None or rf is None:
+        raise ValueError(f"{effect.label}: only a refitted effect is exported")
     units = effect.units
 
     def unit(k: str) -> str:
@@ -327,7 +327,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     say(f"verdict: {ranking.verdict}")
 
     # where: localisation of the baseline residual per record
-    base_all = problem.simulate(baseline.beta, until="all")
+    base_all = cast(list[np.ndarray], problem.simulate(baseline.beta, until="all"))   # "all": every record
     locs = [localise(dt, r.inputs, r.outputs, y, cfg.output_names, mf, mz, noise_std=sigma)
             for r, y in zip(records, base_all)]
     if ranking.verdict == UNEXPLAINED:

@@ -2,8 +2,9 @@
 
 At given parameters the model is simulated on its own grid and on a refined one: :func:`refined_grid`, or,
 when :mod:`ebb_model.grid_advice` finds the config's grid too coarse for the band the record excites, the grid
-it recommends (one refinement step of a grid far from its asymptotic range changes only part of its error).  Against the measurements, per sensor and in
-noise variances: the gap of the model, the gap of the refined model, and the change refinement makes.
+it recommends (one refinement step of a grid far from its asymptotic range changes only part of its error).
+Against the measurements, per sensor and in noise variances: the gap of the model, the gap of the refined model,
+and the change refinement makes.
 Their ratio, the *numerical share*, says how much of the gap is numerical: near 0 the gap is the physics'
 (or noise), near 1 the grid's — then no physical effect should be blamed for it, and the grid should be
 refined (``[beam] nodes``).
@@ -16,6 +17,7 @@ from typing import Any, Mapping, Sequence
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.signal import welch
 
 from .config import BeamConfig
@@ -109,7 +111,7 @@ def adequacy_grid(config: BeamConfig, params: Mapping[str, float], band_hz: floa
 
 def numerical_adequacy(config: BeamConfig, params: Mapping[str, float],
                        records: Sequence[tuple[np.ndarray, np.ndarray]],
-                       noise_std: Sequence[float], *, band_hz: float | None = None) -> NumericalAdequacy:
+                       noise_std: ArrayLike, *, band_hz: float | None = None) -> NumericalAdequacy:
     """Gap of the model at ``params`` with and without refinement, over ``records`` of ``(inputs, outputs)``.
 
     Parameters

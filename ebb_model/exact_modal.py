@@ -10,8 +10,8 @@ seed's spatial discretisation (same grid, ghost nodes, matrices):
    a grid with half the spacing (:func:`companion_config`; twice the spacing for configs above 100 nodes,
    whose refined grid would be too ill-conditioned).  The eigenvalues ``ω_i²`` of the undamped problems
    converge as ``h²``, so ``(4 ω_i²(h/2) − ω_i²(h)) / 3`` is ``O(h⁴)``; the mode shapes (at the sensors and
-   actuators) and the modal damping come from the finer grid.  The model keeps as many modes as the config's grid has unknowns (the state dimension of the
-   seed's model).
+   actuators) and the modal damping come from the finer grid.  The model keeps as many modes as the config's
+   grid has unknowns (the state dimension of the seed's model).
 2. **Time, exact.**  The modal system ``q̈ + C_m q̇ + Λ q = Ψᵀ F u`` (``C_m = Ψᵀ C Ψ``: non-proportional
    damping is kept) is diagonalised in continuous time and each pole ``s`` is integrated exactly over a
    sample under the input of :attr:`~ebb_model.config.TimeSettings.input_hold`: the cubic through the

@@ -10,8 +10,9 @@ load side by side), ``standalone`` (``<stem>_standalone.fmu``, the C FMU of :mod
 Python at run time).  Each point is assembled once and handed to every target.  Unstable points are listed in
 ``pareto.json`` but not exported.
 
-The formats are export targets (:data:`~identification.export_targets.TARGETS`): one module of :mod:`identification.export_targets` each,
-registered by one line; ``identify``, ``export`` and the diagnosis' corrected model choose them by name.
+The formats are export targets (:data:`~identification.export_targets.TARGETS`): one module of
+:mod:`identification.export_targets` each, registered by one line; ``identify``, ``export`` and the diagnosis'
+corrected model choose them by name.
 """
 from __future__ import annotations
 

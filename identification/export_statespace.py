@@ -2,8 +2,8 @@
 
 A system is saved as an ``.npz`` with ``A, B, C, D, dt``, the signal names and what a control designer needs
 to know where it came from: the system's name, its parameter values with units and the config it was built from
-(JSON inside the archive; reloadable without pickle: :func:`load_statespace`, :func:`load_metadata`).  Optionally a reduced
-model by square-root balanced truncation, with its Hankel singular values and
+(JSON inside the archive; reloadable without pickle: :func:`load_statespace`, :func:`load_metadata`).
+Optionally a reduced model by square-root balanced truncation, with its Hankel singular values and
 the a-priori error bound ``‖G - G_r‖_∞ ≤ 2 Σ_{i>r} σ_i`` (Enns/Glover), which
 requires an asymptotically stable system (damping > 0): an undamped beam has
 no Gramians and is refused with that explanation.

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ebb_model.errors import DataError, StabilityError
 
@@ -132,7 +133,7 @@ def _combination(names: Sequence[str], v: np.ndarray) -> str:
 
 
 def fisher_information(evaluator: NativeEvaluator, x: np.ndarray, *,
-                       noise_std: Sequence[float] | None = None, rank_tol: float = 1e-9,
+                       noise_std: ArrayLike | None = None, rank_tol: float = 1e-9,
                        ill_conditioned: float = 1e8) -> FisherReport:
     """Fisher information matrix of the scaled unknowns at ``x`` and its interpretation.
 

@@ -31,16 +31,15 @@ import uuid
 import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ebb_model import max_growth_factor
 from ebb_model.config import BeamConfig
-from ebb_model.errors import ConfigError, FmuError, ParameterError
+from ebb_model.errors import ConfigError, FmuError
 
 from .native import ExperimentArrays
-from .objectives import PENALTY, SimulationOutcome, output_errors
+from .objectives import ObjectiveFunction, SimulationOutcome
 from .parameters import ParameterSpace
 
 __all__ = ["FmuEvaluator"]
@@ -135,8 +134,9 @@ def _new_token() -> str:
 
 
 @dataclass(eq=False)
-class FmuEvaluator:
-    """Evaluate candidates through an FMU (picklable; the instance is created lazily per process)."""
+class FmuEvaluator(ObjectiveFunction):
+    """Evaluate candidates through an FMU (picklable; the instance is created lazily per process; objectives:
+    :class:`ObjectiveFunction`, as the native backend's)."""
 
     fmu_path: str
     config: BeamConfig
@@ -160,12 +160,6 @@ class FmuEvaluator:
             raise ConfigError(f"FMU parameter names: {len(self.parameter_names)} given, {self.space.dim} unknowns")
         if not Path(self.fmu_path).is_file():
             raise ConfigError(f"`fmu_path` {self.fmu_path}: no such file")
-
-    @property
-    def n_obj(self) -> int:
-        """Number of objectives."""
-        n = len(self.config.sensors) if self.per == "sensor" else len(self.experiments)
-        return n + int(self.stabilising)
 
     def _create(self) -> _Instance:
         inst = _Instance(self.fmu_path, "identification")
@@ -217,27 +211,10 @@ class FmuEvaluator:
             outs.append(y)
         return SimulationOutcome(tuple(outs), True)
 
-    def objectives(self, x: np.ndarray) -> np.ndarray:
-        """Objective vector of candidate ``x`` (same definitions and penalties as the native backend)."""
-        try:
-            cfg, params = self.space.apply(self.config, x)
-            g = max_growth_factor(cfg, params) if self.stabilising else 0.0
-        except ParameterError:
-            return np.full(self.n_obj, 2 * PENALTY)  # as the native backend: never handed to the FMU
-        n_err = self.n_obj - int(self.stabilising)
-        sim = self.simulate(x)
-        if not sim.stable:
-            errs = np.full(n_err, sim.penalty)
-        else:
-            errs = output_errors(sim.outputs, [e.outputs for e in self.experiments], per=self.per)
-            if not np.all(np.isfinite(errs)):
-                errs = np.full(n_err, sim.penalty)
-        return np.concatenate([errs, [g]]) if self.stabilising else errs
-
-    def evaluate(self, X: np.ndarray) -> np.ndarray:
-        """Objectives of a population ``X`` (n, dim) → ``F`` (n, n_obj)."""
-        X = np.atleast_2d(np.asarray(X, dtype=float))
-        return np.array([self.objectives(x) for x in X])
+    def outcome(self, x: np.ndarray, config: BeamConfig, params: Mapping[str, float]) -> SimulationOutcome:
+        """The FMU's simulation of candidate ``x`` (:meth:`ObjectiveFunction.outcome`; parameters the FMU refuses:
+        not simulated)."""
+        return self.simulate(x)
 
     def __repr__(self) -> str:
         return f"FmuEvaluator({self.fmu_path!r}, unknowns={list(self.space.names)})"

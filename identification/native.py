@@ -11,12 +11,11 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ebb_model import fast_model, max_growth_factor, simulate
+from ebb_model import fast_model, simulate
 from ebb_model.arrays import as_matrix
 from ebb_model.config import BeamConfig
-from ebb_model.errors import ParameterError
 
-from .objectives import PENALTY, SimulationOutcome, output_errors
+from .objectives import ObjectiveFunction, SimulationOutcome
 from .parameters import ParameterSpace
 
 __all__ = ["ExperimentArrays", "NativeEvaluator", "experiments_from_arrays"]
@@ -38,8 +37,8 @@ def experiments_from_arrays(items: Sequence[tuple[str, np.ndarray, np.ndarray]])
 
 
 @dataclass(frozen=True, eq=False)
-class NativeEvaluator:
-    """Evaluate candidates with the native fast path.
+class NativeEvaluator(ObjectiveFunction):
+    """Evaluate candidates with the native fast path (objectives: :class:`ObjectiveFunction`).
 
     Parameters
     ----------
@@ -61,12 +60,6 @@ class NativeEvaluator:
     per: str = "sensor"
     stabilising: bool = True
 
-    @property
-    def n_obj(self) -> int:
-        """Number of objectives."""
-        n = len(self.config.sensors) if self.per == "sensor" else len(self.experiments)
-        return n + int(self.stabilising)
-
     def simulate(self, x: np.ndarray) -> SimulationOutcome:
         """Simulated outputs per experiment and the spectral radius of Φ for candidate ``x`` (not simulated
         when it exceeds one)."""
@@ -79,25 +72,7 @@ class NativeEvaluator:
             return SimulationOutcome((), False, rho)
         return SimulationOutcome(tuple(simulate(model, e.inputs).outputs for e in self.experiments), True, rho)
 
-    def objectives(self, x: np.ndarray) -> np.ndarray:
-        """Objective vector of candidate ``x`` (finite, penalised when unstable)."""
-        try:
-            cfg, params = self.space.apply(self.config, x)
-            g = max_growth_factor(cfg, params) if self.stabilising else 0.0
-            sim = self._simulate(cfg, params)
-        except ParameterError:
-            return np.full(self.n_obj, 2 * PENALTY)
-        n_err = self.n_obj - int(self.stabilising)
-        if not sim.stable:
-            errs = np.full(n_err, sim.penalty)
-        else:
-            errs = output_errors(sim.outputs, [e.outputs for e in self.experiments], per=self.per)
-            if not np.all(np.isfinite(errs)):
-                errs = np.full(n_err, sim.penalty)
-        return np.concatenate([errs, [g]]) if self.stabilising else errs
-
-    def evaluate(self, X: np.ndarray) -> np.ndarray:
-        """Objectives of a population ``X`` (n, dim) → ``F`` (n, n_obj)."""
-        X = np.atleast_2d(np.asarray(X, dtype=float))
-        return np.array([self.objectives(x) for x in X])
+    def outcome(self, x: np.ndarray, config: BeamConfig, params: Mapping[str, float]) -> SimulationOutcome:
+        """The fast path's simulation of candidate ``x`` (:meth:`ObjectiveFunction.outcome`)."""
+        return self._simulate(config, params)
 

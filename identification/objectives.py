@@ -30,13 +30,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
+from ebb_model import max_growth_factor
 from ebb_model.arrays import as_matrix
+from ebb_model.errors import ParameterError
 
-__all__ = ["PENALTY", "SimulationOutcome", "nrmse", "objective_names", "output_errors"]
+if TYPE_CHECKING:
+    from ebb_model.config import BeamConfig
+
+    from .parameters import ParameterSpace
+
+__all__ = ["PENALTY", "ObjectiveFunction", "SimulationOutcome", "nrmse", "objective_names", "output_errors"]
 
 #: Objective value given to unstable candidates (plus their spectral radius).
 PENALTY = 1.0e3
@@ -107,3 +114,61 @@ def output_errors(sims: Sequence[np.ndarray], meas: Sequence[np.ndarray], *, per
         den = np.sum((m - m.mean(axis=0)) ** 2, axis=0)
         out.append(np.sqrt(np.mean(np.sum((s - m) ** 2, axis=0) / np.where(den > 0, den, 1.0))))
     return np.array(out)
+
+
+class ObjectiveFunction:
+    """The objective vector of a candidate, written once for every evaluation backend.
+
+    A backend (:class:`~identification.native.NativeEvaluator`, :class:`~identification.fmu_backend.FmuEvaluator`)
+    has the attributes below and says only how it simulates a candidate (:meth:`outcome`); the output errors,
+    the stabilising objective and the penalties are this class's.
+
+    Attributes
+    ----------
+    config, space, experiments
+        Set-up, unknowns, and the experiments' inputs and measured outputs.
+    per
+        Output errors per ``"sensor"`` or per ``"experiment"`` (:func:`output_errors`).
+    stabilising
+        Append the stabilising objective (maximum growth factor).
+    """
+
+    config: BeamConfig
+    space: ParameterSpace
+    experiments: tuple[Any, ...]
+    per: str
+    stabilising: bool
+
+    @property
+    def n_obj(self) -> int:
+        """Number of objectives."""
+        n = len(self.config.sensors) if self.per == "sensor" else len(self.experiments)
+        return n + int(self.stabilising)
+
+    def outcome(self, x: np.ndarray, config: BeamConfig, params: Mapping[str, float]) -> SimulationOutcome:
+        """The backend's simulation of candidate ``x`` (whose config and parameter values are given)."""
+        raise NotImplementedError
+
+    def objectives(self, x: np.ndarray) -> np.ndarray:
+        """Objective vector of candidate ``x``: finite always — :data:`PENALTY` terms for a candidate that was
+        not simulated (unstable, refused) and twice :data:`PENALTY` for non-physical parameter values (never
+        simulated by any backend)."""
+        try:
+            cfg, params = self.space.apply(self.config, x)
+            g = max_growth_factor(cfg, params) if self.stabilising else 0.0
+            sim = self.outcome(np.asarray(x, dtype=float), cfg, params)
+        except ParameterError:
+            return np.full(self.n_obj, 2 * PENALTY)
+        n_err = self.n_obj - int(self.stabilising)
+        if not sim.stable:
+            errs = np.full(n_err, sim.penalty)
+        else:
+            errs = output_errors(sim.outputs, [e.outputs for e in self.experiments], per=self.per)
+            if not np.all(np.isfinite(errs)):
+                errs = np.full(n_err, sim.penalty)
+        return np.concatenate([errs, [g]]) if self.stabilising else errs
+
+    def evaluate(self, X: np.ndarray) -> np.ndarray:
+        """Objectives of a population ``X`` (n, dim) → ``F`` (n, n_obj)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        return np.array([self.objectives(x) for x in X])

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ebb_model import max_growth_factor
 from ebb_model.adequacy import numerical_adequacy
@@ -117,7 +118,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
              backend: str = "auto", workers: int = 1, dask: str | None = None, pop: int = 40,
              generations: int = 30, seed: int = 1, resume: bool = False, force: bool = False,
              algorithm: str = "nsga2", per: str | None = None, stabilising: bool | None = None,
-             noise_std: Sequence[float] | None = None, progress: bool = True, export: bool = True,
+             noise_std: ArrayLike | None = None, progress: bool = True, export: bool = True,
              fmu: str | Path | None = None, fmu_parameters: Sequence[str] | None = None,
              fmu_inputs: Sequence[str] | None = None, fmu_outputs: Sequence[str] | None = None,
              polish: int = 1, polish_evaluations: int = 200, targets: Sequence[str] = DEFAULT_TARGETS,

@@ -441,7 +441,9 @@ def test_sequence_small_cases():
     assert [t.tolist() for t in bistritz_sequence([1.0, -0.5])] == [[0.5, 0.5], [1.5]]
     assert [t.tolist() for t in bistritz_sequence([5])] == [[10]]
     # z = 1 and z = 0 are divided out: (z - 1) z (z - 1/2) -> z - 1/2
-    assert [t.tolist() for t in bistritz_sequence(_product([1, -1], [1, 0], [1, -_H]))] == [[F(1, 2), F(1, 2)], [F(3, 2)]]
+    assert [t.tolist() for t in bistritz_sequence(_product([1, -1], [1, 0], [1, -_H]))] == [
+        [F(1, 2), F(1, 2)], [F(3, 2)]
+    ]
 
 
 # ---------------------------------------------------------------------------

@@ -74,7 +74,10 @@ def write_lvm(path: Path, t: np.ndarray, cols: list[np.ndarray], names: list[str
               decimal: str = ".", x_columns: str = "One", segments: int = 1, comment: bool = False) -> Path:
     """An .lvm file in LabVIEW's layout (Writer_Version 2): file header, segment header(s), headings, rows."""
     nl = "\r\n"
-    fmt = (lambda v: f"{v:.6f}".replace(".", decimal))
+
+    def fmt(v: float) -> str:
+        return f"{v:.6f}".replace(".", decimal)
+
     head = ["LabVIEW Measurement\t", "Writer_Version\t2", "Reader_Version\t2", "Separator\tTab",
             f"Decimal_Separator\t{decimal}", "Multi_Headings\tNo", f"X_Columns\t{x_columns}",
             "Time_Pref\tAbsolute", "Operator\ttest", "Date\t2024/01/01", "Time\t12:00:00.0",
@@ -341,8 +344,8 @@ def test_unknown_unit_declared_by_the_file_suggests_units_keyword(tmp_path):
     p = write_lvm(tmp_path / "volts.lvm", sig["time"], [sig["F1"], 1e3 * sig["y1"], sig["a2"]],
                   ["F1", "y1", "a2"], ["Volts", "mm", "Furlongs"])
     with pytest.raises(DataError, match=r"volts\.lvm: column 'F1' \(actuator 'F1'\): unit 'Volts' is a unit of "
-                                        r"voltage.*the file declares this unit; override it with units = \{ F1 = \.\.\. \} "
-                                        r"under \[identification\.data\]"):
+                                        r"voltage.*the file declares this unit; override it with "
+                                        r"units = \{ F1 = \.\.\. \} under \[identification\.data\]"):
         load_experiment(p, cfg())
     with pytest.raises(DataError, match=r"column 'a2' \(sensor 'a2'\): unknown unit 'Furlongs'.*units = "):
         load_experiment(p, cfg(), units={"F1": "N"})
@@ -511,8 +514,8 @@ def test_sample_time_inconsistent_with_config(tmp_path):
     sig = signals(dt=2e-4)
     p = write_csv(tmp_path / "slow.csv", sig)
     with pytest.raises(DataError, match=r"slow\.csv: time: sample time 0\.0002 s at sample 1 is inconsistent "
-                                        r"with the config's dt = 0\.0001 s \(to resample the record to the config's dt: "
-                                        r"resample = true under \[identification\.data\]"):
+                                        r"with the config's dt = 0\.0001 s \(to resample the record to the "
+                                        r"config's dt: resample = true under \[identification\.data\]"):
         load_experiment(p, cfg())
 
 

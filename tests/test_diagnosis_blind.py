@@ -138,10 +138,13 @@ WIDE_CASES = [
 ]
 
 
-@pytest.mark.parametrize("kind,label,effect", [pytest.param("acceleration", *c.values, marks=c.marks, id=f"accel-{c.values[0]}")
-                                               if hasattr(c, "values") else pytest.param("acceleration", *c, id=f"accel-{c[0]}")
-                                               for c in ACCEL_CASES]
-                         + [pytest.param("displacement", *c, id=f"wide-{c[0]}") for c in WIDE_CASES])
+@pytest.mark.parametrize(
+    "kind,label,effect",
+    [pytest.param("acceleration", *c.values, marks=c.marks, id=f"accel-{c.values[0]}")
+     if hasattr(c, "values") else pytest.param("acceleration", *c, id=f"accel-{c[0]}")
+     for c in ACCEL_CASES]
+    + [pytest.param("displacement", *c, id=f"wide-{c[0]}") for c in WIDE_CASES],
+)
 def test_wider_band_families_name_the_effect(tmp_path, kind, label, effect):
     cfg = bench_config(kind)
     data = _write(tmp_path, cfg, effect, seed=3, f_max=150.0)

@@ -10,7 +10,6 @@ from pathlib import Path
 import pytest
 
 import pythonfmu  # noqa: F401 - a dependency: a broken install must fail, not skip
-import fmpy
 from fmpy import read_model_description  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 

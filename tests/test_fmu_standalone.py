@@ -375,7 +375,8 @@ def test_cli_export_writes_standalone_fmus(tmp_path, capsys):
     result = tmp_path / "result"
     result.mkdir()
     rhoA = cfg.parameters["rhoA"].value          # the config's third unknown, at its nominal value
-    points = [{"parameters": {"EI": 12.0, "rhoA": rhoA, "N": 40.0}}, {"parameters": {"EI": 9.0, "rhoA": rhoA, "N": 70.0}}]
+    points = [{"parameters": {"EI": 12.0, "rhoA": rhoA, "N": 40.0}},
+              {"parameters": {"EI": 9.0, "rhoA": rhoA, "N": 70.0}}]
     (result / "pareto.json").write_text(json.dumps({"config": cfg.to_dict(), "points": points,
                                                     "parameter_names": ["EI", "rhoA", "N"], "config_name": "seed"}))
     assert main(["export", str(result), "--points", "1", "--target", "standalone"]) == 0

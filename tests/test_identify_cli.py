@@ -46,6 +46,28 @@ def test_identify_writes_results_and_exports(case, capsys):
     assert list(sys0.output_labels) == ["y1", "y2"] and sys0.dt == 1e-4
 
 
+def test_result_reads_back_and_exports_by_target_name(case, capsys):
+    """``pareto.json`` is :meth:`IdentificationResult.to_dict`; :meth:`IdentificationResult.read` gives back the
+    same document, and ``ebb export --target`` writes exactly the named targets (an unknown name: exit 2, nothing
+    written)."""
+    from identification.result import IdentificationResult
+
+    cfg, data, tmp = case
+    out = tmp / "out"
+    assert main(["identify", str(cfg), str(data), "--out", str(out), "--pop", "8", "--generations", "2",
+                 "--no-progress", "--target", "statespace"]) == 0
+    assert sorted(p.suffix for p in (out / "export").iterdir()) == [".npz"] * len(list((out / "export").iterdir()))
+    res = IdentificationResult.read(out)
+    assert res.to_dict() == json.loads((out / "pareto.json").read_text())
+    assert res.best == json.loads((out / "pareto.json").read_text())["identified"]["parameters"]
+    capsys.readouterr()
+    assert main(["export", str(out), "--polished", "0", "--target", "nonsense"]) == 2
+    assert "--target: unknown export target 'nonsense'; allowed: statespace, fmu, standalone" in capsys.readouterr().err
+    before = sorted(p.name for p in (out / "export").iterdir())
+    assert main(["export", str(out), "--polished", "0", "--target", "fmu"]) == 0
+    assert sorted(p.name for p in (out / "export").iterdir()) == sorted(set(before) | {"polished_0.fmu"})
+
+
 @pytest.mark.parametrize("case_name", ["nan data", "missing column", "bad bounds", "wrong dt", "not empty",
                                        "bad local cluster"])
 def test_identify_bad_input_exit_2_no_result_dir(case, case_name, capsys):

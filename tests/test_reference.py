@@ -11,7 +11,9 @@ import math
 import numpy as np
 import pytest
 import scipy.linalg as sla
+from scipy.integrate import quad
 
+from ebb_model.errors import ParameterError
 from ebb_model.reference import (
     CLAMPED,
     FREE,
@@ -72,7 +74,8 @@ def test_pair_order_and_aliases():
         np.testing.assert_array_equal(
             analytic_omegas("free", "clamped", U / 10, 6), analytic_omegas("clamped", "free", U / 10, 6)
         )
-    np.testing.assert_array_equal(analytic_omegas("Clamped", "FIXED", 3.0, 4), analytic_omegas("clamped", "clamped", 3.0, 4))
+    np.testing.assert_array_equal(analytic_omegas("Clamped", "FIXED", 3.0, 4),
+                                  analytic_omegas("clamped", "clamped", 3.0, 4))
 
 
 @pytest.mark.parametrize("U", [-0.999 * np.pi**2, -5.0, -1e-9, 0.0, 1e-9, 1.0, 10.0, 100.0, 1e3, 1e4])
@@ -192,7 +195,8 @@ def test_frequencies_hz_units():
     f = analytic_frequencies_hz("pinned", "pinned", length=L_, EI=EI_, rhoA=RHOA_, N=N, n_modes=4)
     n = np.arange(1, 5)
     # f_n = (n pi / L)^2 sqrt(EI/rhoA) sqrt(1 + N L^2/(n^2 pi^2 EI)) / (2 pi)
-    expected = (n * np.pi / L_) ** 2 * np.sqrt(EI_ / RHOA_) * np.sqrt(1 + N * L_**2 / (n**2 * np.pi**2 * EI_)) / (2 * np.pi)
+    expected = ((n * np.pi / L_) ** 2 * np.sqrt(EI_ / RHOA_)
+                * np.sqrt(1 + N * L_**2 / (n**2 * np.pi**2 * EI_)) / (2 * np.pi))
     np.testing.assert_allclose(f, expected, rtol=1e-14)
     f_cf = analytic_frequencies_hz("clamped", "free", length=L_, EI=EI_, rhoA=RHOA_, N=0.0, n_modes=1)
     assert f_cf[0] == pytest.approx(3.516015 / (2 * np.pi * L_**2) * np.sqrt(EI_ / RHOA_), rel=1e-6)
@@ -369,7 +373,8 @@ def test_newmark_step_load_tends_to_static_cantilever():
     dt = 1 / (50 * f1)
     u = np.full((50 * 12, 1), P)
     y = newmark_simulate(
-        b, forces_x=[L_], sensors=[(L_, "displacement"), (L_, "velocity"), (L_, "acceleration"), (L_ / 2, "displacement")],
+        b, forces_x=[L_],
+        sensors=[(L_, "displacement"), (L_, "velocity"), (L_, "acceleration"), (L_ / 2, "displacement")],
         u=u, dt=dt, substeps=2,
     )
     static_tip = P * L_**3 / (3 * EI_)
@@ -468,9 +473,6 @@ def test_newmark_input_validation():
 # ==========================================================================
 # rotary inertia, Winkler foundation, axial-stiffness matrix, linear input
 # ==========================================================================
-from scipy.integrate import quad
-
-from ebb_model.errors import ParameterError
 
 
 @pytest.mark.parametrize("rhoI, kf, N", [(0.0, 0.0, 0.0), (3e-3, 0.0, 2.0), (0.0, 40.0, -1.5), (2e-2, 25.0, 5.0)])

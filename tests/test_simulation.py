@@ -54,8 +54,8 @@ def test_fast_path_equals_dlsim(spec, kinds):
     y_dense = simulate(sys, u).outputs
     # Error budget of the modal route: it is the same scheme in other coordinates, so the two differ by
     # round-off in the lowest modes, whose eigenvalues carry a relative error of order eps·κ in either
-    # float64 route, κ = ω²_max/ω²_min (absolute error eps·‖K‖ against the smallest ω²).  Displacement outputs, dominated by
-    # those modes, differ by (0.1–0.7)·eps·κ in every case here (measured with numpy 2.4 / scipy 1.17:
+    # float64 route, κ = ω²_max/ω²_min (absolute error eps·‖K‖ against the smallest ω²).  Displacement outputs,
+    # dominated by those modes, differ by (0.1–0.7)·eps·κ in every case here (measured with numpy 2.4 / scipy 1.17:
     # 1.3e-10 for the elastic end with a point mass, κ = 1.9e6); other outputs by < 2e-12.
     beam = discretise(cfg, cfg.parameter_values())
     w2 = sla.eigvalsh(beam.K, beam.M)

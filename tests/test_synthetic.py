@@ -141,7 +141,8 @@ def test_withheld_effect_validation():
     assert e.values["tau"] == 1e-3
     with pytest.raises(TypeError):
         e.values["tau"] = 2.0  # read-only
-    assert e == WithheldEffect("actuator_lag", {"tau": 0.001}) and hash(e) == hash(WithheldEffect("actuator_lag", {"tau": 1e-3}))
+    assert (e == WithheldEffect("actuator_lag", {"tau": 0.001})
+            and hash(e) == hash(WithheldEffect("actuator_lag", {"tau": 1e-3})))
     with pytest.raises(ConfigError, match="unknown effect 'shear'"):
         WithheldEffect("shear", {"k": 1.0})
     with pytest.raises(ConfigError, match="unknown parameter 'eta'"):
@@ -385,11 +386,13 @@ def test_boundary_springs_map_to_the_config_ends():
     # clamped rotation -> finite spring kr: same as an elastic end (inf, kr)
     a = synthesize(cc, u, effect=WithheldEffect("boundary_rotational_left", {"kr": 50.0}), **kw)
     b = synthesize(_cfg(left="elastic", right="clamped", left_springs=(INF, 50.0)), u, **kw)
-    np.testing.assert_allclose(a.outputs_clean, b.outputs_clean, rtol=0, atol=1e-9 * np.abs(b.outputs_clean).max())  # round-off
+    np.testing.assert_allclose(a.outputs_clean, b.outputs_clean, rtol=0,
+                               atol=1e-9 * np.abs(b.outputs_clean).max())  # round-off
     # kr = 0 on a clamped end is a pinned end
     a = synthesize(cc, u, effect=WithheldEffect("boundary_rotational_right", {"kr": 0.0}), **kw)
     b = synthesize(_cfg(left="clamped", right="pinned"), u, **kw)
-    np.testing.assert_allclose(a.outputs_clean, b.outputs_clean, rtol=0, atol=1e-9 * np.abs(b.outputs_clean).max())  # round-off
+    np.testing.assert_allclose(a.outputs_clean, b.outputs_clean, rtol=0,
+                               atol=1e-9 * np.abs(b.outputs_clean).max())  # round-off
     # a stiff spring recovers the clamp, with a difference proportional to the compliance 1/kr
     b = synthesize(cc, u, **kw)
     d = {kr: _rel_rms(synthesize(cc, u, effect=WithheldEffect("boundary_rotational_left", {"kr": kr}),
@@ -404,7 +407,8 @@ def test_boundary_springs_map_to_the_config_ends():
     a = synthesize(_cfg(left="clamped", right="free"), u,
                    effect=WithheldEffect("boundary_translational_right", {"kt": 800.0}), **kw)
     b = synthesize(_cfg(left="clamped", right="elastic", right_springs=(800.0, 0.0)), u, **kw)
-    np.testing.assert_allclose(a.outputs_clean, b.outputs_clean, rtol=0, atol=1e-9 * np.abs(b.outputs_clean).max())  # round-off
+    np.testing.assert_allclose(a.outputs_clean, b.outputs_clean, rtol=0,
+                               atol=1e-9 * np.abs(b.outputs_clean).max())  # round-off
     # ... and it changes the response a lot compared with the free end
     c = synthesize(_cfg(left="clamped", right="free"), u, **kw)
     assert np.all(_rel_rms(a.outputs_clean, c.outputs_clean) > 0.05)
@@ -415,10 +419,12 @@ def test_point_mass_and_kelvin_voigt_match_config_encoding():
     kw = {"n_elements": 24, "substeps": 4, "noise": 0.0}
     a = synthesize(_cfg(), u, effect=WithheldEffect("point_mass", {"mass": 0.08, "x": 0.83}), **kw)
     b = synthesize(_cfg(masses=[("m1", 0.83, 0.08)]), u, **kw)
-    np.testing.assert_allclose(a.outputs_clean, b.outputs_clean, rtol=0, atol=1e-9 * np.abs(b.outputs_clean).max())  # round-off
+    np.testing.assert_allclose(a.outputs_clean, b.outputs_clean, rtol=0,
+                               atol=1e-9 * np.abs(b.outputs_clean).max())  # round-off
     a = synthesize(_cfg(eta=1e-4), u, effect=WithheldEffect("kelvin_voigt", {"eta": 3e-4}), **kw)
     b = synthesize(_cfg(eta=4e-4), u, **kw)
-    np.testing.assert_allclose(a.outputs_clean, b.outputs_clean, rtol=0, atol=1e-9 * np.abs(b.outputs_clean).max())  # round-off
+    np.testing.assert_allclose(a.outputs_clean, b.outputs_clean, rtol=0,
+                               atol=1e-9 * np.abs(b.outputs_clean).max())  # round-off
     c = synthesize(_cfg(eta=1e-4), u, **kw)
     assert np.all(_rel_rms(a.outputs_clean, c.outputs_clean) > 0.01)
 
@@ -443,8 +449,8 @@ def test_reads_rotary_inertia_and_foundation_from_the_config():
     np.testing.assert_array_equal(a.outputs_clean, b.outputs_clean)
     assert a.parameters["rhoI"] == 1e-3 and a.parameters["kf"] == 500.0
     # the effect adds to the config's value
-    c = synthesize(_cfg().with_parameters(rhoI=4e-4, kf=500.0), u, effect=WithheldEffect("rotary_inertia", {"rhoI": 6e-4}),
-                   n_elements=16, noise=0.0)
+    c = synthesize(_cfg().with_parameters(rhoI=4e-4, kf=500.0), u,
+                   effect=WithheldEffect("rotary_inertia", {"rhoI": 6e-4}), n_elements=16, noise=0.0)
     np.testing.assert_allclose(c.outputs_clean, a.outputs_clean, rtol=0, atol=1e-9 * np.abs(a.outputs_clean).max())
 
 
@@ -559,7 +565,8 @@ def test_bad_input_raises_typed_errors():
     with pytest.raises(ParameterError, match="outside the beam"):
         synthesize(cfg, u, effect=WithheldEffect("point_mass", {"mass": 0.1, "x": 1.5}))
     with pytest.raises(ConfigError, match="more than once"):
-        synthesize(cfg, u, effect=[WithheldEffect("foundation", {"kf": 1.0}), WithheldEffect("foundation", {"kf": 2.0})])
+        synthesize(cfg, u, effect=[WithheldEffect("foundation", {"kf": 1.0}),
+                                   WithheldEffect("foundation", {"kf": 2.0})])
     with pytest.raises(ConfigError, match="WithheldEffect"):
         synthesize(cfg, u, effect=[("foundation", {"kf": 1.0})])
     with pytest.raises(ParameterError, match="noise"):

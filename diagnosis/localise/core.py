@@ -70,6 +70,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ebb_model.errors import ConfigError, DataError
 
@@ -87,8 +88,8 @@ from .trends import window_and_amplitude_gaps
 # main entry point
 # ----------------------------------------------------------------------------------------------
 def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_names: Sequence[str],
-             mode_freqs_hz: Sequence[float], mode_damping: Sequence[float] | None = None, *,
-             noise_std: float | Sequence[float] | None = None, windows: int = 8, amplitude_bins: int = 4,
+             mode_freqs_hz: ArrayLike, mode_damping: ArrayLike | None = None, *,
+             noise_std: ArrayLike | None = None, windows: int = 8, amplitude_bins: int = 4,
              input_names: Sequence[str] | None = None, max_lag: int = 25, alpha: float = 1e-3,
              gap_threshold: float = 1.5, nperseg: int | None = None) -> Localisation:
     """Locate the gap between measured outputs and model outputs.

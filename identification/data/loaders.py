@@ -93,8 +93,8 @@ def _format_of(path: Path, fmt: str | None) -> str:
     f = EXTENSIONS.get(path.suffix.lower())
     if f is None:
         raise DataError(f"{path}: cannot tell the format from the extension {path.suffix!r}; "
-                        f"known: {', '.join(EXTENSIONS)} (or name the format, one of {', '.join(FORMATS)}: format = ... under "
-                        "[identification.data], format= in the API)")
+                        f"known: {', '.join(EXTENSIONS)} (or name the format, one of {', '.join(FORMATS)}: "
+                        "format = ... under [identification.data], format= in the API)")
     return f
 
 
@@ -189,7 +189,8 @@ def _check_finite(a: np.ndarray, t: np.ndarray, where: str) -> None:
 
 def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None = None,
                     mapping: Mapping[str, Key] | None = None, units: Mapping[str, str] | None = None,
-                    gains: Mapping[str, float] | None = None, remove_offset: Literal[False, "mean", "pre-trigger"] | bool | None = False,
+                    gains: Mapping[str, float] | None = None,
+                    remove_offset: Literal[False, "mean", "pre-trigger"] | bool | None = False,
                     pre_trigger: float | None = None, band: Any = None, resample: bool = False,
                     name: str | None = None) -> Experiment:
     """Read one experiment and tie it to ``config``.
