@@ -55,8 +55,7 @@ from __future__ import annotations
 
 from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
-from functools import partial
-from typing import Any, Callable
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -68,7 +67,7 @@ from .refits import (GAP_THRESHOLD, EffectRefit, better_baseline, explains, map_
 from .score import EffectScore, score_effect
 from .workers import side_by_side
 
-__all__ = ["Ranking", "settled", "rank_effects", "BIC_MARGIN", "NAMED_CLOSURE", "UNEXPLAINED"]
+__all__ = ["Ranking", "settled", "rank_effects", "verdict_rule", "BIC_MARGIN", "NAMED_CLOSURE", "UNEXPLAINED"]
 
 #: BIC improvement an effect must reach to count as paying for its parameters.
 BIC_MARGIN = 10.0
@@ -350,36 +349,62 @@ def _decide(run: _Search, by_score: list[str], labels: list[str], local: dict[st
     others = [lab for lab in refits if lab not in paying]
     others.sort(key=lambda lab: float(np.mean(refits[lab].heldout_after)))
     order = paying + others + [lab for lab in by_score if lab not in refits]
-    ranking = partial(Ranking, baseline, before, run.scores, refits, patterns=patterns, modal=evidence)
+    excess = float(np.mean(before)) - 1.0
+    if excess >= GAP_THRESHOLD and paying:
+        best = refits[paying[0]]
+        if not explains(best.fit, baseline) and best.closed >= PAIR_MINIMUM:
+            # one effect leaves a significant remainder: a second one at once, when it pays for itself (tried
+            # already before the continuation refits when this single's fit has not changed since)
+            if early is not None and _same_fit(early[0], best.fit):
+                pair = early[1]
+            else:
+                pair, alone = _pair_with(run, best)
+                if alone is not None:     # the first effect alone, from the pair's optimum, beats its refit
+                    refits[alone.label] = alone
+            if pair is not None:
+                refits[pair.label] = pair
+                order = [pair.label] + order
+                paying = [pair.label] + paying
+    verdict, ties, reason = verdict_rule(before, refits, paying)
+    return Ranking(baseline, before, run.scores, refits, order, verdict, ties, reason, patterns=patterns,
+                   modal=evidence)
+
+
+def verdict_rule(before: np.ndarray, refits: Mapping[str, EffectRefit], paying: Sequence[str]
+                 ) -> tuple[str, list[str], str]:
+    """The verdict from the refits alone (no simulation): ``(verdict, ties, reason)``.
+
+    Parameters
+    ----------
+    before
+        Held-out gap ratio per sensor of the baseline (1 = noise floor).
+    refits
+        The refits by label (their held-out gap ratio after, closure and ΔBIC are used).
+    paying
+        Labels of the refits that pay for themselves (:func:`_paying`), best first; a pair, when one was
+        refitted and pays, first.
+
+    Returns
+    -------
+    tuple
+        ``"none"`` when the gap is within :data:`GAP_THRESHOLD` of the noise floor; :data:`UNEXPLAINED` when no
+        refit pays or the best closes less than :data:`NAMED_CLOSURE` of the gap; else the best's label, the
+        single effects that close nearly as much (≥ 95 % of its gain) and leave no measurably larger remainder
+        (its ties), and the reason in words.
+    """
     excess = float(np.mean(before)) - 1.0
     if excess < GAP_THRESHOLD:
-        return ranking(order, "none", [], f"the held-out residual variance is only {excess:+.0%} above the noise "
-                       f"floor (threshold {GAP_THRESHOLD:.0%}): nothing to explain")
+        return "none", [], (f"the held-out residual variance is only {excess:+.0%} above the noise floor "
+                            f"(threshold {GAP_THRESHOLD:.0%}): nothing to explain")
     if not paying:
-        return ranking(order, UNEXPLAINED, [],
-                       f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the noise "
-                       f"variance, but no candidate effect improves BIC by more than {BIC_MARGIN:g} and the held-out "
-                       f"error")
+        return UNEXPLAINED, [], (f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the "
+                                 f"noise variance, but no candidate effect improves BIC by more than {BIC_MARGIN:g} "
+                                 f"and the held-out error")
     best = refits[paying[0]]
-    if not explains(best.fit, baseline) and best.closed >= PAIR_MINIMUM:
-        # one effect leaves a significant remainder: a second one at once, when it pays for itself (tried
-        # already before the continuation refits when this single's fit has not changed since)
-        if early is not None and _same_fit(early[0], best.fit):
-            pair = early[1]
-        else:
-            pair, alone = _pair_with(run, best)
-            if alone is not None:     # the first effect alone, from the pair's optimum, beats its refit
-                refits[alone.label] = best = alone
-        if pair is not None:
-            refits[pair.label] = pair
-            order = [pair.label] + order
-            paying = [pair.label] + paying
-            best = pair
     if not best.closed >= NAMED_CLOSURE:
-        return ranking(order, UNEXPLAINED, [],
-                       f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the noise "
-                       f"variance and the best candidate, {paying[0]}, closes only {best.closed:.0%} of the gap "
-                       f"(an effect is named from {NAMED_CLOSURE:.0%})")
+        return UNEXPLAINED, [], (f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the "
+                                 f"noise variance and the best candidate, {paying[0]}, closes only {best.closed:.0%} "
+                                 f"of the gap (an effect is named from {NAMED_CLOSURE:.0%})")
     gain = float(np.mean(before) - np.mean(best.heldout_after))
     # a pair's own parts are not its rivals: the pair has paid for its second effect against the first
     parts = set(paying[0].split(PAIR_SEPARATOR))
@@ -393,7 +418,7 @@ def _decide(run: _Search, by_score: list[str], labels: list[str], local: dict[st
               f"(gap ratio {np.mean(before):.3g} -> {np.mean(best.heldout_after):.3g}, dBIC {best.delta_bic:.1f})")
     if ties:
         reason += "; the data cannot distinguish it from " + ", ".join(ties)
-    return ranking(order, paying[0], ties, reason)
+    return paying[0], ties, reason
 
 
 def settled(ranking: Ranking) -> bool:

@@ -1,0 +1,55 @@
+"""The diagnosis' verdict rule on its own: refit summaries in, verdict out — no simulation.
+
+The summaries are made by hand (a held-out gap ratio per sensor after the refit, the closure, ΔBIC), so each
+branch of the rule is checked at its threshold.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from diagnosis.rank import NAMED_CLOSURE, UNEXPLAINED, verdict_rule
+from diagnosis.refits import GAP_THRESHOLD, EffectRefit
+
+BEFORE = np.array([40.0, 60.0])      # held-out gap ratio of the baseline, per sensor (mean 50)
+
+
+def refit(label: str, after: float, delta_bic: float = -500.0) -> EffectRefit:
+    """A refit leaving ``after`` noise variances on both sensors; closure as :func:`diagnosis.refits.summarise`
+    defines it (share of the gap above the noise floor)."""
+    closed = (np.mean(BEFORE) - after) / (np.mean(BEFORE) - 1.0)
+    return EffectRefit(label, None, {}, 0.0, 0.0, delta_bic, 0.0, np.array([after, after]), float(closed),
+                       np.array([closed, closed]))
+
+
+def test_no_gap_is_none_whatever_the_refits():
+    before = np.full(2, 1.0 + 0.5 * GAP_THRESHOLD)
+    verdict, ties, reason = verdict_rule(before, {"point_mass": refit("point_mass", 1.0)}, ["point_mass"])
+    assert (verdict, ties) == ("none", []) and "nothing to explain" in reason
+
+
+def test_nothing_paying_is_unexplained():
+    verdict, ties, reason = verdict_rule(BEFORE, {"foundation": refit("foundation", 45.0, delta_bic=3.0)}, [])
+    assert verdict == UNEXPLAINED and ties == [] and "no candidate effect improves BIC" in reason
+
+
+def test_the_best_must_close_the_named_share():
+    just_short = 50.0 - (NAMED_CLOSURE - 0.01) * 49.0
+    verdict, _, reason = verdict_rule(BEFORE, {"foundation": refit("foundation", just_short)}, ["foundation"])
+    assert verdict == UNEXPLAINED and f"closes only {NAMED_CLOSURE - 0.01:.0%}" in reason
+    enough = 50.0 - (NAMED_CLOSURE + 0.01) * 49.0
+    verdict, ties, _ = verdict_rule(BEFORE, {"foundation": refit("foundation", enough)}, ["foundation"])
+    assert (verdict, ties) == ("foundation", [])
+
+
+def test_ties_close_nearly_as_much_and_leave_no_more():
+    refits = {"actuator_lag": refit("actuator_lag", 1.05), "sensor_lag[y1]": refit("sensor_lag[y1]", 1.1),
+              "point_mass": refit("point_mass", 3.0)}
+    verdict, ties, reason = verdict_rule(BEFORE, refits, ["actuator_lag", "sensor_lag[y1]", "point_mass"])
+    # the sensor lag leaves 0.05 more (below the threshold): a tie; the point mass leaves 2 more: decided
+    assert verdict == "actuator_lag" and ties == ["sensor_lag[y1]"] and "cannot distinguish" in reason
+
+
+def test_a_pair_is_not_tied_with_its_own_parts():
+    refits = {"foundation+actuator_lag": refit("foundation+actuator_lag", 1.0), "foundation": refit("foundation", 1.02)}
+    verdict, ties, _ = verdict_rule(BEFORE, refits, ["foundation+actuator_lag", "foundation"])
+    assert verdict == "foundation+actuator_lag" and ties == []
