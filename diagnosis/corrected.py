@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from ebb_model import DiscreteStateSpace, assemble
-from ebb_model.atomic import atomic_path
+from ebb_model.output import atomic_path, make_dir
 from ebb_model.jsonio import write_json
 
 from .effects import AugmentedModel
@@ -63,7 +63,7 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
     from identification.export_targets import ExportItem
 
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    make_dir(out, exist_ok=True, parents=True)
     cfg = model.config.with_parameters(**model.params)
     written = [out / "corrected.toml"]
     with atomic_path(written[0]) as tmp:

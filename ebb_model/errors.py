@@ -7,6 +7,7 @@ thing went wrong, the message saying *where* and *why*.
 """
 from __future__ import annotations
 
+import os
 from typing import Sequence
 
 __all__ = [
@@ -16,6 +17,7 @@ __all__ = [
     "StabilityError",
     "DataError",
     "FmuError",
+    "OutputError",
     "Interrupted",
     "DataWarning",
 ]
@@ -77,6 +79,26 @@ class FmuError(EbbError, RuntimeError):
     def __init__(self, message: str, function: str | None = None, status: int | None = None):
         self.function = function
         self.status = status
+        super().__init__(message)
+
+
+class OutputError(EbbError):
+    """A place to write that cannot take the output: a read-only or full file system, a missing directory, a
+    directory where a file is expected (:mod:`ebb_model.output`).
+
+    Parameters
+    ----------
+    message
+        What went wrong, naming the path.
+    path
+        The file or directory concerned.
+    errno
+        The operating system's error number, when one caused it (e.g. ``errno.ENOSPC``).
+    """
+
+    def __init__(self, message: str, *, path: str | os.PathLike[str] | None = None, errno: int | None = None):
+        self.path = path
+        self.errno = errno
         super().__init__(message)
 
 

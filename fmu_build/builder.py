@@ -29,7 +29,7 @@ import pythonfmu
 
 from ebb_model import PARAMETER_NAMES, BeamConfig, assemble, load_config
 from ebb_model.assemble import assemble_modal
-from ebb_model.atomic import atomic_path
+from ebb_model.output import atomic_path, check_output_file
 from ebb_model.errors import FmuError
 
 from . import slave_template
@@ -94,12 +94,8 @@ def _check_output(out: Path) -> Path:
         raise FmuError(f"{out}: the output file name must end in .fmu", function="build_fmu")
     if out.is_dir():
         raise FmuError(f"{out}: is a directory; give the path of the .fmu file to write", function="build_fmu")
-    parent = out.parent if str(out.parent) else Path(".")
-    if not parent.is_dir():
-        raise FmuError(f"{out}: directory {parent} does not exist", function="build_fmu")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise FmuError(f"{out}: directory {parent} is not writable", function="build_fmu")
-    return parent
+    check_output_file(out)   # directory present, writable (a real probe), room left
+    return out.parent
 
 
 def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLike[str], *,
@@ -128,8 +124,11 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
     ParameterError, StabilityError
         The nominal parameters give no valid (stable) model.
     FmuError
-        The output path is unusable, names clash, the interpreter has no shared
+        The output name does not end in .fmu, names clash, the interpreter has no shared
         libpython, no C compiler is available, or writing the archive fails.
+    OutputError
+        ``out`` cannot be written (checked before the build: :func:`ebb_model.output.check_output_file`), or
+        writing it failed; nothing half-written is left.
 
     Notes
     -----

@@ -27,6 +27,7 @@ from typing import Sequence
 
 from ebb_model import assemble, config_from_dict
 from ebb_model.errors import ConfigError, StabilityError
+from ebb_model.output import check_writable_dir, make_dir
 
 from .export_targets import ExportItem
 from .parameters import ParameterSpace
@@ -90,6 +91,9 @@ def export_points(result_dir: str | Path, points: Sequence[int] | str | None = N
     ConfigError
         No readable result, indices out of range, ``"all"`` of none, or
         ``reduce_order`` outside ``1 … nstates``, an unknown target — before anything is written.
+    OutputError
+        ``result_dir`` cannot take the exports (read-only, full: checked before any work), or writing failed
+        (no half-written file is left).
     """
     if targets is None:
         targets = ["statespace"] + ["fmu"] * bool(fmu) + ["standalone"] * bool(standalone)
@@ -99,6 +103,7 @@ def export_points(result_dir: str | Path, points: Sequence[int] | str | None = N
         doc = json.loads((d / "pareto.json").read_text())
     except (OSError, ValueError) as exc:
         raise ConfigError(f"{d}: no readable pareto.json ({exc})") from None
+    check_writable_dir(d / "export" if (d / "export").is_dir() else d)   # before any work
     cfg = config_from_dict(doc["config"], extra_sections=(SECTION,))
     pts = doc["points"]
     pol = doc.get("polished", [])
@@ -124,8 +129,7 @@ def export_points(result_dir: str | Path, points: Sequence[int] | str | None = N
         if isinstance(reduce_order, bool) or not 1 <= reduce_order <= n_states:
             raise ConfigError(f"`reduce_order`: must lie in 1 … {n_states} (the model's states), "
                               f"got {reduce_order}")
-    out = d / "export"
-    out.mkdir(exist_ok=True)
+    out = make_dir(d / "export", exist_ok=True)
     written: list[Path] = []
     title = doc.get("config_name") or d.name
     options = MappingProxyType({"reduce_order": reduce_order} if reduce_order else {})

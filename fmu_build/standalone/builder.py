@@ -29,7 +29,7 @@ from pathlib import Path
 
 from ebb_model import BeamConfig, assemble, load_config
 from ebb_model.assemble import field_config
-from ebb_model.atomic import atomic_path
+from ebb_model.output import atomic_path
 from ebb_model.errors import ConfigError, FmuError
 
 from ..builder import _check_names, _check_output, _identity
@@ -109,7 +109,9 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
     ParameterError, StabilityError
         The nominal parameters give no valid (stable) model.
     FmuError
-        The output path is unusable, names clash, no C compiler, or writing the archive fails.
+        The output name does not end in .fmu, names clash, no C compiler, or writing the archive fails.
+    OutputError
+        ``out`` cannot be written (checked before the build), or writing it failed; nothing half-written is left.
     """
     if isinstance(config, BeamConfig):
         cfg, base = config, "beam"
