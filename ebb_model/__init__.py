@@ -11,7 +11,7 @@ from .assemble import assemble, assemble_modal, check_stable, field_config, fiel
 from .beam import PARAMETER_NAMES, Actuator, End, PointMass, Sensor
 from .config import BeamConfig, ParameterSpec, config_from_dict, load_config
 from .discretisation import SemiDiscreteBeam, discretise
-from .errors import (ConfigError, DataError, DataWarning, EbbError, FmuError, OutputError, ParameterError,
+from .errors import (ConfigError, ConfigWarning, DataError, DataWarning, EbbError, FmuError, OutputError, ParameterError,
                      StabilityError)
 from .modal import FrequencyResponse, ModalAnalysis, discrete_frequencies, frequency_response, modes
 from .modal_form import ModalStateSpace
@@ -31,4 +31,5 @@ __all__ = [
     "modes", "ModalAnalysis", "frequency_response", "FrequencyResponse", "discrete_frequencies",
     "analyse_stability", "StabilityReport", "bistritz", "max_growth_factor", "stability_bounds",
     "EbbError", "ConfigError", "ParameterError", "StabilityError", "DataError", "FmuError", "OutputError", "DataWarning",
+    "ConfigWarning",
 ]

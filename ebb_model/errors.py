@@ -20,6 +20,7 @@ __all__ = [
     "OutputError",
     "Interrupted",
     "DataWarning",
+    "ConfigWarning",
 ]
 
 
@@ -110,4 +111,11 @@ class DataWarning(UserWarning):
     """Data that can be used but look suspicious (e.g. a file shorter than its header declares).
 
     The CLI prints each as one line, ``ebb COMMAND: warning: ...``.
+    """
+
+
+class ConfigWarning(UserWarning):
+    """A valid config that cannot do what it seems meant to (e.g. a force on an end that does not move).
+
+    The CLI prints each as one line, ``ebb COMMAND: warning: ...``, once.
     """

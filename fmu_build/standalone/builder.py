@@ -29,6 +29,7 @@ from pathlib import Path
 
 from ebb_model import BeamConfig, assemble, load_config
 from ebb_model.assemble import field_config
+from ebb_model.config_types import MAX_NODES
 from ebb_model.output import atomic_path
 from ebb_model.errors import ConfigError, FmuError
 
@@ -41,9 +42,9 @@ __all__ = ["build_standalone_fmu", "compile_binary", "SOURCE_DIR"]
 #: Where the C sources live (copied verbatim into the FMU's ``sources/``).
 SOURCE_DIR = Path(__file__).resolve().parent / "csrc"
 _PLATFORM = "linux64"
-#: Largest grid the C model takes: its solvers are dense (Jacobi sweeps, O(n³) each): initialisation takes 0.2 s at
-#: 200 nodes and 1.6 s at 400 (exact scheme), about 25 s at this limit.
-MAX_NODES = 1000
+#: The largest grid, :data:`ebb_model.config_types.MAX_NODES` (1000), is also the C model's: its solvers are dense
+#: (Jacobi sweeps, O(n³) each): initialisation takes 0.2 s at 200 nodes and 1.6 s at 400 (exact scheme), about
+#: 25 s at 1000.
 #: Compiler flags of the linux64 binary (plain C99, hidden symbols except the fmi2 functions).
 CFLAGS = ("-std=c99", "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-Wall")
 
