@@ -68,9 +68,12 @@ def add_parsers(sub: Subcommands) -> None:
     p.add_argument("--out", required=True, help="result directory (checkpoint, pareto.json, plots, exports)")
     p.add_argument("--backend", default="auto", help="auto | native | fmu (default auto: the native model)")
     p.add_argument("--fmu", default=None, help="FMU to evaluate with --backend fmu (default: one built from CONFIG)")
-    p.add_argument("--fmu-parameters", nargs="+", default=None, help="FMU parameter names, one per unknown (default: the unknowns' names)")
-    p.add_argument("--fmu-inputs", nargs="+", default=None, help="FMU input names, one per actuator (default: the actuators' names)")
-    p.add_argument("--fmu-outputs", nargs="+", default=None, help="FMU output names, one per sensor (default: the sensors' names)")
+    p.add_argument("--fmu-parameters", nargs="+", default=None,
+                   help="FMU parameter names, one per unknown (default: the unknowns' names)")
+    p.add_argument("--fmu-inputs", nargs="+", default=None,
+                   help="FMU input names, one per actuator (default: the actuators' names)")
+    p.add_argument("--fmu-outputs", nargs="+", default=None,
+                   help="FMU output names, one per sensor (default: the sensors' names)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", type=int, default=1, help="local worker processes (default 1)")
     g.add_argument("--dask", default=None, metavar="ADDRESS",

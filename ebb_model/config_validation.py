@@ -13,7 +13,8 @@ from types import MappingProxyType
 from typing import Any, Mapping
 
 from .beam import END_KINDS, PARAMETER_NAMES, SENSOR_KINDS, Actuator, End, PointMass, Sensor
-from .config_types import DEFAULT_INPUT, INPUT_HOLDS, MAX_NODES, SCHEMES, BeamConfig, BeamGeometry, ParameterSpec, TimeSettings
+from .config_types import (DEFAULT_INPUT, INPUT_HOLDS, MAX_NODES, SCHEMES, BeamConfig, BeamGeometry, ParameterSpec,
+                           TimeSettings)
 from .errors import ConfigError, ConfigWarning
 from .parameter_values import NON_NEGATIVE, POSITIVE, range_problem
 from .problems import Problems

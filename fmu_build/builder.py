@@ -30,7 +30,7 @@ import pythonfmu
 from ebb_model import PARAMETER_NAMES, BeamConfig, assemble, load_config
 from ebb_model.assemble import assemble_modal
 from ebb_model.output import atomic_path, check_output_file
-from ebb_model.errors import FmuError
+from ebb_model.errors import FmuError, OutputError
 
 from . import slave_template
 from .bundle import write_resources
@@ -94,7 +94,10 @@ def _check_output(out: Path) -> Path:
         raise FmuError(f"{out}: the output file name must end in .fmu", function="build_fmu")
     if out.is_dir():
         raise FmuError(f"{out}: is a directory; give the path of the .fmu file to write", function="build_fmu")
-    check_output_file(out)   # directory present, writable (a real probe), room left
+    try:
+        check_output_file(out)   # directory present, writable (a real probe), room left
+    except OutputError as exc:   # the builders' one error type for an unusable output
+        raise FmuError(str(exc), function="build_fmu") from None
     return out.parent
 
 
@@ -124,11 +127,9 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
     ParameterError, StabilityError
         The nominal parameters give no valid (stable) model.
     FmuError
-        The output name does not end in .fmu, names clash, the interpreter has no shared
-        libpython, no C compiler is available, or writing the archive fails.
-    OutputError
-        ``out`` cannot be written (checked before the build: :func:`ebb_model.output.check_output_file`), or
-        writing it failed; nothing half-written is left.
+        The output is unusable (not a .fmu name; its place not writable, read-only or full, checked before the
+        build by :func:`ebb_model.output.check_output_file`), names clash, the interpreter has no shared
+        libpython, no C compiler is available, or writing the archive fails (nothing half-written is left).
 
     Notes
     -----
@@ -182,6 +183,8 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
                 for f in sorted(staging.rglob("*")):
                     if f.is_file() and "__pycache__" not in f.parts:
                         zf.write(f, f.relative_to(staging).as_posix())
+    except OutputError as exc:   # writing the archive failed (full disk …): nothing half-written is left
+        raise FmuError(str(exc), function="build_fmu") from None
     except OSError as exc:
         raise FmuError(f"{out}: cannot write the FMU ({exc.strerror or exc})", function="build_fmu") from None
     return out

@@ -1,4 +1,5 @@
-"""The one atomic writer (ebb_model.output): the target appears only complete, and nothing is left behind on an interruption."""
+"""The one atomic writer (ebb_model.output): the target appears only complete, nothing is left behind on an
+interruption."""
 from __future__ import annotations
 
 import pytest

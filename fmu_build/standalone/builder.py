@@ -31,7 +31,7 @@ from ebb_model import BeamConfig, assemble, load_config
 from ebb_model.assemble import field_config
 from ebb_model.config_types import MAX_NODES
 from ebb_model.output import atomic_path
-from ebb_model.errors import ConfigError, FmuError
+from ebb_model.errors import ConfigError, FmuError, OutputError
 
 from ..builder import _check_names, _check_output, _identity
 from .description import (C_HEADERS, C_SOURCES, build_description_xml, config_header, fmu_variables,
@@ -110,9 +110,8 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
     ParameterError, StabilityError
         The nominal parameters give no valid (stable) model.
     FmuError
-        The output name does not end in .fmu, names clash, no C compiler, or writing the archive fails.
-    OutputError
-        ``out`` cannot be written (checked before the build), or writing it failed; nothing half-written is left.
+        The output is unusable (checked before the build: not a .fmu name, not writable, read-only or full),
+        names clash, no C compiler, or writing the archive fails (nothing half-written is left).
     """
     if isinstance(config, BeamConfig):
         cfg, base = config, "beam"
@@ -152,6 +151,8 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
                 for f in sorted(staging.rglob("*")):
                     if f.is_file():
                         zf.write(f, f.relative_to(staging).as_posix())
+    except OutputError as exc:   # writing the archive failed (full disk …): nothing half-written is left
+        raise FmuError(str(exc), function="build_standalone_fmu") from None
     except OSError as exc:
         raise FmuError(f"{out}: cannot write the FMU ({exc.strerror or exc})",
                        function="build_standalone_fmu") from None
