@@ -23,7 +23,7 @@ from types import MappingProxyType
 from typing import Any, Mapping, Sequence
 
 from ebb_model import DiscreteStateSpace, assemble
-from ebb_model.atomic import atomic_path
+from ebb_model.output import atomic_path, make_dir
 from ebb_model.jsonio import write_json
 from identification.export_targets import DEFAULT_TARGETS
 
@@ -83,7 +83,7 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
 
     targets = check_targets(targets)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    make_dir(out, exist_ok=True, parents=True)
     cfg = model.config.with_parameters(**model.params)
     written = [out / "corrected.toml"]
     with atomic_path(written[0]) as tmp:

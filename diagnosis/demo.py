@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ebb_model.outdir import check_new_output_dir
+from ebb_model.output import atomic_path, check_new_output_dir, make_dir
 
 if TYPE_CHECKING:
     from .result import GapReport
@@ -80,12 +80,12 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
     from .report import text_report
     from .run import diagnose
 
-    out = check_new_output_dir(out)
-    out.mkdir(exist_ok=True)
+    out = make_dir(check_new_output_dir(out), exist_ok=True)
     say = print if progress else (lambda *_a, **_k: None)
     t0 = time.perf_counter()
     cfg_path = out / "config.toml"
-    cfg_path.write_text(DEMO_CONFIG)
+    with atomic_path(cfg_path) as tmp:
+        tmp.write_text(DEMO_CONFIG)
     cfg = load_identification_config(cfg_path)
 
     say("1/4 truth: Hermite FE, exact in time, with a withheld effect, 1 % noise")
@@ -94,7 +94,8 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
     rec = synthesize(cfg, u, params=TRUTH, effect=WithheldEffect(WITHHELD[0], WITHHELD[1]), noise=0.01, seed=12)
     data = out / "measured.csv"
     table = np.column_stack([rec.time, rec.inputs, rec.outputs])
-    np.savetxt(data, table, delimiter=",", header="time,F1,y1,y2", comments="", fmt="%.10g")
+    with atomic_path(data) as tmp:
+        np.savetxt(tmp, table, delimiter=",", header="time,F1,y1,y2", comments="", fmt="%.10g")
 
     say("2/4 identify EI, rhoA, c, N (NSGA-II + least-squares polish of the knee)")
     res = identify(cfg_path, [data], out / "identify", pop=16 if quick else 24, generations=4 if quick else 12,
@@ -116,7 +117,8 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
              f"withheld effect: {truth_label} -> diagnosis {'RIGHT' if d.verdict == truth_label else 'WRONG'}",
              f"elapsed: {time.perf_counter() - t0:.0f} s; results in {out}"]
     text = "\n".join(lines)
-    (out / "report.txt").write_text(text + "\n")
+    with atomic_path(out / "report.txt") as tmp:
+        tmp.write_text(text + "\n")
     print(text)
     return {"verdict": d.verdict, "truth": truth_label, "identified": identified,
             "exports": [str(f) for f in files], "document": d.document}

@@ -6,6 +6,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from ebb_model.output import atomic_path, make_dir
+
 from .result import GapReport
 
 __all__ = ["plot_diagnosis"]
@@ -34,7 +36,8 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, effects: Mappi
         fig.suptitle(f"verdict: {report.verdict}")
         fig.tight_layout()
         paths.append(out_dir / "effects.png")
-        fig.savefig(paths[-1], dpi=100)
+        with atomic_path(paths[-1], suffix=".png") as tmp:
+            fig.savefig(tmp, dpi=100)
         plt.close(fig)
     _, before = problem.heldout(ranking.baseline.beta)
     after = None
@@ -55,7 +58,8 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, effects: Mappi
     axes[-1, 0].set_xlabel("time in the held-out window [s]")
     fig.tight_layout()
     paths.append(out_dir / "heldout_residuals.png")
-    fig.savefig(paths[-1], dpi=100)
+    with atomic_path(paths[-1], suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=100)
     plt.close(fig)
     try:
         from .report_plots import plot_localisation
@@ -64,7 +68,7 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, effects: Mappi
     r0 = problem.records[0]
     y0 = problem.simulate(ranking.baseline.beta, until="all")[0]
     sub = out_dir / "localisation"
-    sub.mkdir(exist_ok=True)
+    make_dir(sub, exist_ok=True)
     paths += [Path(p) for p in plot_localisation(localisations[0], problem.config.time.dt, r0.inputs,
                                                  r0.outputs, y0, sub)]
     return paths

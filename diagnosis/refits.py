@@ -33,6 +33,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ebb_model.adequacy import NOISE_FLOOR_EXCESS
+
 from .effects import Catalogue, Effect
 from .fitting import Fit, GapProblem
 from .modal_pattern import PatternFit
@@ -42,8 +44,9 @@ from .workers import side_by_side
 __all__ = ["EffectRefit", "explains", "summarise", "map_refits", "refit_from_match", "pair_refit",
            "better_baseline", "GAP_THRESHOLD", "CONTINUATION"]
 
-#: Relative excess of the held-out residual variance over the noise floor below which there is no gap to explain.
-GAP_THRESHOLD = 0.25
+#: Relative excess of the held-out residual variance over the noise floor below which there is no gap to explain
+#: (the one noise-floor rule, :data:`ebb_model.adequacy.NOISE_FLOOR_EXCESS`).
+GAP_THRESHOLD = NOISE_FLOOR_EXCESS
 #: Fractions of the fit windows of the continuation refit (the first one searched globally).
 CONTINUATION = (0.1, 0.3, 1.0)
 

@@ -13,6 +13,7 @@ import numpy as np
 
 from ebb_model.arrays import as_matrix
 from ebb_model.errors import DataError
+from ebb_model.output import atomic_path, make_dir
 
 from .localise import Localisation, estimate_frf
 
@@ -53,7 +54,7 @@ def plot_localisation(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray
         raise DataError(f"plot_localisation: data shapes u {u2.shape}, y {y2.shape}, y_hat {yh2.shape} do not "
                         f"match the localisation ({len(loc.input_names)} inputs, {len(loc.sensor_names)} sensors)")
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    make_dir(out, exist_ok=True, parents=True)
     plt = _pyplot()
     names = loc.sensor_names
     n_out = len(names)
@@ -63,7 +64,8 @@ def plot_localisation(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray
     def save(fig, name: str) -> None:
         fig.tight_layout()
         p = out / name
-        fig.savefig(p, dpi=100)
+        with atomic_path(p, suffix=".png") as tmp:
+            fig.savefig(tmp, dpi=100)
         plt.close(fig)
         files.append(p)
 

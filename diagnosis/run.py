@@ -12,9 +12,6 @@ appears only when complete (built under a temporary name, then renamed).
 """
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
 from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
@@ -27,7 +24,7 @@ from ebb_model.errors import ConfigError
 from ebb_model.adequacy import excited_band, numerical_adequacy
 from ebb_model.grid_advice import grid_advice
 from ebb_model.jsonio import write_json
-from ebb_model.outdir import check_new_output_dir
+from ebb_model.output import check_new_output_dir, staged_dir
 from ebb_model.modal import discrete_frequencies
 from ebb_model.assemble import field_config
 from ebb_model.simulate import fast_model, simulate
@@ -425,8 +422,7 @@ def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, 
            locs: Sequence[Localisation], *, plots: bool, export: bool, targets: Sequence[str]) -> GapReport:
     """Write ``gap.json``, the plots and the corrected model into ``out`` at once (a temporary directory renamed
     at the end: nothing partial is left on error or interrupt); returns the report with the files it wrote."""
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+    with staged_dir(out) as tmp:
         rf = ranking.refits.get(ranking.verdict)
         if export and rf is not None:
             from .corrected import export_corrected
@@ -441,10 +437,4 @@ def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, 
             from .gap_plots import plot_diagnosis
 
             plot_diagnosis(report, problem, ranking, by_label, locs, tmp)
-        if out.exists():
-            out.rmdir()
-        os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return report

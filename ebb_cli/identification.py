@@ -67,20 +67,23 @@ def add_parsers(sub: Subcommands) -> None:
     p.add_argument("config", help="TOML config with identify = true parameters")
     p.add_argument("data", nargs="+", help="data files (.csv, .npz, .mat, .lvm, .uff)")
     p.add_argument("--out", required=True, help="result directory (checkpoint, pareto.json, plots, exports)")
-    p.add_argument("--backend", default="auto", help="auto | native | fmu")
-    p.add_argument("--fmu", default=None, help="FMU to evaluate with --backend fmu (default: built from CONFIG)")
-    p.add_argument("--fmu-parameters", nargs="+", default=None, help="FMU parameter names, one per unknown")
-    p.add_argument("--fmu-inputs", nargs="+", default=None, help="FMU input names, one per actuator")
-    p.add_argument("--fmu-outputs", nargs="+", default=None, help="FMU output names, one per sensor")
+    p.add_argument("--backend", default="auto", help="auto | native | fmu (default auto: the native model)")
+    p.add_argument("--fmu", default=None, help="FMU to evaluate with --backend fmu (default: one built from CONFIG)")
+    p.add_argument("--fmu-parameters", nargs="+", default=None,
+                   help="FMU parameter names, one per unknown (default: the unknowns' names)")
+    p.add_argument("--fmu-inputs", nargs="+", default=None,
+                   help="FMU input names, one per actuator (default: the actuators' names)")
+    p.add_argument("--fmu-outputs", nargs="+", default=None,
+                   help="FMU output names, one per sensor (default: the sensors' names)")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--workers", type=int, default=1, help="local worker processes")
+    g.add_argument("--workers", type=int, default=1, help="local worker processes (default 1)")
     g.add_argument("--dask", default=None, metavar="ADDRESS",
                    help="Dask scheduler address, or local:K for a local cluster of K worker processes set up "
-                        "for model evaluations (profiler off, slower health checks)")
-    p.add_argument("--pop", type=int, default=40, help="population size")
-    p.add_argument("--generations", type=int, default=30, help="generations")
-    p.add_argument("--seed", type=int, default=1, help="random seed")
-    p.add_argument("--algorithm", default="nsga2", help="nsga2 | nsga3")
+                        "for model evaluations (profiler off, slower health checks; default: none, --workers)")
+    p.add_argument("--pop", type=int, default=40, help="population size, at least 4 (default 40)")
+    p.add_argument("--generations", type=int, default=30, help="generations, at least 1 (default 30)")
+    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument("--algorithm", default="nsga2", help="nsga2 | nsga3 (default nsga2)")
     p.add_argument("--polish", type=int, default=1, metavar="K",
                    help="after the GA, refine the K Pareto points nearest the knee (knee first) by bounded least "
                         "squares (default 1: the polished knee is the identified model; 0: the GA's knee, reported "
@@ -98,5 +101,6 @@ def add_parsers(sub: Subcommands) -> None:
     p.add_argument("--polished", type=int, nargs="*", default=None,
                    help="polished point indices; the flag alone: all (default: all, unless --points is given)")
     add_target_argument(p, "export targets")
-    p.add_argument("--reduce-order", type=int, default=None, help="also a balanced truncation of this order")
+    p.add_argument("--reduce-order", type=int, default=None,
+                   help="also a balanced truncation of this order (default: none)")
     p.set_defaults(func=_cmd_export)

@@ -15,7 +15,9 @@ __all__ = ["build_parser", "main"]
 def build_parser() -> FlagParser:
     """The ``ebb`` argument parser with every subcommand (and their flags: :attr:`FlagParser.flags`)."""
     parser = FlagParser(prog="ebb", description="Euler-Bernoulli beam under axial load: "
-                                     "model, FMU, identification and sim-to-real gap diagnosis.")
+                                     "model, FMU, identification and sim-to-real gap diagnosis.",
+                        epilog="New here? Start with `ebb demo` (about two minutes): the whole workflow on an "
+                               "embedded example, with every file it writes. Then `ebb COMMAND --help`.")
     sub = parser.add_subparsers(dest="command", required=True)
     for layer in (model, fmu, identification, diagnosis):
         layer.add_parsers(sub)
@@ -37,7 +39,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     import warnings
 
-    from ebb_model.errors import DataWarning, EbbError, Interrupted
+    from ebb_model.errors import ConfigWarning, DataWarning, EbbError, Interrupted
 
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -50,6 +52,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("always", DataWarning)
+            warnings.simplefilter("default", ConfigWarning)    # once: a config is loaded more than once
             warnings.showwarning = one_line
             with single_blas_thread():   # every subcommand (ebb_model.threads)
                 return int(args.func(args) or 0)

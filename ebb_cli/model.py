@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from typing import Sequence
 
 from .messages import Subcommands
@@ -36,7 +37,8 @@ def parse_params(items: Sequence[str] | None) -> dict[str, float]:
 def _cmd_modes(args: argparse.Namespace) -> int:
     from ebb_model.reports import modes_report
 
-    rep = modes_report(args.config, n_modes=args.n_modes, params=parse_params(args.param), band_hz=args.band)
+    rep = modes_report(args.config, n_modes=args.n_modes, params=parse_params(args.param), band_hz=args.band,
+                       progress=lambda line: print(f"ebb modes: {line}", file=sys.stderr, flush=True))
     if args.json:
         print(json.dumps(rep, indent=2))
         return 0

@@ -11,7 +11,8 @@ from .assemble import assemble, assemble_modal, check_stable, field_config, fiel
 from .beam import PARAMETER_NAMES, Actuator, End, PointMass, Sensor
 from .config import BeamConfig, ParameterSpec, config_from_dict, load_config
 from .discretisation import SemiDiscreteBeam, discretise
-from .errors import ConfigError, DataError, DataWarning, EbbError, FmuError, ParameterError, StabilityError
+from .errors import (ConfigError, ConfigWarning, DataError, DataWarning, EbbError, FmuError, OutputError,
+                     ParameterError, StabilityError)
 from .modal import FrequencyResponse, ModalAnalysis, discrete_frequencies, frequency_response, modes
 from .modal_form import ModalStateSpace
 from .simulate import SimulationResult, fast_model, simulate, simulate_batch, simulate_config
@@ -29,5 +30,6 @@ __all__ = [
     "simulate", "simulate_config", "simulate_batch", "fast_model", "SimulationResult",
     "modes", "ModalAnalysis", "frequency_response", "FrequencyResponse", "discrete_frequencies",
     "analyse_stability", "StabilityReport", "bistritz", "max_growth_factor", "stability_bounds",
-    "EbbError", "ConfigError", "ParameterError", "StabilityError", "DataError", "FmuError", "DataWarning",
+    "EbbError", "ConfigError", "ParameterError", "StabilityError", "DataError", "FmuError", "OutputError",
+    "DataWarning", "ConfigWarning",
 ]

@@ -24,7 +24,12 @@ from .config import BeamConfig
 from .errors import DataError
 from .simulate import fast_model, simulate
 
-__all__ = ["NumericalAdequacy", "adequacy_line", "excited_band", "numerical_adequacy", "refined_grid"]
+__all__ = ["NOISE_FLOOR_EXCESS", "NumericalAdequacy", "adequacy_line", "excited_band", "numerical_adequacy",
+           "refined_grid"]
+
+#: Relative excess of a residual variance over the noise floor below which there is no gap (to explain, or to
+#: share between grid and physics): a gap ratio up to ``1 + NOISE_FLOOR_EXCESS`` is the noise.
+NOISE_FLOOR_EXCESS = 0.25
 
 
 def refined_grid(config: BeamConfig) -> BeamConfig:
@@ -71,8 +76,17 @@ class NumericalAdequacy:
 
 
 def adequacy_line(summary: Mapping[str, Any]) -> str:
-    """One report line from :meth:`NumericalAdequacy.to_dict`'s summary."""
+    """One report line from :meth:`NumericalAdequacy.to_dict`'s summary.
+
+    A fit at the noise floor (every sensor's gap ratio at most ``1 + NOISE_FLOOR_EXCESS``) has no gap to share:
+    the line then says so and gives the change refinement makes, in noise variances, instead of a percentage.
+    """
     share = summary["max_numerical_share"]
+    per = summary.get("sensors", {}).values()
+    if per and all(s["gap_ratio"] <= 1.0 + NOISE_FLOOR_EXCESS for s in per):
+        change = max(s["change"] for s in per)
+        return (f"numerical share of the gap: none to share, the fit is at the noise floor (refining the grid to "
+                f"{summary['refined_nodes']} nodes changes the outputs by {change:.2g} noise variances)")
     return (f"numerical share of the gap: {100 * share:.2g} % at most (refined grid of {summary['refined_nodes']} "
             "nodes" + ("; refine [beam] nodes before blaming physics)" if share > 0.1 else ")"))
 

@@ -21,7 +21,43 @@ from .parameter_values import resolve_parameters
 from .statespace import DiscreteStateSpace
 from .theta_scheme import discretise_time
 
-__all__ = ["assemble", "assemble_modal", "field_config", "field_matrix", "check_stable"]
+__all__ = ["assemble", "assemble_modal", "buckling_load", "field_config", "field_matrix", "check_stable"]
+
+
+def buckling_load(config: BeamConfig, params: Mapping[str, float] | None = None) -> float | None:
+    """The compressive axial force at which the discretised beam buckles.
+
+    The largest ``N < 0`` at which the stiffness matrix ``K(N)`` of :func:`~ebb_model.discretisation.discretise`
+    (bending, axial force, ends, foundation) stops being positive definite, found by bracketing and bisection
+    (relative tolerance 1e-7) on the Cholesky factorisation of its symmetric part.
+
+    Returns
+    -------
+    float or None
+        The buckling load [N] (negative), or ``None`` when ``K(0)`` is not positive definite (a beam with rigid
+        motions) or no compression up to 1e30 N buckles it.
+    """
+    p = dict(resolve_parameters(config, params))
+
+    def stiff(n_axial: float) -> bool:
+        K = discretise(config, p | {"N": n_axial}).K
+        try:
+            np.linalg.cholesky(0.5 * (K + K.T))
+        except np.linalg.LinAlgError:
+            return False
+        return True
+
+    if not stiff(0.0):
+        return None
+    hi, lo = 0.0, -1.0
+    while stiff(lo):
+        hi, lo = lo, 2.0 * lo
+        if lo < -1e30:
+            return None
+    while hi - lo > 1e-7 * abs(lo):
+        mid = 0.5 * (hi + lo)
+        hi, lo = (mid, lo) if stiff(mid) else (hi, mid)
+    return lo
 
 
 def check_stable(config: BeamConfig, params: Mapping[str, float], spectral_radius: float,
@@ -35,7 +71,11 @@ def check_stable(config: BeamConfig, params: Mapping[str, float], spectral_radiu
     bounds = stability_bounds(config, p)
     culprits = [f"{k} = {p[k]:g} lies outside the Bistritz bounds [{lo:g}, {hi:g}]"
                 for k, (lo, hi) in bounds.items() if lo == lo and not lo <= p[k] <= hi]
-    if not culprits and p["N"] < 0:
+    n_cr = buckling_load(config, p) if p["N"] < 0 else None
+    if n_cr is not None and p["N"] <= n_cr:   # the cause first; the bounds it breaks follow from it
+        culprits = [f"N = {p['N']:g} N exceeds the buckling load {n_cr:.6g} N of this beam"
+                    + (f" (and so {', '.join(culprits)})" if culprits else "")]
+    elif not culprits and p["N"] < 0:
         culprits = [f"N = {p['N']:g} N is beyond the buckling load of the discretised beam"]
     why = "; ".join(culprits) if culprits else "no single parameter is out of its bounds"
     raise StabilityError(f"unstable scheme (spectral radius of Phi {spectral_radius:.9g} > 1): {why}")

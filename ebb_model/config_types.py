@@ -37,6 +37,10 @@ class BeamGeometry:
     right: End
 
 
+#: Most interior grid points a config may have: the standalone C FMU's dense solvers and the grid advice stop
+#: there too, and the modal analysis of ``ebb modes`` takes tens of seconds at this size (its time grows as
+#: nodes³).
+MAX_NODES = 1000
 #: Time-stepping schemes: the seed's FD + θ-scheme, and the accurate realisation of :mod:`ebb_model.exact_modal`.
 SCHEMES = ("theta", "exact")
 #: Reconstructions of the input between samples (``[time] input``); ``cubic`` is the exact scheme's only.

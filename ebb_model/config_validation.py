@@ -5,6 +5,7 @@ Validation reports **every** problem at once (FMPy's ``validate_fmu`` habit), ea
 """
 from __future__ import annotations
 
+import math
 import re
 import tomllib
 from pathlib import Path
@@ -12,8 +13,9 @@ from types import MappingProxyType
 from typing import Any, Mapping
 
 from .beam import END_KINDS, PARAMETER_NAMES, SENSOR_KINDS, Actuator, End, PointMass, Sensor
-from .config_types import DEFAULT_INPUT, INPUT_HOLDS, SCHEMES, BeamConfig, BeamGeometry, ParameterSpec, TimeSettings
-from .errors import ConfigError
+from .config_types import (DEFAULT_INPUT, INPUT_HOLDS, MAX_NODES, SCHEMES, BeamConfig, BeamGeometry, ParameterSpec,
+                           TimeSettings)
+from .errors import ConfigError, ConfigWarning
 from .parameter_values import NON_NEGATIVE, POSITIVE, range_problem
 from .problems import Problems
 from .textio import read_text
@@ -155,6 +157,19 @@ def _parameters(pr: Problems, table: Mapping[str, Any]) -> dict[str, ParameterSp
     return specs
 
 
+def _warn_fixed_actuators(actuators: list[Actuator], length: float, left: End, right: End) -> None:
+    """A :class:`ConfigWarning` for every actuator on an end whose deflection is held (``kt = inf``: clamped,
+    pinned): its force goes straight into the support and every output it drives is zero."""
+    import warnings
+
+    for a in actuators:
+        for side, end, at in (("left", left, 0.0), ("right", right, length)):
+            if math.isinf(end.kt) and abs(a.x - at) <= 1e-12 * length:
+                warnings.warn(f"actuator {a.name!r} at x = {a.x:g} m acts on the {end.kind} {side} end, which does "
+                              "not move: its force goes into the support and the outputs it drives are all zero",
+                              ConfigWarning, stacklevel=2)
+
+
 def _points(pr: Problems, data: Mapping[str, Any], key: str, length: float | None,
             fields: tuple[str, ...], required: bool) -> list[dict[str, Any]]:
     raw = data.get(key, [])
@@ -174,7 +189,8 @@ def _points(pr: Problems, data: Mapping[str, Any], key: str, length: float | Non
         if name is None:
             pr.add(f"{where}.name", "missing")
         elif not isinstance(name, str) or not _NAME_RE.match(name):
-            pr.add(f"{where}.name", f"must be an identifier (letters, digits, _), got {name!r}")
+            pr.add(f"{where}.name", f"must be an ASCII identifier (letters A-Z a-z, digits 0-9 and _, not "
+                                    f"starting with a digit), got {name!r}")
             name = None
         if "x" not in item:
             pr.add(f"{where}.x", "missing (position along the beam, m)")
@@ -223,8 +239,9 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
     elif isinstance(nodes, bool) or not isinstance(nodes, int) or nodes < 4:
         pr.add("beam.nodes", f"must be an integer >= 4, got {nodes!r}")
         nodes = None
-    elif nodes > 5000:
-        pr.add("beam.nodes", f"must be <= 5000, got {nodes}")
+    elif nodes > MAX_NODES:
+        pr.add("beam.nodes", f"must be <= {MAX_NODES}, got {nodes} (the standalone FMU's limit; the modal analysis "
+                             "grows as nodes³)")
         nodes = None
     left = _end(pr, beam_t, "left") if beam_t else None
     right = _end(pr, beam_t, "right") if beam_t else None
@@ -298,6 +315,7 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
     assert length is not None and nodes is not None and left is not None and right is not None
     assert dt is not None and theta is not None and substeps is not None
     extra = {k: data[k] for k in extra_sections if k in data}
+    _warn_fixed_actuators(actuators, length, left, right)
     return BeamConfig(
         beam=BeamGeometry(length, nodes, left, right),
         time=TimeSettings(dt, theta, substeps, input_hold, scheme),

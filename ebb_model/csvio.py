@@ -146,6 +146,8 @@ def parse_block(block: str, *, delimiter: str, names: tuple[str, ...], source: s
     """
     k = len(names) if usecols is None else usecols
     cols = None if usecols is None else range(usecols)
+    if not block.strip():     # numpy would warn about its StringIO ("input contained no data: <_io…>")
+        raise DataError(f"{source}: no data rows")
     try:
         arr = np.loadtxt(io.StringIO(block), delimiter=delimiter, dtype=float, ndmin=2, usecols=cols,
                          comments=None)

@@ -7,6 +7,7 @@ thing went wrong, the message saying *where* and *why*.
 """
 from __future__ import annotations
 
+import os
 from typing import Sequence
 
 __all__ = [
@@ -16,8 +17,10 @@ __all__ = [
     "StabilityError",
     "DataError",
     "FmuError",
+    "OutputError",
     "Interrupted",
     "DataWarning",
+    "ConfigWarning",
 ]
 
 
@@ -80,6 +83,26 @@ class FmuError(EbbError, RuntimeError):
         super().__init__(message)
 
 
+class OutputError(EbbError):
+    """A place to write that cannot take the output: a read-only or full file system, a missing directory, a
+    directory where a file is expected (:mod:`ebb_model.output`).
+
+    Parameters
+    ----------
+    message
+        What went wrong, naming the path.
+    path
+        The file or directory concerned.
+    errno
+        The operating system's error number, when one caused it (e.g. ``errno.ENOSPC``).
+    """
+
+    def __init__(self, message: str, *, path: str | os.PathLike[str] | None = None, errno: int | None = None):
+        self.path = path
+        self.errno = errno
+        super().__init__(message)
+
+
 class Interrupted(EbbError):
     """A run stopped by the user (Ctrl-C); the message says what was kept.  The CLI exits with code 130."""
 
@@ -88,4 +111,11 @@ class DataWarning(UserWarning):
     """Data that can be used but look suspicious (e.g. a file shorter than its header declares).
 
     The CLI prints each as one line, ``ebb COMMAND: warning: ...``.
+    """
+
+
+class ConfigWarning(UserWarning):
+    """A valid config that cannot do what it seems meant to (e.g. a force on an end that does not move).
+
+    The CLI prints each as one line, ``ebb COMMAND: warning: ...``, once.
     """

@@ -26,6 +26,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .config import BeamConfig
+from .config_types import MAX_NODES
 from .discretisation import discretise
 from .exact_modal import _lowest_modes, companion_config, richardson_modes
 from .modal import discrete_frequencies
@@ -37,8 +38,6 @@ __all__ = ["GridAdvice", "grid_advice", "BANDWIDTH_FRACTION", "ZETA_FLOOR"]
 BANDWIDTH_FRACTION = 0.05
 #: Damping ratio assumed for the bandwidth of an undamped (or nearly undamped) mode.
 ZETA_FLOOR = 1e-3
-#: Largest grid the advice searches.
-MAX_NODES = 1000
 #: Smallest base grid ``R`` of the reference pair (``2R + 1``, ``4R + 3`` nodes).
 REFERENCE_NODES = 250
 

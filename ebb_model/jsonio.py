@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from .atomic import atomic_path
+from .output import atomic_path
 
 __all__ = ["jsonable", "write_json"]
 

@@ -2,16 +2,20 @@
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 from .errors import ConfigError
 
-__all__ = ["modes_report"]
+__all__ = ["PROGRESS_NODES", "modes_report"]
+
+#: Grids from this size on report their stages to ``progress`` (smaller ones take well under a second).
+PROGRESS_NODES = 200
 
 
 def modes_report(config_path: str | Path, *, n_modes: int = 10, params: Mapping[str, float] | None = None,
-                 band_hz: float | None = None) -> dict[str, Any]:
+                 band_hz: float | None = None, progress: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Modes, damping, grid advice and stability of the beam of a config, as a JSON-ready dict.
 
     Parameters
@@ -24,6 +28,10 @@ def modes_report(config_path: str | Path, *, n_modes: int = 10, params: Mapping[
         Parameter values instead of the config's nominal ones.
     band_hz : float, optional
         The record's top frequency, for the grid advice (default: the listed modes).
+    progress : callable, optional
+        Receives one line before each stage (modes, grid advice, stability) with the time so far, for grids of
+        at least :data:`PROGRESS_NODES` nodes: the work grows as nodes³ (tens of seconds at the limit,
+        :data:`~ebb_model.config_types.MAX_NODES`).
 
     Returns
     -------
@@ -46,8 +54,18 @@ def modes_report(config_path: str | Path, *, n_modes: int = 10, params: Mapping[
         raise ConfigError(f"`band_hz` must be a positive frequency in Hz, got {band_hz:g}")
     cfg = load_config(config_path)
     p = resolve_parameters(cfg, params)
+    t0 = time.perf_counter()
+
+    def stage(what: str) -> None:
+        if progress is not None and cfg.beam.nodes >= PROGRESS_NODES:
+            progress(f"{cfg.beam.nodes} nodes: {what} ({time.perf_counter() - t0:.0f} s so far; the work grows as "
+                     "nodes³)")
+
+    stage("modes")
     ma = modes(cfg, p, n_modes=n_modes)
+    stage("grid advice")
     grid = grid_advice(cfg, p, n_modes=n_modes, band_hz=band_hz)
+    stage("stability")
     fm = fast_model(cfg, p)
     fd, zd = discrete_frequencies(cfg, p)
     rep = analyse_stability(cfg, p, spectral_radius=fm.spectral_radius())

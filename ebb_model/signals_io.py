@@ -8,7 +8,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .csvio import read_csv_table
-from .errors import ConfigError, DataError
+from .errors import DataError
 from .textio import printable, quote
 
 __all__ = ["read_signal_csv", "check_time_vector", "simulate_files"]
@@ -114,16 +114,19 @@ def simulate_files(config_path: str | Path, input_csv: str | Path, out_csv: str 
     ------
     ConfigError, ParameterError, StabilityError, DataError
         Nothing is written when anything fails.
+    OutputError
+        ``out_csv`` cannot be written (checked first, :func:`ebb_model.output.check_output_file`), or writing it
+        failed (nothing half-written is left).
     """
     from .assemble import check_stable
     from .config import load_config
     from .parameter_values import resolve_parameters
     from .simulate import SimulationResult, fast_model, simulate
 
+    from .output import check_output_file
+
+    out = check_output_file(out_csv, name="out_csv")
     cfg = load_config(config_path)
-    out = Path(out_csv)
-    if not out.parent.is_dir():
-        raise ConfigError(f"`out_csv` {out}: directory {out.parent} does not exist")
     t, u = read_signal_csv(input_csv, cfg.input_names, dt=cfg.time.dt)
     p = resolve_parameters(cfg, params)
     model = fast_model(cfg, p)

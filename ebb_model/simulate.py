@@ -22,7 +22,7 @@ import numba
 import numpy as np
 
 from .arrays import as_matrix
-from .atomic import atomic_path
+from .output import atomic_path
 from .config import BeamConfig
 from .discretisation import discretise
 from .exact_modal import exact_model

@@ -29,8 +29,8 @@ import pythonfmu
 
 from ebb_model import PARAMETER_NAMES, BeamConfig, DiscreteStateSpace, assemble, load_config
 from ebb_model.assemble import assemble_modal
-from ebb_model.atomic import atomic_path
-from ebb_model.errors import FmuError
+from ebb_model.output import atomic_path, check_output_file
+from ebb_model.errors import FmuError, OutputError
 
 from . import slave_template
 from .bundle import write_resources
@@ -94,12 +94,11 @@ def _check_output(out: Path) -> Path:
         raise FmuError(f"{out}: the output file name must end in .fmu", function="build_fmu")
     if out.is_dir():
         raise FmuError(f"{out}: is a directory; give the path of the .fmu file to write", function="build_fmu")
-    parent = out.parent if str(out.parent) else Path(".")
-    if not parent.is_dir():
-        raise FmuError(f"{out}: directory {parent} does not exist", function="build_fmu")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise FmuError(f"{out}: directory {parent} is not writable", function="build_fmu")
-    return parent
+    try:
+        check_output_file(out)   # directory present, writable (a real probe), room left
+    except OutputError as exc:   # the builders' one error type for an unusable output
+        raise FmuError(str(exc), function="build_fmu") from None
+    return out.parent
 
 
 def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLike[str], *,
@@ -131,8 +130,9 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
     ParameterError, StabilityError
         The nominal parameters give no valid (stable) model.
     FmuError
-        The output path is unusable, names clash, the interpreter has no shared
-        libpython, no C compiler is available, or writing the archive fails.
+        The output is unusable (not a .fmu name; its place not writable, read-only or full, checked before the
+        build by :func:`ebb_model.output.check_output_file`), names clash, the interpreter has no shared
+        libpython, no C compiler is available, or writing the archive fails (nothing half-written is left).
 
     Notes
     -----
@@ -189,6 +189,8 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
                 for f in sorted(staging.rglob("*")):
                     if f.is_file() and "__pycache__" not in f.parts:
                         zf.write(f, f.relative_to(staging).as_posix())
+    except OutputError as exc:   # writing the archive failed (full disk …): nothing half-written is left
+        raise FmuError(str(exc), function="build_fmu") from None
     except OSError as exc:
         raise FmuError(f"{out}: cannot write the FMU ({exc.strerror or exc})", function="build_fmu") from None
     return out

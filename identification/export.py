@@ -22,11 +22,13 @@ from typing import Sequence
 
 from ebb_model import assemble
 from ebb_model.errors import ConfigError, StabilityError
+from ebb_model.output import check_writable_dir, make_dir
 
 from .export_targets import DEFAULT_TARGETS, ExportItem, check_targets, export_target
 from .result import IdentificationResult
 
 __all__ = ["export_points"]
+
 
 def _chosen(what: str, selection: Sequence[int] | str | None, n: int) -> Sequence[int]:
     """Indices chosen by ``selection``: ``None`` none, ``"all"`` every one (there must be some)."""
@@ -74,8 +76,13 @@ def export_points(result: IdentificationResult, points: Sequence[int] | str | No
     ConfigError
         Indices out of range, ``"all"`` of none, ``reduce_order`` outside ``1 … nstates``, an unknown target
         — before anything is written.
+    OutputError
+        ``result.out_dir`` cannot take the exports (read-only, full: checked before any work), or writing failed
+        (no half-written file is left).
     """
     writers = [export_target(t) for t in check_targets(targets)]
+    d = result.out_dir
+    check_writable_dir(d / "export" if (d / "export").is_dir() else d)   # before any work
     if points is None and polished is None:
         chosen_pts: Sequence[int] = range(len(result.pareto.X))
         chosen_pol: Sequence[int] = range(len(result.polished))
@@ -93,8 +100,7 @@ def export_points(result: IdentificationResult, points: Sequence[int] | str | No
         if isinstance(reduce_order, bool) or not 1 <= reduce_order <= n_states:
             raise ConfigError(f"`reduce_order`: must lie in 1 … {n_states} (the model's states), "
                               f"got {reduce_order}")
-    out = result.out_dir / "export"
-    out.mkdir(exist_ok=True)
+    out = make_dir(d / "export", exist_ok=True)
     written: list[Path] = []
     options = MappingProxyType({"reduce_order": reduce_order} if reduce_order else {})
     for stem, c, params, sys in models:

@@ -19,7 +19,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ebb_model import DiscreteStateSpace
-from ebb_model.atomic import atomic_path
+from ebb_model.output import atomic_path
 from ebb_model.beam import PARAMETER_UNITS
 from ebb_model.errors import ConfigError, StabilityError
 from ebb_model.jsonio import jsonable

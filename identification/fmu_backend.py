@@ -42,7 +42,7 @@ from .native import ExperimentArrays
 from .objectives import ObjectiveFunction, SimulationOutcome
 from .parameters import ParameterSpace
 
-__all__ = ["FmuEvaluator"]
+__all__ = ["FmuEvaluator", "check_fmu_file"]
 
 
 class _Instance:
@@ -129,6 +129,37 @@ def _registry() -> _InstanceRegistry:
     return _InstanceRegistry()
 
 
+def check_fmu_file(path: str | Path, names: tuple[str, ...] = ()) -> None:
+    """Check, before any work, that ``path`` is an FMI co-simulation FMU with the variables ``names``.
+
+    Raises
+    ------
+    FmuError
+        Not a zip archive, no ``modelDescription.xml`` in it, an unreadable model description, no co-simulation
+        interface, or variables missing — naming the file.
+    """
+    import zipfile
+
+    from fmpy import read_model_description
+
+    if not zipfile.is_zipfile(path):
+        raise FmuError(f"`fmu_path` {path}: not an FMU (not a zip archive)")
+    with zipfile.ZipFile(path) as zf:
+        if "modelDescription.xml" not in zf.namelist():
+            raise FmuError(f"`fmu_path` {path}: not an FMU (no modelDescription.xml in the archive)")
+    try:
+        md = read_model_description(path)
+    except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions (XML, schema, version) here
+        raise FmuError(f"`fmu_path` {path}: unreadable modelDescription.xml ({type(exc).__name__}: "
+                       f"{str(exc).splitlines()[0] if str(exc) else ''})") from None
+    if md.coSimulation is None:
+        raise FmuError(f"`fmu_path` {path}: not a co-simulation FMU")
+    have = {v.name for v in md.modelVariables}
+    missing = [n for n in names if n not in have]
+    if missing:
+        raise FmuError(f"`fmu_path` {path}: no variable(s) {', '.join(missing)}")
+
+
 def _new_token() -> str:
     return uuid.uuid4().hex
 
@@ -160,6 +191,7 @@ class FmuEvaluator(ObjectiveFunction):
             raise ConfigError(f"FMU parameter names: {len(self.parameter_names)} given, {self.space.dim} unknowns")
         if not Path(self.fmu_path).is_file():
             raise ConfigError(f"`fmu_path` {self.fmu_path}: no such file")
+        check_fmu_file(self.fmu_path, (*self.parameter_names, *self.input_names, *self.output_names))
 
     def _create(self) -> _Instance:
         inst = _Instance(self.fmu_path, "identification")

@@ -20,13 +20,13 @@ from pymoo.algorithms.moo.nsga2 import NSGA2
 from pymoo.algorithms.moo.nsga3 import NSGA3
 from pymoo.util.ref_dirs import get_reference_directions
 
-from ebb_model.atomic import atomic_path
+from ebb_model.output import atomic_path
 from ebb_model.errors import ConfigError
 
 from .problem import IdentificationProblem
 from .runners import Runner
 
-__all__ = ["ALGORITHMS", "ParetoSet", "knee_index", "knee_order", "optimise", "CHECKPOINT"]
+__all__ = ["ALGORITHMS", "ParetoSet", "check_settings", "knee_index", "knee_order", "optimise", "CHECKPOINT"]
 
 ALGORITHMS = ("nsga2", "nsga3")
 CHECKPOINT = "checkpoint.pkl"
@@ -111,6 +111,21 @@ def knee_order(F: np.ndarray, names: Sequence[str] | None = None) -> np.ndarray:
 GenerationCallback = Callable[[int, int, np.ndarray, np.ndarray], None]
 
 
+def check_settings(pop: int, generations: int, algorithm: str) -> None:
+    """Check the GA's settings (what :func:`optimise` needs), so a caller can do it before writing anything.
+
+    Raises
+    ------
+    ConfigError
+        ``pop`` below 4, ``generations`` below 1 (or not whole numbers), or an unknown ``algorithm``.
+    """
+    for key, value, low in (("pop", pop, 4), ("generations", generations, 1)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+            raise ConfigError(f"`{key}` must be an integer >= {low}, got {value!r}")
+    if algorithm not in ALGORITHMS:
+        raise ConfigError(f"`algorithm`: unknown {algorithm!r}; allowed: {', '.join(ALGORITHMS)}")
+
+
 def _algorithm(name: str, pop: int, n_obj: int):
     if name == "nsga2":
         return NSGA2(pop_size=pop)
@@ -143,10 +158,7 @@ def optimise(problem: IdentificationProblem, *, pop: int = 40, generations: int 
     ConfigError
         Bad settings, or ``resume`` without a checkpoint in ``out_dir``.
     """
-    if pop < 4:
-        raise ConfigError(f"`pop` must be >= 4, got {pop}")
-    if generations < 1:
-        raise ConfigError(f"`generations` must be >= 1, got {generations}")
+    check_settings(pop, generations, algorithm)
     ckpt = Path(out_dir) / CHECKPOINT if out_dir is not None else None
     if resume:
         if ckpt is None or not ckpt.exists():

@@ -7,8 +7,20 @@ from typing import Any
 import numpy as np
 
 from ebb_model.beam import PARAMETER_UNITS
+from ebb_model.output import atomic_path
 
 __all__ = ["plot_results"]
+
+
+def _save(fig: Any, path: Any) -> None:
+    """Write ``fig`` as a PNG to ``path`` atomically and close it."""
+    import matplotlib.pyplot as plt
+
+    try:
+        with atomic_path(path, suffix=".png") as tmp:
+            fig.savefig(tmp, dpi=110)
+    finally:
+        plt.close(fig)
 
 
 def _objective_label(name: str) -> str:
@@ -58,8 +70,7 @@ def plot_results(res: Any, evaluator: Any) -> list[str]:
         ax.legend(fontsize=8)
         ax.set_title("Pareto front")
     fig.tight_layout()
-    fig.savefig(out / "pareto_front.png", dpi=110)
-    plt.close(fig)
+    _save(fig, out / "pareto_front.png")
     files.append("pareto_front.png")
 
     sims = evaluator.simulate(p.X[p.knee]).outputs
@@ -80,8 +91,7 @@ def plot_results(res: Any, evaluator: Any) -> list[str]:
         axes[0, 0].legend(loc="upper right", fontsize=8)
         axes[-1, 0].set_xlabel("time [s]")
         fig.tight_layout()
-        fig.savefig(out / "knee_fit.png", dpi=110)
-        plt.close(fig)
+        _save(fig, out / "knee_fit.png")
         files.append("knee_fit.png")
 
     fig, axes = plt.subplots(1, p.X.shape[1], figsize=(2.4 * p.X.shape[1], 3.2), squeeze=False)
@@ -94,7 +104,6 @@ def plot_results(res: Any, evaluator: Any) -> list[str]:
         ax.set_xticks([])
     axes[0, 0].legend(fontsize=7, loc="best")
     fig.tight_layout()
-    fig.savefig(out / "parameter_spread.png", dpi=110)
-    plt.close(fig)
+    _save(fig, out / "parameter_spread.png")
     files.append("parameter_spread.png")
     return files

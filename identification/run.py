@@ -32,19 +32,19 @@ from numpy.typing import ArrayLike
 
 from ebb_model import max_growth_factor
 from ebb_model.adequacy import numerical_adequacy
-from ebb_model.atomic import atomic_path
+from ebb_model.output import atomic_path
 from ebb_model.config import BeamConfig
 from ebb_model.threads import one_blas_thread
-from ebb_model.errors import ConfigError, StabilityError
+from ebb_model.errors import ConfigError, OutputError, StabilityError
 from ebb_model.jsonio import write_json
-from ebb_model.outdir import check_new_output_dir
+from ebb_model.output import check_new_output_dir, check_writable_dir, make_dir
 
 from .data import Experiment, load_experiments
 from .export_targets import DEFAULT_TARGETS, check_targets
 from .fisher import fisher_information
 from .native import ExperimentArrays, NativeEvaluator
 from .objectives import objective_names
-from .optimise import ALGORITHMS, CHECKPOINT, ParetoSet, knee_index, knee_order, optimise
+from .optimise import CHECKPOINT, ParetoSet, check_settings, knee_index, knee_order, optimise
 from .parameters import ParameterSpace, parameter_space
 from .polish import polish as polish_point
 from .problem import IdentificationProblem
@@ -100,7 +100,7 @@ def _check_out_dir(out: Path, resume: bool) -> Path:
     finished = (out / RESULT_FILE).exists()
     if resume:
         if (out / CHECKPOINT).exists() and not finished:
-            return out
+            return check_writable_dir(out, name="out_dir")
         if finished:
             raise ConfigError(f"`resume`: the run in {out} has finished (pareto.json); nothing to resume")
         raise ConfigError(f"`resume`: {out} holds no interrupted `identify` run (no {CHECKPOINT})")
@@ -149,15 +149,25 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
 
     Raises
     ------
-    ConfigError, DataError
-        Bad config, data or settings — before anything is written.
+    ConfigError, DataError, FmuError
+        Bad config, data, settings or FMU — before anything is written.
+    OutputError
+        ``out_dir`` cannot be written (before anything is computed), or writing failed during the run (a full
+        disk): nothing is kept, or — after the first generation — the checkpoint, to continue with ``resume``.
     """
     cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
     ident = identification_settings(cfg)
     if backend not in BACKENDS:
         raise ConfigError(f"`backend`: unknown {backend!r}; allowed: {', '.join(BACKENDS)}")
-    if algorithm not in ALGORITHMS:
-        raise ConfigError(f"`algorithm`: unknown {algorithm!r}; allowed: {', '.join(ALGORITHMS)}")
+    check_settings(pop, generations, algorithm)
+    if fmu is not None:
+        if backend != "fmu":
+            raise ConfigError(f"`fmu` {fmu}: evaluated only with `backend` fmu (got `backend` {backend})")
+        from .fmu_backend import check_fmu_file
+
+        if not Path(fmu).is_file():
+            raise ConfigError(f"`fmu_path` {fmu}: no such file")
+        check_fmu_file(fmu)   # an FMU at all (its variables: when the evaluator is made, also before writing)
     if workers < 1:
         raise ConfigError(f"`workers` must be >= 1, got {workers}")
     if dask is not None:
@@ -205,7 +215,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                                         tuple(fmu_outputs) if fmu_outputs else None, per=per,
                                         stabilising=bool(stabilising))
     created = not out.exists()
-    out.mkdir(exist_ok=True)
+    make_dir(out, exist_ok=True)
     try:
         write_json(out / "identifiability.json", fisher0.to_dict())
         problem = IdentificationProblem(search_evaluator, names)
@@ -250,21 +260,33 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
 
             export_points(res, targets=targets)
     except KeyboardInterrupt:
-        # resumable once a generation is checkpointed; before that, leave nothing behind (the
-        # directory was absent or empty: _check_out_dir)
+        # resumable once a generation is checkpointed; before that, leave nothing behind
         if not (out / CHECKPOINT).exists():
-            import shutil
-
-            if created:
-                shutil.rmtree(out, ignore_errors=True)
-            else:
-                for item in out.iterdir():
-                    if item.is_dir():
-                        shutil.rmtree(item, ignore_errors=True)
-                    else:
-                        item.unlink(missing_ok=True)
+            _remove_partial(out, created)
         raise
+    except OutputError as exc:
+        # a full disk or a file system gone read-only mid-run: the atomic writes left no partial file
+        if (out / CHECKPOINT).exists():
+            raise OutputError(f"{exc}; the checkpoint of the last finished generation is kept in {out}: make room, "
+                              "then continue with `resume`", path=exc.path, errno=exc.errno) from None
+        _remove_partial(out, created)
+        raise OutputError(f"{exc}; nothing was kept", path=exc.path, errno=exc.errno) from None
     return res
+
+
+def _remove_partial(out: Path, created: bool) -> None:
+    """Remove what a run wrote into ``out`` before its first checkpoint (``out`` was absent or empty:
+    :func:`_check_out_dir`)."""
+    import shutil
+
+    if created:
+        shutil.rmtree(out, ignore_errors=True)
+        return
+    for item in out.iterdir():
+        if item.is_dir():
+            shutil.rmtree(item, ignore_errors=True)
+        else:
+            item.unlink(missing_ok=True)
 
 
 def _polish_front(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, budget: int,

@@ -1,9 +1,11 @@
-"""The one atomic writer: the target appears only complete, and nothing is left behind on an interruption."""
+"""The one atomic writer (ebb_model.output): the target appears only complete, nothing is left behind on an
+interruption."""
 from __future__ import annotations
 
 import pytest
 
-from ebb_model.atomic import atomic_path
+from ebb_model.errors import OutputError
+from ebb_model.output import atomic_path
 
 
 def test_target_is_replaced_only_when_the_block_succeeds(tmp_path):
@@ -17,11 +19,12 @@ def test_target_is_replaced_only_when_the_block_succeeds(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.csv"]
 
 
-@pytest.mark.parametrize("exc", [KeyboardInterrupt, OSError])
-def test_interrupted_block_leaves_the_old_file_and_no_temporary(tmp_path, exc):
+@pytest.mark.parametrize("exc,raised", [(KeyboardInterrupt, KeyboardInterrupt), (OSError, OutputError)])
+def test_interrupted_block_leaves_the_old_file_and_no_temporary(tmp_path, exc, raised):
+    """Ctrl-C propagates as it is; a failure to write (an OSError) becomes the typed error naming the target."""
     target = tmp_path / "out.npz"
     target.write_text("old")
-    with pytest.raises(exc):
+    with pytest.raises(raised, match=None if raised is KeyboardInterrupt else r"out\.npz: cannot write"):
         with atomic_path(target, suffix=".npz") as tmp:
             assert tmp.name.endswith(".npz")
             tmp.write_text("half")

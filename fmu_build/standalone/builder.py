@@ -29,8 +29,9 @@ from pathlib import Path
 
 from ebb_model import BeamConfig, DiscreteStateSpace, assemble, load_config
 from ebb_model.assemble import field_config
-from ebb_model.atomic import atomic_path
-from ebb_model.errors import ConfigError, FmuError
+from ebb_model.config_types import MAX_NODES
+from ebb_model.output import atomic_path
+from ebb_model.errors import ConfigError, FmuError, OutputError
 
 from ..builder import _check_names, _check_output, _identity
 from .description import (C_HEADERS, C_SOURCES, build_description_xml, config_header, fmu_variables,
@@ -41,9 +42,9 @@ __all__ = ["build_standalone_fmu", "compile_binary", "SOURCE_DIR"]
 #: Where the C sources live (copied verbatim into the FMU's ``sources/``).
 SOURCE_DIR = Path(__file__).resolve().parent / "csrc"
 _PLATFORM = "linux64"
-#: Largest grid the C model takes: its solvers are dense (Jacobi sweeps, O(n³) each): initialisation takes 0.2 s at
-#: 200 nodes and 1.6 s at 400 (exact scheme), about 25 s at this limit.
-MAX_NODES = 1000
+#: The largest grid, :data:`ebb_model.config_types.MAX_NODES` (1000), is also the C model's: its solvers are dense
+#: (Jacobi sweeps, O(n³) each): initialisation takes 0.2 s at 200 nodes and 1.6 s at 400 (exact scheme), about
+#: 25 s at 1000.
 #: Compiler flags of the linux64 binary (plain C99, hidden symbols except the fmi2 functions).
 CFLAGS = ("-std=c99", "-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-Wall")
 
@@ -112,7 +113,8 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
     ParameterError, StabilityError
         The nominal parameters give no valid (stable) model.
     FmuError
-        The output path is unusable, names clash, no C compiler, or writing the archive fails.
+        The output is unusable (checked before the build: not a .fmu name, not writable, read-only or full),
+        names clash, no C compiler, or writing the archive fails (nothing half-written is left).
     """
     if isinstance(config, BeamConfig):
         cfg, base = config, "beam"
@@ -153,6 +155,8 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
                 for f in sorted(staging.rglob("*")):
                     if f.is_file():
                         zf.write(f, f.relative_to(staging).as_posix())
+    except OutputError as exc:   # writing the archive failed (full disk …): nothing half-written is left
+        raise FmuError(str(exc), function="build_standalone_fmu") from None
     except OSError as exc:
         raise FmuError(f"{out}: cannot write the FMU ({exc.strerror or exc})",
                        function="build_standalone_fmu") from None

@@ -18,7 +18,7 @@ from typing import Mapping
 import numpy as np
 
 from ebb_model.arrays import as_matrix
-from ebb_model.atomic import atomic_path
+from ebb_model.output import atomic_path
 from ebb_model.config import BeamConfig
 from ebb_model.errors import DataError
 from ebb_model.signals_io import check_time_vector
