@@ -55,7 +55,7 @@ from __future__ import annotations
 
 from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable
 
 import numpy as np
 
@@ -65,16 +65,15 @@ from .modal_pattern import ModalEvidence, PatternFit, pattern_fits, time_invaria
 from .refits import (GAP_THRESHOLD, EffectRefit, better_baseline, explains, map_refits, pair_refit,
                      refit_from_match, summarise)
 from .score import EffectScore, score_effect
+from .verdict import BIC_MARGIN, NAMED_CLOSURE, UNEXPLAINED, paying_refits, verdict_rule
 from .workers import side_by_side
 
-__all__ = ["Ranking", "settled", "rank_effects", "verdict_rule", "BIC_MARGIN", "NAMED_CLOSURE", "UNEXPLAINED"]
+__all__ = ["Ranking", "Refits", "settled", "rank_effects", "verdict_rule", "BIC_MARGIN", "NAMED_CLOSURE",
+           "UNEXPLAINED"]
 
-#: BIC improvement an effect must reach to count as paying for its parameters.
-BIC_MARGIN = 10.0
-#: Fraction of the held-out gap an effect's refit must close to be named as the cause.
-NAMED_CLOSURE = 0.8
-#: The verdict when there is a gap that no effect of the catalogue explains.
-UNEXPLAINED = "unexplained"
+#: The refits so far: label → (fit, the starts it was refitted from).  Stages take it and return a new one.
+Refits = dict[str, tuple[Fit, list]]
+
 #: How many further candidates (in ranking order) are tried as the second effect of a pair.
 PAIR_PARTNERS = 3
 #: Fraction of the held-out gap the best single effect must close before a pair with it is tried (two effects
@@ -150,11 +149,12 @@ def _linear(evidence: ModalEvidence | None) -> bool:
 # ---------------------------------------------------------------------------
 # stage: the modal pattern
 # ---------------------------------------------------------------------------
-def _refit_from_matches(run: _Search, patterns: dict[str, PatternFit], labels: list[str],
-                        local: dict[str, tuple[Fit, list]]) -> None:
-    """Refit ``labels`` from their modal match, side by side; ``local`` gains (or keeps the better of) them."""
+def _refit_from_matches(run: _Search, patterns: dict[str, PatternFit], labels: list[str], local: Refits) -> Refits:
+    """Refit ``labels`` from their modal match, side by side: the refits ``local`` with them added (or the better
+    of the two kept)."""
     fits = run.side_by_side(refit_from_match, [(run.problem, run.catalogue, lab, patterns[lab], run.max_evaluations)
                                                for lab in labels])
+    local = dict(local)
     for lab, (fit, starts) in zip(labels, fits):
         run.say(f"refit {lab} from its modal match: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} "
                 f"evaluations)")
@@ -164,16 +164,16 @@ def _refit_from_matches(run: _Search, patterns: dict[str, PatternFit], labels: l
             local[lab] = (replace(best, n_evaluations=old.n_evaluations + fit.n_evaluations), old_starts + starts)
         else:
             local[lab] = (fit, starts)
+    return local
 
 
-def _pattern_stage(run: _Search, evidence: ModalEvidence, local: dict[str, tuple[Fit, list]]
-                   ) -> dict[str, PatternFit]:
+def _pattern_stage(run: _Search, evidence: ModalEvidence, local: Refits) -> tuple[dict[str, PatternFit], Refits]:
     """Match the measured modes by every structural effect and refit the :data:`PATTERN_CANDIDATES` best
-    matches from their match (module docstring); ``local`` gains (or keeps the better of) their refits."""
+    matches from their match (module docstring): the pattern fits, and the refits with theirs."""
     if not _linear(evidence):
         run.say(f"measured modes: their fit leaves {evidence.measured.gap_ratio:.3g} noise variances — the records "
                 f"are not those of a linear time-invariant system, no modal pattern to compare")
-        return {}
+        return {}, local
     patterns = pattern_fits(run.problem, evidence, run.baseline.beta, run.catalogue, run.executor)
     base = patterns["baseline"].chi2
     run.say(f"measured modes {np.round(evidence.measured.freq_hz, 3)} Hz (their fit leaves "
@@ -186,30 +186,30 @@ def _pattern_stage(run: _Search, evidence: ModalEvidence, local: dict[str, tuple
     if ranked:   # a match far worse than the best one does not match: 2 per mode is a match within the errors
         limit = PATTERN_RIVAL * max(patterns[ranked[0]].chi2, 2.0 * evidence.n_modes)
         ranked = [lab for lab in ranked if patterns[lab].chi2 <= limit]
-    _refit_from_matches(run, patterns, ranked, local)
+    local = _refit_from_matches(run, patterns, ranked, local)
     rest = [lab for lab in matching if lab not in ranked][:PATTERN_CANDIDATES]
     if rest and not any(explains(local[lab][0], run.baseline) for lab in ranked):
         # the closest matches do not explain the records: the next ones (a pattern fit can stop short of its
         # optimum, and its match still lies in the right basin for the time-domain refit)
-        _refit_from_matches(run, patterns, rest, local)
-    return patterns
+        local = _refit_from_matches(run, patterns, rest, local)
+    return patterns, local
 
 
-def _modal_stage(run: _Search, evidence: ModalEvidence, labels: list[str], local: dict[str, tuple[Fit, list]]
-                 ) -> tuple[dict[str, PatternFit], list[str], _Early]:
+def _modal_stage(run: _Search, evidence: ModalEvidence, labels: list[str], local: Refits
+                 ) -> tuple[dict[str, PatternFit], list[str], _Early, Refits]:
     """The modal pattern, then a pair, then the other baseline basins, each only while the gap is unexplained
     (module docstring).  Returns the pattern fits, the refitted labels (the shortlist and the matches, in
-    catalogue order after the shortlist) and the early pair; ``local`` gains the refits."""
-    patterns = _pattern_stage(run, evidence, local)
+    catalogue order after the shortlist), the early pair and the refits with the stage's."""
+    patterns, local = _pattern_stage(run, evidence, local)
     labels = labels + [lab for lab in run.effects if lab in local and lab not in labels]
     early: _Early = None
     if not run.explained(local):
-        early = _early_pair(run, labels, local)
+        early, local = _early_pair(run, labels, local)
     if not run.explained(local) and not _pair_explains(early, run.baseline):
         # (a better basin cannot make a linear time-invariant effect explain records no such model can)
         tried = [lab for lab in labels if _linear(evidence) or not run.time_invariant(lab)]
-        local.update(run.refit(tried, {lab: local[lab] for lab in tried}, stage="basins"))
-    return patterns, labels, early
+        local = local | run.refit(tried, {lab: local[lab] for lab in tried}, stage="basins")
+    return patterns, labels, early, local
 
 
 # ---------------------------------------------------------------------------
@@ -263,21 +263,21 @@ def _pair_with(run: _Search, single: EffectRefit) -> tuple[EffectRefit | None, E
     return (pair if pair.bic < alone.bic - BIC_MARGIN else None), (alone if improved else None)
 
 
-def _early_pair(run: _Search, labels: list[str], local: dict[str, tuple[Fit, list]]) -> _Early:
+def _early_pair(run: _Search, labels: list[str], local: Refits) -> tuple[_Early, Refits]:
     """Two effects before the other basins and the continuation refits (module docstring): the best local
     refit's effect paired, when it pays, closes :data:`PAIR_MINIMUM` and is linear time-invariant (pairs with
-    drift or stretching need the costly nonlinear simulation, dearer than their continuation).  ``local``
-    gains the effect refitted alone from the pair's optimum when that is better."""
+    drift or stretching need the costly nonlinear simulation, dearer than their continuation).  Returns the
+    early pair and the refits, with the effect refitted alone from the pair's optimum when that is better."""
     now = {lab: run.summary(run.catalogue.effect(lab), local[lab][0]) for lab in labels}
-    lead = _paying(now, run.before)[:1]
+    lead = paying_refits(now, run.before)[:1]
     if not (lead and now[lead[0]].closed >= PAIR_MINIMUM and run.time_invariant(lead[0])):
-        return None
+        return None, local
     pair, alone = _pair_with(run, now[lead[0]])
     if alone is not None:
-        local[lead[0]] = (alone.fit, local[lead[0]][1])
+        local = local | {lead[0]: (alone.fit, local[lead[0]][1])}
     if pair is not None and explains(pair.fit, run.baseline):
         run.say(f"the pair {pair.label} explains the gap: no other basins, re-baselining or continuation refits")
-    return now[lead[0]].fit, pair     # (a single improved here is paired again at the end)
+    return (now[lead[0]].fit, pair), local     # (a single improved here is paired again at the end)
 
 
 def _pair_explains(early: _Early, baseline: Fit) -> bool:
@@ -293,10 +293,10 @@ def _same_fit(a: Fit, b: Fit) -> bool:
 # ---------------------------------------------------------------------------
 # stage: continuation in the record length
 # ---------------------------------------------------------------------------
-def _continuation_stage(run: _Search, labels: list[str], local: dict[str, tuple[Fit, list]], early: _Early,
-                        evidence: ModalEvidence | None, patterns: dict[str, PatternFit], parallel: int) -> None:
+def _continuation_stage(run: _Search, labels: list[str], local: Refits, early: _Early,
+                        evidence: ModalEvidence | None, patterns: dict[str, PatternFit], parallel: int) -> Refits:
     """Continuation refits (:mod:`diagnosis.refits`), the most promising first, ``parallel`` at a time, until one
-    explains the gap; skipped for effects no continuation can help.  ``local`` gains them."""
+    explains the gap; skipped for effects no continuation can help.  Returns the refits with theirs."""
     pending = sorted(labels, key=lambda lab: local[lab][0].rss)
     if _pair_explains(early, run.baseline) or run.explained(local):
         run.say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
@@ -316,7 +316,7 @@ def _continuation_stage(run: _Search, labels: list[str], local: dict[str, tuple[
         pending = [lab for lab in pending if lab not in matched]
     while pending:
         group, pending = pending[:max(1, parallel)], pending[max(1, parallel):]
-        local.update(run.refit(group, {lab: local[lab] for lab in group}, stage="continuation"))
+        local = local | run.refit(group, {lab: local[lab] for lab in group}, stage="continuation")
         for lab in group:
             fit = local[lab][0]
             run.say(f"continuation refit {lab}: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
@@ -324,20 +324,13 @@ def _continuation_stage(run: _Search, labels: list[str], local: dict[str, tuple[
             if pending:
                 run.say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
             break
+    return local
 
 
 # ---------------------------------------------------------------------------
 # the verdict
 # ---------------------------------------------------------------------------
-def _paying(refits: dict[str, EffectRefit], before: np.ndarray) -> list[str]:
-    """The effects whose refit pays for its parameters (BIC by :data:`BIC_MARGIN`) and lowers the held-out
-    error, the lowest held-out error first."""
-    paying = [lab for lab, rf in refits.items()
-              if rf.delta_bic < -BIC_MARGIN and np.mean(rf.heldout_after) < np.mean(before)]
-    return sorted(paying, key=lambda lab: float(np.mean(refits[lab].heldout_after)))
-
-
-def _decide(run: _Search, by_score: list[str], labels: list[str], local: dict[str, tuple[Fit, list]],
+def _decide(run: _Search, by_score: list[str], labels: list[str], local: Refits,
             early: _Early, patterns: dict[str, PatternFit], evidence: ModalEvidence | None) -> Ranking:
     """Rank the refits, try a pair when the best leaves a significant remainder, and name the cause."""
     before, baseline, say = run.before, run.baseline, run.say
@@ -345,7 +338,7 @@ def _decide(run: _Search, by_score: list[str], labels: list[str], local: dict[st
     for label, rf in refits.items():
         say(f"refit {label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
             f"dBIC {rf.delta_bic:.1f}")
-    paying = _paying(refits, before)
+    paying = paying_refits(refits, before)
     others = [lab for lab in refits if lab not in paying]
     others.sort(key=lambda lab: float(np.mean(refits[lab].heldout_after)))
     order = paying + others + [lab for lab in by_score if lab not in refits]
@@ -370,61 +363,10 @@ def _decide(run: _Search, by_score: list[str], labels: list[str], local: dict[st
                    modal=evidence)
 
 
-def verdict_rule(before: np.ndarray, refits: Mapping[str, EffectRefit], paying: Sequence[str]
-                 ) -> tuple[str, list[str], str]:
-    """The verdict from the refits alone (no simulation): ``(verdict, ties, reason)``.
-
-    Parameters
-    ----------
-    before
-        Held-out gap ratio per sensor of the baseline (1 = noise floor).
-    refits
-        The refits by label (their held-out gap ratio after, closure and ΔBIC are used).
-    paying
-        Labels of the refits that pay for themselves (:func:`_paying`), best first; a pair, when one was
-        refitted and pays, first.
-
-    Returns
-    -------
-    tuple
-        ``"none"`` when the gap is within :data:`GAP_THRESHOLD` of the noise floor; :data:`UNEXPLAINED` when no
-        refit pays or the best closes less than :data:`NAMED_CLOSURE` of the gap; else the best's label, the
-        single effects that close nearly as much (≥ 95 % of its gain) and leave no measurably larger remainder
-        (its ties), and the reason in words.
-    """
-    excess = float(np.mean(before)) - 1.0
-    if excess < GAP_THRESHOLD:
-        return "none", [], (f"the held-out residual variance is only {excess:+.0%} above the noise floor "
-                            f"(threshold {GAP_THRESHOLD:.0%}): nothing to explain")
-    if not paying:
-        return UNEXPLAINED, [], (f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the "
-                                 f"noise variance, but no candidate effect improves BIC by more than {BIC_MARGIN:g} "
-                                 f"and the held-out error")
-    best = refits[paying[0]]
-    if not best.closed >= NAMED_CLOSURE:
-        return UNEXPLAINED, [], (f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the "
-                                 f"noise variance and the best candidate, {paying[0]}, closes only {best.closed:.0%} "
-                                 f"of the gap (an effect is named from {NAMED_CLOSURE:.0%})")
-    gain = float(np.mean(before) - np.mean(best.heldout_after))
-    # a pair's own parts are not its rivals: the pair has paid for its second effect against the first
-    parts = set(paying[0].split(PAIR_SEPARATOR))
-    # a rival ties when it closes nearly as much and what it leaves is not measurably more (a rival leaving
-    # 349 noise variances where the best leaves 1.1 is decided, even though both close 97-100 %)
-    left = float(np.mean(best.heldout_after))
-    ties = [lab for lab in paying[1:] if PAIR_SEPARATOR not in lab and lab not in parts
-            and float(np.mean(before) - np.mean(refits[lab].heldout_after)) >= 0.95 * gain
-            and float(np.mean(refits[lab].heldout_after)) - left <= max(GAP_THRESHOLD, 0.25 * (left - 1.0))]
-    reason = (f"{paying[0]} closes {best.closed:.0%} of the held-out gap "
-              f"(gap ratio {np.mean(before):.3g} -> {np.mean(best.heldout_after):.3g}, dBIC {best.delta_bic:.1f})")
-    if ties:
-        reason += "; the data cannot distinguish it from " + ", ".join(ties)
-    return paying[0], ties, reason
-
-
 def settled(ranking: Ranking) -> bool:
     """Whether the named effect's refit leaves at most :data:`GAP_THRESHOLD` above the noise floor on the fit
     windows: then a better baseline basin cannot change the verdict (another effect could at most tie), and the
-    search for one is not needed."""
+    ranking is final."""
     if ranking.verdict not in ranking.refits:
         return False
     fit = ranking.refits[ranking.verdict].fit
@@ -433,9 +375,10 @@ def settled(ranking: Ranking) -> bool:
 
 def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, shortlist: int = 4,
                  max_evaluations: int = 300, progress: Any = None, executor: Executor | None = None,
-                 parallel: int = 1, rebaseline: bool = True,
+                 parallel: int = 1, rebaseline: bool = True, rounds: int = 2,
                  modal: Callable[[np.ndarray], ModalEvidence] | None = None) -> Ranking:
-    """Score every effect, refit the ``shortlist`` best, rank and decide.
+    """Score every effect, refit the ``shortlist`` best, rank and decide — again from a better baseline basin
+    when the refits reveal one (the one re-baselining loop).
 
     Parameters
     ----------
@@ -460,9 +403,11 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
         that brings the fit windows to the noise floor leaves nothing for another to close.
     rebaseline
         When no local refit explains the gap, first try the baseline from the local refits' baseline
-        unknowns (:func:`better_baseline`); if that is better, rank again from it (once) before paying for
-        the continuation refits — which would otherwise run twice, from the worse baseline and again.
-        The returned :attr:`Ranking.baseline` is the baseline the ranking used.
+        unknowns (:func:`better_baseline`); if that is better, rank again from it before paying for the
+        continuation refits — which would otherwise run twice, from the worse baseline and again.
+    rounds
+        After a complete ranking whose verdict is not :func:`settled`, up to ``rounds`` times: the baseline
+        from the effects' optima (:func:`better_baseline`); when it is better, the ranking starts again from it.
     modal
         The measured modes with their uncertainties for baseline unknowns ``beta`` (called only when no local
         refit explains the gap): then the modal-pattern stage runs first (module docstring).
@@ -470,8 +415,38 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
     Returns
     -------
     Ranking
+        Its :attr:`Ranking.baseline` is the baseline the final ranking used.
     """
     say = progress or (lambda _m: None)
+    early_rebaseline, left = rebaseline, rounds
+    while True:
+        outcome = _rank_once(problem, baseline, catalogue, shortlist, max_evaluations, say, executor, parallel,
+                             early_rebaseline, modal)
+        if isinstance(outcome, Fit):
+            # a local refit's baseline unknowns lie in a better basin: rank from there, before the costly stages
+            say(f"baseline re-fit from a local refit's optimum: RSS {baseline.rss:.4g} -> {outcome.rss:.4g}; "
+                f"ranking again")
+            baseline, early_rebaseline = outcome, False
+            continue
+        ranking = outcome
+        if left == 0 or settled(ranking):
+            return ranking
+        left -= 1
+        # an effect's refit may have moved the baseline unknowns into a better basin (refits.better_baseline)
+        say("baseline re-fit from the effects' optima")
+        better = better_baseline(problem, ranking.baseline, [rf.fit for rf in ranking.refits.values()], executor)
+        if better is None:
+            return ranking
+        say(f"baseline re-fit from an effect's optimum: RSS {ranking.baseline.rss:.4g} -> {better.rss:.4g}; "
+            f"ranking again")
+        baseline, early_rebaseline = better, rebaseline
+
+
+def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortlist: int, max_evaluations: int,
+               say: Callable[[str], None], executor: Executor | None, parallel: int, rebaseline: bool,
+               modal: Callable[[np.ndarray], ModalEvidence] | None) -> Ranking | Fit:
+    """One ranking from ``baseline`` (the stages of the module docstring), or — with ``rebaseline``, before the
+    continuation refits — the better baseline a local refit revealed (:func:`rank_effects` ranks from it)."""
     effects = {e.label: e for e in catalogue.effects()}
     before, _ = problem.heldout(baseline.beta)
     scores = {}
@@ -491,17 +466,13 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
     early: _Early = None
     if modal is not None and not run.explained(local):
         evidence = modal(baseline.beta)
-        patterns, labels, early = _modal_stage(run, evidence, labels, local)
+        patterns, labels, early, local = _modal_stage(run, evidence, labels, local)
     if not run.explained(local) and not _pair_explains(early, baseline):
         better = (better_baseline(problem, baseline, [fit for fit, _ in local.values()], executor)
                   if rebaseline else None)
         if better is not None:
-            say(f"baseline re-fit from a local refit's optimum: RSS {baseline.rss:.4g} -> {better.rss:.4g}; "
-                f"ranking again")
-            return rank_effects(problem, better, catalogue, shortlist=shortlist, max_evaluations=max_evaluations,
-                                progress=progress, executor=executor, parallel=parallel, rebaseline=False,
-                                modal=modal)
+            return better
         if evidence is None:     # (the modal stage, when it ran, has tried the pair already)
-            early = _early_pair(run, labels, local)
-        _continuation_stage(run, labels, local, early, evidence, patterns, parallel)
+            early, local = _early_pair(run, labels, local)
+        local = _continuation_stage(run, labels, local, early, evidence, patterns, parallel)
     return _decide(run, by_score, labels, local, early, patterns, evidence)

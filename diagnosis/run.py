@@ -13,7 +13,6 @@ appears only when complete (built under a temporary name, then renamed).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from functools import partial
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence, cast
 
@@ -43,8 +42,9 @@ from .fitting import Fit, GapProblem
 from .localise import Localisation, localise
 from .modal_estimate import MeasuredModes, estimate_modes
 from .modal_pattern import ModalEvidence, modal_evidence
-from .rank import BIC_MARGIN, UNEXPLAINED, Ranking, rank_effects, settled
-from .refits import GAP_THRESHOLD, better_baseline
+from .rank import Ranking, rank_effects
+from .verdict import BIC_MARGIN, UNEXPLAINED
+from .refits import GAP_THRESHOLD
 from .records import Record, split_records
 from .result import (BandClosure, BaselineSummary, DiagnosisSettings, EffectRow, GapReport, PatternMatch,
                      RefitSummary)
@@ -367,28 +367,15 @@ def _noise_level(cfg: BeamConfig, records: Sequence[Record], noise_std: Sequence
 
 def _ranking(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortlist: int, workers: int,
              modal: Callable[[np.ndarray], ModalEvidence], say: Callable[[str], None]) -> Ranking:
-    """:func:`diagnosis.rank.rank_effects` on ``workers`` processes, ranked again (up to twice) from a better
-    baseline basin that an effect's refit revealed, until the named effect's refit settles the gap."""
+    """:func:`diagnosis.rank.rank_effects` on ``workers`` processes (ranked again, up to twice, from a better
+    baseline basin that an effect's refit revealed)."""
     executor = refit_pool(workers)
     try:
-        rank = partial(rank_effects, problem, catalogue=catalogue, shortlist=shortlist, progress=say,
-                       executor=executor, parallel=workers, modal=modal)
-        ranking = rank(baseline)
-        for _ in range(2):
-            if settled(ranking):
-                break
-            # an effect's refit may have moved the baseline unknowns into a better basin (refits.better_baseline)
-            say("baseline re-fit from the effects' optima")
-            better = better_baseline(problem, ranking.baseline, [rf.fit for rf in ranking.refits.values()], executor)
-            if better is None:
-                break
-            say(f"baseline re-fit from an effect's optimum: RSS {ranking.baseline.rss:.4g} -> {better.rss:.4g}; "
-                f"ranking again")
-            ranking = rank(better)
+        return rank_effects(problem, baseline, catalogue=catalogue, shortlist=shortlist, progress=say,
+                            executor=executor, parallel=workers, rounds=2, modal=modal)
     finally:
         if executor is not None:
             executor.shutdown(cancel_futures=True)
-    return ranking
 
 
 def _effect_rows(problem: GapProblem, ranking: Ranking, by_label: Mapping[str, Effect], edges: np.ndarray,

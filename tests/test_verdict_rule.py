@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from diagnosis.rank import NAMED_CLOSURE, UNEXPLAINED, verdict_rule
+from diagnosis.verdict import NAMED_CLOSURE, UNEXPLAINED, verdict_rule
 from diagnosis.refits import GAP_THRESHOLD, EffectRefit
 
 BEFORE = np.array([40.0, 60.0])      # held-out gap ratio of the baseline, per sensor (mean 50)
