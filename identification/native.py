@@ -15,7 +15,7 @@ from ebb_model import fast_model, simulate
 from ebb_model.arrays import as_matrix
 from ebb_model.config import BeamConfig
 
-from .objectives import ObjectiveFunction, SimulationOutcome
+from .objectives import STABILITY_TOLERANCE, ObjectiveFunction, SimulationOutcome
 from .parameters import ParameterSpace
 
 __all__ = ["ExperimentArrays", "NativeEvaluator", "experiments_from_arrays"]
@@ -68,7 +68,7 @@ class NativeEvaluator(ObjectiveFunction):
     def _simulate(self, cfg: BeamConfig, params: Mapping[str, float]) -> SimulationOutcome:
         model = fast_model(cfg, params)
         rho = model.spectral_radius()
-        if rho > 1.0 + 1e-9:
+        if rho > 1.0 + STABILITY_TOLERANCE:
             return SimulationOutcome((), False, rho)
         return SimulationOutcome(tuple(simulate(model, e.inputs).outputs for e in self.experiments), True, rho)
 

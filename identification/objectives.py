@@ -20,11 +20,14 @@ grid's wavenumbers (:func:`ebb_model.max_growth_factor`), after Talic et al.:
 it is ≤ 1 for a stable scheme; minimising it steers the front away from
 unstable and marginal (undamped) parameter sets.
 
-Penalty
--------
+Stability constraint and penalty
+--------------------------------
 Candidates whose finite beam is unstable (spectral radius of Φ above one) are
-never simulated; they get :data:`PENALTY` plus their spectral radius on every
-output-error objective, so the values stay finite and ordered (never NaN).
+never simulated.  The optimiser sees them as *infeasible*: the constraint
+``g = ρ(Φ) − 1 <= 0`` (:func:`stability_margin`; pymoo's ``out["G"]``) decides
+feasibility before any objective does.  Their objectives stay finite —
+:data:`PENALTY` plus their spectral radius on every output-error objective —
+so every value is ordered (never NaN) for the polish and the reports.
 """
 from __future__ import annotations
 
@@ -43,10 +46,14 @@ if TYPE_CHECKING:
 
     from .parameters import ParameterSpace
 
-__all__ = ["PENALTY", "ObjectiveFunction", "SimulationOutcome", "nrmse", "objective_names", "output_errors"]
+__all__ = ["PENALTY", "STABILITY_TOLERANCE", "ObjectiveFunction", "SimulationOutcome", "nrmse", "objective_names",
+           "output_errors", "stability_margin"]
 
 #: Objective value given to unstable candidates (plus their spectral radius).
 PENALTY = 1.0e3
+#: Largest spectral radius of Φ above one that still counts as stable (round-off of an undamped beam's unit
+#: circle).
+STABILITY_TOLERANCE = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
@@ -150,15 +157,23 @@ class ObjectiveFunction:
         raise NotImplementedError
 
     def objectives(self, x: np.ndarray) -> np.ndarray:
-        """Objective vector of candidate ``x``: finite always — :data:`PENALTY` terms for a candidate that was
-        not simulated (unstable, refused) and twice :data:`PENALTY` for non-physical parameter values (never
-        simulated by any backend)."""
+        """Objective vector of candidate ``x`` (:meth:`assess`)."""
+        return self.assess(x)[0]
+
+    def assess(self, x: np.ndarray) -> tuple[np.ndarray, float]:
+        """Objective vector of candidate ``x`` and its stability constraint ``g <= 0``.
+
+        The objectives are finite always — :data:`PENALTY` terms for a candidate that was not simulated
+        (unstable, refused) and twice :data:`PENALTY` for non-physical parameter values (never simulated by
+        any backend) —, so a population stays ordered.  The constraint (:func:`stability_margin`) is what the
+        optimiser decides feasibility by: an unstable candidate is infeasible, not merely a poor fit.
+        """
         try:
             cfg, params = self.space.apply(self.config, x)
             g = max_growth_factor(cfg, params) if self.stabilising else 0.0
             sim = self.outcome(np.asarray(x, dtype=float), cfg, params)
         except ParameterError:
-            return np.full(self.n_obj, 2 * PENALTY)
+            return np.full(self.n_obj, 2 * PENALTY), 1.0
         n_err = self.n_obj - int(self.stabilising)
         if not sim.stable:
             errs = np.full(n_err, sim.penalty)
@@ -166,9 +181,23 @@ class ObjectiveFunction:
             errs = output_errors(sim.outputs, [e.outputs for e in self.experiments], per=self.per)
             if not np.all(np.isfinite(errs)):
                 errs = np.full(n_err, sim.penalty)
-        return np.concatenate([errs, [g]]) if self.stabilising else errs
+        return (np.concatenate([errs, [g]]) if self.stabilising else errs), stability_margin(sim)
 
     def evaluate(self, X: np.ndarray) -> np.ndarray:
         """Objectives of a population ``X`` (n, dim) → ``F`` (n, n_obj)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         return np.array([self.objectives(x) for x in X])
+
+    def evaluate_constrained(self, X: np.ndarray) -> np.ndarray:
+        """Objectives and stability constraint of a population ``X`` (n, dim) → ``[F | G]`` (n, n_obj + 1)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        return np.array([np.append(*self.assess(x)) for x in X])
+
+
+def stability_margin(sim: SimulationOutcome) -> float:
+    """The stability constraint of a simulated candidate, ``g <= 0`` when feasible: ``ρ(Φ) − (1 + 1e-9)`` when
+    the backend knows the spectral radius (the native model's stability test), else ``−1`` for a simulated
+    candidate and ``+1`` for one the backend refused."""
+    if math.isfinite(sim.spectral_radius):
+        return float(sim.spectral_radius - (1.0 + STABILITY_TOLERANCE))
+    return -1.0 if sim.stable else 1.0

@@ -192,8 +192,10 @@ def optimise(problem: IdentificationProblem, *, pop: int = 40, generations: int 
         if bar is not None:
             bar.close()
     res = algo.result()
-    X = np.atleast_2d(res.X)
-    F = np.atleast_2d(res.F)
+    # no feasible (stable) candidate at all: the least infeasible ones, as pymoo keeps them
+    best = algo.opt if res.X is None else res
+    X = np.atleast_2d(best.X if best is res else best.get("X"))
+    F = np.atleast_2d(best.F if best is res else best.get("F"))
     order = np.lexsort(F.T[::-1])
     X, F = X[order], F[order]
     knee = knee_index(F, problem.objective_names)

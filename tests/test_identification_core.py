@@ -148,6 +148,29 @@ class _Interrupting(SerialRunner):
         return super().__call__(evaluator, X)
 
 
+def test_stability_is_the_optimiser_constraint():
+    """An unstable candidate is infeasible for pymoo (``G > 0``), not only a poor fit: a GA whose box lies half
+    beyond the cantilever's buckling load (N = −π²EI/4 ≈ −24.7 N at EI = 10) returns stable points only, and
+    its knee is one of them."""
+    cfg = seed_like(right="free", c=0.1)
+    u, y = synthetic(cfg, n=400)
+    d = cfg.to_dict()
+    d["parameters"]["N"]["bounds"] = [-100.0, 100.0]
+    cfg = em.config_from_dict(d)
+    sp = parameter_space(cfg)
+    ev = NativeEvaluator(cfg, sp, experiments_from_arrays([("e", u, y)]))
+    FG = ev.evaluate_constrained(np.array([[10.0, 50.0], [10.0, -90.0]]))
+    assert FG.shape == (2, ev.n_obj + 1)
+    np.testing.assert_array_equal(FG[:, :-1], ev.evaluate(np.array([[10.0, 50.0], [10.0, -90.0]])))
+    assert FG[0, -1] <= 0.0 < FG[1, -1]                     # ρ(Φ) − 1: feasible, infeasible
+    problem = IdentificationProblem(ev, objective_names(cfg.output_names, ["e"]))
+    assert problem.n_ieq_constr == 1
+    front = optimise(problem, pop=12, generations=4, seed=3, progress=False)
+    assert np.all(front.X[:, 1] > -np.pi ** 2 * front.X[:, 0] / 4)   # above each point's own buckling load
+    assert np.all(front.F[:, :2] < PENALTY)
+    assert ev.simulate(front.X[front.knee]).stable
+
+
 def test_checkpoint_resume_gives_identical_front(tmp_path):
     cfg = seed_like(c=0.3)
     u, y = synthetic(cfg, n=400)
