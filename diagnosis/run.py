@@ -290,13 +290,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     sigma = _noise_level(cfg, records, noise_std)
     problem = GapProblem(cfg, space, records, sigma)
     say("baseline fit")
-    # a short global search first, seeded with the identification result (or the nominal values);
-    # its other basins are kept as starts for the refits (the baseline may sit where it only
-    # compensates an effect)
-    basins = problem.baseline_basins(beta0, n_basins=3)
-    beta0 = basins[0]
-    problem = replace(problem, other_starts=tuple(problem.fit(b, max_evaluations=60).beta for b in basins[1:]))
-    baseline = problem.fit(beta0)
+    problem, baseline = _baseline_fit(problem, beta0)
     base_cfg, base_params = space.apply(cfg, baseline.beta)
     f_lo, f_hi = excited_band([r.inputs for r in records], dt)
     freqs, zetas = discrete_frequencies(base_cfg, base_params)
@@ -304,13 +298,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     in_band[0] = True
     mf, mz = freqs[in_band], zetas[in_band]
     fit_records = [r for r in records if r.has_fit]
-    scales = Scales(EI=base_params["EI"], rhoA=base_params["rhoA"], N=base_params["N"],
-                    length=cfg.beam.length, omega_low=2 * np.pi * float(mf[0]),
-                    omega_high=2 * np.pi * max(float(mf[-1]), f_hi),
-                    duration=max(r.fit_end for r in fit_records) * dt,
-                    stretch_max=_stretch_max(base_cfg, base_params, fit_records))
-    catalogue = Catalogue(base_cfg, scales, tuple(space.names))
-    effects = catalogue.effects()
+    catalogue = _catalogue(problem, base_cfg, base_params, mf, f_hi)
     ranking = _ranking(problem, baseline, catalogue, shortlist, workers,
                        _modal_source(problem, mf, mz, freqs[~in_band][:1]), say)
     baseline = ranking.baseline
@@ -332,28 +320,56 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         found = [f"{r.name}: {s}" for r, loc in zip(records, locs) for s in loc.summary[:2]]
         if found:
             ranking = replace(ranking, reason=f"{ranking.reason}; where the gap is: " + "; ".join(found))
-    by_label = {e.label: e for e in effects} | {lab: catalogue.effect(lab) for lab in ranking.refits}
+    by_label = {e.label: e for e in catalogue.effects()} | {lab: catalogue.effect(lab) for lab in ranking.refits}
     edges = np.concatenate([[0.0], 0.5 * (mf[1:] + mf[:-1]), [1.2 * f_hi], [0.5 / dt]])
     effect_rows = _effect_rows(problem, ranking, by_label, edges, len(mf) + 1)
-    names = cfg.output_names
-    p = space.dim
-    report = GapReport(
-        ranking.verdict, ranking.reason, tuple(ranking.indistinguishable), dict(zip(names, map(float, sigma))),
-        (f_lo, f_hi),
-        BaselineSummary(space.to_dict(baseline.beta), float(baseline.rss / baseline.n),
-                        dict(zip(names, map(float, ranking.heldout_before))), baseline.bic(p),
-                        baseline.n_evaluations, tuple(map(float, mf)), adequacy, advice),
-        None if ranking.modal is None else ranking.modal.measured,
-        ranking.patterns["baseline"].chi2 if ranking.patterns else None,
-        {r.name: loc for r, loc in zip(records, locs)}, tuple(s for loc in locs for s in loc.summary),
-        tuple(effect_rows),
-        DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, shortlist,
-                          GAP_THRESHOLD, BIC_MARGIN, NUMERICAL_SHARE_LIMIT))
+    settings = DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, shortlist,
+                                 GAP_THRESHOLD, BIC_MARGIN, NUMERICAL_SHARE_LIMIT)
+    report = _report(problem, ranking, (f_lo, f_hi), mf, adequacy, advice, locs, effect_rows, settings)
     if out is None:
         return Diagnosis(ranking, report, None)
     report = _write(out, problem, ranking, report, by_label, locs, plots=plots, export=export,
                     targets=targets)
     return Diagnosis(ranking, report, out)
+
+
+def _baseline_fit(problem: GapProblem, beta0: np.ndarray) -> tuple[GapProblem, Fit]:
+    """The baseline fit: a short global search first, seeded with ``beta0`` (the identification result or the
+    nominal values), then the fit from its best basin.  Returns the problem with the other basins kept as
+    starts for the refits (the baseline may sit where it only compensates an effect), and the fit."""
+    basins = problem.baseline_basins(beta0, n_basins=3)
+    problem = replace(problem, other_starts=tuple(problem.fit(b, max_evaluations=60).beta for b in basins[1:]))
+    return problem, problem.fit(basins[0])
+
+
+def _catalogue(problem: GapProblem, base_cfg: BeamConfig, base_params: Mapping[str, float], mf: np.ndarray,
+               f_hi: float) -> Catalogue:
+    """The candidate effects of the fitted baseline, their search bounds set by its scales (the in-band modes
+    ``mf`` [Hz], the excited band's top ``f_hi`` [Hz], the fit records' length and largest stretch)."""
+    fit_records = [r for r in problem.records if r.has_fit]
+    scales = Scales(EI=base_params["EI"], rhoA=base_params["rhoA"], N=base_params["N"],
+                    length=base_cfg.beam.length, omega_low=2 * np.pi * float(mf[0]),
+                    omega_high=2 * np.pi * max(float(mf[-1]), f_hi),
+                    duration=max(r.fit_end for r in fit_records) * base_cfg.time.dt,
+                    stretch_max=_stretch_max(base_cfg, base_params, fit_records))
+    return Catalogue(base_cfg, scales, tuple(problem.space.names))
+
+
+def _report(problem: GapProblem, ranking: Ranking, band: tuple[float, float], mf: np.ndarray, adequacy: Any,
+            advice: Any, locs: Sequence[Localisation], effect_rows: Sequence[EffectRow],
+            settings: DiagnosisSettings) -> GapReport:
+    """The typed result of a diagnosis (what ``gap.json`` holds) from its parts."""
+    names, space, baseline = problem.config.output_names, problem.space, ranking.baseline
+    return GapReport(
+        ranking.verdict, ranking.reason, tuple(ranking.indistinguishable),
+        dict(zip(names, map(float, problem.noise_std))), band,
+        BaselineSummary(space.to_dict(baseline.beta), float(baseline.rss / baseline.n),
+                        dict(zip(names, map(float, ranking.heldout_before))), baseline.bic(space.dim),
+                        baseline.n_evaluations, tuple(map(float, mf)), adequacy, advice),
+        None if ranking.modal is None else ranking.modal.measured,
+        ranking.patterns["baseline"].chi2 if ranking.patterns else None,
+        {r.name: loc for r, loc in zip(problem.records, locs)}, tuple(s for loc in locs for s in loc.summary),
+        tuple(effect_rows), settings)
 
 
 def _noise_level(cfg: BeamConfig, records: Sequence[Record], noise_std: Sequence[float] | None) -> np.ndarray:

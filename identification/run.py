@@ -157,28 +157,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     """
     cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
     ident = identification_settings(cfg)
-    if backend not in BACKENDS:
-        raise ConfigError(f"`backend`: unknown {backend!r}; allowed: {', '.join(BACKENDS)}")
-    check_settings(pop, generations, algorithm)
-    if fmu is not None:
-        if backend != "fmu":
-            raise ConfigError(f"`fmu` {fmu}: evaluated only with `backend` fmu (got `backend` {backend})")
-        from .fmu_backend import check_fmu_file
-
-        if not Path(fmu).is_file():
-            raise ConfigError(f"`fmu_path` {fmu}: no such file")
-        check_fmu_file(fmu)   # an FMU at all (its variables: when the evaluator is made, also before writing)
-    if workers < 1:
-        raise ConfigError(f"`workers` must be >= 1, got {workers}")
-    if dask is not None:
-        from .cluster import parse_local_address
-
-        parse_local_address(dask)  # a malformed local:K fails here, before anything is written
-    if isinstance(polish, bool) or not isinstance(polish, (int, np.integer)) or polish < 0:
-        raise ConfigError(f"`polish` must be an integer >= 0, got {polish!r}")
-    if isinstance(polish_evaluations, bool) or not isinstance(polish_evaluations, (int, np.integer)) \
-            or polish_evaluations < 1:
-        raise ConfigError(f"polish_evaluations must be an integer >= 1, got {polish_evaluations!r}")
+    _check_options(backend, pop, generations, algorithm, fmu, workers, dask, polish, polish_evaluations)
     per = per or ident.per or "sensor"
     if per not in ("sensor", "experiment"):
         raise ConfigError(f"`per`: unknown {per!r}; allowed: sensor, experiment")
@@ -200,20 +179,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     search_evaluator: Any = evaluator
     tmp_fmu_dir = None
     if backend == "fmu":
-        from .fmu_backend import FmuEvaluator
-
-        if fmu is None:
-            import tempfile
-
-            from fmu_build import build_fmu
-
-            tmp_fmu_dir = tempfile.mkdtemp(prefix="ebb-fmu-")
-            fmu = build_fmu(cfg, Path(tmp_fmu_dir) / "beam.fmu")
-        search_evaluator = FmuEvaluator(str(fmu), cfg, space, evaluator.experiments,
-                                        tuple(fmu_parameters) if fmu_parameters else None,
-                                        tuple(fmu_inputs) if fmu_inputs else None,
-                                        tuple(fmu_outputs) if fmu_outputs else None, per=per,
-                                        stabilising=bool(stabilising))
+        search_evaluator, tmp_fmu_dir = _fmu_evaluator(evaluator, fmu, fmu_parameters, fmu_inputs, fmu_outputs)
     created = not out.exists()
     make_dir(out, exist_ok=True)
     try:
@@ -238,22 +204,8 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                 import shutil
 
                 shutil.rmtree(tmp_fmu_dir, ignore_errors=True)
-        crb, g, st = [], [], []
-        for x in pareto.X:
-            c_, g_, s_ = _point_properties(cfg, space, evaluator, x, fisher0.noise_std)
-            crb.append(c_)
-            g.append(g_)
-            st.append(s_)
-        polished = []
-        for i, x, f, n_ev, r in polished_raw:
-            c_, g_, s_ = _point_properties(cfg, space, evaluator, x, fisher0.noise_std)
-            polished.append(PolishedPoint(i, x, f, c_, g_, s_, n_ev, r.cost, r.success, r.message))
-        best_x = polished_raw[0][1] if polished_raw else pareto.X[pareto.knee]
-        adequacy = numerical_adequacy(*space.apply(cfg, best_x),
-                                      [(e.inputs, e.outputs) for e in evaluator.experiments], fisher0.noise_std)
-        res = IdentificationResult(cfg, space, pareto, np.array(crb), np.array(g), np.array(st), out,
-                                   Path(config).stem if not isinstance(config, BeamConfig) else "beam",
-                                   tuple(polished), adequacy, fisher0)
+        res = _result(evaluator, pareto, polished_raw, fisher0, out,
+                      Path(config).stem if not isinstance(config, BeamConfig) else "beam")
         _write_results(res, evaluator)
         if export:
             from .export import export_points
@@ -287,6 +239,76 @@ def _remove_partial(out: Path, created: bool) -> None:
             shutil.rmtree(item, ignore_errors=True)
         else:
             item.unlink(missing_ok=True)
+
+
+def _check_options(backend: str, pop: int, generations: int, algorithm: str, fmu: str | Path | None, workers: int,
+                   dask: str | None, polish: int, polish_evaluations: int) -> None:
+    """Every option of :func:`identify` that needs no data, checked before anything is written.
+
+    Raises
+    ------
+    ConfigError
+        The first bad option, named.
+    """
+    if backend not in BACKENDS:
+        raise ConfigError(f"`backend`: unknown {backend!r}; allowed: {', '.join(BACKENDS)}")
+    check_settings(pop, generations, algorithm)
+    if fmu is not None:
+        if backend != "fmu":
+            raise ConfigError(f"`fmu` {fmu}: evaluated only with `backend` fmu (got `backend` {backend})")
+        from .fmu_backend import check_fmu_file
+
+        if not Path(fmu).is_file():
+            raise ConfigError(f"`fmu_path` {fmu}: no such file")
+        check_fmu_file(fmu)   # an FMU at all (its variables: when the evaluator is made, also before writing)
+    if workers < 1:
+        raise ConfigError(f"`workers` must be >= 1, got {workers}")
+    if dask is not None:
+        from .cluster import parse_local_address
+
+        parse_local_address(dask)  # a malformed local:K fails here, before anything is written
+    if isinstance(polish, bool) or not isinstance(polish, (int, np.integer)) or polish < 0:
+        raise ConfigError(f"`polish` must be an integer >= 0, got {polish!r}")
+    if isinstance(polish_evaluations, bool) or not isinstance(polish_evaluations, (int, np.integer)) \
+            or polish_evaluations < 1:
+        raise ConfigError(f"polish_evaluations must be an integer >= 1, got {polish_evaluations!r}")
+
+
+def _fmu_evaluator(native: NativeEvaluator, fmu: str | Path | None, parameters: Sequence[str] | None,
+                   inputs: Sequence[str] | None, outputs: Sequence[str] | None) -> tuple[Any, str | None]:
+    """The FMU backend's evaluator of ``native``'s problem: through ``fmu``, or an FMU built from the config into
+    a temporary directory (returned too, for removal; ``None`` for a given FMU)."""
+    from .fmu_backend import FmuEvaluator
+
+    tmp_fmu_dir = None
+    if fmu is None:
+        import tempfile
+
+        from fmu_build import build_fmu
+
+        tmp_fmu_dir = tempfile.mkdtemp(prefix="ebb-fmu-")
+        fmu = build_fmu(native.config, Path(tmp_fmu_dir) / "beam.fmu")
+    return FmuEvaluator(str(fmu), native.config, native.space, native.experiments,
+                        tuple(parameters) if parameters else None, tuple(inputs) if inputs else None,
+                        tuple(outputs) if outputs else None, per=native.per,
+                        stabilising=native.stabilising), tmp_fmu_dir
+
+
+def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
+            polished_raw: list[tuple[int, np.ndarray, np.ndarray, int, Any]], fisher0: Any, out: Path,
+            config_name: str) -> IdentificationResult:
+    """The run's result: Cramér–Rao std, growth factor and stability of every Pareto and polished point (native
+    model), and the numerical adequacy at the identified one."""
+    cfg, space, sigma = evaluator.config, evaluator.space, fisher0.noise_std
+    props = [_point_properties(cfg, space, evaluator, x, sigma) for x in pareto.X]
+    polished = tuple(PolishedPoint(i, x, f, *_point_properties(cfg, space, evaluator, x, sigma), n_ev, r.cost,
+                                   r.success, r.message) for i, x, f, n_ev, r in polished_raw)
+    best_x = polished_raw[0][1] if polished_raw else pareto.X[pareto.knee]
+    adequacy = numerical_adequacy(*space.apply(cfg, best_x), [(e.inputs, e.outputs) for e in evaluator.experiments],
+                                  sigma)
+    return IdentificationResult(cfg, space, pareto, np.array([p[0] for p in props]),
+                                np.array([p[1] for p in props]), np.array([p[2] for p in props]), out,
+                                config_name, polished, adequacy, fisher0)
 
 
 def _polish_front(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, budget: int,
