@@ -142,6 +142,46 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
         Non-finite values, mismatched shapes or names, constant channels, too few samples.
     """
     dt = _check_dt(dt)
+    u2, y2, yh2, snames, inames, mf, md, mode_no = _checked(dt, u, y, y_hat, sensor_names, input_names,
+                                                            mode_freqs_hz, mode_damping, windows, amplitude_bins,
+                                                            max_lag, alpha, gap_threshold, nperseg)
+    n = y2.shape[0]
+
+    # ---- spectra -----------------------------------------------------------------------------
+    if nperseg is None:
+        nperseg = choose_nperseg(n, dt, mf, md)
+    nperseg = int(nperseg)
+    frfs = _frfs(dt, u2, y2, yh2, nperseg)
+    f = frfs.fr_m.f
+    sig, nmeth = _noise(noise_std, u2, y2, dt, nperseg, f, mf)
+    r = y2 - yh2
+    white_list, xc_list = correlation_tests(r, u2, max_lag, snames, inames)
+    sensors = sensor_gaps(y2, r, sig, nmeth, snames, xc_list, gap_threshold)
+    bands, edges, excess_by_mode = band_gaps(r, dt, nperseg, f, mf, mode_no, sig, snames)
+    modes = mode_gaps(frfs, u2, mf, md, mode_no, edges, excess_by_mode, snames, inames, alpha)
+    wins, amps = window_and_amplitude_gaps(dt, u2, y2, yh2, frfs.fp_m, sig, snames, windows, amplitude_bins, alpha)
+    summary = _summary(sensors, modes, bands, wins, amps, xc_list, white_list)
+    return Localisation(sensor_names=snames, input_names=inames, dt=dt, n_samples=n, nperseg=nperseg,
+                        df_hz=float(f[1] - f[0]), max_lag=int(max_lag), alpha=float(alpha),
+                        gap_detected=any(s.gap_detected for s in sensors), sensors=tuple(sensors), modes=tuple(modes),
+                        bands=tuple(bands), windows=tuple(wins), amplitude=tuple(amps), whiteness=tuple(white_list),
+                        cross_correlation=tuple(xc_list), summary=tuple(summary))
+
+
+def _checked(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_names: Sequence[str],
+             input_names: Sequence[str] | None, mode_freqs_hz: ArrayLike, mode_damping: ArrayLike | None,
+             windows: int, amplitude_bins: int, max_lag: int, alpha: float, gap_threshold: float,
+             nperseg: int | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...], tuple[str, ...],
+                                           np.ndarray, np.ndarray | None, list[int]]:
+    """:func:`localise`'s arguments checked (every problem of the settings reported at once): the signals as
+    2-D arrays, the names, and the modes in increasing frequency with their damping and 1-based numbers in
+    the caller's list.
+
+    Raises
+    ------
+    ConfigError, DataError
+        As :func:`localise`.
+    """
     u2 = _matrix(u, "u")
     y2 = _matrix(y, "y")
     yh2 = _matrix(y_hat, "y_hat")
@@ -199,32 +239,20 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
     mode_no = [int(i) + 1 for i in order]
     if md is not None:
         md = md[order]
+    return u2, y2, yh2, snames, inames, mf, md, mode_no
 
-    # ---- spectra -----------------------------------------------------------------------------
-    if nperseg is None:
-        nperseg = choose_nperseg(n, dt, mf, md)
-    nperseg = int(nperseg)
-    half = n // 2   # the two halves of the record, for an empirical error of peak locations
-    frfs = FrfSet(estimate_frf(dt, u2, y2, nperseg=nperseg), estimate_frf(dt, u2, yh2, nperseg=nperseg),
+
+def _frfs(dt: float, u2: np.ndarray, y2: np.ndarray, yh2: np.ndarray, nperseg: int) -> FrfSet:
+    """Measured and model FRFs: plain, zero-padded, and padded per half of the record (for an empirical error
+    of peak locations)."""
+    n = y2.shape[0]
+    half = n // 2
+    return FrfSet(estimate_frf(dt, u2, y2, nperseg=nperseg), estimate_frf(dt, u2, yh2, nperseg=nperseg),
                   estimate_frf(dt, u2, y2, nperseg=nperseg, pad=PAD),
                   estimate_frf(dt, u2, yh2, nperseg=nperseg, pad=PAD),
                   tuple((estimate_frf(dt, u2[sl], y2[sl], nperseg=min(nperseg, half), pad=PAD),
                          estimate_frf(dt, u2[sl], yh2[sl], nperseg=min(nperseg, half), pad=PAD))
                         for sl in (slice(0, half), slice(half, n))))
-    f = frfs.fr_m.f
-    sig, nmeth = _noise(noise_std, u2, y2, dt, nperseg, f, mf)
-    r = y2 - yh2
-    white_list, xc_list = correlation_tests(r, u2, max_lag, snames, inames)
-    sensors = sensor_gaps(y2, r, sig, nmeth, snames, xc_list, gap_threshold)
-    bands, edges, excess_by_mode = band_gaps(r, dt, nperseg, f, mf, mode_no, sig, snames)
-    modes = mode_gaps(frfs, u2, mf, md, mode_no, edges, excess_by_mode, snames, inames, alpha)
-    wins, amps = window_and_amplitude_gaps(dt, u2, y2, yh2, frfs.fp_m, sig, snames, windows, amplitude_bins, alpha)
-    summary = _summary(sensors, modes, bands, wins, amps, xc_list, white_list)
-    return Localisation(sensor_names=snames, input_names=inames, dt=dt, n_samples=n, nperseg=nperseg,
-                        df_hz=float(f[1] - f[0]), max_lag=int(max_lag), alpha=float(alpha),
-                        gap_detected=any(s.gap_detected for s in sensors), sensors=tuple(sensors), modes=tuple(modes),
-                        bands=tuple(bands), windows=tuple(wins), amplitude=tuple(amps), whiteness=tuple(white_list),
-                        cross_correlation=tuple(xc_list), summary=tuple(summary))
 
 
 def _noise(noise_std: float | Sequence[float] | None, u2: np.ndarray, y2: np.ndarray, dt: float, nperseg: int,
