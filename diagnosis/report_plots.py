@@ -8,6 +8,7 @@ residual auto- and cross-correlations with their 99 % bands.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -56,8 +57,6 @@ def plot_localisation(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray
     out = Path(out_dir)
     make_dir(out, exist_ok=True, parents=True)
     plt = _pyplot()
-    names = loc.sensor_names
-    n_out = len(names)
     t = np.arange(y2.shape[0]) * dt
     files: list[Path] = []
 
@@ -69,6 +68,19 @@ def plot_localisation(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray
         plt.close(fig)
         files.append(p)
 
+    save(_residuals_figure(plt, loc, t, y2, yh2), "residuals.png")
+    save(_frf_figure(plt, loc, dt, u2, y2, yh2), "frf.png")
+    save(_windows_figure(plt, loc), "windows.png")
+    save(_amplitude_figure(plt, loc), "amplitude.png")
+    save(_correlation_figure(plt, loc), "correlation.png")
+    save(_bands_figure(plt, loc), "bands.png")
+    return files
+
+
+def _residuals_figure(plt: Any, loc: Localisation, t: np.ndarray, y2: np.ndarray, yh2: np.ndarray) -> Any:
+    """The residual time series per sensor with the ±2σ noise band."""
+    names = loc.sensor_names
+    n_out = len(names)
     # residual time series with the ±2σ noise band
     fig, axes = plt.subplots(n_out, 1, figsize=(8, 2.2 * n_out), squeeze=False, sharex=True)
     for o, ax in enumerate(axes[:, 0]):
@@ -80,8 +92,13 @@ def plot_localisation(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray
         ax.set_title(f"{names[o]}: NRMSE {s.nrmse:.3g}, gap ratio {s.gap_ratio:.3g}", fontsize=9)
     axes[0, 0].legend(loc="upper right", fontsize=8)
     axes[-1, 0].set_xlabel("time [s]")
-    save(fig, "residuals.png")
+    return fig
 
+
+def _frf_figure(plt: Any, loc: Localisation, dt: float, u2: np.ndarray, y2: np.ndarray, yh2: np.ndarray) -> Any:
+    """FRF magnitude and phase, measured against model, with the modes marked."""
+    names = loc.sensor_names
+    n_out = len(names)
     # FRF magnitude and phase, measured vs model, with mode markers
     fm = estimate_frf(dt, u2, y2, nperseg=loc.nperseg)
     fh = estimate_frf(dt, u2, yh2, nperseg=loc.nperseg)
@@ -108,8 +125,11 @@ def plot_localisation(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray
     axes[0, 0].legend(loc="upper right", fontsize=8)
     for j in range(n_in):
         axes[-1, j].set_xlabel("frequency [Hz]  (dashed: model modes, dotted: measured fit)")
-    save(fig, "frf.png")
+    return fig
 
+
+def _windows_figure(plt: Any, loc: Localisation) -> Any:
+    """Residual RMS, gain and phase per time window (drift)."""
     # per time window
     fig, axes = plt.subplots(3, 1, figsize=(7, 7), sharex=True)
     for o, w in enumerate(loc.windows):
@@ -125,8 +145,11 @@ def plot_localisation(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray
     for ax in axes:
         ax.legend(fontsize=7)
     axes[0].set_title("per time window (drift)", fontsize=9)
-    save(fig, "windows.png")
+    return fig
 
+
+def _amplitude_figure(plt: Any, loc: Localisation) -> Any:
+    """Residual RMS and gain per response amplitude level (nonlinearity)."""
     # per amplitude level
     fig, axes = plt.subplots(2, 1, figsize=(7, 5.5))
     for o, a in enumerate(loc.amplitude):
@@ -141,8 +164,14 @@ def plot_localisation(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray
     for ax in axes:
         ax.legend(fontsize=7)
     axes[0].set_title("per amplitude level (nonlinearity)", fontsize=9)
-    save(fig, "amplitude.png")
+    return fig
 
+
+def _correlation_figure(plt: Any, loc: Localisation) -> Any:
+    """Residual autocorrelation and input cross-correlation with their bands."""
+    n_in = len(loc.input_names)
+    names = loc.sensor_names
+    n_out = len(names)
     # correlations
     fig, axes = plt.subplots(n_out, 1 + n_in, figsize=(3.5 * (1 + n_in), 2.4 * n_out), squeeze=False)
     for o, h in enumerate(loc.whiteness):
@@ -161,8 +190,13 @@ def plot_localisation(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray
         ax.axhspan(-c.band, c.band, color="k", alpha=0.15)
         ax.set_title(f"{c.sensor} vs {c.input}: xcorr (p={c.p:.2g})", fontsize=8)
         ax.set_xlabel("lag")
-    save(fig, "correlation.png")
+    return fig
 
+
+def _bands_figure(plt: Any, loc: Localisation) -> Any:
+    """Residual and model-error energy per frequency band."""
+    names = loc.sensor_names
+    n_out = len(names)
     # residual energy per band
     fig, axes = plt.subplots(n_out, 1, figsize=(7, 2.2 * n_out), squeeze=False)
     for o, ax in enumerate(axes[:, 0]):
@@ -177,5 +211,4 @@ def plot_localisation(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray
         ax.set_ylim(0, 1)
     axes[0, 0].legend(fontsize=7)
     axes[-1, 0].set_xlabel("band [Hz]")
-    save(fig, "bands.png")
-    return files
+    return fig
