@@ -39,6 +39,222 @@ class _LUSolver:
         return x
 
 
+def _check_forces(forces_x: Sequence[float], u: np.ndarray) -> tuple[list[float], np.ndarray]:
+    """Check the force positions and samples of :func:`newmark_simulate`.
+
+    Parameters
+    ----------
+    forces_x
+        Positions of the point forces (at least one).
+    u
+        Force samples, ``(n_samples, n_forces)``, or 1-D for one force.
+
+    Returns
+    -------
+    forces_x : list of float
+        The positions as a list.
+    U : numpy.ndarray
+        The samples as a float array ``(n_samples, n_forces)``.
+
+    Raises
+    ------
+    ConfigError
+        No force position.
+    DataError
+        Samples of the wrong shape, none, or non-finite.
+    """
+    forces_x = list(forces_x)
+    n_f = len(forces_x)
+    if n_f == 0:
+        raise ConfigError("forces_x: at least one force position is required")
+    U = np.asarray(u, dtype=float)
+    if U.ndim == 1 and n_f == 1:
+        U = U[:, None]
+    if U.ndim != 2 or U.shape[1] != n_f:
+        raise DataError(f"u must have shape (n_samples, {n_f}), got {np.shape(u)}")
+    if U.shape[0] < 1:
+        raise DataError("u must contain at least one sample")
+    if not np.all(np.isfinite(U)):
+        raise DataError("u contains non-finite values")
+    return forces_x, U
+
+
+def _check_scheme(dt: float, substeps: int, beta: float, gamma: float,
+                  interpolation: str) -> tuple[float, float, float, bool]:
+    """Check the time-stepping options of :func:`newmark_simulate` (same names).
+
+    Returns
+    -------
+    dt, beta, gamma : float
+        The checked values.
+    linear : bool
+        Whether the force is interpolated linearly (else held) between samples.
+
+    Raises
+    ------
+    ParameterError
+        The first invalid option.
+    """
+    dt = finite_scalar("dt", dt, minimum=0.0, strict=True)
+    if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
+        raise ParameterError(f"substeps must be an integer >= 1, got {substeps!r}")
+    beta = finite_scalar("beta", beta, minimum=0.0, strict=True)
+    gamma = finite_scalar("gamma", gamma, minimum=0.0, strict=True)
+    if interpolation not in ("hold", "linear"):
+        raise ParameterError(f"interpolation must be 'hold' or 'linear', got {interpolation!r}")
+    return dt, beta, gamma, interpolation == "linear"
+
+
+def _sensor_rows(beam: HermiteBeam, sensors: Sequence[tuple[float, str]]) -> tuple[np.ndarray, np.ndarray]:
+    """The sensors' displacement rows and kind indices (in :data:`SENSOR_KINDS`).
+
+    Parameters
+    ----------
+    beam
+        The finite-element model.
+    sensors
+        ``(x, kind)`` pairs (at least one), ``kind`` case-insensitive.
+
+    Returns
+    -------
+    rows : numpy.ndarray
+        ``(n_sensors, n_dof)``: the displacement at each sensor is ``rows @ q``.
+    kind_idx : numpy.ndarray
+        Index of each sensor's kind.
+
+    Raises
+    ------
+    ConfigError
+        No sensor, a malformed pair or an unknown kind.
+    """
+    sensors = list(sensors)
+    if not sensors:
+        raise ConfigError("sensors: at least one sensor is required")
+    rows = np.empty((len(sensors), beam.M.shape[0]))
+    kind_idx = np.empty(len(sensors), dtype=int)
+    for j, item in enumerate(sensors):
+        try:
+            xs, kind = item
+        except (TypeError, ValueError):
+            raise ConfigError(f"sensors[{j}] must be an (x, kind) pair, got {item!r}") from None
+        k = str(kind).lower()
+        if k not in SENSOR_KINDS:
+            raise ConfigError(f"sensors[{j}]: unknown kind {kind!r}; expected one of {SENSOR_KINDS}")
+        kind_idx[j] = SENSOR_KINDS.index(k)
+        rows[j] = beam.displacement_row(xs)
+    return rows, kind_idx
+
+
+def _newmark_coefficients(h: float, beta: float, gamma: float) -> tuple[float, float, float, float, float, float]:
+    """The coefficients ``a0 .. a5`` of the Newmark update for the step ``h``.
+
+    Parameters
+    ----------
+    h
+        Newmark step.
+    beta, gamma
+        Newmark parameters.
+
+    Returns
+    -------
+    tuple of float
+        ``a0 = 1/(beta h^2)``, ``a1 = gamma/(beta h)``, ``a2 = 1/(beta h)``,
+        ``a3 = 1/(2 beta) - 1``, ``a4 = gamma/beta - 1``, ``a5 = h (gamma/(2 beta) - 1)``.
+    """
+    a0 = 1.0 / (beta * h * h)
+    a1 = gamma / (beta * h)
+    a2 = 1.0 / (beta * h)
+    a3 = 1.0 / (2.0 * beta) - 1.0
+    a4 = gamma / beta - 1.0
+    a5 = h * (gamma / (2.0 * beta) - 1.0)
+    return a0, a1, a2, a3, a4, a5
+
+
+def _sample_outputs(y: np.ndarray, k: int, groups: list[tuple[int, np.ndarray, np.ndarray]],
+                    states: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+    """Write the sensor outputs of sample ``k`` into ``y``.
+
+    Parameters
+    ----------
+    y
+        Outputs ``(n_samples, n_sensors)``, filled in place.
+    k
+        Sample index.
+    groups
+        ``(state index, sensor columns, output rows)`` for each sensor kind present.
+    states
+        Displacement, velocity and acceleration ``(q, v, acc)``.
+    """
+    for i, cols, R in groups:
+        y[k, cols] = R @ states[i]
+
+
+def _integrate(beam: HermiteBeam, Phi: np.ndarray, U: np.ndarray, rows: np.ndarray, kind_idx: np.ndarray, *,
+               dt: float, substeps: int, beta: float, gamma: float, linear: bool) -> np.ndarray:
+    """Integrate from rest with the Newmark method and sample the sensors (see :func:`newmark_simulate`).
+
+    Parameters
+    ----------
+    beam
+        The finite-element model.
+    Phi
+        Load vectors of the forces, ``(n_dof, n_forces)``.
+    U
+        Force samples, ``(n_samples, n_forces)``.
+    rows, kind_idx
+        Sensor rows and kinds, from :func:`_sensor_rows`.
+    dt, substeps, beta, gamma
+        Sample interval, Newmark steps per interval, Newmark parameters.
+    linear
+        Linear interpolation of the force between samples (else zero-order hold).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n_samples, n_sensors)``.
+    """
+    M, C, K = beam.M, beam.C, beam.K
+    n = M.shape[0]
+    h = dt / substeps
+    a0, a1, a2, a3, a4, a5 = _newmark_coefficients(h, beta, gamma)
+    eff = _LUSolver(K + a0 * M + a1 * C)
+    MinvPhi = _LUSolver(M).solve(Phi)
+    MC = np.hstack([M, C])  # rhs = Phi u + [M C] @ [aM; aC]
+    hg1 = h * (1.0 - gamma)
+    hg = h * gamma
+
+    q = np.zeros(n)
+    v = np.zeros(n)
+    acc = MinvPhi @ U[0]
+    n_s = U.shape[0]
+    y = np.empty((n_s, rows.shape[0]))
+    # (state index, sensor columns, output rows) for the kinds present
+    groups = [
+        (i, np.flatnonzero(kind_idx == i), rows[kind_idx == i])
+        for i in range(len(SENSOR_KINDS))
+        if np.any(kind_idx == i)
+    ]
+    _sample_outputs(y, 0, groups, (q, v, acc))
+    stacked = np.empty(2 * n)
+    for k in range(n_s - 1):
+        f = Phi @ U[k]
+        df = Phi @ (U[k + 1] - U[k])
+        for i in range(substeps):
+            stacked[:n] = a0 * q + a2 * v + a3 * acc
+            stacked[n:] = a1 * q + a4 * v + a5 * acc
+            f_end = f + ((i + 1) / substeps) * df if linear else f
+            q_new = eff.solve(f_end + MC @ stacked)
+            acc_new = a0 * (q_new - q) - a2 * v - a3 * acc
+            v = v + hg1 * acc + hg * acc_new
+            q, acc = q_new, acc_new
+        if not linear:
+            du = U[k + 1] - U[k]
+            if np.any(du):
+                acc = acc + MinvPhi @ du
+        _sample_outputs(y, k + 1, groups, (q, v, acc))
+    return y
+
+
 def newmark_simulate(
     beam: HermiteBeam,
     *,
@@ -129,95 +345,8 @@ def newmark_simulate(
     then per step one solve and one :math:`n \times 2n` matrix-vector
     product (about 30 microseconds per step for 120 DOFs).
     """
-    forces_x = list(forces_x)
-    n_f = len(forces_x)
-    if n_f == 0:
-        raise ConfigError("forces_x: at least one force position is required")
-    U = np.asarray(u, dtype=float)
-    if U.ndim == 1 and n_f == 1:
-        U = U[:, None]
-    if U.ndim != 2 or U.shape[1] != n_f:
-        raise DataError(f"u must have shape (n_samples, {n_f}), got {np.shape(u)}")
-    if U.shape[0] < 1:
-        raise DataError("u must contain at least one sample")
-    if not np.all(np.isfinite(U)):
-        raise DataError("u contains non-finite values")
-    dt = finite_scalar("dt", dt, minimum=0.0, strict=True)
-    if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
-        raise ParameterError(f"substeps must be an integer >= 1, got {substeps!r}")
-    beta = finite_scalar("beta", beta, minimum=0.0, strict=True)
-    gamma = finite_scalar("gamma", gamma, minimum=0.0, strict=True)
-    if interpolation not in ("hold", "linear"):
-        raise ParameterError(f"interpolation must be 'hold' or 'linear', got {interpolation!r}")
-    linear = interpolation == "linear"
-
-    sensors = list(sensors)
-    if not sensors:
-        raise ConfigError("sensors: at least one sensor is required")
-    rows = np.empty((len(sensors), beam.M.shape[0]))
-    kind_idx = np.empty(len(sensors), dtype=int)
-    for j, item in enumerate(sensors):
-        try:
-            xs, kind = item
-        except (TypeError, ValueError):
-            raise ConfigError(f"sensors[{j}] must be an (x, kind) pair, got {item!r}") from None
-        k = str(kind).lower()
-        if k not in SENSOR_KINDS:
-            raise ConfigError(f"sensors[{j}]: unknown kind {kind!r}; expected one of {SENSOR_KINDS}")
-        kind_idx[j] = SENSOR_KINDS.index(k)
-        rows[j] = beam.displacement_row(xs)
-
+    forces_x, U = _check_forces(forces_x, u)
+    dt, beta, gamma, linear = _check_scheme(dt, substeps, beta, gamma, interpolation)
+    rows, kind_idx = _sensor_rows(beam, sensors)
     Phi = np.column_stack([beam.load_vector(x) for x in forces_x])
-    M, C, K = beam.M, beam.C, beam.K
-    n = M.shape[0]
-    h = dt / substeps
-
-    # Newmark coefficients
-    a0 = 1.0 / (beta * h * h)
-    a1 = gamma / (beta * h)
-    a2 = 1.0 / (beta * h)
-    a3 = 1.0 / (2.0 * beta) - 1.0
-    a4 = gamma / beta - 1.0
-    a5 = h * (gamma / (2.0 * beta) - 1.0)
-    eff = _LUSolver(K + a0 * M + a1 * C)
-    MinvPhi = _LUSolver(M).solve(Phi)
-    MC = np.hstack([M, C])  # rhs = Phi u + [M C] @ [aM; aC]
-    hg1 = h * (1.0 - gamma)
-    hg = h * gamma
-
-    q = np.zeros(n)
-    v = np.zeros(n)
-    acc = MinvPhi @ U[0]
-    n_s = U.shape[0]
-    y = np.empty((n_s, len(sensors)))
-    # (state index, sensor columns, output rows) for the kinds present
-    groups = [
-        (i, np.flatnonzero(kind_idx == i), rows[kind_idx == i])
-        for i in range(len(SENSOR_KINDS))
-        if np.any(kind_idx == i)
-    ]
-
-    def output(k: int) -> None:
-        states = (q, v, acc)
-        for i, cols, R in groups:
-            y[k, cols] = R @ states[i]
-
-    output(0)
-    stacked = np.empty(2 * n)
-    for k in range(n_s - 1):
-        f = Phi @ U[k]
-        df = Phi @ (U[k + 1] - U[k])
-        for i in range(substeps):
-            stacked[:n] = a0 * q + a2 * v + a3 * acc
-            stacked[n:] = a1 * q + a4 * v + a5 * acc
-            f_end = f + ((i + 1) / substeps) * df if linear else f
-            q_new = eff.solve(f_end + MC @ stacked)
-            acc_new = a0 * (q_new - q) - a2 * v - a3 * acc
-            v = v + hg1 * acc + hg * acc_new
-            q, acc = q_new, acc_new
-        if not linear:
-            du = U[k + 1] - U[k]
-            if np.any(du):
-                acc = acc + MinvPhi @ du
-        output(k + 1)
-    return y
+    return _integrate(beam, Phi, U, rows, kind_idx, dt=dt, substeps=substeps, beta=beta, gamma=gamma, linear=linear)

@@ -107,6 +107,8 @@ Example
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from functools import partial
 from types import MappingProxyType
 from typing import Mapping, Sequence
 
@@ -197,9 +199,6 @@ def _effects(effect: WithheldEffect | Sequence[WithheldEffect] | None) -> tuple[
     return items
 
 
-
-
-
 def _force_at_substeps(U: np.ndarray, m: int, interpolation: str) -> np.ndarray:
     """The measured force at the Newmark sub-step nodes ``j dt/m`` (``j = 0 .. (n-1) m``)."""
     n = U.shape[0]
@@ -228,6 +227,332 @@ def _check_not_buckled(beam: HermiteBeam, dn_min: float, N: float, where: str) -
 def _end_spring(current: float, added: float) -> float:
     """A fixed DOF (``inf``) becomes the spring; a free or elastic DOF gets it added."""
     return added if math.isinf(current) else current + added
+
+
+@dataclass(frozen=True)
+class _Truth:
+    """The truth's model and integrator settings: the config's and parameters', with the effects applied.
+
+    Attributes
+    ----------
+    left, right, masses, eta, rhoI, kf
+        End springs ``(kt, kr)``, point masses ``(mass, x)`` and the parameters of :func:`hermite_beam`.
+    rate, ea, act_tau, sen_tau, lag_sensor
+        Axial drift rate, ``EA``, actuator and sensor lag time constants, lagged sensor (-1: none).
+    local_x, k3, friction, slip
+        Position of a cubic spring or dry friction (``None``: none), its ``k3``, force and slip velocity.
+    """
+
+    left: tuple[float, ...]
+    right: tuple[float, ...]
+    masses: list[tuple[float, float]]
+    eta: float
+    rhoI: float
+    kf: float
+    rate: float
+    ea: float
+    act_tau: float
+    sen_tau: float
+    lag_sensor: int
+    local_x: float | None
+    k3: float
+    friction: float
+    slip: float
+
+
+def _check_options(config: BeamConfig, n_elements: int, substeps: int, noise: float, seed: int,
+                   richardson: bool, interpolation: str, integrator: str) -> None:
+    """Check the scalar arguments of :func:`synthesize` (same names), the first bad one raising.
+
+    Raises
+    ------
+    ConfigError
+        ``config`` is not a :class:`BeamConfig`.
+    ParameterError
+        Another argument is invalid.
+    """
+    if not isinstance(config, BeamConfig):
+        raise ConfigError(f"config must be a BeamConfig, got {type(config).__name__}")
+    if isinstance(n_elements, bool) or not isinstance(n_elements, (int, np.integer)) or n_elements < 2:
+        raise ParameterError(f"n_elements must be an integer >= 2, got {n_elements!r}")
+    if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
+        raise ParameterError(f"substeps must be an integer >= 1, got {substeps!r}")
+    finite_scalar("noise", noise, minimum=0.0, numbers_only=True)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise ParameterError(f"seed must be an integer, got {seed!r}")
+    if not isinstance(richardson, (bool, np.bool_)):
+        raise ParameterError(f"richardson must be True or False, got {richardson!r}")
+    if interpolation not in INTERPOLATIONS:
+        raise ParameterError(f"interpolation must be one of {', '.join(INTERPOLATIONS)}, got {interpolation!r}")
+    if integrator not in INTEGRATORS:
+        raise ParameterError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
+
+
+def _apply_effects(config: BeamConfig, p: Mapping[str, float], effects: Sequence[WithheldEffect]) -> _Truth:
+    """Apply the withheld ``effects`` (table of the module) to ``config`` and the parameters ``p``.
+
+    Parameters
+    ----------
+    config, p, effects
+        Beam set-up, parameters (:func:`_parameters`) and effects (:func:`_effects`).
+
+    Returns
+    -------
+    _Truth
+
+    Raises
+    ------
+    ConfigError
+        ``sensor_lag`` of a sensor not in the config; cubic spring with dry friction.
+    ParameterError
+        A point mass or local element outside the beam; ``dry_friction.slip <= 0``.
+    """
+    L = float(config.beam.length)
+    ends = {
+        "left": [config.beam.left.kt, config.beam.left.kr],
+        "right": [config.beam.right.kt, config.beam.right.kr],
+    }
+    masses = [(m.mass, m.x) for m in config.masses]
+    eta, rhoI, kf = p["eta"], p["rhoI"], p["kf"]
+    rate = ea = act_tau = sen_tau = k3 = friction = 0.0
+    slip = 1.0
+    local_x: float | None = None
+    lag_sensor = -1
+    for e in effects:
+        v = e.values
+        if e.name.startswith("boundary_"):
+            side = "left" if e.name.endswith("_left") else "right"
+            i = 1 if "_rotational_" in e.name else 0
+            ends[side][i] = _end_spring(ends[side][i], v["kr" if i else "kt"])
+        elif e.name == "point_mass":
+            if not 0.0 <= v["x"] <= L:
+                raise ParameterError(f"effect point_mass.x = {v['x']:g} m lies outside the beam [0, {L:g}] m")
+            masses.append((v["mass"], v["x"]))
+        elif e.name == "kelvin_voigt":
+            eta += v["eta"]
+        elif e.name == "rotary_inertia":
+            rhoI += v["rhoI"]
+        elif e.name == "foundation":
+            kf += v["kf"]
+        elif e.name == "actuator_lag":
+            act_tau = v["tau"]
+        elif e.name == "sensor_lag":
+            names = config.output_names
+            if e.sensor not in names:
+                raise ConfigError(
+                    f"effect sensor_lag: unknown sensor {e.sensor!r}; the config has {', '.join(names)}"
+                )
+            lag_sensor = names.index(e.sensor) if v["tau"] > 0.0 else -1
+            sen_tau = v["tau"]
+        elif e.name == "axial_drift":
+            rate = v["rate"]
+        elif e.name == "geometric_stiffening":
+            ea = v["EA"]
+        elif e.name in ("cubic_spring", "dry_friction"):
+            if local_x is not None:
+                raise ConfigError("effect: cubic_spring and dry_friction are not combined")
+            if not 0.0 <= v["x"] <= L:
+                raise ParameterError(f"effect {e.name}.x = {v['x']:g} m lies outside the beam [0, {L:g}] m")
+            local_x = v["x"]
+            if e.name == "cubic_spring":
+                k3 = v["k3"]
+            else:
+                if not v["slip"] > 0.0:
+                    raise ParameterError(f"effect dry_friction.slip must be > 0, got {v['slip']:g}")
+                friction, slip = v["force"], v["slip"]
+        else:  # pragma: no cover - the catalogue and this dispatch are kept in step by the tests
+            raise ConfigError(f"effect {e.name!r} is not implemented by the generator")
+    return _Truth(left=tuple(ends["left"]), right=tuple(ends["right"]), masses=masses, eta=eta, rhoI=rhoI, kf=kf,
+                  rate=rate, ea=ea, act_tau=act_tau, sen_tau=sen_tau, lag_sensor=lag_sensor, local_x=local_x, k3=k3,
+                  friction=friction, slip=slip)
+
+
+def _build_beam(config: BeamConfig, p: Mapping[str, float], truth: _Truth, n_elements: int, n_samples: int,
+                dt: float) -> HermiteBeam:
+    """Assemble the truth's finite-element model and check that the record does not buckle it.
+
+    Parameters
+    ----------
+    config, p, truth
+        Beam set-up, parameters and effect settings.
+    n_elements
+        Number of cubic Hermite elements.
+    n_samples, dt
+        Length and sample interval of the record (for the axial drift).
+
+    Returns
+    -------
+    HermiteBeam
+
+    Raises
+    ------
+    StabilityError
+        The (drifting) axial force exceeds the buckling load.
+    """
+    beam = hermite_beam(
+        float(config.beam.length), int(n_elements), EI=p["EI"], rhoA=p["rhoA"], N=p["N"], c=p["c"], eta=truth.eta,
+        left=truth.left, right=truth.right, point_masses=truth.masses, rhoI=truth.rhoI, kf=truth.kf,
+    )
+    assert beam.K_axial is not None
+    dn_min = min(0.0, truth.rate * (n_samples - 1) * dt)
+    _check_not_buckled(beam, dn_min, p["N"], "axial_drift" if dn_min < 0.0 else "parameters.N")
+    return beam
+
+
+def _uses_exact(integrator: str, truth: _Truth) -> bool:
+    """Whether the truth is integrated exactly (``True``) or by Newmark (``False``).
+
+    Parameters
+    ----------
+    integrator
+        ``"auto"``, ``"exact"`` or ``"newmark"``.
+    truth
+        Effect settings (the time-varying and nonlinear effects need Newmark).
+
+    Raises
+    ------
+    ConfigError
+        A local element combined with axial drift or geometric stiffening.
+    ParameterError
+        ``"exact"`` for a truth that is not linear time-invariant.
+    """
+    varying = {"axial_drift": truth.rate != 0.0, "geometric_stiffening": truth.ea != 0.0,
+               "cubic_spring": truth.k3 != 0.0, "dry_friction": truth.friction != 0.0}
+    time_varying = [name for name, on in varying.items() if on]
+    if (truth.k3 != 0.0 or truth.friction != 0.0) and (truth.rate != 0.0 or truth.ea != 0.0):
+        raise ConfigError("effect: cubic_spring/dry_friction are not combined with axial_drift or "
+                          "geometric_stiffening")
+    if integrator == "exact" and time_varying:
+        raise ParameterError(f"integrator 'exact' needs a linear time-invariant truth; {time_varying[0]} is not "
+                             "(use 'newmark' or 'auto')")
+    return integrator == "exact" or (integrator == "auto" and not time_varying)
+
+
+def _newmark_operators(beam: HermiteBeam, config: BeamConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The actuators' load vectors ``Phi``, the sensors' displacement ``rows`` and ``kinds`` (:data:`SENSOR_KINDS`).
+
+    Parameters
+    ----------
+    beam, config
+        Finite-element model and beam set-up.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``Phi`` ``(n_dof, n_actuators)``, ``rows`` ``(n_sensors, n_dof)``, ``kinds`` (``int64``).
+    """
+    Phi = np.column_stack([beam.load_vector(a.x) for a in config.actuators])
+    rows = np.vstack([beam.displacement_row(s.x) for s in config.sensors])
+    kinds = np.array([SENSOR_KINDS.index(s.kind) for s in config.sensors], dtype=np.int64)
+    return Phi, rows, kinds
+
+
+def _newmark_run(beam: HermiteBeam, operators: tuple[np.ndarray, np.ndarray, np.ndarray], truth: _Truth,
+                 U: np.ndarray, dt: float, interpolation: str, length: float, k: int) -> np.ndarray:
+    """The clean outputs of one Newmark run (:func:`newmark_banded`), ``k`` sub-steps per sample interval.
+
+    Parameters
+    ----------
+    beam, operators, truth
+        Finite-element model, its :func:`_newmark_operators`, effect settings.
+    U, dt, interpolation
+        Measured forces ``(n_samples, n_actuators)``, sample interval, force reconstruction.
+    length
+        Beam length (stretching stiffness ``EA / L``).
+    k
+        Sub-steps per sample interval.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n_samples, n_sensors)``.
+    """
+    assert beam.K_axial is not None
+    Phi, rows, kinds = operators
+    F = _force_at_substeps(U, k, interpolation)
+    return newmark_banded(
+        beam.M, beam.C, beam.K, beam.K_axial, Phi, rows, kinds, F, dt, k,
+        rate=truth.rate, ea_over_l=truth.ea / length, actuator_tau=truth.act_tau, lag_sensor=truth.lag_sensor,
+        sensor_tau=truth.sen_tau, local_row=None if truth.local_x is None else beam.displacement_row(truth.local_x),
+        k3=truth.k3, friction=truth.friction, slip_velocity=truth.slip,
+    )
+
+
+def _simulate(beam: HermiteBeam, config: BeamConfig, truth: _Truth, U: np.ndarray, dt: float,
+              operators: tuple[np.ndarray, np.ndarray, np.ndarray], *, exact: bool, substeps: int,
+              interpolation: str, richardson: bool) -> np.ndarray:
+    """The clean outputs of the truth, integrated exactly or by Newmark (Richardson-combined if asked).
+
+    Parameters
+    ----------
+    beam, config, truth
+        Finite-element model, beam set-up, effect settings.
+    U, dt
+        Measured forces ``(n_samples, n_actuators)`` and sample interval.
+    operators
+        :func:`_newmark_operators` of ``beam`` (Newmark only).
+    exact, substeps, interpolation, richardson
+        Exact integration (:func:`exact_fe_response`) or Newmark; the options of :func:`synthesize`.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n_samples, n_sensors)``.
+    """
+    if exact:
+        y = exact_fe_response(beam, U, dt, [a.x for a in config.actuators],
+                              [(s.x, s.kind) for s in config.sensors], interpolation=interpolation,
+                              actuator_tau=truth.act_tau, lag_sensor=truth.lag_sensor, sensor_tau=truth.sen_tau)
+    else:
+        run = partial(_newmark_run, beam, operators, truth, U, dt, interpolation, float(config.beam.length))
+        y = (4.0 * run(2 * substeps) - run(substeps)) / 3.0 if richardson else run(substeps)
+    if not np.all(np.isfinite(y)):  # pragma: no cover - guarded by the positive-definiteness checks
+        raise DataError("the simulated outputs are not finite")
+    return y
+
+
+def _add_noise(y: np.ndarray, noise: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Add white Gaussian noise, ``noise`` times each column's RMS (seed ``seed``), to the clean outputs ``y``.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        The noisy outputs and the noise standard deviation per column.
+    """
+    rms = np.sqrt(np.mean(y * y, axis=0))
+    std = float(noise) * rms
+    rng = np.random.default_rng(int(seed))
+    noisy = y + rng.standard_normal(y.shape) * std
+    return noisy, std
+
+
+def _pack_record(config: BeamConfig, U: np.ndarray, y: np.ndarray, noisy: np.ndarray, std: np.ndarray, dt: float,
+                 *, p: Mapping[str, float], effects: tuple[WithheldEffect, ...], n_elements: int, substeps: int,
+                 richardson: bool, interpolation: str, exact: bool) -> SyntheticRecord:
+    """The :class:`SyntheticRecord` of a simulation, its arrays read-only (``U`` copied first).
+
+    Parameters
+    ----------
+    config, U, y, noisy, std, dt
+        Beam set-up, measured forces, clean and noisy outputs, noise level per sensor, sample interval.
+    p, effects, n_elements, substeps, richardson, interpolation, exact
+        What was simulated (``exact``: by the exact integrator).
+
+    Returns
+    -------
+    SyntheticRecord
+    """
+    U_out = U.copy()
+    for a in (U_out, y, noisy, std):
+        a.setflags(write=False)
+    time = np.arange(U.shape[0]) * dt
+    time.setflags(write=False)
+    return SyntheticRecord(
+        time=time, inputs=U_out, outputs_clean=y, outputs=noisy, noise_std=std, input_names=config.input_names,
+        output_names=config.output_names, parameters=MappingProxyType(dict(p)), effects=effects,
+        n_elements=int(n_elements), substeps=substeps, richardson=bool(richardson) and not exact,
+        interpolation=interpolation, integrator="exact" if exact else "newmark",
+    )
 
 
 # --------------------------------------------------------------------------
@@ -307,146 +632,19 @@ def synthesize(
         the buckling load within the record, or the stiffening Newton
         iteration did not converge.
     """
-    if not isinstance(config, BeamConfig):
-        raise ConfigError(f"config must be a BeamConfig, got {type(config).__name__}")
-    if isinstance(n_elements, bool) or not isinstance(n_elements, (int, np.integer)) or n_elements < 2:
-        raise ParameterError(f"n_elements must be an integer >= 2, got {n_elements!r}")
-    if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
-        raise ParameterError(f"substeps must be an integer >= 1, got {substeps!r}")
-    finite_scalar("noise", noise, minimum=0.0, numbers_only=True)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-        raise ParameterError(f"seed must be an integer, got {seed!r}")
-    if not isinstance(richardson, (bool, np.bool_)):
-        raise ParameterError(f"richardson must be True or False, got {richardson!r}")
-    if interpolation not in INTERPOLATIONS:
-        raise ParameterError(f"interpolation must be one of {', '.join(INTERPOLATIONS)}, got {interpolation!r}")
-    if integrator not in INTEGRATORS:
-        raise ParameterError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
+    _check_options(config, n_elements, substeps, noise, seed, richardson, interpolation, integrator)
     p = _parameters(config, params)
     effects = _effects(effect)
     U = as_matrix(inputs, "inputs", shape=(None, len(config.actuators)), columns=config.input_names, min_rows=2,
                   column="actuator")
-    L = float(config.beam.length)
     dt = float(config.time.dt)
-
-    # ---------------------------------------------------- apply the effects
-    ends = {
-        "left": [config.beam.left.kt, config.beam.left.kr],
-        "right": [config.beam.right.kt, config.beam.right.kr],
-    }
-    masses = [(m.mass, m.x) for m in config.masses]
-    eta, rhoI, kf = p["eta"], p["rhoI"], p["kf"]
-    rate = ea = act_tau = sen_tau = k3 = friction = 0.0
-    slip = 1.0
-    local_x: float | None = None
-    lag_sensor = -1
-    for e in effects:
-        v = e.values
-        if e.name.startswith("boundary_"):
-            side = "left" if e.name.endswith("_left") else "right"
-            i = 1 if "_rotational_" in e.name else 0
-            ends[side][i] = _end_spring(ends[side][i], v["kr" if i else "kt"])
-        elif e.name == "point_mass":
-            if not 0.0 <= v["x"] <= L:
-                raise ParameterError(f"effect point_mass.x = {v['x']:g} m lies outside the beam [0, {L:g}] m")
-            masses.append((v["mass"], v["x"]))
-        elif e.name == "kelvin_voigt":
-            eta += v["eta"]
-        elif e.name == "rotary_inertia":
-            rhoI += v["rhoI"]
-        elif e.name == "foundation":
-            kf += v["kf"]
-        elif e.name == "actuator_lag":
-            act_tau = v["tau"]
-        elif e.name == "sensor_lag":
-            names = config.output_names
-            if e.sensor not in names:
-                raise ConfigError(
-                    f"effect sensor_lag: unknown sensor {e.sensor!r}; the config has {', '.join(names)}"
-                )
-            lag_sensor = names.index(e.sensor) if v["tau"] > 0.0 else -1
-            sen_tau = v["tau"]
-        elif e.name == "axial_drift":
-            rate = v["rate"]
-        elif e.name == "geometric_stiffening":
-            ea = v["EA"]
-        elif e.name in ("cubic_spring", "dry_friction"):
-            if local_x is not None:
-                raise ConfigError("effect: cubic_spring and dry_friction are not combined")
-            if not 0.0 <= v["x"] <= L:
-                raise ParameterError(f"effect {e.name}.x = {v['x']:g} m lies outside the beam [0, {L:g}] m")
-            local_x = v["x"]
-            if e.name == "cubic_spring":
-                k3 = v["k3"]
-            else:
-                if not v["slip"] > 0.0:
-                    raise ParameterError(f"effect dry_friction.slip must be > 0, got {v['slip']:g}")
-                friction, slip = v["force"], v["slip"]
-        else:  # pragma: no cover - the catalogue and this dispatch are kept in step by the tests
-            raise ConfigError(f"effect {e.name!r} is not implemented by the generator")
-
-    beam = hermite_beam(
-        L, int(n_elements), EI=p["EI"], rhoA=p["rhoA"], N=p["N"], c=p["c"], eta=eta,
-        left=tuple(ends["left"]), right=tuple(ends["right"]), point_masses=masses, rhoI=rhoI, kf=kf,
-    )
-    assert beam.K_axial is not None
-    dn_min = min(0.0, rate * (U.shape[0] - 1) * dt)
-    _check_not_buckled(beam, dn_min, p["N"], "axial_drift" if dn_min < 0.0 else "parameters.N")
-    Phi = np.column_stack([beam.load_vector(a.x) for a in config.actuators])
-    rows = np.vstack([beam.displacement_row(s.x) for s in config.sensors])
-    kinds = np.array([SENSOR_KINDS.index(s.kind) for s in config.sensors], dtype=np.int64)
-
-    varying = {"axial_drift": rate != 0.0, "geometric_stiffening": ea != 0.0,
-               "cubic_spring": k3 != 0.0, "dry_friction": friction != 0.0}
-    time_varying = [name for name, on in varying.items() if on]
-    if (k3 != 0.0 or friction != 0.0) and (rate != 0.0 or ea != 0.0):
-        raise ConfigError("effect: cubic_spring/dry_friction are not combined with axial_drift or "
-                          "geometric_stiffening")
-    if integrator == "exact" and time_varying:
-        raise ParameterError(f"integrator 'exact' needs a linear time-invariant truth; {time_varying[0]} is not "
-                             "(use 'newmark' or 'auto')")
-    exact = integrator == "exact" or (integrator == "auto" and not time_varying)
+    truth = _apply_effects(config, p, effects)
+    beam = _build_beam(config, p, truth, n_elements, U.shape[0], dt)
+    operators = _newmark_operators(beam, config)
+    exact = _uses_exact(integrator, truth)
     m = int(substeps)
-    if exact:
-        y = exact_fe_response(beam, U, dt, [a.x for a in config.actuators],
-                              [(s.x, s.kind) for s in config.sensors], interpolation=interpolation,
-                              actuator_tau=act_tau, lag_sensor=lag_sensor, sensor_tau=sen_tau)
-    else:
-        def run(k: int) -> np.ndarray:
-            F = _force_at_substeps(U, k, interpolation)
-            return newmark_banded(
-                beam.M, beam.C, beam.K, beam.K_axial, Phi, rows, kinds, F, dt, k,
-                rate=rate, ea_over_l=ea / L, actuator_tau=act_tau, lag_sensor=lag_sensor, sensor_tau=sen_tau,
-                local_row=None if local_x is None else beam.displacement_row(local_x), k3=k3, friction=friction,
-                slip_velocity=slip,
-            )
-
-        y = (4.0 * run(2 * m) - run(m)) / 3.0 if richardson else run(m)
-    if not np.all(np.isfinite(y)):  # pragma: no cover - guarded by the positive-definiteness checks
-        raise DataError("the simulated outputs are not finite")
-
-    rms = np.sqrt(np.mean(y * y, axis=0))
-    std = float(noise) * rms
-    rng = np.random.default_rng(int(seed))
-    noisy = y + rng.standard_normal(y.shape) * std
-    U_out = U.copy()
-    for a in (U_out, y, noisy, std):
-        a.setflags(write=False)
-    time = np.arange(U.shape[0]) * dt
-    time.setflags(write=False)
-    return SyntheticRecord(
-        time=time,
-        inputs=U_out,
-        outputs_clean=y,
-        outputs=noisy,
-        noise_std=std,
-        input_names=config.input_names,
-        output_names=config.output_names,
-        parameters=MappingProxyType(dict(p)),
-        effects=effects,
-        n_elements=int(n_elements),
-        substeps=m,
-        richardson=bool(richardson) and not exact,
-        interpolation=interpolation,
-        integrator="exact" if exact else "newmark",
-    )
+    y = _simulate(beam, config, truth, U, dt, operators, exact=exact, substeps=m, interpolation=interpolation,
+                  richardson=richardson)
+    noisy, std = _add_noise(y, noise, seed)
+    return _pack_record(config, U, y, noisy, std, dt, p=p, effects=effects, n_elements=n_elements, substeps=m,
+                        richardson=richardson, interpolation=interpolation, exact=exact)

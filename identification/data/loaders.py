@@ -82,6 +82,7 @@ _FORMAT_ALIASES = {ext[1:]: name for ext, name in EXTENSIONS.items()}
 OFFSET_MODES = (False, "mean", "pre-trigger")
 
 Key = str | int
+_Role = tuple[str, str, str]     # (signal name, "actuator" | "sensor", quantity)
 
 
 def _format_of(path: Path, fmt: str | None) -> str:
@@ -187,6 +188,202 @@ def _check_finite(a: np.ndarray, t: np.ndarray, where: str) -> None:
                         + (f"; {bad.size} non-finite samples in all" if bad.size > 1 else ""))
 
 
+def _time_vector(table: RawTable, cmap: Mapping[str, Key]) -> tuple[np.ndarray, str, float, dict[int, str]]:
+    """The record's time: the mapped (or the format's) time channel, or the time the file's headers define.
+
+    Parameters
+    ----------
+    table, cmap
+        The file's channels and the checked ``mapping`` (its ``"time"`` entry names the time channel).
+
+    Returns
+    -------
+    t, time_label, tol, used
+        Times (checked finite and increasing), their origin for messages, their tolerance for
+        :func:`regularise_time`, ``{channel index: "time"}`` if a channel is the time (else empty).
+
+    Raises
+    ------
+    DataError
+        A missing or unusable time channel; non-finite or non-increasing times.
+    """
+    src = table.source
+    if "time" in cmap or table.time is None:
+        key = cmap.get("time", table.time_key)
+        ti = _lookup(table, key)
+        if ti is None:
+            raise DataError(f"{src}: missing time {table.kind} {key!r}; found {printable(', '.join(table.names))}"
+                            + ("" if "time" in cmap else
+                               " (name it with mapping = { time = ... } under [identification.data])"))
+        t = _vector(table, ti, None, "time")
+        time_label = f"{src}: time ({table.label(ti)})"
+        tol = 0.5 * table.resolution[ti]
+        used = {ti: "time"}
+    else:
+        t = np.asarray(table.time, dtype=float)
+        time_label, tol, used = f"{src}: time", table.time_tolerance, {}
+    check_time_vector(t, where=time_label)
+    return t, time_label, tol, used
+
+
+def _signal_channels(table: RawTable, roles: list[_Role], cmap: Mapping[str, Key],
+                     used: Mapping[int, str]) -> dict[str, int]:
+    """The file channel of every config signal, by ``cmap`` or by the signal's own name.
+
+    Parameters
+    ----------
+    table, roles, cmap, used
+        The file's channels, ``(signal, role, quantity)`` of every actuator and sensor, the checked
+        ``mapping``, the channel taken by the time.
+
+    Returns
+    -------
+    dict
+        Signal name -> channel index.
+
+    Raises
+    ------
+    DataError
+        A channel used as time and signal; missing channels (all listed).
+    """
+    src = table.source
+    idx: dict[str, int] = {}
+    missing = []
+    for sig, role, _ in roles:
+        key = cmap.get(sig, sig)
+        i = _lookup(table, key)
+        if i is None:
+            missing.append(f"{key!r} ({role} {sig})" if key != sig else repr(sig))
+            continue
+        if used.get(i) == "time":
+            raise DataError(f"{src}: {table.label(i)} is used both as the time and as {role} {sig!r}")
+        idx[sig] = i
+    if missing:
+        raise DataError(f"{src}: missing {table.kind}(s) {', '.join(missing)}; found "
+                        f"{printable(', '.join(table.names))} (name the file's channels with mapping = {{ ... }} "
+                        "under [identification.data])")
+    return idx
+
+
+def _signal_in_si(table: RawTable, i: int, role: _Role, t: np.ndarray, cunits: Mapping[str, str],
+                  cgains: Mapping[str, float]) -> np.ndarray:
+    """Channel ``i`` as the config signal ``role``: checked, converted to SI, times its gain.
+
+    Parameters
+    ----------
+    table, i, role
+        The file's channels, the signal's channel and its ``(signal, role, quantity)``.
+    t
+        The record's time (its length and the instants named in messages).
+    cunits, cgains
+        The checked ``units`` and ``gains``.
+
+    Returns
+    -------
+    numpy.ndarray
+        The signal in SI units.
+
+    Raises
+    ------
+    DataError
+        Wrong length or type, a non-finite value, an unknown or unfitting unit.
+    """
+    src = table.source
+    sig, role_name, quantity = role
+    what = f"{role_name} {sig!r}"
+    a = _vector(table, i, t.size, what)
+    _check_finite(a, t, f"{src}: {table.label(i)} ({what})")
+    unit = cunits.get(sig)
+    declared = unit is None and table.units[i] is not None
+    if declared:
+        unit = table.units[i]
+    if unit is not None:
+        try:
+            a = a * to_si_factor(unit, quantity, where=f"{src}: {table.label(i)} ({what})")
+        except DataError as exc:
+            hint = (f" -- the file declares this unit; override it with units = {{ {sig} = ... }} under "
+                    "[identification.data]"
+                    if declared else "")
+            raise DataError(f"{exc}{hint}") from None
+    if sig in cgains:
+        a = a * cgains[sig]
+    return a
+
+
+def _condition(x: np.ndarray, t: np.ndarray, *, mode: str | bool, pre_trigger: float | None, band: Any,
+               dt: float, src: str) -> np.ndarray:
+    """Remove the static offset (``mode``) and limit the band of the signals ``x``, as :func:`load_experiment` says.
+
+    Parameters
+    ----------
+    x, t
+        Signals ``(n_samples, n_signals)`` and their times (on the uniform grid).
+    mode, pre_trigger, band
+        The checked ``remove_offset``, ``pre_trigger`` and the ``band``.
+    dt, src
+        The config's sample interval (the filter's for a one-sample record); the file, for messages.
+
+    Returns
+    -------
+    numpy.ndarray
+        The conditioned signals.
+
+    Raises
+    ------
+    DataError
+        No sample in the pre-trigger window; an invalid band.
+    """
+    if mode == "mean":
+        x = x - x.mean(axis=0)
+    elif mode == "pre-trigger":
+        assert pre_trigger is not None
+        quiet = t < t[0] + pre_trigger
+        if not quiet.any():
+            raise DataError(f"{src}: no sample in the pre-trigger window of {pre_trigger:g} s")
+        x = x - x[quiet].mean(axis=0)
+    if band is not None:
+        dt_file = float(t[1] - t[0]) if t.size > 1 else dt
+        f_lo, f_hi = check_band(band, dt_file, where=f"{src}: band")
+        x = band_limit(x, dt_file, f_lo, f_hi)
+    return x
+
+
+def _checked_experiment(config: BeamConfig, name: str, t: np.ndarray, x: np.ndarray, si_units: dict[str, str],
+                        src: str, resample: bool) -> Experiment:
+    """The :class:`Experiment` of the signals ``x`` (inputs, then outputs), checked against ``config``.
+
+    Parameters
+    ----------
+    config, name, src
+        The beam config, the experiment's name, the file.
+    t, x, si_units
+        Sample times, signals (config order) and their SI units.
+    resample
+        Whether the record was resampled (else the error message suggests it).
+
+    Returns
+    -------
+    Experiment
+
+    Raises
+    ------
+    DataError
+        The experiment does not fit ``config`` (names, sample time).
+    """
+    n_in = len(config.actuators)
+    exp = Experiment(name=name, time=t, inputs=x[:, :n_in], outputs=x[:, n_in:],
+                     input_names=config.input_names, output_names=config.output_names, units=si_units,
+                     source=src)
+    try:
+        exp.check_against(config)
+    except DataError as exc:
+        if resample:
+            raise
+        raise DataError(f"{exc} (to resample the record to the config's dt: resample = true under "
+                        "[identification.data], resample=True in the API)") from None
+    return exp
+
+
 def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None = None,
                     mapping: Mapping[str, Key] | None = None, units: Mapping[str, str] | None = None,
                     gains: Mapping[str, float] | None = None,
@@ -263,96 +460,19 @@ def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None 
         raise DataError(f"{p}: resample must be true or false, got {resample!r}")
     table = FORMATS[fmt].read(p)
     src = table.source
-
-    # ---- time
-    if "time" in cmap or table.time is None:
-        key = cmap.get("time", table.time_key)
-        ti = _lookup(table, key)
-        if ti is None:
-            raise DataError(f"{src}: missing time {table.kind} {key!r}; found {printable(', '.join(table.names))}"
-                            + ("" if "time" in cmap else
-                               " (name it with mapping = { time = ... } under [identification.data])"))
-        t = _vector(table, ti, None, "time")
-        time_label = f"{src}: time ({table.label(ti)})"
-        tol = 0.5 * table.resolution[ti]
-        used = {ti: "time"}
-    else:
-        t = np.asarray(table.time, dtype=float)
-        time_label, tol, used = f"{src}: time", table.time_tolerance, {}
-    check_time_vector(t, where=time_label)
-    n = t.size
-
-    # ---- signals
-    roles = [(a.name, "actuator", "force") for a in config.actuators] + \
-            [(s.name, "sensor", s.kind) for s in config.sensors]
-    idx: dict[str, int] = {}
-    missing = []
-    for sig, role, _ in roles:
-        key = cmap.get(sig, sig)
-        i = _lookup(table, key)
-        if i is None:
-            missing.append(f"{key!r} ({role} {sig})" if key != sig else repr(sig))
-            continue
-        if used.get(i) == "time":
-            raise DataError(f"{src}: {table.label(i)} is used both as the time and as {role} {sig!r}")
-        idx[sig] = i
-    if missing:
-        raise DataError(f"{src}: missing {table.kind}(s) {', '.join(missing)}; found "
-                        f"{printable(', '.join(table.names))} (name the file's channels with mapping = {{ ... }} "
-                        "under [identification.data])")
-    cols: dict[str, np.ndarray] = {}
-    si_units: dict[str, str] = {}
-    for sig, role, quantity in roles:
-        i = idx[sig]
-        what = f"{role} {sig!r}"
-        a = _vector(table, i, n, what)
-        _check_finite(a, t, f"{src}: {table.label(i)} ({what})")
-        unit = cunits.get(sig)
-        declared = unit is None and table.units[i] is not None
-        if declared:
-            unit = table.units[i]
-        if unit is not None:
-            try:
-                a = a * to_si_factor(unit, quantity, where=f"{src}: {table.label(i)} ({what})")
-            except DataError as exc:
-                hint = (f" -- the file declares this unit; override it with units = {{ {sig} = ... }} under "
-                        "[identification.data]"
-                        if declared else "")
-                raise DataError(f"{exc}{hint}") from None
-        if sig in cgains:
-            a = a * cgains[sig]
-        cols[sig] = a
-        si_units[sig] = "N" if role == "actuator" else SENSOR_UNITS[quantity]
-
-    # ---- time grid, offset, resampling
+    t, time_label, tol, used = _time_vector(table, cmap)
+    roles: list[_Role] = [(a.name, "actuator", "force") for a in config.actuators] + \
+        [(s.name, "sensor", s.kind) for s in config.sensors]
+    idx = _signal_channels(table, roles, cmap, used)
+    cols = {sig: _signal_in_si(table, idx[sig], (sig, role, quantity), t, cunits, cgains)
+            for sig, role, quantity in roles}
+    si_units = {sig: "N" if role == "actuator" else SENSOR_UNITS[quantity] for sig, role, quantity in roles}
     t = regularise_time(t, tol, config.time.dt, where=time_label)
     x = np.column_stack([cols[s] for s, _, _ in roles])
-    if mode == "mean":
-        x = x - x.mean(axis=0)
-    elif mode == "pre-trigger":
-        assert pre_trigger is not None
-        quiet = t < t[0] + pre_trigger
-        if not quiet.any():
-            raise DataError(f"{src}: no sample in the pre-trigger window of {pre_trigger:g} s")
-        x = x - x[quiet].mean(axis=0)
-    if band is not None:
-        dt_file = float(t[1] - t[0]) if n > 1 else config.time.dt
-        f_lo, f_hi = check_band(band, dt_file, where=f"{src}: band")
-        x = band_limit(x, dt_file, f_lo, f_hi)
+    x = _condition(x, t, mode=mode, pre_trigger=pre_trigger, band=band, dt=config.time.dt, src=src)
     if resample:
         t, x, _ = resample_uniform(t, x, config.time.dt, where=time_label)
-    n_in = len(config.actuators)
-    exp = Experiment(name=name if name is not None else p.stem, time=t, inputs=x[:, :n_in], outputs=x[:, n_in:],
-                     input_names=config.input_names, output_names=config.output_names, units=si_units,
-                     source=src)
-    try:
-        exp.check_against(config)
-    except DataError as exc:
-        if resample:
-            raise
-        raise DataError(f"{exc} (to resample the record to the config's dt: resample = true under "
-                        "[identification.data], resample=True in the API)") from None
-    return exp
+    return _checked_experiment(config, name if name is not None else p.stem, t, x, si_units, src, resample)
 
 
 def load_experiments(paths: Iterable[str | Path] | str | Path, config: BeamConfig, *,
