@@ -17,7 +17,8 @@ sample, Richardson-extrapolated with a 16-sub-step run) by
 :mod:`ebb_model.reference.newmark_banded` (``integrator`` chooses).
 
 Every effect of the catalogue (:mod:`ebb_model.reference.withheld`) is built
-into the finite-element model or the integrator:
+into the finite-element model or the integrator (settings assembled by
+:mod:`ebb_model.reference.truth_model`):
 
 ==================================  =============================================================
 effect                              implementation
@@ -107,24 +108,23 @@ Example
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from functools import partial
 from types import MappingProxyType
 from typing import Mapping, Sequence
 
 import numpy as np
-import scipy.linalg as sla
 from scipy.interpolate import CubicSpline
 
 from ..arrays import as_matrix
 from ..checks import finite_scalar
 from ..config import BeamConfig
-from ..errors import ConfigError, DataError, ParameterError, StabilityError
+from ..errors import ConfigError, DataError, ParameterError
 from .exact_fe import exact_fe_response
 from .excitation import EXCITATION_KINDS, band_limited_input
-from .hermite_fe import SENSOR_KINDS, HermiteBeam, hermite_beam
+from .hermite_fe import SENSOR_KINDS, HermiteBeam
 from .newmark_banded import newmark_banded
 from .record import SyntheticRecord
+from .truth_model import Truth, apply_effects, build_beam, uses_exact
 from .withheld import EFFECT_CATALOGUE, EFFECT_NAMES, WithheldEffect
 
 __all__ = [
@@ -212,54 +212,6 @@ def _force_at_substeps(U: np.ndarray, m: int, interpolation: str) -> np.ndarray:
     return np.vstack([F, U[-1:]])
 
 
-def _check_not_buckled(beam: HermiteBeam, dn_min: float, N: float, where: str) -> None:
-    """Raise :class:`StabilityError` if ``K + dn_min G`` has a negative eigenvalue (w.r.t. ``M``)."""
-    K = beam.K + dn_min * beam.K_axial
-    lam = sla.eigh(K, beam.M, eigvals_only=True, subset_by_index=[0, 0])[0]
-    scale = float(np.max(np.abs(np.diag(K)) / np.diag(beam.M)))
-    if lam < -1e-9 * scale:
-        raise StabilityError(
-            f"{where}: the axial force reaches {N + dn_min:g} N, beyond the buckling load of this beam; "
-            "the truth is not a small-deflection vibration any more"
-        )
-
-
-def _end_spring(current: float, added: float) -> float:
-    """A fixed DOF (``inf``) becomes the spring; a free or elastic DOF gets it added."""
-    return added if math.isinf(current) else current + added
-
-
-@dataclass(frozen=True)
-class _Truth:
-    """The truth's model and integrator settings: the config's and parameters', with the effects applied.
-
-    Attributes
-    ----------
-    left, right, masses, eta, rhoI, kf
-        End springs ``(kt, kr)``, point masses ``(mass, x)`` and the parameters of :func:`hermite_beam`.
-    rate, ea, act_tau, sen_tau, lag_sensor
-        Axial drift rate, ``EA``, actuator and sensor lag time constants, lagged sensor (-1: none).
-    local_x, k3, friction, slip
-        Position of a cubic spring or dry friction (``None``: none), its ``k3``, force and slip velocity.
-    """
-
-    left: tuple[float, ...]
-    right: tuple[float, ...]
-    masses: list[tuple[float, float]]
-    eta: float
-    rhoI: float
-    kf: float
-    rate: float
-    ea: float
-    act_tau: float
-    sen_tau: float
-    lag_sensor: int
-    local_x: float | None
-    k3: float
-    friction: float
-    slip: float
-
-
 def _check_options(config: BeamConfig, n_elements: int, substeps: int, noise: float, seed: int,
                    richardson: bool, interpolation: str, integrator: str) -> None:
     """Check the scalar arguments of :func:`synthesize` (same names), the first bad one raising.
@@ -288,146 +240,6 @@ def _check_options(config: BeamConfig, n_elements: int, substeps: int, noise: fl
         raise ParameterError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
 
 
-def _apply_effects(config: BeamConfig, p: Mapping[str, float], effects: Sequence[WithheldEffect]) -> _Truth:
-    """Apply the withheld ``effects`` (table of the module) to ``config`` and the parameters ``p``.
-
-    Parameters
-    ----------
-    config, p, effects
-        Beam set-up, parameters (:func:`_parameters`) and effects (:func:`_effects`).
-
-    Returns
-    -------
-    _Truth
-
-    Raises
-    ------
-    ConfigError
-        ``sensor_lag`` of a sensor not in the config; cubic spring with dry friction.
-    ParameterError
-        A point mass or local element outside the beam; ``dry_friction.slip <= 0``.
-    """
-    L = float(config.beam.length)
-    ends = {
-        "left": [config.beam.left.kt, config.beam.left.kr],
-        "right": [config.beam.right.kt, config.beam.right.kr],
-    }
-    masses = [(m.mass, m.x) for m in config.masses]
-    eta, rhoI, kf = p["eta"], p["rhoI"], p["kf"]
-    rate = ea = act_tau = sen_tau = k3 = friction = 0.0
-    slip = 1.0
-    local_x: float | None = None
-    lag_sensor = -1
-    for e in effects:
-        v = e.values
-        if e.name.startswith("boundary_"):
-            side = "left" if e.name.endswith("_left") else "right"
-            i = 1 if "_rotational_" in e.name else 0
-            ends[side][i] = _end_spring(ends[side][i], v["kr" if i else "kt"])
-        elif e.name == "point_mass":
-            if not 0.0 <= v["x"] <= L:
-                raise ParameterError(f"effect point_mass.x = {v['x']:g} m lies outside the beam [0, {L:g}] m")
-            masses.append((v["mass"], v["x"]))
-        elif e.name == "kelvin_voigt":
-            eta += v["eta"]
-        elif e.name == "rotary_inertia":
-            rhoI += v["rhoI"]
-        elif e.name == "foundation":
-            kf += v["kf"]
-        elif e.name == "actuator_lag":
-            act_tau = v["tau"]
-        elif e.name == "sensor_lag":
-            names = config.output_names
-            if e.sensor not in names:
-                raise ConfigError(
-                    f"effect sensor_lag: unknown sensor {e.sensor!r}; the config has {', '.join(names)}"
-                )
-            lag_sensor = names.index(e.sensor) if v["tau"] > 0.0 else -1
-            sen_tau = v["tau"]
-        elif e.name == "axial_drift":
-            rate = v["rate"]
-        elif e.name == "geometric_stiffening":
-            ea = v["EA"]
-        elif e.name in ("cubic_spring", "dry_friction"):
-            if local_x is not None:
-                raise ConfigError("effect: cubic_spring and dry_friction are not combined")
-            if not 0.0 <= v["x"] <= L:
-                raise ParameterError(f"effect {e.name}.x = {v['x']:g} m lies outside the beam [0, {L:g}] m")
-            local_x = v["x"]
-            if e.name == "cubic_spring":
-                k3 = v["k3"]
-            else:
-                if not v["slip"] > 0.0:
-                    raise ParameterError(f"effect dry_friction.slip must be > 0, got {v['slip']:g}")
-                friction, slip = v["force"], v["slip"]
-        else:  # pragma: no cover - the catalogue and this dispatch are kept in step by the tests
-            raise ConfigError(f"effect {e.name!r} is not implemented by the generator")
-    return _Truth(left=tuple(ends["left"]), right=tuple(ends["right"]), masses=masses, eta=eta, rhoI=rhoI, kf=kf,
-                  rate=rate, ea=ea, act_tau=act_tau, sen_tau=sen_tau, lag_sensor=lag_sensor, local_x=local_x, k3=k3,
-                  friction=friction, slip=slip)
-
-
-def _build_beam(config: BeamConfig, p: Mapping[str, float], truth: _Truth, n_elements: int, n_samples: int,
-                dt: float) -> HermiteBeam:
-    """Assemble the truth's finite-element model and check that the record does not buckle it.
-
-    Parameters
-    ----------
-    config, p, truth
-        Beam set-up, parameters and effect settings.
-    n_elements
-        Number of cubic Hermite elements.
-    n_samples, dt
-        Length and sample interval of the record (for the axial drift).
-
-    Returns
-    -------
-    HermiteBeam
-
-    Raises
-    ------
-    StabilityError
-        The (drifting) axial force exceeds the buckling load.
-    """
-    beam = hermite_beam(
-        float(config.beam.length), int(n_elements), EI=p["EI"], rhoA=p["rhoA"], N=p["N"], c=p["c"], eta=truth.eta,
-        left=truth.left, right=truth.right, point_masses=truth.masses, rhoI=truth.rhoI, kf=truth.kf,
-    )
-    assert beam.K_axial is not None
-    dn_min = min(0.0, truth.rate * (n_samples - 1) * dt)
-    _check_not_buckled(beam, dn_min, p["N"], "axial_drift" if dn_min < 0.0 else "parameters.N")
-    return beam
-
-
-def _uses_exact(integrator: str, truth: _Truth) -> bool:
-    """Whether the truth is integrated exactly (``True``) or by Newmark (``False``).
-
-    Parameters
-    ----------
-    integrator
-        ``"auto"``, ``"exact"`` or ``"newmark"``.
-    truth
-        Effect settings (the time-varying and nonlinear effects need Newmark).
-
-    Raises
-    ------
-    ConfigError
-        A local element combined with axial drift or geometric stiffening.
-    ParameterError
-        ``"exact"`` for a truth that is not linear time-invariant.
-    """
-    varying = {"axial_drift": truth.rate != 0.0, "geometric_stiffening": truth.ea != 0.0,
-               "cubic_spring": truth.k3 != 0.0, "dry_friction": truth.friction != 0.0}
-    time_varying = [name for name, on in varying.items() if on]
-    if (truth.k3 != 0.0 or truth.friction != 0.0) and (truth.rate != 0.0 or truth.ea != 0.0):
-        raise ConfigError("effect: cubic_spring/dry_friction are not combined with axial_drift or "
-                          "geometric_stiffening")
-    if integrator == "exact" and time_varying:
-        raise ParameterError(f"integrator 'exact' needs a linear time-invariant truth; {time_varying[0]} is not "
-                             "(use 'newmark' or 'auto')")
-    return integrator == "exact" or (integrator == "auto" and not time_varying)
-
-
 def _newmark_operators(beam: HermiteBeam, config: BeamConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The actuators' load vectors ``Phi``, the sensors' displacement ``rows`` and ``kinds`` (:data:`SENSOR_KINDS`).
 
@@ -447,7 +259,7 @@ def _newmark_operators(beam: HermiteBeam, config: BeamConfig) -> tuple[np.ndarra
     return Phi, rows, kinds
 
 
-def _newmark_run(beam: HermiteBeam, operators: tuple[np.ndarray, np.ndarray, np.ndarray], truth: _Truth,
+def _newmark_run(beam: HermiteBeam, operators: tuple[np.ndarray, np.ndarray, np.ndarray], truth: Truth,
                  U: np.ndarray, dt: float, interpolation: str, length: float, k: int) -> np.ndarray:
     """The clean outputs of one Newmark run (:func:`newmark_banded`), ``k`` sub-steps per sample interval.
 
@@ -478,7 +290,7 @@ def _newmark_run(beam: HermiteBeam, operators: tuple[np.ndarray, np.ndarray, np.
     )
 
 
-def _simulate(beam: HermiteBeam, config: BeamConfig, truth: _Truth, U: np.ndarray, dt: float,
+def _simulate(beam: HermiteBeam, config: BeamConfig, truth: Truth, U: np.ndarray, dt: float,
               operators: tuple[np.ndarray, np.ndarray, np.ndarray], *, exact: bool, substeps: int,
               interpolation: str, richardson: bool) -> np.ndarray:
     """The clean outputs of the truth, integrated exactly or by Newmark (Richardson-combined if asked).
@@ -638,10 +450,10 @@ def synthesize(
     U = as_matrix(inputs, "inputs", shape=(None, len(config.actuators)), columns=config.input_names, min_rows=2,
                   column="actuator")
     dt = float(config.time.dt)
-    truth = _apply_effects(config, p, effects)
-    beam = _build_beam(config, p, truth, n_elements, U.shape[0], dt)
+    truth = apply_effects(config, p, effects)
+    beam = build_beam(config, p, truth, n_elements, U.shape[0], dt)
     operators = _newmark_operators(beam, config)
-    exact = _uses_exact(integrator, truth)
+    exact = uses_exact(integrator, truth)
     m = int(substeps)
     y = _simulate(beam, config, truth, U, dt, operators, exact=exact, substeps=m, interpolation=interpolation,
                   richardson=richardson)
