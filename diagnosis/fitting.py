@@ -23,6 +23,7 @@ from ebb_model.config import BeamConfig
 from ebb_model.errors import EbbError
 
 from identification.least_squares import Box, distinct_members, evolve, fit_least_squares, penalised
+from identification.noise_model import NoiseModel
 from identification.parameters import ParameterSpace
 
 from .augmented import simulate_effects
@@ -84,15 +85,25 @@ class GapProblem:
     records
         Measured records with fit and held-out windows.
     noise_std
-        Measurement-noise standard deviation per sensor.
+        Measurement-noise standard deviation per sensor (white-equivalent: the noise's own standard deviation,
+        pooled over the records): the yardstick of the localisation and the reports.
+    noise
+        The noise model per record and sensor (:class:`~identification.noise_model.NoiseModel`): residuals
+        are whitened by it, so a model at the truth leaves unit-variance residuals whatever the noise's colour
+        and level in each record.  Default: white, ``noise_std`` in every record.
     """
 
     config: BeamConfig
     space: ParameterSpace
     records: tuple[Record, ...]
     noise_std: np.ndarray
+    noise: NoiseModel | None = None
     #: further starts of the baseline unknowns (other basins of the global search), tried by refits
     other_starts: tuple[np.ndarray, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.noise is None:
+            object.__setattr__(self, "noise", NoiseModel.white(self.noise_std, len(self.records)))
 
     # ----------------------------------------------------------- simulation
     def model(self, beta: np.ndarray, effect: Effect | None = None, s: np.ndarray | None = None
@@ -132,9 +143,10 @@ class GapProblem:
             sims = self.simulate(beta, effect, s, until="fit")
         except (EbbError, ValueError, np.linalg.LinAlgError):
             return penalised(None, self.n_fit)
+        noise = self.noise_model
         with np.errstate(over="ignore", invalid="ignore"):   # a diverging candidate is penalised below
-            parts = [((y - r.outputs[:r.fit_end]) / self.noise_std).ravel()
-                     for y, r in zip(sims, self.records) if y is not None]
+            parts = [noise.whiten(i, y - r.outputs[:r.fit_end]).ravel()
+                     for i, (y, r) in enumerate(zip(sims, self.records)) if y is not None]
         return penalised(np.concatenate(parts), self.n_fit)
 
     def heldout(self, beta: np.ndarray, effect: Effect | None = None, s: np.ndarray | None = None
@@ -144,17 +156,30 @@ class GapProblem:
         Returns
         -------
         ratio
-            ``mean(((y_sim − y)/σ)²)`` per sensor over every held-out sample (1 = noise floor).
+            Mean square of the whitened residuals per sensor over every held-out sample (1 = noise floor).
         residuals
-            Normalised held-out residuals ``(n_hold, n_sensors)`` per record with a held-out window.
+            Whitened held-out residuals ``(n_hold, n_sensors)`` per record with a held-out window (whitened
+            from the record's start, so the filter has settled where the window begins).
         """
         sims = self.simulate(beta, effect, s, until="all")
-        res = [((y - r.outputs) / self.noise_std)[r.hold_start:]
-               for y, r in zip(sims, self.records) if r.has_holdout]
+        noise = self.noise_model
+        res = [noise.whiten(i, y - r.outputs)[r.hold_start:]
+               for i, (y, r) in enumerate(zip(sims, self.records)) if r.has_holdout]
         if not res:
             raise ValueError("no held-out samples")
         stacked = np.concatenate(res)
         return np.mean(stacked ** 2, axis=0), res
+
+    @property
+    def noise_model(self) -> NoiseModel:
+        """The noise model (:attr:`noise`, never ``None`` after construction)."""
+        assert self.noise is not None      # set in __post_init__
+        return self.noise
+
+    def with_noise(self, noise: NoiseModel) -> GapProblem:
+        """The same problem under the noise model ``noise`` (``noise_std``: its white-equivalent level per
+        sensor, the median over the records)."""
+        return replace(self, noise=noise, noise_std=np.median(noise.std, axis=0))
 
     # ------------------------------------------------------------------ fits
     def box(self, effect: Effect | None = None) -> Box:

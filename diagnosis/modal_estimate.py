@@ -124,8 +124,12 @@ class _Problem:
         return _mode_columns(self.inputs, omega, zeta, self.dt)
 
     def residual(self, blocks: Sequence[np.ndarray]) -> np.ndarray:
-        X = np.column_stack([self.static * self.scale, *[b / np.maximum(np.linalg.norm(b, axis=0), 1e-300)
-                                                           for b in blocks]])
+        with np.errstate(over="ignore", invalid="ignore"):
+            X = np.column_stack([self.static * self.scale, *[b / np.maximum(np.linalg.norm(b, axis=0), 1e-300)
+                                                               for b in blocks]])
+        if not np.all(np.isfinite(X)):
+            # a trial mode the step took outside the stable range (its filter diverged): worse than no mode
+            return 10.0 * self.y.ravel()
         coef, *_ = np.linalg.lstsq(X, self.y, rcond=None)
         return (self.y - X @ coef).ravel()
 

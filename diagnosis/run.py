@@ -32,6 +32,7 @@ from ebb_model.threads import one_blas_thread
 from identification.data import Experiment
 from identification.export_targets import DEFAULT_TARGETS, check_targets
 from identification.noise import given_noise_std, records_noise_std
+from identification.noise_model import estimate_noise_model
 from identification.parameters import parameter_space
 from identification.result import IdentificationResult
 from identification.run import load_identification_config, read_data
@@ -287,14 +288,26 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     space = parameter_space(cfg)
     beta0 = _start_from_result(result, space.names) if result is not None else np.asarray(space.nominal)
     dt = cfg.time.dt
-    sigma = _noise_level(cfg, records, noise_std)
+    given = given_noise_std(cfg, noise_std)
+    sigma = given if given is not None else records_noise_std([r.inputs for r in records],
+                                                              [r.outputs for r in records], dt)
     problem = GapProblem(cfg, space, records, sigma)
     say("baseline fit")
     problem, baseline = _baseline_fit(problem, beta0)
+    if given is None:
+        # the noise as it is in each record (level and colour), from the baseline's residual, and the
+        # baseline fitted again under it
+        problem = problem.with_noise(estimate_noise_model([r.inputs for r in records], [
+            r.outputs - y for r, y in zip(records, problem.simulate(baseline.beta, until="all"))], dt))
+        baseline = problem.fit(baseline.beta)
+        say("noise model: " + "; ".join(problem.noise_model.describe(cfg.output_names, [r.name for r in records])))
+    sigma = problem.noise_std
     base_cfg, base_params = space.apply(cfg, baseline.beta)
     f_lo, f_hi = excited_band([r.inputs for r in records], dt)
     freqs, zetas = discrete_frequencies(base_cfg, base_params)
-    in_band = freqs <= 1.2 * f_hi
+    # the modes up to a fifth above the excited band, below Nyquist (an impact excites up to it)
+    f_top = min(1.2 * f_hi, 0.98 * 0.5 / dt)
+    in_band = freqs <= f_top
     in_band[0] = True
     mf, mz = freqs[in_band], zetas[in_band]
     fit_records = [r for r in records if r.has_fit]
@@ -321,7 +334,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         if found:
             ranking = replace(ranking, reason=f"{ranking.reason}; where the gap is: " + "; ".join(found))
     by_label = {e.label: e for e in catalogue.effects()} | {lab: catalogue.effect(lab) for lab in ranking.refits}
-    edges = np.concatenate([[0.0], 0.5 * (mf[1:] + mf[:-1]), [1.2 * f_hi], [0.5 / dt]])
+    edges = np.concatenate([[0.0], 0.5 * (mf[1:] + mf[:-1]), [f_top], [0.5 / dt]])
     effect_rows = _effect_rows(problem, ranking, by_label, edges, len(mf) + 1)
     settings = DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, shortlist,
                                  GAP_THRESHOLD, BIC_MARGIN, NUMERICAL_SHARE_LIMIT)
@@ -370,15 +383,6 @@ def _report(problem: GapProblem, ranking: Ranking, band: tuple[float, float], mf
         ranking.patterns["baseline"].chi2 if ranking.patterns else None,
         {r.name: loc for r, loc in zip(problem.records, locs)}, tuple(s for loc in locs for s in loc.summary),
         tuple(effect_rows), settings)
-
-
-def _noise_level(cfg: BeamConfig, records: Sequence[Record], noise_std: Sequence[float] | None) -> np.ndarray:
-    """Noise standard deviation per sensor: given, the config's ``[identification] noise_std``, or estimated
-    from the records (the noise floor above the excited band)."""
-    sigma = given_noise_std(cfg, noise_std)
-    if sigma is None:
-        return records_noise_std([r.inputs for r in records], [r.outputs for r in records], cfg.time.dt)
-    return sigma
 
 
 def _ranking(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortlist: int, workers: int,

@@ -40,6 +40,7 @@ from ebb_model.errors import DataError, StabilityError
 
 from .native import NativeEvaluator
 from .noise import records_noise_std
+from .noise_model import NoiseModel
 
 __all__ = ["FisherReport", "sensitivities", "fisher_information", "cramer_rao_std"]
 
@@ -133,8 +134,8 @@ def _combination(names: Sequence[str], v: np.ndarray) -> str:
 
 
 def fisher_information(evaluator: NativeEvaluator, x: np.ndarray, *,
-                       noise_std: ArrayLike | None = None, rank_tol: float = 1e-9,
-                       ill_conditioned: float = 1e8) -> FisherReport:
+                       noise_std: ArrayLike | None = None, noise: NoiseModel | None = None,
+                       rank_tol: float = 1e-9, ill_conditioned: float = 1e8) -> FisherReport:
     """Fisher information matrix of the scaled unknowns at ``x`` and its interpretation.
 
     Parameters
@@ -144,7 +145,11 @@ def fisher_information(evaluator: NativeEvaluator, x: np.ndarray, *,
     x
         The point (e.g. the nominal values, or a Pareto point).
     noise_std
-        Noise standard deviation per sensor; estimated from the data if None.
+        Noise standard deviation per sensor (white noise); estimated from the data if None.
+    noise
+        A noise model per experiment and sensor (:class:`~identification.noise_model.NoiseModel`): the
+        sensitivities are whitened by it, ``F = Σ (A S/σ)ᵀ (A S/σ)`` — the information of coloured noise
+        (then ``noise_std`` is ignored and the report's ``noise_std`` is its white-equivalent level).
     rank_tol
         Eigenvalues below ``rank_tol × λ_max`` count as zero.
     ill_conditioned
@@ -157,7 +162,9 @@ def fisher_information(evaluator: NativeEvaluator, x: np.ndarray, *,
     """
     x = np.asarray(x, dtype=float)
     names = evaluator.space.names
-    if noise_std is None:
+    if noise is not None:
+        sigma = np.median(noise.std, axis=0)
+    elif noise_std is None:
         exps = evaluator.experiments
         meas = np.vstack([e.outputs for e in exps])
         try:
@@ -170,8 +177,12 @@ def fisher_information(evaluator: NativeEvaluator, x: np.ndarray, *,
     S = sensitivities(evaluator, x)
     dim = x.size
     F = np.zeros((dim, dim))
-    for Se in S:
-        W = Se / sigma[None, :, None]
+    for e, Se in enumerate(S):
+        if noise is None:
+            W = Se / sigma[None, :, None]
+        else:
+            W = np.stack([np.column_stack([sp.whiten(Se[:, s, i]) for i in range(dim)])
+                          for s, sp in enumerate(noise.spectra[e])], axis=1)
         F += np.einsum("ksi,ksj->ij", W, W)
     F = 0.5 * (F + F.T)
     lam, V = np.linalg.eigh(F)

@@ -17,6 +17,8 @@ The schema of ``pareto.json`` is written and read here only:
     growth factor and stability (polished points also their start, evaluations and the local solver's verdict).
 ``numerical_adequacy``
     The grid's share of the gap at the identified model (:class:`~ebb_model.adequacy.NumericalAdequacy`).
+``noise_model``
+    Each experiment's noise per sensor: level and colour (:mod:`identification.noise_model`).
 """
 from __future__ import annotations
 
@@ -101,6 +103,12 @@ class IdentificationResult:
     fisher_nominal
         Fisher information at the nominal point (``None`` for a result read back: ``identifiability.json``
         keeps its summary only).
+    fit_gap_ratio
+        The identified model's residual per sensor whitened by the noise model (1 = the noise floor, whatever
+        the noise's colour); ``None``: the numerical adequacy's white gap stands for it.
+    noise_model
+        One line per experiment: each sensor's noise level and colour
+        (:meth:`identification.noise_model.NoiseModel.describe`).
     """
 
     config: BeamConfig
@@ -114,6 +122,8 @@ class IdentificationResult:
     polished: tuple[PolishedPoint, ...] = ()
     adequacy: NumericalAdequacy | None = None
     fisher_nominal: FisherReport | None = None
+    fit_gap_ratio: Mapping[str, float] | None = None
+    noise_model: tuple[str, ...] = ()
 
     @property
     def knee(self) -> dict[str, float]:
@@ -144,8 +154,12 @@ class IdentificationResult:
         doc: dict[str, Any] = {"from": source, "polished": bool(self.polished),
                                "parameters": dict(zip(names, map(float, x))),
                                "cramer_rao_std": dict(zip(names, map(float, crb)))}
-        if self.adequacy is not None:
+        gap = None
+        if self.fit_gap_ratio is not None:
+            gap = dict(self.fit_gap_ratio)
+        elif self.adequacy is not None:
             gap = dict(zip(self.adequacy.sensors, map(float, self.adequacy.gap)))
+        if gap is not None:
             doc["fit_gap_ratio"] = gap
             doc["cramer_rao_valid"] = bool(max(gap.values(), default=0.0) <= CRB_GAP_LIMIT)
         return doc
@@ -193,6 +207,7 @@ class IdentificationResult:
             "polished": polished,
             # at the reported point (the polished knee, else the knee): how much of its gap is the grid's
             "numerical_adequacy": self.adequacy.to_dict() if self.adequacy is not None else None,
+            "noise_model": list(self.noise_model),
         }
 
     def _point(self, x: np.ndarray, f: np.ndarray, crb: np.ndarray, growth: float, stable: bool
@@ -256,7 +271,8 @@ class IdentificationResult:
         return cls(cfg, space, pareto, np.array([vec(q, "cramer_rao_std", names) for q in pts]),
                    np.array([float(q.get("growth_factor", np.nan)) for q in pts]),
                    np.array([bool(q.get("stable", True)) for q in pts]), out_dir,
-                   str(doc.get("config_name") or out_dir.name), polished, _adequacy(doc.get("numerical_adequacy")))
+                   str(doc.get("config_name") or out_dir.name), polished, _adequacy(doc.get("numerical_adequacy")),
+                   None, (doc.get("identified") or {}).get("fit_gap_ratio"), tuple(doc.get("noise_model") or ()))
 
 
 def _adequacy(doc: Mapping[str, Any] | None) -> NumericalAdequacy | None:

@@ -42,6 +42,7 @@ from ebb_model.output import check_new_output_dir, check_writable_dir, make_dir
 from .data import Experiment, load_experiments
 from .export_targets import DEFAULT_TARGETS, check_targets
 from .fisher import fisher_information
+from .noise_model import NoiseModel, estimate_noise_model
 from .native import ExperimentArrays, NativeEvaluator
 from .objectives import objective_names
 from .optimise import CHECKPOINT, ParetoSet, check_settings, knee_index, knee_order, optimise
@@ -204,7 +205,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                 import shutil
 
                 shutil.rmtree(tmp_fmu_dir, ignore_errors=True)
-        res = _result(evaluator, pareto, polished_raw, fisher0, out,
+        res = _result(evaluator, pareto, polished_raw, fisher0, noise_std is not None, out,
                       Path(config).stem if not isinstance(config, BeamConfig) else "beam")
         _write_results(res, evaluator)
         if export:
@@ -295,20 +296,33 @@ def _fmu_evaluator(native: NativeEvaluator, fmu: str | Path | None, parameters: 
 
 
 def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
-            polished_raw: list[tuple[int, np.ndarray, np.ndarray, int, Any]], fisher0: Any, out: Path,
-            config_name: str) -> IdentificationResult:
-    """The run's result: Cramér–Rao std, growth factor and stability of every Pareto and polished point (native
-    model), and the numerical adequacy at the identified one."""
-    cfg, space, sigma = evaluator.config, evaluator.space, fisher0.noise_std
-    props = [_point_properties(cfg, space, evaluator, x, sigma) for x in pareto.X]
-    polished = tuple(PolishedPoint(i, x, f, *_point_properties(cfg, space, evaluator, x, sigma), n_ev, r.cost,
-                                   r.success, r.message) for i, x, f, n_ev, r in polished_raw)
+            polished_raw: list[tuple[int, np.ndarray, np.ndarray, int, Any]], fisher0: Any, noise_given: bool,
+            out: Path, config_name: str) -> IdentificationResult:
+    """The run's result: the noise model of each experiment (the given white level, else estimated from the
+    identified model's residual, :mod:`identification.noise_model`), and under it the Cramér–Rao std of every
+    Pareto and polished point, their growth factor and stability (native model), the identified model's whitened
+    fit residual and its numerical adequacy."""
+    cfg, space, exps = evaluator.config, evaluator.space, evaluator.experiments
     best_x = polished_raw[0][1] if polished_raw else pareto.X[pareto.knee]
-    adequacy = numerical_adequacy(*space.apply(cfg, best_x), [(e.inputs, e.outputs) for e in evaluator.experiments],
-                                  sigma)
+    best = evaluator.simulate(best_x)
+    if noise_given or not best.stable:
+        noise = NoiseModel.white(fisher0.noise_std, len(exps))
+    else:
+        noise = estimate_noise_model([e.inputs for e in exps], [e.outputs - y for e, y in zip(exps, best.outputs)],
+                                     cfg.time.dt)
+    props = [_point_properties(cfg, space, evaluator, x, noise) for x in pareto.X]
+    polished = tuple(PolishedPoint(i, x, f, *_point_properties(cfg, space, evaluator, x, noise), n_ev, r.cost,
+                                   r.success, r.message) for i, x, f, n_ev, r in polished_raw)
+    sigma = np.median(noise.std, axis=0)
+    adequacy = numerical_adequacy(*space.apply(cfg, best_x), [(e.inputs, e.outputs) for e in exps], sigma)
+    fit_gap = None
+    if best.stable:
+        whitened = np.concatenate([noise.whiten(i, y - e.outputs) for i, (e, y) in enumerate(zip(exps, best.outputs))])
+        fit_gap = dict(zip(cfg.output_names, map(float, np.mean(whitened ** 2, axis=0))))
     return IdentificationResult(cfg, space, pareto, np.array([p[0] for p in props]),
                                 np.array([p[1] for p in props]), np.array([p[2] for p in props]), out,
-                                config_name, polished, adequacy, fisher0)
+                                config_name, polished, adequacy, fisher0, fit_gap,
+                                tuple(noise.describe(cfg.output_names, [e.name for e in exps])))
 
 
 def _polish_front(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, budget: int,
@@ -328,13 +342,13 @@ def _polish_front(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, bud
 
 
 def _point_properties(cfg: BeamConfig, space: ParameterSpace, evaluator: NativeEvaluator, x: np.ndarray,
-                      noise_std: np.ndarray) -> tuple[np.ndarray, float, bool]:
-    """Cramér–Rao std, growth factor and stability of candidate ``x`` (native model)."""
+                      noise: NoiseModel) -> tuple[np.ndarray, float, bool]:
+    """Cramér–Rao std (under the noise model), growth factor and stability of candidate ``x`` (native model)."""
     c, params = space.apply(cfg, x)
     g = float(max_growth_factor(c, params))
     stable = evaluator.simulate(x).stable
     try:
-        crb = fisher_information(evaluator, x, noise_std=noise_std).cramer_rao_std
+        crb = fisher_information(evaluator, x, noise=noise).cramer_rao_std
     except StabilityError:
         crb = np.full(space.dim, np.inf)
     return crb, g, stable
