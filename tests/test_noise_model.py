@@ -3,8 +3,9 @@ records keep their own level, a model error is not absorbed — and the diagnosi
 
 Records: the independent FE generator (:mod:`ebb_model.reference.synthetic`) without noise, and noise added here
 as a lab's chain adds it: pink (1/f) or white, at 1 % of each sensor's RMS, a held-out record with 3× the fit
-record's noise; multisine, chirp and hammer excitation.  Before the noise model, the pink record with no effect
-was called ``unexplained`` ("8.08× the noise variance") and the 3× held-out record ``1.44×`` at the truth.
+record's noise; multisine, chirp and hammer excitation.  Before the noise model, on these very records: pink
+``unexplained`` at 7.4 / 8.8× the noise variance, the 3× held-out record ``unexplained`` at 2.7× (chirp 2.0×),
+the hammer record an error.
 """
 from __future__ import annotations
 
