@@ -33,10 +33,14 @@ measured outputs themselves) the part coherent with the measured inputs is remov
 (Welch cross-spectra, ``m`` inputs, ``K`` equivalent independent averages — the conditioned spectrum of
 Bendat & Piersol, *Random Data*, 4th ed., §7.3, with its bias ``m/K`` removed).  A linear time-invariant model
 error is a response to the inputs and is coherent with them, so it does not enter the noise model; the noise
-does.  The AR polynomial is fitted to ``Ŝ_n`` by Yule–Walker (its autocovariance is the inverse FFT of the
-spectrum), its order ``p ≤`` :data:`MAX_ORDER` chosen by BIC of the Whittle likelihood of the Welch
-estimate: white noise keeps ``p = 0`` unless the spectrum's shape is significant.  The level's uncertainty
-is the relative standard error of the variance estimate, ``sqrt(2/ν)`` for ``ν`` equivalent degrees of freedom.
+does.  Its shape is fitted on the *quiet* bins only — outside the record's own excited band (from its input
+spectrum), where the record carries noise and no response: ``log S = c₀ + c₁ log f + c₂ (log f)²`` with the
+degree chosen by BIC (degree 0: white; 1: a power law such as 1/f), carried across the excited band, and realised
+as the AR whitening polynomial of that shape (Yule–Walker, the smallest order within 5 % of it).  A model error
+lies in the excited band, where nothing is fitted, so it is not absorbed.  Quiet bins that follow no smooth shape
+(a transducer's resonance, a filter's edge) claim no colour: the noise is then white at the Welch floor above the
+band (:func:`identification.noise.noise_std`).  A record without a quiet range (an impact) takes another record's
+shape, levelled on its own spectrum.  The level's uncertainty is its relative standard error over the bins used.
 """
 from __future__ import annotations
 
@@ -45,18 +49,25 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-from scipy import linalg, signal
+from scipy import linalg, signal, stats
 
 from ebb_model.arrays import as_matrix
 from ebb_model.errors import DataError
+
+class ShapeError(ValueError):
+    """A noise spectrum this model cannot represent (internal: the estimator then claims no colour)."""
+
 
 __all__ = ["MAX_ORDER", "NoiseModel", "NoiseSpectrum", "conditioned_spectrum", "estimate_noise_model",
            "fit_spectrum", "quiet_bins"]
 
 #: Largest AR order of the whitening filter of a coloured noise spectrum (smooth shapes such as 1/f).
-MAX_ORDER = 24
+MAX_ORDER = 48
 #: Fraction of Nyquist above which anti-alias filters may pull the measured spectrum below the noise: excluded.
 _TOP = 0.8
+#: Misfit of the smooth shape (rms in the natural log of the spectrum, beyond the estimate's own scatter) above
+#: which the quiet bins are said to follow no smooth shape: 0.2 ≈ 20 % in the spectrum.
+_SHAPE_TOLERANCE = 0.2
 #: Fewest quiet bins (every other one is used) for a spectrum's shape.
 _MIN_QUIET = 8
 #: Equivalent-averages factor of Hann windows at 50 % overlap (Welch 1967: 1 + 2·0.167²).
@@ -255,6 +266,14 @@ def fit_spectrum(f: np.ndarray, S: np.ndarray, nu: float, dt: float, quiet: np.n
             best = (bic, c, used)
     assert best is not None
     _, c, used = best
+    dev2 = (logS - np.polyval(c, x))[used] ** 2
+    lack = float(np.sum(dev2)) / var_log
+    dof = max(int(used.sum()) - len(c), 1)
+    excess = math.sqrt(max(float(np.mean(dev2)) - var_log, 0.0))      # misfit beyond the sampling scatter
+    if (stats.chi2.sf(lack, dof) < 1e-3 and excess > _SHAPE_TOLERANCE) or used.sum() < 0.8 * used.size:
+        # the quiet bins do not follow one smooth shape (a transducer's resonance, a filter's edge): a shape the
+        # model cannot carry across the band — no colour is claimed
+        raise ShapeError("the noise spectrum outside the excited band is not one smooth shape")
     # E[log of a chi-square with ν dof over ν] = ψ(ν/2) − log(ν/2): the log-periodogram's bias
     from scipy.special import digamma
 
@@ -268,14 +287,17 @@ def fit_spectrum(f: np.ndarray, S: np.ndarray, nu: float, dt: float, quiet: np.n
         variance = float(shape[0]) / (2.0 * dt)
         return NoiseSpectrum(math.sqrt(variance), np.array([1.0]), variance, rel_err)
     variance = float(np.trapezoid(shape, grid))
+    judged = grid >= 4.0 * f_min           # the lowest few bins of a 1/f shape matter little and cost many orders
     for p in range(1, max_order + 1):
         a, _ = _yule_walker(shape, p)
         sp = NoiseSpectrum(1.0, a, 0.0, 0.0)
-        g = sp.psd(grid[1:], dt)
-        level = float(np.exp(np.mean(np.log(shape[1:] / g))))
-        if np.sqrt(np.mean(np.log(level * g / shape[1:]) ** 2)) < 0.05 or p == max_order:
-            break
-    return NoiseSpectrum(math.sqrt(level), a, variance, rel_err)
+        g = sp.psd(grid[judged], dt)
+        level = float(np.exp(np.mean(np.log(shape[judged] / g))))
+        misfit = float(np.sqrt(np.mean(np.log(level * g / shape[judged]) ** 2)))
+        if misfit < 0.05:
+            return NoiseSpectrum(math.sqrt(level), a, variance, rel_err)
+    raise ShapeError(f"no whitening filter of order <= {max_order} realises the noise's shape "
+                     f"(log misfit {misfit:.2f})")
 
 
 def quiet_bins(f: np.ndarray, u: np.ndarray, dt: float, *, margin: float = 1.5) -> np.ndarray:
@@ -314,12 +336,28 @@ def estimate_noise_model(inputs: Sequence[np.ndarray], residuals: Sequence[np.nd
         if np.count_nonzero(quiet[1:] & (f[1:] <= _TOP * f[-1])) < 2 * _MIN_QUIET:
             fitted.append(None)       # no quiet range: the shape comes from another record (below)
             continue
-        fitted.append(tuple(fit_spectrum(f, S[:, s], nu, dt, quiet, max_order=max_order)
+        fitted.append(tuple(_spectrum_or_floor(f, S[:, s], nu, dt, quiet, max_order, r[:, s], u)
                             for s in range(S.shape[1])))
     donor = next((row for row in fitted if row is not None), None)
     out = [row if row is not None else _borrowed(donor, as_matrix(r, "r"), dt)
            for row, r in zip(fitted, residuals)]
     return NoiseModel(tuple(out))
+
+
+def _spectrum_or_floor(f: np.ndarray, S: np.ndarray, nu: float, dt: float, quiet: np.ndarray, max_order: int,
+                       r: np.ndarray, u: np.ndarray) -> NoiseSpectrum:
+    """:func:`fit_spectrum`, or — when the quiet bins follow no smooth shape it can carry across the band — white
+    noise at the Welch floor above the excited band (:func:`identification.noise.noise_std`: the estimate used
+    before there was a noise model)."""
+    from ebb_model.adequacy import excited_band
+
+    from .noise import noise_std
+
+    try:
+        return fit_spectrum(f, S, nu, dt, quiet, max_order=max_order)
+    except ShapeError:
+        v = float(noise_std(r[:, None], dt, band=(0.0, excited_band([u], dt)[1]))[0])
+        return NoiseSpectrum(v, np.array([1.0]), v * v, math.sqrt(2.0 / nu))
 
 
 def _borrowed(donor: tuple[NoiseSpectrum, ...] | None, r: np.ndarray, dt: float) -> tuple[NoiseSpectrum, ...]:

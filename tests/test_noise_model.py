@@ -117,6 +117,23 @@ def test_a_record_without_a_quiet_range_borrows_the_colour():
     np.testing.assert_allclose(np.var(model.whiten(1, hit_e), axis=0), 1.0, atol=0.15)
 
 
+def test_a_shape_the_model_cannot_carry_is_not_claimed_as_colour():
+    """A transducer's resonance at 400 Hz (ζ 0.3) above the excited band: no smooth shape fits the quiet bins, so
+    no colour is claimed — the noise is white at the Welch floor above the band, as before there was a noise
+    model (a known limit: such a record's in-band noise is not modelled)."""
+    dt = 5e-4
+    u = band_limited_input(N, dt, 2.0, 60.0, seed=3)
+    w0 = 2 * np.pi * 400.0
+    b, a, _ = signal.cont2discrete(([w0 ** 2], [1.0, 2 * 0.3 * w0, w0 ** 2]), dt, method="bilinear")
+    rng = np.random.default_rng(5)
+    e = np.column_stack([signal.lfilter(b.ravel(), a, rng.standard_normal(N)) for _ in range(2)])
+    model = estimate_noise_model([u], [e], dt)
+    assert all(sp.white for sp in model.spectra[0])
+    from ebb_model.adequacy import excited_band
+    from identification.noise import noise_std
+    np.testing.assert_allclose(model.std[0], noise_std(e, dt, band=(0.0, excited_band([u], dt)[1])), rtol=1e-12)
+
+
 # ------------------------------------------------------------------------------------------- Cramér–Rao bound
 def test_cramer_rao_under_coloured_noise_agrees_with_monte_carlo():
     """60 refits of (EI, N) under AR(2) noise concentrated at low frequency: the whitened Fisher information's
