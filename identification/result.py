@@ -34,6 +34,7 @@ from ebb_model.config import BeamConfig, config_from_dict
 from ebb_model.errors import ConfigError
 
 from .fisher import FisherReport
+from .noise_model import NoiseModel
 from .optimise import ParetoSet
 from .parameters import ParameterSpace, parameter_space
 from .settings import SECTION
@@ -109,6 +110,9 @@ class IdentificationResult:
     noise_model
         One line per experiment: each sensor's noise level and colour
         (:meth:`identification.noise_model.NoiseModel.describe`).
+    noise
+        The noise model itself, under which the Cramér–Rao bounds and ``fit_gap_ratio`` were computed
+        (``None`` for a result read back).
     """
 
     config: BeamConfig
@@ -124,6 +128,7 @@ class IdentificationResult:
     fisher_nominal: FisherReport | None = None
     fit_gap_ratio: Mapping[str, float] | None = None
     noise_model: tuple[str, ...] = ()
+    noise: NoiseModel | None = None
 
     @property
     def knee(self) -> dict[str, float]:

@@ -322,7 +322,7 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
     return IdentificationResult(cfg, space, pareto, np.array([p[0] for p in props]),
                                 np.array([p[1] for p in props]), np.array([p[2] for p in props]), out,
                                 config_name, polished, adequacy, fisher0, fit_gap,
-                                tuple(noise.describe(cfg.output_names, [e.name for e in exps])))
+                                tuple(noise.describe(cfg.output_names, [e.name for e in exps])), noise)
 
 
 def _polish_front(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, budget: int,
