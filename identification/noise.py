@@ -35,7 +35,8 @@ from ebb_model.errors import ConfigError, DataError
 
 from .settings import identification_settings
 
-__all__ = ["NoiseEstimate", "noise_estimate", "noise_std", "records_noise_std", "given_noise_std"]
+__all__ = ["NoiseEstimate", "noise_estimate", "noise_std", "records_noise_std", "given_noise_std", "psd_floor",
+           "welch_dof", "welch_nperseg"]
 
 #: Fraction of Nyquist above which anti-alias / decimation filters may pull the
 #: measured spectrum below the true noise floor: excluded from the quiet range.
@@ -84,10 +85,25 @@ def _difference_mad(y: np.ndarray) -> np.ndarray:
     return best
 
 
-def _psd_floor(p: np.ndarray, m: int, nu: float) -> float:
-    """Pooled floor of a PSD segment ``p`` (quiet bins only) in blocks of ``m`` bins.
+def welch_nperseg(n: int) -> int:
+    """The Welch segment length of the noise estimates for ``n`` samples: ``clip(n // 8, 256, 4096)``, at most
+    ``n``."""
+    return int(min(max(n // 8, 256), 4096, n))
 
-    ``nu`` is the equivalent chi-square degrees of freedom of one Welch bin.
+
+def welch_dof(n: int, nperseg: int) -> float:
+    """Equivalent chi-square degrees of freedom of one bin of a Hann, 50 %-overlap Welch estimate (Welch 1967:
+    ``2K/(1 + 2·0.167²)`` for ``K`` segments; 2 for a single one)."""
+    k = 1 + (n - nperseg) // (nperseg // 2)
+    return 2.0 * k / (1.0 + 2.0 * 0.167 ** 2) if k > 1 else 2.0
+
+
+def psd_floor(p: np.ndarray, m: int, nu: float) -> tuple[float, float]:
+    """Pooled floor of a PSD segment ``p`` (quiet bins only) in blocks of ``m`` bins, and the relative standard
+    error of one block mean.
+
+    ``nu`` is the equivalent chi-square degrees of freedom of one Welch bin.  Blocks within four standard errors
+    of the quietest are pooled; louder ones carry signal and drop out.
     """
     nb = len(p) // m
     blocks = p[: nb * m].reshape(nb, m)
@@ -96,7 +112,7 @@ def _psd_floor(p: np.ndarray, m: int, nu: float) -> float:
     # relative standard error of a block mean; Hann bins are correlated over ~2 neighbours
     rel_block = math.sqrt(2.0 / nu) / math.sqrt(max(m / 2.0, 1.0))
     keep = means <= means[j] * (1.0 + 4.0 * rel_block)
-    return float(np.mean(means[keep]))
+    return float(np.mean(means[keep])), rel_block
 
 
 def noise_estimate(y: np.ndarray, dt: float, *, band: tuple[float, float] | None = None,
@@ -128,9 +144,7 @@ def noise_estimate(y: np.ndarray, dt: float, *, band: tuple[float, float] | None
     if band is not None and (len(band) != 2 or not all(math.isfinite(float(b)) for b in band)
                              or not 0 <= band[0] <= band[1]):
         raise ConfigError(f"band: expected (f_lo, f_hi) with 0 <= f_lo <= f_hi, got {band!r}")
-    if nperseg is None:
-        nperseg = int(min(max(n // 8, 256), 4096))
-    nperseg = min(int(nperseg), n)
+    nperseg = welch_nperseg(n) if nperseg is None else min(int(nperseg), n)
     df = fs / nperseg
     lo = max(3 * df, 0.02 * fn) if band is None else 1.1 * float(band[1]) + 2 * df
     hi = _TOP * fn
@@ -143,9 +157,8 @@ def noise_estimate(y: np.ndarray, dt: float, *, band: tuple[float, float] | None
         m = max(8, q.shape[0] // 32)
         if q.shape[0] // m < 2:
             m = q.shape[0] // 2
-        k = 1 + (n - nperseg) // (nperseg // 2)
-        nu = 2.0 * k / (1.0 + 2.0 * 0.167 ** 2) if k > 1 else 2.0  # Hann, 50 % overlap (Welch 1967)
-        n0 = np.array([_psd_floor(q[:, i], m, nu) for i in range(a.shape[1])])
+        nu = welch_dof(n, nperseg)
+        n0 = np.array([psd_floor(q[:, i], m, nu)[0] for i in range(a.shape[1])])
         return NoiseEstimate(std=np.sqrt(n0 / (2.0 * dt)), method=("psd_floor",) * a.shape[1],
                              f_range=(float(f[sel][0]), float(f[sel][-1])))
     return NoiseEstimate(std=_difference_mad(a), method=("difference_mad",) * a.shape[1], f_range=None)

@@ -54,6 +54,8 @@ from scipy import linalg, signal, stats
 from ebb_model.arrays import as_matrix
 from ebb_model.errors import DataError
 
+from .noise import psd_floor, welch_dof, welch_nperseg
+
 class ShapeError(ValueError):
     """A noise spectrum this model cannot represent (internal: the estimator then claims no colour)."""
 
@@ -70,8 +72,6 @@ _TOP = 0.8
 _SHAPE_TOLERANCE = 0.2
 #: Fewest quiet bins (every other one is used) for a spectrum's shape.
 _MIN_QUIET = 8
-#: Equivalent-averages factor of Hann windows at 50 % overlap (Welch 1967: 1 + 2·0.167²).
-_HANN_OVERLAP = 1.0 + 2.0 * 0.167 ** 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -154,10 +154,6 @@ class NoiseModel:
         return lines
 
 
-def _welch_nperseg(n: int) -> int:
-    return int(min(max(n // 8, 256), 4096, n))
-
-
 def conditioned_spectrum(r: np.ndarray, u: np.ndarray, dt: float, *, nperseg: int | None = None
                          ) -> tuple[np.ndarray, np.ndarray, float]:
     """The part of ``r``'s spectrum not coherent with the inputs ``u`` (module docstring), bias-corrected.
@@ -182,7 +178,7 @@ def conditioned_spectrum(r: np.ndarray, u: np.ndarray, dt: float, *, nperseg: in
     r = as_matrix(r, "r")
     u = as_matrix(u, "u")
     n = r.shape[0]
-    nperseg = _welch_nperseg(n) if nperseg is None else min(int(nperseg), n)
+    nperseg = welch_nperseg(n) if nperseg is None else min(int(nperseg), n)
     fs = 1.0 / dt
     kw = dict(fs=fs, window="hann", nperseg=nperseg, noverlap=nperseg // 2, detrend="constant",
               scaling="density", axis=0)
@@ -195,8 +191,8 @@ def conditioned_spectrum(r: np.ndarray, u: np.ndarray, dt: float, *, nperseg: in
             Suu[:, a, b] = signal.csd(u[:, a], u[:, b], **kw)[1]
         for s in range(r.shape[1]):
             Sur[:, a, s] = signal.csd(u[:, a], r[:, s], **kw)[1]
-    k = 1 + (n - nperseg) // (nperseg // 2)
-    k_eff = k / _HANN_OVERLAP
+    nu = welch_dof(n, nperseg)
+    k_eff = nu / 2.0                     # equivalent independent averages
     scale = np.trace(Suu, axis1=1, axis2=2).real
     excited = scale > 1e-6 * scale.max() if scale.max() > 0 else np.zeros(len(f), dtype=bool)
     S = Srr.copy()
@@ -205,7 +201,7 @@ def conditioned_spectrum(r: np.ndarray, u: np.ndarray, dt: float, *, nperseg: in
         S[i] = np.maximum(Srr[i] - coh, 0.0)
     if k_eff > m + 1:
         S[excited] *= k_eff / (k_eff - m)
-    return f, S, 2.0 * k_eff
+    return f, S, nu
 
 
 def _yule_walker(S: np.ndarray, p: int) -> tuple[np.ndarray, float]:
@@ -367,22 +363,18 @@ def _borrowed(donor: tuple[NoiseSpectrum, ...] | None, r: np.ndarray, dt: float)
     the floor of its residual's spectrum over that shape — signal only adds power, so the quietest blocks of
     ``P_rr(f) / shape(f)`` are the noise's level."""
     n = r.shape[0]
-    nperseg = _welch_nperseg(n)
+    nperseg = welch_nperseg(n)
     f, P = signal.welch(r, fs=1.0 / dt, window="hann", nperseg=nperseg, noverlap=nperseg // 2,
                         detrend="constant", scaling="density", axis=0)
     band = (f >= 0.02 * f[-1]) & (f <= _TOP * f[-1])
-    k = 1 + (n - nperseg) // (nperseg // 2)
-    nu = 2.0 * k / _HANN_OVERLAP
+    nu = welch_dof(n, nperseg)
     m = max(8, int(np.count_nonzero(band)) // 32)
     row = []
     for s in range(r.shape[1]):
         shape = NoiseSpectrum.of_std(1.0) if donor is None else donor[s]
         ratio = P[band, s] / shape.psd(f[band], dt)
-        nb = len(ratio) // m
-        if nb < 2:
+        if len(ratio) // m < 2:
             raise DataError("noise: the record is too short to estimate its noise level")
-        means = ratio[:nb * m].reshape(nb, m).mean(axis=1)
-        rel_block = math.sqrt(2.0 / nu) / math.sqrt(max(m / 2.0, 1.0))
-        floor = float(np.mean(means[means <= means.min() * (1.0 + 4.0 * rel_block)]))   # σ² of the shape
+        floor, rel_block = psd_floor(ratio, m, nu)          # σ² of the shape
         row.append(NoiseSpectrum(shape.std * math.sqrt(floor), shape.ar, shape.variance * floor, rel_block))
     return tuple(row)

@@ -196,7 +196,7 @@ def test_no_effect_is_none_under_lab_noise(tmp_path, capsys, noise, levels, exci
                  "--no-plots", "--workers", "1"]) == 0
     doc = json.loads((out / "gap.json").read_text())
     assert doc["verdict"] == "none", doc["reason"]
-    # at the truth the whitened held-out residual is at the noise floor (measured 0.96–1.06)
+    # at the truth the whitened held-out residual is at the noise floor (measured 0.96–1.11)
     assert all(abs(v - 1.0) < 0.15 for v in doc["baseline"]["heldout_gap_ratio"].values()), doc["baseline"]
 
 
