@@ -34,11 +34,12 @@ measured outputs themselves) the part coherent with the measured inputs is remov
 Bendat & Piersol, *Random Data*, 4th ed., §7.3, with its bias ``m/K`` removed).  A linear time-invariant model
 error is a response to the inputs and is coherent with them, so it does not enter the noise model; the noise
 does.  Its shape is fitted on the *quiet* bins only — outside the record's own excited band (from its input
-spectrum), where the record carries noise and no response: ``log S = c₀ + c₁ log f + c₂ (log f)²`` with the
-degree chosen by BIC (degree 0: white; 1: a power law such as 1/f), carried across the excited band, and realised
-as the AR whitening polynomial of that shape (Yule–Walker, the smallest order within 5 % of it).  A model error
-lies in the excited band, where nothing is fitted, so it is not absorbed.  Quiet bins that follow no smooth shape
-(a transducer's resonance, a filter's edge) claim no colour: the noise is then white at the Welch floor above the
+spectrum), where the record carries noise and no response: ``log S = c₀ + c₁ log f + c₂ (log f)²`` (degree 0:
+white; 1: a power law such as 1/f) or a white floor plus one second-order resonance (a transducer's mounted
+resonance), chosen by BIC, carried across the excited band, and realised as the AR whitening polynomial of that
+shape (Yule–Walker, the smallest order within 5 % of it).  A model error lies in the excited band, where nothing
+is fitted, so it is not absorbed.  Quiet bins that follow none of these shapes (a filter's edge, a shelf) claim
+no colour: the noise is then white at the Welch floor above the
 band (:func:`identification.noise.noise_std`).  A record without a quiet range (an impact) takes another record's
 shape, levelled on its own spectrum.  The level's uncertainty is its relative standard error over the bins used.
 """
@@ -220,66 +221,110 @@ def _log_polynomial(x: np.ndarray, logS: np.ndarray, degree: int, weights: np.nd
     return np.linalg.lstsq(V * weights[:, None], logS * weights, rcond=None)[0]
 
 
+def _log_resonance(p: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """``log(s_w + s_r |H(f)|²)``, ``H`` a second-order low-pass resonance at ``f_0`` with damping ratio ``ζ``;
+    ``p = (log s_w, log s_r, log f_0, log ζ)``: a white floor plus a transducer's (or an amplifier's)
+    resonance — flat at ``s_w + s_r`` well below ``f_0``, a peak ``≈ s_r / 4ζ²`` at it, ``s_w`` far above."""
+    r = f / math.exp(p[2])
+    h2 = 1.0 / ((1.0 - r * r) ** 2 + (2.0 * math.exp(p[3]) * r) ** 2)
+    return np.logaddexp(p[0], p[1] + np.log(h2))
+
+
+def _fit_resonance(f: np.ndarray, logS: np.ndarray, var_log: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """Least-squares fit of :func:`_log_resonance` to the log spectrum (outlying bins dropped as for the
+    polynomial shapes): ``(p, used)``, or None when the bins show no peak to start from."""
+    from scipy import optimize
+
+    k = int(np.argmax(logS))
+    if k == 0 or k == len(f) - 1:
+        return None                          # no interior peak: no resonance in view
+    z0 = 0.2
+    p0 = np.array([float(np.median(logS)), float(logS[k]) + math.log(4 * z0 * z0), math.log(f[k]), math.log(z0)])
+    lo = np.array([-np.inf, -np.inf, math.log(f[0]), math.log(0.005)])
+    hi = np.array([np.inf, np.inf, math.log(f[-1]), math.log(2.0)])
+    w = np.ones(len(f))
+    p = p0
+    for _ in range(3):
+        res = optimize.least_squares(lambda q: (logS - _log_resonance(q, f)) * w, p, bounds=(lo, hi))
+        p = res.x
+        dev = logS - _log_resonance(p, f)
+        w = (dev <= 4.0 * math.sqrt(var_log) + np.median(dev)).astype(float)
+    return p, w > 0
+
+
+def _shapes(f: np.ndarray, logS: np.ndarray, var_log: float, max_degree: int):
+    """The candidate shapes of the quiet bins' log spectrum: ``(label, log-shape function of f, n_params, used)``
+    — polynomials in ``log f`` of degree ``0 … max_degree`` and a white floor plus one resonance."""
+    x = np.log(f)
+    for d in range(0, max_degree + 1):
+        if f.size < d + 4:
+            break
+        w = np.ones(f.size)
+        for _ in range(3):                      # drop bins that carry more than noise (≥ 4σ above the fit)
+            c = _log_polynomial(x, logS, d, w)
+            dev = logS - np.polyval(c, x)
+            w = (dev <= 4.0 * math.sqrt(var_log) + np.median(dev)).astype(float)
+        yield ("white" if d == 0 else f"log-polynomial {d}",
+               (lambda g, c=c: np.polyval(c, np.log(g))), d + 1, w > 0)
+    if f.size >= 8:
+        fit = _fit_resonance(f, logS, var_log)
+        if fit is not None:
+            p, used = fit
+            yield "resonance", (lambda g, p=p: _log_resonance(p, g)), 4, used
+
+
 def fit_spectrum(f: np.ndarray, S: np.ndarray, nu: float, dt: float, quiet: np.ndarray, *,
                  max_degree: int = 2, max_order: int = MAX_ORDER) -> NoiseSpectrum:
     """The noise spectrum that fits the PSD estimate ``S`` on the ``quiet`` bins (where the record carries no
     signal), carried smoothly across the band the inputs excite.
 
-    The shape is ``log S = c₀ + c₁ log f + … + c_d (log f)^d`` (``d = 0``: white; ``d = 1``: a power law such
-    as 1/f), ``d ≤ max_degree`` chosen by BIC of the log-periodogram regression (the log of a Welch bin with
-    ``ν`` degrees of freedom has variance ``ψ′(ν/2)``; every other bin, Hann bins being correlated in pairs);
-    bins far above the fit (a response's tail, a harmonic) are dropped and the fit repeated.  The whitening
-    polynomial is the Yule–Walker AR fit of that shape (the smallest order up to ``max_order`` within 5 % of
-    it in the mean log spectrum); white noise keeps ``[1]``.
+    The shape is either ``log S = c₀ + c₁ log f + … + c_d (log f)^d`` (``d = 0``: white; ``d = 1``: a power law
+    such as 1/f; ``d ≤ max_degree``) or a white floor plus one second-order resonance (a transducer's mounted
+    resonance; :func:`_log_resonance`), chosen by BIC of the log-periodogram regression (the log of a Welch bin
+    with ``ν`` degrees of freedom has variance ``ψ′(ν/2)``; every other bin, Hann bins being correlated in
+    pairs); bins far above the fit (a response's tail, a harmonic) are dropped and the fit repeated.  The
+    whitening polynomial is the Yule–Walker AR fit of that shape (the smallest order up to ``max_order`` within
+    5 % of it in the mean log spectrum); white noise keeps ``[1]``.
 
     Raises
     ------
     DataError
         Fewer than :data:`_MIN_QUIET` quiet bins with power.
+    ShapeError
+        The quiet bins follow none of the shapes, or no AR order up to ``max_order`` realises it.
     """
-    from scipy.special import polygamma
+    from scipy.special import digamma, polygamma
 
     keep = quiet & (f > 0) & (f <= _TOP * f[-1]) & (S > 0)
     idx = np.flatnonzero(keep)[::2]
     if idx.size < _MIN_QUIET:
         raise DataError("noise: too few frequency bins outside the excited band to estimate the noise")
-    x, logS = np.log(f[idx]), np.log(S[idx])
+    fq, logS = f[idx], np.log(S[idx])
     var_log = float(polygamma(1, nu / 2.0))
-    w = np.ones(idx.size)
-    best: tuple[float, np.ndarray, np.ndarray] | None = None
-    for d in range(0, max_degree + 1):
-        if idx.size < d + 4:
-            break
-        w = np.ones(idx.size)
-        for _ in range(3):                      # drop bins that carry more than noise (≥ 4σ above the fit)
-            c = _log_polynomial(x, logS, d, w)
-            dev = logS - np.polyval(c, x)
-            w = (dev <= 4.0 * math.sqrt(var_log) + np.median(dev)).astype(float)
-        used = w > 0
-        rss = float(np.sum((logS - np.polyval(c, x))[used] ** 2)) / var_log
-        bic = rss + (d + 1) * math.log(max(int(used.sum()), 2))
+    best: tuple[float, str, object, int, np.ndarray] | None = None
+    for label, logshape, k, used in _shapes(fq, logS, var_log, max_degree):
+        rss = float(np.sum((logS - logshape(fq))[used] ** 2)) / var_log
+        bic = rss + k * math.log(max(int(used.sum()), 2))
         if best is None or bic < best[0]:
-            best = (bic, c, used)
+            best = (bic, label, logshape, k, used)
     assert best is not None
-    _, c, used = best
-    dev2 = (logS - np.polyval(c, x))[used] ** 2
+    _, label, logshape, k, used = best
+    dev2 = (logS - logshape(fq))[used] ** 2          # type: ignore[operator]
     lack = float(np.sum(dev2)) / var_log
-    dof = max(int(used.sum()) - len(c), 1)
+    dof = max(int(used.sum()) - k, 1)
     excess = math.sqrt(max(float(np.mean(dev2)) - var_log, 0.0))      # misfit beyond the sampling scatter
     if (stats.chi2.sf(lack, dof) < 1e-3 and excess > _SHAPE_TOLERANCE) or used.sum() < 0.8 * used.size:
-        # the quiet bins do not follow one smooth shape (a transducer's resonance, a filter's edge): a shape the
-        # model cannot carry across the band — no colour is claimed
-        raise ShapeError("the noise spectrum outside the excited band is not one smooth shape")
+        # the quiet bins do not follow one of the shapes (a filter's edge, a shelf): a shape the model cannot
+        # carry across the band — no colour is claimed
+        raise ShapeError("the noise spectrum outside the excited band is not one of the modelled shapes")
     # E[log of a chi-square with ν dof over ν] = ψ(ν/2) − log(ν/2): the log-periodogram's bias
-    from scipy.special import digamma
-
     bias = float(digamma(nu / 2.0) - math.log(nu / 2.0))
     f_min = float(f[1])             # below the estimate's resolution the shape is held
     grid = np.fft.rfftfreq(2 * 4096, dt)
-    shape = np.exp(np.polyval(c, np.log(np.maximum(grid, f_min))) - bias)
+    shape = np.exp(logshape(np.maximum(grid, f_min)) - bias)          # type: ignore[operator]
     n_used = max(int(used.sum()), 1)
     rel_err = math.sqrt(var_log / n_used)
-    if len(c) == 1:
+    if label == "white":
         variance = float(shape[0]) / (2.0 * dt)
         return NoiseSpectrum(math.sqrt(variance), np.array([1.0]), variance, rel_err)
     variance = float(np.trapezoid(shape, grid))

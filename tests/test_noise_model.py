@@ -40,8 +40,24 @@ def pink(n: int, rng: np.random.Generator) -> np.ndarray:
     return x / x.std()
 
 
+def resonant(n: int, f0: float, zeta: float, rng: np.random.Generator, floor: float = 0.3) -> np.ndarray:
+    """A transducer's noise: white noise through a second-order resonance at ``f0`` [Hz] (shaped in the
+    frequency domain, as the continuous chain shapes it before sampling) plus a white floor of ``floor``."""
+    W = np.fft.rfft(rng.standard_normal(n))
+    r = np.fft.rfftfreq(n, DT) / f0
+    return np.fft.irfft(W / np.sqrt((1 - r * r) ** 2 + (2 * zeta * r) ** 2), n) + floor * rng.standard_normal(n)
+
+
 def _noisy(y: np.ndarray, level: float, kind: str, rng: np.random.Generator) -> np.ndarray:
-    e = [pink(len(y), rng) if kind == "pink" else rng.standard_normal(len(y)) for _ in range(y.shape[1])]
+    def one() -> np.ndarray:
+        if kind == "pink":
+            return pink(len(y), rng)
+        if kind == "resonant":
+            x = resonant(len(y), 400.0, 0.1, rng)
+            return x / x.std()
+        return rng.standard_normal(len(y))
+
+    e = [one() for _ in range(y.shape[1])]
     return y + level * y.std(axis=0) * np.column_stack(e)
 
 
@@ -117,21 +133,36 @@ def test_a_record_without_a_quiet_range_borrows_the_colour():
     np.testing.assert_allclose(np.var(model.whiten(1, hit_e), axis=0), 1.0, atol=0.15)
 
 
+def test_a_transducer_resonance_is_modelled_and_whitened():
+    """A transducer's mounted resonance above the excited band (a white floor plus a second-order resonance, at
+    ζ 0.3 … 0.02): the noise model fits that shape on the quiet bins and whitens the noise to unit variance
+    (measured 0.91–1.01 over eight sensors; 15 %: the level's standard error over ~60 bins, 4 %, times the
+    whitened variance's own, 3 %, at 3σ), its variance within 15 % of the sample variance (measured 0–10 %)."""
+    u = band_limited_input(N, DT, 2.0, 60.0, seed=3)
+    for z, f0 in ((0.3, 400.0), (0.1, 300.0), (0.05, 500.0), (0.02, 250.0)):
+        rng = np.random.default_rng(5)
+        e = np.column_stack([resonant(N, f0, z, rng) for _ in range(2)])
+        model = estimate_noise_model([u], [e], DT)
+        for j, sp in enumerate(model.spectra[0]):
+            assert not sp.white, (z, f0)
+            assert abs(sp.whiten(e[:, j])[100:].var() - 1.0) < 0.15, (z, f0, j)
+            assert abs(sp.variance / e[:, j].var() - 1.0) < 0.15, (z, f0, j)
+
+
 def test_a_shape_the_model_cannot_carry_is_not_claimed_as_colour():
-    """A transducer's resonance at 400 Hz (ζ 0.3) above the excited band: no smooth shape fits the quiet bins, so
-    no colour is claimed — the noise is white at the Welch floor above the band, as before there was a noise
-    model (a known limit: such a record's in-band noise is not modelled)."""
-    dt = 5e-4
-    u = band_limited_input(N, dt, 2.0, 60.0, seed=3)
-    w0 = 2 * np.pi * 400.0
-    b, a, _ = signal.cont2discrete(([w0 ** 2], [1.0, 2 * 0.3 * w0, w0 ** 2]), dt, method="bilinear")
+    """A shelf (the noise 10× stronger above 300 Hz, as behind a steep filter's edge) follows neither a smooth
+    power law nor a resonance: no colour is claimed — white at the Welch floor above the band, as before there
+    was a noise model (a known limit: such a record's in-band noise is not modelled)."""
+    u = band_limited_input(N, DT, 2.0, 60.0, seed=3)
     rng = np.random.default_rng(5)
-    e = np.column_stack([signal.lfilter(b.ravel(), a, rng.standard_normal(N)) for _ in range(2)])
-    model = estimate_noise_model([u], [e], dt)
+    f = np.fft.rfftfreq(N, DT)
+    e = np.column_stack([np.fft.irfft(np.fft.rfft(rng.standard_normal(N)) * np.where(f > 300.0, np.sqrt(10.0), 1.0),
+                                      N) for _ in range(2)])
+    model = estimate_noise_model([u], [e], DT)
     assert all(sp.white for sp in model.spectra[0])
     from ebb_model.adequacy import excited_band
     from identification.noise import noise_std
-    np.testing.assert_allclose(model.std[0], noise_std(e, dt, band=(0.0, excited_band([u], dt)[1])), rtol=1e-12)
+    np.testing.assert_allclose(model.std[0], noise_std(e, DT, band=(0.0, excited_band([u], DT)[1])), rtol=1e-12)
 
 
 # ------------------------------------------------------------------------------------------- Cramér–Rao bound
@@ -188,7 +219,8 @@ def _records(tmp_path, effect, noise: str, levels: tuple[float, float], excitati
     ("white", (0.01, 0.03), ("multisine", "multisine")),      # the held-out record: 3× the fit record's noise
     ("white", (0.01, 0.03), ("multisine", "chirp")),          # ... excited past the fit record's band
     ("pink", (0.01, 0.03), ("multisine", "hammer")),          # ... by an impact (no quiet range of its own)
-], ids=["pink", "held-out-3x", "held-out-3x-chirp", "pink-held-out-3x-hammer"])
+    ("resonant", (0.01, 0.01), ("multisine", "multisine")),  # a transducer's resonance at 400 Hz (ζ 0.1)
+], ids=["pink", "held-out-3x", "held-out-3x-chirp", "pink-held-out-3x-hammer", "resonant"])
 def test_no_effect_is_none_under_lab_noise(tmp_path, capsys, noise, levels, excitations):
     cfg, (fit, held) = _records(tmp_path, None, noise, levels, excitations)
     out = tmp_path / "gap"
