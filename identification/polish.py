@@ -6,7 +6,11 @@ diagnosis uses too) of the stacked, per-sensor normalised residuals
 ``(y_sim - y_meas)/‖y_meas - ȳ_meas‖`` finishes it.  The sum of squares of
 these residuals is ``Σ_s e_s²``, the output-error objectives of
 :mod:`identification.objectives` (``per = "sensor"``) summed in squares; the
-stabilising objective is not part of the fit.  The Jacobian's ``dim`` perturbed
+stabilising objective is not part of the fit.  Given a noise model
+(:mod:`identification.noise_model`), the residuals are whitened by it instead
+— the output-error criterion with a noise model, whose minimum is the
+estimate the Cramér–Rao bound reported under that model describes; the cost is
+then χ² in noise variances.  The Jacobian's ``dim`` perturbed
 candidates are evaluated as one batch through the run's runner, so a polish runs
 on the same worker processes (or Dask cluster) and the same backend as the GA.
 Every model evaluation (residuals and Jacobian columns) is counted.
@@ -20,6 +24,7 @@ import numpy as np
 
 from ebb_model.errors import ParameterError
 
+from .noise_model import NoiseModel
 from .least_squares import CHI2_RESOLUTION, DIFF_STEP, Box, fit_least_squares, penalised
 from .runners import Runner, SerialRunner
 
@@ -64,9 +69,13 @@ class ResidualEvaluator:
     evaluator
         Native or FMU evaluator: ``simulate(x) -> (outputs per experiment, info)``,
         an empty list when the model refuses the candidate.
+    noise
+        Noise model per experiment: the residuals are whitened by it; ``None``:
+        normalised per sensor by :func:`residual_scale`.
     """
 
     evaluator: Any
+    noise: NoiseModel | None = None
     scale: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -91,8 +100,11 @@ class ResidualEvaluator:
             sims = ()
         if not sims:
             return penalised(None, self.n_residuals)
-        return penalised(np.concatenate([((y - e.outputs) / scale).ravel() for y, e in zip(sims, exps)]),
-                         self.n_residuals)
+        if self.noise is not None:
+            parts = [self.noise.whiten(i, y - e.outputs).ravel() for i, (y, e) in enumerate(zip(sims, exps))]
+        else:
+            parts = [((y - e.outputs) / scale).ravel() for y, e in zip(sims, exps)]
+        return penalised(np.concatenate(parts), self.n_residuals)
 
     def close(self) -> None:
         """Release the wrapped evaluator's per-process resources, if it has any."""
@@ -108,7 +120,7 @@ class ResidualEvaluator:
 
 def polish(evaluator: Any, x0: np.ndarray, *, runner: Runner | None = None, max_evaluations: int = 400,
            xtol: float = 1e-10, ftol: float = 1e-12, diff_step: float = DIFF_STEP,
-           chi2_resolution: float = CHI2_RESOLUTION) -> PolishResult:
+           chi2_resolution: float = CHI2_RESOLUTION, noise: NoiseModel | None = None) -> PolishResult:
     """Least-squares refinement of candidate ``x0``.
 
     Parameters
@@ -122,9 +134,11 @@ def polish(evaluator: Any, x0: np.ndarray, *, runner: Runner | None = None, max_
         Where batches of candidates are evaluated (default: this process).
     max_evaluations, xtol, ftol, diff_step, chi2_resolution
         As :func:`~identification.least_squares.fit_least_squares`.
+    noise
+        Noise model to whiten the residuals by (:class:`ResidualEvaluator`).
     """
     run = runner or SerialRunner()
-    res_ev = ResidualEvaluator(evaluator)
+    res_ev = ResidualEvaluator(evaluator, noise)
     sp = evaluator.space
     fit = fit_least_squares(lambda X: run(res_ev, X), x0, Box(sp.lower, sp.upper), max_evaluations=max_evaluations,
                             xtol=xtol, ftol=ftol, diff_step=diff_step, chi2_resolution=chi2_resolution)

@@ -66,7 +66,8 @@ class PolishedPoint:
         Model evaluations of this polish (including its Jacobians and the
         final objective evaluation).
     cost, success, message
-        Final sum of squared normalised residuals and ``least_squares``'s verdict.
+        Final sum of squared residuals (whitened by the noise model: χ² in noise variances; with a given
+        white noise level: normalised per sensor) and ``least_squares``'s verdict.
     """
 
     from_index: int

@@ -196,8 +196,9 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                 pareto = optimise(problem, pop=pop, generations=generations, seed=seed, algorithm=algorithm,
                                   out_dir=out, resume=resume, runner=runner, progress=progress,
                                   callback=generation_done)
+                polish_noise = None if noise_std is not None else _noise_at(evaluator, pareto.X[pareto.knee])
                 polished_raw = _polish_front(pareto, search_evaluator, runner, int(polish), int(polish_evaluations),
-                                             on_progress)
+                                             on_progress, polish_noise)
         finally:
             if search_evaluator is not evaluator:
                 search_evaluator.close()
@@ -325,13 +326,27 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
                                 tuple(noise.describe(cfg.output_names, [e.name for e in exps])), noise)
 
 
+def _noise_at(evaluator: NativeEvaluator, x: np.ndarray) -> NoiseModel | None:
+    """The noise model of every experiment from the residual of candidate ``x`` (the GA's knee: its residual's
+    part coherent with the inputs, where a model error lies, does not enter the estimate), ``None`` when the
+    candidate is unstable."""
+    exps = evaluator.experiments
+    sim = evaluator.simulate(x)
+    if not sim.stable:
+        return None
+    return estimate_noise_model([e.inputs for e in exps], [e.outputs - y for e, y in zip(exps, sim.outputs)],
+                                evaluator.config.time.dt)
+
+
 def _polish_front(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, budget: int,
-                  on_progress: Callable[[Progress], None] | None) -> list[tuple[int, np.ndarray, np.ndarray, int, Any]]:
-    """Polish the ``k`` points nearest the knee (knee first): ``(from_index, x, F, evaluations, result)``."""
+                  on_progress: Callable[[Progress], None] | None, noise: NoiseModel | None = None
+                  ) -> list[tuple[int, np.ndarray, np.ndarray, int, Any]]:
+    """Polish the ``k`` points nearest the knee (knee first), their residuals whitened by ``noise`` when given:
+    ``(from_index, x, F, evaluations, result)``."""
     out: list[tuple[int, np.ndarray, np.ndarray, int, Any]] = []
     n_done = pareto.n_evaluations
     for step, i in enumerate(knee_order(pareto.F, pareto.objective_names)[:k]):
-        r = polish_point(evaluator, pareto.X[i], runner=runner, max_evaluations=budget)
+        r = polish_point(evaluator, pareto.X[i], runner=runner, max_evaluations=budget, noise=noise)
         f = np.asarray(runner(evaluator, r.x[None, :]))[0]
         n_ev = r.n_evaluations + 1
         n_done += n_ev
