@@ -24,6 +24,8 @@ from ebb_model.errors import EbbError
 
 from identification.least_squares import Box, distinct_members, evolve, fit_least_squares, penalised
 from identification.noise_model import NoiseModel
+from identification.modal_data import ModalData
+from identification.prior import Prior
 from identification.parameters import ParameterSpace
 
 from .augmented import simulate_effects
@@ -98,6 +100,12 @@ class GapProblem:
     records: tuple[Record, ...]
     noise_std: np.ndarray
     noise: NoiseModel | None = None
+    #: the user's Gaussian priors on the baseline unknowns (:class:`identification.prior.Prior`): fits then
+    #: minimise the negative log posterior (the prior's residuals appended to the whitened ones)
+    prior: Prior | None = None
+    #: measured natural frequencies (:class:`identification.modal_data.ModalData`): their residuals are appended
+    #: to the records' — evidence of another kind, fitted together
+    modes: ModalData | None = None
     #: further starts of the baseline unknowns (other basins of the global search), tried by refits
     other_starts: tuple[np.ndarray, ...] = ()
 
@@ -133,12 +141,16 @@ class GapProblem:
 
     @property
     def n_fit(self) -> int:
-        """Number of fitted residuals (samples × sensors over all fit windows)."""
-        return int(sum(r.fit_end for r in self.records) * len(self.config.sensors))
+        """Number of fitted residuals (samples × sensors over all fit windows, one per measured mode and one per
+        prior)."""
+        n_prior = 0 if self.prior is None else self.prior.count
+        n_modes = 0 if self.modes is None else self.modes.count
+        return int(sum(r.fit_end for r in self.records) * len(self.config.sensors)) + n_modes + n_prior
 
     def residuals(self, beta: np.ndarray, effect: Effect | None = None, s: np.ndarray | None = None
                   ) -> np.ndarray:
-        """Noise-normalised residuals ``(y_sim − y)/σ`` over the fit windows, stacked."""
+        """Whitened residuals over the fit windows, stacked, then the measured modes' ``(f_model − f)/σ`` and the
+        priors' ``(β − μ)/σ_p``."""
         try:
             sims = self.simulate(beta, effect, s, until="fit")
         except (EbbError, ValueError, np.linalg.LinAlgError):
@@ -147,6 +159,11 @@ class GapProblem:
         with np.errstate(over="ignore", invalid="ignore"):   # a diverging candidate is penalised below
             parts = [noise.whiten(i, y - r.outputs[:r.fit_end]).ravel()
                      for i, (y, r) in enumerate(zip(sims, self.records)) if y is not None]
+        if self.modes is not None:
+            m = self.model(beta, effect, s)
+            parts.append(self.modes.residuals(m.config, m.params))
+        if self.prior is not None and self.prior.count:
+            parts.append(self.prior.residuals(beta))
         return penalised(np.concatenate(parts), self.n_fit)
 
     def heldout(self, beta: np.ndarray, effect: Effect | None = None, s: np.ndarray | None = None

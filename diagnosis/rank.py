@@ -60,6 +60,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .effects import PAIR_SEPARATOR, Catalogue, Effect, on_top_of
+from .effects.chain import FAMILY as CHAIN
 from .fitting import Fit, GapProblem
 from .modal_pattern import ModalEvidence, PatternFit, pattern_fits, time_invariant
 from .refits import (GAP_THRESHOLD, EffectRefit, better_baseline, explains, map_refits, pair_refit,
@@ -100,6 +101,8 @@ class Ranking:
     reason: str = ""
     patterns: dict[str, PatternFit] = field(default_factory=dict)   # modal-pattern fits, when they were needed
     modal: ModalEvidence | None = None
+    #: refits that need implausible values, with what is implausible (diagnosis.plausibility)
+    implausible: dict[str, list[str]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)
@@ -456,6 +459,12 @@ def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortli
     run = _Search(problem, baseline, catalogue, effects, before, scores, max_evaluations, executor, say)
     by_score = sorted(effects, key=lambda lab: -scores[lab].lm)
     labels = [lab for lab in by_score if scores[lab].lm > 0][:shortlist]
+    if problem.prior is not None and problem.prior.count:
+        # a measurement chain's gain is degenerate with a common scale of the beam's unknowns; a prior on them
+        # breaks that, and then the score at a baseline that took the scale up to its bounds says little of the
+        # gain's worth: with priors, every chain candidate with a significant score is refitted too
+        labels += [lab for lab in by_score if effects[lab].name in CHAIN.names and lab not in labels
+                   and scores[lab].p_value < 0.01]
     # with the modal pattern at hand, the other basins wait until it has been tried (it is cheaper)
     local = run.refit(labels, stage="local" if modal is None else "first")
     for lab, (fit, _) in local.items():

@@ -16,6 +16,11 @@ def text_report(report: GapReport, *, top: int = 6) -> str:
     base = report.baseline
     ratios = ", ".join(f"{k} {v:.3g}" for k, v in base.heldout_gap_ratio.items())
     lines.append(f"baseline held-out gap ratio (1 = noise floor): {ratios}")
+    if report.priors:
+        lines.append("baseline against the priors:")
+        lines += [f"  - {c.line()}" for c in report.priors]
+    for lab, why in report.implausible.items():
+        lines.append(f"not named, implausible: {lab}: " + "; ".join(why))
     lines.append(f"baseline's {base.numerical_adequacy.summary()}")
     lines.append(base.grid_advice.summary())
     if report.summary:

@@ -13,6 +13,7 @@ from typing import Any, Mapping
 from ebb_model.adequacy import NumericalAdequacy
 from ebb_model.grid_advice import GridAdvice
 from ebb_model.jsonio import jsonable
+from identification.prior import PriorCheck
 
 from .localise import Localisation
 from .modal_estimate import MeasuredModes
@@ -150,6 +151,18 @@ class GapReport:
         The settings of the run.
     corrected_files
         The corrected model's files (in ``corrected/`` beside ``gap.json``), when it was exported.
+    implausible
+        The refits that need implausible values (:mod:`diagnosis.plausibility`), with what is implausible: never
+        the verdict, never exported.
+    priors
+        The baseline's unknowns against the user's priors (:class:`identification.prior.PriorCheck`).
+    evidence
+        Posterior probability of the baseline (``"none"``) and of each refit (:mod:`diagnosis.evidence`).
+    confounded
+        The refits degenerate with the baseline unknowns, and with which (only a prior separates them).
+    modal_data
+        The baseline (``"none"``) and each refit against the measured modes of the config
+        (:meth:`identification.modal_data.ModalData.agreement`), when it gives them.
     """
 
     verdict: str
@@ -165,6 +178,11 @@ class GapReport:
     effects: tuple[EffectRow, ...]
     settings: DiagnosisSettings
     corrected_files: tuple[str, ...] | None = field(default=None)
+    implausible: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    priors: tuple[PriorCheck, ...] = ()
+    evidence: Mapping[str, float] = field(default_factory=dict)
+    confounded: Mapping[str, str] = field(default_factory=dict)
+    modal_data: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
     def row(self, label: str) -> EffectRow | None:
         """The row of effect ``label`` (``None`` if it is not in the catalogue)."""
@@ -183,6 +201,16 @@ class GapReport:
             "localisation": {name: loc.to_dict() for name, loc in self.localisation.items()},
             "summary": list(self.summary), "effects": [r.to_dict() for r in self.effects],
             "settings": jsonable(self.settings)}
+        if self.evidence:
+            doc["posterior_probability"] = {k: float(v) for k, v in self.evidence.items()}
+        if self.confounded:
+            doc["confounded"] = dict(self.confounded)
+        if self.modal_data:
+            doc["against_measured_modes"] = {k: dict(v) for k, v in self.modal_data.items()}
+        if self.implausible:
+            doc["implausible"] = {k: list(v) for k, v in self.implausible.items()}
+        if self.priors:
+            doc["baseline"]["priors"] = {c.name: c.to_dict() for c in self.priors}
         if self.corrected_files is not None:
             doc["corrected"] = {"directory": "corrected", "files": list(self.corrected_files)}
         return doc

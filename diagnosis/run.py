@@ -34,6 +34,8 @@ from identification.export_targets import DEFAULT_TARGETS, check_targets
 from identification.noise import given_noise_std, records_noise_std
 from identification.noise_model import estimate_noise_model
 from identification.parameters import parameter_space
+from identification.modal_data import modal_data
+from identification.prior import Prior
 from identification.result import IdentificationResult
 from identification.run import load_identification_config, read_data
 
@@ -43,6 +45,8 @@ from .fitting import Fit, GapProblem
 from .localise import Localisation, localise
 from .modal_estimate import MeasuredModes, estimate_modes
 from .modal_pattern import ModalEvidence, modal_evidence
+from .plausibility import plausible_verdict, prior_checks
+from .weigh import Weighed, weigh
 from .rank import Ranking, rank_effects
 from .verdict import BIC_MARGIN, UNEXPLAINED
 from .refits import GAP_THRESHOLD
@@ -291,7 +295,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     given = given_noise_std(cfg, noise_std)
     sigma = given if given is not None else records_noise_std([r.inputs for r in records],
                                                               [r.outputs for r in records], dt)
-    problem = GapProblem(cfg, space, records, sigma)
+    problem = GapProblem(cfg, space, records, sigma, prior=Prior.of(cfg, space.names), modes=modal_data(cfg))
     say("baseline fit")
     problem, baseline = _baseline_fit(problem, beta0)
     if given is None:
@@ -322,6 +326,12 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         band_hz=f_hi)
     advice = grid_advice(base_cfg, base_params, band_hz=f_hi)
     ranking = _numerical_verdict(ranking, float(np.max(adequacy.numerical_share)), advice.summary())
+    by_label = {e.label: e for e in catalogue.effects()} | {lab: catalogue.effect(lab) for lab in ranking.refits}
+    # a refit that explains the data with values no rig has is not the cause (diagnosis.plausibility)
+    ranking = plausible_verdict(ranking, problem, by_label)
+    for lab, lines in ranking.implausible.items():
+        say(f"{lab} needs implausible values: " + "; ".join(lines))
+    ranking, weighed = weigh(problem, ranking, by_label)
     say(f"verdict: {ranking.verdict}")
 
     # where: localisation of the baseline residual per record
@@ -333,12 +343,11 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         found = [f"{r.name}: {s}" for r, loc in zip(records, locs) for s in loc.summary[:2]]
         if found:
             ranking = replace(ranking, reason=f"{ranking.reason}; where the gap is: " + "; ".join(found))
-    by_label = {e.label: e for e in catalogue.effects()} | {lab: catalogue.effect(lab) for lab in ranking.refits}
     edges = np.concatenate([[0.0], 0.5 * (mf[1:] + mf[:-1]), [f_top], [0.5 / dt]])
     effect_rows = _effect_rows(problem, ranking, by_label, edges, len(mf) + 1)
     settings = DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, shortlist,
                                  GAP_THRESHOLD, BIC_MARGIN, NUMERICAL_SHARE_LIMIT)
-    report = _report(problem, ranking, (f_lo, f_hi), mf, adequacy, advice, locs, effect_rows, settings)
+    report = _report(problem, ranking, (f_lo, f_hi), mf, adequacy, advice, locs, effect_rows, settings, weighed)
     if out is None:
         return Diagnosis(ranking, report, None)
     report = _write(out, problem, ranking, report, by_label, locs, plots=plots, export=export,
@@ -370,7 +379,7 @@ def _catalogue(problem: GapProblem, base_cfg: BeamConfig, base_params: Mapping[s
 
 def _report(problem: GapProblem, ranking: Ranking, band: tuple[float, float], mf: np.ndarray, adequacy: Any,
             advice: Any, locs: Sequence[Localisation], effect_rows: Sequence[EffectRow],
-            settings: DiagnosisSettings) -> GapReport:
+            settings: DiagnosisSettings, weighed: Weighed) -> GapReport:
     """The typed result of a diagnosis (what ``gap.json`` holds) from its parts."""
     names, space, baseline = problem.config.output_names, problem.space, ranking.baseline
     return GapReport(
@@ -382,7 +391,9 @@ def _report(problem: GapProblem, ranking: Ranking, band: tuple[float, float], mf
         None if ranking.modal is None else ranking.modal.measured,
         ranking.patterns["baseline"].chi2 if ranking.patterns else None,
         {r.name: loc for r, loc in zip(problem.records, locs)}, tuple(s for loc in locs for s in loc.summary),
-        tuple(effect_rows), settings)
+        tuple(effect_rows), settings, implausible={k: tuple(v) for k, v in ranking.implausible.items()},
+        priors=tuple(prior_checks(problem, baseline)), evidence=weighed.evidence, confounded=weighed.confounded,
+        modal_data=weighed.modal_data)
 
 
 def _ranking(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortlist: int, workers: int,

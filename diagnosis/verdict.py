@@ -74,6 +74,10 @@ def verdict_rule(before: np.ndarray, refits: Mapping[str, EffectRefit], paying: 
             and float(np.mean(refits[lab].heldout_after)) - left <= max(GAP_THRESHOLD, 0.25 * (left - 1.0))]
     reason = (f"{paying[0]} closes {best.closed:.0%} of the held-out gap "
               f"(gap ratio {np.mean(before):.3g} -> {np.mean(best.heldout_after):.3g}, dBIC {best.delta_bic:.1f})")
+    if left - 1.0 > GAP_THRESHOLD:
+        # a share of the gap, not all of it: the dominant cause, named as such, and the remainder said
+        reason += (f"; it explains the dominant part only: {left:.3g}x the noise variance remains, which no "
+                   f"candidate of the catalogue explains")
     if ties:
         reason += "; the data cannot distinguish it from " + ", ".join(ties)
     return paying[0], ties, reason

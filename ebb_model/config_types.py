@@ -20,11 +20,14 @@ __all__ = ["ParameterSpec", "BeamGeometry", "TimeSettings", "BeamConfig", "SCHEM
 
 @dataclass(frozen=True)
 class ParameterSpec:
-    """A physical parameter: nominal value, optional search bounds, identify flag."""
+    """A physical parameter: nominal value, optional search bounds, identify flag, and the standard deviation of
+    a Gaussian prior about the nominal value (what the user knows before the data: ``None``, no prior — only
+    the bounds)."""
 
     value: float
     bounds: tuple[float, float] | None = None
     identify: bool = False
+    prior_std: float | None = None
 
 
 @dataclass(frozen=True)
@@ -142,6 +145,8 @@ class BeamConfig:
                 d["bounds"] = list(p.bounds)
             if p.identify:
                 d["identify"] = True
+            if p.prior_std is not None:
+                d["prior_std"] = p.prior_std
             params[k] = d
         time = {"dt": self.time.dt, "theta": self.time.theta, "substeps": self.time.substeps,
                 "scheme": self.time.scheme}

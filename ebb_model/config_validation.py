@@ -118,7 +118,7 @@ def _parameters(pr: Problems, table: Mapping[str, Any]) -> dict[str, ParameterSp
             continue
         if not isinstance(raw, Mapping):
             raw = {"value": raw}
-        pr.unknown_keys(where, raw, ("value", "bounds", "identify"))
+        pr.unknown_keys(where, raw, ("value", "bounds", "identify", "prior_std"))
         value = pr.number(f"{where}.value", raw.get("value")) if "value" in raw else None
         if "value" not in raw:
             pr.add(f"{where}.value", "missing")
@@ -152,8 +152,17 @@ def _parameters(pr: Problems, table: Mapping[str, Any]) -> dict[str, ParameterSp
             identify = False
         if identify and "bounds" not in raw:
             pr.add(f"{where}.bounds", "required when identify = true")
+        prior_std = None
+        if "prior_std" in raw:
+            prior_std = pr.number(f"{where}.prior_std", raw["prior_std"])
+            if prior_std is not None and not prior_std > 0:
+                pr.add(f"{where}.prior_std", f"must be > 0 (the prior's standard deviation), got {prior_std:g}")
+                prior_std = None
+            elif prior_std is not None and not identify:
+                pr.add(f"{where}.prior_std", "a prior belongs to an identified parameter (identify = true)")
+                prior_std = None
         if value is not None:
-            specs[k] = ParameterSpec(value, bounds, identify)
+            specs[k] = ParameterSpec(value, bounds, identify, prior_std)
     return specs
 
 

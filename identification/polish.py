@@ -10,7 +10,8 @@ stabilising objective is not part of the fit.  Given a noise model
 (:mod:`identification.noise_model`), the residuals are whitened by it instead
 — the output-error criterion with a noise model, whose minimum is the
 estimate the Cramér–Rao bound reported under that model describes; the cost is
-then χ² in noise variances.  The Jacobian's ``dim`` perturbed
+then χ² in noise variances, and the user's priors (:mod:`identification.prior`)
+add their terms: the polished point is the posterior's mode.  The Jacobian's ``dim`` perturbed
 candidates are evaluated as one batch through the run's runner, so a polish runs
 on the same worker processes (or Dask cluster) and the same backend as the GA.
 Every model evaluation (residuals and Jacobian columns) is counted.
@@ -25,6 +26,7 @@ import numpy as np
 from ebb_model.errors import ParameterError
 
 from .noise_model import NoiseModel
+from .prior import Prior
 from .least_squares import CHI2_RESOLUTION, DIFF_STEP, Box, fit_least_squares, penalised
 from .runners import Runner, SerialRunner
 
@@ -72,10 +74,14 @@ class ResidualEvaluator:
     noise
         Noise model per experiment: the residuals are whitened by it; ``None``:
         normalised per sensor by :func:`residual_scale`.
+    prior
+        The user's priors (:mod:`identification.prior`), their residuals
+        ``(x − μ)/σ_p`` appended (with a noise model only: both in noise units).
     """
 
     evaluator: Any
     noise: NoiseModel | None = None
+    prior: Prior | None = None
     scale: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -89,7 +95,8 @@ class ResidualEvaluator:
     @property
     def n_residuals(self) -> int:
         """Length of a residual vector (all samples of all sensors of all experiments)."""
-        return int(sum(e.outputs.size for e in self.evaluator.experiments))
+        n_prior = self.prior.count if self.prior is not None and self.noise is not None else 0
+        return int(sum(e.outputs.size for e in self.evaluator.experiments)) + n_prior
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Residual vector of candidate ``x``, penalised when the model refuses it."""
@@ -102,6 +109,8 @@ class ResidualEvaluator:
             return penalised(None, self.n_residuals)
         if self.noise is not None:
             parts = [self.noise.whiten(i, y - e.outputs).ravel() for i, (y, e) in enumerate(zip(sims, exps))]
+            if self.prior is not None and self.prior.count:
+                parts.append(self.prior.residuals(x))
         else:
             parts = [((y - e.outputs) / scale).ravel() for y, e in zip(sims, exps)]
         return penalised(np.concatenate(parts), self.n_residuals)
@@ -120,7 +129,8 @@ class ResidualEvaluator:
 
 def polish(evaluator: Any, x0: np.ndarray, *, runner: Runner | None = None, max_evaluations: int = 400,
            xtol: float = 1e-10, ftol: float = 1e-12, diff_step: float = DIFF_STEP,
-           chi2_resolution: float = CHI2_RESOLUTION, noise: NoiseModel | None = None) -> PolishResult:
+           chi2_resolution: float = CHI2_RESOLUTION, noise: NoiseModel | None = None,
+           prior: Prior | None = None) -> PolishResult:
     """Least-squares refinement of candidate ``x0``.
 
     Parameters
@@ -134,11 +144,12 @@ def polish(evaluator: Any, x0: np.ndarray, *, runner: Runner | None = None, max_
         Where batches of candidates are evaluated (default: this process).
     max_evaluations, xtol, ftol, diff_step, chi2_resolution
         As :func:`~identification.least_squares.fit_least_squares`.
-    noise
-        Noise model to whiten the residuals by (:class:`ResidualEvaluator`).
+    noise, prior
+        Noise model to whiten the residuals by, and the priors to add (:class:`ResidualEvaluator`): the fit
+        is then the posterior's mode.
     """
     run = runner or SerialRunner()
-    res_ev = ResidualEvaluator(evaluator, noise)
+    res_ev = ResidualEvaluator(evaluator, noise, prior)
     sp = evaluator.space
     fit = fit_least_squares(lambda X: run(res_ev, X), x0, Box(sp.lower, sp.upper), max_evaluations=max_evaluations,
                             xtol=xtol, ftol=ftol, diff_step=diff_step, chi2_resolution=chi2_resolution)

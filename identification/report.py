@@ -38,6 +38,9 @@ def identified_lines(res: IdentificationResult) -> list[str]:
             lines.append(f"  caution: the fit leaves {worst:.3g} noise variances; the Cramér–Rao bound assumes a fit "
                          "at the noise floor and understates the uncertainty here (model or data do not match yet: "
                          "see `ebb diagnose`)")
+    if res.priors:
+        lines.append("  against the priors:")
+        lines += [f"    {c.line()}" for c in res.priors]
     if res.adequacy is not None:
         lines.append("  " + res.adequacy.summary())
     return lines

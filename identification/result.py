@@ -35,6 +35,7 @@ from ebb_model.errors import ConfigError
 
 from .fisher import FisherReport
 from .noise_model import NoiseModel
+from .prior import PriorCheck
 from .optimise import ParetoSet
 from .parameters import ParameterSpace, parameter_space
 from .settings import SECTION
@@ -114,6 +115,9 @@ class IdentificationResult:
     noise
         The noise model itself, under which the Cramér–Rao bounds and ``fit_gap_ratio`` were computed
         (``None`` for a result read back).
+    priors
+        The identified model against the user's priors (:class:`identification.prior.PriorCheck`: what moved
+        each parameter, and any conflict).
     """
 
     config: BeamConfig
@@ -130,6 +134,7 @@ class IdentificationResult:
     fit_gap_ratio: Mapping[str, float] | None = None
     noise_model: tuple[str, ...] = ()
     noise: NoiseModel | None = None
+    priors: tuple[PriorCheck, ...] = ()
 
     @property
     def knee(self) -> dict[str, float]:
@@ -168,6 +173,8 @@ class IdentificationResult:
         if gap is not None:
             doc["fit_gap_ratio"] = gap
             doc["cramer_rao_valid"] = bool(max(gap.values(), default=0.0) <= CRB_GAP_LIMIT)
+        if self.priors:
+            doc["priors"] = {c.name: c.to_dict() for c in self.priors}
         return doc
 
     @property

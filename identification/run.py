@@ -43,6 +43,7 @@ from .data import Experiment, load_experiments
 from .export_targets import DEFAULT_TARGETS, check_targets
 from .fisher import fisher_information
 from .noise_model import NoiseModel, estimate_noise_model
+from .prior import Prior, PriorCheck
 from .native import ExperimentArrays, NativeEvaluator
 from .objectives import objective_names
 from .optimise import CHECKPOINT, ParetoSet, check_settings, knee_index, knee_order, optimise
@@ -196,9 +197,10 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                 pareto = optimise(problem, pop=pop, generations=generations, seed=seed, algorithm=algorithm,
                                   out_dir=out, resume=resume, runner=runner, progress=progress,
                                   callback=generation_done)
-                polish_noise = None if noise_std is not None else _noise_at(evaluator, pareto.X[pareto.knee])
+                polish_noise = (NoiseModel.white(noise_std, len(exps)) if noise_std is not None
+                                else _noise_at(evaluator, pareto.X[pareto.knee]))
                 polished_raw = _polish_front(pareto, search_evaluator, runner, int(polish), int(polish_evaluations),
-                                             on_progress, polish_noise)
+                                             on_progress, polish_noise, Prior.of(cfg, space.names))
         finally:
             if search_evaluator is not evaluator:
                 search_evaluator.close()
@@ -316,6 +318,11 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
                                    r.success, r.message) for i, x, f, n_ev, r in polished_raw)
     sigma = np.median(noise.std, axis=0)
     adequacy = numerical_adequacy(*space.apply(cfg, best_x), [(e.inputs, e.outputs) for e in exps], sigma)
+    priors: tuple[PriorCheck, ...] = ()
+    prior = Prior.of(cfg, space.names)
+    if prior.count and best.stable:
+        fi = fisher_information(evaluator, best_x, noise=noise)
+        priors = tuple(prior.judge(best_x, prior.posterior_std(fi.matrix, fi.scales)))
     fit_gap = None
     if best.stable:
         whitened = np.concatenate([noise.whiten(i, y - e.outputs) for i, (e, y) in enumerate(zip(exps, best.outputs))])
@@ -323,7 +330,7 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
     return IdentificationResult(cfg, space, pareto, np.array([p[0] for p in props]),
                                 np.array([p[1] for p in props]), np.array([p[2] for p in props]), out,
                                 config_name, polished, adequacy, fisher0, fit_gap,
-                                tuple(noise.describe(cfg.output_names, [e.name for e in exps])), noise)
+                                tuple(noise.describe(cfg.output_names, [e.name for e in exps])), noise, priors)
 
 
 def _noise_at(evaluator: NativeEvaluator, x: np.ndarray) -> NoiseModel | None:
@@ -339,14 +346,14 @@ def _noise_at(evaluator: NativeEvaluator, x: np.ndarray) -> NoiseModel | None:
 
 
 def _polish_front(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, budget: int,
-                  on_progress: Callable[[Progress], None] | None, noise: NoiseModel | None = None
-                  ) -> list[tuple[int, np.ndarray, np.ndarray, int, Any]]:
-    """Polish the ``k`` points nearest the knee (knee first), their residuals whitened by ``noise`` when given:
-    ``(from_index, x, F, evaluations, result)``."""
+                  on_progress: Callable[[Progress], None] | None, noise: NoiseModel | None = None,
+                  prior: Prior | None = None) -> list[tuple[int, np.ndarray, np.ndarray, int, Any]]:
+    """Polish the ``k`` points nearest the knee (knee first), their residuals whitened by ``noise`` when given
+    and the ``prior`` added (the posterior's mode): ``(from_index, x, F, evaluations, result)``."""
     out: list[tuple[int, np.ndarray, np.ndarray, int, Any]] = []
     n_done = pareto.n_evaluations
     for step, i in enumerate(knee_order(pareto.F, pareto.objective_names)[:k]):
-        r = polish_point(evaluator, pareto.X[i], runner=runner, max_evaluations=budget, noise=noise)
+        r = polish_point(evaluator, pareto.X[i], runner=runner, max_evaluations=budget, noise=noise, prior=prior)
         f = np.asarray(runner(evaluator, r.x[None, :]))[0]
         n_ev = r.n_evaluations + 1
         n_done += n_ev

@@ -8,6 +8,10 @@
     noise_std = [1e-6, 1e-6]  # one per sensor; default estimated from the data
     positions = { F1 = [0.2, 0.4] }   # identify an actuator/sensor position within bounds [m]
 
+    [identification.modes]    # measured natural frequencies (identification.modal_data)
+    frequencies_hz = [6.64, 41.35]
+    std_hz = [0.1, 0.3]
+
     [identification.data]     # options of identification.data.load_experiments
     mapping = { F1 = "force" }
 """
@@ -27,7 +31,7 @@ __all__ = ["SECTION", "IdentificationSettings", "identification_settings", "load
 
 #: Name of the config table this layer owns.
 SECTION = "identification"
-_KEYS = ("positions", "data", "noise_std", "per", "stabilising")
+_KEYS = ("positions", "data", "noise_std", "per", "stabilising", "modes")
 _DATA_KEYS = ("mapping", "units", "gains", "remove_offset", "pre_trigger", "band", "resample", "format")
 
 

@@ -1,6 +1,6 @@
 """The diagnosed model as a product: the corrected model exported as config, StateSpace and FMU.
 
-The StateSpace of a corrected model with a lag must reproduce the diagnosis' own simulation of that model
+The StateSpace of a corrected model with a lag or a gain must reproduce the diagnosis' own simulation of that model
 (:func:`diagnosis.augmented.simulate_effects`, the lag applied to the signal) — the series connection is exact,
 so to round-off.  The exported config reloads to the same model; the FMU runs it through fmpy.
 """
@@ -17,6 +17,7 @@ from diagnosis.augmented import simulate_effects
 from diagnosis.corrected import corrected_statespace, export_corrected
 from diagnosis.effects import AugmentedModel
 from diagnosis.effects.axial import AxialDrift, Stretching
+from diagnosis.effects.chain import ActuatorGain, SensorGain
 from diagnosis.effects.lag import ActuatorLag, SensorLag
 from ebb_model.reference.excitation import band_limited_input
 from ebb_model.tomlio import dumps
@@ -34,7 +35,9 @@ def bench(**kw):
 @pytest.mark.parametrize("input_hold", ["cubic", "foh"])
 @pytest.mark.parametrize("lag", [(ActuatorLag(2e-3),), (SensorLag("a2", 1.5e-3),),
                                  (ActuatorLag(1e-3), SensorLag("y1", 3e-3)),
-                                 (SensorLag("y1", 3e-3), ActuatorLag(1e-3))])
+                                 (SensorLag("y1", 3e-3), ActuatorLag(1e-3)),
+                                 (ActuatorGain(0.4),), (SensorGain("a2", 2.5),),
+                                 (ActuatorGain(0.4), SensorLag("y1", 3e-3), SensorGain("y1", 1.7))])
 def test_lag_statespace_equals_the_diagnosis_simulation(lag, input_hold):
     d = bench().to_dict()
     d["time"]["input"] = input_hold

@@ -6,7 +6,6 @@ here as a user would write a new module, runs through all of them with no other 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -14,11 +13,11 @@ import pytest
 import ebb_model as em
 from diagnosis.augmented import simulate_effects
 from diagnosis.corrected import corrected_statespace
-from diagnosis.effects import (EFFECT_NAMES, FAMILIES, AugmentedModel, Scales, Signal, candidate_effects,
+from diagnosis.effects import (EFFECT_NAMES, FAMILIES, AugmentedModel, Scales, candidate_effects,
                                pair_effect, signal_effect)
+from diagnosis.effects.chain import SensorGain
 from diagnosis.effects.lag import ActuatorLag, first_order_lag
 from ebb_model.reference.excitation import band_limited_input
-from ebb_model.statespace import DiscreteStateSpace
 
 from conftest import make_config
 
@@ -33,36 +32,14 @@ SCALES = Scales(EI=10.0, rhoA=1.0, N=20.0, length=1.0, omega_low=20.0, omega_hig
                 stretch_max=1e-6)
 
 
-@dataclass(frozen=True)
-class SensorGain(Signal):
-    """A sensor that reads ``gain`` times its quantity (a calibration error) — the test's new effect."""
-
-    sensor: str
-    gain: float
-    description = "a sensor's gain error"
-
-    def outputs(self, y: np.ndarray, dt: float, names: tuple[str, ...]) -> np.ndarray:
-        y = y.copy()
-        y[:, list(names).index(self.sensor)] *= self.gain
-        return y
-
-    def in_series(self, sys: DiscreteStateSpace) -> DiscreteStateSpace:
-        i = list(sys.output_names).index(self.sensor)
-        C, D = sys.C.copy(), sys.D.copy()
-        C[i] *= self.gain
-        D[i] *= self.gain
-        return DiscreteStateSpace(sys.A, sys.B, C, D, sys.dt, sys.input_names, sys.output_names,
-                                  sys.state_names, sys.hold)
-
-
 def test_families_build_the_catalogue_in_report_order():
     labels = [e.label for e in candidate_effects(bench("clamped", "clamped"), SCALES)]
     assert labels == ["boundary_rotational_left", "boundary_translational_left", "boundary_rotational_right",
                       "boundary_translational_right", "point_mass", "kelvin_voigt", "rotary_inertia",
-                      "foundation", "actuator_lag", "sensor_lag[y1]", "sensor_lag[a2]", "axial_drift",
-                      "geometric_stiffening"]
+                      "foundation", "actuator_lag", "sensor_lag[y1]", "sensor_lag[a2]", "actuator_gain",
+                      "sensor_gain[y1]", "sensor_gain[a2]", "axial_drift", "geometric_stiffening"]
     assert {e.name for e in candidate_effects(bench("clamped", "clamped"), SCALES)} == set(EFFECT_NAMES)
-    assert len(EFFECT_NAMES) == len(set(EFFECT_NAMES)) == 12 and len(FAMILIES) == 5
+    assert len(EFFECT_NAMES) == len(set(EFFECT_NAMES)) == 14 and len(FAMILIES) == 6
     # an identified parameter is no candidate; stretching needs both ends axially fixed
     free = [e.label for e in candidate_effects(bench("clamped", "free"), SCALES, identified=("eta",))]
     assert "kelvin_voigt" not in free and "geometric_stiffening" not in free and "axial_drift" in free
@@ -136,7 +113,9 @@ def test_diagnose_names_and_exports_an_effect_added_the_documented_way(tmp_path,
 
     from diagnosis.effects.base import Family
 
-    monkeypatch.setattr(catalogue, "FAMILIES", FAMILIES + (Family(("sensor_gain",), sensor_gain_candidates),))
+    # the built-in measurement-chain family replaced by this test's own module-to-be
+    mine = tuple(f for f in FAMILIES if "sensor_gain" not in f.names)
+    monkeypatch.setattr(catalogue, "FAMILIES", mine + (Family(("sensor_gain",), sensor_gain_candidates),))
     cfg = bench_config()
     (tmp_path / "bench.toml").write_text(_toml(cfg))
     files = []

@@ -33,11 +33,20 @@ def test_nothing_paying_is_unexplained():
 
 
 def test_the_best_must_close_the_named_share():
-    just_short = 50.0 - (NAMED_CLOSURE - 0.01) * 49.0
-    verdict, _, reason = verdict_rule(BEFORE, {"foundation": refit("foundation", just_short)}, ["foundation"])
+    """On a small gap (1.5 noise variances) a refit can reach the noise floor and still close too little of
+    it to be named: the share is the second condition."""
+    before = np.array([1.4, 1.6])
+
+    def small(label: str, closed: float) -> EffectRefit:
+        after = 1.5 - closed * 0.5
+        return EffectRefit(label, None, {}, 0.0, 0.0, -500.0, 0.0, np.array([after, after]), closed,
+                           np.array([closed, closed]))
+
+    verdict, _, reason = verdict_rule(before, {"foundation": small("foundation", NAMED_CLOSURE - 0.01)},
+                                      ["foundation"])
     assert verdict == UNEXPLAINED and f"closes only {NAMED_CLOSURE - 0.01:.0%}" in reason
-    enough = 50.0 - (NAMED_CLOSURE + 0.01) * 49.0
-    verdict, ties, _ = verdict_rule(BEFORE, {"foundation": refit("foundation", enough)}, ["foundation"])
+    verdict, ties, _ = verdict_rule(before, {"foundation": small("foundation", NAMED_CLOSURE + 0.01)},
+                                    ["foundation"])
     assert (verdict, ties) == ("foundation", [])
 
 
@@ -53,3 +62,19 @@ def test_a_pair_is_not_tied_with_its_own_parts():
     refits = {"foundation+actuator_lag": refit("foundation+actuator_lag", 1.0), "foundation": refit("foundation", 1.02)}
     verdict, ties, _ = verdict_rule(BEFORE, refits, ["foundation+actuator_lag", "foundation"])
     assert verdict == "foundation+actuator_lag" and ties == []
+
+
+def test_an_effect_that_leaves_a_gap_is_named_as_the_dominant_part_only():
+    """An effect that closes 99 % of a large gap and leaves 17.7 noise variances is named with what remains
+    said; one that brings the gap to the noise floor is named without."""
+    before = np.array([1630.0, 1630.0])
+    closed = (1630.0 - 17.7) / 1629.0
+    rf = EffectRefit("point_mass", None, {}, 0.0, 0.0, -5000.0, 0.0, np.array([17.7, 17.7]), closed,
+                     np.array([closed, closed]))
+    verdict, ties, reason = verdict_rule(before, {"point_mass": rf}, ["point_mass"])
+    assert verdict == "point_mass" and "dominant part only: 17.7x the noise variance remains" in reason
+    at_floor = 1.0 + GAP_THRESHOLD
+    rf = EffectRefit("point_mass", None, {}, 0.0, 0.0, -5000.0, 0.0, np.array([at_floor] * 2), 0.9998,
+                     np.array([0.9998] * 2))
+    verdict, _, reason = verdict_rule(before, {"point_mass": rf}, ["point_mass"])
+    assert verdict == "point_mass" and "remains" not in reason

@@ -28,6 +28,8 @@ rotary_inertia                 rhoI [kg m]          r² = rhoI/(ρA L²) (0)
 foundation                     kf [N/m²]            κ = kf L⁴/EI (0)
 actuator_lag                   tau [s]              tau (0)
 sensor_lag[<sensor>]           tau [s]              tau (0)
+actuator_gain                  gain [1]             gain (1)
+sensor_gain[<sensor>]          gain [1]             gain (1)
 axial_drift                    rate [N/s]           rate (0, two-sided)
 geometric_stiffening           EA [N]               EA (0); only with both ends axially fixed
 =============================  ===================  ==========================================
@@ -49,7 +51,7 @@ from typing import Any
 
 from ebb_model.config import BeamConfig
 
-from . import axial, beam_terms, boundary, lag, point_mass
+from . import axial, beam_terms, boundary, chain, lag, point_mass
 from .base import (
     PAIR_SEPARATOR,
     AugmentedModel,
@@ -72,6 +74,7 @@ FAMILIES: tuple[Family, ...] = (
     point_mass.FAMILY,
     beam_terms.FAMILY,
     lag.FAMILY,
+    chain.FAMILY,
     axial.FAMILY,
 )
 

@@ -152,6 +152,10 @@ class Effect:
     units
         Unit of each physical parameter (:meth:`physical`'s keys), in the catalogue's notation (``N.m/rad``,
         ``kg``, ``N/m2``) — what the corrected model's files and the reports print beside the values.
+    plausible
+        The physically plausible range ``(lo, hi)`` of some physical parameters (catalogue units), narrower
+        than the search bounds: a refit outside it explains the data with a value no rig has (a point mass
+        heavier than a quarter of the beam), and is not named as the cause (:mod:`diagnosis.plausibility`).
     """
 
     name: str
@@ -164,6 +168,7 @@ class Effect:
     units: Mapping[str, str]
     _apply: Callable[[BeamConfig, dict[str, float], np.ndarray], AugmentedModel] = field(repr=False)
     _physical: Callable[[np.ndarray], dict[str, float]] = field(repr=False)
+    plausible: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
     @property
     def label(self) -> str:
@@ -237,7 +242,8 @@ def pair_effect(first: Effect, second: Effect) -> Effect:
                   + tuple(f"{second.label}.{v}" for v in second.variables),
                   first.lower + second.lower, first.upper + second.upper, first.off + second.off,
                   f"{first.description}, and {second.description}",
-                  {f"{e.label}.{n}": u for e in (first, second) for n, u in e.units.items()}, apply, physical)
+                  {f"{e.label}.{n}": u for e in (first, second) for n, u in e.units.items()}, apply, physical,
+                  {f"{e.label}.{n}": r for e in (first, second) for n, r in e.plausible.items()})
 
 
 def on_top_of(first: Effect, s_first: np.ndarray, second: Effect) -> Effect:

@@ -1,0 +1,57 @@
+"""The evidence behind a verdict, weighed and said: priors, posterior probabilities, degeneracies and the
+measured modes (:func:`weigh`)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any, Mapping
+
+from .effects import Effect
+from .evidence import posterior_probabilities
+from .fitting import GapProblem
+from .plausibility import confounded, prior_checks
+from .rank import Ranking
+
+__all__ = ["Weighed", "weigh"]
+
+
+@dataclass(frozen=True)
+class Weighed:
+    """What :func:`weigh` found: posterior probabilities, degenerate refits, agreement with measured modes."""
+
+    evidence: dict[str, float]
+    confounded: dict[str, str]
+    modal_data: dict[str, dict[str, Any]]
+
+
+def weigh(problem: GapProblem, ranking: Ranking, by_label: Mapping[str, Effect]) -> tuple[Ranking, Weighed]:
+    """The evidence behind the verdict, said in its reason: the baseline against the user's priors (a conflict
+    — the prior, the data or the model is wrong — is said, not hidden), the posterior probabilities of the
+    baseline and the refits (:mod:`diagnosis.evidence`), the refits degenerate with the baseline unknowns
+    (:func:`diagnosis.plausibility.confounded`), and each model against the measured modes when the config
+    gives them (:mod:`identification.modal_data`)."""
+    reason = ranking.reason
+    conflicts = [c.line() for c in prior_checks(problem, ranking.baseline) if c.status == "conflict"]
+    if conflicts:
+        reason += "; baseline: " + "; ".join(conflicts)
+    probs = posterior_probabilities(problem, ranking.baseline, {lab: rf.fit for lab, rf in ranking.refits.items()})
+    if ranking.verdict in probs:
+        others = [f"{lab} {p:.2g}" for lab, p in probs.items() if lab != ranking.verdict][:2]
+        reason += (f"; posterior probability {probs[ranking.verdict]:.3g} (Laplace evidence; next: "
+                   f"{', '.join(others)})")
+    tangled = {lab: line for lab, rf in ranking.refits.items()
+               if (line := confounded(problem, by_label[lab], rf.fit)) is not None}
+    if ranking.verdict in tangled:
+        reason += "; " + tangled[ranking.verdict]
+    agreement: dict[str, dict[str, Any]] = {}
+    if problem.modes is not None:
+        m = problem.model(ranking.baseline.beta)
+        agreement["none"] = problem.modes.agreement(m.config, m.params)
+        for lab, rf in ranking.refits.items():
+            m = problem.model(rf.fit.beta, by_label[lab], rf.fit.s)
+            agreement[lab] = problem.modes.agreement(m.config, m.params)
+        key = ranking.verdict if ranking.verdict in agreement else "none"
+        a = agreement[key]
+        reason += (f"; the {'baseline' if key == 'none' else key} model "
+                   f"{'agrees' if a['agrees'] else 'DISAGREES'} with the {a['modes']} measured modes "
+                   f"(chi2 {a['chi2']:.3g}, limit {a['chi2_limit']:.3g})")
+    return replace(ranking, reason=reason), Weighed(probs, tangled, agreement)

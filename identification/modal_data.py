@@ -1,0 +1,107 @@
+"""Measured natural frequencies as data: a small table with uncertainties, fitted together with the records.
+
+Labs measure modes by other tests than the one they record in time — an impact hammer's FFT, a sine sweep's
+peaks.  Such numbers are evidence of another kind: they fix the beam's frequency ratios and √(EI/ρA) however
+the time record was excited (three tones near one mode say little about the others).  The config gives them::
+
+    [identification.modes]
+    frequencies_hz = [6.64, 41.35, 117.5, 230.0]   # the lowest modes, in order
+    std_hz = [0.1, 0.3, 0.6, 2.0]                  # their standard uncertainties
+
+Mode ``k`` of the table is the model's ``k``-th lowest mode; its residual ``(f_model − f)/σ`` is appended to the
+whitened residuals of the time records, so fits, evidence and Cramér–Rao bounds use both kinds of data.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ebb_model.config import BeamConfig
+from ebb_model.errors import ConfigError, EbbError
+
+__all__ = ["ModalData", "modal_data"]
+
+
+@dataclass(frozen=True, eq=False)
+class ModalData:
+    """Measured natural frequencies [Hz] of the lowest modes, in order, with their standard uncertainties."""
+
+    frequencies_hz: np.ndarray
+    std_hz: np.ndarray
+
+    @property
+    def count(self) -> int:
+        """Number of measured modes (of residuals :meth:`residuals` gives)."""
+        return int(self.frequencies_hz.size)
+
+    def model_frequencies(self, config: BeamConfig, params: Mapping[str, float]) -> np.ndarray:
+        """The model's lowest :attr:`count` natural frequencies [Hz] (damped, of the discrete model)."""
+        from ebb_model.modal import discrete_frequencies
+
+        f, _ = discrete_frequencies(config, params, self.count)
+        return np.asarray(f[:self.count], dtype=float)
+
+    def residuals(self, config: BeamConfig, params: Mapping[str, float]) -> np.ndarray:
+        """``(f_model − f)/σ`` per measured mode; a model whose modes cannot be computed gets 1e6 each."""
+        try:
+            f = self.model_frequencies(config, params)
+        except (EbbError, ValueError, np.linalg.LinAlgError):
+            return np.full(self.count, 1e6)
+        if f.size < self.count:
+            return np.full(self.count, 1e6)
+        return (f - self.frequencies_hz) / self.std_hz
+
+    def agreement(self, config: BeamConfig, params: Mapping[str, float]) -> dict[str, Any]:
+        """χ² of the model against the table, its degrees of freedom and whether it agrees (χ² below the 99.9 %
+        point of its distribution), with the model's frequencies."""
+        from scipy import stats
+
+        r = self.residuals(config, params)
+        chi2 = float(r @ r)
+        limit = float(stats.chi2.ppf(0.999, self.count))
+        return {"chi2": chi2, "modes": self.count, "agrees": bool(chi2 <= limit), "chi2_limit": limit,
+                "model_hz": [float(v) for v in self.model_frequencies(config, params)]
+                if chi2 < 1e11 else None, "measured_hz": [float(v) for v in self.frequencies_hz]}
+
+
+def modal_data(config: BeamConfig) -> ModalData | None:
+    """The ``[identification.modes]`` table of ``config``, checked; ``None`` when there is none.
+
+    Raises
+    ------
+    ConfigError
+        Not a table, lengths that differ, non-increasing frequencies, uncertainties not > 0 — every problem at
+        once.
+    """
+    ident = config.extra.get("identification", {}) or {}
+    table = ident.get("modes") if isinstance(ident, Mapping) else None
+    if table is None:
+        return None
+    where = "identification.modes"
+    if not isinstance(table, Mapping):
+        raise ConfigError(f"{where}: must be a table {{ frequencies_hz = [...], std_hz = [...] }}")
+    bad = [f"{where}.{k}: unknown key; allowed: frequencies_hz, std_hz" for k in table
+           if k not in ("frequencies_hz", "std_hz")]
+    values = {}
+    for key in ("frequencies_hz", "std_hz"):
+        v = table.get(key)
+        if not isinstance(v, (list, tuple)) or not v or not all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v):
+            bad.append(f"{where}.{key}: must be a non-empty list of finite numbers, got {v!r}")
+            continue
+        values[key] = np.array(v, dtype=float)
+    if len(values) == 2:
+        f, s = values["frequencies_hz"], values["std_hz"]
+        if f.size != s.size:
+            bad.append(f"{where}: {f.size} frequencies but {s.size} uncertainties")
+        if np.any(f <= 0) or np.any(np.diff(f) <= 0):
+            bad.append(f"{where}.frequencies_hz: must be > 0 and increasing (the lowest modes, in order)")
+        if np.any(s <= 0):
+            bad.append(f"{where}.std_hz: every uncertainty must be > 0")
+    if bad:
+        raise ConfigError(bad)
+    return ModalData(values["frequencies_hz"], values["std_hz"])

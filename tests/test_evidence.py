@@ -1,0 +1,104 @@
+"""The Laplace evidence of the diagnosis' models (:mod:`diagnosis.evidence`) against a sampler.
+
+A small case where sampling is affordable: a 12-node beam, 600 samples of a random force, two sensors at 5 %
+noise; unknowns EI (with a Gaussian prior) and N, plus an actuator lag for the augmented model.  The evidence
+is estimated independently by importance sampling — 4000 draws from a Student-t (ν = 4) around the fit, its
+scale 1.5× the Laplace posterior's, inside the bounds (the prior is zero outside) — and the two must agree
+within the sampler's own standard error plus a budget for the posterior's departure from a Gaussian.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import special, stats
+
+from diagnosis.effects import signal_effect
+from diagnosis.effects.lag import ActuatorLag
+from diagnosis.evidence import laplace_log_evidence, posterior_probabilities
+from diagnosis.fitting import GapProblem
+from diagnosis.records import split_records
+from ebb_model.config import config_from_dict
+from identification.native import NativeEvaluator, experiments_from_arrays
+from identification.parameters import parameter_space
+from identification.prior import Prior
+
+from conftest import make_identification_config
+
+N_SAMPLES = 600
+DRAWS = 4000
+
+
+def _problem(tau: float) -> tuple[GapProblem, object]:
+    d = make_identification_config(nodes=12, N=50.0).to_dict()
+    d["parameters"]["EI"]["prior_std"] = 1.0
+    cfg = config_from_dict(d, extra_sections=("identification",))
+    space = parameter_space(cfg)
+    rng = np.random.default_rng(4)
+    u = rng.standard_normal((N_SAMPLES, 1))
+    x0 = np.asarray(space.nominal, dtype=float)
+    drive = ActuatorLag(tau).inputs(u, cfg.time.dt) if tau > 0 else u
+    ev = NativeEvaluator(cfg, space, experiments_from_arrays([("e", drive, np.zeros((N_SAMPLES, 2)))]))
+    y0 = ev.simulate(x0 * np.array([1.03, 0.9])).outputs[0]
+    sigma = 0.05 * y0.std(axis=0)
+    y = y0 + sigma * rng.standard_normal(y0.shape)
+    records = split_records([("e", u, y)], holdout_fraction=0.25)
+    lag = signal_effect("actuator_lag", None, "tau", (0.0, 3e-3), 0.0, "lag", ActuatorLag, "tau", "s")
+    return GapProblem(cfg, space, records, sigma, prior=Prior.of(cfg, space.names)), lag
+
+
+def _importance_log_evidence(problem: GapProblem, fit, effect) -> tuple[float, float]:
+    """``ln Z`` and its standard error by importance sampling in the fit's unit box."""
+    p = problem.space.dim
+    box = problem.box(effect)
+    u_hat = box.to_unit(np.concatenate([fit.beta, fit.s]))
+    cov = np.linalg.inv(fit.jac.T @ fit.jac)
+    d = u_hat.size
+    L = np.linalg.cholesky(cov) * 1.5
+    rng = np.random.default_rng(11)
+    nu = 4.0
+    z = rng.standard_normal((DRAWS, d))
+    w = rng.chisquare(nu, DRAWS) / nu
+    U = u_hat + (z / np.sqrt(w)[:, None]) @ L.T
+    log_q = (stats.multivariate_t(loc=u_hat, shape=L @ L.T, df=nu).logpdf(U)).reshape(DRAWS)
+    inside = np.all((U >= 0.0) & (U <= 1.0), axis=1)
+    log_t = np.full(DRAWS, -np.inf)
+    from diagnosis.evidence import prior_log_normaliser
+
+    for i in np.flatnonzero(inside):
+        x = box.from_unit(U[i])
+        r = problem.residuals(x[:p], effect, x[p:] if effect is not None else None)
+        log_t[i] = -0.5 * float(r @ r) + prior_log_normaliser(problem)
+    lw = log_t - log_q
+    log_z = float(special.logsumexp(lw) - math.log(DRAWS))
+    wn = np.exp(lw - lw.max())
+    se = float(np.std(wn) / (np.mean(wn) * math.sqrt(DRAWS)))
+    return log_z, se
+
+
+def test_laplace_evidence_agrees_with_importance_sampling():
+    """Each model on a record it describes (the baseline on a record without lag, the lag model on one with a
+    0.6 ms lag): Laplace and the sampler agree within 0.25 nats plus 3 sampler standard errors (measured: 0.02
+    and 0.03 nats, standard errors 0.01) — a twelfth of the 3 nats (a Bayes factor of 20) that separates
+    candidates.  (On a record it does not describe, the Gauss–Newton Hessian misses the residuals' curvature
+    term: the misfitting baseline is 0.3 nats off at χ² ≈ 2·10⁴, where the decision is thousands of nats.)"""
+    for tau, with_lag in ((0.0, False), (6e-4, True)):
+        problem, lag = _problem(tau)
+        base = problem.fit(np.asarray(problem.space.nominal, dtype=float))
+        fit, effect = (problem.fit(base.beta, lag, np.array([3e-4])), lag) if with_lag else (base, None)
+        lz = laplace_log_evidence(problem, fit)
+        lz_is, se = _importance_log_evidence(problem, fit, effect)
+        assert abs(lz - lz_is) < 0.25 + 3 * se, (tau, lz, lz_is, se)
+
+
+def test_posterior_probabilities_weigh_fit_against_complexity():
+    """With a lag in the record the lag model takes all the probability; without, the baseline is preferred
+    (the lag's refit improves χ² by the noise's chance alone, less than its Occam factor)."""
+    problem, lag = _problem(6e-4)
+    base = problem.fit(np.asarray(problem.space.nominal, dtype=float))
+    probs = posterior_probabilities(problem, base, {"actuator_lag": problem.fit(base.beta, lag, np.array([3e-4]))})
+    assert next(iter(probs)) == "actuator_lag" and probs["actuator_lag"] > 0.99
+    problem, lag = _problem(0.0)
+    base = problem.fit(np.asarray(problem.space.nominal, dtype=float))
+    probs = posterior_probabilities(problem, base, {"actuator_lag": problem.fit(base.beta, lag, np.array([3e-4]))})
+    assert next(iter(probs)) == "none" and probs["none"] > 0.5
