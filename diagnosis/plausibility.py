@@ -22,6 +22,7 @@ from identification.prior import PriorCheck
 from .effects import Effect
 from .fitting import Fit, GapProblem
 from .rank import Ranking
+from .refits import GAP_THRESHOLD
 from .verdict import BIC_MARGIN, verdict_rule
 
 __all__ = ["CONFOUNDED", "confounded", "implausibilities", "plausible_verdict", "posterior_std", "prior_checks"]
@@ -74,9 +75,14 @@ def implausibilities(problem: GapProblem, effect: Effect, fit: Fit) -> list[str]
 
 def plausible_verdict(ranking: Ranking, problem: GapProblem, effects: Mapping[str, Effect]) -> Ranking:
     """The ranking's verdict among its plausible refits only; the implausible ones listed
-    (:attr:`Ranking.implausible`) and, when the verdict was one of them, named in the reason."""
+    (:attr:`Ranking.implausible`) and, when the verdict was one of them, named in the reason.  A baseline that
+    matches the records only by a parameter in conflict with its prior has something to explain too: a
+    plausible refit that keeps the records at the noise floor, pays for itself (ΔBIC, the priors' terms
+    included) and resolves the conflict is then the verdict (:func:`_prior_conflict_verdict`)."""
     issues = {lab: implausibilities(problem, effects[lab], rf.fit) for lab, rf in ranking.refits.items()}
     issues = {lab: v for lab, v in issues.items() if v}
+    if ranking.verdict == "none":
+        ranking = _prior_conflict_verdict(ranking, problem, issues)
     if not issues:
         return ranking
     before = ranking.heldout_before
@@ -91,19 +97,35 @@ def plausible_verdict(ranking: Ranking, problem: GapProblem, effects: Mapping[st
     return replace(ranking, verdict=verdict, indistinguishable=ties, reason=why, implausible=issues)
 
 
-def confounded(problem: GapProblem, effect: Effect, fit: Fit) -> str | None:
-    """Whether ``effect``'s variables are degenerate with the baseline unknowns at its refit ``fit`` (on the time
-    records' rows of its Jacobian): the line saying with which combination, or ``None``."""
-    p, k = problem.space.dim, effect.dim
-    n_extra = (0 if problem.prior is None else problem.prior.count) + (0 if problem.modes is None else
-                                                                        problem.modes.count)
-    J = np.asarray(fit.jac, dtype=float)
-    if J.size == 0 or J.shape[1] != p + k:
-        return None
-    J = J[:J.shape[0] - n_extra] if n_extra else J
+def _central_jacobian(problem: GapProblem, effect: Effect, z: np.ndarray, *, step: float = 1e-4) -> np.ndarray:
+    """Central-difference Jacobian of the time records' whitened residuals w.r.t. the baseline unknowns and
+    ``effect``'s variables ``z`` in the unit box (the fits' own forward-difference Jacobians are a few per cent
+    off in a lightly damped record's damping — too coarse to tell a degeneracy from a near one)."""
+    box = problem.box(effect)
+    u = box.to_unit(z)
+    p = problem.space.dim
+    n = problem.n_fit - (0 if problem.prior is None else problem.prior.count) \
+        - (0 if problem.modes is None else problem.modes.count)
+    cols = []
+    for j in range(u.size):
+        h = np.zeros(u.size)
+        h[j] = step
+        lo, hi = np.clip(u - h, 0.0, 1.0), np.clip(u + h, 0.0, 1.0)
+        rp, rm = (problem.residuals(x[:p], effect, x[p:]) for x in (box.from_unit(hi), box.from_unit(lo)))
+        cols.append((rp[:n] - rm[:n]) / (hi[j] - lo[j]))
+    return np.column_stack(cols)
+
+
+def confounded(problem: GapProblem, effect: Effect, fit: Fit, *, at_baseline: bool = False) -> str | None:
+    """Whether ``effect``'s variables are degenerate with the baseline unknowns (on the time records' residuals):
+    the line saying with which combination, or ``None``.  ``fit`` is the effect's refit, or with ``at_baseline``
+    the baseline fit (the effect then at its "off" value)."""
+    p = problem.space.dim
+    s = np.asarray(effect.off if at_baseline else fit.s, dtype=float)
+    J = _central_jacobian(problem, effect, np.concatenate([np.asarray(fit.beta, dtype=float), s]))
     Jb, Je = J[:, :p], J[:, p:]
     lines = []
-    for j in range(k):
+    for j in range(effect.dim):
         col = Je[:, j]
         norm = float(np.linalg.norm(col))
         if norm == 0.0:
@@ -117,3 +139,23 @@ def confounded(problem: GapProblem, effect: Effect, fit: Fit) -> str | None:
                          f"{left:.1e} of its effect unexplained by them): only a prior on "
                          f"{'them' if len(names) > 1 else 'it'} separates the two")
     return f"{effect.label}: " + "; ".join(lines) if lines else None
+
+
+def _prior_conflict_verdict(ranking: Ranking, problem: GapProblem, issues: Mapping[str, list[str]]) -> Ranking:
+    """``ranking`` (verdict ``none``) unchanged unless its baseline is in conflict with a prior and a plausible
+    refit resolves it (module docstring of :func:`plausible_verdict`)."""
+    conflicts = [c for c in prior_checks(problem, ranking.baseline) if c.status == "conflict"]
+    if not conflicts:
+        return ranking
+    ok = [lab for lab in ranking.order if lab in ranking.refits and lab not in issues
+          and ranking.refits[lab].delta_bic < -BIC_MARGIN
+          and float(np.mean(ranking.refits[lab].heldout_after)) - 1.0 <= GAP_THRESHOLD]
+    if not ok:
+        return ranking
+    best = min(ok, key=lambda lab: ranking.refits[lab].delta_bic)
+    names = ", ".join(c.name for c in conflicts)
+    reason = (f"the baseline matches the records only with {names} in conflict with the prior "
+              f"({'; '.join(c.line() for c in conflicts)}); {best} matches them as well with every prior kept "
+              f"(held-out gap ratio {np.mean(ranking.refits[best].heldout_after):.3g}, "
+              f"dBIC {ranking.refits[best].delta_bic:.1f} with the priors' terms)")
+    return replace(ranking, verdict=best, indistinguishable=[], reason=reason)

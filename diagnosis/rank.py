@@ -250,8 +250,10 @@ def _pair_with(run: _Search, single: EffectRefit) -> tuple[EffectRefit | None, E
     second effect to add.  Such a pair is not returned (``None``).
     """
     first = run.catalogue.effect(single.label)
+    with_prior = run.problem.prior is not None and run.problem.prior.count > 0
+    # a chain's gain as the second effect only where a prior breaks its degeneracy (as on the shortlist)
     rescored = {e.label: score_effect(run.problem, single.fit, on_top_of(first, single.fit.s, e)).lm
-                for e in run.effects.values() if e.name != first.name}
+                for e in run.effects.values() if e.name != first.name and (with_prior or e.name not in CHAIN.names)}
     partners = [lab for lab in sorted(rescored, key=lambda k: -rescored[k]) if rescored[lab] > 0][:PAIR_PARTNERS]
     run.say(f"second-effect scores at the {single.label} refit: "
             + ", ".join(f"{lab} {rescored[lab]:.4g}" for lab in partners))
@@ -445,6 +447,22 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
         baseline, early_rebaseline = better, rebaseline
 
 
+def _shortlist(problem: GapProblem, effects: dict[str, Effect], scores: dict[str, EffectScore], by_score: list[str],
+               shortlist: int) -> list[str]:
+    """The effects to refit: the ``shortlist`` best-scoring physical ones, and the measurement chain's gains
+    apart from them.  A gain is degenerate with a common scale of the beam's unknowns, so its score at a
+    baseline that took up the scale says little of its worth, and it must not push a physical effect off the
+    shortlist (measured: a sensor's gain displaced the right clamp spring in the blind family); it is refitted
+    when it scores best of all, and — a prior on the beam breaking the degeneracy — whenever its score is
+    significant."""
+    chain = {lab for lab in effects if effects[lab].name in CHAIN.names}
+    labels = [lab for lab in by_score if scores[lab].lm > 0 and lab not in chain][:shortlist]
+    with_prior = problem.prior is not None and problem.prior.count > 0
+    extra = [lab for lab in by_score if lab in chain and scores[lab].lm > 0
+             and ((with_prior and scores[lab].p_value < 0.01) or lab == by_score[0])]
+    return labels + extra
+
+
 def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortlist: int, max_evaluations: int,
                say: Callable[[str], None], executor: Executor | None, parallel: int, rebaseline: bool,
                modal: Callable[[np.ndarray], ModalEvidence] | None) -> Ranking | Fit:
@@ -458,13 +476,7 @@ def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortli
         say(f"score {lab}: {scores[lab].lm:.4g}")
     run = _Search(problem, baseline, catalogue, effects, before, scores, max_evaluations, executor, say)
     by_score = sorted(effects, key=lambda lab: -scores[lab].lm)
-    labels = [lab for lab in by_score if scores[lab].lm > 0][:shortlist]
-    if problem.prior is not None and problem.prior.count:
-        # a measurement chain's gain is degenerate with a common scale of the beam's unknowns; a prior on them
-        # breaks that, and then the score at a baseline that took the scale up to its bounds says little of the
-        # gain's worth: with priors, every chain candidate with a significant score is refitted too
-        labels += [lab for lab in by_score if effects[lab].name in CHAIN.names and lab not in labels
-                   and scores[lab].p_value < 0.01]
+    labels = _shortlist(problem, effects, scores, by_score, shortlist)
     # with the modal pattern at hand, the other basins wait until it has been tried (it is cheaper)
     local = run.refit(labels, stage="local" if modal is None else "first")
     for lab, (fit, _) in local.items():

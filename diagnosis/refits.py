@@ -113,7 +113,24 @@ def _local_refit(problem: GapProblem, baseline: Fit, effect: Effect, score: Effe
     """
     fit = problem.fit(baseline.beta, effect, _best_start(problem, baseline, effect, score),
                       max_evaluations=max_evaluations)
+    fit = _rescaled(problem, effect, fit, max_evaluations)
     return _basin_refits(problem, baseline, effect, score, fit, [], max_evaluations) if basins else (fit, [])
+
+
+def _rescaled(problem: GapProblem, effect: Effect, fit: Fit, max_evaluations: int) -> Fit:
+    """``fit``, or the refit from the effect's rescaled start (:attr:`Effect.rescale`: along a direction the
+    data cannot see, to where the priors are best) when that is better."""
+    if effect.rescale is None or problem.prior is None or not problem.prior.count:
+        return fit
+    start = effect.rescale(problem.space.names, fit.beta, fit.s, problem.prior)
+    if start is None:
+        return fit
+    lo, hi = problem.box(effect).lower, problem.box(effect).upper
+    z = np.clip(np.concatenate(start), lo, hi)
+    p = problem.space.dim
+    moved = problem.fit(z[:p], effect, z[p:], max_evaluations=max_evaluations)
+    best = moved if moved.rss < fit.rss else fit
+    return replace(best, n_evaluations=fit.n_evaluations + moved.n_evaluations)
 
 
 def _basin_refits(problem: GapProblem, baseline: Fit, effect: Effect, score: EffectScore, fit: Fit,

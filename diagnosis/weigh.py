@@ -6,6 +6,7 @@ from dataclasses import dataclass, replace
 from typing import Any, Mapping
 
 from .effects import Effect
+from .effects.chain import FAMILY as CHAIN
 from .evidence import posterior_probabilities
 from .fitting import GapProblem
 from .plausibility import confounded, prior_checks
@@ -42,6 +43,16 @@ def weigh(problem: GapProblem, ranking: Ranking, by_label: Mapping[str, Effect])
                if (line := confounded(problem, by_label[lab], rf.fit)) is not None}
     if ranking.verdict in tangled:
         reason += "; " + tangled[ranking.verdict]
+    if ranking.verdict == "none":
+        # a model at the noise floor may still owe its scale to a miscalibrated chain: say which gains the data
+        # cannot tell from the beam's unknowns
+        chain = {lab: line for lab, e in by_label.items() if e.name in CHAIN.names and lab not in tangled
+                 and (line := confounded(problem, e, ranking.baseline, at_baseline=True)) is not None}
+        tangled |= chain
+        if chain:
+            reason += ("; the data cannot tell a gain error of the measurement chain from the beam's own scale ("
+                       + "; ".join(chain.values()) + ")")
+            ranking = replace(ranking, indistinguishable=list(chain))
     agreement: dict[str, dict[str, Any]] = {}
     if problem.modes is not None:
         m = problem.model(ranking.baseline.beta)

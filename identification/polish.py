@@ -25,6 +25,7 @@ import numpy as np
 
 from ebb_model.errors import ParameterError
 
+from .modal_data import ModalData
 from .noise_model import NoiseModel
 from .prior import Prior
 from .least_squares import CHI2_RESOLUTION, DIFF_STEP, Box, fit_least_squares, penalised
@@ -77,11 +78,15 @@ class ResidualEvaluator:
     prior
         The user's priors (:mod:`identification.prior`), their residuals
         ``(x − μ)/σ_p`` appended (with a noise model only: both in noise units).
+    modes
+        Measured natural frequencies (:mod:`identification.modal_data`), their
+        residuals ``(f_model − f)/σ`` appended (with a noise model only).
     """
 
     evaluator: Any
     noise: NoiseModel | None = None
     prior: Prior | None = None
+    modes: ModalData | None = None
     scale: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -96,7 +101,8 @@ class ResidualEvaluator:
     def n_residuals(self) -> int:
         """Length of a residual vector (all samples of all sensors of all experiments)."""
         n_prior = self.prior.count if self.prior is not None and self.noise is not None else 0
-        return int(sum(e.outputs.size for e in self.evaluator.experiments)) + n_prior
+        n_modes = self.modes.count if self.modes is not None and self.noise is not None else 0
+        return int(sum(e.outputs.size for e in self.evaluator.experiments)) + n_prior + n_modes
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Residual vector of candidate ``x``, penalised when the model refuses it."""
@@ -109,6 +115,8 @@ class ResidualEvaluator:
             return penalised(None, self.n_residuals)
         if self.noise is not None:
             parts = [self.noise.whiten(i, y - e.outputs).ravel() for i, (y, e) in enumerate(zip(sims, exps))]
+            if self.modes is not None:
+                parts.append(self.modes.residuals(*self.space.apply(self.evaluator.config, np.asarray(x, float))))
             if self.prior is not None and self.prior.count:
                 parts.append(self.prior.residuals(x))
         else:
@@ -130,7 +138,7 @@ class ResidualEvaluator:
 def polish(evaluator: Any, x0: np.ndarray, *, runner: Runner | None = None, max_evaluations: int = 400,
            xtol: float = 1e-10, ftol: float = 1e-12, diff_step: float = DIFF_STEP,
            chi2_resolution: float = CHI2_RESOLUTION, noise: NoiseModel | None = None,
-           prior: Prior | None = None) -> PolishResult:
+           prior: Prior | None = None, modes: ModalData | None = None) -> PolishResult:
     """Least-squares refinement of candidate ``x0``.
 
     Parameters
@@ -144,12 +152,12 @@ def polish(evaluator: Any, x0: np.ndarray, *, runner: Runner | None = None, max_
         Where batches of candidates are evaluated (default: this process).
     max_evaluations, xtol, ftol, diff_step, chi2_resolution
         As :func:`~identification.least_squares.fit_least_squares`.
-    noise, prior
-        Noise model to whiten the residuals by, and the priors to add (:class:`ResidualEvaluator`): the fit
-        is then the posterior's mode.
+    noise, prior, modes
+        Noise model to whiten the residuals by, the priors and measured modes to add
+        (:class:`ResidualEvaluator`): the fit is then the posterior's mode given every kind of data.
     """
     run = runner or SerialRunner()
-    res_ev = ResidualEvaluator(evaluator, noise, prior)
+    res_ev = ResidualEvaluator(evaluator, noise, prior, modes)
     sp = evaluator.space
     fit = fit_least_squares(lambda X: run(res_ev, X), x0, Box(sp.lower, sp.upper), max_evaluations=max_evaluations,
                             xtol=xtol, ftol=ftol, diff_step=diff_step, chi2_resolution=chi2_resolution)

@@ -41,6 +41,11 @@ def identified_lines(res: IdentificationResult) -> list[str]:
     if res.priors:
         lines.append("  against the priors:")
         lines += [f"    {c.line()}" for c in res.priors]
+    a = ident.get("against_measured_modes")
+    if a:
+        lines.append(f"  against the {a['modes']} measured modes: {'agrees' if a['agrees'] else 'DISAGREES'} "
+                     f"(chi2 {a['chi2']:.3g}, limit {a['chi2_limit']:.3g}; model "
+                     + ", ".join(f"{v:.4g}" for v in a["model_hz"] or []) + " Hz)")
     if res.adequacy is not None:
         lines.append("  " + res.adequacy.summary())
     return lines

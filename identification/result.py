@@ -118,6 +118,9 @@ class IdentificationResult:
     priors
         The identified model against the user's priors (:class:`identification.prior.PriorCheck`: what moved
         each parameter, and any conflict).
+    modal_agreement
+        The identified model against the config's measured modes
+        (:meth:`identification.modal_data.ModalData.agreement`), when it gives them.
     """
 
     config: BeamConfig
@@ -135,6 +138,7 @@ class IdentificationResult:
     noise_model: tuple[str, ...] = ()
     noise: NoiseModel | None = None
     priors: tuple[PriorCheck, ...] = ()
+    modal_agreement: Mapping[str, Any] | None = None
 
     @property
     def knee(self) -> dict[str, float]:
@@ -175,6 +179,8 @@ class IdentificationResult:
             doc["cramer_rao_valid"] = bool(max(gap.values(), default=0.0) <= CRB_GAP_LIMIT)
         if self.priors:
             doc["priors"] = {c.name: c.to_dict() for c in self.priors}
+        if self.modal_agreement is not None:
+            doc["against_measured_modes"] = dict(self.modal_agreement)
         return doc
 
     @property

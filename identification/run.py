@@ -43,6 +43,7 @@ from .data import Experiment, load_experiments
 from .export_targets import DEFAULT_TARGETS, check_targets
 from .fisher import fisher_information
 from .noise_model import NoiseModel, estimate_noise_model
+from .modal_data import ModalData, modal_data
 from .prior import Prior, PriorCheck
 from .native import ExperimentArrays, NativeEvaluator
 from .objectives import objective_names
@@ -200,7 +201,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                 polish_noise = (NoiseModel.white(noise_std, len(exps)) if noise_std is not None
                                 else _noise_at(evaluator, pareto.X[pareto.knee]))
                 polished_raw = _polish_front(pareto, search_evaluator, runner, int(polish), int(polish_evaluations),
-                                             on_progress, polish_noise, Prior.of(cfg, space.names))
+                                             on_progress, polish_noise, Prior.of(cfg, space.names), modal_data(cfg))
         finally:
             if search_evaluator is not evaluator:
                 search_evaluator.close()
@@ -323,6 +324,8 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
     if prior.count and best.stable:
         fi = fisher_information(evaluator, best_x, noise=noise)
         priors = tuple(prior.judge(best_x, prior.posterior_std(fi.matrix, fi.scales)))
+    modes = modal_data(cfg)
+    agreement = modes.agreement(*space.apply(cfg, best_x)) if modes is not None else None
     fit_gap = None
     if best.stable:
         whitened = np.concatenate([noise.whiten(i, y - e.outputs) for i, (e, y) in enumerate(zip(exps, best.outputs))])
@@ -330,7 +333,8 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
     return IdentificationResult(cfg, space, pareto, np.array([p[0] for p in props]),
                                 np.array([p[1] for p in props]), np.array([p[2] for p in props]), out,
                                 config_name, polished, adequacy, fisher0, fit_gap,
-                                tuple(noise.describe(cfg.output_names, [e.name for e in exps])), noise, priors)
+                                tuple(noise.describe(cfg.output_names, [e.name for e in exps])), noise, priors,
+                                agreement)
 
 
 def _noise_at(evaluator: NativeEvaluator, x: np.ndarray) -> NoiseModel | None:
@@ -347,13 +351,16 @@ def _noise_at(evaluator: NativeEvaluator, x: np.ndarray) -> NoiseModel | None:
 
 def _polish_front(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, budget: int,
                   on_progress: Callable[[Progress], None] | None, noise: NoiseModel | None = None,
-                  prior: Prior | None = None) -> list[tuple[int, np.ndarray, np.ndarray, int, Any]]:
+                  prior: Prior | None = None, modes: ModalData | None = None
+                  ) -> list[tuple[int, np.ndarray, np.ndarray, int, Any]]:
     """Polish the ``k`` points nearest the knee (knee first), their residuals whitened by ``noise`` when given
-    and the ``prior`` added (the posterior's mode): ``(from_index, x, F, evaluations, result)``."""
+    and the ``prior`` and measured ``modes`` added (the posterior's mode): ``(from_index, x, F, evaluations,
+    result)``."""
     out: list[tuple[int, np.ndarray, np.ndarray, int, Any]] = []
     n_done = pareto.n_evaluations
     for step, i in enumerate(knee_order(pareto.F, pareto.objective_names)[:k]):
-        r = polish_point(evaluator, pareto.X[i], runner=runner, max_evaluations=budget, noise=noise, prior=prior)
+        r = polish_point(evaluator, pareto.X[i], runner=runner, max_evaluations=budget, noise=noise, prior=prior,
+                         modes=modes)
         f = np.asarray(runner(evaluator, r.x[None, :]))[0]
         n_ev = r.n_evaluations + 1
         n_done += n_ev

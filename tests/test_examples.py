@@ -104,14 +104,20 @@ def test_arts_identification_reports_identifiability_and_improves_the_fit(tmp_pa
 
 
 @pytest.mark.skipif(not ARTS_DATA.is_file(), reason="ARTS-Lab record not available")
-def test_arts_diagnosis_is_checked_against_the_independent_impulse_test(tmp_path):
-    run_example("arts_diagnose.py", tmp_path, str(ARTS_DATA))
+def test_arts_diagnosis_names_nothing_implausible_and_says_what_would_decide(tmp_path):
+    stdout = run_example("arts_diagnose.py", tmp_path, str(ARTS_DATA))
     s = json.loads((tmp_path / "summary.json").read_text())
     # the impulse test's peaks are the natural frequencies its README documents
     # (6.62-6.66, 41.3-41.4, 117.5 and about 230 Hz), found without being told them
     modes = s["impulse_modes_hz"]
     assert len(modes) >= 4
     np.testing.assert_allclose(modes[:4], [6.64, 41.35, 117.5, 230.0], rtol=0.012)
+    # ... and the config's measured modes, data of the diagnosis, are those peaks (not typed from elsewhere)
+    from identification.modal_data import modal_data
+
+    table = modal_data(load_identification_config(EXAMPLES / "arts_diagnose.toml"))
+    assert table is not None
+    np.testing.assert_allclose(table.frequencies_hz, modes[:4], atol=0.006)
     # the configured in-band noise is what adjacent periods of the filtered record give
     assert s["noise_std_adjacent_periods"] == pytest.approx(s["noise_std_config"], rel=0.05)
     # a real gap: far above the noise floor even after band limitation
@@ -119,6 +125,15 @@ def test_arts_diagnosis_is_checked_against_the_independent_impulse_test(tmp_path
     assert (tmp_path / "gap" / "gap.json").is_file()
     # every refit is compared with the impulse test, and the report says which survive
     assert s["refits"] and all(len(r["modes"]["relative_error"]) >= 3 for r in s["refits"])
+    # nothing implausible is named or exported: the point mass of 2-3x the beam on the accelerometer (what the
+    # share-of-the-gap rule exported before) is flagged, and whatever is exported passes every check
+    assert "point_mass" in s["implausible"]
+    assert s["verdict"] not in s["implausible"]
+    if s["exported"]:
+        assert s["against_measured_modes"][s["verdict"]]["agrees"]
+    else:
+        assert s["verdict"] in ("unexplained", "none")
+    assert "what would decide it" in stdout
     for r in s["refits"]:
         worse = r["modes"]["max_abs_error"] > s["baseline"]["modes"]["max_abs_error"] + 0.01
         assert (r["label"] in s["consistent_with_impulse_test"]) == (not worse and r["closed"] >= 0.5)

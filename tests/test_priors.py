@@ -85,8 +85,9 @@ def test_a_wrong_prior_is_reported_as_a_conflict_not_hidden(tmp_path):
 
 
 def test_identify_reports_what_moved_each_parameter(tmp_path):
-    """``identify`` with a prior on EI 30 % off the truth (13 ± 0.5) and a loose one on N: the data decide EI
-    (within 1 % of the truth; ``conflict`` reported, ≈ 6 σ), N's prior is loose and the data determine it."""
+    """``identify`` with a prior on EI 30 % off the truth (13 ± 0.5), a loose one on N, and the truth's three
+    lowest modes as measured data: the data decide EI (within 1 % of the truth; ``conflict`` reported, ≈ 6 σ),
+    N's prior is loose and the data determine it, and the identified model agrees with the measured modes."""
     from identification.run import identify
 
     d = bench_config().to_dict()
@@ -95,7 +96,13 @@ def test_identify_reports_what_moved_each_parameter(tmp_path):
     d["parameters"]["EI"].update(value=13.0, prior_std=0.5)
     d["parameters"]["N"].update(prior_std=50.0)
     cfg = config_from_dict(d, extra_sections=("identification",))
-    (tmp_path / "bench.toml").write_text(_toml(cfg))
+    # the truth's three lowest modes, measured to 0.3 %, as data of another kind
+    from ebb_model.modal import discrete_frequencies
+
+    f_true = discrete_frequencies(cfg, TRUTH, 3)[0][:3]
+    (tmp_path / "bench.toml").write_text(_toml(cfg) + "[identification.modes]\nfrequencies_hz = "
+                                         + json.dumps([float(v) for v in f_true]) + "\nstd_hz = "
+                                         + json.dumps([float(0.003 * v) for v in f_true]) + "\n")
     from ebb_model.reference.synthetic import synthesize
 
     u = _input("multisine", 41)
@@ -111,3 +118,50 @@ def test_identify_reports_what_moved_each_parameter(tmp_path):
     assert checks["N"].status == "data"
     doc = json.loads((tmp_path / "out" / "pareto.json").read_text())
     assert doc["identified"]["priors"]["EI"]["status"] == "conflict"
+    assert doc["identified"]["against_measured_modes"]["agrees"]
+
+
+def _gain_records(tmp_path, cfg, gain: float) -> list:
+    """Two records of the bench at its truth whose load cell reads ``1/gain`` times the force the beam feels
+    (a sensitivity entered wrong), 1 % white noise."""
+    from ebb_model.reference.synthetic import synthesize
+
+    files = []
+    for seed in (41, 42):
+        u = _input("multisine", seed)
+        rec = synthesize(cfg, u, noise=0.0, seed=seed, params=TRUTH)
+        y = _noisy(rec.outputs_clean, 0.01, "white", np.random.default_rng(seed + 100))
+        files.append(tmp_path / f"r{seed}.csv")
+        np.savetxt(files[-1], np.column_stack([rec.time, u / gain, y]), delimiter=",", header="time,F1,y1,y2",
+                   comments="")
+    return files
+
+
+@pytest.mark.parametrize("with_prior", [True, False], ids=["prior", "no-prior"])
+def test_a_gain_error_is_named_when_a_prior_breaks_the_degeneracy(tmp_path, with_prior):
+    """The load cell reads 25 % high (actuator gain 0.8).  Every receptance scales with 1/(EI, rhoA, c, N):
+    without priors the baseline absorbs the gain (the records at the noise floor, EI 25 % high) — verdict
+    ``none``, and the report says the gain cannot be told from the beam's scale; with priors on EI and rhoA (the
+    truth ± 3 %) the baseline conflicts with them and ``actuator_gain`` — 0.8 within 1 % — is named."""
+    d = bench_config().to_dict()
+    for k, v in TRUTH.items():
+        d["parameters"][k]["value"] = v
+    if with_prior:
+        d["parameters"]["EI"]["prior_std"] = 0.03 * TRUTH["EI"]
+        d["parameters"]["rhoA"]["prior_std"] = 0.03 * TRUTH["rhoA"]
+    cfg = config_from_dict(d, extra_sections=("identification",))
+    (tmp_path / "bench.toml").write_text(_toml(cfg))
+    files = _gain_records(tmp_path, cfg, 0.8)
+    out = tmp_path / "gap"
+    assert main(["diagnose", str(tmp_path / "bench.toml"), str(files[0]), "--holdout", str(files[1]), "--out",
+                 str(out), "--quiet", "--no-plots", "--workers", "1"]) == 0
+    doc = json.loads((out / "gap.json").read_text())
+    if with_prior:
+        assert doc["verdict"] == "actuator_gain", doc["reason"]
+        gain = doc["effects"][[e["label"] for e in doc["effects"]].index("actuator_gain")]["refit"]
+        # the priors are centred on the truth, so the valley's best point is the truth's scale: 1 % (measured 0.1 %)
+        assert abs(gain["effect_parameters"]["gain"] / 0.8 - 1.0) < 0.01, gain
+    else:
+        assert doc["verdict"] == "none", doc["reason"]
+        assert "actuator_gain" in doc["indistinguishable"] and "cannot tell a gain error" in doc["reason"]
+        assert abs(doc["baseline"]["parameters"]["EI"] / (TRUTH["EI"] / 0.8) - 1.0) < 0.01

@@ -10,7 +10,7 @@ effect is its own module in this package: a :class:`Signal` subclass and the fam
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Callable, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -169,6 +169,10 @@ class Effect:
     _apply: Callable[[BeamConfig, dict[str, float], np.ndarray], AugmentedModel] = field(repr=False)
     _physical: Callable[[np.ndarray], dict[str, float]] = field(repr=False)
     plausible: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    #: a start for the refit that moves along a direction the data cannot see to where the priors are best (the
+    #: measurement chain's gains: :func:`diagnosis.effects.chain.rescaled_start`); ``None``: no such direction
+    rescale: Callable[[tuple[str, ...], np.ndarray, np.ndarray, Any], tuple[np.ndarray, np.ndarray] | None] | None \
+        = field(default=None, repr=False)
 
     @property
     def label(self) -> str:

@@ -15,7 +15,8 @@ candidate: no continuous refit passes from +1 to −1 through a reading of zero 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -83,14 +84,37 @@ class ActuatorGain(Signal):
                                   sys.output_names, sys.state_names, hold)
 
 
+#: The beam's unknowns whose common scale ``k`` scales every receptance by ``1/k`` (η, a time constant, and the
+#: positions do not take part).
+SCALED = ("EI", "rhoA", "c", "N")
+
+
+def rescaled_start(names: tuple[str, ...], beta: np.ndarray, s: np.ndarray, prior: Any
+                   ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The point of the data's flat valley — the beam's unknowns ``β_i`` (i in :data:`SCALED`) times ``k``, the
+    gain times ``k`` — where the priors on them are best: ``k = Σ β_i μ_i/σ_i² / Σ β_i²/σ_i²``.  Local fits
+    crawl along that curved valley (the data's curvature across it dwarfs the priors' along it); a start at its
+    best point needs no crawl.  ``None`` without a prior on a scaled unknown."""
+    idx = [i for i, n in enumerate(names) if n in SCALED]
+    with_prior = [i for i in idx if np.isfinite(prior.std[i])]
+    if not with_prior:
+        return None
+    b, mu, sd = beta[with_prior], prior.mean[with_prior], prior.std[with_prior]
+    k = float(np.sum(b * mu / sd ** 2) / np.sum(b * b / sd ** 2))
+    moved = np.array(beta, dtype=float)
+    moved[idx] *= k
+    return moved, np.asarray(s, dtype=float) * k
+
+
 def candidates(config: BeamConfig, scales: Scales, identified: tuple[str, ...]) -> tuple[Effect, ...]:
     """The actuators' common gain and each sensor's, in :data:`GAIN_RANGE` (off: 1)."""
-    return ((signal_effect("actuator_gain", None, "gain", GAIN_RANGE, 1.0,
-                           "gain (calibration or unit) error of the measured force", ActuatorGain, "gain", "1"),)
-            + tuple(signal_effect("sensor_gain", s.name, "gain", GAIN_RANGE, 1.0,
-                                  f"gain (calibration or unit) error of sensor {s.name}",
-                                  lambda g, name=s.name: SensorGain(name, g), "gain", "1")
-                    for s in config.sensors))
+    effects = ((signal_effect("actuator_gain", None, "gain", GAIN_RANGE, 1.0,
+                              "gain (calibration or unit) error of the measured force", ActuatorGain, "gain", "1"),)
+               + tuple(signal_effect("sensor_gain", s.name, "gain", GAIN_RANGE, 1.0,
+                                     f"gain (calibration or unit) error of sensor {s.name}",
+                                     lambda g, name=s.name: SensorGain(name, g), "gain", "1")
+                       for s in config.sensors))
+    return tuple(replace(e, rescale=rescaled_start) for e in effects)
 
 
 #: This module's entry in the catalogue.
