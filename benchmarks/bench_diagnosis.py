@@ -2,7 +2,9 @@
 
 Each case's record is generated first (not timed: the independent FE truth is the test's, not the diagnosis'
 cost), then :func:`diagnosis.run.diagnose` runs blind with its defaults (two worker processes) and its wall time
-is printed with the verdict.  The median and the largest time over the chosen cases close the table.
+is printed with the verdict and the posterior probability the diagnosis gives the right answer (Laplace evidence
+over the baseline and the refitted candidates, :mod:`diagnosis.evidence`; "-" when the right effect was not
+refitted).  The median and the largest time over the chosen cases close the table.
 
 Run as ``python benchmarks/bench_diagnosis.py [CASE ...]`` (default: every case; ``--list`` names them).
 """
@@ -57,7 +59,7 @@ def main() -> None:
         ap.error(f"unknown case(s) {unknown}; --list names them")
     seed = {"disp-none": 5}
     times = []
-    print(f"{'case':<44}{'diagnosis [s]':>14}  verdict")
+    print(f"{'case':<44}{'diagnosis [s]':>14}{'P(right)':>10}  verdict")
     for name in chosen:
         kind, f_max, effect, right = table[name]
         with tempfile.TemporaryDirectory() as tmp:
@@ -68,7 +70,11 @@ def main() -> None:
             dt = time.perf_counter() - t0
         verdict = "+".join(sorted(d.verdict.split("+")))
         times.append(dt)
-        print(f"{name:<44}{dt:>14.1f}  {d.verdict} ({'right' if verdict in right else 'WRONG'})", flush=True)
+        probs = {("+".join(sorted(k.split("+"))) if k != "none" else k): v for k, v in d.report.evidence.items()}
+        p_right = max((v for k, v in probs.items() if k in right), default=None)
+        shown = "-" if p_right is None else f"{p_right:.3g}"
+        print(f"{name:<44}{dt:>14.1f}{shown:>10}  {d.verdict} ({'right' if verdict in right else 'WRONG'})",
+              flush=True)
     print(f"median {statistics.median(times):.1f} s, largest {max(times):.1f} s over {len(times)} case(s)")
 
 
