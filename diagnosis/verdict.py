@@ -28,6 +28,17 @@ def paying_refits(refits: Mapping[str, EffectRefit], before: np.ndarray) -> list
     return sorted(paying, key=lambda lab: float(np.mean(refits[lab].heldout_after)))
 
 
+def _insignificant_part(label: str, refits: Mapping[str, EffectRefit]) -> bool:
+    """Whether ``label`` is a pair one of whose effects does not pay for itself: the pair's BIC is within
+    :data:`BIC_MARGIN` of the other effect refitted alone (a Kelvin–Voigt record "explained" by Kelvin–Voigt plus
+    a 26 mg mass)."""
+    if PAIR_SEPARATOR not in label:
+        return False
+    pair = refits[label]
+    return any(part in refits and pair.delta_bic > refits[part].delta_bic - BIC_MARGIN
+               for part in label.split(PAIR_SEPARATOR))
+
+
 def verdict_rule(before: np.ndarray, refits: Mapping[str, EffectRefit], paying: Sequence[str]
                  ) -> tuple[str, list[str], str]:
     """The verdict from the refits alone (no simulation): ``(verdict, ties, reason)``.
@@ -40,7 +51,8 @@ def verdict_rule(before: np.ndarray, refits: Mapping[str, EffectRefit], paying: 
         The refits by label (their held-out gap ratio after, closure and ΔBIC are used).
     paying
         Labels of the refits that pay for themselves (:func:`paying_refits`), best first; a pair, when one was
-        refitted and pays, first.
+        refitted and pays, first (dropped when one of its effects does not pay for itself against the other
+        refitted alone).
 
     Returns
     -------
@@ -50,6 +62,7 @@ def verdict_rule(before: np.ndarray, refits: Mapping[str, EffectRefit], paying: 
         single effects that close nearly as much (≥ 95 % of its gain) and leave no measurably larger remainder
         (its ties), and the reason in words.
     """
+    paying = [lab for lab in paying if not _insignificant_part(lab, refits)]
     excess = float(np.mean(before)) - 1.0
     if excess < GAP_THRESHOLD:
         return "none", [], (f"the held-out residual variance is only {excess:+.0%} above the noise floor "

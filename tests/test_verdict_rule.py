@@ -59,7 +59,8 @@ def test_ties_close_nearly_as_much_and_leave_no_more():
 
 
 def test_a_pair_is_not_tied_with_its_own_parts():
-    refits = {"foundation+actuator_lag": refit("foundation+actuator_lag", 1.0), "foundation": refit("foundation", 1.02)}
+    refits = {"foundation+actuator_lag": refit("foundation+actuator_lag", 1.0, delta_bic=-600.0),
+              "foundation": refit("foundation", 1.02)}          # the lag pays for itself: 100 BIC better
     verdict, ties, _ = verdict_rule(BEFORE, refits, ["foundation+actuator_lag", "foundation"])
     assert verdict == "foundation+actuator_lag" and ties == []
 
@@ -78,3 +79,15 @@ def test_an_effect_that_leaves_a_gap_is_named_as_the_dominant_part_only():
                      np.array([0.9998] * 2))
     verdict, _, reason = verdict_rule(before, {"point_mass": rf}, ["point_mass"])
     assert verdict == "point_mass" and "remains" not in reason
+
+
+def test_a_pair_with_an_insignificant_partner_is_not_named():
+    """Kelvin–Voigt alone leaves 1.02; with a tiny point mass 1.0 — the pair's BIC only 4 better than
+    Kelvin–Voigt's: the mass does not pay for its two parameters, and Kelvin–Voigt is named."""
+    refits = {"point_mass+kelvin_voigt": refit("point_mass+kelvin_voigt", 1.0, delta_bic=-504.0),
+              "kelvin_voigt": refit("kelvin_voigt", 1.02, delta_bic=-500.0)}
+    verdict, _, _ = verdict_rule(BEFORE, refits, ["point_mass+kelvin_voigt", "kelvin_voigt"])
+    assert verdict == "kelvin_voigt"
+    refits["point_mass+kelvin_voigt"] = refit("point_mass+kelvin_voigt", 1.0, delta_bic=-600.0)
+    verdict, _, _ = verdict_rule(BEFORE, refits, ["point_mass+kelvin_voigt", "kelvin_voigt"])
+    assert verdict == "point_mass+kelvin_voigt"
