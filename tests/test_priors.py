@@ -165,3 +165,24 @@ def test_a_gain_error_is_named_when_a_prior_breaks_the_degeneracy(tmp_path, with
         assert doc["verdict"] == "none", doc["reason"]
         assert "actuator_gain" in doc["indistinguishable"] and "cannot tell a gain error" in doc["reason"]
         assert abs(doc["baseline"]["parameters"]["EI"] / (TRUTH["EI"] / 0.8) - 1.0) < 0.01
+
+
+def test_measured_modes_in_the_config_are_checked():
+    """``[identification.modes]``: every problem named at once, one line each; a good table is read."""
+    from identification.modal_data import modal_data
+
+    def cfg_with(table):
+        d = bench_config().to_dict()
+        d["identification"] = {"modes": table}
+        return config_from_dict(d, extra_sections=("identification",))
+
+    with pytest.raises(ConfigError) as err:
+        modal_data(cfg_with({"frequencies_hz": [5.0, 4.0], "std_hz": [0.1, 0.0, 1.0], "colour": 1}))
+    msg = str(err.value)
+    for part in ("identification.modes.colour: unknown key", "2 frequencies but 3 uncertainties",
+                 "must be > 0 and increasing", "every uncertainty must be > 0"):
+        assert part in msg, msg
+    with pytest.raises(ConfigError, match="frequencies_hz: must be a non-empty list of finite numbers"):
+        modal_data(cfg_with({"frequencies_hz": [float("nan")], "std_hz": [0.1]}))
+    table = modal_data(cfg_with({"frequencies_hz": [5.0, 30.0], "std_hz": [0.1, 0.3]}))
+    assert table is not None and table.count == 2 and modal_data(bench_config()) is None
