@@ -73,6 +73,36 @@ def _input(kind: str, seed: int) -> np.ndarray:
     return u
 
 
+def truth_config(**updates: dict):
+    """The blind bench's config with every parameter's value at the truth, then ``updates`` per parameter (a
+    prior, say)."""
+    from ebb_model.config import config_from_dict
+    from test_diagnosis_blind import TRUTH
+
+    d = bench_config().to_dict()
+    for k, v in TRUTH.items():
+        d["parameters"][k]["value"] = v
+    for k, v in updates.items():
+        d["parameters"][k].update(v)
+    return config_from_dict(d, extra_sections=("identification",))
+
+
+def truth_records(tmp_path, cfg, noise: str = "white", seeds: tuple[int, ...] = (41, 42), gain: float = 1.0):
+    """Multisine records of the bench at its truth, 1 % ``noise``, as CSV files ``r<seed>.csv``; the force column
+    reads ``1/gain`` times the force the beam feels (a load cell's sensitivity entered wrong when ``gain != 1``)."""
+    from test_diagnosis_blind import TRUTH
+
+    files = []
+    for seed in seeds:
+        u = _input("multisine", seed)
+        rec = synthesize(cfg, u, noise=0.0, seed=seed, params=TRUTH)
+        y = _noisy(rec.outputs_clean, 0.01, noise, np.random.default_rng(seed + 100))
+        files.append(tmp_path / f"r{seed}.csv")
+        np.savetxt(files[-1], np.column_stack([rec.time, u / gain, y]), delimiter=",", header="time,F1,y1,y2",
+                   comments="")
+    return files
+
+
 # ----------------------------------------------------------------------------------------------- the estimator
 def test_white_noise_stays_white_at_its_level():
     rng = np.random.default_rng(1)
@@ -250,20 +280,11 @@ def test_identification_reports_the_noise_floor_under_pink_noise(tmp_path):
     noise model it assumed."""
     from identification.run import identify
     from identification.result import IdentificationResult
-    from ebb_model.config import config_from_dict
-    from test_diagnosis_blind import TRUTH
 
-    d = bench_config().to_dict()
-    for k, v in TRUTH.items():
-        d["parameters"][k]["value"] = v
-    cfg = config_from_dict(d, extra_sections=("identification",))
+    cfg = truth_config()
     (tmp_path / "bench.toml").write_text(_toml(cfg))
-    u = _input("multisine", 41)
-    rec = synthesize(cfg, u, noise=0.0, seed=41, params=TRUTH)
-    y = _noisy(rec.outputs_clean, 0.01, "pink", np.random.default_rng(141))
-    np.savetxt(tmp_path / "r.csv", np.column_stack([rec.time, u, y]), delimiter=",", header="time,F1,y1,y2",
-               comments="")
-    res = identify(tmp_path / "bench.toml", [tmp_path / "r.csv"], tmp_path / "out", pop=8, generations=2,
+    files = truth_records(tmp_path, cfg, "pink", seeds=(41,))
+    res = identify(tmp_path / "bench.toml", files, tmp_path / "out", pop=8, generations=2,
                    progress=False, export=False)
     gap = res.identified["fit_gap_ratio"]
     assert all(abs(v - 1.0) < 0.15 for v in gap.values()), gap

@@ -16,7 +16,7 @@ from identification.prior import CONFLICT_SIGMA, Prior, PriorCheck
 
 from test_diagnose_cli import _toml
 from test_diagnosis_blind import TRUTH, bench_config
-from test_noise_model import _input, _noisy
+from test_noise_model import truth_config, truth_records
 
 
 def _with(d: dict, **params: dict) -> dict:
@@ -57,22 +57,9 @@ def test_a_wrong_prior_is_reported_as_a_conflict_not_hidden(tmp_path):
     """A record of the bench at its truth (EI 10), a config whose prior says EI 13 ± 0.5 (30 % off, tight):
     the data win (EI within 1 % of the truth), ``gap.json`` reports the prior conflict (≈ 6 σ), and the verdict
     stays ``none`` — the model at the truth explains the record."""
-    d = bench_config().to_dict()
-    for k, v in TRUTH.items():
-        d["parameters"][k]["value"] = v
-    d["parameters"]["EI"].update(value=13.0, prior_std=0.5)
-    cfg = config_from_dict(d, extra_sections=("identification",))
+    cfg = truth_config(EI={"value": 13.0, "prior_std": 0.5})
     (tmp_path / "bench.toml").write_text(_toml(cfg))
-    files = []
-    from ebb_model.reference.synthetic import synthesize
-
-    for seed in (41, 42):
-        u = _input("multisine", seed)
-        rec = synthesize(cfg, u, noise=0.0, seed=seed, params=TRUTH)
-        y = _noisy(rec.outputs_clean, 0.01, "white", np.random.default_rng(seed + 100))
-        files.append(tmp_path / f"r{seed}.csv")
-        np.savetxt(files[-1], np.column_stack([rec.time, u, y]), delimiter=",", header="time,F1,y1,y2",
-                   comments="")
+    files = truth_records(tmp_path, cfg)
     out = tmp_path / "gap"
     assert main(["diagnose", str(tmp_path / "bench.toml"), str(files[0]), "--holdout", str(files[1]), "--out",
                  str(out), "--quiet", "--no-plots", "--workers", "1"]) == 0
@@ -90,12 +77,7 @@ def test_identify_reports_what_moved_each_parameter(tmp_path):
     N's prior is loose and the data determine it, and the identified model agrees with the measured modes."""
     from identification.run import identify
 
-    d = bench_config().to_dict()
-    for k, v in TRUTH.items():
-        d["parameters"][k]["value"] = v
-    d["parameters"]["EI"].update(value=13.0, prior_std=0.5)
-    d["parameters"]["N"].update(prior_std=50.0)
-    cfg = config_from_dict(d, extra_sections=("identification",))
+    cfg = truth_config(EI={"value": 13.0, "prior_std": 0.5}, N={"prior_std": 50.0})
     # the truth's three lowest modes, measured to 0.3 %, as data of another kind
     from ebb_model.modal import discrete_frequencies
 
@@ -103,15 +85,8 @@ def test_identify_reports_what_moved_each_parameter(tmp_path):
     (tmp_path / "bench.toml").write_text(_toml(cfg) + "[identification.modes]\nfrequencies_hz = "
                                          + json.dumps([float(v) for v in f_true]) + "\nstd_hz = "
                                          + json.dumps([float(0.003 * v) for v in f_true]) + "\n")
-    from ebb_model.reference.synthetic import synthesize
-
-    u = _input("multisine", 41)
-    rec = synthesize(cfg, u, noise=0.0, seed=41, params=TRUTH)
-    y = _noisy(rec.outputs_clean, 0.01, "white", np.random.default_rng(141))
-    np.savetxt(tmp_path / "r.csv", np.column_stack([rec.time, u, y]), delimiter=",", header="time,F1,y1,y2",
-               comments="")
-    res = identify(tmp_path / "bench.toml", [tmp_path / "r.csv"], tmp_path / "out", pop=8, generations=2,
-                   progress=False, export=False)
+    res = identify(tmp_path / "bench.toml", truth_records(tmp_path, cfg, seeds=(41,)), tmp_path / "out", pop=8,
+                   generations=2, progress=False, export=False)
     checks = {c.name: c for c in res.priors}
     assert checks["EI"].status == "conflict" and checks["EI"].z < -CONFLICT_SIGMA
     assert abs(res.best["EI"] / TRUTH["EI"] - 1.0) < 0.01
@@ -121,37 +96,16 @@ def test_identify_reports_what_moved_each_parameter(tmp_path):
     assert doc["identified"]["against_measured_modes"]["agrees"]
 
 
-def _gain_records(tmp_path, cfg, gain: float) -> list:
-    """Two records of the bench at its truth whose load cell reads ``1/gain`` times the force the beam feels
-    (a sensitivity entered wrong), 1 % white noise."""
-    from ebb_model.reference.synthetic import synthesize
-
-    files = []
-    for seed in (41, 42):
-        u = _input("multisine", seed)
-        rec = synthesize(cfg, u, noise=0.0, seed=seed, params=TRUTH)
-        y = _noisy(rec.outputs_clean, 0.01, "white", np.random.default_rng(seed + 100))
-        files.append(tmp_path / f"r{seed}.csv")
-        np.savetxt(files[-1], np.column_stack([rec.time, u / gain, y]), delimiter=",", header="time,F1,y1,y2",
-                   comments="")
-    return files
-
-
 @pytest.mark.parametrize("with_prior", [True, False], ids=["prior", "no-prior"])
 def test_a_gain_error_is_named_when_a_prior_breaks_the_degeneracy(tmp_path, with_prior):
     """The load cell reads 25 % high (actuator gain 0.8).  Every receptance scales with 1/(EI, rhoA, c, N):
     without priors the baseline absorbs the gain (the records at the noise floor, EI 25 % high) — verdict
     ``none``, and the report says the gain cannot be told from the beam's scale; with priors on EI and rhoA (the
     truth ± 3 %) the baseline conflicts with them and ``actuator_gain`` — 0.8 within 1 % — is named."""
-    d = bench_config().to_dict()
-    for k, v in TRUTH.items():
-        d["parameters"][k]["value"] = v
-    if with_prior:
-        d["parameters"]["EI"]["prior_std"] = 0.03 * TRUTH["EI"]
-        d["parameters"]["rhoA"]["prior_std"] = 0.03 * TRUTH["rhoA"]
-    cfg = config_from_dict(d, extra_sections=("identification",))
+    cfg = truth_config(**({"EI": {"prior_std": 0.03 * TRUTH["EI"]}, "rhoA": {"prior_std": 0.03 * TRUTH["rhoA"]}}
+                          if with_prior else {}))
     (tmp_path / "bench.toml").write_text(_toml(cfg))
-    files = _gain_records(tmp_path, cfg, 0.8)
+    files = truth_records(tmp_path, cfg, gain=0.8)
     out = tmp_path / "gap"
     assert main(["diagnose", str(tmp_path / "bench.toml"), str(files[0]), "--holdout", str(files[1]), "--out",
                  str(out), "--quiet", "--no-plots", "--workers", "1"]) == 0

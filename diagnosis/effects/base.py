@@ -15,6 +15,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from ebb_model.config import BeamConfig
+from ebb_model.errors import ConfigError
 from ebb_model.statespace import DiscreteStateSpace
 
 __all__ = ["Scales", "AxialLoad", "Signal", "AugmentedModel", "Effect", "Family", "signal_effect", "pair_effect",
@@ -206,6 +207,19 @@ class Family:
 
     names: tuple[str, ...]
     candidates: Callable[[BeamConfig, Scales, tuple[str, ...]], tuple[Effect, ...]]
+
+
+def sensor_index(family: str, sensor: str, names: tuple[str, ...]) -> int:
+    """Column of ``sensor`` among the output ``names`` of a per-sensor signal part of ``family``.
+
+    Raises
+    ------
+    ConfigError
+        ``sensor`` is not one of ``names``.
+    """
+    if sensor not in names:
+        raise ConfigError(f"{family}: unknown sensor {sensor!r}; sensors are {', '.join(names)}")
+    return list(names).index(sensor)
 
 
 def signal_effect(name: str, target: str | None, variable: str, bounds: tuple[float, float], off: float,

@@ -22,10 +22,9 @@ import numpy as np
 
 from ebb_model.checks import finite_scalar
 from ebb_model.config import BeamConfig
-from ebb_model.errors import ConfigError
 from ebb_model.statespace import DiscreteStateSpace
 
-from .base import Effect, Family, Scales, Signal, signal_effect
+from .base import Effect, Family, Scales, Signal, sensor_index, signal_effect
 
 __all__ = ["FAMILY", "GAIN_RANGE", "ActuatorGain", "SensorGain"]
 
@@ -46,9 +45,7 @@ class SensorGain(Signal):
         object.__setattr__(self, "gain", finite_scalar(f"sensor_gain[{self.sensor}].gain", self.gain))
 
     def _index(self, names: tuple[str, ...]) -> int:
-        if self.sensor not in names:
-            raise ConfigError(f"sensor_gain: unknown sensor {self.sensor!r}; sensors are {', '.join(names)}")
-        return list(names).index(self.sensor)
+        return sensor_index("sensor_gain", self.sensor, names)
 
     def outputs(self, y: np.ndarray, dt: float, names: tuple[str, ...]) -> np.ndarray:
         i = self._index(tuple(names))

@@ -20,10 +20,10 @@ import scipy.signal as ss
 
 from ebb_model.checks import finite_scalar
 from ebb_model.config import BeamConfig
-from ebb_model.errors import ConfigError, DataError, ParameterError
+from ebb_model.errors import DataError, ParameterError
 from ebb_model.statespace import DiscreteStateSpace
 
-from .base import Effect, Family, Scales, Signal, signal_effect
+from .base import Effect, Family, Scales, Signal, sensor_index, signal_effect
 
 __all__ = ["FAMILY", "first_order_lag", "lag_coefficients", "ActuatorLag", "SensorLag"]
 
@@ -168,9 +168,7 @@ class SensorLag(Signal):
         object.__setattr__(self, "tau", finite_scalar(f"sensor_lag[{self.sensor}].tau", self.tau, minimum=0.0))
 
     def _index(self, names: tuple[str, ...]) -> int:
-        if self.sensor not in names:
-            raise ConfigError(f"sensor_lag: unknown sensor {self.sensor!r}; sensors are {', '.join(names)}")
-        return list(names).index(self.sensor)
+        return sensor_index("sensor_lag", self.sensor, names)
 
     def outputs(self, y: np.ndarray, dt: float, names: tuple[str, ...]) -> np.ndarray:
         i = self._index(tuple(names))
