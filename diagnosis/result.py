@@ -134,9 +134,10 @@ class GapReport:
     Attributes
     ----------
     verdict, reason
-        The effect's label, ``"none"``, ``"unexplained"`` or ``"grid"``, and why.
+        The effect's label, ``"none"``, ``"unexplained"``, ``"indistinguishable"`` or ``"grid"``, and why.
     indistinguishable
-        Effects the data cannot tell from the verdict.
+        Effects the data cannot tell from the verdict (for ``"indistinguishable"``: the candidates, the most
+        probable first).
     noise_std, excited_band_hz
         Noise standard deviation per sensor and the excited frequency band.
     baseline

@@ -10,7 +10,8 @@ import numpy as np
 from .effects import PAIR_SEPARATOR
 from .refits import GAP_THRESHOLD, EffectRefit
 
-__all__ = ["BIC_MARGIN", "NAMED_CLOSURE", "UNEXPLAINED", "paying_refits", "verdict_rule"]
+__all__ = ["BIC_MARGIN", "DECISIVE_ODDS", "INDISTINGUISHABLE", "NAMED_CLOSURE", "UNEXPLAINED", "by_evidence",
+           "paying_refits", "verdict_rule"]
 
 #: BIC improvement an effect must reach to count as paying for its parameters.
 BIC_MARGIN = 10.0
@@ -18,6 +19,12 @@ BIC_MARGIN = 10.0
 NAMED_CLOSURE = 0.8
 #: The verdict when there is a gap that no effect of the catalogue explains.
 UNEXPLAINED = "unexplained"
+#: The verdict when several candidates explain the records equally well and their evidence does not separate them.
+INDISTINGUISHABLE = "indistinguishable"
+#: Posterior odds from which the evidence decides between candidates the fits do not separate: a Bayes factor
+#: above 20 is "strong" evidence (Kass & Raftery 1995, J. Am. Stat. Assoc. 90, 773), a posterior probability of
+#: 0.95 between two.
+DECISIVE_ODDS = 20.0
 
 
 def paying_refits(refits: Mapping[str, EffectRefit], before: np.ndarray) -> list[str]:
@@ -94,3 +101,26 @@ def verdict_rule(before: np.ndarray, refits: Mapping[str, EffectRefit], paying: 
     if ties:
         reason += "; the data cannot distinguish it from " + ", ".join(ties)
     return paying[0], ties, reason
+
+
+def by_evidence(verdict: str, ties: Sequence[str], probabilities: Mapping[str, float]
+                ) -> tuple[str, list[str], str]:
+    """Between the verdict of :func:`verdict_rule` and its ties (candidates whose refits explain the records as
+    well), the evidence decides: ``(verdict, listed, sentence)``.
+
+    The most probable of them (posterior ``probabilities``, :mod:`diagnosis.evidence`) is the verdict when its
+    odds against the next reach :data:`DECISIVE_ODDS`; otherwise the verdict is :data:`INDISTINGUISHABLE` and
+    ``listed`` holds the candidates, the most probable first (an actuator's lag and a sensor's lag on a record
+    with one force and one sensor: the two commute, and no record of that pair can tell them apart).
+    """
+    candidates = sorted([verdict, *ties], key=lambda lab: -probabilities.get(lab, 0.0))
+    p = [probabilities.get(lab, 0.0) for lab in candidates]
+    odds = p[0] / p[1] if p[1] > 0.0 else float("inf")
+    if odds >= DECISIVE_ODDS:
+        return candidates[0], [], (f"the evidence decides between them: {candidates[0]} (posterior probability "
+                                   f"{p[0]:.3g}) over {candidates[1]} ({p[1]:.2g}), odds {odds:.3g}")
+    listed = ", ".join(f"{lab} {v:.2g}" for lab, v in zip(candidates, p))
+    return INDISTINGUISHABLE, candidates, (
+        f"{' and '.join(candidates)} explain the records equally well and the evidence cannot separate them "
+        f"(posterior probabilities {listed}; odds {odds:.3g} < {DECISIVE_ODDS:g}): records that see their "
+        f"difference (another sensor or drive point) or a prior on one of them would; none is exported")

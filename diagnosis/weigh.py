@@ -11,6 +11,7 @@ from .evidence import posterior_probabilities
 from .fitting import GapProblem
 from .plausibility import confounded, prior_checks
 from .rank import Ranking
+from .verdict import INDISTINGUISHABLE, by_evidence
 
 __all__ = ["Weighed", "weigh"]
 
@@ -35,6 +36,11 @@ def weigh(problem: GapProblem, ranking: Ranking, by_label: Mapping[str, Effect])
     if conflicts:
         reason += "; baseline: " + "; ".join(conflicts)
     probs = posterior_probabilities(problem, ranking.baseline, {lab: rf.fit for lab, rf in ranking.refits.items()})
+    if ranking.verdict in ranking.refits and ranking.indistinguishable:
+        # the fits could not separate the verdict from its ties: the evidence decides, or says it cannot
+        verdict, listed, sentence = by_evidence(ranking.verdict, ranking.indistinguishable, probs)
+        reason = (f"{sentence}; {reason}" if verdict == INDISTINGUISHABLE else f"{reason}; {sentence}")
+        ranking = replace(ranking, verdict=verdict, indistinguishable=listed)
     if ranking.verdict in probs:
         others = [f"{lab} {p:.2g}" for lab, p in probs.items() if lab != ranking.verdict][:2]
         reason += (f"; posterior probability {probs[ranking.verdict]:.3g} (Laplace evidence; next: "

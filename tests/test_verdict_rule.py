@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from diagnosis.verdict import NAMED_CLOSURE, UNEXPLAINED, verdict_rule
+from diagnosis.verdict import (DECISIVE_ODDS, INDISTINGUISHABLE, NAMED_CLOSURE, UNEXPLAINED, by_evidence,
+                               verdict_rule)
 from diagnosis.refits import GAP_THRESHOLD, EffectRefit
 
 BEFORE = np.array([40.0, 60.0])      # held-out gap ratio of the baseline, per sensor (mean 50)
@@ -91,3 +92,16 @@ def test_a_pair_with_an_insignificant_partner_is_not_named():
     refits["point_mass+kelvin_voigt"] = refit("point_mass+kelvin_voigt", 1.0, delta_bic=-600.0)
     verdict, _, _ = verdict_rule(BEFORE, refits, ["point_mass+kelvin_voigt", "kelvin_voigt"])
     assert verdict == "point_mass+kelvin_voigt"
+
+
+def test_the_evidence_decides_between_ties_or_says_it_cannot():
+    """Ties the fits cannot separate go to the evidence: strong odds (≥ 20) name the most probable — even when
+    the fit rule ranked the other first —; weaker odds give ``indistinguishable`` with the candidates listed,
+    the most probable first, and their probabilities in the reason."""
+    verdict, listed, why = by_evidence("a", ["b"], {"a": 0.04, "b": 0.95, "none": 0.01})
+    assert (verdict, listed) == ("b", []) and "odds 23.8" in why
+    verdict, listed, why = by_evidence("a", ["b", "c"], {"a": 0.30, "b": 0.62, "c": 0.08})
+    assert verdict == INDISTINGUISHABLE and listed == ["b", "a", "c"]
+    assert "b 0.62, a 0.3, c 0.08" in why and f"< {DECISIVE_ODDS:g}" in why
+    # the boundary itself: odds of exactly 20 decide
+    assert by_evidence("a", ["b"], {"a": 20.0 / 21.0, "b": 1.0 / 21.0})[0] == "a"
