@@ -41,15 +41,15 @@ FLAT_EIGENVALUE = 2.0 * math.pi
 
 
 def prior_log_normaliser(problem: GapProblem) -> float:
-    """``Σ -½ ln(2π σ_u²)`` over the baseline unknowns with a Gaussian prior (``σ_u``: the prior's standard
-    deviation in units of the unknown's bounds); ``0`` without priors."""
+    """``Σ -½ ln(2π σ_u²) − ½ ln det R`` over the baseline unknowns with a Gaussian prior (``σ_u``: the prior's
+    standard deviation in units of the unknown's bounds, ``R`` the priors' correlation); ``0`` without priors."""
     prior = problem.prior
     if prior is None or not prior.count:
         return 0.0
     span = np.asarray(problem.space.upper, dtype=float) - np.asarray(problem.space.lower, dtype=float)
     g = prior.given
     sigma_u = prior.std[g] / span[g]
-    return float(np.sum(-0.5 * np.log(2.0 * math.pi * sigma_u ** 2)))
+    return float(np.sum(-0.5 * np.log(2.0 * math.pi * sigma_u ** 2))) - 0.5 * prior.log_det_corr()
 
 
 def laplace_log_evidence(problem: GapProblem, fit: Fit) -> float:

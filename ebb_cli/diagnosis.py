@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from .messages import Subcommands, add_target_argument
+from .modes import add_modes_arguments, config_with_spectrum_modes
 
 __all__ = ["add_parsers"]
 
@@ -17,7 +18,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(msg, file=sys.stderr)
 
-    d = diagnose(args.config, args.data, args.out, holdout=args.holdout or (), result=args.result,
+    d = diagnose(config_with_spectrum_modes(args), args.data, args.out, holdout=args.holdout or (), result=args.result,
                  holdout_fraction=args.holdout_fraction, shortlist=args.shortlist, plots=not args.no_plots,
                  export=not args.no_export, targets=args.target, workers=args.workers, progress=say)
     from diagnosis.report import text_report
@@ -47,6 +48,7 @@ def add_parsers(sub: Subcommands) -> None:
                    help="fraction of each record held out when --holdout is not given (default 0.3)")
     p.add_argument("--result", default=None, metavar="DIR", help="an `ebb identify` result to start from")
     p.add_argument("--out", required=True, help="output directory (gap.json, plots); must not exist or be empty")
+    add_modes_arguments(p)
     p.add_argument("--shortlist", type=int, default=4, help="effects refitted after the score test (default 4)")
     p.add_argument("--workers", type=int, default=2, metavar="K",
                    help="processes refitting the shortlisted effects side by side (default 2)")

@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 from .messages import Subcommands, add_target_argument
+from .modes import add_modes_arguments, config_with_spectrum_modes
 
 __all__ = ["add_parsers"]
 
@@ -18,8 +19,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from identification.run import identify
 
     try:
-        res = identify(args.config, args.data, args.out, backend=args.backend, workers=args.workers,
-                       dask=args.dask, pop=args.pop, generations=args.generations, seed=args.seed,
+        res = identify(config_with_spectrum_modes(args), args.data, args.out, backend=args.backend,
+                       workers=args.workers, dask=args.dask, pop=args.pop, generations=args.generations, seed=args.seed,
                        resume=args.resume, force=args.force, algorithm=args.algorithm,
                        progress=not args.no_progress, export=not args.no_export, fmu=args.fmu,
                        fmu_parameters=args.fmu_parameters, fmu_inputs=args.fmu_inputs,
@@ -80,6 +81,7 @@ def add_parsers(sub: Subcommands) -> None:
     g.add_argument("--dask", default=None, metavar="ADDRESS",
                    help="Dask scheduler address, or local:K for a local cluster of K worker processes set up "
                         "for model evaluations (profiler off, slower health checks; default: none, --workers)")
+    add_modes_arguments(p)
     p.add_argument("--pop", type=int, default=40, help="population size, at least 4 (default 40)")
     p.add_argument("--generations", type=int, default=30, help="generations, at least 1 (default 30)")
     p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")

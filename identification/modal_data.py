@@ -8,8 +8,10 @@ the time record was excited (three tones near one mode say little about the othe
     frequencies_hz = [6.64, 41.35, 117.5, 230.0]   # the lowest modes, in order
     std_hz = [0.1, 0.3, 0.6, 2.0]                  # their standard uncertainties
 
-Mode ``k`` of the table is the model's ``k``-th lowest mode; its residual ``(f_model − f)/σ`` is appended to the
-whitened residuals of the time records, so fits, evidence and Cramér–Rao bounds use both kinds of data.
+or a spectrum file gives them (:mod:`identification.spectrum_modes`; ``--modes FILE`` on the command line,
+:func:`with_modes`). Mode ``k`` of the table is the model's ``k``-th lowest mode; its residual ``(f_model − f)/σ``
+is appended to the whitened residuals of the time records, so fits, evidence and Cramér–Rao bounds use both kinds of
+data.
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ import numpy as np
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError, EbbError
 
-__all__ = ["ModalData", "modal_data"]
+__all__ = ["ModalData", "modal_data", "with_modes"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,3 +107,23 @@ def modal_data(config: BeamConfig) -> ModalData | None:
     if bad:
         raise ConfigError(bad)
     return ModalData(values["frequencies_hz"], values["std_hz"])
+
+
+def with_modes(config: BeamConfig, modes: ModalData) -> BeamConfig:
+    """``config`` with ``modes`` as its ``[identification.modes]`` table (peaks picked from a spectrum file, say).
+
+    Raises
+    ------
+    ConfigError
+        The config has a table already: measured modes are stated once.
+    """
+    from dataclasses import replace
+    from types import MappingProxyType
+
+    if modal_data(config) is not None:
+        raise ConfigError("identification.modes: the config has a table of measured modes already; give them "
+                          "once (drop the table or the spectrum file)")
+    ident = dict(config.extra.get("identification", {}) or {})
+    ident["modes"] = {"frequencies_hz": [float(v) for v in modes.frequencies_hz],
+                      "std_hz": [float(v) for v in modes.std_hz]}
+    return replace(config, extra=MappingProxyType({**config.extra, "identification": ident}))

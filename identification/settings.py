@@ -31,7 +31,7 @@ __all__ = ["SECTION", "IdentificationSettings", "identification_settings", "load
 
 #: Name of the config table this layer owns.
 SECTION = "identification"
-_KEYS = ("positions", "data", "noise_std", "per", "stabilising", "modes")
+_KEYS = ("positions", "data", "noise_std", "per", "stabilising", "modes", "geometry")
 _DATA_KEYS = ("mapping", "units", "gains", "remove_offset", "pre_trigger", "band", "resample", "format")
 
 
@@ -101,6 +101,12 @@ def load_identification_config(path: str | Path) -> BeamConfig:
     ConfigError
         Invalid config, or an invalid ``[identification]`` table.
     """
+    from .geometry import geometry_prior
+    from .modal_data import modal_data
+
     cfg = load_config(path, extra_sections=(SECTION,))
     identification_settings(cfg)
+    # the tables read later are checked now: a bad one stops the run before its first simulation
+    modal_data(cfg)
+    geometry_prior(cfg)
     return cfg

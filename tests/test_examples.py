@@ -112,12 +112,11 @@ def test_arts_diagnosis_names_nothing_implausible_and_says_what_would_decide(tmp
     modes = s["impulse_modes_hz"]
     assert len(modes) >= 4
     np.testing.assert_allclose(modes[:4], [6.64, 41.35, 117.5, 230.0], rtol=0.012)
-    # ... and the config's measured modes, data of the diagnosis, are those peaks (not typed from elsewhere)
-    from identification.modal_data import modal_data
-
-    table = modal_data(load_identification_config(EXAMPLES / "arts_diagnose.toml"))
-    assert table is not None
-    np.testing.assert_allclose(table.frequencies_hz, modes[:4], atol=0.006)
+    # ... and the measured modes the diagnosis fits are those peaks, picked by the tool (not typed in a config)
+    fitted = s["against_measured_modes"]["none"]["measured_hz"]
+    np.testing.assert_allclose(fitted, modes[:4], rtol=1e-12)
+    # EI and rhoA's prior is the section's (two documented thicknesses), correlated through the thickness
+    assert {p["source"].split(" ")[0] for p in s["baseline_priors"].values()} == {"geometry"}
     # the configured in-band noise is what adjacent periods of the filtered record give
     assert s["noise_std_adjacent_periods"] == pytest.approx(s["noise_std_config"], rel=0.05)
     # a real gap: far above the noise floor even after band limitation
@@ -132,7 +131,7 @@ def test_arts_diagnosis_names_nothing_implausible_and_says_what_would_decide(tmp
     if s["exported"]:
         assert s["against_measured_modes"][s["verdict"]]["agrees"]
     else:
-        assert s["verdict"] in ("unexplained", "none")
+        assert s["verdict"] in ("unexplained", "none", "indistinguishable")
     assert "what would decide it" in stdout
     for r in s["refits"]:
         worse = r["modes"]["max_abs_error"] > s["baseline"]["modes"]["max_abs_error"] + 0.01

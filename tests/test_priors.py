@@ -53,6 +53,85 @@ def test_the_checks_say_what_moved_each_parameter():
     np.testing.assert_allclose(p.posterior_std(np.diag([0.0, 1.0]), np.array([10.0, 1.0])), [2.0, 1.0])
 
 
+#: A steel strip with tolerances as a calliper and a data sheet give them (relative: 2.5 %, 0.6 %, 0.4 %, 2 %).
+STRIP = {"E": {"value": 200e9, "std": 5e9}, "density": {"value": 7850.0, "std": 50.0},
+         "width": {"value": 0.05, "std": 2e-4}, "thickness": {"value": 4.5e-3, "std": 9e-5}}
+
+
+def _geometry_config(geometry, **params):
+    d = _with(bench_config().to_dict(), **params)
+    d["identification"] = {"geometry": geometry}
+    return config_from_dict(d, extra_sections=("identification",))
+
+
+def test_a_section_gives_ei_and_rhoa_a_correlated_prior():
+    """[identification.geometry] → the prior on (EI, ρA): its mean E w t³/12, ρ w t and its covariance against
+    200,000 draws of the four quantities (an independent Monte-Carlo propagation, GUM supplement 1).  Budget: the
+    sample covariance's own scatter (√(2/n) ≈ 0.3 % relative) plus the first-order propagation's neglect of the
+    cube's curvature (3 u_t² ≈ 0.1 % of the mean, ~1 % of the variance at u_t = 2 %)."""
+    from identification.geometry import geometry_prior
+
+    cfg = _geometry_config(STRIP)
+    sec = geometry_prior(cfg)
+    v = {k: q["value"] for k, q in STRIP.items()}
+    np.testing.assert_allclose(sec.mean, [v["E"] * v["width"] * v["thickness"] ** 3 / 12.0,
+                                          v["density"] * v["width"] * v["thickness"]], rtol=1e-12)
+    rng = np.random.default_rng(5)
+    draw = {k: q["value"] + q["std"] * rng.standard_normal(200_000) for k, q in STRIP.items()}
+    mc = np.cov(np.stack([draw["E"] * draw["width"] * draw["thickness"] ** 3 / 12.0,
+                          draw["density"] * draw["width"] * draw["thickness"]]))
+    np.testing.assert_allclose(sec.cov, mc, rtol=0.03)
+    # a thicker strip is stiffer and heavier: strongly correlated, (u_w² + 3u_t²)/(u_EI u_ρA) = 0.874
+    u = {k: q["std"] / q["value"] for k, q in STRIP.items()}
+    rho = sec.cov[0, 1] / np.sqrt(sec.cov[0, 0] * sec.cov[1, 1])
+    assert rho == pytest.approx((u["width"] ** 2 + 3 * u["thickness"] ** 2) / math.sqrt(
+        (u["E"] ** 2 + u["width"] ** 2 + 9 * u["thickness"] ** 2)
+        * (u["density"] ** 2 + u["width"] ** 2 + u["thickness"] ** 2)), rel=1e-12)
+    assert rho == pytest.approx(mc[0, 1] / np.sqrt(mc[0, 0] * mc[1, 1]), abs=0.01)
+    # the Prior whitens with the correlation: its residuals' squares are the Mahalanobis distance
+    prior = Prior.of(cfg, ("EI", "rhoA", "c", "N"))
+    assert prior.count == 2 and prior.sources[0].startswith("geometry")
+    x = np.array([sec.mean[0] * 1.1, sec.mean[1] * 0.97, 2.0, 20.0])
+    d = x[:2] - sec.mean
+    np.testing.assert_allclose(prior.residuals(x) @ prior.residuals(x), d @ np.linalg.solve(sec.cov, d), rtol=1e-10)
+    # and its information (relative units) is Σ⁻¹ scaled; the evidence's normaliser is the Gaussian's
+    scales = np.array([10.0, 1.0, 2.0, 20.0])
+    info = prior.information(scales)
+    np.testing.assert_allclose(info[:2, :2], np.linalg.inv(sec.cov) * np.outer(scales[:2], scales[:2]), rtol=1e-10)
+    assert np.all(info[2:] == 0.0)
+    assert prior.log_det_corr() == pytest.approx(math.log(1.0 - rho ** 2), rel=1e-10)
+    # each within its own prior, but not in the ratio the section allows: a joint conflict, said
+    sd = np.sqrt(np.diag(sec.cov))
+    off = np.array([sec.mean[0] - 1.5 * sd[0], sec.mean[1] + 1.5 * sd[1], 2.0, 20.0])
+    checks = prior.judge(off, np.array([0.1, 0.01, 1.0, 1.0]))
+    assert [c.status for c in checks[:2]] == ["data", "data"]
+    assert checks[2].joint and checks[2].name == "EI+rhoA" and checks[2].status == "conflict", checks[2].line()
+    assert "together" in checks[2].line() and checks[2].to_dict()["posterior_std"] is None
+    along = np.array([sec.mean[0] + sd[0], sec.mean[1] + sd[1], 2.0, 20.0])    # a thicker strip: 1 σ each, together
+    assert prior.judge(along, np.ones(4))[2].status == "consistent"
+
+
+def test_a_section_table_with_problems_names_each_at_load(tmp_path):
+    """Every problem of the table at once, one line each, when the config is loaded (not after a GA run)."""
+    from identification.settings import load_identification_config
+
+    bad = {"E": {"value": -1.0, "std": 1.0}, "width": {"value": 0.05}, "thickness": STRIP["thickness"],
+           "colour": {"value": 1.0, "std": 0.0}}
+    cfg = _geometry_config(bad, EI={"prior_std": 1.0})
+    table = "\n".join(f"{k} = {{ " + ", ".join(f"{kk} = {vv!r}" for kk, vv in q.items()) + " }" for k, q in bad.items())
+    (tmp_path / "c.toml").write_text(_toml(cfg) + "[identification.geometry]\n" + table + "\n")
+    with pytest.raises(ConfigError) as err:
+        load_identification_config(tmp_path / "c.toml")
+    msg = str(err.value)
+    for part in ("identification.geometry.colour: unknown quantity", "identification.geometry.density: missing",
+                 "identification.geometry.E: must be { value = <number > 0> Pa", "identification.geometry.width",
+                 "parameters.EI has a prior_std of its own"):
+        assert part in msg, msg
+    only_t = {k: {"value": q["value"], "std": 0.0} for k, q in STRIP.items()} | {"thickness": STRIP["thickness"]}
+    with pytest.raises(ConfigError, match="would be known exactly"):
+        Prior.of(_geometry_config(only_t), ("EI", "rhoA"))
+
+
 def test_a_wrong_prior_is_reported_as_a_conflict_not_hidden(tmp_path):
     """A record of the bench at its truth (EI 10), a config whose prior says EI 13 ± 0.5 (30 % off, tight):
     the data win (EI within 1 % of the truth), ``gap.json`` reports the prior conflict (≈ 6 σ), and the verdict

@@ -1,0 +1,47 @@
+"""``--modes FILE``: natural frequencies picked from a measured spectrum, taken as evidence with the records
+(``ebb identify`` and ``ebb diagnose``; :mod:`identification.spectrum_modes`)."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from ebb_model.config import BeamConfig
+
+__all__ = ["add_modes_arguments", "config_with_spectrum_modes"]
+
+
+def add_modes_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--modes FILE``, ``--modes-count N``, ``--modes-band LO HI``, ``--modes-model-error R``."""
+    parser.add_argument("--modes", default=None, metavar="FILE",
+                        help="a measured spectrum (.lvm or .csv: frequency [Hz], magnitude) whose resonance peaks "
+                             "are fitted with the records as measured natural frequencies")
+    parser.add_argument("--modes-count", type=int, default=None, metavar="N",
+                        help="with --modes: the lowest N peaks (default: every peak found)")
+    parser.add_argument("--modes-band", type=float, nargs=2, default=(1.0, float("inf")), metavar=("LO", "HI"),
+                        help="with --modes: the band searched for peaks, Hz (default 1 Hz and up)")
+    parser.add_argument("--modes-model-error", type=float, default=0.01, metavar="R",
+                        help="with --modes: relative frequency error expected of the beam model (default 0.01)")
+
+
+def config_with_spectrum_modes(args: argparse.Namespace) -> BeamConfig | str:
+    """The config path, or with ``--modes`` the loaded config with the spectrum's peaks as its
+    ``[identification.modes]`` (each printed)."""
+    if args.modes is None:
+        return str(args.config)
+    from identification.modal_data import with_modes
+    from identification.settings import load_identification_config
+    from identification.spectrum_modes import spectrum_modes
+
+    cfg = load_identification_config(args.config)
+    try:
+        modes = spectrum_modes(Path(args.modes), count=args.modes_count, band_hz=tuple(args.modes_band),
+                               model_error=args.modes_model_error)
+    except ValueError as exc:
+        from ebb_model.errors import ConfigError
+
+        raise ConfigError(f"--modes: {exc}") from None
+    if not getattr(args, "quiet", False):
+        picked = ", ".join(f"{f:.4g} ± {s:.2g}" for f, s in zip(modes.frequencies_hz, modes.std_hz))
+        print(f"measured modes from {args.modes}: {picked} Hz", file=sys.stderr)
+    return with_modes(cfg, modes)
