@@ -90,8 +90,7 @@ def geometry_prior(config: BeamConfig) -> SectionPrior | None:
     if not np.all(sd > 0) or abs(cov[0, 1]) / (sd[0] * sd[1]) > 0.999:
         raise ConfigError(f"{where}: with these uncertainties EI or rhoA, or their ratio, would be known exactly; "
                           f"give every tolerance that applies (the material's E and density too)")
-    source = ", ".join(f"{k} {value[i]:.4g} ± {rel[i]:.1%}" for i, k in enumerate(QUANTITIES))
-    return SectionPrior(mean, cov, f"geometry ({source})")
+    return SectionPrior(mean, cov, "geometry")
 
 
 def _number(v: object) -> bool:
