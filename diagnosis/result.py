@@ -17,6 +17,7 @@ from identification.prior import PriorCheck
 
 from .localise import Localisation
 from .modal_estimate import MeasuredModes
+from .polarity import PolarityCheck
 
 __all__ = ["BandClosure", "RefitSummary", "PatternMatch", "EffectRow", "BaselineSummary", "DiagnosisSettings",
            "GapReport"]
@@ -164,6 +165,8 @@ class GapReport:
     modal_data
         The baseline (``"none"``) and each refit against the measured modes of the config
         (:meth:`identification.modal_data.ModalData.agreement`), when it gives them.
+    polarity
+        The baseline with the measured force as read and reversed (:mod:`diagnosis.polarity`).
     """
 
     verdict: str
@@ -184,6 +187,7 @@ class GapReport:
     evidence: Mapping[str, float] = field(default_factory=dict)
     confounded: Mapping[str, str] = field(default_factory=dict)
     modal_data: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    polarity: PolarityCheck | None = None
 
     def row(self, label: str) -> EffectRow | None:
         """The row of effect ``label`` (``None`` if it is not in the catalogue)."""
@@ -210,6 +214,8 @@ class GapReport:
             doc["against_measured_modes"] = {k: dict(v) for k, v in self.modal_data.items()}
         if self.implausible:
             doc["implausible"] = {k: list(v) for k, v in self.implausible.items()}
+        if self.polarity is not None:
+            doc["force_sign"] = self.polarity.to_dict()
         if self.priors:
             doc["baseline"]["priors"] = {c.name: c.to_dict() for c in self.priors}
         if self.corrected_files is not None:

@@ -46,6 +46,7 @@ from .localise import Localisation, localise
 from .modal_estimate import MeasuredModes, estimate_modes
 from .modal_pattern import ModalEvidence, modal_evidence
 from .plausibility import plausible_verdict, prior_checks
+from .polarity import PolarityCheck, check_polarity
 from .weigh import Weighed, weigh
 from .rank import Ranking, rank_effects
 from .verdict import BIC_MARGIN, UNEXPLAINED
@@ -298,6 +299,11 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     problem = GapProblem(cfg, space, records, sigma, prior=Prior.of(cfg, space.names), modes=modal_data(cfg))
     say("baseline fit")
     problem, baseline = _baseline_fit(problem, beta0)
+    # the measured force's sign is evidence too: the baseline fitted with the force reversed as well
+    say("baseline fit with the force reversed (its sign as evidence)")
+    problem, baseline, polarity = check_polarity(problem, baseline, lambda p: _baseline_fit(p, beta0))
+    records = problem.records
+    say(polarity.line())
     if given is None:
         # the noise as it is in each record (level and colour), from the baseline's residual, and the
         # baseline fitted again under it
@@ -332,6 +338,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     for lab, lines in ranking.implausible.items():
         say(f"{lab} needs implausible values: " + "; ".join(lines))
     ranking, weighed = weigh(problem, ranking, by_label)
+    if polarity.reversed or not polarity.decided:
+        ranking = replace(ranking, reason=f"{ranking.reason}; {polarity.line()}")
     say(f"verdict: {ranking.verdict}")
 
     # where: localisation of the baseline residual per record
@@ -347,7 +355,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     effect_rows = _effect_rows(problem, ranking, by_label, edges, len(mf) + 1)
     settings = DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, shortlist,
                                  GAP_THRESHOLD, BIC_MARGIN, NUMERICAL_SHARE_LIMIT)
-    report = _report(problem, ranking, (f_lo, f_hi), mf, adequacy, advice, locs, effect_rows, settings, weighed)
+    report = _report(problem, ranking, (f_lo, f_hi), mf, adequacy, advice, locs, effect_rows, settings, weighed,
+                     polarity)
     if out is None:
         return Diagnosis(ranking, report, None)
     report = _write(out, problem, ranking, report, by_label, locs, plots=plots, export=export,
@@ -379,7 +388,7 @@ def _catalogue(problem: GapProblem, base_cfg: BeamConfig, base_params: Mapping[s
 
 def _report(problem: GapProblem, ranking: Ranking, band: tuple[float, float], mf: np.ndarray, adequacy: Any,
             advice: Any, locs: Sequence[Localisation], effect_rows: Sequence[EffectRow],
-            settings: DiagnosisSettings, weighed: Weighed) -> GapReport:
+            settings: DiagnosisSettings, weighed: Weighed, polarity: PolarityCheck) -> GapReport:
     """The typed result of a diagnosis (what ``gap.json`` holds) from its parts."""
     names, space, baseline = problem.config.output_names, problem.space, ranking.baseline
     return GapReport(
@@ -393,7 +402,7 @@ def _report(problem: GapProblem, ranking: Ranking, band: tuple[float, float], mf
         {r.name: loc for r, loc in zip(problem.records, locs)}, tuple(s for loc in locs for s in loc.summary),
         tuple(effect_rows), settings, implausible={k: tuple(v) for k, v in ranking.implausible.items()},
         priors=tuple(prior_checks(problem, baseline)), evidence=weighed.evidence, confounded=weighed.confounded,
-        modal_data=weighed.modal_data)
+        modal_data=weighed.modal_data, polarity=polarity)
 
 
 def _ranking(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortlist: int, workers: int,

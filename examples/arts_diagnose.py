@@ -9,9 +9,10 @@ serves as independent truth for its modal frequencies.
 
 Steps:
 
-1. read the record as ``arts_diagnose.toml`` says (load-cell sign, 80–170 Hz
-   band on input and output alike, in-band noise) and check the in-band
-   noise level against adjacent 0.1 s periods;
+1. read the record as ``arts_diagnose.toml`` says (80–170 Hz band on input
+   and output alike, in-band noise) and check the in-band noise level against
+   adjacent 0.1 s periods; the load cell's sign is left as recorded — the
+   diagnosis weighs it (:mod:`diagnosis.polarity`);
 2. :func:`diagnosis.run.diagnose` with what the user knows: a prior on EI and
    rhoA from the strip's section and material (``[identification.geometry]``:
    its two documented thicknesses), and the impulse test's natural frequencies
@@ -97,7 +98,7 @@ def run_case(data: Path, out: Path, *, quick: bool, **_: Any) -> dict[str, Any]:
     return {"config": str(CONFIG), "data": str(data), "impulse_test": str(impulse),
             "implausible": doc.get("implausible", {}), "posterior_probability": doc.get("posterior_probability", {}),
             "confounded": doc.get("confounded", {}), "against_measured_modes": doc.get("against_measured_modes", {}),
-            "baseline_priors": doc["baseline"].get("priors", {}),
+            "baseline_priors": doc["baseline"].get("priors", {}), "force_sign": doc.get("force_sign"),
             "exported": rep.corrected_files is not None,
             "noise_std_config": rep.noise_std["accel"], "noise_std_adjacent_periods": noise_check,
             "verdict": rep.verdict, "reason": rep.reason, "summary": list(rep.summary),
@@ -132,6 +133,12 @@ def report(s: dict[str, Any]) -> str:
         lines.append(f"    {r['label']:<30} {r['heldout_after']:9.3g} {100 * r['closed']:6.0f} % "
                      f"{r['delta_bic']:10.1f}   {par}; modes {_pct(r['modes']['relative_error'])}")
     lines.append("  what the evidence says:")
+    sign = s.get("force_sign") or {}
+    if sign:
+        gaps = sign["fit_gap_ratio"]
+        lines.append(f"    - the load cell's sign: {'reversed' if sign['reversed'] else 'as read'}"
+                     f"{'' if sign['decided'] else ' (undecided)'} (baseline fit {gaps['reversed']:.3g} noise "
+                     f"variances reversed, {gaps['as_read']:.3g} as read)")
     for name, c in s["baseline_priors"].items():
         if c.get("joint"):
             lines.append(f"    - baseline {name} together against their correlated prior: {c['status']} "

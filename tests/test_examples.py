@@ -115,6 +115,8 @@ def test_arts_diagnosis_names_nothing_implausible_and_says_what_would_decide(tmp
     # ... and the measured modes the diagnosis fits are those peaks, picked by the tool (not typed in a config)
     fitted = s["against_measured_modes"]["none"]["measured_hz"]
     np.testing.assert_allclose(fitted, modes[:4], rtol=1e-12)
+    # the load cell's sign, read as recorded, is found reversed by the evidence (its preload is a compression)
+    assert s["force_sign"]["reversed"] and s["force_sign"]["decided"]
     # EI and rhoA's prior is the section's (two documented thicknesses), correlated through the thickness
     assert {p["source"].split(" ")[0] for p in s["baseline_priors"].values()} == {"geometry"}
     # the configured in-band noise is what adjacent periods of the filtered record give

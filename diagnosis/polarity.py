@@ -1,0 +1,79 @@
+"""The measured force's sign as evidence, not as a setting: the baseline fitted to the records as read and with
+the force reversed, and the evidence of the two compared (:func:`check_polarity`).
+
+A load cell mounted the other way round, a channel wired with its poles swapped, a convention taken for the other
+(push or pull positive): each reverses the measured force, common in real labs.  No continuous refit reaches it —
+a gain passing from +1 to −1 goes through a reading of zero —, and with transducer positions among the unknowns a
+reversed force can even be half absorbed: moving a sensor across a node of the excited mode also reverses its
+reading.  So the diagnosis fits its baseline both ways.  The sign whose baseline has the greater evidence (the
+Laplace evidence of :mod:`diagnosis.evidence`: fit, priors and measured modes together) is taken when its odds
+reach :data:`~diagnosis.verdict.DECISIVE_ODDS`; otherwise the records are taken as read and the report says that
+they cannot decide the sign.  Reversing every sensor instead is the same hypothesis (the outputs change sign with
+the force); one sensor reversed among several is not tested here.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any, Callable
+
+from .evidence import laplace_log_evidence
+from .fitting import Fit, GapProblem
+from .verdict import DECISIVE_ODDS
+
+__all__ = ["PolarityCheck", "check_polarity"]
+
+
+@dataclass(frozen=True)
+class PolarityCheck:
+    """The baseline's fit and evidence with the force as read and reversed, and the sign taken."""
+
+    log_evidence: dict[str, float]
+    gap: dict[str, float]
+    reversed: bool
+    decided: bool
+
+    @property
+    def log_odds(self) -> float:
+        """ln of the odds of the reversed force against the force as read."""
+        return self.log_evidence["reversed"] - self.log_evidence["as_read"]
+
+    def line(self) -> str:
+        """One sentence."""
+        both = (f"baseline fit {self.gap['as_read']:.3g} (as read) and {self.gap['reversed']:.3g} (reversed) "
+                f"times the noise variance, ln odds {self.log_odds:+.3g}")
+        if not self.decided:
+            return (f"the records cannot decide the measured force's sign ({both}; decisive from "
+                    f"{math.log(DECISIVE_ODDS):.2g}): taken as read")
+        if self.reversed:
+            return (f"the measured force's sign is REVERSED: the baseline explains the records far better with the "
+                    f"force reversed ({both}); the diagnosis uses the reversed force — check the load cell's "
+                    f"mounting and wiring, or read it with a gain of -1")
+        return f"the measured force's sign is as read ({both})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready."""
+        return {"log_evidence": dict(self.log_evidence), "fit_gap_ratio": dict(self.gap),
+                "reversed": self.reversed, "decided": self.decided, "log_odds_reversed": self.log_odds}
+
+
+def check_polarity(problem: GapProblem, baseline: Fit,
+                   fit_baseline: Callable[[GapProblem], tuple[GapProblem, Fit]]
+                   ) -> tuple[GapProblem, Fit, PolarityCheck]:
+    """The problem and baseline fit with the sign the evidence takes (module docstring), and the check.
+
+    ``fit_baseline`` fits a problem's baseline the way ``baseline`` was fitted (the same global search), so the
+    two signs get the same effort.
+    """
+    flipped = replace(problem, records=tuple(replace(r, inputs=-r.inputs) for r in problem.records),
+                      other_starts=())
+    flipped, flipped_fit = fit_baseline(flipped)
+    logz = {"as_read": laplace_log_evidence(problem, baseline),
+            "reversed": laplace_log_evidence(flipped, flipped_fit)}
+    gap = {"as_read": float(baseline.rss / baseline.n), "reversed": float(flipped_fit.rss / flipped_fit.n)}
+    log_odds = logz["reversed"] - logz["as_read"]
+    decided = abs(log_odds) >= math.log(DECISIVE_ODDS)
+    check = PolarityCheck(logz, gap, decided and log_odds > 0, decided)
+    if check.reversed:
+        return flipped, flipped_fit, check
+    return problem, baseline, check
