@@ -14,6 +14,7 @@ the force); one sensor reversed among several is not tested here.
 from __future__ import annotations
 
 import math
+from concurrent.futures import Executor
 from dataclasses import dataclass, replace
 from typing import Any, Callable
 
@@ -57,17 +58,19 @@ class PolarityCheck:
                 "reversed": self.reversed, "decided": self.decided, "log_odds_reversed": self.log_odds}
 
 
-def check_polarity(problem: GapProblem, baseline: Fit,
-                   fit_baseline: Callable[[GapProblem], tuple[GapProblem, Fit]]
-                   ) -> tuple[GapProblem, Fit, PolarityCheck]:
+def check_polarity(problem: GapProblem, fit_baseline: Callable[[GapProblem], tuple[GapProblem, Fit]],
+                   executor: Executor | None = None) -> tuple[GapProblem, Fit, PolarityCheck]:
     """The problem and baseline fit with the sign the evidence takes (module docstring), and the check.
 
-    ``fit_baseline`` fits a problem's baseline the way ``baseline`` was fitted (the same global search), so the
-    two signs get the same effort.
+    ``fit_baseline`` fits a problem's baseline (``(problem with its other basins, fit)``), the same way for both
+    signs; with an ``executor`` the reversed one runs on it while this process fits the records as read
+    (``fit_baseline`` must then pickle: a module-level function or a partial of one).
     """
     flipped = replace(problem, records=tuple(replace(r, inputs=-r.inputs) for r in problem.records),
                       other_starts=())
-    flipped, flipped_fit = fit_baseline(flipped)
+    pending = executor.submit(fit_baseline, flipped) if executor is not None else None
+    problem, baseline = fit_baseline(problem)
+    flipped, flipped_fit = pending.result() if pending is not None else fit_baseline(flipped)
     logz = {"as_read": laplace_log_evidence(problem, baseline),
             "reversed": laplace_log_evidence(flipped, flipped_fit)}
     gap = {"as_read": float(baseline.rss / baseline.n), "reversed": float(flipped_fit.rss / flipped_fit.n)}

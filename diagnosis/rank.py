@@ -61,6 +61,7 @@ import numpy as np
 
 from .effects import PAIR_SEPARATOR, Catalogue, Effect, on_top_of
 from .effects.chain import FAMILY as CHAIN
+from .effects.point_mass import AT_SENSOR, TRANSDUCER
 from .fitting import Fit, GapProblem
 from .modal_pattern import ModalEvidence, PatternFit, pattern_fits, time_invariant
 from .refits import (GAP_THRESHOLD, EffectRefit, better_baseline, explains, map_refits, pair_refit,
@@ -251,9 +252,11 @@ def _pair_with(run: _Search, single: EffectRefit) -> tuple[EffectRefit | None, E
     """
     first = run.catalogue.effect(single.label)
     with_prior = run.problem.prior is not None and run.problem.prior.count > 0
-    # a chain's gain as the second effect only where a prior breaks its degeneracy (as on the shortlist)
+    # a chain's gain as the second effect only where a prior breaks its degeneracy (as on the shortlist); a
+    # transducer's mass never (the point mass, which nests it, stands in for it)
     rescored = {e.label: score_effect(run.problem, single.fit, on_top_of(first, single.fit.s, e)).lm
-                for e in run.effects.values() if e.name != first.name and (with_prior or e.name not in CHAIN.names)}
+                for e in run.effects.values() if e.name != first.name and e.name != TRANSDUCER
+                and (with_prior or e.name not in CHAIN.names)}
     partners = [lab for lab in sorted(rescored, key=lambda k: -rescored[k]) if rescored[lab] > 0][:PAIR_PARTNERS]
     run.say(f"second-effect scores at the {single.label} refit: "
             + ", ".join(f"{lab} {rescored[lab]:.4g}" for lab in partners))
@@ -340,6 +343,7 @@ def _decide(run: _Search, by_score: list[str], labels: list[str], local: Refits,
     """Rank the refits, try a pair when the best leaves a significant remainder, and name the cause."""
     before, baseline, say = run.before, run.baseline, run.say
     refits = {lab: run.summary(run.effects[lab], local[lab][0]) for lab in labels}
+    refits |= _transducer_refits(run, refits)
     for label, rf in refits.items():
         say(f"refit {label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
             f"dBIC {rf.delta_bic:.1f}")
@@ -366,6 +370,25 @@ def _decide(run: _Search, by_score: list[str], labels: list[str], local: Refits,
     verdict, ties, reason = verdict_rule(before, refits, paying)
     return Ranking(baseline, before, run.scores, refits, order, verdict, ties, reason, patterns=patterns,
                    modal=evidence)
+
+
+def _transducer_refits(run: _Search, refits: dict[str, EffectRefit]) -> dict[str, EffectRefit]:
+    """The transducer masses of the sensors within :data:`~diagnosis.effects.point_mass.AT_SENSOR` of the point
+    mass's refit, each refitted from it (its mass as the start): the one-variable special case tried where the
+    data put the mass, for the evidence to weigh against the point mass's free position."""
+    pm = refits.get("point_mass")
+    if pm is None:
+        return {}
+    cfg, _ = run.problem.space.apply(run.problem.config, pm.fit.beta)
+    x = float(pm.fit.s[1])
+    out = {}
+    for sensor in cfg.sensors:
+        lab = f"{TRANSDUCER}[{sensor.name}]"
+        if lab in run.effects and abs(sensor.x - x) <= AT_SENSOR * cfg.beam.length:
+            fit = run.problem.fit(pm.fit.beta, run.effects[lab], pm.fit.s[:1], max_evaluations=run.max_evaluations)
+            out[lab] = run.summary(run.effects[lab], fit)
+            run.say(f"refit {lab} from the point mass at {x:.4g} m (sensor at {sensor.x:.4g} m)")
+    return out
 
 
 def settled(ranking: Ranking) -> bool:
@@ -456,7 +479,9 @@ def _shortlist(problem: GapProblem, effects: dict[str, Effect], scores: dict[str
     when it scores best of all, and — a prior on the beam breaking the degeneracy — whenever its score is
     significant."""
     chain = {lab for lab in effects if effects[lab].name in CHAIN.names}
-    labels = [lab for lab in by_score if scores[lab].lm > 0 and lab not in chain][:shortlist]
+    # a transducer's mass is refitted from the point mass's refit (_transducer_refits), never from its score
+    nested = {lab for lab in effects if effects[lab].name == TRANSDUCER}
+    labels = [lab for lab in by_score if scores[lab].lm > 0 and lab not in chain | nested][:shortlist]
     with_prior = problem.prior is not None and problem.prior.count > 0
     extra = [lab for lab in by_score if lab in chain and scores[lab].lm > 0
              and ((with_prior and scores[lab].p_value < 0.01) or lab == by_score[0])]

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
+from concurrent.futures import Executor
+from functools import partial
 from typing import Any, Callable, Mapping, Sequence, cast
 
 import numpy as np
@@ -35,6 +37,7 @@ from identification.noise import given_noise_std, records_noise_std
 from identification.noise_model import estimate_noise_model
 from identification.parameters import parameter_space
 from identification.modal_data import modal_data
+from identification.cluster import parse_local_address
 from identification.prior import Prior
 from identification.result import IdentificationResult
 from identification.run import load_identification_config, read_data
@@ -54,7 +57,7 @@ from .refits import GAP_THRESHOLD
 from .records import Record, split_records
 from .result import (BandClosure, BaselineSummary, DiagnosisSettings, EffectRow, GapReport, PatternMatch,
                      RefitSummary)
-from .workers import refit_pool
+from .workers import DaskExecutor, refit_pool
 
 __all__ = ["Diagnosis", "diagnose", "excited_band", "GAP_FILE", "GRID_VERDICT", "NUMERICAL_SHARE_LIMIT"]
 
@@ -230,7 +233,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
              holdout: Sequence[str | Path] = (), result: IdentificationResult | str | Path | None = None,
              holdout_fraction: float = 0.3, shortlist: int = 4, noise_std: Sequence[float] | None = None,
              plots: bool = True, export: bool = True, targets: Sequence[str] = DEFAULT_TARGETS, workers: int = 2,
-             progress: Callable[[str], None] | None = None) -> Diagnosis:
+             dask: Any = None, progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Locate the sim-to-real gap, name the effect that explains it, and measure how far it closes.
 
     Parameters
@@ -266,6 +269,10 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     workers
         Processes refitting the shortlisted effects side by side (default 2;
         1: all in this process).  The result does not depend on it.
+    dask
+        Refit on a Dask cluster instead: a scheduler address, ``"local:K"``
+        (a local cluster of K workers, started and closed here) or a connected
+        ``distributed.Client``.  The result does not depend on it either.
 
     Returns
     -------
@@ -279,6 +286,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     say = progress or (lambda _m: None)
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ConfigError(f"workers: must be a whole number >= 1, got {workers!r}")
+    if isinstance(dask, str):
+        parse_local_address(dask)     # a malformed local:K stops the run before anything is written
     cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
     if shortlist < 1:
         raise ConfigError(f"`shortlist` must be >= 1, got {shortlist}")
@@ -297,71 +306,75 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     sigma = given if given is not None else records_noise_std([r.inputs for r in records],
                                                               [r.outputs for r in records], dt)
     problem = GapProblem(cfg, space, records, sigma, prior=Prior.of(cfg, space.names), modes=modal_data(cfg))
-    say("baseline fit")
-    problem, baseline = _baseline_fit(problem, beta0)
-    # the measured force's sign is evidence too: the baseline fitted with the force reversed as well
-    say("baseline fit with the force reversed (its sign as evidence)")
-    problem, baseline, polarity = check_polarity(problem, baseline, lambda p: _baseline_fit(p, beta0))
-    records = problem.records
-    say(polarity.line())
-    if given is None:
-        # the noise as it is in each record (level and colour), from the baseline's residual, and the
-        # baseline fitted again under it
-        problem = problem.with_noise(estimate_noise_model([r.inputs for r in records], [
-            r.outputs - y for r, y in zip(records, problem.simulate(baseline.beta, until="all"))], dt))
-        baseline = problem.fit(baseline.beta)
-        say("noise model: " + "; ".join(problem.noise_model.describe(cfg.output_names, [r.name for r in records])))
-    sigma = problem.noise_std
-    base_cfg, base_params = space.apply(cfg, baseline.beta)
-    f_lo, f_hi = excited_band([r.inputs for r in records], dt)
-    freqs, zetas = discrete_frequencies(base_cfg, base_params)
-    # the modes up to a fifth above the excited band, below Nyquist (an impact excites up to it)
-    f_top = min(1.2 * f_hi, 0.98 * 0.5 / dt)
-    in_band = freqs <= f_top
-    in_band[0] = True
-    mf, mz = freqs[in_band], zetas[in_band]
-    fit_records = [r for r in records if r.has_fit]
-    catalogue = _catalogue(problem, base_cfg, base_params, mf, f_hi)
-    ranking = _ranking(problem, baseline, catalogue, shortlist, workers,
-                       _modal_source(problem, mf, mz, freqs[~in_band][:1]), say)
-    baseline = ranking.baseline
-    # the model's own discretisation error: a gap that refining the grid changes is not blamed on physics
-    say("numerical adequacy of the model's grid")
-    adequacy = numerical_adequacy(
-        base_cfg, base_params, [(r.inputs[:r.fit_end], r.outputs[:r.fit_end]) for r in fit_records], sigma,
-        band_hz=f_hi)
-    advice = grid_advice(base_cfg, base_params, band_hz=f_hi)
-    ranking = _numerical_verdict(ranking, float(np.max(adequacy.numerical_share)), advice.summary())
-    by_label = {e.label: e for e in catalogue.effects()} | {lab: catalogue.effect(lab) for lab in ranking.refits}
-    # a refit that explains the data with values no rig has is not the cause (diagnosis.plausibility)
-    ranking = plausible_verdict(ranking, problem, by_label)
-    for lab, lines in ranking.implausible.items():
-        say(f"{lab} needs implausible values: " + "; ".join(lines))
-    ranking, weighed = weigh(problem, ranking, by_label)
-    if polarity.reversed or not polarity.decided:
-        ranking = replace(ranking, reason=f"{ranking.reason}; {polarity.line()}")
-    say(f"verdict: {ranking.verdict}")
+    executor = refit_pool(workers, dask)
+    try:
+        # the measured force's sign is evidence too: the baseline fitted with the force as read and reversed (side
+        # by side when there are workers)
+        say("baseline fit, with the force as read and reversed (its sign as evidence)")
+        problem, baseline, polarity = check_polarity(problem, partial(_baseline_fit, beta0=beta0), executor)
+        records = problem.records
+        say(polarity.line())
+        if given is None:
+            # the noise as it is in each record (level and colour), from the baseline's residual, and the
+            # baseline fitted again under it
+            problem = problem.with_noise(estimate_noise_model([r.inputs for r in records], [
+                r.outputs - y for r, y in zip(records, problem.simulate(baseline.beta, until="all"))], dt))
+            baseline = problem.fit(baseline.beta)
+            say("noise model: " + "; ".join(problem.noise_model.describe(cfg.output_names, [r.name for r in records])))
+        sigma = problem.noise_std
+        base_cfg, base_params = space.apply(cfg, baseline.beta)
+        f_lo, f_hi = excited_band([r.inputs for r in records], dt)
+        freqs, zetas = discrete_frequencies(base_cfg, base_params)
+        # the modes up to a fifth above the excited band, below Nyquist (an impact excites up to it)
+        f_top = min(1.2 * f_hi, 0.98 * 0.5 / dt)
+        in_band = freqs <= f_top
+        in_band[0] = True
+        mf, mz = freqs[in_band], zetas[in_band]
+        fit_records = [r for r in records if r.has_fit]
+        catalogue = _catalogue(problem, base_cfg, base_params, mf, f_hi)
+        ranking = _ranking(problem, baseline, catalogue, shortlist, executor, workers,
+                           _modal_source(problem, mf, mz, freqs[~in_band][:1]), say)
+        baseline = ranking.baseline
+        # the model's own discretisation error: a gap that refining the grid changes is not blamed on physics
+        say("numerical adequacy of the model's grid")
+        adequacy = numerical_adequacy(
+            base_cfg, base_params, [(r.inputs[:r.fit_end], r.outputs[:r.fit_end]) for r in fit_records], sigma,
+            band_hz=f_hi)
+        advice = grid_advice(base_cfg, base_params, band_hz=f_hi)
+        ranking = _numerical_verdict(ranking, float(np.max(adequacy.numerical_share)), advice.summary())
+        by_label = {e.label: e for e in catalogue.effects()} | {lab: catalogue.effect(lab) for lab in ranking.refits}
+        # a refit that explains the data with values no rig has is not the cause (diagnosis.plausibility)
+        ranking = plausible_verdict(ranking, problem, by_label)
+        for lab, lines in ranking.implausible.items():
+            say(f"{lab} needs implausible values: " + "; ".join(lines))
+        ranking, weighed = weigh(problem, ranking, by_label)
+        if polarity.reversed or not polarity.decided:
+            ranking = replace(ranking, reason=f"{ranking.reason}; {polarity.line()}")
+        say(f"verdict: {ranking.verdict}")
 
-    # where: localisation of the baseline residual per record
-    base_all = cast(list[np.ndarray], problem.simulate(baseline.beta, until="all"))   # "all": every record
-    locs = [localise(dt, r.inputs, r.outputs, y, cfg.output_names, mf, mz, noise_std=sigma)
-            for r, y in zip(records, base_all)]
-    if ranking.verdict == UNEXPLAINED:
-        # what the localisation found is the user's lead, not the least-bad name
-        found = [f"{r.name}: {s}" for r, loc in zip(records, locs) for s in loc.summary[:2]]
-        if found:
-            ranking = replace(ranking, reason=f"{ranking.reason}; where the gap is: " + "; ".join(found))
-    edges = np.concatenate([[0.0], 0.5 * (mf[1:] + mf[:-1]), [f_top], [0.5 / dt]])
-    effect_rows = _effect_rows(problem, ranking, by_label, edges, len(mf) + 1)
-    settings = DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, shortlist,
-                                 GAP_THRESHOLD, BIC_MARGIN, NUMERICAL_SHARE_LIMIT)
-    report = _report(problem, ranking, (f_lo, f_hi), mf, adequacy, advice, locs, effect_rows, settings, weighed,
-                     polarity)
-    if out is None:
-        return Diagnosis(ranking, report, None)
-    report = _write(out, problem, ranking, report, by_label, locs, plots=plots, export=export,
-                    targets=targets)
-    return Diagnosis(ranking, report, out)
+        # where: localisation of the baseline residual per record
+        base_all = cast(list[np.ndarray], problem.simulate(baseline.beta, until="all"))   # "all": every record
+        locs = [localise(dt, r.inputs, r.outputs, y, cfg.output_names, mf, mz, noise_std=sigma)
+                for r, y in zip(records, base_all)]
+        if ranking.verdict == UNEXPLAINED:
+            # what the localisation found is the user's lead, not the least-bad name
+            found = [f"{r.name}: {s}" for r, loc in zip(records, locs) for s in loc.summary[:2]]
+            if found:
+                ranking = replace(ranking, reason=f"{ranking.reason}; where the gap is: " + "; ".join(found))
+        edges = np.concatenate([[0.0], 0.5 * (mf[1:] + mf[:-1]), [f_top], [0.5 / dt]])
+        effect_rows = _effect_rows(problem, ranking, by_label, edges, len(mf) + 1)
+        settings = DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, shortlist,
+                                     GAP_THRESHOLD, BIC_MARGIN, NUMERICAL_SHARE_LIMIT)
+        report = _report(problem, ranking, (f_lo, f_hi), mf, adequacy, advice, locs, effect_rows, settings, weighed,
+                         polarity)
+        if out is None:
+            return Diagnosis(ranking, report, None)
+        report = _write(out, problem, ranking, report, by_label, locs, plots=plots, export=export,
+                        targets=targets)
+        return Diagnosis(ranking, report, out)
+    finally:
+        if executor is not None:
+            executor.shutdown(cancel_futures=True)
 
 
 def _baseline_fit(problem: GapProblem, beta0: np.ndarray) -> tuple[GapProblem, Fit]:
@@ -405,17 +418,13 @@ def _report(problem: GapProblem, ranking: Ranking, band: tuple[float, float], mf
         modal_data=weighed.modal_data, polarity=polarity)
 
 
-def _ranking(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortlist: int, workers: int,
-             modal: Callable[[np.ndarray], ModalEvidence], say: Callable[[str], None]) -> Ranking:
-    """:func:`diagnosis.rank.rank_effects` on ``workers`` processes (ranked again, up to twice, from a better
-    baseline basin that an effect's refit revealed)."""
-    executor = refit_pool(workers)
-    try:
-        return rank_effects(problem, baseline, catalogue=catalogue, shortlist=shortlist, progress=say,
-                            executor=executor, parallel=workers, rounds=2, modal=modal)
-    finally:
-        if executor is not None:
-            executor.shutdown(cancel_futures=True)
+def _ranking(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortlist: int, executor: Executor | None,
+             workers: int, modal: Callable[[np.ndarray], ModalEvidence], say: Callable[[str], None]) -> Ranking:
+    """:func:`diagnosis.rank.rank_effects` on the executor's processes or Dask workers (ranked again, up to
+    twice, from a better baseline basin that an effect's refit revealed)."""
+    parallel = executor.workers if isinstance(executor, DaskExecutor) else workers
+    return rank_effects(problem, baseline, catalogue=catalogue, shortlist=shortlist, progress=say,
+                        executor=executor, parallel=parallel, rounds=2, modal=modal)
 
 
 def _effect_rows(problem: GapProblem, ranking: Ranking, by_label: Mapping[str, Effect], edges: np.ndarray,

@@ -5,12 +5,15 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any, Mapping
 
+import numpy as np
+
 from .effects import Effect
 from .effects.chain import FAMILY as CHAIN
 from .evidence import posterior_probabilities
 from .fitting import GapProblem
 from .plausibility import confounded, prior_checks
 from .rank import Ranking
+from .refits import GAP_THRESHOLD
 from .verdict import INDISTINGUISHABLE, by_evidence
 
 __all__ = ["Weighed", "weigh"]
@@ -25,6 +28,21 @@ class Weighed:
     modal_data: dict[str, dict[str, Any]]
 
 
+def _adequate_special_case(ranking: Ranking, by_label: Mapping[str, Effect]) -> str | None:
+    """Among the verdict and its ties, a special case of another of them (:attr:`Effect.nested_in`) whose refit
+    brings the held-out records within :data:`~diagnosis.refits.GAP_THRESHOLD` of the noise floor — the
+    general effect's extra variables then buy fit the held-out records do not confirm."""
+    group = [ranking.verdict, *ranking.indistinguishable]
+    if ranking.verdict not in ranking.refits:
+        return None
+    for lab in group:
+        e = by_label.get(lab)
+        if (e is not None and e.nested_in in group and lab in ranking.refits
+                and float(np.mean(ranking.refits[lab].heldout_after)) - 1.0 <= GAP_THRESHOLD):
+            return lab
+    return None
+
+
 def weigh(problem: GapProblem, ranking: Ranking, by_label: Mapping[str, Effect]) -> tuple[Ranking, Weighed]:
     """The evidence behind the verdict, said in its reason: the baseline against the user's priors (a conflict
     — the prior, the data or the model is wrong — is said, not hidden), the posterior probabilities of the
@@ -36,7 +54,14 @@ def weigh(problem: GapProblem, ranking: Ranking, by_label: Mapping[str, Effect])
     if conflicts:
         reason += "; baseline: " + "; ".join(conflicts)
     probs = posterior_probabilities(problem, ranking.baseline, {lab: rf.fit for lab, rf in ranking.refits.items()})
-    if ranking.verdict in ranking.refits and ranking.indistinguishable:
+    simpler = _adequate_special_case(ranking, by_label)
+    if simpler is not None:
+        general = by_label[simpler].nested_in
+        rf = ranking.refits[simpler]
+        reason += (f"; {simpler} is {general} with fewer variables and brings the held-out records to the noise "
+                   f"floor on its own (gap ratio {np.mean(rf.heldout_after):.3g}): named instead of {general}")
+        ranking = replace(ranking, verdict=simpler, indistinguishable=[])
+    elif ranking.verdict in ranking.refits and ranking.indistinguishable:
         # the fits could not separate the verdict from its ties: the evidence decides, or says it cannot
         verdict, listed, sentence = by_evidence(ranking.verdict, ranking.indistinguishable, probs)
         reason = (f"{sentence}; {reason}" if verdict == INDISTINGUISHABLE else f"{reason}; {sentence}")

@@ -1,7 +1,7 @@
-"""Where the diagnosis' independent fits run: worker processes, or this one.
+"""Where the diagnosis' independent fits run: worker processes, a Dask cluster, or this one.
 
-Every fit is deterministic and each process uses one BLAS thread, so a result does not depend on where it
-ran — only the wall time does.
+Every fit is deterministic and each process (or Dask worker) runs it with one BLAS thread, so a result does not
+depend on where it ran — only the wall time does.
 """
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from typing import Any, Callable, Sequence
 
 from ebb_model.threads import single_blas_thread
 
-__all__ = ["refit_pool", "side_by_side"]
+__all__ = ["DaskExecutor", "refit_pool", "side_by_side"]
 
 
 def _refit_worker() -> None:
@@ -22,8 +22,68 @@ def _refit_worker() -> None:
     single_blas_thread()
 
 
-def refit_pool(workers: int) -> ProcessPoolExecutor | None:
-    """Worker processes for the refits (``spawn``: no inherited locks or threads); ``None`` for ``workers <= 1``."""
+def _in_one_blas_thread(task: Callable[..., Any], *args: Any) -> Any:
+    """``task(*args)`` with one BLAS thread (on a Dask worker, which has no initialiser of ours)."""
+    single_blas_thread()
+    return task(*args)
+
+
+class DaskExecutor(Executor):
+    """The refits' executor on a Dask cluster: a scheduler address, ``"local:K"`` (a local cluster of ``K``
+    single-threaded worker processes, started here and closed with the executor —
+    :func:`identification.cluster.local_cluster`) or a connected ``distributed.Client`` (left open).
+
+    Raises
+    ------
+    ConfigError
+        A malformed ``local:K`` address.
+    """
+
+    def __init__(self, address: Any):
+        from distributed import Client
+
+        from identification.cluster import local_cluster, parse_local_address
+
+        self._own = isinstance(address, str)
+        self._cluster = None
+        n_local = parse_local_address(address) if self._own else None
+        if n_local is not None:
+            self._cluster = local_cluster(n_local)
+            address = self._cluster.scheduler_address
+        try:
+            self.client = Client(address) if self._own else address
+        except BaseException:
+            if self._cluster is not None:
+                self._cluster.close()
+            raise
+
+    @property
+    def workers(self) -> int:
+        """Workers of the cluster (at least 1)."""
+        return max(1, len(self.client.scheduler_info().get("workers", {})))
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Any:
+        """A Dask future of ``fn(*args)`` run with one BLAS thread (``.result()`` as a concurrent one)."""
+        if kwargs:
+            raise TypeError("DaskExecutor.submit takes positional arguments only")
+        return self.client.submit(_in_one_blas_thread, fn, *args, pure=False)
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        """Close the client and the local cluster this executor started (a given client is left open)."""
+        if not self._own:
+            return
+        try:
+            self.client.close()
+        finally:
+            if self._cluster is not None:
+                self._cluster.close()
+
+
+def refit_pool(workers: int, dask: Any = None) -> Executor | None:
+    """The refits' executor: ``dask`` (a :class:`DaskExecutor` address or client) when given, else ``workers``
+    local processes (``spawn``: no inherited locks or threads); ``None`` for one worker and no Dask."""
+    if dask is not None:
+        return DaskExecutor(dask)
     if workers <= 1:
         return None
     return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),

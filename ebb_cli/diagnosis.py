@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
+from typing import Callable
 
 from .messages import Subcommands, add_target_argument
 from .modes import add_modes_arguments, config_with_spectrum_modes
@@ -18,15 +20,34 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(msg, file=sys.stderr)
 
+    if args.each:
+        return _each(args, say)
     d = diagnose(config_with_spectrum_modes(args), args.data, args.out, holdout=args.holdout or (), result=args.result,
                  holdout_fraction=args.holdout_fraction, shortlist=args.shortlist, plots=not args.no_plots,
-                 export=not args.no_export, targets=args.target, workers=args.workers, progress=say)
+                 export=not args.no_export, targets=args.target, workers=args.workers, dask=args.dask,
+                 progress=say)
     from diagnosis.report import text_report
 
     print(text_report(d.report))
     print(f"wrote {d.out_dir / 'gap.json'}")
     if d.report.corrected_files:
         print(f"wrote the corrected model (config, StateSpace, FMU) to {d.out_dir / 'corrected'}")
+    return 0
+
+
+def _each(args: argparse.Namespace, say: Callable[[str], None]) -> int:
+    """``--each``: one diagnosis per record, side by side (:func:`diagnosis.batch.diagnose_each`)."""
+    from diagnosis.batch import diagnose_each
+    from ebb_model.errors import ConfigError
+
+    if args.holdout or args.result:
+        raise ConfigError("--each: each record holds out its own tail; --holdout and --result do not apply")
+    docs = diagnose_each(config_with_spectrum_modes(args), args.data, args.out, workers=args.workers,
+                         dask=args.dask, progress=say, holdout_fraction=args.holdout_fraction,
+                         shortlist=args.shortlist, plots=not args.no_plots, export=not args.no_export,
+                         targets=args.target)
+    for path, doc in zip(args.data, docs):
+        print(f"{path}: verdict {doc['verdict']} ({Path(args.out) / Path(path).stem / 'gap.json'})")
     return 0
 
 
@@ -51,7 +72,12 @@ def add_parsers(sub: Subcommands) -> None:
     add_modes_arguments(p)
     p.add_argument("--shortlist", type=int, default=4, help="effects refitted after the score test (default 4)")
     p.add_argument("--workers", type=int, default=2, metavar="K",
-                   help="processes refitting the shortlisted effects side by side (default 2)")
+                   help="processes refitting the shortlisted effects (with --each: diagnosing the records) side "
+                        "by side (default 2)")
+    p.add_argument("--dask", default=None, metavar="ADDRESS",
+                   help="run them on a Dask cluster instead: a scheduler address or local:K")
+    p.add_argument("--each", action="store_true",
+                   help="diagnose each record on its own, as independent tasks (OUT/<record stem>/ per record)")
     p.add_argument("--no-plots", action="store_true", help="skip the report plots")
     p.add_argument("--no-export", action="store_true",
                    help="do not write the corrected model (config, StateSpace, FMU) when an effect is named")

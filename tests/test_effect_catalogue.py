@@ -35,11 +35,12 @@ SCALES = Scales(EI=10.0, rhoA=1.0, N=20.0, length=1.0, omega_low=20.0, omega_hig
 def test_families_build_the_catalogue_in_report_order():
     labels = [e.label for e in candidate_effects(bench("clamped", "clamped"), SCALES)]
     assert labels == ["boundary_rotational_left", "boundary_translational_left", "boundary_rotational_right",
-                      "boundary_translational_right", "point_mass", "kelvin_voigt", "rotary_inertia",
+                      "boundary_translational_right", "point_mass", "transducer_mass[y1]",
+                      "transducer_mass[a2]", "kelvin_voigt", "rotary_inertia",
                       "foundation", "actuator_lag", "sensor_lag[y1]", "sensor_lag[a2]", "actuator_gain",
                       "sensor_gain[y1]", "sensor_gain[a2]", "axial_drift", "geometric_stiffening"]
     assert {e.name for e in candidate_effects(bench("clamped", "clamped"), SCALES)} == set(EFFECT_NAMES)
-    assert len(EFFECT_NAMES) == len(set(EFFECT_NAMES)) == 14 and len(FAMILIES) == 6
+    assert len(EFFECT_NAMES) == len(set(EFFECT_NAMES)) == 15 and len(FAMILIES) == 6
     # an identified parameter is no candidate; stretching needs both ends axially fixed
     free = [e.label for e in candidate_effects(bench("clamped", "free"), SCALES, identified=("eta",))]
     assert "kelvin_voigt" not in free and "geometric_stiffening" not in free and "axial_drift" in free

@@ -23,6 +23,7 @@ boundary_rotational_<side>     kr [N m/rad]         constrained end: c = EI/(kr 
 boundary_translational_<side>  kt [N/m]             constrained: c = EI/(kt L³) (0);
                                                     free: s = kt L³/EI (0)
 point_mass                     mass [kg], x [m]     μ = mass/(ρA L) (0), x
+transducer_mass[<sensor>]      mass [kg]            μ = mass/(ρA L) (0) at the sensor's position
 kelvin_voigt                   eta [s]              eta (0)
 rotary_inertia                 rhoI [kg m]          r² = rhoI/(ρA L²) (0)
 foundation                     kf [N/m²]            κ = kf L⁴/EI (0)

@@ -174,6 +174,9 @@ class Effect:
     #: measurement chain's gains: :func:`diagnosis.effects.chain.rescaled_start`); ``None``: no such direction
     rescale: Callable[[tuple[str, ...], np.ndarray, np.ndarray, Any], tuple[np.ndarray, np.ndarray] | None] | None \
         = field(default=None, repr=False)
+    #: the label of the effect this one is a special case of (a transducer's mass: a point mass at its sensor);
+    #: tied with it, this one is named when it explains the held-out records on its own (:mod:`diagnosis.weigh`)
+    nested_in: str | None = None
 
     @property
     def label(self) -> str:

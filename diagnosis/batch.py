@@ -1,0 +1,103 @@
+"""Many records, one diagnosis each, side by side: ``ebb diagnose CONFIG rec1 rec2 … --each``
+(:func:`diagnose_each`).
+
+A lab's campaign is a batch of records — one per test, per day, per specimen — each asking its own question of
+the same model.  Each record is diagnosed on its own (its own baseline, its own held-out tail) as an independent
+task: on local worker processes, or on a Dask cluster (a scheduler address, or ``local:K``) when one machine is
+not enough.  Inside a task the diagnosis runs in one process, so the batch's parallelism is the records'; every
+task is deterministic with one BLAS thread, so a record's result does not depend on where it ran.
+
+Output: ``OUT/<record stem>/`` per record (``gap.json``, plots, the corrected model), as a single diagnosis writes
+it.  Every record is read and checked before the first task starts: a bad one stops the batch before anything is
+written.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+from ebb_model.config import BeamConfig
+from ebb_model.errors import ConfigError
+from ebb_model.output import check_new_output_dir
+from identification.run import load_identification_config, read_data
+
+from .workers import DaskExecutor, refit_pool, side_by_side
+
+__all__ = ["diagnose_each"]
+
+
+def _diagnose_one(config: BeamConfig, record: str, out: str, options: dict[str, Any]) -> dict[str, Any]:
+    """One record's diagnosis in this process; its ``gap.json`` document."""
+    from .run import diagnose
+
+    return diagnose(config, [record], out, workers=1, **options).document
+
+
+def diagnose_each(config: BeamConfig | str | Path, data: Sequence[str | Path], out_dir: str | Path, *,
+                  workers: int = 2, dask: Any = None, progress: Callable[[str], None] | None = None,
+                  **options: Any) -> list[dict[str, Any]]:
+    """Diagnose each record of ``data`` on its own, as independent tasks.
+
+    Parameters
+    ----------
+    config
+        Identification config (path or value), as for :func:`diagnosis.run.diagnose`.
+    data
+        The records, one diagnosis each (their file stems must differ: they name the output directories).
+    out_dir
+        Directory of the per-record directories; must not exist or be empty.
+    workers
+        Local processes running the records side by side (default 2; 1: one after the other in this process).
+    dask
+        Run them on a Dask cluster instead: a scheduler address, ``"local:K"`` or a ``distributed.Client``.
+    options
+        Further keywords of :func:`diagnosis.run.diagnose` (``holdout_fraction``, ``shortlist``, ``plots``,
+        ``export``, ``targets``, ``noise_std``).
+
+    Returns
+    -------
+    list of dict
+        Each record's ``gap.json`` document, in the order of ``data``.
+
+    Raises
+    ------
+    ConfigError, DataError
+        Bad config, a record that cannot be read, two records with the same stem, a bad output directory —
+        before anything is written.
+    """
+    say = progress or (lambda _m: None)
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ConfigError(f"workers: must be a whole number >= 1, got {workers!r}")
+    bad = sorted(set(options) - {"holdout_fraction", "shortlist", "plots", "export", "targets", "noise_std"})
+    if bad:
+        raise ConfigError(f"diagnose_each: unknown option(s) {', '.join(bad)}")
+    cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
+    paths = [Path(p) for p in data]
+    if not paths:
+        raise ConfigError("diagnose_each: no records")
+    stems = [p.stem for p in paths]
+    twice = sorted({s for s in stems if stems.count(s) > 1})
+    if twice:
+        raise ConfigError(f"records with the same name {', '.join(twice)}: each names its output directory")
+    out = Path(out_dir)
+    check_new_output_dir(out)
+    for p in paths:
+        read_data(cfg, [p])          # every record readable before the first task starts
+    if isinstance(dask, str):
+        from identification.cluster import parse_local_address
+
+        parse_local_address(dask)
+    out.mkdir(parents=True, exist_ok=True)
+    executor = refit_pool(min(workers, len(paths)), dask)
+    where = (f"{executor.workers} Dask workers" if isinstance(executor, DaskExecutor)
+             else f"{min(workers, len(paths))} processes" if executor is not None else "this process")
+    say(f"diagnosing {len(paths)} records, one task each, on {where}")
+    try:
+        docs = side_by_side(executor, _diagnose_one, [(cfg, str(p), str(out / s), dict(options))
+                                                      for p, s in zip(paths, stems)])
+    finally:
+        if executor is not None:
+            executor.shutdown(cancel_futures=True)
+    for p, doc in zip(paths, docs):
+        say(f"{p.name}: {doc['verdict']}")
+    return docs

@@ -1,0 +1,85 @@
+"""``ebb diagnose`` scaled out (issue 32): the refits on a real Dask LocalCluster, and a batch of records
+diagnosed one task each (``--each``) on local processes or on the cluster.
+
+Every task runs with one BLAS thread and is deterministic, so where it ran must not change the result: the
+cluster's diagnosis equals the single-process one (the verdict, the posterior probabilities and every refit's
+parameters, to 1e-9).
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from ebb_cli import main
+from ebb_model.config import config_from_dict
+from ebb_model.reference.excitation import band_limited_input
+from ebb_model.reference.synthetic import synthesize
+from ebb_model.reference.withheld import WithheldEffect
+
+from diagnosis.run import diagnose
+
+from test_diagnose_cli import _toml
+from test_diagnosis_blind import DT, N_SAMPLES, TRUTH, bench_config
+from test_noise_model import truth_config, truth_records
+
+
+def _lag_record(tmp_path):
+    """The blind bench with one sensor and an actuator lag (a quick case whose shortlist is refitted)."""
+    d = bench_config().to_dict()
+    d["sensors"] = [s for s in d["sensors"] if s["name"] == "y2"]
+    cfg = config_from_dict(d, extra_sections=("identification",))
+    u = band_limited_input(N_SAMPLES, DT, 2.0, 60.0, seed=3)
+    rec = synthesize(cfg, u, params=TRUTH, effect=WithheldEffect("actuator_lag", {"tau": 5e-4}), noise=0.01,
+                     seed=103)
+    np.savez(tmp_path / "m.npz", time=rec.time, F1=rec.inputs[:, 0], y2=rec.outputs[:, 0])
+    return cfg, tmp_path / "m.npz"
+
+
+def test_the_refits_on_a_local_cluster_give_the_single_process_result(tmp_path):
+    cfg, rec = _lag_record(tmp_path)
+    here = diagnose(cfg, [rec], tmp_path / "here", plots=False, export=False, workers=1).document
+    there = diagnose(cfg, [rec], tmp_path / "there", plots=False, export=False, dask="local:2").document
+    assert there["verdict"] == here["verdict"] and there["indistinguishable"] == here["indistinguishable"]
+    for lab, p in here["posterior_probability"].items():
+        assert there["posterior_probability"][lab] == pytest.approx(p, rel=1e-9, abs=1e-12)
+    refits = {e["label"]: e["refit"] for e in here["effects"] if e.get("refit")}
+    assert refits
+    for e in there["effects"]:
+        if e.get("refit"):
+            for k, v in refits[e["label"]]["effect_parameters"].items():
+                assert e["refit"]["effect_parameters"][k] == pytest.approx(v, rel=1e-9), (e["label"], k)
+
+
+@pytest.mark.parametrize("where", [["--workers", "2"], ["--dask", "local:2"]], ids=["processes", "dask"])
+def test_each_record_is_diagnosed_on_its_own(tmp_path, capsys, where):
+    cfg = truth_config()
+    (tmp_path / "bench.toml").write_text(_toml(cfg))
+    files = truth_records(tmp_path, cfg)
+    out = tmp_path / "batch"
+    assert main(["diagnose", str(tmp_path / "bench.toml"), *map(str, files), "--each", "--out", str(out),
+                 "--quiet", "--no-plots", *where]) == 0
+    printed = capsys.readouterr().out
+    for f in files:
+        doc = json.loads((out / f.stem / "gap.json").read_text())
+        assert doc["verdict"] == "none", doc["reason"]
+        assert f"{f}: verdict none" in printed
+
+
+def test_bad_batches_and_addresses_stop_before_anything_is_written(tmp_path, capsys):
+    cfg = truth_config()
+    (tmp_path / "bench.toml").write_text(_toml(cfg))
+    files = truth_records(tmp_path, cfg, seeds=(41,))
+    (tmp_path / "b").mkdir()
+    twin = tmp_path / "b" / files[0].name
+    twin.write_bytes(files[0].read_bytes())
+    cases = [([str(files[0]), str(twin), "--each"], "same name"),
+             ([str(files[0]), "--dask", "local:0"], "local:K"),
+             ([str(files[0]), str(tmp_path / "missing.csv"), "--each"], "missing.csv")]
+    for i, (args, words) in enumerate(cases):
+        out = tmp_path / f"o{i}"
+        assert main(["diagnose", str(tmp_path / "bench.toml"), *args, "--out", str(out), "--quiet"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and words in err, err
+        assert not out.exists()
