@@ -40,22 +40,9 @@ class DaskExecutor(Executor):
     """
 
     def __init__(self, address: Any):
-        from distributed import Client
+        from identification.cluster import connect
 
-        from identification.cluster import local_cluster, parse_local_address
-
-        self._own = isinstance(address, str)
-        self._cluster = None
-        n_local = parse_local_address(address) if self._own else None
-        if n_local is not None:
-            self._cluster = local_cluster(n_local)
-            address = self._cluster.scheduler_address
-        try:
-            self.client = Client(address) if self._own else address
-        except BaseException:
-            if self._cluster is not None:
-                self._cluster.close()
-            raise
+        self.client, self._cluster, self._own = connect(address)
 
     @property
     def workers(self) -> int:
@@ -70,13 +57,9 @@ class DaskExecutor(Executor):
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         """Close the client and the local cluster this executor started (a given client is left open)."""
-        if not self._own:
-            return
-        try:
-            self.client.close()
-        finally:
-            if self._cluster is not None:
-                self._cluster.close()
+        from identification.cluster import disconnect
+
+        disconnect(self.client, self._cluster, self._own)
 
 
 def refit_pool(workers: int, dask: Any = None) -> Executor | None:

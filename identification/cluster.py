@@ -33,7 +33,7 @@ from typing import Any, Mapping
 
 from ebb_model.errors import ConfigError
 
-__all__ = ["LOW_OVERHEAD", "local_cluster", "parse_local_address"]
+__all__ = ["LOW_OVERHEAD", "connect", "disconnect", "local_cluster", "parse_local_address"]
 
 #: Dask settings of :func:`local_cluster` (read-only; see the module docstring for what each costs).
 LOW_OVERHEAD: Mapping[str, Any] = MappingProxyType({
@@ -87,3 +87,41 @@ def local_cluster(n_workers: int, *, local_directory: str | None = None) -> Any:
         # the nannies hand this configuration to the worker processes they spawn
         return distributed.LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
                                         dashboard_address=None, local_directory=local_directory)
+
+
+def connect(address: Any) -> tuple[Any, Any, bool]:
+    """A Dask client for ``address``: a scheduler address, ``"local:K"`` (a :func:`local_cluster` started here)
+    or a connected ``distributed.Client`` (used as it is).  Returns ``(client, the cluster started here or None,
+    whether the client is the caller's to close)``; :func:`disconnect` undoes it.
+
+    Raises
+    ------
+    ConfigError
+        A malformed ``local:K`` address.
+    """
+    from distributed import Client
+
+    own = isinstance(address, str)
+    cluster = None
+    n_local = parse_local_address(address) if own else None
+    if n_local is not None:
+        cluster = local_cluster(n_local)
+        address = cluster.scheduler_address
+    try:
+        client = Client(address) if own else address
+    except BaseException:
+        if cluster is not None:
+            cluster.close()
+        raise
+    return client, cluster, own
+
+
+def disconnect(client: Any, cluster: Any, own: bool) -> None:
+    """Close what :func:`connect` opened (a client it was given is left open)."""
+    if not own:
+        return
+    try:
+        client.close()
+    finally:
+        if cluster is not None:
+            cluster.close()

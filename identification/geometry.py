@@ -58,13 +58,12 @@ def geometry_prior(config: BeamConfig) -> SectionPrior | None:
         Not a table, a quantity missing or unknown, a value or uncertainty not a finite number > 0 (an uncertainty
         may be 0), EI or ρA with a ``prior_std`` of its own as well (a prior is stated once) — every problem at once.
     """
-    ident = config.extra.get("identification", {}) or {}
-    table = ident.get("geometry") if isinstance(ident, Mapping) else None
+    from .settings import identification_table
+
+    table = identification_table(config, "geometry", f"of {', '.join(QUANTITIES)}, each {{ value = ..., std = ... }}")
     if table is None:
         return None
     where = "identification.geometry"
-    if not isinstance(table, Mapping):
-        raise ConfigError(f"{where}: must be a table of {', '.join(QUANTITIES)}, each {{ value = ..., std = ... }}")
     bad = [f"{where}.{k}: unknown quantity; allowed: {', '.join(QUANTITIES)}" for k in table if k not in QUANTITIES]
     bad += [f"{where}.{k}: missing ({u}, {{ value = ..., std = ... }})" for k, u in QUANTITIES.items()
             if k not in table]

@@ -79,13 +79,12 @@ def modal_data(config: BeamConfig) -> ModalData | None:
         Not a table, lengths that differ, non-increasing frequencies, uncertainties not > 0 — every problem at
         once.
     """
-    ident = config.extra.get("identification", {}) or {}
-    table = ident.get("modes") if isinstance(ident, Mapping) else None
+    from .settings import identification_table
+
+    table = identification_table(config, "modes", "{ frequencies_hz = [...], std_hz = [...] }")
     if table is None:
         return None
     where = "identification.modes"
-    if not isinstance(table, Mapping):
-        raise ConfigError(f"{where}: must be a table {{ frequencies_hz = [...], std_hz = [...] }}")
     bad = [f"{where}.{k}: unknown key; allowed: frequencies_hz, std_hz" for k in table
            if k not in ("frequencies_hz", "std_hz")]
     values = {}

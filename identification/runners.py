@@ -110,22 +110,9 @@ class DaskRunner(Runner):
     """
 
     def __init__(self, address: str | Any):
-        from distributed import Client
+        from .cluster import connect
 
-        from .cluster import local_cluster, parse_local_address
-
-        self._own = isinstance(address, str)
-        self._cluster = None
-        n_local = parse_local_address(address) if self._own else None
-        if n_local is not None:
-            self._cluster = local_cluster(n_local)
-            address = self._cluster.scheduler_address
-        try:
-            self.client = Client(address) if self._own else address
-        except BaseException:
-            if self._cluster is not None:
-                self._cluster.close()
-            raise
+        self.client, self._cluster, self._own = connect(address)
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
         self._scattered: tuple[Any, Any] | None = None  # (evaluator, its future on the workers)
         self._to_close: list[Any] = []  # evaluators with per-worker resources
@@ -146,12 +133,9 @@ class DaskRunner(Runner):
                 self.client.run(_close_evaluator, ev)
         finally:
             self._to_close.clear()
-            if self._own:
-                try:
-                    self.client.close()
-                finally:
-                    if self._cluster is not None:
-                        self._cluster.close()
+            from .cluster import disconnect
+
+            disconnect(self.client, self._cluster, self._own)
 
 
 def make_runner(*, workers: int = 1, dask: str | None = None) -> Runner:

@@ -12,6 +12,10 @@
     frequencies_hz = [6.64, 41.35]
     std_hz = [0.1, 0.3]
 
+    [identification.geometry] # EI and rhoA's prior from the section (identification.geometry)
+    E = { value = 200e9, std = 5e9 }
+    ...
+
     [identification.data]     # options of identification.data.load_experiments
     mapping = { F1 = "force" }
 """
@@ -27,7 +31,8 @@ from ebb_model import load_config
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
 
-__all__ = ["SECTION", "IdentificationSettings", "identification_settings", "load_identification_config"]
+__all__ = ["SECTION", "IdentificationSettings", "identification_settings", "identification_table",
+           "load_identification_config"]
 
 #: Name of the config table this layer owns.
 SECTION = "identification"
@@ -58,6 +63,21 @@ class IdentificationSettings:
     noise_std: Any = None
     per: str | None = None
     stabilising: bool | None = None
+
+
+def identification_table(config: BeamConfig, key: str, shape: str) -> Mapping[str, Any] | None:
+    """The ``[identification.<key>]`` table of ``config``; ``None`` when it has none.
+
+    Raises
+    ------
+    ConfigError
+        Present but not a table (``shape`` says what it should be).
+    """
+    ident = config.extra.get(SECTION, {}) or {}
+    table = ident.get(key) if isinstance(ident, Mapping) else None
+    if table is not None and not isinstance(table, Mapping):
+        raise ConfigError(f"{SECTION}.{key}: must be a table {shape}")
+    return table
 
 
 def identification_settings(config: BeamConfig) -> IdentificationSettings:

@@ -9,36 +9,19 @@ from __future__ import annotations
 
 import json
 
-import numpy as np
 import pytest
 
 from ebb_cli import main
-from ebb_model.config import config_from_dict
-from ebb_model.reference.excitation import band_limited_input
-from ebb_model.reference.synthetic import synthesize
-from ebb_model.reference.withheld import WithheldEffect
 
 from diagnosis.run import diagnose
 
 from test_diagnose_cli import _toml
-from test_diagnosis_blind import DT, N_SAMPLES, TRUTH, bench_config
+from test_evidence import siso_lag_record
 from test_noise_model import truth_config, truth_records
 
 
-def _lag_record(tmp_path):
-    """The blind bench with one sensor and an actuator lag (a quick case whose shortlist is refitted)."""
-    d = bench_config().to_dict()
-    d["sensors"] = [s for s in d["sensors"] if s["name"] == "y2"]
-    cfg = config_from_dict(d, extra_sections=("identification",))
-    u = band_limited_input(N_SAMPLES, DT, 2.0, 60.0, seed=3)
-    rec = synthesize(cfg, u, params=TRUTH, effect=WithheldEffect("actuator_lag", {"tau": 5e-4}), noise=0.01,
-                     seed=103)
-    np.savez(tmp_path / "m.npz", time=rec.time, F1=rec.inputs[:, 0], y2=rec.outputs[:, 0])
-    return cfg, tmp_path / "m.npz"
-
-
 def test_the_refits_on_a_local_cluster_give_the_single_process_result(tmp_path):
-    cfg, rec = _lag_record(tmp_path)
+    cfg, rec = siso_lag_record(tmp_path)
     here = diagnose(cfg, [rec], tmp_path / "here", plots=False, export=False, workers=1).document
     there = diagnose(cfg, [rec], tmp_path / "there", plots=False, export=False, dask="local:2").document
     assert there["verdict"] == here["verdict"] and there["indistinguishable"] == here["indistinguishable"]

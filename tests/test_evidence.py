@@ -104,16 +104,12 @@ def test_posterior_probabilities_weigh_fit_against_complexity():
     assert next(iter(probs)) == "none" and probs["none"] > 0.5
 
 
-def test_a_lag_on_the_only_force_or_the_only_sensor_is_indistinguishable(tmp_path):
-    """One force, one sensor: an actuator's lag and a sensor's lag commute (both filter the one input-output
-    path), so no record of that pair can separate them.  The blind bench with its second sensor removed and an
-    actuator lag withheld (the independent generator, 1 % noise): both refits close the held-out gap, the evidence
-    splits evenly (measured 0.500 / 0.500) — the verdict is ``indistinguishable``, both listed, none exported."""
+def siso_lag_record(tmp_path):
+    """The blind bench with its second sensor removed and an actuator lag (0.5 ms) withheld — the independent
+    generator, 1 % noise: ``(config, record path)``."""
     from ebb_model.reference.excitation import band_limited_input
     from ebb_model.reference.synthetic import synthesize
     from ebb_model.reference.withheld import WithheldEffect
-    from diagnosis.run import diagnose
-    from diagnosis.verdict import DECISIVE_ODDS, INDISTINGUISHABLE
     from test_diagnosis_blind import DT, N_SAMPLES, TRUTH, bench_config
 
     d = bench_config().to_dict()
@@ -123,7 +119,19 @@ def test_a_lag_on_the_only_force_or_the_only_sensor_is_indistinguishable(tmp_pat
     rec = synthesize(cfg, u, params=TRUTH, effect=WithheldEffect("actuator_lag", {"tau": 5e-4}), noise=0.01,
                      seed=103)
     np.savez(tmp_path / "m.npz", time=rec.time, F1=rec.inputs[:, 0], y2=rec.outputs[:, 0])
-    doc = diagnose(cfg, [tmp_path / "m.npz"], tmp_path / "gap", plots=False, export=True, workers=1).document
+    return cfg, tmp_path / "m.npz"
+
+
+def test_a_lag_on_the_only_force_or_the_only_sensor_is_indistinguishable(tmp_path):
+    """One force, one sensor: an actuator's lag and a sensor's lag commute (both filter the one input-output
+    path), so no record of that pair can separate them.  The blind bench with its second sensor removed and an
+    actuator lag withheld (the independent generator, 1 % noise): both refits close the held-out gap, the evidence
+    splits evenly (measured 0.500 / 0.500) — the verdict is ``indistinguishable``, both listed, none exported."""
+    from diagnosis.run import diagnose
+    from diagnosis.verdict import DECISIVE_ODDS, INDISTINGUISHABLE
+
+    cfg, rec = siso_lag_record(tmp_path)
+    doc = diagnose(cfg, [rec], tmp_path / "gap", plots=False, export=True, workers=1).document
     assert doc["verdict"] == INDISTINGUISHABLE, doc["reason"]
     assert sorted(doc["indistinguishable"]) == ["actuator_lag", "sensor_lag[y2]"]
     p = doc["posterior_probability"]
