@@ -9,7 +9,8 @@ task is deterministic with one BLAS thread, so a record's result does not depend
 
 Output: ``OUT/<record stem>/`` per record (``gap.json``, plots, the corrected model), as a single diagnosis writes
 it.  Every record is read and checked before the first task starts: a bad one stops the batch before anything is
-written.
+written; the batch is written into a staged directory renamed onto ``OUT`` at the end, so an error or an
+interrupt in any task leaves nothing behind.
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from typing import Any, Callable, Sequence
 
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
-from ebb_model.output import check_new_output_dir
+from ebb_model.output import check_new_output_dir, staged_dir
 from identification.run import load_identification_config, read_data
 
 from .workers import DaskExecutor, refit_pool, side_by_side
@@ -87,17 +88,17 @@ def diagnose_each(config: BeamConfig | str | Path, data: Sequence[str | Path], o
         from identification.cluster import parse_local_address
 
         parse_local_address(dask)
-    out.mkdir(parents=True, exist_ok=True)
-    executor = refit_pool(min(workers, len(paths)), dask)
-    where = (f"{executor.workers} Dask workers" if isinstance(executor, DaskExecutor)
-             else f"{min(workers, len(paths))} processes" if executor is not None else "this process")
-    say(f"diagnosing {len(paths)} records, one task each, on {where}")
-    try:
-        docs = side_by_side(executor, _diagnose_one, [(cfg, str(p), str(out / s), dict(options))
-                                                      for p, s in zip(paths, stems)])
-    finally:
-        if executor is not None:
-            executor.shutdown(cancel_futures=True)
+    with staged_dir(out) as staged:     # renamed onto OUT once every record is done: nothing partial is kept
+        executor = refit_pool(min(workers, len(paths)), dask)
+        where = (f"{executor.workers} Dask workers" if isinstance(executor, DaskExecutor)
+                 else f"{min(workers, len(paths))} processes" if executor is not None else "this process")
+        say(f"diagnosing {len(paths)} records, one task each, on {where}")
+        try:
+            docs = side_by_side(executor, _diagnose_one, [(cfg, str(p), str(staged / s), dict(options))
+                                                          for p, s in zip(paths, stems)])
+        finally:
+            if executor is not None:
+                executor.shutdown(cancel_futures=True)
     for p, doc in zip(paths, docs):
         say(f"{p.name}: {doc['verdict']}")
     return docs

@@ -66,3 +66,19 @@ def test_bad_batches_and_addresses_stop_before_anything_is_written(tmp_path, cap
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and words in err, err
         assert not out.exists()
+
+
+def test_a_batch_that_fails_in_a_task_keeps_nothing(tmp_path):
+    """A record that reads but cannot be diagnosed (ten samples) stops the batch after another record finished:
+    the staged batch is removed, ``OUT`` is not created."""
+    from diagnosis.batch import diagnose_each
+    from ebb_model.errors import EbbError
+
+    cfg = truth_config()
+    good = truth_records(tmp_path, cfg, seeds=(41,))[0]
+    short = tmp_path / "short.csv"
+    short.write_text("time,F1,y1,y2\n" + "".join(f"{k * 5e-4},0,0,0\n" for k in range(10)))
+    with pytest.raises(EbbError):
+        diagnose_each(cfg, [good, short], tmp_path / "batch", workers=1, plots=False, export=False)
+    assert not (tmp_path / "batch").exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".batch")]
