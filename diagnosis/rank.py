@@ -131,6 +131,11 @@ class _Search:
         """Whether one of the refits explains the gap."""
         return any(explains(fit, self.baseline) for fit, _ in local.values())
 
+    def at_noise_floor(self, local: dict[str, tuple[Fit, list]]) -> bool:
+        """Whether one of the refits leaves the fit windows within :data:`GAP_THRESHOLD` of the noise floor
+        (nothing left for another basin or effect to explain)."""
+        return any(fit.rss / fit.n - 1.0 <= GAP_THRESHOLD for fit, _ in local.values())
+
     def summary(self, effect: Effect, fit: Fit) -> EffectRefit:
         """The refit's held-out gap, BIC and closure (:func:`diagnosis.refits.summarise`)."""
         return summarise(self.problem, self.baseline, self.before, effect, fit)
@@ -510,7 +515,9 @@ def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortli
     patterns: dict[str, PatternFit] = {}
     evidence = None
     early: _Early = None
-    if modal is not None and not run.explained(local):
+    if modal is not None and not run.at_noise_floor(local):
+        # also when a refit explains the dominant part only: the effect that leaves 11 noise variances may be
+        # another's stand-in found first (a spring to ground 0.5 m off, measured), its modal match puts it right
         evidence = modal(baseline.beta)
         patterns, labels, early, local = _modal_stage(run, evidence, labels, local)
     if not run.explained(local) and not _pair_explains(early, baseline):

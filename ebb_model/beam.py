@@ -36,6 +36,7 @@ __all__ = [
     "Actuator",
     "Sensor",
     "PointMass",
+    "PointSpring",
 ]
 
 #: Names of the physical parameters, in the canonical order used everywhere
@@ -155,3 +156,13 @@ class PointMass:
     name: str
     x: float
     mass: float
+
+
+@dataclass(frozen=True)
+class PointSpring:
+    """A translational spring ``k`` [N/m] from the beam at ``x`` [m] to ground (an intermediate support, a
+    shaker's suspension seen through its stinger)."""
+
+    name: str
+    x: float
+    k: float

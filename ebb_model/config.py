@@ -35,13 +35,18 @@ bounds and an ``identify`` flag used by the identification layer::
     name = "m1"
     x = 0.9
     mass = 0.05
+    [[springs]]             # optional springs to ground (intermediate supports)
+    name = "k1"
+    x = 0.6
+    k = 2.0e4               # N/m, >= 0
 
 Validation reports **every** problem at once (FMPy's ``validate_fmu`` habit),
 each naming its field, in one :class:`~ebb_model.errors.ConfigError`.  Values far
 beyond any physical beam are refused rather than left to overflow the model:
 ``length`` in 1e-9 … 1e6 m, ``dt`` at most 1000 s, parameter magnitudes at most
 1e30 (``EI``, ``rhoA`` at least 1e-30), a point mass at most 1e12 times the
-beam's mass per grid cell (:func:`ebb_model.discretisation.discretise`).
+beam's mass per grid cell and a spring at most 1e12 times a grid cell's bending stiffness ``EI/h³``
+(:func:`ebb_model.discretisation.discretise`).
 
 This module is the config's public face; the value objects live in :mod:`ebb_model.config_types`, reading
 and validation in :mod:`ebb_model.config_validation`.

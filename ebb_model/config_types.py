@@ -10,7 +10,7 @@ from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 from typing import Any, Mapping
 
-from .beam import PARAMETER_NAMES, Actuator, End, PointMass, Sensor
+from .beam import PARAMETER_NAMES, Actuator, End, PointMass, PointSpring, Sensor
 from .errors import ParameterError
 from .parameter_values import resolve_parameters
 
@@ -80,6 +80,7 @@ class BeamConfig:
     actuators: tuple[Actuator, ...]
     sensors: tuple[Sensor, ...]
     masses: tuple[PointMass, ...] = ()
+    springs: tuple[PointSpring, ...] = ()
     extra: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
 
     # ------------------------------------------------------------------ access
@@ -161,6 +162,8 @@ class BeamConfig:
         }
         if self.masses:
             out["masses"] = [{"name": m.name, "x": m.x, "mass": m.mass} for m in self.masses]
+        if self.springs:
+            out["springs"] = [{"name": k.name, "x": k.x, "k": k.k} for k in self.springs]
         for k, v in self.extra.items():
             out[k] = v
         return out

@@ -12,7 +12,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Mapping
 
-from .beam import END_KINDS, PARAMETER_NAMES, SENSOR_KINDS, Actuator, End, PointMass, Sensor
+from .beam import END_KINDS, PARAMETER_NAMES, SENSOR_KINDS, Actuator, End, PointMass, PointSpring, Sensor
 from .config_types import (DEFAULT_INPUT, INPUT_HOLDS, MAX_NODES, SCHEMES, BeamConfig, BeamGeometry, ParameterSpec,
                            TimeSettings)
 from .errors import ConfigError, ConfigWarning
@@ -213,6 +213,22 @@ def _points(pr: Problems, data: Mapping[str, Any], key: str, length: float | Non
     return out
 
 
+def _attached(pr: Problems, points: list[dict[str, Any]], key: str, unit: str) -> list[tuple[dict[str, Any], float]]:
+    """The valid point attachments of ``points`` (``[[masses]]``, ``[[springs]]``) with their value ``key``
+    (finite, >= 0, in ``unit``); every problem added to ``pr``."""
+    out = []
+    for m in points:
+        if key not in m["raw"]:
+            pr.add(f"{m['where']}.{key}", f"missing ({unit})")
+            continue
+        v = pr.number(f"{m['where']}.{key}", m["raw"][key])
+        if v is not None and v < 0:
+            pr.add(f"{m['where']}.{key}", f"must be >= 0, got {v:g}")
+        elif v is not None and m["name"] is not None and m["x"] is not None:
+            out.append((m, v))
+    return out
+
+
 def _rebuild_config(data: dict[str, Any], extra_sections: tuple[str, ...]) -> BeamConfig:
     return config_from_dict(data, extra_sections=extra_sections)
 
@@ -228,7 +244,7 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
     pr = Problems()
     if not isinstance(data, Mapping):
         raise ConfigError(f"config: must be a table, got {type(data).__name__}")
-    allowed = ("beam", "time", "parameters", "actuators", "sensors", "masses") + tuple(extra_sections)
+    allowed = ("beam", "time", "parameters", "actuators", "sensors", "masses", "springs") + tuple(extra_sections)
     pr.unknown_keys("", data, allowed)
 
     beam_t = _table(pr, data, "beam")
@@ -289,6 +305,7 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
     acts = _points(pr, data, "actuators", length, ("name", "x"), required=True)
     sens = _points(pr, data, "sensors", length, ("name", "x", "kind"), required=True)
     mass = _points(pr, data, "masses", length, ("name", "x", "mass"), required=False)
+    spring = _points(pr, data, "springs", length, ("name", "x", "k"), required=False)
     sensors: list[Sensor] = []
     for s in sens:
         kind = s["raw"].get("kind", "displacement")
@@ -296,25 +313,17 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
             pr.add(f"{s['where']}.kind", f"unknown sensor kind {kind!r}; allowed: {', '.join(SENSOR_KINDS)}")
         elif s["name"] is not None and s["x"] is not None:
             sensors.append(Sensor(s["name"], s["x"], kind))
-    masses: list[PointMass] = []
-    for m in mass:
-        if "mass" not in m["raw"]:
-            pr.add(f"{m['where']}.mass", "missing (kg)")
-            continue
-        mv = pr.number(f"{m['where']}.mass", m["raw"]["mass"])
-        if mv is not None and mv < 0:
-            pr.add(f"{m['where']}.mass", f"must be >= 0, got {mv:g}")
-        elif mv is not None and m["name"] is not None and m["x"] is not None:
-            masses.append(PointMass(m["name"], m["x"], mv))
+    masses = [PointMass(m["name"], m["x"], v) for m, v in _attached(pr, mass, "mass", "kg")]
+    springs = [PointSpring(k["name"], k["x"], v) for k, v in _attached(pr, spring, "k", "N/m")]
     actuators = [Actuator(a["name"], a["x"]) for a in acts if a["name"] is not None and a["x"] is not None]
 
-    names = [a["name"] for a in acts] + [s["name"] for s in sens] + [m["name"] for m in mass]
+    names = [a["name"] for a in acts] + [s["name"] for s in sens] + [m["name"] for m in mass + spring]
     seen: set[str] = set()
     for n in names:
         if n is None:
             continue
         if n in seen:
-            pr.add("names", f"{n!r} is used more than once (actuator, sensor and mass names must be unique)")
+            pr.add("names", f"{n!r} is used more than once (actuator, sensor, mass and spring names must be unique)")
         seen.add(n)
         if n in PARAMETER_NAMES:
             pr.add("names", f"{n!r} clashes with a parameter name")
@@ -332,5 +341,6 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
         actuators=tuple(actuators),
         sensors=tuple(sensors),
         masses=tuple(masses),
+        springs=tuple(springs),
         extra=MappingProxyType(extra),
     )

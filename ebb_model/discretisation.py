@@ -55,6 +55,8 @@ definite (:func:`rotary_mass`).  The Winkler foundation is lumped like the
 translational mass, :math:`k_f\\,\\mathrm{diag}(V)`, and enters no boundary
 condition.
 
+Springs to ground add :math:`\\sum_s k_s \\phi(a_s)\\phi(a_s)^T` to ``K`` in the same way.
+
 Point forces, point masses and sensors use the piecewise
 linear "hat" functions :math:`\\phi_i(x)` of the grid, so a force between nodes
 is shared by its two neighbours with weights summing to one (consistent load
@@ -75,6 +77,9 @@ from .parameter_values import resolve_parameters
 #: The largest point mass, in units of the beam's mass per grid cell ``ρA h``, that keeps the mass matrix
 #: numerically positive definite (its Cholesky factor fails from about ``1/eps ≈ 1e16``).
 MAX_MASS_RATIO = 1e12
+#: The stiffest spring to ground, in units of a grid cell's bending stiffness ``EI/h³``, that keeps the
+#: stiffness matrix's condition (and with it the modes' round-off) within what a constrained node would give.
+MAX_SPRING_RATIO = 1e12
 
 __all__ = ["SemiDiscreteBeam", "discretise", "grid_nodes", "hat_weights", "rotary_mass"]
 
@@ -224,8 +229,8 @@ def discretise(config: BeamConfig, params: Mapping[str, float] | None = None) ->
     Raises
     ------
     ParameterError
-        When a parameter is missing, non-finite or out of its physical range, or a point mass so heavy that
-        the mass matrix would be numerically singular.
+        When a parameter is missing, non-finite or out of its physical range, or a point mass so heavy (a
+        spring so stiff) that the mass (stiffness) matrix would be numerically singular.
     """
     p = resolve_parameters(config, params)
     EI, rhoA, c, eta, N = p["EI"], p["rhoA"], p["c"], p["eta"], p["N"]
@@ -270,6 +275,13 @@ def discretise(config: BeamConfig, params: Mapping[str, float] | None = None) ->
                                  f"numerically singular")
         phi = hat_weights(m.x, L, n)[unknown]
         M += m.mass * np.outer(phi, phi)
+    for sp in config.springs:
+        if sp.k > MAX_SPRING_RATIO * EI / h ** 3:
+            raise ParameterError(f"springs.{sp.name}: {sp.k:g} N/m is more than {MAX_SPRING_RATIO:g} times a grid "
+                                 f"cell's bending stiffness EI/h^3 = {EI / h ** 3:g} N/m: the stiffness matrix would "
+                                 f"be numerically singular (a rigid support is an end condition)")
+        phi = hat_weights(sp.x, L, n)[unknown]
+        K += sp.k * np.outer(phi, phi)
     # symmetrise away round-off (the exact matrices are symmetric)
     K = 0.5 * (K + K.T)
     C = 0.5 * (C + C.T)

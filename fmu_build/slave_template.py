@@ -216,6 +216,9 @@ class BeamSlave(Fmi2Slave):
         for m in getattr(cfg, "masses", ()):
             self._add_constant(f"masses.{m.name}.x", float(m.x), f"position of point mass {m.name}", "m")
             self._add_constant(f"masses.{m.name}.mass", float(m.mass), f"point mass {m.name}", "kg")
+        for k in getattr(cfg, "springs", ()):
+            self._add_constant(f"springs.{k.name}.x", float(k.x), f"position of spring to ground {k.name}", "m")
+            self._add_constant(f"springs.{k.name}.k", float(k.k), f"spring to ground {k.name}", "N/m")
 
     # ----------------------------------------------------------- model
     def _error(self, function: str, message: str) -> None:

@@ -29,6 +29,7 @@ def make_config(left: str = "clamped", right: str = "clamped", *, length: float 
                 actuators: list[tuple[str, float]] | None = None,
                 sensors: list[tuple[str, float, str]] | None = None,
                 masses: list[tuple[str, float, float]] | None = None,
+                springs: list[tuple[str, float, float]] | None = None,
                 left_springs: tuple[float, float] | None = None,
                 right_springs: tuple[float, float] | None = None, scheme: str | None = None):
     """Build a validated config from keyword arguments (tests only); ``scheme=None``: the project's default."""
@@ -48,6 +49,8 @@ def make_config(left: str = "clamped", right: str = "clamped", *, length: float 
     }
     if masses:
         d["masses"] = [{"name": n, "x": x, "mass": m} for n, x, m in masses]
+    if springs:
+        d["springs"] = [{"name": n, "x": x, "k": k} for n, x, k in springs]
     return config_from_dict(d)
 
 

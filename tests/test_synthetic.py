@@ -38,6 +38,7 @@ CANONICAL = {
     "boundary_translational_left": ("kt",),
     "boundary_translational_right": ("kt",),
     "point_mass": ("mass", "x"),
+    "grounded_spring": ("k", "x"),
     "kelvin_voigt": ("eta",),
     "rotary_inertia": ("rhoI",),
     "foundation": ("kf",),
@@ -461,6 +462,7 @@ OFF = [
     ("boundary_rotational_left", {"kr": INF}),
     ("boundary_translational_right", {"kt": 0.0}),  # right end is free
     ("point_mass", {"mass": 0.0, "x": 0.4}),
+    ("grounded_spring", {"k": 0.0, "x": 0.6}),
     ("kelvin_voigt", {"eta": 0.0}),
     ("rotary_inertia", {"rhoI": 0.0}),
     ("foundation", {"kf": 0.0}),

@@ -24,6 +24,7 @@ boundary_translational_<side>  kt [N/m]             constrained: c = EI/(kt L³)
                                                     free: s = kt L³/EI (0)
 point_mass                     mass [kg], x [m]     μ = mass/(ρA L) (0), x
 transducer_mass[<sensor>]      mass [kg]            μ = mass/(ρA L) (0) at the sensor's position
+grounded_spring                k [N/m], x [m]       κ = k L³/EI (0), x
 kelvin_voigt                   eta [s]              eta (0)
 rotary_inertia                 rhoI [kg m]          r² = rhoI/(ρA L²) (0)
 foundation                     kf [N/m²]            κ = kf L⁴/EI (0)
@@ -52,7 +53,7 @@ from typing import Any
 
 from ebb_model.config import BeamConfig
 
-from . import axial, beam_terms, boundary, chain, lag, point_mass
+from . import axial, beam_terms, boundary, chain, lag, point_mass, supports
 from .base import (
     PAIR_SEPARATOR,
     AugmentedModel,
@@ -73,6 +74,7 @@ __all__ = ["Scales", "Effect", "AugmentedModel", "AxialLoad", "Signal", "Family"
 FAMILIES: tuple[Family, ...] = (
     boundary.FAMILY,
     point_mass.FAMILY,
+    supports.FAMILY,
     beam_terms.FAMILY,
     lag.FAMILY,
     chain.FAMILY,

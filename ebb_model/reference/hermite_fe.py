@@ -330,6 +330,7 @@ def hermite_beam(
     point_masses: Sequence[tuple[float, float]] = (),
     rhoI: float = 0.0,
     kf: float = 0.0,
+    point_springs: Sequence[tuple[float, float]] = (),
 ) -> HermiteBeam:
     r"""Assemble the cubic Hermite finite-element model.
 
@@ -365,6 +366,9 @@ def hermite_beam(
     kf
         Winkler foundation modulus [N/m²] (>= 0):
         :math:`K \mathrel{+}= \int k_f N^T N\,dx = (k_f/\rho A) M_{\rho A}`.
+    point_springs
+        ``(k, x)`` pairs of translational springs to ground [N/m]; each adds :math:`k\,\phi(x)\phi(x)^T` to
+        :math:`K` (any :math:`x \in [0, L]`).
 
     Returns
     -------
@@ -405,6 +409,15 @@ def hermite_beam(
         m = finite_scalar("point mass", m, minimum=0.0)
         phi = _global_shape_vector(xm, L, ne)
         Mp += m * np.outer(phi, phi)
+    Kp = np.zeros((ndof, ndof))
+    for item in point_springs:
+        try:
+            k, xk = item
+        except (TypeError, ValueError):
+            raise ParameterError(f"point spring must be a (k, x) pair, got {item!r}") from None
+        k = finite_scalar("point spring", k, minimum=0.0)
+        phi = _global_shape_vector(xk, L, ne)
+        Kp += k * np.outer(phi, phi)
 
     Ks = np.zeros((ndof, ndof))
     constrained: list[int] = []
@@ -420,7 +433,7 @@ def hermite_beam(
 
     ix = np.ix_(free, free)
     M = (Mr + rhoI * G + Mp)[ix]
-    K = (Kb + N * G + (kf / rhoA) * Mr + Ks)[ix]
+    K = (Kb + N * G + (kf / rhoA) * Mr + Ks + Kp)[ix]
     C = ((c / rhoA) * Mr + eta * Kb)[ix]
     K_axial = G[ix]
     for a in (M, C, K, free, K_axial):

@@ -27,6 +27,7 @@ effect                              implementation
                                     else is added to the end's ``kr``
 ``boundary_translational_*``        same for ``kt``
 ``point_mass``                      :math:`m\,\phi(x)\phi(x)^T` added to :math:`M`
+``grounded_spring``                 :math:`k\,\phi(x)\phi(x)^T` added to :math:`K`
 ``kelvin_voigt``                    :math:`\eta` added to the config's: :math:`C \mathrel{+}= \eta K_b`
 ``rotary_inertia``                  :math:`\rho I` added to the config's: :math:`M \mathrel{+}= \rho I\int N'^TN'`
 ``foundation``                      :math:`k_f` added to the config's: :math:`K \mathrel{+}= k_f\int N^TN`

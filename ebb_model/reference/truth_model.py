@@ -8,7 +8,7 @@ and the withheld effects (:mod:`ebb_model.reference.withheld`; the table of
 implementations is in :mod:`ebb_model.reference.synthetic`):
 
 * :class:`Truth` -- the truth's model and integrator settings: end springs,
-  point masses, ``eta``, ``rhoI``, ``kf`` of the finite-element model, and the
+  point masses, springs to ground, ``eta``, ``rhoI``, ``kf`` of the finite-element model, and the
   axial drift, stretching stiffness, lags and local nonlinear element of the
   integrator;
 * :func:`apply_effects` -- applies the effects to the config's values;
@@ -41,8 +41,9 @@ class Truth:
 
     Attributes
     ----------
-    left, right, masses, eta, rhoI, kf
-        End springs ``(kt, kr)``, point masses ``(mass, x)`` and the parameters of :func:`hermite_beam`.
+    left, right, masses, springs, eta, rhoI, kf
+        End springs ``(kt, kr)``, point masses ``(mass, x)``, springs to ground ``(k, x)`` and the parameters of
+        :func:`hermite_beam`.
     rate, ea, act_tau, sen_tau, lag_sensor
         Axial drift rate, ``EA``, actuator and sensor lag time constants, lagged sensor (-1: none).
     local_x, k3, friction, slip
@@ -52,6 +53,7 @@ class Truth:
     left: tuple[float, ...]
     right: tuple[float, ...]
     masses: list[tuple[float, float]]
+    springs: list[tuple[float, float]]
     eta: float
     rhoI: float
     kf: float
@@ -109,6 +111,7 @@ def apply_effects(config: BeamConfig, p: Mapping[str, float], effects: Sequence[
         "right": [config.beam.right.kt, config.beam.right.kr],
     }
     masses = [(m.mass, m.x) for m in config.masses]
+    springs = [(sp.k, sp.x) for sp in config.springs]
     eta, rhoI, kf = p["eta"], p["rhoI"], p["kf"]
     rate = ea = act_tau = sen_tau = k3 = friction = 0.0
     slip = 1.0
@@ -124,6 +127,10 @@ def apply_effects(config: BeamConfig, p: Mapping[str, float], effects: Sequence[
             if not 0.0 <= v["x"] <= L:
                 raise ParameterError(f"effect point_mass.x = {v['x']:g} m lies outside the beam [0, {L:g}] m")
             masses.append((v["mass"], v["x"]))
+        elif e.name == "grounded_spring":
+            if not 0.0 <= v["x"] <= L:
+                raise ParameterError(f"effect grounded_spring.x = {v['x']:g} m lies outside the beam [0, {L:g}] m")
+            springs.append((v["k"], v["x"]))
         elif e.name == "kelvin_voigt":
             eta += v["eta"]
         elif e.name == "rotary_inertia":
@@ -158,9 +165,9 @@ def apply_effects(config: BeamConfig, p: Mapping[str, float], effects: Sequence[
                 friction, slip = v["force"], v["slip"]
         else:  # pragma: no cover - the catalogue and this dispatch are kept in step by the tests
             raise ConfigError(f"effect {e.name!r} is not implemented by the generator")
-    return Truth(left=tuple(ends["left"]), right=tuple(ends["right"]), masses=masses, eta=eta, rhoI=rhoI, kf=kf,
-                 rate=rate, ea=ea, act_tau=act_tau, sen_tau=sen_tau, lag_sensor=lag_sensor, local_x=local_x, k3=k3,
-                 friction=friction, slip=slip)
+    return Truth(left=tuple(ends["left"]), right=tuple(ends["right"]), masses=masses, springs=springs, eta=eta,
+                 rhoI=rhoI, kf=kf, rate=rate, ea=ea, act_tau=act_tau, sen_tau=sen_tau, lag_sensor=lag_sensor,
+                 local_x=local_x, k3=k3, friction=friction, slip=slip)
 
 
 def build_beam(config: BeamConfig, p: Mapping[str, float], truth: Truth, n_elements: int, n_samples: int,
@@ -188,6 +195,7 @@ def build_beam(config: BeamConfig, p: Mapping[str, float], truth: Truth, n_eleme
     beam = hermite_beam(
         float(config.beam.length), int(n_elements), EI=p["EI"], rhoA=p["rhoA"], N=p["N"], c=p["c"], eta=truth.eta,
         left=truth.left, right=truth.right, point_masses=truth.masses, rhoI=truth.rhoI, kf=truth.kf,
+        point_springs=truth.springs,
     )
     assert beam.K_axial is not None
     dn_min = min(0.0, truth.rate * (n_samples - 1) * dt)

@@ -15,6 +15,8 @@ name                                    parameters         off value
 ``boundary_translational_left/right``   ``kt`` [N/m]       ``inf`` on a translation-fixed end, else 0
 ``point_mass``                          ``mass`` [kg],     ``mass = 0``
                                         ``x`` [m]
+``grounded_spring``                     ``k`` [N/m],       ``k = 0``
+                                        ``x`` [m]
 ``kelvin_voigt``                        ``eta`` [s]        0
 ``rotary_inertia``                      ``rhoI`` [kg m]    0
 ``foundation``                          ``kf`` [N/m²]      0
@@ -101,6 +103,8 @@ EFFECT_CATALOGUE: Mapping[str, EffectSpec] = MappingProxyType(
                   "finite translational spring at x = L (replaces a fixed translation, else added)"),
             _spec("point_mass", (("mass", "kg", "nonneg"), ("x", "m", "real")),
                   "extra rigid point mass at x"),
+            _spec("grounded_spring", (("k", "N/m", "nonneg"), ("x", "m", "real")),
+                  "translational spring from the beam at x to ground (an intermediate support)"),
             _spec("kelvin_voigt", (("eta", "s", "nonneg"),),
                   "Kelvin-Voigt strain-rate damping eta*EI*w_xxxxt added to the model's"),
             _spec("rotary_inertia", (("rhoI", "kg.m", "nonneg"),),

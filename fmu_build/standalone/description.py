@@ -10,7 +10,7 @@ the continuous states ``modes.q[i]``, ``modes.qd[i]`` (``i = 1 … k``: the moda
 of the ``k`` Richardson modes, mass-normalised; scheme ``theta``: ``nodes.q[i]``, ``nodes.qd[i]``, deflection
 and velocity of the grid's ``k`` unknowns) and their derivatives ``der(...)``.
 
-``ebb_config.h`` holds the **structure** only (grid, ends, positions, sensor kinds, point masses, ``dt``,
+``ebb_config.h`` holds the **structure** only (grid, ends, positions, sensor kinds, point masses, springs, ``dt``,
 input reconstruction, start values, the variable table): the matrices are assembled in C from the parameter
 values when the FMU initialises.
 """
@@ -102,6 +102,9 @@ def fmu_variables(config: BeamConfig, field_sensors: Sequence[Sensor] = ()) -> l
     for m in config.masses:
         const(f"masses.{m.name}.x", float(m.x), f"position of point mass {m.name}", "m")
         const(f"masses.{m.name}.mass", float(m.mass), f"point mass {m.name}", "kg")
+    for sp in config.springs:
+        const(f"springs.{sp.name}.x", float(sp.x), f"position of spring to ground {sp.name}", "m")
+        const(f"springs.{sp.name}.k", float(sp.k), f"spring to ground {sp.name}", "N/m")
     k = n_modes(config)
     if t.scheme == "theta":                 # the nodal unknowns of the config's grid
         first = 1 if b.left.translation_fixed else 0
@@ -259,6 +262,7 @@ def config_header(config: BeamConfig, variables: Sequence[Variable], identity: F
         f"#define EBB_NACT {len(config.actuators)}",
         f"#define EBB_NSENS {len(sensors)}",
         f"#define EBB_NMASS {len(config.masses)}",
+        f"#define EBB_NSPRING {len(config.springs)}",
         f"#define EBB_NVARS {len(variables)}", "",
     ]
     text = "\n".join(lines)
@@ -267,6 +271,8 @@ def config_header(config: BeamConfig, variables: Sequence[Variable], identity: F
     text += _array("int", "EBB_SENS_KIND", [str(SENSOR_KINDS.index(s.kind)) for s in sensors])
     text += _array("double", "EBB_MASS_X", [_c_double(m.x) for m in config.masses])
     text += _array("double", "EBB_MASS_M", [_c_double(m.mass) for m in config.masses])
+    text += _array("double", "EBB_SPRING_X", [_c_double(sp.x) for sp in config.springs])
+    text += _array("double", "EBB_SPRING_K", [_c_double(sp.k) for sp in config.springs])
     text += _array("double", "EBB_PARAM_START", [_c_double(values[n]) for n in PARAMETER_NAMES])
     text += "\n/* variable table, indexed by value reference */\n"
     text += _array("signed char", "EBB_VAR_TYPE", [str(_TYPES[v.type]) for v in variables])

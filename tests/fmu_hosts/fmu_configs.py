@@ -11,7 +11,8 @@ SEED_TOML = ROOT / "examples" / "seed_clamped.toml"
 
 
 def mixed_config() -> dict[str, Any]:
-    """Two forces; displacement, velocity and acceleration sensors; damping, a point mass, an elastic end."""
+    """Two forces; displacement, velocity and acceleration sensors; damping, a point mass, a spring to ground, an
+    elastic end."""
     return {
         "beam": {"length": 1.0, "nodes": 30, "left": "pinned", "right": "elastic",
                  "right_kt": 5000.0, "right_kr": 20.0},
@@ -23,6 +24,7 @@ def mixed_config() -> dict[str, Any]:
                     {"name": "v1", "x": 0.6, "kind": "velocity"},
                     {"name": "a1", "x": 0.3, "kind": "acceleration"}],
         "masses": [{"name": "m1", "x": 0.9, "mass": 0.05}],
+        "springs": [{"name": "k1", "x": 0.45, "k": 3000.0}],
     }
 
 

@@ -52,6 +52,9 @@ typedef struct {
     int n_mass;
     const double *mass_x;
     const double *mass_m;
+    int n_spring;             /* springs to ground: K += k phi(x) phi(x)^T */
+    const double *spring_x;
+    const double *spring_k;
 } ebb_structure;
 
 /* The discrete model of one parameter set, in the causal "xi" form of ebb_model

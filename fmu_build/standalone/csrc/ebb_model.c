@@ -3,10 +3,10 @@
  *
  * 1. Space: central finite differences with ghost nodes (port of ebb_model/discretisation.py): on a grid of
  *    n interior points, spacing h = L/(n+1), the semi-discrete beam M q'' + C q' + K q = F u with
- *      K = diag(V)(EI D4 - N D2)E + kf diag(V),  C = c diag(V) + eta EI diag(V) D4 E,
+ *      K = diag(V)(EI D4 - N D2)E + kf diag(V) + sum_s k_s phi(a_s) phi(a_s)^T,  C = c diag(V) + eta EI diag(V) D4 E,
  *      M = rhoA diag(V) + rhoI h (GP)^T(GP) + sum_m m_m phi(a_m) phi(a_m)^T,
  *    E the extension by the ghost nodes of the moment and shear conditions (elastic ends kt, kr in [0, inf]),
- *    forces, sensors and point masses on the grid's hat functions.
+ *    forces, sensors, point masses and springs to ground on the grid's hat functions.
  * 2. Richardson modes (ebb_model/exact_modal.py): the beam on the config's grid and on its companion grid
  *    (2n+1 nodes up to 201, else (n-1)/2); the lowest w2 of both, extrapolated as
  *    w2_f + weight (w2_f - w2_c)/((h_c/h_f)^2 - 1) (weight 1 for the lower half of the coarse grid's modes,
@@ -155,6 +155,11 @@ static int fd_assemble(const ebb_structure *s, int n, const double *p, fd_beam *
         hat_row(s->mass_x[m], L, n, first, nu, row);
         for (int i = 0; i < nu; i++)
             for (int j = 0; j < nu; j++) b->M[i * nu + j] += s->mass_m[m] * (row[i] * row[j]);
+    }
+    for (int k = 0; k < s->n_spring; k++) {
+        hat_row(s->spring_x[k], L, n, first, nu, row);
+        for (int i = 0; i < nu; i++)
+            for (int j = 0; j < nu; j++) b->K[i * nu + j] += s->spring_k[k] * (row[i] * row[j]);
     }
     for (int i = 0; i < nu; i++)                       /* symmetrise away round-off */
         for (int j = i + 1; j < nu; j++) {
