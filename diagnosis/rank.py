@@ -26,7 +26,10 @@ best's excess) are reported as indistinguishable from it.
 
 Modal pattern
 -------------
-When no local refit explains the gap, the measured modes
+When no local refit brings the fit windows to the noise floor (one that
+explains the dominant part only may be another effect's stand-in: a point
+mass 0.5 m away from a withheld spring to ground, on accelerometers, left 11
+noise variances), the measured modes
 (:mod:`diagnosis.modal_estimate`) are matched by every structural effect with
 the baseline unknowns profiled out (:mod:`diagnosis.modal_pattern`), and the
 :data:`PATTERN_CANDIDATES` best matches are refitted from their match — in
@@ -36,20 +39,8 @@ continuation refits.
 
 Two effects at once
 -------------------
-When the best effect pays for itself but leaves more than 10 % of the fit
-windows' excess (and closes at least :data:`PAIR_MINIMUM` of the held-out
-gap), every other effect is score-tested again *at that effect's refit* — the
-baseline fit may have hidden it (a foundation absorbed into the axial load
-scores 0 at the baseline) — and the :data:`PAIR_PARTNERS` best are refitted
-together with it.  A pair is reported when it improves BIC over the single
-effect by :data:`BIC_MARGIN` and lowers the held-out error; it is then named
-(``first+second``) under the same :data:`NAMED_CLOSURE` rule.  The pair is
-tried before the other baseline basins and the continuation refits (from the
-best local refit, when that effect is linear time-invariant: the nonlinear
-simulation of drift and stretching makes their pairs dearer than their
-continuation): when it explains the gap, they are skipped — no single effect
-is left to find.  A pair must pay against its first effect refitted alone
-from the pair's optimum (:func:`_pair_with`).
+When the best single effect leaves a significant remainder, a second one is tried at its refit
+(:mod:`diagnosis.pairs`).  The stages share one :class:`diagnosis.search.Search`.
 """
 from __future__ import annotations
 
@@ -59,28 +50,21 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .effects import PAIR_SEPARATOR, Catalogue, Effect, on_top_of
+from .effects import Catalogue, Effect
 from .effects.chain import FAMILY as CHAIN
 from .effects.point_mass import AT_SENSOR, TRANSDUCER
 from .fitting import Fit, GapProblem
-from .modal_pattern import ModalEvidence, PatternFit, pattern_fits, time_invariant
-from .refits import (GAP_THRESHOLD, EffectRefit, better_baseline, explains, map_refits, pair_refit,
-                     refit_from_match, summarise)
+from .modal_pattern import ModalEvidence, PatternFit, pattern_fits
+from .pairs import PAIR_MINIMUM, Early, early_pair, pair_explains, pair_with, same_fit
+from .refits import GAP_THRESHOLD, EffectRefit, better_baseline, explains, refit_from_match
 from .score import EffectScore, score_effect
+from .search import Refits, Search
 from .verdict import BIC_MARGIN, NAMED_CLOSURE, UNEXPLAINED, paying_refits, verdict_rule
-from .workers import side_by_side
 
 __all__ = ["Ranking", "Refits", "settled", "rank_effects", "verdict_rule", "BIC_MARGIN", "NAMED_CLOSURE",
            "UNEXPLAINED"]
 
-#: The refits so far: label → (fit, the starts it was refitted from).  Stages take it and return a new one.
-Refits = dict[str, tuple[Fit, list]]
 
-#: How many further candidates (in ranking order) are tried as the second effect of a pair.
-PAIR_PARTNERS = 3
-#: Fraction of the held-out gap the best single effect must close before a pair with it is tried (two effects
-#: of like size each close about half of it alone; one that closes almost nothing is not half of a pair).
-PAIR_MINIMUM = 0.25
 #: How many of the best modal-pattern matches are refitted from their match (module docstring).
 PATTERN_CANDIDATES = 2
 #: A further pattern candidate is refitted only when its χ² is within this factor of the best match's (or of
@@ -106,49 +90,6 @@ class Ranking:
     implausible: dict[str, list[str]] = field(default_factory=dict)
 
 
-@dataclass(frozen=True, eq=False)
-class _Search:
-    """What the stages of one ranking share: the problem, the baseline and its held-out gap, the scores, the
-    refits' budget and where they run, and the progress callback."""
-
-    problem: GapProblem
-    baseline: Fit
-    catalogue: Catalogue
-    effects: dict[str, Effect]               # the candidates by label, in catalogue order
-    before: np.ndarray                        # the baseline's held-out gap ratios
-    scores: dict[str, EffectScore]
-    max_evaluations: int
-    executor: Executor | None
-    say: Callable[[str], None]
-
-    def refit(self, labels: list[str], previous: dict[str, tuple[Fit, list]] | None = None, *, stage: str
-              ) -> dict[str, tuple[Fit, list]]:
-        """The refits of ``labels`` at ``stage`` (:func:`diagnosis.refits.map_refits`)."""
-        return map_refits(self.executor, self.problem, self.catalogue, labels, self.baseline, self.scores,
-                          self.max_evaluations, previous, stage=stage)
-
-    def explained(self, local: dict[str, tuple[Fit, list]]) -> bool:
-        """Whether one of the refits explains the gap."""
-        return any(explains(fit, self.baseline) for fit, _ in local.values())
-
-    def at_noise_floor(self, local: dict[str, tuple[Fit, list]]) -> bool:
-        """Whether one of the refits leaves the fit windows within :data:`GAP_THRESHOLD` of the noise floor
-        (nothing left for another basin or effect to explain)."""
-        return any(fit.rss / fit.n - 1.0 <= GAP_THRESHOLD for fit, _ in local.values())
-
-    def summary(self, effect: Effect, fit: Fit) -> EffectRefit:
-        """The refit's held-out gap, BIC and closure (:func:`diagnosis.refits.summarise`)."""
-        return summarise(self.problem, self.baseline, self.before, effect, fit)
-
-    def time_invariant(self, label: str) -> bool:
-        """Whether the effect keeps the model linear and time-invariant."""
-        return time_invariant(self.problem, self.baseline.beta, self.catalogue.effect(label))
-
-    def side_by_side(self, task: Callable[..., Any], args: list[tuple]) -> list[Any]:
-        """``task(*a)`` for each of ``args`` (:func:`diagnosis.workers.side_by_side`)."""
-        return side_by_side(self.executor, task, args)
-
-
 def _linear(evidence: ModalEvidence | None) -> bool:
     """Whether the measured modes' oscillators reproduce the records (within :data:`GAP_THRESHOLD` of the noise
     floor): if not, no linear time-invariant effect can explain the gap (unknown evidence: assume they do)."""
@@ -158,7 +99,7 @@ def _linear(evidence: ModalEvidence | None) -> bool:
 # ---------------------------------------------------------------------------
 # stage: the modal pattern
 # ---------------------------------------------------------------------------
-def _refit_from_matches(run: _Search, patterns: dict[str, PatternFit], labels: list[str], local: Refits) -> Refits:
+def _refit_from_matches(run: Search, patterns: dict[str, PatternFit], labels: list[str], local: Refits) -> Refits:
     """Refit ``labels`` from their modal match, side by side: the refits ``local`` with them added (or the better
     of the two kept)."""
     fits = run.side_by_side(refit_from_match, [(run.problem, run.catalogue, lab, patterns[lab], run.max_evaluations)
@@ -176,7 +117,7 @@ def _refit_from_matches(run: _Search, patterns: dict[str, PatternFit], labels: l
     return local
 
 
-def _pattern_stage(run: _Search, evidence: ModalEvidence, local: Refits) -> tuple[dict[str, PatternFit], Refits]:
+def _pattern_stage(run: Search, evidence: ModalEvidence, local: Refits) -> tuple[dict[str, PatternFit], Refits]:
     """Match the measured modes by every structural effect and refit the :data:`PATTERN_CANDIDATES` best
     matches from their match (module docstring): the pattern fits, and the refits with theirs."""
     if not _linear(evidence):
@@ -204,17 +145,17 @@ def _pattern_stage(run: _Search, evidence: ModalEvidence, local: Refits) -> tupl
     return patterns, local
 
 
-def _modal_stage(run: _Search, evidence: ModalEvidence, labels: list[str], local: Refits
-                 ) -> tuple[dict[str, PatternFit], list[str], _Early, Refits]:
+def _modal_stage(run: Search, evidence: ModalEvidence, labels: list[str], local: Refits
+                 ) -> tuple[dict[str, PatternFit], list[str], Early, Refits]:
     """The modal pattern, then a pair, then the other baseline basins, each only while the gap is unexplained
     (module docstring).  Returns the pattern fits, the refitted labels (the shortlist and the matches, in
     catalogue order after the shortlist), the early pair and the refits with the stage's."""
     patterns, local = _pattern_stage(run, evidence, local)
     labels = labels + [lab for lab in run.effects if lab in local and lab not in labels]
-    early: _Early = None
+    early: Early = None
     if not run.explained(local):
-        early, local = _early_pair(run, labels, local)
-    if not run.explained(local) and not _pair_explains(early, run.baseline):
+        early, local = early_pair(run, labels, local)
+    if not run.explained(local) and not pair_explains(early, run.baseline):
         # (a better basin cannot make a linear time-invariant effect explain records no such model can)
         tried = [lab for lab in labels if _linear(evidence) or not run.time_invariant(lab)]
         local = local | run.refit(tried, {lab: local[lab] for lab in tried}, stage="basins")
@@ -222,96 +163,14 @@ def _modal_stage(run: _Search, evidence: ModalEvidence, labels: list[str], local
 
 
 # ---------------------------------------------------------------------------
-# stage: two effects at once
-# ---------------------------------------------------------------------------
-#: An early pair: ``(the single's fit it was tried at, its best pair or None)``; ``None`` when not tried.
-_Early = tuple[Fit, EffectRefit | None] | None
-
-
-def _best_pair(run: _Search, single: EffectRefit, partners: list[str]) -> EffectRefit | None:
-    """The pair of ``single`` and one of ``partners`` that pays for its extra parameters against ``single``
-    (BIC better by :data:`BIC_MARGIN`, lower held-out error), the best of them; ``None`` if none pays."""
-    labels = [f"{single.label}{PAIR_SEPARATOR}{p}" for p in partners]
-    fits = run.side_by_side(pair_refit, [(run.problem, run.catalogue, lab, single.fit, run.max_evaluations)
-                                         for lab in labels])
-    best = None
-    for lab, fit in zip(labels, fits):
-        rf = run.summary(run.catalogue.effect(lab), fit)
-        run.say(f"pair refit {lab}: held-out gap ratio {np.mean(run.before):.3g} -> "
-                f"{np.mean(rf.heldout_after):.3g}, dBIC vs {single.label} alone {rf.bic - single.bic:.1f}")
-        if (rf.bic < single.bic - BIC_MARGIN and np.mean(rf.heldout_after) < np.mean(single.heldout_after)
-                and (best is None or np.mean(rf.heldout_after) < np.mean(best.heldout_after))):
-            best = rf
-    return best
-
-
-def _pair_with(run: _Search, single: EffectRefit) -> tuple[EffectRefit | None, EffectRefit | None]:
-    """The best pair of ``single`` and a second effect that pays for itself (:func:`_best_pair`), the partners
-    score-tested afresh at ``single``'s refit (the baseline may have hidden them), and ``single``'s effect
-    refitted alone from that pair's optimum when this beats ``single``'s refit (else ``None``).
-
-    A pair must pay against its first effect refitted alone *from the pair's optimum*: a pair refit also
-    re-optimises the first effect, and when ``single`` had stopped short of its optimum (a local refit left
-    830 noise variances where the effect alone reaches 1.09) the pair's gain is that, with nothing for the
-    second effect to add.  Such a pair is not returned (``None``).
-    """
-    first = run.catalogue.effect(single.label)
-    with_prior = run.problem.prior is not None and run.problem.prior.count > 0
-    # a chain's gain as the second effect only where a prior breaks its degeneracy (as on the shortlist); a
-    # transducer's mass never (the point mass, which nests it, stands in for it)
-    rescored = {e.label: score_effect(run.problem, single.fit, on_top_of(first, single.fit.s, e)).lm
-                for e in run.effects.values() if e.name != first.name and e.name != TRANSDUCER
-                and (with_prior or e.name not in CHAIN.names)}
-    partners = [lab for lab in sorted(rescored, key=lambda k: -rescored[k]) if rescored[lab] > 0][:PAIR_PARTNERS]
-    run.say(f"second-effect scores at the {single.label} refit: "
-            + ", ".join(f"{lab} {rescored[lab]:.4g}" for lab in partners))
-    pair = _best_pair(run, single, partners)
-    if pair is None:
-        return None, None
-    fit = run.problem.fit(pair.fit.beta, first, pair.fit.s[:first.dim], max_evaluations=run.max_evaluations)
-    alone = run.summary(first, fit)
-    run.say(f"{single.label} alone from the pair's optimum: fit RSS/n {fit.rss / fit.n:.4g}, "
-            f"dBIC of the pair against it {pair.bic - alone.bic:.1f}")
-    improved = fit.rss < single.fit.rss * (1.0 - 1e-3)     # beyond the refits' own last digits
-    return (pair if pair.bic < alone.bic - BIC_MARGIN else None), (alone if improved else None)
-
-
-def _early_pair(run: _Search, labels: list[str], local: Refits) -> tuple[_Early, Refits]:
-    """Two effects before the other basins and the continuation refits (module docstring): the best local
-    refit's effect paired, when it pays, closes :data:`PAIR_MINIMUM` and is linear time-invariant (pairs with
-    drift or stretching need the costly nonlinear simulation, dearer than their continuation).  Returns the
-    early pair and the refits, with the effect refitted alone from the pair's optimum when that is better."""
-    now = {lab: run.summary(run.catalogue.effect(lab), local[lab][0]) for lab in labels}
-    lead = paying_refits(now, run.before)[:1]
-    if not (lead and now[lead[0]].closed >= PAIR_MINIMUM and run.time_invariant(lead[0])):
-        return None, local
-    pair, alone = _pair_with(run, now[lead[0]])
-    if alone is not None:
-        local = local | {lead[0]: (alone.fit, local[lead[0]][1])}
-    if pair is not None and explains(pair.fit, run.baseline):
-        run.say(f"the pair {pair.label} explains the gap: no other basins, re-baselining or continuation refits")
-    return (now[lead[0]].fit, pair), local     # (a single improved here is paired again at the end)
-
-
-def _pair_explains(early: _Early, baseline: Fit) -> bool:
-    """Whether the pair tried early explains the gap."""
-    return early is not None and early[1] is not None and explains(early[1].fit, baseline)
-
-
-def _same_fit(a: Fit, b: Fit) -> bool:
-    """Whether two refits ended at the same point (a later stage that did not improve keeps the point)."""
-    return a.rss == b.rss and np.array_equal(a.beta, b.beta) and np.array_equal(a.s, b.s)
-
-
-# ---------------------------------------------------------------------------
 # stage: continuation in the record length
 # ---------------------------------------------------------------------------
-def _continuation_stage(run: _Search, labels: list[str], local: Refits, early: _Early,
+def _continuation_stage(run: Search, labels: list[str], local: Refits, early: Early,
                         evidence: ModalEvidence | None, patterns: dict[str, PatternFit], parallel: int) -> Refits:
     """Continuation refits (:mod:`diagnosis.refits`), the most promising first, ``parallel`` at a time, until one
     explains the gap; skipped for effects no continuation can help.  Returns the refits with theirs."""
     pending = sorted(labels, key=lambda lab: local[lab][0].rss)
-    if _pair_explains(early, run.baseline) or run.explained(local):
+    if pair_explains(early, run.baseline) or run.explained(local):
         run.say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
         pending = []
     if not _linear(evidence):
@@ -343,8 +202,8 @@ def _continuation_stage(run: _Search, labels: list[str], local: Refits, early: _
 # ---------------------------------------------------------------------------
 # the verdict
 # ---------------------------------------------------------------------------
-def _decide(run: _Search, by_score: list[str], labels: list[str], local: Refits,
-            early: _Early, patterns: dict[str, PatternFit], evidence: ModalEvidence | None) -> Ranking:
+def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
+            early: Early, patterns: dict[str, PatternFit], evidence: ModalEvidence | None) -> Ranking:
     """Rank the refits, try a pair when the best leaves a significant remainder, and name the cause."""
     before, baseline, say = run.before, run.baseline, run.say
     refits = {lab: run.summary(run.effects[lab], local[lab][0]) for lab in labels}
@@ -362,10 +221,10 @@ def _decide(run: _Search, by_score: list[str], labels: list[str], local: Refits,
         if not explains(best.fit, baseline) and best.closed >= PAIR_MINIMUM:
             # one effect leaves a significant remainder: a second one at once, when it pays for itself (tried
             # already before the continuation refits when this single's fit has not changed since)
-            if early is not None and _same_fit(early[0], best.fit):
+            if early is not None and same_fit(early[0], best.fit):
                 pair = early[1]
             else:
-                pair, alone = _pair_with(run, best)
+                pair, alone = pair_with(run, best)
                 if alone is not None:     # the first effect alone, from the pair's optimum, beats its refit
                     refits[alone.label] = alone
             if pair is not None:
@@ -377,7 +236,7 @@ def _decide(run: _Search, by_score: list[str], labels: list[str], local: Refits,
                    modal=evidence)
 
 
-def _transducer_refits(run: _Search, refits: dict[str, EffectRefit]) -> dict[str, EffectRefit]:
+def _transducer_refits(run: Search, refits: dict[str, EffectRefit]) -> dict[str, EffectRefit]:
     """The transducer masses of the sensors within :data:`~diagnosis.effects.point_mass.AT_SENSOR` of the point
     mass's refit, each refitted from it (its mass as the start): the one-variable special case tried where the
     data put the mass, for the evidence to weigh against the point mass's free position."""
@@ -504,7 +363,7 @@ def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortli
     for lab, e in effects.items():
         scores[lab] = score_effect(problem, baseline, e)
         say(f"score {lab}: {scores[lab].lm:.4g}")
-    run = _Search(problem, baseline, catalogue, effects, before, scores, max_evaluations, executor, say)
+    run = Search(problem, baseline, catalogue, effects, before, scores, max_evaluations, executor, say)
     by_score = sorted(effects, key=lambda lab: -scores[lab].lm)
     labels = _shortlist(problem, effects, scores, by_score, shortlist)
     # with the modal pattern at hand, the other basins wait until it has been tried (it is cheaper)
@@ -514,18 +373,18 @@ def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortli
             f"({fit.n_evaluations} evaluations)")
     patterns: dict[str, PatternFit] = {}
     evidence = None
-    early: _Early = None
+    early: Early = None
     if modal is not None and not run.at_noise_floor(local):
         # also when a refit explains the dominant part only: the effect that leaves 11 noise variances may be
         # another's stand-in found first (a spring to ground 0.5 m off, measured), its modal match puts it right
         evidence = modal(baseline.beta)
         patterns, labels, early, local = _modal_stage(run, evidence, labels, local)
-    if not run.explained(local) and not _pair_explains(early, baseline):
+    if not run.explained(local) and not pair_explains(early, baseline):
         better = (better_baseline(problem, baseline, [fit for fit, _ in local.values()], executor)
                   if rebaseline else None)
         if better is not None:
             return better
         if evidence is None:     # (the modal stage, when it ran, has tried the pair already)
-            early, local = _early_pair(run, labels, local)
+            early, local = early_pair(run, labels, local)
         local = _continuation_stage(run, labels, local, early, evidence, patterns, parallel)
     return _decide(run, by_score, labels, local, early, patterns, evidence)

@@ -1,0 +1,118 @@
+"""Two effects at once: a second effect tried at the best single effect's refit.
+
+When the best effect pays for itself but leaves more than 10 % of the fit
+windows' excess (and closes at least :data:`PAIR_MINIMUM` of the held-out
+gap), every other effect is score-tested again *at that effect's refit* — the
+baseline fit may have hidden it (a foundation absorbed into the axial load
+scores 0 at the baseline) — and the :data:`PAIR_PARTNERS` best are refitted
+together with it.  A pair is reported when it improves BIC over the single
+effect by :data:`BIC_MARGIN` and lowers the held-out error; it is then named
+(``first+second``) under the same :data:`NAMED_CLOSURE` rule.  The pair is
+tried before the other baseline basins and the continuation refits (from the
+best local refit, when that effect is linear time-invariant: the nonlinear
+simulation of drift and stretching makes their pairs dearer than their
+continuation): when it explains the gap, they are skipped — no single effect
+is left to find.  A pair must pay against its first effect refitted alone
+from the pair's optimum (:func:`pair_with`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .effects import PAIR_SEPARATOR, on_top_of
+from .effects.chain import FAMILY as CHAIN
+from .effects.point_mass import TRANSDUCER
+from .fitting import Fit
+from .refits import EffectRefit, explains, pair_refit
+from .score import score_effect
+from .search import Refits, Search
+from .verdict import BIC_MARGIN, paying_refits
+
+__all__ = ["Early", "PAIR_MINIMUM", "PAIR_PARTNERS", "best_pair", "early_pair", "pair_explains", "pair_with",
+           "same_fit"]
+
+#: How many further candidates (in ranking order) are tried as the second effect of a pair.
+PAIR_PARTNERS = 3
+#: Fraction of the held-out gap the best single effect must close before a pair with it is tried (two effects
+#: of like size each close about half of it alone; one that closes almost nothing is not half of a pair).
+PAIR_MINIMUM = 0.25
+
+#: An early pair: ``(the single's fit it was tried at, its best pair or None)``; ``None`` when not tried.
+Early = tuple[Fit, EffectRefit | None] | None
+
+
+def best_pair(run: Search, single: EffectRefit, partners: list[str]) -> EffectRefit | None:
+    """The pair of ``single`` and one of ``partners`` that pays for its extra parameters against ``single``
+    (BIC better by :data:`BIC_MARGIN`, lower held-out error), the best of them; ``None`` if none pays."""
+    labels = [f"{single.label}{PAIR_SEPARATOR}{p}" for p in partners]
+    fits = run.side_by_side(pair_refit, [(run.problem, run.catalogue, lab, single.fit, run.max_evaluations)
+                                         for lab in labels])
+    best = None
+    for lab, fit in zip(labels, fits):
+        rf = run.summary(run.catalogue.effect(lab), fit)
+        run.say(f"pair refit {lab}: held-out gap ratio {np.mean(run.before):.3g} -> "
+                f"{np.mean(rf.heldout_after):.3g}, dBIC vs {single.label} alone {rf.bic - single.bic:.1f}")
+        if (rf.bic < single.bic - BIC_MARGIN and np.mean(rf.heldout_after) < np.mean(single.heldout_after)
+                and (best is None or np.mean(rf.heldout_after) < np.mean(best.heldout_after))):
+            best = rf
+    return best
+
+
+def pair_with(run: Search, single: EffectRefit) -> tuple[EffectRefit | None, EffectRefit | None]:
+    """The best pair of ``single`` and a second effect that pays for itself (:func:`best_pair`), the partners
+    score-tested afresh at ``single``'s refit (the baseline may have hidden them), and ``single``'s effect
+    refitted alone from that pair's optimum when this beats ``single``'s refit (else ``None``).
+
+    A pair must pay against its first effect refitted alone *from the pair's optimum*: a pair refit also
+    re-optimises the first effect, and when ``single`` had stopped short of its optimum (a local refit left
+    830 noise variances where the effect alone reaches 1.09) the pair's gain is that, with nothing for the
+    second effect to add.  Such a pair is not returned (``None``).
+    """
+    first = run.catalogue.effect(single.label)
+    with_prior = run.problem.prior is not None and run.problem.prior.count > 0
+    # a chain's gain as the second effect only where a prior breaks its degeneracy (as on the shortlist); a
+    # transducer's mass never (the point mass, which nests it, stands in for it)
+    rescored = {e.label: score_effect(run.problem, single.fit, on_top_of(first, single.fit.s, e)).lm
+                for e in run.effects.values() if e.name != first.name and e.name != TRANSDUCER
+                and (with_prior or e.name not in CHAIN.names)}
+    partners = [lab for lab in sorted(rescored, key=lambda k: -rescored[k]) if rescored[lab] > 0][:PAIR_PARTNERS]
+    run.say(f"second-effect scores at the {single.label} refit: "
+            + ", ".join(f"{lab} {rescored[lab]:.4g}" for lab in partners))
+    pair = best_pair(run, single, partners)
+    if pair is None:
+        return None, None
+    fit = run.problem.fit(pair.fit.beta, first, pair.fit.s[:first.dim], max_evaluations=run.max_evaluations)
+    alone = run.summary(first, fit)
+    run.say(f"{single.label} alone from the pair's optimum: fit RSS/n {fit.rss / fit.n:.4g}, "
+            f"dBIC of the pair against it {pair.bic - alone.bic:.1f}")
+    improved = fit.rss < single.fit.rss * (1.0 - 1e-3)     # beyond the refits' own last digits
+    return (pair if pair.bic < alone.bic - BIC_MARGIN else None), (alone if improved else None)
+
+
+def early_pair(run: Search, labels: list[str], local: Refits) -> tuple[Early, Refits]:
+    """Two effects before the other basins and the continuation refits (module docstring): the best local
+    refit's effect paired, when it pays, closes :data:`PAIR_MINIMUM` and is linear time-invariant (pairs with
+    drift or stretching need the costly nonlinear simulation, dearer than their continuation).  Returns the
+    early pair and the refits, with the effect refitted alone from the pair's optimum when that is better."""
+    now = {lab: run.summary(run.catalogue.effect(lab), local[lab][0]) for lab in labels}
+    lead = paying_refits(now, run.before)[:1]
+    if not (lead and now[lead[0]].closed >= PAIR_MINIMUM and run.time_invariant(lead[0])):
+        return None, local
+    pair, alone = pair_with(run, now[lead[0]])
+    if alone is not None:
+        local = local | {lead[0]: (alone.fit, local[lead[0]][1])}
+    if pair is not None and explains(pair.fit, run.baseline):
+        run.say(f"the pair {pair.label} explains the gap: no other basins, re-baselining or continuation refits")
+    return (now[lead[0]].fit, pair), local     # (a single improved here is paired again at the end)
+
+
+def pair_explains(early: Early, baseline: Fit) -> bool:
+    """Whether the pair tried early explains the gap."""
+    return early is not None and early[1] is not None and explains(early[1].fit, baseline)
+
+
+def same_fit(a: Fit, b: Fit) -> bool:
+    """Whether two refits ended at the same point (a later stage that did not improve keeps the point)."""
+    return a.rss == b.rss and np.array_equal(a.beta, b.beta) and np.array_equal(a.s, b.s)
+
+

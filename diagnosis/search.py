@@ -1,0 +1,64 @@
+"""What the stages of one ranking share (:mod:`diagnosis.rank`, :mod:`diagnosis.pairs`): the problem, the baseline
+and its held-out gap, the scores, the refits' budget and where they run, and the progress callback."""
+from __future__ import annotations
+
+from concurrent.futures import Executor
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from .effects import Catalogue, Effect
+from .fitting import Fit, GapProblem
+from .modal_pattern import time_invariant
+from .refits import GAP_THRESHOLD, EffectRefit, explains, map_refits, summarise
+from .score import EffectScore
+from .workers import side_by_side
+
+__all__ = ["Refits", "Search"]
+
+#: The refits so far: label → (fit, the starts it was refitted from).  Stages take it and return a new one.
+Refits = dict[str, tuple[Fit, list]]
+
+
+@dataclass(frozen=True, eq=False)
+class Search:
+    """What the stages of one ranking share: the problem, the baseline and its held-out gap, the scores, the
+    refits' budget and where they run, and the progress callback."""
+
+    problem: GapProblem
+    baseline: Fit
+    catalogue: Catalogue
+    effects: dict[str, Effect]               # the candidates by label, in catalogue order
+    before: np.ndarray                        # the baseline's held-out gap ratios
+    scores: dict[str, EffectScore]
+    max_evaluations: int
+    executor: Executor | None
+    say: Callable[[str], None]
+
+    def refit(self, labels: list[str], previous: dict[str, tuple[Fit, list]] | None = None, *, stage: str
+              ) -> dict[str, tuple[Fit, list]]:
+        """The refits of ``labels`` at ``stage`` (:func:`diagnosis.refits.map_refits`)."""
+        return map_refits(self.executor, self.problem, self.catalogue, labels, self.baseline, self.scores,
+                          self.max_evaluations, previous, stage=stage)
+
+    def explained(self, local: dict[str, tuple[Fit, list]]) -> bool:
+        """Whether one of the refits explains the gap."""
+        return any(explains(fit, self.baseline) for fit, _ in local.values())
+
+    def at_noise_floor(self, local: dict[str, tuple[Fit, list]]) -> bool:
+        """Whether one of the refits leaves the fit windows within :data:`GAP_THRESHOLD` of the noise floor
+        (nothing left for another basin or effect to explain)."""
+        return any(fit.rss / fit.n - 1.0 <= GAP_THRESHOLD for fit, _ in local.values())
+
+    def summary(self, effect: Effect, fit: Fit) -> EffectRefit:
+        """The refit's held-out gap, BIC and closure (:func:`diagnosis.refits.summarise`)."""
+        return summarise(self.problem, self.baseline, self.before, effect, fit)
+
+    def time_invariant(self, label: str) -> bool:
+        """Whether the effect keeps the model linear and time-invariant."""
+        return time_invariant(self.problem, self.baseline.beta, self.catalogue.effect(label))
+
+    def side_by_side(self, task: Callable[..., Any], args: list[tuple]) -> list[Any]:
+        """``task(*a)`` for each of ``args`` (:func:`diagnosis.workers.side_by_side`)."""
+        return side_by_side(self.executor, task, args)
