@@ -58,15 +58,22 @@ def best_pair(run: Search, single: EffectRefit, partners: list[str]) -> EffectRe
     return best
 
 
-def pair_with(run: Search, single: EffectRefit) -> tuple[EffectRefit | None, EffectRefit | None]:
+def pair_with(run: Search, single: EffectRefit, known: dict[str, Fit]
+              ) -> tuple[EffectRefit | None, dict[str, EffectRefit]]:
     """The best pair of ``single`` and a second effect that pays for itself (:func:`best_pair`), the partners
-    score-tested afresh at ``single``'s refit (the baseline may have hidden them), and ``single``'s effect
-    refitted alone from that pair's optimum when this beats ``single``'s refit (else ``None``).
+    score-tested afresh at ``single``'s refit (the baseline may have hidden them), and each of the pair's effects
+    refitted alone from the pair's optimum where that beats its refit so far (``known``, by label; ``single``'s
+    own).
 
-    A pair must pay against its first effect refitted alone *from the pair's optimum*: a pair refit also
-    re-optimises the first effect, and when ``single`` had stopped short of its optimum (a local refit left
-    830 noise variances where the effect alone reaches 1.09) the pair's gain is that, with nothing for the
-    second effect to add.  Such a pair is not returned (``None``).
+    A pair must pay against *each* of its effects refitted alone from the pair's optimum:
+
+    * against the first: a pair refit also re-optimises the first effect, and when ``single`` had stopped short
+      of its optimum (a local refit left 830 noise variances where the effect alone reaches 1.09) the pair's gain
+      is that, with nothing for the second effect to add;
+    * against the second: the second may be the whole cause and the first a passenger that the pair's refit has
+      shrunk to nothing (a Kelvin–Voigt record was once named ``point_mass+kelvin_voigt`` with a 26 mg mass).
+
+    Such a pair is not returned (``None``); the effects alone are, and are ranked with the other single refits.
     """
     first = run.catalogue.effect(single.label)
     with_prior = run.problem.prior is not None and run.problem.prior.count > 0
@@ -80,27 +87,33 @@ def pair_with(run: Search, single: EffectRefit) -> tuple[EffectRefit | None, Eff
             + ", ".join(f"{lab} {rescored[lab]:.4g}" for lab in partners))
     pair = best_pair(run, single, partners)
     if pair is None:
-        return None, None
-    fit = run.problem.fit(pair.fit.beta, first, pair.fit.s[:first.dim], max_evaluations=run.max_evaluations)
-    alone = run.summary(first, fit)
-    run.say(f"{single.label} alone from the pair's optimum: fit RSS/n {fit.rss / fit.n:.4g}, "
-            f"dBIC of the pair against it {pair.bic - alone.bic:.1f}")
-    improved = fit.rss < single.fit.rss * (1.0 - 1e-3)     # beyond the refits' own last digits
-    return (pair if pair.bic < alone.bic - BIC_MARGIN else None), (alone if improved else None)
+        return None, {}
+    second = run.catalogue.effect(pair.label.split(PAIR_SEPARATOR, 1)[1])
+    pays, singles = True, {}
+    for effect, s in ((first, pair.fit.s[:first.dim]), (second, pair.fit.s[first.dim:])):
+        fit = run.problem.fit(pair.fit.beta, effect, s, max_evaluations=run.max_evaluations)
+        alone = run.summary(effect, fit)
+        run.say(f"{effect.label} alone from the pair's optimum: fit RSS/n {fit.rss / fit.n:.4g}, "
+                f"dBIC of the pair against it {pair.bic - alone.bic:.1f}")
+        pays = pays and pair.bic < alone.bic - BIC_MARGIN
+        before = single.fit if effect is first else known.get(effect.label)
+        if before is None or fit.rss < before.rss * (1.0 - 1e-3):     # beyond the refits' own last digits
+            singles[effect.label] = alone
+    return (pair if pays else None), singles
 
 
 def early_pair(run: Search, labels: list[str], local: Refits) -> tuple[Early, Refits]:
     """Two effects before the other basins and the continuation refits (module docstring): the best local
     refit's effect paired, when it pays, closes :data:`PAIR_MINIMUM` and is linear time-invariant (pairs with
     drift or stretching need the costly nonlinear simulation, dearer than their continuation).  Returns the
-    early pair and the refits, with the effect refitted alone from the pair's optimum when that is better."""
+    early pair and the refits, with the pair's effects refitted alone from its optimum where that is better."""
     now = {lab: run.summary(run.catalogue.effect(lab), local[lab][0]) for lab in labels}
     lead = paying_refits(now, run.before)[:1]
     if not (lead and now[lead[0]].closed >= PAIR_MINIMUM and run.time_invariant(lead[0])):
         return None, local
-    pair, alone = pair_with(run, now[lead[0]])
-    if alone is not None:
-        local = local | {lead[0]: (alone.fit, local[lead[0]][1])}
+    pair, singles = pair_with(run, now[lead[0]], {lab: fit for lab, (fit, _) in local.items()})
+    local = local | {lab: (rf.fit, local[lab][1] if lab in local else [(rf.fit.beta, rf.fit.s)])
+                     for lab, rf in singles.items()}
     if pair is not None and explains(pair.fit, run.baseline):
         run.say(f"the pair {pair.label} explains the gap: no other basins, re-baselining or continuation refits")
     return (now[lead[0]].fit, pair), local     # (a single improved here is paired again at the end)

@@ -206,15 +206,13 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
             early: Early, patterns: dict[str, PatternFit], evidence: ModalEvidence | None) -> Ranking:
     """Rank the refits, try a pair when the best leaves a significant remainder, and name the cause."""
     before, baseline, say = run.before, run.baseline, run.say
+    labels = labels + [lab for lab in local if lab not in labels]    # (an early pair's effect alone)
     refits = {lab: run.summary(run.effects[lab], local[lab][0]) for lab in labels}
     refits |= _transducer_refits(run, refits)
     for label, rf in refits.items():
         say(f"refit {label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
             f"dBIC {rf.delta_bic:.1f}")
-    paying = paying_refits(refits, before)
-    others = [lab for lab in refits if lab not in paying]
-    others.sort(key=lambda lab: float(np.mean(refits[lab].heldout_after)))
-    order = paying + others + [lab for lab in by_score if lab not in refits]
+    paying, order = _order(refits, before, by_score)
     excess = float(np.mean(before)) - 1.0
     if excess >= GAP_THRESHOLD and paying:
         best = refits[paying[0]]
@@ -224,9 +222,10 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
             if early is not None and same_fit(early[0], best.fit):
                 pair = early[1]
             else:
-                pair, alone = pair_with(run, best)
-                if alone is not None:     # the first effect alone, from the pair's optimum, beats its refit
-                    refits[alone.label] = alone
+                # the pair's effects alone from its optimum, where they beat their refits, rank as singles
+                pair, singles = pair_with(run, best, {lab: rf.fit for lab, rf in refits.items()})
+                refits |= singles
+                paying, order = _order(refits, before, by_score)
             if pair is not None:
                 refits[pair.label] = pair
                 order = [pair.label] + order
@@ -234,6 +233,15 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
     verdict, ties, reason = verdict_rule(before, refits, paying)
     return Ranking(baseline, before, run.scores, refits, order, verdict, ties, reason, patterns=patterns,
                    modal=evidence)
+
+
+def _order(refits: dict[str, EffectRefit], before: np.ndarray, by_score: list[str]) -> tuple[list[str], list[str]]:
+    """The refits that pay for themselves (best first), and the report order: those, the other refits by held-out
+    error, then the effects not refitted by score."""
+    paying = paying_refits(refits, before)
+    others = sorted((lab for lab in refits if lab not in paying),
+                    key=lambda lab: float(np.mean(refits[lab].heldout_after)))
+    return paying, paying + others + [lab for lab in by_score if lab not in refits]
 
 
 def _transducer_refits(run: Search, refits: dict[str, EffectRefit]) -> dict[str, EffectRefit]:

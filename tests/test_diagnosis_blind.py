@@ -207,6 +207,17 @@ PAIR_CASES = [
 ]
 
 
+def assert_both_significant(doc):
+    """A named pair pays for each of its effects: its BIC beats each effect refitted alone (its best refit, from
+    the pair's optimum when that was better) by the margin — neither is a passenger the pair shrank to nothing."""
+    rows = {e["label"]: e for e in doc["effects"]}
+    pair = rows[doc["verdict"]]["refit"]
+    for label in doc["verdict"].split("+"):
+        alone = rows[label]["refit"]
+        assert alone is not None, (label, doc["reason"])
+        assert pair["delta_bic"] < alone["delta_bic"] - doc["settings"]["bic_margin"], (label, pair, alone)
+
+
 @pytest.mark.parametrize("labels,effects", PAIR_CASES, ids=["foundation+actuator_lag", "kelvin_voigt+sensor_lag"])
 def test_two_withheld_effects_are_named_as_a_pair(tmp_path, labels, effects):
     cfg = bench_config()
@@ -218,6 +229,7 @@ def test_two_withheld_effects_are_named_as_a_pair(tmp_path, labels, effects):
     assert set(doc["verdict"].split("+")) == labels, doc["reason"]
     assert top["label"] == doc["verdict"] and top["refit"]["closed"] >= 0.8, top["refit"]
     assert doc["indistinguishable"] == []   # the single effect is nested in the pair, not its rival
+    assert_both_significant(doc)
     for e in effects:
         label = f"{e.name}[{e.sensor}]" if e.sensor else e.name
         for k, v in e.values.items():   # measured within 2.8 % (kf)
