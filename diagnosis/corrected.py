@@ -25,6 +25,7 @@ from typing import Any, Mapping, Sequence
 from ebb_model import DiscreteStateSpace, assemble
 from ebb_model.output import atomic_path, make_dir
 from ebb_model.jsonio import write_json
+from ebb_model.truncation import design_model
 from identification.export_targets import DEFAULT_TARGETS
 
 from .effects import AugmentedModel
@@ -90,7 +91,8 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
         tmp.write_text(toml_dumps(cfg.to_dict()))
     carries: dict[str, str] = {"corrected.toml": "config with the refitted values (structural effects included)"}
     beam = assemble(model.config, model.params)
-    sys = corrected_statespace(model, beam)
+    # the StateSpace for control design: the modes up to the Nyquist frequency, the rest as a static correction
+    sys = corrected_statespace(model, design_model(model.config, model.params)) if model.time_invariant else None
     parts = "; ".join(dict.fromkeys(part.description for part in model.signals))
     words = {"parts": f" ({parts} as states in series)" if parts else "",
              "without": f" (without {parts}: a signal effect outside the FMU's model)" if parts else ""}

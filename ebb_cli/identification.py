@@ -56,7 +56,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
     points = "all" if args.points == [] else args.points
     polished = "all" if args.polished == [] else args.polished
     files = export_points(IdentificationResult.read(args.dir), points, polished=polished, targets=args.target,
-                          reduce_order=args.reduce_order)
+                          reduce_order=args.reduce_order, modes_up_to=args.modes_up_to)
     for f in files:
         print(f"wrote {f}")
     return 0
@@ -105,4 +105,7 @@ def add_parsers(sub: Subcommands) -> None:
     add_target_argument(p, "export targets")
     p.add_argument("--reduce-order", type=int, default=None,
                    help="also a balanced truncation of this order (default: none)")
+    p.add_argument("--modes-up-to", type=float, default=None, metavar="HZ",
+                   help="the StateSpace keeps the modes up to HZ, the others as a static correction (default: the "
+                        "Nyquist frequency, no aliased modes; inf: every mode); the FMUs carry the whole beam")
     p.set_defaults(func=_cmd_export)

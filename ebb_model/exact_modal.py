@@ -440,7 +440,17 @@ def exact_modal(config: BeamConfig, params: Mapping[str, float]) -> ModalStateSp
             D = D + np.einsum("pbi,bim->pm", Cb, hold)
     delays = -min(taps)
     Gall = np.concatenate([G[-j] for j in range(delays + 1)], axis=2)
-    return ModalStateSpace(T, Gall, Cb, D, T_s, config.input_names, config.output_names, None, hold, delays)
+    return ModalStateSpace(T, Gall, Cb, D, T_s, config.input_names, config.output_names, None, hold, delays,
+                           _block_frequencies(E, cm.poles) / (2 * math.pi))
+
+
+def _block_frequencies(lam: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """The natural angular frequency ``|s|`` of the continuous pole of each real block that :func:`_real_blocks`
+    makes of the discrete poles ``lam = e^{sT}`` (the larger of a real pair's).  The blocks are chosen by the
+    discrete poles, as there: a mode above the Nyquist frequency can have ``Im λ < 0`` with ``Im s > 0``."""
+    upper = np.flatnonzero(lam.imag > 0)
+    reals = np.flatnonzero(lam.imag == 0)
+    return np.concatenate([np.abs(s[upper]), np.maximum(np.abs(s[reals[0::2]]), np.abs(s[reals[1::2]]))])
 
 
 def exact_statespace(config: BeamConfig, params: Mapping[str, float]) -> DiscreteStateSpace:

@@ -51,7 +51,9 @@ class ModalStateSpace:
     the block state (flattened block by block) to the nodal state ``(q, v)`` of
     :func:`~ebb_model.theta_scheme.discretise_time`.  ``hold`` (nb, 2, m), when given, is the lookahead
     matrix ``Γ₁`` in block coordinates (a start at rest is ``z[0] = −Γ₁ u[0]``, see
-    :class:`DiscreteStateSpace`).
+    :class:`DiscreteStateSpace`).  ``frequencies_hz`` (nb,), when known, is the continuous natural frequency of
+    each block's mode (:func:`ebb_model.truncation.in_band` keeps the modes in a band by it; the dense form then
+    names the states by mode).
     """
 
     T: np.ndarray
@@ -64,9 +66,10 @@ class ModalStateSpace:
     to_nodal: np.ndarray | None = None
     hold: np.ndarray | None = None
     delays: int = 0
+    frequencies_hz: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        optional = tuple(k for k in ("to_nodal", "hold") if getattr(self, k) is not None)
+        optional = tuple(k for k in ("to_nodal", "hold", "frequencies_hz") if getattr(self, k) is not None)
         for name in ("T", "G", "Cm", "D") + optional:
             a = np.ascontiguousarray(getattr(self, name), dtype=float)
             a.setflags(write=False)
@@ -83,7 +86,8 @@ class ModalStateSpace:
         A = sla.block_diag(*self.T) if nb else np.zeros((0, 0))
         G = [self.G[:, :, j * m:(j + 1) * m].reshape(2 * nb, m) for j in range(self.delays + 1)]
         C = self.Cm.reshape(self.Cm.shape[0], 2 * nb)
-        names = tuple(f"z{b}_{j}" for b in range(nb) for j in range(2))
+        names = (tuple(f"mode{b + 1}_{part}" for b in range(nb) for part in ("re", "im"))
+                 if self.frequencies_hz is not None else tuple(f"z{b}_{j}" for b in range(nb) for j in range(2)))
         hold = self.hold.reshape(2 * nb, -1) if self.hold is not None else None
         return with_input_delays(A, G, C, self.D, self.dt, self.input_names, self.output_names, names, hold)
 

@@ -22,6 +22,7 @@ from typing import Sequence
 
 from ebb_model import assemble
 from ebb_model.errors import ConfigError, StabilityError
+from ebb_model.truncation import design_model
 from ebb_model.output import check_writable_dir, make_dir
 
 from .export_targets import DEFAULT_TARGETS, ExportItem, check_targets, export_target
@@ -50,7 +51,7 @@ def _chosen(what: str, selection: Sequence[int] | str | None, n: int) -> Sequenc
 
 def export_points(result: IdentificationResult, points: Sequence[int] | str | None = None, *,
                   polished: Sequence[int] | str | None = None, targets: Sequence[str] = DEFAULT_TARGETS,
-                  reduce_order: int | None = None) -> list[Path]:
+                  reduce_order: int | None = None, modes_up_to: float | None = None) -> list[Path]:
     """Export Pareto and polished points of an identification result into ``result.out_dir / "export"``.
 
     Parameters
@@ -65,6 +66,10 @@ def export_points(result: IdentificationResult, points: Sequence[int] | str | No
         Export target names (:data:`TARGETS`), default :data:`DEFAULT_TARGETS`.
     reduce_order
         The ``statespace`` target also writes a balanced truncation of this order.
+    modes_up_to
+        The ``statespace`` target keeps the modes up to this frequency [Hz], the others as a static correction
+        (:func:`ebb_model.truncation.design_model`); default the Nyquist frequency, ``math.inf`` every mode.
+        The FMUs always carry the whole beam.
 
     Returns
     -------
@@ -74,13 +79,15 @@ def export_points(result: IdentificationResult, points: Sequence[int] | str | No
     Raises
     ------
     ConfigError
-        Indices out of range, ``"all"`` of none, ``reduce_order`` outside ``1 … nstates``, an unknown target
-        — before anything is written.
+        Indices out of range, ``"all"`` of none, ``reduce_order`` outside ``1 … nstates``, ``modes_up_to`` not
+        positive, an unknown target — before anything is written.
     OutputError
         ``result.out_dir`` cannot take the exports (read-only, full: checked before any work), or writing failed
         (no half-written file is left).
     """
     writers = [export_target(t) for t in check_targets(targets)]
+    if modes_up_to is not None and not modes_up_to > 0:
+        raise ConfigError(f"`modes_up_to`: must be > 0 Hz, got {modes_up_to!r}")
     d = result.out_dir
     check_writable_dir(d / "export" if (d / "export").is_dir() else d)   # before any work
     if points is None and polished is None:
@@ -92,7 +99,7 @@ def export_points(result: IdentificationResult, points: Sequence[int] | str | No
     models = []
     for stem, c, params in result.models(chosen_pts, chosen_pol):
         try:
-            models.append((stem, c, params, assemble(c, params)))
+            models.append((stem, c, params, design_model(c, params, f_max=modes_up_to), assemble(c, params)))
         except StabilityError:
             continue  # unstable points are listed in pareto.json but not exported
     if reduce_order is not None and models:
@@ -103,8 +110,8 @@ def export_points(result: IdentificationResult, points: Sequence[int] | str | No
     out = make_dir(d / "export", exist_ok=True)
     written: list[Path] = []
     options = MappingProxyType({"reduce_order": reduce_order} if reduce_order else {})
-    for stem, c, params, sys in models:
-        item = ExportItem(stem, f"{result.config_name}_{stem}", c, params, sys, options)
+    for stem, c, params, sys, beam in models:
+        item = ExportItem(stem, f"{result.config_name}_{stem}", c, params, sys, options, beam_system=beam)
         for write in writers:
             written += write(item, out)
     return written

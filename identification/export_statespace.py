@@ -24,7 +24,8 @@ from ebb_model.beam import PARAMETER_UNITS
 from ebb_model.errors import ConfigError, StabilityError
 from ebb_model.jsonio import jsonable
 
-__all__ = ["save_statespace", "load_statespace", "load_metadata", "BalancedModel", "balanced_truncation"]
+__all__ = ["save_statespace", "load_statespace", "load_metadata", "BalancedModel", "balanced_truncation",
+           "continuous_equivalent"]
 
 
 def save_statespace(sys: DiscreteStateSpace, path: str | Path, *, name: str = "",
@@ -67,6 +68,46 @@ def load_statespace(path: str | Path):
         return control.ss(z["A"], z["B"], z["C"], z["D"], float(z["dt"]), inputs=[str(v) for v in z["inputs"]],
                           outputs=[str(v) for v in z["outputs"]],
                           states=[str(v) for v in z["states"]], name=name)
+
+
+def continuous_equivalent(sys):
+    """The continuous-time system whose transfer function is the discrete ``sys``'s on the bilinear (Tustin) map
+    ``z = (1 + sT/2)/(1 − sT/2)`` — for the continuous-only tools of python-control (``hinfsyn``, ``h2syn``);
+    a controller designed on it maps back with ``control.sample_system(K, T, "tustin")``.
+
+    With ``E = (I + A)⁻¹``, ``α = 2/T``: ``A_c = α E (A − I)``, ``B_c = √(2α) E B``, ``C_c = √(2α) C E``,
+    ``D_c = D − C E B`` (from ``zI − A = (I + A)(sI − A_c)/(α − s)``).  A pole at ``z = −1`` has no image.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        A discrete system (e.g. from :func:`load_statespace`).
+
+    Returns
+    -------
+    control.StateSpace
+        Continuous, with the same signal names.
+
+    Raises
+    ------
+    ConfigError
+        ``sys`` is continuous already, or has a pole at ``z = −1``.
+    """
+    import control
+
+    T = sys.dt
+    if not T or T is True:
+        raise ConfigError("continuous_equivalent: the system is not discrete (no sample time)")
+    A, B, C, D = (np.asarray(m, dtype=float) for m in (sys.A, sys.B, sys.C, sys.D))
+    eye = np.eye(A.shape[0])
+    try:
+        E = np.linalg.inv(eye + A)
+    except np.linalg.LinAlgError:
+        raise ConfigError("continuous_equivalent: the system has a pole at z = -1 (no Tustin image)") from None
+    alpha = 2.0 / T
+    root = np.sqrt(2.0 * alpha)
+    return control.ss(alpha * E @ (A - eye), root * E @ B, root * C @ E, D - C @ E @ B,
+                      inputs=list(sys.input_labels), outputs=list(sys.output_labels), name=sys.name)
 
 
 @dataclass(frozen=True, eq=False)

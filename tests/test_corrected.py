@@ -21,6 +21,7 @@ from diagnosis.effects.chain import ActuatorGain, SensorGain
 from diagnosis.effects.lag import ActuatorLag, SensorLag
 from ebb_model.reference.excitation import band_limited_input
 from ebb_model.tomlio import dumps
+from ebb_model.truncation import design_model
 from identification.export_statespace import load_metadata, load_statespace
 
 from conftest import make_config
@@ -89,9 +90,11 @@ def test_export_writes_config_statespace_and_fmu(tmp_path):
     meta = load_metadata(tmp_path / "corrected" / "corrected.npz")
     assert meta["parameters"]["EI"] == 10.3 and meta["units"]["EI"] == "N.m2"
     assert meta["signal_units"] == {"F1": "N", "y1": "m", "a2": "m/s2"}
-    y_npz = em.simulate(em.DiscreteStateSpace(sys.A, sys.B, sys.C, sys.D, sys.dt,
-                                              hold=em.assemble(reloaded).hold), u).outputs
-    np.testing.assert_allclose(y_npz, y_cfg, rtol=0, atol=1e-12 * np.abs(y_cfg).max())
+    # the StateSpace is the design model (modes up to Nyquist, the rest a static correction), the FMU the whole beam
+    design = design_model(reloaded)
+    y_npz = em.simulate(em.DiscreteStateSpace(sys.A, sys.B, sys.C, sys.D, sys.dt, hold=design.hold), u).outputs
+    np.testing.assert_allclose(y_npz, em.simulate(design, u).outputs, rtol=0, atol=1e-12 * np.abs(y_cfg).max())
+    assert sys.nstates == design.nstates < em.assemble(reloaded).nstates
     doc = json.loads((tmp_path / "corrected" / "corrected.json").read_text())
     assert doc["effect"] == "point_mass" and "corrected.fmu" in doc["files"]
     from fmpy import read_model_description

@@ -73,12 +73,13 @@ class ExportItem:
     params
         Identified physical parameter values.
     system
-        The model as a discrete system: the beam assembled at ``params``, once for every target (with a corrected
-        model's signal-level parts in series, when it has them).
+        The model for control design (what a StateSpace export writes): the beam at ``params`` with its modes in
+        the band (:func:`ebb_model.truncation.design_model`), with a corrected model's signal-level parts in
+        series when it has them.
     options
         Target options (``reduce_order`` for ``statespace``).
     beam_system
-        The beam alone (what an FMU carries), when ``system`` is more than the beam; ``None``: ``system``.
+        The whole beam alone (what an FMU carries: every mode, no signal parts); ``None``: ``system``.
     """
 
     stem: str
