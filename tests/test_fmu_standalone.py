@@ -353,6 +353,127 @@ def test_model_exchange_derivatives_are_the_modal_system(fmus, configs):
     np.testing.assert_array_equal(A[:k, k:], np.eye(k))
 
 
+# ------------------------------------------------------------------------- checkpoints and linearisation
+def _cs_instance(fmu: Path, name: str = "cs"):
+    from fmpy.fmi2 import FMU2Slave
+
+    md = fmpy.read_model_description(str(fmu))
+    f = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(fmu)),
+                  modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+    f.instantiate()
+    f.setupExperiment(startTime=0.0)
+    f.enterInitializationMode()
+    f.exitInitializationMode()
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    return f, md, vr
+
+
+def _run(f, ins, outs, u: np.ndarray, k0: int, dt: float) -> np.ndarray:
+    y = []
+    for k in range(k0, len(u)):
+        f.setReal(ins, list(u[k]))
+        y.append(f.getReal(outs))
+        f.doStep(k * dt, dt)
+    return np.array(y)
+
+
+def test_the_model_description_declares_state_and_derivatives(fmus):
+    md = fmpy.read_model_description(str(fmus["mixed"]))
+    for iface in (md.coSimulation, md.modelExchange):
+        assert iface.canGetAndSetFMUstate and iface.canSerializeFMUstate and iface.providesDirectionalDerivative
+
+
+def test_a_state_saved_mid_run_continues_bit_identically(fmus, configs):
+    """fmpy: ``fmi2GetFMUstate`` mid-run, the run continued, then the state set again (and serialised to bytes,
+    deserialised, set in a second instance with other parameters meanwhile): the continuation is identical to
+    the last bit."""
+    cfg = configs["mixed"]
+    dt = cfg.time.dt
+    u = _inputs(cfg, 400, 31)
+    f, md, vr = _cs_instance(fmus["mixed"])
+    ins, outs = [vr[n] for n in cfg.input_names], [vr[n] for n in cfg.output_names]
+    first = _run(f, ins, outs, u[:200], 0, dt)
+    state = f.getFMUstate()
+    blob = f.serializeFMUstate(state)
+    rest = _run(f, ins, outs, u, 200, dt)
+    f.setFMUstate(state)
+    np.testing.assert_array_equal(_run(f, ins, outs, u, 200, dt), rest)
+    f.freeFMUstate(state)
+    g, _, _ = _cs_instance(fmus["mixed"], "second")
+    g.setReal([vr["EI"]], [20.0])                     # another model meanwhile: the state brings its own back
+    _run(g, ins, outs, u[:50], 0, dt)
+    restored = g.deSerializeFMUstate(blob)
+    g.setFMUstate(restored)
+    np.testing.assert_array_equal(_run(g, ins, outs, u, 200, dt), rest)
+    g.freeFMUstate(restored)
+    assert _rel_err(np.vstack([first, rest]), simulate(assemble(cfg), u).outputs) <= RTOL_CORE
+    for inst in (f, g):
+        inst.terminate()
+        inst.freeInstance()
+
+
+def test_a_foreign_or_truncated_state_is_refused(fmus):
+    f, _, _ = _cs_instance(fmus["mixed"])
+    blob = f.serializeFMUstate(f.getFMUstate())
+    with pytest.raises(FMICallException):
+        f.deSerializeFMUstate(blob[:-8])
+    with pytest.raises(FMICallException):
+        f.deSerializeFMUstate(b"x" + blob[1:])
+    g, _, _ = _cs_instance(fmus["seed"])
+    with pytest.raises(FMICallException):            # another FMU's bytes (its GUID)
+        g.deSerializeFMUstate(blob)
+    f.freeInstance()
+    g.freeInstance()
+
+
+def test_the_plain_c_host_checkpoints_and_restores(fmus, configs, host, tmp_path):
+    """The independent C master saves and serialises the state before point 300, runs on, deserialises and
+    replays: the replayed lines are the original ones, character for character (%.17g)."""
+    u = _inputs(configs["mixed"], 600, 33)
+    proc = host_run(host, fmus["mixed"], u, tmp_path, env={}, checkpoint=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stdout.splitlines()
+    original, replay = lines[:600], [ln[2:] for ln in lines[600:]]
+    assert len(replay) == 300 and replay == original[300:]
+
+
+def test_directional_derivatives_are_the_fmus_own_finite_differences(fmus, configs):
+    """Co-simulation: ∂y/∂u at a communication point (the realisation's D) equals the difference of the FMU's
+    outputs for a changed input — exactly, the outputs being linear in the input (one unit step, round-off
+    only).  Model exchange: ∂ẋ/∂x and ∂ẋ/∂u are the modal ODE's matrices, read column by column through
+    ``fmi2GetDerivatives``."""
+    cfg = configs["mixed"]
+    f, md, vr = _cs_instance(fmus["mixed"])
+    ins, outs = [vr[n] for n in cfg.input_names], [vr[n] for n in cfg.output_names]
+    u = _inputs(cfg, 120, 35)
+    _run(f, ins, outs, u, 0, cfg.time.dt)             # somewhere mid-run, not at rest
+    u0 = np.array([0.3, -0.2])
+    f.setReal(ins, list(u0))
+    y0 = np.array(f.getReal(outs))
+    J = np.column_stack([f.getDirectionalDerivative(outs, [i], [1.0]) for i in ins])
+    for j, i in enumerate(ins):
+        du = u0.copy()
+        du[j] += 1.0
+        f.setReal(ins, list(du))
+        np.testing.assert_allclose(np.array(f.getReal(outs)) - y0, J[:, j], rtol=1e-9,
+                                   atol=1e-12 * np.abs(J).max())
+    assert np.abs(J[2, 0]) > 1.0                      # the accelerometer's feedthrough is there
+    f.freeInstance()
+
+    g, md = _me_instance(fmus["mixed"])
+    nx = md.numberOfContinuousStates
+    ders = [d.variable.valueReference for d in md.derivatives]      # in the order of the state vector
+    states = [d.variable.derivative.valueReference for d in md.derivatives]
+    Jx = np.column_stack([g.getDirectionalDerivative(ders, [s], [1.0]) for s in states])
+    Ju = np.column_stack([g.getDirectionalDerivative(ders, [vr[n]], [1.0]) for n in cfg.input_names])
+    Fm = modal_matrices(cfg, cfg.parameter_values()).Fm      # (modes up to their sign)
+    k = nx // 2
+    np.testing.assert_array_equal(Ju[:k], 0.0)
+    np.testing.assert_allclose(np.abs(Ju[k:]), np.abs(Fm), rtol=1e-9, atol=1e-12 * np.abs(Fm).max())
+    A = _state_matrix(g, nx)                          # (frees the instance)
+    np.testing.assert_allclose(Jx, A, rtol=1e-12, atol=1e-12 * np.abs(A).max())
+
+
 # -------------------------------------------------------------------------------------------- command line
 def test_cli_build_standalone_and_its_bad_input(tmp_path, capsys):
     out = tmp_path / "beam.fmu"
@@ -559,7 +680,8 @@ def test_free_free_beam_takes_the_direct_eigenproblem(tmp_path):
 
 def test_c_code_is_clean_under_address_and_undefined_behaviour_sanitizers(fmus, tmp_path):
     """The C master and the FMU's sources compiled with ``-fsanitize=address,undefined``: co-simulation with a
-    3-sample step, parameters that make the damping non-proportional, and the θ-scheme; no report."""
+    3-sample step, parameters that make the damping non-proportional, and the θ-scheme, each with a checkpoint
+    saved, serialised, deserialised and replayed; no report."""
     flags = ["-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=undefined"]
     host = tmp_path / "host_asan"
     probe = subprocess.run(["gcc", *flags, "-o", str(host), str(HOSTS / "fmi2_host.c"), "-ldl"],
@@ -584,8 +706,10 @@ def test_c_code_is_clean_under_address_and_undefined_behaviour_sanitizers(fmus, 
         u = np.random.default_rng(3).standard_normal((60, n_in))
         step = 3 * float(md.defaultExperiment.stepSize)
         proc = host_run(host, work / "asan.fmu", u, work / "run", params=params, step=step,
-                        env={"PATH": "/usr/bin:/bin"})
+                        env={"PATH": "/usr/bin:/bin"}, checkpoint=30)
         assert proc.returncode == 0, proc.stderr[-3000:]
+        lines = proc.stdout.splitlines()
+        assert [ln[2:] for ln in lines[60:]] == lines[30:60]
         assert "runtime error" not in proc.stderr and "AddressSanitizer" not in proc.stderr, proc.stderr[-3000:]
 
 

@@ -139,9 +139,9 @@ def model_description_xml(variables: Sequence[Variable], *, identity: FmuIdentit
         "fmiVersion": "2.0", "modelName": identity.model_name, "guid": identity.guid,
         "description": description, "generationTool": "ebb-ident fmu_build.standalone",
         "variableNamingConvention": "structured", "numberOfEventIndicators": "0"})
-    common = {"modelIdentifier": identity.model_identifier, "canGetAndSetFMUstate": "false",
-              "canSerializeFMUstate": "false", "canNotUseMemoryManagementFunctions": "true",
-              "canBeInstantiatedOnlyOncePerProcess": "false", "providesDirectionalDerivative": "false"}
+    common = {"modelIdentifier": identity.model_identifier, "canGetAndSetFMUstate": "true",
+              "canSerializeFMUstate": "true", "canNotUseMemoryManagementFunctions": "true",
+              "canBeInstantiatedOnlyOncePerProcess": "false", "providesDirectionalDerivative": "true"}
     me = SubElement(root, "ModelExchange", common | {"completedIntegratorStepNotNeeded": "true"})
     cs = SubElement(root, "CoSimulation", common | {"canHandleVariableCommunicationStepSize": "true",
                                                      "canInterpolateInputs": "false",

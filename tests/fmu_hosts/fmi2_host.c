@@ -9,11 +9,15 @@
  *   fmi2Terminate, fmi2FreeInstance.
  *
  * Usage:
- *   fmi2_host LIBRARY GUID RESOURCE_URI STEP NSTEPS INPUT_FILE IN_VRS OUT_VRS [VR=VALUE ...]
+ *   fmi2_host LIBRARY GUID RESOURCE_URI STEP NSTEPS INPUT_FILE IN_VRS OUT_VRS [VR=VALUE ...] [@K]
  *
  *   IN_VRS, OUT_VRS   comma-separated value references, or "-" for none
  *   INPUT_FILE        NSTEPS lines of len(IN_VRS) numbers, or "-" when IN_VRS is "-"
  *   VR=VALUE          Real parameters set before initialisation
+ *   @K                checkpoint: before communication point K the state is saved (fmi2GetFMUstate) and
+ *                     serialised to bytes (fmi2SerializeFMUstate, the live state freed); after the run it is
+ *                     deserialised, set (fmi2SetFMUstate) and points K … NSTEPS-1 are run again, their lines
+ *                     prefixed with "R "
  *
  * Prints one line per communication point with the outputs (%.17g) on
  * stdout; the FMU's log messages go to stderr, and so does the state of
@@ -52,6 +56,13 @@ typedef fmi2Status (*ComponentFn)(fmi2Component);
 typedef fmi2Status (*SetRealFn)(fmi2Component, const fmi2ValueReference[], size_t, const fmi2Real[]);
 typedef fmi2Status (*GetRealFn)(fmi2Component, const fmi2ValueReference[], size_t, fmi2Real[]);
 typedef fmi2Status (*DoStepFn)(fmi2Component, fmi2Real, fmi2Real, fmi2Boolean);
+typedef void *fmi2FMUstate;
+typedef fmi2Status (*GetStateFn)(fmi2Component, fmi2FMUstate *);
+typedef fmi2Status (*SetStateFn)(fmi2Component, fmi2FMUstate);
+typedef fmi2Status (*FreeStateFn)(fmi2Component, fmi2FMUstate *);
+typedef fmi2Status (*StateSizeFn)(fmi2Component, fmi2FMUstate, size_t *);
+typedef fmi2Status (*SerializeFn)(fmi2Component, fmi2FMUstate, char[], size_t);
+typedef fmi2Status (*DeSerializeFn)(fmi2Component, const char[], size_t, fmi2FMUstate *);
 
 static void log_message(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status,
                         fmi2String category, fmi2String message, ...)
@@ -142,7 +153,12 @@ int main(int argc, char **argv)
             getenv("PYTHONHOME") ? getenv("PYTHONHOME") : "(unset)",
             getenv("PYTHONPATH") ? getenv("PYTHONPATH") : "(unset)");
     CHECK(setupExperiment(c, 0, 0.0, 0.0, 0, 0.0), "fmi2SetupExperiment");
+    long checkpoint = -1;
     for (int i = 9; i < argc; ++i) {
+        if (argv[i][0] == '@') {
+            checkpoint = strtol(argv[i] + 1, NULL, 10);
+            continue;
+        }
         char *eq = strchr(argv[i], '=');
         if (!eq) {
             fprintf(stderr, "bad parameter argument %s\n", argv[i]);
@@ -165,23 +181,53 @@ int main(int argc, char **argv)
             return 1;
         }
     }
-    fmi2Real *u = calloc(n_in + 1, sizeof *u);
+    fmi2Real *u = calloc(n_in * (size_t)nsteps + 1, sizeof *u);   /* every input, for a replay */
     fmi2Real *y = calloc(n_out + 1, sizeof *y);
+    char *saved = NULL;
+    size_t saved_size = 0;
     double t = 0.0;
     for (long k = 0; k < nsteps; ++k) {
+        fmi2Real *uk = u + (size_t)k * n_in;
         for (size_t i = 0; i < n_in; ++i) {
-            if (fscanf(in, "%lf", &u[i]) != 1) {
+            if (fscanf(in, "%lf", &uk[i]) != 1) {
                 fprintf(stderr, "input file: not enough values at step %ld\n", k);
                 freeInstance(c);
                 return 1;
             }
         }
-        if (n_in) CHECK(setReal(c, in_vrs, n_in, u), "fmi2SetReal");
+        if (k == checkpoint) {
+            fmi2FMUstate state = NULL;
+            CHECK(((GetStateFn)symbol(lib, "fmi2GetFMUstate"))(c, &state), "fmi2GetFMUstate");
+            CHECK(((StateSizeFn)symbol(lib, "fmi2SerializedFMUstateSize"))(c, state, &saved_size),
+                  "fmi2SerializedFMUstateSize");
+            saved = malloc(saved_size);
+            CHECK(((SerializeFn)symbol(lib, "fmi2SerializeFMUstate"))(c, state, saved, saved_size),
+                  "fmi2SerializeFMUstate");
+            CHECK(((FreeStateFn)symbol(lib, "fmi2FreeFMUstate"))(c, &state), "fmi2FreeFMUstate");
+        }
+        if (n_in) CHECK(setReal(c, in_vrs, n_in, uk), "fmi2SetReal");
         if (n_out) CHECK(getReal(c, out_vrs, n_out, y), "fmi2GetReal");
         for (size_t i = 0; i < n_out; ++i) printf(i ? " %.17g" : "%.17g", y[i]);
         printf("\n");
         CHECK(doStep(c, t, step, 1), "fmi2DoStep");
         t = (double)(k + 1) * step;
+    }
+    if (saved) {                                  /* the replay from the deserialised checkpoint */
+        fmi2FMUstate state = NULL;
+        CHECK(((DeSerializeFn)symbol(lib, "fmi2DeSerializeFMUstate"))(c, saved, saved_size, &state),
+              "fmi2DeSerializeFMUstate");
+        CHECK(((SetStateFn)symbol(lib, "fmi2SetFMUstate"))(c, state), "fmi2SetFMUstate");
+        CHECK(((FreeStateFn)symbol(lib, "fmi2FreeFMUstate"))(c, &state), "fmi2FreeFMUstate");
+        for (long k = checkpoint; k < nsteps; ++k) {
+            t = (double)k * step;
+            if (n_in) CHECK(setReal(c, in_vrs, n_in, u + (size_t)k * n_in), "fmi2SetReal");
+            if (n_out) CHECK(getReal(c, out_vrs, n_out, y), "fmi2GetReal");
+            printf("R ");
+            for (size_t i = 0; i < n_out; ++i) printf(i ? " %.17g" : "%.17g", y[i]);
+            printf("\n");
+            CHECK(doStep(c, t, step, 1), "fmi2DoStep");
+        }
+        free(saved);
     }
     if (in) fclose(in);
     CHECK(terminate(c), "fmi2Terminate");

@@ -165,10 +165,11 @@ def compile_host(out_dir: Path) -> Path:
 def host_run(exe: Path, fmu: str | os.PathLike, u: np.ndarray, work: Path, *,
              params: Mapping[str, float] | None = None, step: float | None = None,
              env: Mapping[str, str] | None = None, wrapper: Sequence[str] = (),
-             timeout: float = 120) -> subprocess.CompletedProcess:
+             timeout: float = 120, checkpoint: int | None = None) -> subprocess.CompletedProcess:
     """Run the C master on an extracted copy of ``fmu`` ("before" protocol).
 
-    ``wrapper`` prefixes the command (e.g. ``["valgrind"]``).
+    ``wrapper`` prefixes the command (e.g. ``["valgrind"]``); ``checkpoint`` K: the state is saved and serialised
+    before point K and, after the run, restored and the points from K run again (lines prefixed ``R``).
     """
     from fmpy import extract, read_model_description
 
@@ -185,6 +186,7 @@ def host_run(exe: Path, fmu: str | os.PathLike, u: np.ndarray, work: Path, *,
            repr(float(step if step is not None else md.defaultExperiment.stepSize)), str(len(u)), str(inputs),
            ",".join(map(str, in_vr)) or "-", ",".join(map(str, out_vr)) or "-"]
     cmd += [f"{vr[k]}={v!r}" for k, v in (params or {}).items()]
+    cmd += [f"@{checkpoint}"] if checkpoint is not None else []
     clean_env = {"PATH": "/usr/bin:/bin"} if env is None else dict(env)
     return subprocess.run(cmd, capture_output=True, text=True, env=clean_env, timeout=timeout)
 

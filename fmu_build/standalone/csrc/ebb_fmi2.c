@@ -239,20 +239,11 @@ static void current_state(Instance *c, double *x)
     }
 }
 
+static void derivatives_of(const ebb_model *m, const double *x, const double *u, double *dx);
+
 static void derivatives(Instance *c, const double *x, double *dx)
 {
-    const ebb_model *m = &c->mdl;
-    const int k = m->k;
-    for (int i = 0; i < k; i++) {
-        double acc = 0.0;
-        if (m->Kd) for (int j = 0; j < k; j++) acc -= m->Kd[i * k + j] * x[j];
-        else acc -= m->w2[i] * x[i];
-        if (m->dense) for (int j = 0; j < k; j++) acc -= m->Cm[i * k + j] * x[k + j];
-        else acc -= m->Cm[i * k + i] * x[k + i];
-        for (int j = 0; j < m->m; j++) acc += m->Fm[i * m->m + j] * c->u[j];
-        dx[i] = x[k + i];
-        dx[k + i] = acc;
-    }
+    derivatives_of(&c->mdl, x, c->u, dx);
 }
 
 static double output(Instance *c, int o)
@@ -489,24 +480,185 @@ EBB_EXPORT fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference
     return refuse_set(comp, "fmi2SetString", vr, nvr);
 }
 
-EBB_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *s)
-{ (void)s; return fail(comp, "fmi2GetFMUstate", "not supported (canGetAndSetFMUstate is false)"); }
-EBB_EXPORT fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate s)
-{ (void)s; return fail(comp, "fmi2SetFMUstate", "not supported (canGetAndSetFMUstate is false)"); }
-EBB_EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component comp, fmi2FMUstate *s)
-{ (void)s; return fail(comp, "fmi2FreeFMUstate", "not supported (canGetAndSetFMUstate is false)"); }
-EBB_EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component comp, fmi2FMUstate s, size_t *size)
-{ (void)s; (void)size; return fail(comp, "fmi2SerializedFMUstateSize", "not supported"); }
-EBB_EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component comp, fmi2FMUstate s, fmi2Byte b[], size_t size)
-{ (void)s; (void)b; (void)size; return fail(comp, "fmi2SerializeFMUstate", "not supported"); }
-EBB_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component comp, const fmi2Byte b[], size_t size, fmi2FMUstate *s)
-{ (void)s; (void)b; (void)size; return fail(comp, "fmi2DeSerializeFMUstate", "not supported"); }
-EBB_EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component comp, const fmi2ValueReference a[], size_t na,
-                                                   const fmi2ValueReference b[], size_t nb, const fmi2Real dv[],
-                                                   fmi2Real df[])
+/* ------------------------------------------------------------------ FMU state */
+/* A saved state: everything a continuation depends on (the model follows from p, rebuilt when p differs).
+ * Serialised as the GUID and the raw snapshot: restorable by this FMU on this platform. */
+#define EBB_STATE_MAGIC 0x45424253u                /* "EBBS" */
+typedef struct {
+    unsigned magic;
+    int type, at_start;
+    double p[EBB_NPARAM];
+    double u[EBB_NACT];
+    double xi[2 * EBB_NMODES];
+    double hist[2 * EBB_NACT + 1];
+    double x[2 * EBB_NMODES];
+    double time;
+} Snapshot;
+
+static void snapshot_take(const Instance *c, Snapshot *s)
 {
-    (void)a; (void)na; (void)b; (void)nb; (void)dv; (void)df;
-    return fail(comp, "fmi2GetDirectionalDerivative", "not provided (providesDirectionalDerivative is false)");
+    memset(s, 0, sizeof(*s));
+    s->magic = EBB_STATE_MAGIC;
+    s->type = (int)c->type;
+    s->at_start = c->at_start;
+    memcpy(s->p, c->p, sizeof(s->p));
+    memcpy(s->u, c->u, sizeof(s->u));
+    memcpy(s->xi, c->xi, sizeof(s->xi));
+    memcpy(s->hist, c->hist, sizeof(s->hist));
+    memcpy(s->x, c->x, sizeof(s->x));
+    s->time = c->time;
+}
+
+EBB_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *state)
+{
+    Instance *c = comp;
+    if (!c) return fmi2Error;
+    if (!state) return fail(c, "fmi2GetFMUstate", "no place for the state (NULL)");
+    Snapshot *s = *state ? (Snapshot *)*state : malloc(sizeof(Snapshot));
+    if (!s) return fail(c, "fmi2GetFMUstate", "out of memory");
+    snapshot_take(c, s);
+    *state = s;
+    return fmi2OK;
+}
+
+static int snapshot_valid(Instance *c, const char *function, const Snapshot *s)
+{
+    if (!s || s->magic != EBB_STATE_MAGIC) { fail(c, function, "not a state of this FMU"); return 0; }
+    if (s->type != (int)c->type) {
+        fail(c, function, "the state is of a %s instance, this one is %s",
+             s->type == fmi2ModelExchange ? "model-exchange" : "co-simulation",
+             c->type == fmi2ModelExchange ? "model-exchange" : "co-simulation");
+        return 0;
+    }
+    return 1;
+}
+
+EBB_EXPORT fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate state)
+{
+    Instance *c = comp;
+    if (!c) return fmi2Error;
+    const Snapshot *s = state;
+    if (!snapshot_valid(c, "fmi2SetFMUstate", s)) return fmi2Error;
+    if (memcmp(c->p, s->p, sizeof(c->p)) != 0) c->stale = 1;   /* another parameter set: rebuilt when used */
+    memcpy(c->p, s->p, sizeof(c->p));
+    memcpy(c->u, s->u, sizeof(c->u));
+    memcpy(c->xi, s->xi, sizeof(c->xi));
+    memcpy(c->hist, s->hist, sizeof(c->hist));
+    memcpy(c->x, s->x, sizeof(c->x));
+    c->at_start = s->at_start;
+    c->time = s->time;
+    return fmi2OK;
+}
+
+EBB_EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component comp, fmi2FMUstate *state)
+{
+    if (!comp) return fmi2Error;
+    if (state) { free(*state); *state = NULL; }
+    return fmi2OK;
+}
+
+static size_t serialized_size(void) { return sizeof(EBB_GUID) + sizeof(Snapshot); }
+
+EBB_EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component comp, fmi2FMUstate state, size_t *size)
+{
+    if (!comp) return fmi2Error;
+    if (!snapshot_valid(comp, "fmi2SerializedFMUstateSize", state)) return fmi2Error;
+    *size = serialized_size();
+    return fmi2OK;
+}
+
+EBB_EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component comp, fmi2FMUstate state, fmi2Byte bytes[], size_t size)
+{
+    Instance *c = comp;
+    if (!c) return fmi2Error;
+    if (!snapshot_valid(c, "fmi2SerializeFMUstate", state)) return fmi2Error;
+    if (size < serialized_size())
+        return fail(c, "fmi2SerializeFMUstate", "%zu bytes given, the state takes %zu", size, serialized_size());
+    memcpy(bytes, EBB_GUID, sizeof(EBB_GUID));
+    memcpy(bytes + sizeof(EBB_GUID), state, sizeof(Snapshot));
+    return fmi2OK;
+}
+
+EBB_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component comp, const fmi2Byte bytes[], size_t size,
+                                              fmi2FMUstate *state)
+{
+    Instance *c = comp;
+    if (!c) return fmi2Error;
+    if (!bytes || size != serialized_size() || memcmp(bytes, EBB_GUID, sizeof(EBB_GUID)) != 0)
+        return fail(c, "fmi2DeSerializeFMUstate", "the %zu bytes are not a serialised state of this FMU (GUID %s)",
+                    size, EBB_GUID);
+    Snapshot tmp;
+    memcpy(&tmp, bytes + sizeof(EBB_GUID), sizeof(Snapshot));
+    if (!snapshot_valid(c, "fmi2DeSerializeFMUstate", &tmp)) return fmi2Error;
+    Snapshot *s = *state ? (Snapshot *)*state : malloc(sizeof(Snapshot));
+    if (!s) return fail(c, "fmi2DeSerializeFMUstate", "out of memory");
+    *s = tmp;
+    *state = s;
+    return fmi2OK;
+}
+
+/* ------------------------------------------------------------------ directional derivatives */
+/* Outputs and state derivatives are linear in (state, input) with the current parameters: the derivative in
+ * a direction is the linear map applied to the direction itself — the discrete realisation's rows Cy, Dy
+ * (co-simulation: the outputs from the input at the current communication point; the state xi is not a
+ * variable), the continuous ones Cc, Dc and the modal ODE (model exchange). */
+static void derivatives_of(const ebb_model *m, const double *x, const double *u, double *dx)
+{
+    const int k = m->k;
+    for (int i = 0; i < k; i++) {
+        double acc = 0.0;
+        if (m->Kd) for (int j = 0; j < k; j++) acc -= m->Kd[i * k + j] * x[j];
+        else acc -= m->w2[i] * x[i];
+        if (m->dense) for (int j = 0; j < k; j++) acc -= m->Cm[i * k + j] * x[k + j];
+        else acc -= m->Cm[i * k + i] * x[k + i];
+        for (int j = 0; j < m->m; j++) acc += m->Fm[i * m->m + j] * u[j];
+        dx[i] = x[k + i];
+        dx[k + i] = acc;
+    }
+}
+
+EBB_EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component comp, const fmi2ValueReference unknown[],
+                                                   size_t n_unknown, const fmi2ValueReference known[],
+                                                   size_t n_known, const fmi2Real dv_known[], fmi2Real dv_unknown[])
+{
+    Instance *c = comp;
+    if (!c) return fmi2Error;
+    if (ensure_model(c, "fmi2GetDirectionalDerivative") != 0) return fmi2Error;
+    const ebb_model *m = &c->mdl;
+    const int nx = 2 * m->k;
+    double du[EBB_NACT], dxs[2 * EBB_NMODES], ddx[2 * EBB_NMODES];
+    memset(du, 0, sizeof(du));
+    memset(dxs, 0, sizeof(dxs));
+    for (size_t i = 0; i < n_known; i++) {
+        const fmi2ValueReference r = known[i];
+        const int role = r < EBB_NVARS && EBB_VAR_TYPE[r] == TYPE_REAL ? EBB_VAR_ROLE[r] : -1;
+        if (role == ROLE_INPUT) du[EBB_VAR_INDEX[r]] += dv_known[i];
+        else if (role == ROLE_STATE && c->type == fmi2ModelExchange) dxs[EBB_VAR_INDEX[r]] += dv_known[i];
+        else
+            return fail(c, "fmi2GetDirectionalDerivative", "%s (value reference %u) is not a known of this FMU "
+                        "(an input%s)", var_name(r), r, c->type == fmi2ModelExchange ? " or a state" : "");
+    }
+    int have_dx = 0;
+    for (size_t i = 0; i < n_unknown; i++) {
+        const fmi2ValueReference r = unknown[i];
+        const int role = r < EBB_NVARS && EBB_VAR_TYPE[r] == TYPE_REAL ? EBB_VAR_ROLE[r] : -1;
+        if (role == ROLE_OUTPUT) {
+            const int o = EBB_VAR_INDEX[r];
+            const int me = c->type == fmi2ModelExchange;
+            const double *Crow = (me ? m->Cc : m->Cy) + (size_t)o * nx, *Drow = (me ? m->Dc : m->Dy) + (size_t)o * m->m;
+            double acc = 0.0;
+            if (me) for (int q = 0; q < nx; q++) acc += Crow[q] * dxs[q];
+            for (int j = 0; j < m->m; j++) acc += Drow[j] * du[j];
+            dv_unknown[i] = acc;
+        } else if (role == ROLE_DERIVATIVE && c->type == fmi2ModelExchange) {
+            if (!have_dx) { derivatives_of(m, dxs, du, ddx); have_dx = 1; }
+            dv_unknown[i] = ddx[EBB_VAR_INDEX[r]];
+        } else {
+            return fail(c, "fmi2GetDirectionalDerivative", "%s (value reference %u) is not an unknown of this FMU "
+                        "(an output%s)", var_name(r), r, c->type == fmi2ModelExchange ? " or a derivative" : "");
+        }
+    }
+    return fmi2OK;
 }
 
 /* ------------------------------------------------------------------ model exchange */
