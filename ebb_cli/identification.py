@@ -55,8 +55,17 @@ def _cmd_export(args: argparse.Namespace) -> int:
     # a flag without indices means all of its kind ("--polished": every polished point)
     points = "all" if args.points == [] else args.points
     polished = "all" if args.polished == [] else args.polished
-    files = export_points(IdentificationResult.read(args.dir), points, polished=polished, targets=args.target,
+    result = IdentificationResult.read(args.dir)
+    if args.ssp:
+        from identification.export_ssp import check_ssp
+
+        check_ssp(result)                                # before any file is written
+    files = export_points(result, points, polished=polished, targets=args.target,
                           reduce_order=args.reduce_order, modes_up_to=args.modes_up_to)
+    if args.ssp:
+        from identification.export_ssp import export_ssp
+
+        files.append(export_ssp(result, points, polished=polished))
     for f in files:
         print(f"wrote {f}")
     return 0
@@ -108,4 +117,7 @@ def add_parsers(sub: Subcommands) -> None:
     p.add_argument("--modes-up-to", type=float, default=None, metavar="HZ",
                    help="the StateSpace keeps the modes up to HZ, the others as a static correction (default: the "
                         "Nyquist frequency, no aliased modes; inf: every mode); the FMUs carry the whole beam")
+    p.add_argument("--ssp", action="store_true",
+                   help="also an SSP package: one standalone FMU and one parameter set per chosen point "
+                        "(<config>.ssp; its SystemStructure.ssd bound to the identified model)")
     p.set_defaults(func=_cmd_export)

@@ -6,6 +6,7 @@ master can run in a fresh interpreter::
     python fmu_loops.py fmpy  FMU INPUTS.npy OUT.npy [--after] [--param NAME=VALUE ...]
     python fmu_loops.py cosim FMU INPUTS.npy OUT.npy [--param NAME=VALUE ...]
     python fmu_loops.py ecos  FMU INPUTS.npy OUT.npy [--param NAME=VALUE ...]
+    python fmu_loops.py ssp   SSD FMU INPUTS.npy OUT.npy STEP   (libcosim on an SSP's system)
     python fmu_loops.py two   FMU_A FMU_B INPUTS.npy OUT_A.npy OUT_B.npy
     python fmu_loops.py lifecycle FMU CYCLES          (prints JSON: RSS growth)
 
@@ -107,6 +108,35 @@ def cosim_outputs(fmu: str | os.PathLike, u: np.ndarray, *,
     index = execution.add_local_slave(slave)
     for name, value in (params or {}).items():
         execution.real_initial_value(index, vr[name], value)
+    manipulator = CosimManipulator.create_override()
+    execution.add_manipulator(manipulator)
+    observer = CosimObserver.create_last_value()
+    execution.add_observer(observer)
+    u = np.asarray(u, dtype=float).reshape(len(u), -1)
+    y = np.empty((len(u), len(out_vr)))
+    for k in range(len(u)):
+        manipulator.slave_real_values(index, in_vr, u[k].tolist())
+        if not execution.step():
+            raise RuntimeError(f"libcosim step {k} failed")
+        y[k] = observer.last_real_values(index, out_vr)
+    return y
+
+
+def ssp_outputs(ssd: str | os.PathLike, fmu: str | os.PathLike, u: np.ndarray, step: float) -> np.ndarray:
+    """Outputs recorded by libcosim after each step ("after" protocol) of the system an SSP's ``ssd`` file
+    describes (its parameter set bound by the package, nothing set here); ``fmu`` is the package's FMU (for the
+    value references)."""
+    from fmpy import read_model_description
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimManipulator import CosimManipulator
+    from libcosimpy.CosimObserver import CosimObserver
+
+    md = read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    in_vr = [vr[n] for n in _names(md, "input")]
+    out_vr = [vr[n] for n in _names(md, "output")]
+    execution = CosimExecution.from_ssp_file(str(ssd), round(step * 1e9))
+    index = execution.slave_index_from_instance_name("beam")
     manipulator = CosimManipulator.create_override()
     execution.add_manipulator(manipulator)
     observer = CosimObserver.create_last_value()
@@ -257,6 +287,12 @@ def main(argv: list[str] | None = None) -> int:
     c.add_argument("inputs")
     c.add_argument("out_a")
     c.add_argument("out_b")
+    s_ = sub.add_parser("ssp")
+    s_.add_argument("ssd")
+    s_.add_argument("fmu")
+    s_.add_argument("inputs")
+    s_.add_argument("out")
+    s_.add_argument("step", type=float)
     d = sub.add_parser("lifecycle")
     d.add_argument("fmu")
     d.add_argument("cycles", type=int)
@@ -267,6 +303,8 @@ def main(argv: list[str] | None = None) -> int:
         np.save(args.out, y)
     elif args.cmd == "cosim":
         np.save(args.out, cosim_outputs(args.fmu, np.load(args.inputs), params=_params(args.param)))
+    elif args.cmd == "ssp":
+        np.save(args.out, ssp_outputs(args.ssd, args.fmu, np.load(args.inputs), args.step))
     elif args.cmd == "ecos":
         np.save(args.out, ecos_outputs(args.fmu, np.load(args.inputs), params=_params(args.param)))
     elif args.cmd == "two":

@@ -1,0 +1,126 @@
+"""One FMU, many parameter sets: the identified models as an SSP package (System Structure & Parameterization 1.0).
+
+``export_ssp(result, …)`` writes ``<out_dir>/export/<config>.ssp``, a zip holding
+
+* ``resources/beam.fmu`` — the standalone C FMU of the result's set-up (no Python at run time; parameters
+  ``EI, rhoA, c, eta, N, rhoI, kf`` tunable);
+* ``resources/<stem>.ssv`` — one parameter set (``ssv:ParameterSet``) per chosen Pareto / polished point, every
+  physical parameter with its unit;
+* ``SystemStructure.ssd`` — the system (one component ``beam`` with its inputs, outputs and parameters as
+  connectors) bound to the default set: the identified model (the polished knee, else the knee);
+* ``<stem>.ssd`` — the same system bound to each other set (SSP's variants), for a host to load instead.
+
+A point whose positions were identified has its own grid of forces and sensors, which one FMU cannot take as a
+parameter: such results are refused (export FMUs per point instead).
+"""
+from __future__ import annotations
+
+import tempfile
+import zipfile
+from pathlib import Path
+from typing import Sequence
+from xml.sax.saxutils import quoteattr
+
+from ebb_model.beam import PARAMETER_NAMES, PARAMETER_UNITS
+from ebb_model.config import BeamConfig
+from ebb_model.errors import ConfigError
+from ebb_model.output import atomic_path, check_writable_dir, make_dir
+
+from .export import _chosen
+from .result import IdentificationResult
+
+__all__ = ["export_ssp", "check_ssp", "DEFAULT_SET"]
+
+_NS = ('xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" '
+       'xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon" '
+       'xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"')
+#: The component's name in every system of the package.
+COMPONENT = "beam"
+#: The package's default system (bound to the identified model's parameter set).
+DEFAULT_SET = "SystemStructure.ssd"
+
+
+def _ssv(name: str, params: dict[str, float]) -> str:
+    rows = "\n".join(f'      <ssv:Parameter name={quoteattr(k)}><ssv:Real value="{params[k]!r}" '
+                     f'unit={quoteattr(PARAMETER_UNITS[k])}/></ssv:Parameter>' for k in PARAMETER_NAMES)
+    return (f'<?xml version="1.0" encoding="UTF-8"?>\n<ssv:ParameterSet {_NS} version="1.0" name={quoteattr(name)}>\n'
+            f"  <ssv:Parameters>\n{rows}\n  </ssv:Parameters>\n</ssv:ParameterSet>\n")
+
+
+def _ssd(name: str, config: BeamConfig, bound: str, dt: float) -> str:
+    conns = ([("input", n) for n in config.input_names] + [("output", n) for n in config.output_names]
+             + [("parameter", k) for k in PARAMETER_NAMES])
+    rows = "\n".join(f'          <ssd:Connector name={quoteattr(n)} kind="{kind}"><ssc:Real/></ssd:Connector>'
+                     for kind, n in conns)
+    return (f'<?xml version="1.0" encoding="UTF-8"?>\n<ssd:SystemStructureDescription {_NS} version="1.0" '
+            f'name={quoteattr(name)}>\n  <ssd:System name={quoteattr(name)}>\n    <ssd:Elements>\n'
+            f'      <ssd:Component name="{COMPONENT}" source="resources/beam.fmu" '
+            f'type="application/x-fmu-sharedlibrary">\n        <ssd:Connectors>\n{rows}\n        </ssd:Connectors>\n'
+            f'        <ssd:ParameterBindings>\n          <ssd:ParameterBinding source="resources/{bound}.ssv"/>\n'
+            f"        </ssd:ParameterBindings>\n      </ssd:Component>\n    </ssd:Elements>\n  </ssd:System>\n"
+            f'  <ssd:DefaultExperiment startTime="0.0"/>\n</ssd:SystemStructureDescription>\n'
+            f"<!-- communication step: multiples of dt = {dt!r} s -->\n")
+
+
+def check_ssp(result: IdentificationResult) -> None:
+    """Refuse a result one FMU cannot carry: its positions were identified (each point has its own grid).
+
+    Raises
+    ------
+    ConfigError
+        Naming the identified positions.
+    """
+    moved = [n[2:] for n in result.space.names if result.space.is_position(n)]
+    if moved:
+        raise ConfigError(f"`export_ssp`: the positions of {', '.join(moved)} were identified; one FMU cannot take "
+                          "them as parameters (export an FMU per point)")
+
+
+def export_ssp(result: IdentificationResult, points: Sequence[int] | str | None = None, *,
+               polished: Sequence[int] | str | None = None) -> Path:
+    """Write ``<out_dir>/export/<config>.ssp`` (module docstring) and return its path.
+
+    Parameters
+    ----------
+    result
+        The identification's result.
+    points, polished
+        Index lists or ``"all"``; with neither given, every Pareto and polished point.
+
+    Raises
+    ------
+    ConfigError
+        Indices out of range, a result whose positions were identified (no single FMU carries them) — before
+        anything is written.
+    OutputError
+        The export directory cannot take the file (nothing half-written is left).
+    """
+    from fmu_build.standalone import build_standalone_fmu
+
+    check_ssp(result)
+    d = result.out_dir
+    check_writable_dir(d / "export" if (d / "export").is_dir() else d)
+    if points is None and polished is None:
+        chosen_pts: Sequence[int] = range(len(result.pareto.X))
+        chosen_pol: Sequence[int] = range(len(result.polished))
+    else:
+        chosen_pts = _chosen("points", points, len(result.pareto.X))
+        chosen_pol = _chosen("polished", polished, len(result.polished))
+    models = result.models(chosen_pts, chosen_pol)
+    if not models:
+        raise ConfigError("`export_ssp`: no point chosen")
+    default = "polished_0" if result.polished else f"point_{result.pareto.knee}"
+    stems = [stem for stem, _, _ in models]
+    bound = default if default in stems else stems[0]
+    config = result.config
+    out = make_dir(d / "export", exist_ok=True) / f"{result.config_name}.ssp"
+    with tempfile.TemporaryDirectory() as tmp, atomic_path(out, suffix=".ssp") as part:
+        fmu = build_standalone_fmu(config, Path(tmp) / "beam.fmu")
+        with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
+            z.write(fmu, "resources/beam.fmu")
+            for stem, _, params in models:
+                z.writestr(f"resources/{stem}.ssv", _ssv(stem, params))
+                if stem != bound:
+                    z.writestr(f"{stem}.ssd", _ssd(f"{result.config_name}_{stem}", config, stem, config.time.dt))
+            z.writestr(DEFAULT_SET, _ssd(f"{result.config_name}_{bound}", config, bound, config.time.dt))
+    return out

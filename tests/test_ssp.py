@@ -1,0 +1,86 @@
+"""One FMU, many parameter sets (issue 33): ``ebb export --ssp`` writes an SSP package that libcosim loads.
+
+Reference: the package's own FMU through fmpy with each set's parameter values set by hand ("after" protocol,
+as libcosim's observer reads).  libcosim runs the FMU from the package with nothing set but the inputs: the
+parameters reach it only through the SSP's parameter binding.
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ebb_cli import main
+from ebb_model.beam import PARAMETER_NAMES
+
+HOSTS = Path(__file__).resolve().parent / "fmu_hosts"
+sys.path.insert(0, str(HOSTS))
+from fmu_loops import fmpy_outputs  # noqa: E402
+
+SSV = "{http://ssp-standard.org/SSP1/SystemStructureParameterValues}"
+
+
+def _set(archive: zipfile.ZipFile, stem: str) -> dict[str, float]:
+    root = ET.fromstring(archive.read(f"resources/{stem}.ssv"))
+    return {p.get("name"): float(p.find(f"{SSV}Real").get("value")) for p in root.iter(f"{SSV}Parameter")}
+
+
+def test_export_ssp_is_loaded_by_libcosim_with_each_parameter_set(identify_case, tmp_path, capsys):
+    cfg, data, _ = identify_case
+    out = tmp_path / "run"
+    assert main(["identify", str(cfg), str(data), "--out", str(out), "--pop", "8", "--generations", "2",
+                 "--no-progress", "--target", "statespace"]) == 0
+    capsys.readouterr()
+    assert main(["export", str(out), "--ssp", "--target", "statespace"]) == 0
+    ssp = out / "export" / "cfg.ssp"
+    assert f"wrote {ssp}" in capsys.readouterr().out
+    doc = json.loads((out / "pareto.json").read_text())
+    with zipfile.ZipFile(ssp) as z:
+        names = set(z.namelist())
+        stems = [f"point_{i}" for i in range(len(doc["points"]))] + [f"polished_{j}"
+                                                                       for j in range(len(doc["polished"]))]
+        assert {"SystemStructure.ssd", "resources/beam.fmu"} | {f"resources/{s}.ssv" for s in stems} <= names
+        assert {f"{s}.ssd" for s in stems if s != "polished_0"} <= names     # the other sets as variants
+        sets = {s: _set(z, s) for s in stems}
+        z.extractall(tmp_path / "ssp")
+    # every set is complete, and the default binding is the identified model
+    assert all(set(v) == set(PARAMETER_NAMES) for v in sets.values())
+    for k, v in doc["identified"]["parameters"].items():
+        assert sets["polished_0"][k] == pytest.approx(v, rel=1e-12)
+    fmu = tmp_path / "ssp" / "resources" / "beam.fmu"
+    u = np.random.default_rng(7).standard_normal((300, 1))
+    np.save(tmp_path / "u.npy", u)
+    far = max((s for s in stems if s != "polished_0"),
+              key=lambda s: abs(sets[s]["EI"] - sets["polished_0"]["EI"]))
+    results = {}
+    for stem, ssd in (("polished_0", "SystemStructure.ssd"), (far, f"{far}.ssd")):
+        proc = subprocess.run([sys.executable, str(HOSTS / "fmu_loops.py"), "ssp", str(tmp_path / "ssp" / ssd),
+                               str(fmu), str(tmp_path / "u.npy"), str(tmp_path / f"{stem}.npy"), "1e-4"],
+                              capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        results[stem] = np.load(tmp_path / f"{stem}.npy")
+        ref = fmpy_outputs(fmu, u, params=sets[stem], protocol="after")
+        # the same binary under two masters: round-off only
+        np.testing.assert_allclose(results[stem], ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+    assert np.abs(results[far] - results["polished_0"]).max() > 1e-6 * np.abs(results[far]).max()
+
+
+def test_export_ssp_refuses_identified_positions(identify_case, tmp_path, capsys):
+    """A result whose sensor position was identified: every point has its own grid of sensors, which one FMU
+    cannot take as a parameter — exit 2 naming the position, no package written."""
+    cfg, data, _ = identify_case
+    cfg.write_text(cfg.read_text() + "[identification]\npositions = { y1 = [0.45, 0.55] }\n")
+    out = tmp_path / "run"
+    assert main(["identify", str(cfg), str(data), "--out", str(out), "--pop", "8", "--generations", "1",
+                 "--polish", "0", "--no-progress", "--target", "statespace"]) == 0
+    capsys.readouterr()
+    before = {p: p.stat().st_mtime_ns for p in (out / "export").iterdir()}
+    assert main(["export", str(out), "--ssp", "--target", "statespace"]) == 2
+    assert "the positions of y1 were identified" in capsys.readouterr().err
+    assert {p: p.stat().st_mtime_ns for p in (out / "export").iterdir()} == before     # nothing written
