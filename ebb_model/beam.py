@@ -37,6 +37,7 @@ __all__ = [
     "Sensor",
     "PointMass",
     "PointSpring",
+    "WeakSegment",
 ]
 
 #: Names of the physical parameters, in the canonical order used everywhere
@@ -166,3 +167,19 @@ class PointSpring:
     name: str
     x: float
     k: float
+
+
+@dataclass(frozen=True)
+class WeakSegment:
+    """A segment of length ``length`` [m] centred at ``x`` [m] whose bending stiffness is ``factor`` × EI
+    (``0 < factor <= 1``): a crack, a loose joint, a damaged clamp — a local flexibility of the beam."""
+
+    name: str
+    x: float
+    length: float
+    factor: float
+
+    @property
+    def ends(self) -> tuple[float, float]:
+        """The segment's start and end [m]."""
+        return self.x - 0.5 * self.length, self.x + 0.5 * self.length

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 from typing import Any, Mapping
 
-from .beam import PARAMETER_NAMES, Actuator, End, PointMass, PointSpring, Sensor
+from .beam import PARAMETER_NAMES, Actuator, End, PointMass, PointSpring, Sensor, WeakSegment
 from .errors import ParameterError
 from .parameter_values import resolve_parameters
 
@@ -81,6 +81,7 @@ class BeamConfig:
     sensors: tuple[Sensor, ...]
     masses: tuple[PointMass, ...] = ()
     springs: tuple[PointSpring, ...] = ()
+    weak_segments: tuple[WeakSegment, ...] = ()
     extra: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
 
     # ------------------------------------------------------------------ access
@@ -164,6 +165,9 @@ class BeamConfig:
             out["masses"] = [{"name": m.name, "x": m.x, "mass": m.mass} for m in self.masses]
         if self.springs:
             out["springs"] = [{"name": k.name, "x": k.x, "k": k.k} for k in self.springs]
+        if self.weak_segments:
+            out["weak_segments"] = [{"name": w.name, "x": w.x, "length": w.length, "factor": w.factor}
+                                    for w in self.weak_segments]
         for k, v in self.extra.items():
             out[k] = v
         return out

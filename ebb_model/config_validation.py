@@ -12,7 +12,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Mapping
 
-from .beam import END_KINDS, PARAMETER_NAMES, SENSOR_KINDS, Actuator, End, PointMass, PointSpring, Sensor
+from .beam import END_KINDS, PARAMETER_NAMES, SENSOR_KINDS, Actuator, End, PointMass, PointSpring, Sensor, WeakSegment
 from .config_types import (DEFAULT_INPUT, INPUT_HOLDS, MAX_NODES, SCHEMES, BeamConfig, BeamGeometry, ParameterSpec,
                            TimeSettings)
 from .errors import ConfigError, ConfigWarning
@@ -229,6 +229,35 @@ def _attached(pr: Problems, points: list[dict[str, Any]], key: str, unit: str) -
     return out
 
 
+def _weak_segments(pr: Problems, points: list[dict[str, Any]], length: float | None) -> list[WeakSegment]:
+    """The valid ``[[weak_segments]]``: ``length`` > 0 inside the beam, ``factor`` in (0, 1]; every problem added
+    to ``pr``."""
+    out = []
+    for w in points:
+        where, raw = w["where"], w["raw"]
+        values = {}
+        for key, unit in (("length", "m"), ("factor", "remaining fraction of EI")):
+            if key not in raw:
+                pr.add(f"{where}.{key}", f"missing ({unit})")
+            else:
+                values[key] = pr.number(f"{where}.{key}", raw[key])
+        seg_len, factor = values.get("length"), values.get("factor")
+        if seg_len is not None and not seg_len > 0:
+            pr.add(f"{where}.length", f"must be > 0 m, got {seg_len:g}")
+            seg_len = None
+        if factor is not None and not 0.0 < factor <= 1.0:
+            pr.add(f"{where}.factor", f"must lie in (0, 1] (the remaining fraction of EI), got {factor:g}")
+            factor = None
+        if seg_len is not None and w["x"] is not None and length is not None and \
+                not (w["x"] - seg_len / 2 >= 0.0 and w["x"] + seg_len / 2 <= length):
+            pr.add(f"{where}.length", f"the segment {w['x'] - seg_len / 2:g} … {w['x'] + seg_len / 2:g} m leaves the "
+                                      f"beam [0, {length:g}] m")
+            seg_len = None
+        if None not in (seg_len, factor, w["x"], w["name"]):
+            out.append(WeakSegment(w["name"], w["x"], seg_len, factor))
+    return out
+
+
 def _rebuild_config(data: dict[str, Any], extra_sections: tuple[str, ...]) -> BeamConfig:
     return config_from_dict(data, extra_sections=extra_sections)
 
@@ -244,7 +273,8 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
     pr = Problems()
     if not isinstance(data, Mapping):
         raise ConfigError(f"config: must be a table, got {type(data).__name__}")
-    allowed = ("beam", "time", "parameters", "actuators", "sensors", "masses", "springs") + tuple(extra_sections)
+    allowed = ("beam", "time", "parameters", "actuators", "sensors", "masses", "springs", "weak_segments") \
+        + tuple(extra_sections)
     pr.unknown_keys("", data, allowed)
 
     beam_t = _table(pr, data, "beam")
@@ -315,15 +345,18 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
             sensors.append(Sensor(s["name"], s["x"], kind))
     masses = [PointMass(m["name"], m["x"], v) for m, v in _attached(pr, mass, "mass", "kg")]
     springs = [PointSpring(k["name"], k["x"], v) for k, v in _attached(pr, spring, "k", "N/m")]
+    weak = _points(pr, data, "weak_segments", length, ("name", "x", "length", "factor"), required=False)
+    weak_segments = _weak_segments(pr, weak, length)
     actuators = [Actuator(a["name"], a["x"]) for a in acts if a["name"] is not None and a["x"] is not None]
 
-    names = [a["name"] for a in acts] + [s["name"] for s in sens] + [m["name"] for m in mass + spring]
+    names = [a["name"] for a in acts] + [s["name"] for s in sens] + [m["name"] for m in mass + spring + weak]
     seen: set[str] = set()
     for n in names:
         if n is None:
             continue
         if n in seen:
-            pr.add("names", f"{n!r} is used more than once (actuator, sensor, mass and spring names must be unique)")
+            pr.add("names", f"{n!r} is used more than once (actuator, sensor, mass, spring and segment names must "
+                            "be unique)")
         seen.add(n)
         if n in PARAMETER_NAMES:
             pr.add("names", f"{n!r} clashes with a parameter name")
@@ -342,5 +375,6 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
         sensors=tuple(sensors),
         masses=tuple(masses),
         springs=tuple(springs),
+        weak_segments=tuple(weak_segments),
         extra=MappingProxyType(extra),
     )

@@ -57,6 +57,13 @@ condition.
 
 Springs to ground add :math:`\\sum_s k_s \\phi(a_s)\\phi(a_s)^T` to ``K`` in the same way.
 
+Weak segments (a local loss of bending stiffness): the bending term is written as the second difference of the
+nodal moments, :math:`(D_4 w)_i \\to \\big(D_2 (e\\,D_2 w)\\big)_i / EI` with :math:`e_j = EI_j` the stiffness
+of node ``j``'s cell (:func:`cell_stiffness`: compliance-averaged over the part of the cell a segment covers, as
+flexibilities in series add), the ghost nodes' taken from their boundary node.  With a uniform ``EI`` this is the
+:math:`D_4` stencil exactly; the boundary conditions use the nominal ``EI`` (a segment reaching an end is an
+approximation there).  The Kelvin–Voigt term follows the local stiffness.
+
 Point forces, point masses and sensors use the piecewise
 linear "hat" functions :math:`\\phi_i(x)` of the grid, so a force between nodes
 is shared by its two neighbours with weights summing to one (consistent load
@@ -81,7 +88,7 @@ MAX_MASS_RATIO = 1e12
 #: stiffness matrix's condition (and with it the modes' round-off) within what a constrained node would give.
 MAX_SPRING_RATIO = 1e12
 
-__all__ = ["SemiDiscreteBeam", "discretise", "grid_nodes", "hat_weights", "rotary_mass"]
+__all__ = ["SemiDiscreteBeam", "discretise", "grid_nodes", "hat_weights", "rotary_mass", "cell_stiffness"]
 
 
 @dataclass(frozen=True)
@@ -182,6 +189,36 @@ def rotary_mass(nodes: int, h: float, unknown: np.ndarray) -> np.ndarray:
     return Mr
 
 
+def cell_stiffness(length: float, nodes: int, segments) -> np.ndarray:
+    """Relative bending stiffness ``EI_j/EI`` of each grid node's cell (``nodes + 2`` values): ``1/(1 + Σ_s o_s
+    (1/f_s − 1))`` with ``o_s`` the fraction of the cell (half a cell at a boundary node) that segment ``s`` of
+    factor ``f_s`` covers — flexibilities in series add."""
+    h = length / (nodes + 1)
+    x = grid_nodes(length, nodes)
+    lo, hi = np.clip(x - h / 2, 0.0, length), np.clip(x + h / 2, 0.0, length)
+    compliance = np.ones(nodes + 2)
+    for seg in segments:
+        a, b = seg.ends
+        covered = np.clip(np.minimum(hi, b) - np.maximum(lo, a), 0.0, None) / (hi - lo)
+        compliance += covered * (1.0 / seg.factor - 1.0)
+    return 1.0 / compliance
+
+
+def _bending(n: int, h: float, rows: np.ndarray, E: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """``D_2 (e D_2 w)`` on the extended numbering (rows: the unknowns' extended rows), ``e`` over the grid
+    nodes, mirrored onto the ghost nodes ``-1`` and ``n + 2``."""
+    ext = np.concatenate([[1.0, e[0]], e, [e[-1], 1.0]])      # extended indices 0 … n+5 (nodes -2 … n+3)
+    n_ext = n + 6
+    C2 = np.zeros((n_ext, n_ext))
+    for k in range(1, n_ext - 1):
+        C2[k, k - 1:k + 2] = (1.0, -2.0, 1.0)
+    moments = ext[:, None] * (C2 @ E)
+    R = np.zeros((rows.size, n_ext))
+    for j, r in enumerate(rows):
+        R[j, r - 1:r + 2] = (1.0, -2.0, 1.0)
+    return (R @ moments) / h ** 4
+
+
 def _extension(n: int, h: float, EI: float, N: float, left, right, unknown: np.ndarray) -> np.ndarray:
     """Matrix E mapping unknowns to grid values on indices -2 … n+3 (offset +2)."""
     n_ext = n + 6
@@ -260,7 +297,10 @@ def discretise(config: BeamConfig, params: Mapping[str, float] | None = None) ->
     if not right.translation_fixed:
         V[-1] = h / 2.0
 
-    B4 = V[:, None] * (D4 @ E)
+    if config.weak_segments:
+        B4 = V[:, None] * _bending(n, h, rows, E, cell_stiffness(L, n, config.weak_segments))
+    else:
+        B4 = V[:, None] * (D4 @ E)
     K = EI * B4 - N * (V[:, None] * (D2 @ E))
     C = eta * EI * B4
     K[np.diag_indices(nu)] += kf * V

@@ -42,7 +42,7 @@ __all__ = ["build_fmu"]
 _PLATFORM = "linux64"
 
 #: Top-level variable names the FMU itself uses besides the parameters.
-_RESERVED = {"beam", "time", "actuators", "sensors", "masses", "springs", slave_template.FIELD_NAME}
+_RESERVED = {"beam", "time", "actuators", "sensors", "masses", "springs", "weak_segments", slave_template.FIELD_NAME}
 
 
 def _identity(base: str) -> FmuIdentity:

@@ -219,6 +219,12 @@ class BeamSlave(Fmi2Slave):
         for k in getattr(cfg, "springs", ()):
             self._add_constant(f"springs.{k.name}.x", float(k.x), f"position of spring to ground {k.name}", "m")
             self._add_constant(f"springs.{k.name}.k", float(k.k), f"spring to ground {k.name}", "N/m")
+        for w in getattr(cfg, "weak_segments", ()):
+            self._add_constant(f"weak_segments.{w.name}.x", float(w.x), f"centre of weak segment {w.name}", "m")
+            self._add_constant(f"weak_segments.{w.name}.length", float(w.length), f"length of weak segment {w.name}",
+                               "m")
+            self._add_constant(f"weak_segments.{w.name}.factor", float(w.factor),
+                               f"remaining fraction of EI in {w.name}")
 
     # ----------------------------------------------------------- model
     def _error(self, function: str, message: str) -> None:

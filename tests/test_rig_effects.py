@@ -1,4 +1,5 @@
-"""Rig effects, blind (issue 31): a spring to ground inside the span, on two benches and three sensor kinds.
+"""Rig effects, blind (issue 31): a spring to ground inside the span and a local loss of bending stiffness, on
+three benches and three sensor kinds.
 
 As the rest of the blind family (:mod:`test_diagnosis_blind`): records from the independent generator (Hermite
 finite elements, exact in time, cubic-spline force), 1 % noise, priors 10–15 % off, the effect never told.
@@ -214,3 +215,33 @@ def test_a_spring_to_ground_and_an_actuator_lag_are_named_as_a_pair(tmp_path):
     assert abs(fitted["grounded_spring.x"] - SPRING["x"]) <= 0.05, fitted
     assert fitted["actuator_lag.tau"] == pytest.approx(5e-4, rel=SIZE_TOLERANCE), fitted
     assert_both_significant(doc)
+
+
+# ------------------------------------------------------------------------------ a local loss of bending stiffness
+def _check_weak(doc, values):
+    """Named, ≥ 80 % closed, at its place (5 cm) with its compliance ``(1/f − 1) ℓ/L`` within 10 % — what the
+    records determine (the length and the factor alone trade against each other)."""
+    top = doc["effects"][0]
+    fitted = top["refit"]["effect_parameters"]
+    compliance = (1.0 / values["factor"] - 1.0) * values["length"]          # L = 1 m
+    print(f"\nstiffness_loss: verdict {doc['verdict']}, closed {top['refit']['closed']:.4f}, fitted {fitted} "
+          f"(withheld {values}, compliance {compliance:.4g})")
+    assert doc["verdict"] == "stiffness_loss", doc["reason"]
+    assert top["label"] == "stiffness_loss" and top["refit"]["closed"] >= 0.8, top["refit"]
+    assert abs(fitted["x"] - values["x"]) <= 0.05, fitted
+    assert fitted["compliance"] == pytest.approx(compliance, rel=SIZE_TOLERANCE), fitted
+
+
+CRACK = {"x": 0.45, "length": 0.04, "factor": 0.3}
+
+
+@pytest.mark.parametrize("kind,f_max", [("displacement", 60.0), ("acceleration", 150.0)])
+def test_a_local_stiffness_loss_is_named_on_the_family_bench(tmp_path, kind, f_max):
+    """Measured: displacement — compliance 0.0922 for 0.0933 at 0.4500 m, 100 % closed, 14 s; accelerometers
+    (held-out gap 1.2e4 noise variances) — 0.0938 at 0.4495 m, held-out 1.09 / 1.12 after (with a segment of
+    fixed length the gap stayed at 4.5: the records see its length).  Not yet: a crack near the clamp of the
+    hammer-hit cantilever (0.3 m, 0.04 m at 0.4) is named at 0.33 m but its refit stops in a long-segment basin
+    (compliance 0.10 for 0.06, held-out 4.6 noise variances)."""
+    cfg = bench_config(kind)
+    data = _write(tmp_path, cfg, WithheldEffect("stiffness_loss", CRACK), seed=3, f_max=f_max)
+    _check_weak(diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document, CRACK)

@@ -39,6 +39,7 @@ CANONICAL = {
     "boundary_translational_right": ("kt",),
     "point_mass": ("mass", "x"),
     "grounded_spring": ("k", "x"),
+    "stiffness_loss": ("x", "length", "factor"),
     "kelvin_voigt": ("eta",),
     "rotary_inertia": ("rhoI",),
     "foundation": ("kf",),
@@ -463,6 +464,7 @@ OFF = [
     ("boundary_translational_right", {"kt": 0.0}),  # right end is free
     ("point_mass", {"mass": 0.0, "x": 0.4}),
     ("grounded_spring", {"k": 0.0, "x": 0.6}),
+    ("stiffness_loss", {"x": 0.5, "length": 0.05, "factor": 1.0}),
     ("kelvin_voigt", {"eta": 0.0}),
     ("rotary_inertia", {"rhoI": 0.0}),
     ("foundation", {"kf": 0.0}),

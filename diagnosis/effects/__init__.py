@@ -25,6 +25,9 @@ boundary_translational_<side>  kt [N/m]             constrained: c = EI/(kt L³)
 point_mass                     mass [kg], x [m]     μ = mass/(ρA L) (0), x
 transducer_mass[<sensor>]      mass [kg]            μ = mass/(ρA L) (0) at the sensor's position
 grounded_spring                k [N/m], x [m]       κ = k L³/EI (0), x
+stiffness_loss                 compliance [1],      c = (1/f − 1) ℓ/L (0), x, ℓ/L: EI f over ℓ,
+                               x [m], length [m],   f = 1/(1 + c L/ℓ)
+                               factor f [1]
 kelvin_voigt                   eta [s]              eta (0)
 rotary_inertia                 rhoI [kg m]          r² = rhoI/(ρA L²) (0)
 foundation                     kf [N/m²]            κ = kf L⁴/EI (0)
@@ -53,7 +56,7 @@ from typing import Any
 
 from ebb_model.config import BeamConfig
 
-from . import axial, beam_terms, boundary, chain, lag, point_mass, supports
+from . import axial, beam_terms, boundary, chain, lag, local_stiffness, point_mass, supports
 from .base import (
     PAIR_SEPARATOR,
     AugmentedModel,
@@ -75,6 +78,7 @@ FAMILIES: tuple[Family, ...] = (
     boundary.FAMILY,
     point_mass.FAMILY,
     supports.FAMILY,
+    local_stiffness.FAMILY,
     beam_terms.FAMILY,
     lag.FAMILY,
     chain.FAMILY,

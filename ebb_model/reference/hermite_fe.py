@@ -331,6 +331,7 @@ def hermite_beam(
     rhoI: float = 0.0,
     kf: float = 0.0,
     point_springs: Sequence[tuple[float, float]] = (),
+    weak_segments: Sequence[tuple[float, float, float]] = (),
 ) -> HermiteBeam:
     r"""Assemble the cubic Hermite finite-element model.
 
@@ -366,6 +367,10 @@ def hermite_beam(
     kf
         Winkler foundation modulus [N/m²] (>= 0):
         :math:`K \mathrel{+}= \int k_f N^T N\,dx = (k_f/\rho A) M_{\rho A}`.
+    weak_segments
+        ``(start, end, factor)``: the bending stiffness there is ``factor`` × EI (``0 < factor <= 1``); an
+        element partly covered gets the compliance average ``EI/(1 + o (1/factor − 1))`` (``o`` the covered
+        fraction) — exact when the segment's ends are element boundaries.
     point_springs
         ``(k, x)`` pairs of translational springs to ground [N/m]; each adds :math:`k\,\phi(x)\phi(x)^T` to
         :math:`K` (any :math:`x \in [0, L]`).
@@ -394,10 +399,21 @@ def hermite_beam(
     Mr = np.zeros((ndof, ndof))
     Kb = np.zeros((ndof, ndof))
     G = np.zeros((ndof, ndof))
+    compliance = np.ones(ne)
+    for item in weak_segments:
+        try:
+            a, b, f = (float(v) for v in item)
+        except (TypeError, ValueError):
+            raise ParameterError(f"weak segment must be a (start, end, factor) triple, got {item!r}") from None
+        if not (0.0 <= a < b <= L and 0.0 < f <= 1.0):
+            raise ParameterError(f"weak segment {item!r}: needs 0 <= start < end <= length and 0 < factor <= 1")
+        edges = np.arange(ne + 1) * l
+        covered = np.clip(np.minimum(edges[1:], b) - np.maximum(edges[:-1], a), 0.0, None) / l
+        compliance += covered * (1.0 / f - 1.0)
     for e in range(ne):
         s = slice(2 * e, 2 * e + 4)
         Mr[s, s] += Me
-        Kb[s, s] += Kbe
+        Kb[s, s] += Kbe / compliance[e]
         G[s, s] += Ge
 
     Mp = np.zeros((ndof, ndof))

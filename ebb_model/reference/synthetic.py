@@ -28,6 +28,8 @@ effect                              implementation
 ``boundary_translational_*``        same for ``kt``
 ``point_mass``                      :math:`m\,\phi(x)\phi(x)^T` added to :math:`M`
 ``grounded_spring``                 :math:`k\,\phi(x)\phi(x)^T` added to :math:`K`
+``stiffness_loss``                  the elements of the segment with ``factor`` × EI (compliance-
+                                    averaged where an element is partly covered)
 ``kelvin_voigt``                    :math:`\eta` added to the config's: :math:`C \mathrel{+}= \eta K_b`
 ``rotary_inertia``                  :math:`\rho I` added to the config's: :math:`M \mathrel{+}= \rho I\int N'^TN'`
 ``foundation``                      :math:`k_f` added to the config's: :math:`K \mathrel{+}= k_f\int N^TN`

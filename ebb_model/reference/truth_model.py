@@ -41,9 +41,9 @@ class Truth:
 
     Attributes
     ----------
-    left, right, masses, springs, eta, rhoI, kf
-        End springs ``(kt, kr)``, point masses ``(mass, x)``, springs to ground ``(k, x)`` and the parameters of
-        :func:`hermite_beam`.
+    left, right, masses, springs, weak, eta, rhoI, kf
+        End springs ``(kt, kr)``, point masses ``(mass, x)``, springs to ground ``(k, x)``, weak segments
+        ``(start, end, factor)`` and the parameters of :func:`hermite_beam`.
     rate, ea, act_tau, sen_tau, lag_sensor
         Axial drift rate, ``EA``, actuator and sensor lag time constants, lagged sensor (-1: none).
     local_x, k3, friction, slip
@@ -54,6 +54,7 @@ class Truth:
     right: tuple[float, ...]
     masses: list[tuple[float, float]]
     springs: list[tuple[float, float]]
+    weak: list[tuple[float, float, float]]
     eta: float
     rhoI: float
     kf: float
@@ -112,6 +113,7 @@ def apply_effects(config: BeamConfig, p: Mapping[str, float], effects: Sequence[
     }
     masses = [(m.mass, m.x) for m in config.masses]
     springs = [(sp.k, sp.x) for sp in config.springs]
+    weak = [(*w.ends, w.factor) for w in config.weak_segments]
     eta, rhoI, kf = p["eta"], p["rhoI"], p["kf"]
     rate = ea = act_tau = sen_tau = k3 = friction = 0.0
     slip = 1.0
@@ -131,6 +133,12 @@ def apply_effects(config: BeamConfig, p: Mapping[str, float], effects: Sequence[
             if not 0.0 <= v["x"] <= L:
                 raise ParameterError(f"effect grounded_spring.x = {v['x']:g} m lies outside the beam [0, {L:g}] m")
             springs.append((v["k"], v["x"]))
+        elif e.name == "stiffness_loss":
+            a, b = v["x"] - v["length"] / 2, v["x"] + v["length"] / 2
+            if not (0.0 <= a and b <= L and v["length"] > 0.0 and 0.0 < v["factor"] <= 1.0):
+                raise ParameterError(f"effect stiffness_loss: the segment {a:g} … {b:g} m must lie inside the beam "
+                                     f"[0, {L:g}] m with 0 < factor <= 1 (got {v['factor']:g})")
+            weak.append((a, b, v["factor"]))
         elif e.name == "kelvin_voigt":
             eta += v["eta"]
         elif e.name == "rotary_inertia":
@@ -165,8 +173,8 @@ def apply_effects(config: BeamConfig, p: Mapping[str, float], effects: Sequence[
                 friction, slip = v["force"], v["slip"]
         else:  # pragma: no cover - the catalogue and this dispatch are kept in step by the tests
             raise ConfigError(f"effect {e.name!r} is not implemented by the generator")
-    return Truth(left=tuple(ends["left"]), right=tuple(ends["right"]), masses=masses, springs=springs, eta=eta,
-                 rhoI=rhoI, kf=kf, rate=rate, ea=ea, act_tau=act_tau, sen_tau=sen_tau, lag_sensor=lag_sensor,
+    return Truth(left=tuple(ends["left"]), right=tuple(ends["right"]), masses=masses, springs=springs, weak=weak,
+                 eta=eta, rhoI=rhoI, kf=kf, rate=rate, ea=ea, act_tau=act_tau, sen_tau=sen_tau, lag_sensor=lag_sensor,
                  local_x=local_x, k3=k3, friction=friction, slip=slip)
 
 
@@ -195,7 +203,7 @@ def build_beam(config: BeamConfig, p: Mapping[str, float], truth: Truth, n_eleme
     beam = hermite_beam(
         float(config.beam.length), int(n_elements), EI=p["EI"], rhoA=p["rhoA"], N=p["N"], c=p["c"], eta=truth.eta,
         left=truth.left, right=truth.right, point_masses=truth.masses, rhoI=truth.rhoI, kf=truth.kf,
-        point_springs=truth.springs,
+        point_springs=truth.springs, weak_segments=truth.weak,
     )
     assert beam.K_axial is not None
     dn_min = min(0.0, truth.rate * (n_samples - 1) * dt)

@@ -17,6 +17,9 @@ name                                    parameters         off value
                                         ``x`` [m]
 ``grounded_spring``                     ``k`` [N/m],       ``k = 0``
                                         ``x`` [m]
+``stiffness_loss``                      ``x`` [m],         ``factor = 1``
+                                        ``length`` [m],
+                                        ``factor`` [1]
 ``kelvin_voigt``                        ``eta`` [s]        0
 ``rotary_inertia``                      ``rhoI`` [kg m]    0
 ``foundation``                          ``kf`` [N/m²]      0
@@ -105,6 +108,8 @@ EFFECT_CATALOGUE: Mapping[str, EffectSpec] = MappingProxyType(
                   "extra rigid point mass at x"),
             _spec("grounded_spring", (("k", "N/m", "nonneg"), ("x", "m", "real")),
                   "translational spring from the beam at x to ground (an intermediate support)"),
+            _spec("stiffness_loss", (("x", "m", "real"), ("length", "m", "nonneg"), ("factor", "1", "nonneg")),
+                  "EI x factor over a segment of the given length centred at x (crack, loose joint)"),
             _spec("kelvin_voigt", (("eta", "s", "nonneg"),),
                   "Kelvin-Voigt strain-rate damping eta*EI*w_xxxxt added to the model's"),
             _spec("rotary_inertia", (("rhoI", "kg.m", "nonneg"),),

@@ -10,9 +10,9 @@ the continuous states ``modes.q[i]``, ``modes.qd[i]`` (``i = 1 … k``: the moda
 of the ``k`` Richardson modes, mass-normalised; scheme ``theta``: ``nodes.q[i]``, ``nodes.qd[i]``, deflection
 and velocity of the grid's ``k`` unknowns) and their derivatives ``der(...)``.
 
-``ebb_config.h`` holds the **structure** only (grid, ends, positions, sensor kinds, point masses, springs, ``dt``,
-input reconstruction, start values, the variable table): the matrices are assembled in C from the parameter
-values when the FMU initialises.
+``ebb_config.h`` holds the **structure** only (grid, ends, positions, sensor kinds, point masses, springs, weak
+segments, ``dt``, input reconstruction, start values, the variable table): the matrices are assembled in C from
+the parameter values when the FMU initialises.
 """
 from __future__ import annotations
 
@@ -105,6 +105,10 @@ def fmu_variables(config: BeamConfig, field_sensors: Sequence[Sensor] = ()) -> l
     for sp in config.springs:
         const(f"springs.{sp.name}.x", float(sp.x), f"position of spring to ground {sp.name}", "m")
         const(f"springs.{sp.name}.k", float(sp.k), f"spring to ground {sp.name}", "N/m")
+    for w in config.weak_segments:
+        const(f"weak_segments.{w.name}.x", float(w.x), f"centre of weak segment {w.name}", "m")
+        const(f"weak_segments.{w.name}.length", float(w.length), f"length of weak segment {w.name}", "m")
+        const(f"weak_segments.{w.name}.factor", float(w.factor), f"remaining fraction of EI in {w.name}")
     k = n_modes(config)
     if t.scheme == "theta":                 # the nodal unknowns of the config's grid
         first = 1 if b.left.translation_fixed else 0
@@ -263,6 +267,7 @@ def config_header(config: BeamConfig, variables: Sequence[Variable], identity: F
         f"#define EBB_NSENS {len(sensors)}",
         f"#define EBB_NMASS {len(config.masses)}",
         f"#define EBB_NSPRING {len(config.springs)}",
+        f"#define EBB_NWEAK {len(config.weak_segments)}",
         f"#define EBB_NVARS {len(variables)}", "",
     ]
     text = "\n".join(lines)
@@ -273,6 +278,9 @@ def config_header(config: BeamConfig, variables: Sequence[Variable], identity: F
     text += _array("double", "EBB_MASS_M", [_c_double(m.mass) for m in config.masses])
     text += _array("double", "EBB_SPRING_X", [_c_double(sp.x) for sp in config.springs])
     text += _array("double", "EBB_SPRING_K", [_c_double(sp.k) for sp in config.springs])
+    text += _array("double", "EBB_WEAK_X", [_c_double(w.x) for w in config.weak_segments])
+    text += _array("double", "EBB_WEAK_LEN", [_c_double(w.length) for w in config.weak_segments])
+    text += _array("double", "EBB_WEAK_FACTOR", [_c_double(w.factor) for w in config.weak_segments])
     text += _array("double", "EBB_PARAM_START", [_c_double(values[n]) for n in PARAMETER_NAMES])
     text += "\n/* variable table, indexed by value reference */\n"
     text += _array("signed char", "EBB_VAR_TYPE", [str(_TYPES[v.type]) for v in variables])

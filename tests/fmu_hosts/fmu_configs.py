@@ -11,8 +11,8 @@ SEED_TOML = ROOT / "examples" / "seed_clamped.toml"
 
 
 def mixed_config() -> dict[str, Any]:
-    """Two forces; displacement, velocity and acceleration sensors; damping, a point mass, a spring to ground, an
-    elastic end."""
+    """Two forces; displacement, velocity and acceleration sensors; damping, a point mass, a spring to ground, a
+    weak segment, an elastic end."""
     return {
         "beam": {"length": 1.0, "nodes": 30, "left": "pinned", "right": "elastic",
                  "right_kt": 5000.0, "right_kr": 20.0},
@@ -25,6 +25,7 @@ def mixed_config() -> dict[str, Any]:
                     {"name": "a1", "x": 0.3, "kind": "acceleration"}],
         "masses": [{"name": "m1", "x": 0.9, "mass": 0.05}],
         "springs": [{"name": "k1", "x": 0.45, "k": 3000.0}],
+        "weak_segments": [{"name": "crack", "x": 0.62, "length": 0.05, "factor": 0.5}],
     }
 
 

@@ -55,6 +55,10 @@ typedef struct {
     int n_spring;             /* springs to ground: K += k phi(x) phi(x)^T */
     const double *spring_x;
     const double *spring_k;
+    int n_weak;               /* weak segments: EI x factor over [x - len/2, x + len/2] (compliance-averaged) */
+    const double *weak_x;
+    const double *weak_len;
+    const double *weak_factor;
 } ebb_structure;
 
 /* The discrete model of one parameter set, in the causal "xi" form of ebb_model

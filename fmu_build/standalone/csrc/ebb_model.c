@@ -6,7 +6,8 @@
  *      K = diag(V)(EI D4 - N D2)E + kf diag(V) + sum_s k_s phi(a_s) phi(a_s)^T,  C = c diag(V) + eta EI diag(V) D4 E,
  *      M = rhoA diag(V) + rhoI h (GP)^T(GP) + sum_m m_m phi(a_m) phi(a_m)^T,
  *    E the extension by the ghost nodes of the moment and shear conditions (elastic ends kt, kr in [0, inf]),
- *    forces, sensors, point masses and springs to ground on the grid's hat functions.
+ *    forces, sensors, point masses and springs to ground on the grid's hat functions; with weak segments the
+ *    bending term is D2 (e D2 w) with e the cells' compliance-averaged relative EI (ghost nodes: their end's).
  * 2. Richardson modes (ebb_model/exact_modal.py): the beam on the config's grid and on its companion grid
  *    (2n+1 nodes up to 201, else (n-1)/2); the lowest w2 of both, extrapolated as
  *    w2_f + weight (w2_f - w2_c)/((h_c/h_f)^2 - 1) (weight 1 for the lower half of the coarse grid's modes,
@@ -121,16 +122,45 @@ static int fd_assemble(const ebb_structure *s, int n, const double *p, fd_beam *
     if (!translation_fixed(&s->right)) V[nu - 1] = h / 2.0;
     static const double d4[5] = {1.0, -4.0, 6.0, -4.0, 1.0}, d2[3] = {1.0, -2.0, 1.0};
     const double h4 = pow(h, 4), h2 = pow(h, 2);
+    double *ext = NULL;                                /* weak segments: the cells' relative EI, nodes -2 … n+3 */
+    if (s->n_weak > 0) {
+        ext = malloc(sizeof(double) * (size_t)next);
+        if (!ext) { free(E); free(B4); free(B2); free(V); free(row); return -1; }
+        for (int i = 0; i <= n + 1; i++) {
+            const double xi = i * h, lo = fmax(xi - h / 2.0, 0.0), hi = fmin(xi + h / 2.0, L);
+            double compliance = 1.0;
+            for (int w = 0; w < s->n_weak; w++) {
+                const double a = s->weak_x[w] - 0.5 * s->weak_len[w], b = s->weak_x[w] + 0.5 * s->weak_len[w];
+                const double covered = fmax(fmin(hi, b) - fmax(lo, a), 0.0) / (hi - lo);
+                compliance += covered * (1.0 / s->weak_factor[w] - 1.0);
+            }
+            ext[i + 2] = 1.0 / compliance;
+        }
+        ext[0] = ext[next - 1] = 1.0;
+        ext[1] = ext[2];
+        ext[next - 2] = ext[next - 3];
+    }
     for (int j = 0; j < nu; j++) {
         const int r = first + j + 2;                   /* extended row of unknown j */
         for (int col = 0; col < nu; col++) {
             double a4 = 0.0, a2 = 0.0;
-            for (int t = 0; t < 5; t++) a4 += (d4[t] / h4) * E[(size_t)(r - 2 + t) * nu + col];
+            if (ext) {                                 /* D2 (e D2 w): moments at rows r-1, r, r+1 */
+                for (int t = 0; t < 3; t++) {
+                    const int k = r - 1 + t;
+                    double curv = 0.0;
+                    for (int q = 0; q < 3; q++) curv += d2[q] * E[(size_t)(k - 1 + q) * nu + col];
+                    a4 += d2[t] * ext[k] * curv;
+                }
+                a4 /= h4;
+            } else {
+                for (int t = 0; t < 5; t++) a4 += (d4[t] / h4) * E[(size_t)(r - 2 + t) * nu + col];
+            }
             for (int t = 0; t < 3; t++) a2 += (d2[t] / h2) * E[(size_t)(r - 1 + t) * nu + col];
             B4[j * nu + col] = V[j] * a4;
             B2[j * nu + col] = V[j] * a2;
         }
     }
+    free(ext);
     for (int i = 0; i < nu * nu; i++) {
         b->K[i] = EI * B4[i] - N * B2[i];
         b->C[i] = eta * EI * B4[i];
