@@ -28,7 +28,7 @@ from ebb_model.output import check_writable_dir, make_dir
 from .export_targets import DEFAULT_TARGETS, ExportItem, check_targets, export_target
 from .result import IdentificationResult
 
-__all__ = ["export_points"]
+__all__ = ["export_points", "chosen"]
 
 
 def _chosen(what: str, selection: Sequence[int] | str | None, n: int) -> Sequence[int]:
@@ -47,6 +47,21 @@ def _chosen(what: str, selection: Sequence[int] | str | None, n: int) -> Sequenc
     if bad:
         raise ConfigError(f"`{what}`: {bad} out of range" + (f" 0 … {n - 1}" if n else f" (no {what} points)"))
     return chosen
+
+
+def chosen(result: IdentificationResult, points: Sequence[int] | str | None,
+           polished: Sequence[int] | str | None) -> tuple[Sequence[int], Sequence[int]]:
+    """The Pareto and polished indices a selection names: with neither given, every one of both; when one is
+    given, the other defaults to none.
+
+    Raises
+    ------
+    ConfigError
+        Indices out of range, ``"all"`` of none.
+    """
+    if points is None and polished is None:
+        return range(len(result.pareto.X)), range(len(result.polished))
+    return (_chosen("points", points, len(result.pareto.X)), _chosen("polished", polished, len(result.polished)))
 
 
 def export_points(result: IdentificationResult, points: Sequence[int] | str | None = None, *,
@@ -90,14 +105,8 @@ def export_points(result: IdentificationResult, points: Sequence[int] | str | No
         raise ConfigError(f"`modes_up_to`: must be > 0 Hz, got {modes_up_to!r}")
     d = result.out_dir
     check_writable_dir(d / "export" if (d / "export").is_dir() else d)   # before any work
-    if points is None and polished is None:
-        chosen_pts: Sequence[int] = range(len(result.pareto.X))
-        chosen_pol: Sequence[int] = range(len(result.polished))
-    else:
-        chosen_pts = _chosen("points", points, len(result.pareto.X))
-        chosen_pol = _chosen("polished", polished, len(result.polished))
     models = []
-    for stem, c, params in result.models(chosen_pts, chosen_pol):
+    for stem, c, params in result.models(*chosen(result, points, polished)):
         try:
             models.append((stem, c, params, design_model(c, params, f_max=modes_up_to), assemble(c, params)))
         except StabilityError:

@@ -26,7 +26,7 @@ from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
 from ebb_model.output import atomic_path, check_writable_dir, make_dir
 
-from .export import _chosen
+from .export import chosen
 from .result import IdentificationResult
 
 __all__ = ["export_ssp", "check_ssp", "DEFAULT_SET"]
@@ -100,13 +100,7 @@ def export_ssp(result: IdentificationResult, points: Sequence[int] | str | None 
     check_ssp(result)
     d = result.out_dir
     check_writable_dir(d / "export" if (d / "export").is_dir() else d)
-    if points is None and polished is None:
-        chosen_pts: Sequence[int] = range(len(result.pareto.X))
-        chosen_pol: Sequence[int] = range(len(result.polished))
-    else:
-        chosen_pts = _chosen("points", points, len(result.pareto.X))
-        chosen_pol = _chosen("polished", polished, len(result.polished))
-    models = result.models(chosen_pts, chosen_pol)
+    models = result.models(*chosen(result, points, polished))
     if not models:
         raise ConfigError("`export_ssp`: no point chosen")
     default = "polished_0" if result.polished else f"point_{result.pareto.knee}"

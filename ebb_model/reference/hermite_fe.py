@@ -316,6 +316,21 @@ def _check_end(name: str, end: tuple[float, float]) -> tuple[float, float]:
     return kt, kr
 
 
+def _point_matrix(items: Sequence[tuple[float, float]], what: str, pair: str, length: float, ne: int
+                  ) -> np.ndarray:
+    """``Σ v φ(x) φ(x)ᵀ`` over the ``(v, x)`` pairs of point masses or springs (``v >= 0``, finite)."""
+    out = np.zeros((2 * (ne + 1), 2 * (ne + 1)))
+    for item in items:
+        try:
+            v, x = item
+        except (TypeError, ValueError):
+            raise ParameterError(f"{what} must be a {pair} pair, got {item!r}") from None
+        v = finite_scalar(what, v, minimum=0.0)
+        phi = _global_shape_vector(x, length, ne)
+        out += v * np.outer(phi, phi)
+    return out
+
+
 def hermite_beam(
     length: float,
     n_elements: int,
@@ -416,24 +431,8 @@ def hermite_beam(
         Kb[s, s] += Kbe / compliance[e]
         G[s, s] += Ge
 
-    Mp = np.zeros((ndof, ndof))
-    for item in point_masses:
-        try:
-            m, xm = item
-        except (TypeError, ValueError):
-            raise ParameterError(f"point mass must be a (mass, x) pair, got {item!r}") from None
-        m = finite_scalar("point mass", m, minimum=0.0)
-        phi = _global_shape_vector(xm, L, ne)
-        Mp += m * np.outer(phi, phi)
-    Kp = np.zeros((ndof, ndof))
-    for item in point_springs:
-        try:
-            k, xk = item
-        except (TypeError, ValueError):
-            raise ParameterError(f"point spring must be a (k, x) pair, got {item!r}") from None
-        k = finite_scalar("point spring", k, minimum=0.0)
-        phi = _global_shape_vector(xk, L, ne)
-        Kp += k * np.outer(phi, phi)
+    Mp = _point_matrix(point_masses, "point mass", "(mass, x)", L, ne)
+    Kp = _point_matrix(point_springs, "point spring", "(k, x)", L, ne)
 
     Ks = np.zeros((ndof, ndof))
     constrained: list[int] = []

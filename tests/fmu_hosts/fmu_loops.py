@@ -89,13 +89,30 @@ def fmpy_outputs(fmu: str | os.PathLike, u: np.ndarray, *, params: Mapping[str, 
     return y
 
 
+def _libcosim_steps(execution, index: int, in_vr: list[int], out_vr: list[int], u: np.ndarray) -> np.ndarray:
+    """Step a libcosim execution once per row of ``u`` (the inputs overridden), the outputs read after each step."""
+    from libcosimpy.CosimManipulator import CosimManipulator
+    from libcosimpy.CosimObserver import CosimObserver
+
+    manipulator = CosimManipulator.create_override()
+    execution.add_manipulator(manipulator)
+    observer = CosimObserver.create_last_value()
+    execution.add_observer(observer)
+    u = np.asarray(u, dtype=float).reshape(len(u), -1)
+    y = np.empty((len(u), len(out_vr)))
+    for k in range(len(u)):
+        manipulator.slave_real_values(index, in_vr, u[k].tolist())
+        if not execution.step():
+            raise RuntimeError(f"libcosim step {k} failed")
+        y[k] = observer.last_real_values(index, out_vr)
+    return y
+
+
 def cosim_outputs(fmu: str | os.PathLike, u: np.ndarray, *,
                   params: Mapping[str, float] | None = None) -> np.ndarray:
     """Outputs recorded by libcosim (the OSP C++ master) after each step ("after" protocol)."""
     from fmpy import read_model_description
     from libcosimpy.CosimExecution import CosimExecution
-    from libcosimpy.CosimManipulator import CosimManipulator
-    from libcosimpy.CosimObserver import CosimObserver
     from libcosimpy.CosimSlave import CosimLocalSlave
 
     md = read_model_description(str(fmu))
@@ -108,18 +125,7 @@ def cosim_outputs(fmu: str | os.PathLike, u: np.ndarray, *,
     index = execution.add_local_slave(slave)
     for name, value in (params or {}).items():
         execution.real_initial_value(index, vr[name], value)
-    manipulator = CosimManipulator.create_override()
-    execution.add_manipulator(manipulator)
-    observer = CosimObserver.create_last_value()
-    execution.add_observer(observer)
-    u = np.asarray(u, dtype=float).reshape(len(u), -1)
-    y = np.empty((len(u), len(out_vr)))
-    for k in range(len(u)):
-        manipulator.slave_real_values(index, in_vr, u[k].tolist())
-        if not execution.step():
-            raise RuntimeError(f"libcosim step {k} failed")
-        y[k] = observer.last_real_values(index, out_vr)
-    return y
+    return _libcosim_steps(execution, index, in_vr, out_vr, u)
 
 
 def ssp_outputs(ssd: str | os.PathLike, fmu: str | os.PathLike, u: np.ndarray, step: float) -> np.ndarray:
@@ -128,8 +134,6 @@ def ssp_outputs(ssd: str | os.PathLike, fmu: str | os.PathLike, u: np.ndarray, s
     value references)."""
     from fmpy import read_model_description
     from libcosimpy.CosimExecution import CosimExecution
-    from libcosimpy.CosimManipulator import CosimManipulator
-    from libcosimpy.CosimObserver import CosimObserver
 
     md = read_model_description(str(fmu))
     vr = {v.name: v.valueReference for v in md.modelVariables}
@@ -137,18 +141,7 @@ def ssp_outputs(ssd: str | os.PathLike, fmu: str | os.PathLike, u: np.ndarray, s
     out_vr = [vr[n] for n in _names(md, "output")]
     execution = CosimExecution.from_ssp_file(str(ssd), round(step * 1e9))
     index = execution.slave_index_from_instance_name("beam")
-    manipulator = CosimManipulator.create_override()
-    execution.add_manipulator(manipulator)
-    observer = CosimObserver.create_last_value()
-    execution.add_observer(observer)
-    u = np.asarray(u, dtype=float).reshape(len(u), -1)
-    y = np.empty((len(u), len(out_vr)))
-    for k in range(len(u)):
-        manipulator.slave_real_values(index, in_vr, u[k].tolist())
-        if not execution.step():
-            raise RuntimeError(f"libcosim step {k} failed")
-        y[k] = observer.last_real_values(index, out_vr)
-    return y
+    return _libcosim_steps(execution, index, in_vr, out_vr, u)
 
 
 def ecos_outputs(fmu: str | os.PathLike, u: np.ndarray, *,
