@@ -69,6 +69,12 @@ def test_export_ssp_is_loaded_by_libcosim_with_each_parameter_set(identify_case,
         # the same binary under two masters: round-off only
         np.testing.assert_allclose(results[stem], ref, rtol=0, atol=1e-12 * np.abs(ref).max())
     assert np.abs(results[far] - results["polished_0"]).max() > 1e-6 * np.abs(results[far]).max()
+    # a cut-off that is no frequency: one line naming the flag, exit 2, nothing written
+    before = {p: p.stat().st_mtime_ns for p in (out / "export").iterdir()}
+    capsys.readouterr()
+    assert main(["export", str(out), "--modes-up-to", "0"]) == 2
+    assert "--modes-up-to: must be > 0 Hz, got 0.0" in capsys.readouterr().err
+    assert {p: p.stat().st_mtime_ns for p in (out / "export").iterdir()} == before
 
 
 def test_export_ssp_refuses_identified_positions(identify_case, tmp_path, capsys):
