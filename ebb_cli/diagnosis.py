@@ -86,7 +86,7 @@ def add_parsers(sub: Subcommands) -> None:
     p.set_defaults(func=_cmd_diagnose)
 
     p = sub.add_parser("demo", help="the whole workflow on an embedded example (synthetic data with a withheld "
-                                    "effect → identify → export → diagnose), under a minute on 2 cores")
+                                    "effect → identify → export → diagnose), about a minute on 2 cores")
     p.add_argument("--out", default="demo-out", help="output directory (default demo-out; must not exist or be empty)")
     p.add_argument("--quick", action="store_true", help="smaller run (for tests)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")

@@ -16,7 +16,7 @@ def build_parser() -> FlagParser:
     """The ``ebb`` argument parser with every subcommand (and their flags: :attr:`FlagParser.flags`)."""
     parser = FlagParser(prog="ebb", description="Euler-Bernoulli beam under axial load: "
                                      "model, FMU, identification and sim-to-real gap diagnosis.",
-                        epilog="New here? Start with `ebb demo` (under a minute on 2 cores): the whole workflow on an "
+                        epilog="New here? Start with `ebb demo` (about a minute on 2 cores): the whole workflow on an "
                                "embedded example, with every file it writes. Then `ebb COMMAND --help`.")
     sub = parser.add_subparsers(dest="command", required=True)
     for layer in (model, fmu, identification, diagnosis):
