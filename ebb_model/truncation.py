@@ -26,7 +26,7 @@ from .errors import ConfigError
 from .modal_form import ModalStateSpace
 from .statespace import DiscreteStateSpace
 
-__all__ = ["in_band", "design_model", "static_gains", "static_correction_bound"]
+__all__ = ["in_band", "design_model", "static_correction_bound"]
 
 
 def _block_dc(modal: ModalStateSpace) -> np.ndarray:
@@ -36,11 +36,6 @@ def _block_dc(modal: ModalStateSpace) -> np.ndarray:
     eye = np.eye(2)
     x = np.linalg.solve(eye[None] - modal.T, G)                                     # (nb, 2, m)
     return np.einsum("pbi,bim->bpm", modal.Cm, x)
-
-
-def static_gains(modal: ModalStateSpace) -> np.ndarray:
-    """The static gain (at ``z = 1``) of each block of ``modal`` from the inputs to the outputs, (nb, p, m)."""
-    return _block_dc(modal)
 
 
 def in_band(modal: ModalStateSpace, f_max: float) -> ModalStateSpace:
