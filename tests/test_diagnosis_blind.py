@@ -174,11 +174,14 @@ def test_accelerometer_record_without_effect_gives_none(tmp_path):
 #: response change) and a dry-friction contact (0.05 N at 0.45 m, slip velocity 0.1 mm/s; ~22 σ), both
 #: integrated by the generator's Newmark with Newton on the local element (converged: 0.02 σ between 8 and 16
 #: sub-steps).  The diagnosis must say "not in the catalogue" instead of naming the least-bad candidate.
+#: A third (issue 31): a one-sided stop 2 mm from the beam at 0.7 m (k 2000 N/m; the free beam's displacement
+#: there has an RMS of 1.96 mm and peaks at 4.3 mm), ~110 σ of response change.
 #: Measured: cubic spring — the best candidate (a pair at most) closes 6 % of the held-out gap; dry friction —
 #: the best single candidate closes 4 %.
 OUTSIDE_CASES = [
     ("cubic_spring", WithheldEffect("cubic_spring", {"k3": 1e9, "x": 0.7})),
     ("dry_friction", WithheldEffect("dry_friction", {"force": 0.05, "x": 0.45, "slip": 1e-4})),
+    ("contact_stop", WithheldEffect("contact_stop", {"k": 2000.0, "x": 0.7, "gap": 2e-3})),
 ]
 
 

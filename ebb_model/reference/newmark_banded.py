@@ -185,7 +185,7 @@ def _rank_one_correction(acc, z1, z, coef, qp, bh2, tol):  # pragma: no cover - 
 
 @numba.njit(cache=True, nogil=True)
 def _kernel(Mb, Cb, Kb, Gb, Phi, rows, kinds, F, dt, m, beta, gamma, rate, ea_over_l,
-            act_E, act_p, act_c1, lag_sensor, sen_E, sen_p, sen_c1, rloc, k3, fc, v0, tol, maxit,
+            act_E, act_p, act_c1, lag_sensor, sen_E, sen_p, sen_c1, rloc, k3, fc, v0, kc, gap, tol, maxit,
             y):  # pragma: no cover
     n = Mb.shape[1]
     ni = F.shape[1]
@@ -199,7 +199,7 @@ def _kernel(Mb, Cb, Kb, Gb, Phi, rows, kinds, F, dt, m, beta, gamma, rate, ea_ov
     hg1 = h * (1.0 - gamma)
     lagged_force = act_E != 0.0 or act_p != 0.0 or act_c1 != 1.0
     nonlinear = ea_over_l != 0.0
-    local = k3 != 0.0 or fc != 0.0
+    local = k3 != 0.0 or fc != 0.0 or kc != 0.0
     varying = nonlinear or rate != 0.0
 
     Sbase = Mb + gh * Cb + bh2 * Kb
@@ -288,7 +288,8 @@ def _kernel(Mb, Cb, Kb, Gb, Phi, rows, kinds, F, dt, m, beta, gamma, rate, ea_ov
                 rhs[r] = sf - rhs[r] - tmp[r]
             t1 = (k + s1) * dt
             if local:
-                # Newton on a with the local element's force r f(xi, xi'), xi = r^T q, xi' = r^T v:
+                # Newton on a with the local element's force r f(xi, xi'), xi = r^T q, xi' = r^T v
+                # (the stop's force is piecewise linear and monotone: Newton ends in a finite number of steps):
                 # -R(a) = S a + r f - rhs; tangent S + (bh2 df/dxi + gh df/dxi') r r^T (Sherman-Morrison)
                 converged = False
                 for it in range(maxit):
@@ -300,6 +301,9 @@ def _kernel(Mb, Cb, Kb, Gb, Phi, rows, kinds, F, dt, m, beta, gamma, rate, ea_ov
                     th = math.tanh(xd / v0) if fc != 0.0 else 0.0
                     f = k3 * xi * xi * xi + fc * th
                     ct = bh2 * 3.0 * k3 * xi * xi + (gh * fc / v0 * (1.0 - th * th) if fc != 0.0 else 0.0)
+                    if kc != 0.0 and xi > gap:
+                        f += kc * (xi - gap)
+                        ct += bh2 * kc
                     _sym_band_matvec(Sbase, acc, tmp)
                     for r in range(n):
                         res[r] = tmp[r] + f * rloc[r] - rhs[r]  # -R
@@ -405,6 +409,8 @@ def newmark_banded(
     k3: float = 0.0,
     friction: float = 0.0,
     slip_velocity: float = 1.0,
+    stop_k: float = 0.0,
+    stop_gap: float = 0.0,
     beta: float = 0.25,
     gamma: float = 0.5,
     tol: float = 1e-12,
@@ -431,10 +437,11 @@ def newmark_banded(
         Axial-load drift rate [N/s] and :math:`EA/L` [N/m] of the stiffening.
     actuator_tau, lag_sensor, sensor_tau
         Actuator lag [s]; index of the lagged sensor (-1: none) and its lag [s].
-    local_row, k3, friction, slip_velocity
+    local_row, k3, friction, slip_velocity, stop_k, stop_gap
         A local nonlinear element on the coordinate :math:`\xi = r^T q` (``local_row`` ``r``, e.g. the
-        displacement at a point): force :math:`r\,(k_3 \xi^3 + F_c \tanh(\dot\xi / v_0))` — a grounded
-        cubic spring and a (regularised) dry-friction contact.  Not combined with drift or stiffening.
+        displacement at a point): force :math:`r\,(k_3 \xi^3 + F_c \tanh(\dot\xi / v_0) + k\max(\xi - g, 0))` —
+        a grounded cubic spring, a (regularised) dry-friction contact and a one-sided stop of stiffness ``k``
+        a gap ``g`` away.  Not combined with drift or stiffening.
     beta, gamma
         Newmark parameters.
     tol, maxit
@@ -459,7 +466,7 @@ def newmark_banded(
         raise ValueError("F must have (n_samples - 1) * substeps + 1 rows")
     y = np.empty(((F.shape[0] - 1) // substeps + 1, rows.shape[0]))
     rloc = np.zeros(M.shape[0]) if local_row is None else np.ascontiguousarray(local_row, dtype=float)
-    if (k3 != 0.0 or friction != 0.0) and (rate != 0.0 or ea_over_l != 0.0):
+    if (k3 != 0.0 or friction != 0.0 or stop_k != 0.0) and (rate != 0.0 or ea_over_l != 0.0):
         raise ValueError("the local nonlinear element is not combined with drift or stiffening")
     if not slip_velocity > 0.0:
         raise ValueError("slip_velocity must be > 0")
@@ -468,7 +475,7 @@ def newmark_banded(
         np.ascontiguousarray(Phi, dtype=float), np.ascontiguousarray(rows, dtype=float),
         np.ascontiguousarray(kinds, dtype=np.int64), F, float(dt), int(substeps), float(beta), float(gamma),
         float(rate), float(ea_over_l), aE, ap, ac, int(lag_sensor), sE, sp, sc, rloc, float(k3), float(friction),
-        float(slip_velocity), float(tol), int(maxit), y,
+        float(slip_velocity), float(stop_k), float(stop_gap), float(tol), int(maxit), y,
     )
     if status == 1:
         raise StabilityError("mass matrix is not positive definite")

@@ -41,9 +41,10 @@ effect                              implementation
                                     Cholesky) every sub-step
 ``geometric_stiffening``            :math:`N = N_0 + \frac{EA}{2L} q^T G q`: Newton iteration per
                                     sub-step (tolerance ``1e-12``, Sherman–Morrison tangent)
-``cubic_spring``, ``dry_friction``  (outside the diagnosis catalogue) a local element on
-                                    :math:`\xi = w(x)`: force :math:`k_3\xi^3` or
-                                    :math:`F_c\tanh(\dot\xi/v_0)`; Newton per sub-step as above
+``cubic_spring``, ``dry_friction``, (outside the diagnosis catalogue) a local element on
+``contact_stop``                    :math:`\xi = w(x)`: force :math:`k_3\xi^3`,
+                                    :math:`F_c\tanh(\dot\xi/v_0)` or :math:`k\max(\xi - g, 0)`;
+                                    Newton per sub-step as above
 ==================================  =============================================================
 
 Conventions
@@ -289,7 +290,7 @@ def _newmark_run(beam: HermiteBeam, operators: tuple[np.ndarray, np.ndarray, np.
         beam.M, beam.C, beam.K, beam.K_axial, Phi, rows, kinds, F, dt, k,
         rate=truth.rate, ea_over_l=truth.ea / length, actuator_tau=truth.act_tau, lag_sensor=truth.lag_sensor,
         sensor_tau=truth.sen_tau, local_row=None if truth.local_x is None else beam.displacement_row(truth.local_x),
-        k3=truth.k3, friction=truth.friction, slip_velocity=truth.slip,
+        k3=truth.k3, friction=truth.friction, slip_velocity=truth.slip, stop_k=truth.stop_k, stop_gap=truth.stop_gap,
     )
 
 

@@ -32,7 +32,10 @@ from ..errors import ConfigError, ParameterError, StabilityError
 from .hermite_fe import HermiteBeam, hermite_beam
 from .withheld import WithheldEffect
 
-__all__ = ["Truth", "apply_effects", "build_beam", "uses_exact"]
+__all__ = ["LOCAL_ELEMENTS", "Truth", "apply_effects", "build_beam", "uses_exact"]
+
+#: The generator's local nonlinear elements (outside the diagnosis catalogue); one at a time.
+LOCAL_ELEMENTS: tuple[str, ...] = ("cubic_spring", "dry_friction", "contact_stop")
 
 
 @dataclass(frozen=True)
@@ -46,8 +49,9 @@ class Truth:
         ``(start, end, factor)`` and the parameters of :func:`hermite_beam`.
     rate, ea, act_tau, sen_tau, lag_sensor
         Axial drift rate, ``EA``, actuator and sensor lag time constants, lagged sensor (-1: none).
-    local_x, k3, friction, slip
-        Position of a cubic spring or dry friction (``None``: none), its ``k3``, force and slip velocity.
+    local_x, k3, friction, slip, stop_k, stop_gap
+        Position of the local nonlinear element — a cubic spring, dry friction or a contact stop (``None``:
+        none) —, its ``k3``, friction force and slip velocity, the stop's stiffness and gap.
     """
 
     left: tuple[float, ...]
@@ -67,6 +71,13 @@ class Truth:
     k3: float
     friction: float
     slip: float
+    stop_k: float = 0.0
+    stop_gap: float = 0.0
+
+    @property
+    def local(self) -> bool:
+        """Whether the local nonlinear element acts (a zero-sized one is the plain beam)."""
+        return self.k3 != 0.0 or self.friction != 0.0 or self.stop_k != 0.0
 
 
 def _check_not_buckled(beam: HermiteBeam, dn_min: float, N: float, where: str) -> None:
@@ -115,7 +126,7 @@ def apply_effects(config: BeamConfig, p: Mapping[str, float], effects: Sequence[
     springs = [(sp.k, sp.x) for sp in config.springs]
     weak = [(*w.ends, w.factor) for w in config.weak_segments]
     eta, rhoI, kf = p["eta"], p["rhoI"], p["kf"]
-    rate = ea = act_tau = sen_tau = k3 = friction = 0.0
+    rate = ea = act_tau = sen_tau = k3 = friction = stop_k = stop_gap = 0.0
     slip = 1.0
     local_x: float | None = None
     lag_sensor = -1
@@ -159,14 +170,16 @@ def apply_effects(config: BeamConfig, p: Mapping[str, float], effects: Sequence[
             rate = v["rate"]
         elif e.name == "geometric_stiffening":
             ea = v["EA"]
-        elif e.name in ("cubic_spring", "dry_friction"):
+        elif e.name in LOCAL_ELEMENTS:
             if local_x is not None:
-                raise ConfigError("effect: cubic_spring and dry_friction are not combined")
+                raise ConfigError(f"effect: {', '.join(LOCAL_ELEMENTS)} are not combined (one local element)")
             if not 0.0 <= v["x"] <= L:
                 raise ParameterError(f"effect {e.name}.x = {v['x']:g} m lies outside the beam [0, {L:g}] m")
             local_x = v["x"]
             if e.name == "cubic_spring":
                 k3 = v["k3"]
+            elif e.name == "contact_stop":
+                stop_k, stop_gap = v["k"], v["gap"]
             else:
                 if not v["slip"] > 0.0:
                     raise ParameterError(f"effect dry_friction.slip must be > 0, got {v['slip']:g}")
@@ -175,7 +188,7 @@ def apply_effects(config: BeamConfig, p: Mapping[str, float], effects: Sequence[
             raise ConfigError(f"effect {e.name!r} is not implemented by the generator")
     return Truth(left=tuple(ends["left"]), right=tuple(ends["right"]), masses=masses, springs=springs, weak=weak,
                  eta=eta, rhoI=rhoI, kf=kf, rate=rate, ea=ea, act_tau=act_tau, sen_tau=sen_tau, lag_sensor=lag_sensor,
-                 local_x=local_x, k3=k3, friction=friction, slip=slip)
+                 local_x=local_x, k3=k3, friction=friction, slip=slip, stop_k=stop_k, stop_gap=stop_gap)
 
 
 def build_beam(config: BeamConfig, p: Mapping[str, float], truth: Truth, n_elements: int, n_samples: int,
@@ -229,10 +242,11 @@ def uses_exact(integrator: str, truth: Truth) -> bool:
         ``"exact"`` for a truth that is not linear time-invariant.
     """
     varying = {"axial_drift": truth.rate != 0.0, "geometric_stiffening": truth.ea != 0.0,
-               "cubic_spring": truth.k3 != 0.0, "dry_friction": truth.friction != 0.0}
+               "cubic_spring": truth.k3 != 0.0, "dry_friction": truth.friction != 0.0,
+               "contact_stop": truth.stop_k != 0.0}
     time_varying = [name for name, on in varying.items() if on]
-    if (truth.k3 != 0.0 or truth.friction != 0.0) and (truth.rate != 0.0 or truth.ea != 0.0):
-        raise ConfigError("effect: cubic_spring/dry_friction are not combined with axial_drift or "
+    if truth.local and (truth.rate != 0.0 or truth.ea != 0.0):
+        raise ConfigError(f"effect: {'/'.join(LOCAL_ELEMENTS)} are not combined with axial_drift or "
                           "geometric_stiffening")
     if integrator == "exact" and time_varying:
         raise ParameterError(f"integrator 'exact' needs a linear time-invariant truth; {time_varying[0]} is not "

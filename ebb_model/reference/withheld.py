@@ -32,7 +32,7 @@ name                                    parameters         off value
 
 Effects *outside* the diagnosis catalogue (:data:`OUTSIDE_CATALOGUE`), for
 checking that the diagnosis says "not in the catalogue" instead of naming the
-least-bad candidate — both nonlinear, integrated with Newmark:
+least-bad candidate — all nonlinear, integrated with Newmark:
 
 ======================================  =================  =====================================
 ``cubic_spring``                        ``k3`` [N/m³],     grounded hardening spring
@@ -40,6 +40,9 @@ least-bad candidate — both nonlinear, integrated with Newmark:
 ``dry_friction``                        ``force`` [N],     contact at ``x`` with Coulomb force
                                         ``x`` [m],         :math:`F_c \tanh(\dot w(x)/v_0)`
                                         ``slip`` [m/s]     (``slip`` = :math:`v_0` > 0)
+``contact_stop``                        ``k`` [N/m],       a stop the beam hits at ``x`` once it
+                                        ``x`` [m],         has moved ``gap`` towards it:
+                                        ``gap`` [m]        :math:`k \max(w(x) - g, 0)` (one-sided)
 ======================================  =================  =====================================
 """
 from __future__ import annotations
@@ -140,6 +143,9 @@ OUTSIDE_CATALOGUE: Mapping[str, EffectSpec] = MappingProxyType(
                   "grounded hardening spring: force k3*w(x)^3 at x"),
             _spec("dry_friction", (("force", "N", "nonneg"), ("x", "m", "real"), ("slip", "m/s", "nonneg")),
                   "dry-friction contact at x: force force*tanh(w_t(x)/slip) against the motion"),
+            _spec("contact_stop", (("k", "N/m", "nonneg"), ("x", "m", "real"), ("gap", "m", "nonneg")),
+                  "one-sided stop at x: force k*max(w(x) - gap, 0) once the beam has closed the gap "
+                  "(a stop, the shaker's body, a loose guide)"),
         )
     }
 )
