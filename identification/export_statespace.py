@@ -1,6 +1,8 @@
 """Export of identified models as python-control discrete ``StateSpace`` systems.
 
-A system is saved as an ``.npz`` with ``A, B, C, D, dt``, the signal names and what a control designer needs
+A system is saved as an ``.npz`` with ``A, B, C, D, dt``, the signal names, the first-order hold's ``hold``
+(``Γ₁``: the state at rest under a constant input ``u0`` is ``−Γ₁ u0``, :func:`rest_state`) and what a control
+designer needs
 to know where it came from: the system's name, its parameter values with units and the config it was built from
 (JSON inside the archive; reloadable without pickle: :func:`load_statespace`, :func:`load_metadata`).
 Optionally a reduced model by square-root balanced truncation, with its Hankel singular values and
@@ -24,14 +26,15 @@ from ebb_model.beam import PARAMETER_UNITS
 from ebb_model.errors import ConfigError, StabilityError
 from ebb_model.jsonio import jsonable
 
-__all__ = ["save_statespace", "load_statespace", "load_metadata", "BalancedModel", "balanced_truncation",
-           "continuous_equivalent"]
+__all__ = ["save_statespace", "load_statespace", "load_metadata", "rest_state", "BalancedModel",
+           "balanced_truncation", "continuous_equivalent"]
 
 
 def save_statespace(sys: DiscreteStateSpace, path: str | Path, *, name: str = "",
                     parameters: Mapping[str, float] | None = None, config: Mapping[str, Any] | None = None
                     ) -> Path:
-    """Write ``sys`` to ``path`` (``.npz``), atomically, with its name, parameter values (and units) and config."""
+    """Write ``sys`` to ``path`` (``.npz``), atomically, with its name, parameter values (and units), config and
+    the hold matrix of a first-order-hold realisation (:func:`rest_state`)."""
     path = Path(path)
     meta = {"name": name or path.stem,
             "parameters": {k: float(v) for k, v in (parameters or {}).items()},
@@ -43,7 +46,8 @@ def save_statespace(sys: DiscreteStateSpace, path: str | Path, *, name: str = ""
     with atomic_path(path, suffix=".npz") as tmp:
         np.savez(tmp, A=sys.A, B=sys.B, C=sys.C, D=sys.D, dt=np.array(sys.dt),
                  inputs=np.array(sys.input_names), outputs=np.array(sys.output_names),
-                 states=np.array(sys.state_names), metadata=np.array(json.dumps(meta)))
+                 states=np.array(sys.state_names), metadata=np.array(json.dumps(meta)),
+                 **({"hold": sys.hold} if sys.hold is not None else {}))
     return path
 
 
@@ -57,6 +61,39 @@ def load_metadata(path: str | Path) -> dict[str, Any]:
     """The name, parameter values, units and config saved with a system (empty for files without them)."""
     with np.load(path, allow_pickle=False) as z:
         return json.loads(str(z["metadata"])) if "metadata" in z.files else {}
+
+
+def rest_state(path: str | Path, u0: np.ndarray) -> np.ndarray:
+    """The initial state of a saved system at rest under the constant input ``u0`` before the record.
+
+    A first-order-hold realisation (the default input reconstruction) has ``y = C x + D u`` with the state
+    shifted by the hold: at rest ``x[0] = −Γ₁ u[0]``, not zero — started from zero the system sees a step of
+    ``u[0]`` at ``t = 0``.  Pass it as the initial state, e.g. ``control.forced_response(sys, T, U.T,
+    X0=rest_state(path, U[0]))``.
+
+    Parameters
+    ----------
+    path
+        A file written by :func:`save_statespace`.
+    u0
+        The input at the first sample, shape ``(n_inputs,)``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``−Γ₁ u0`` (zeros for a zero-order hold or a file without a hold).
+
+    Raises
+    ------
+    ConfigError
+        ``u0`` does not have one value per input.
+    """
+    u0 = np.asarray(u0, dtype=float).ravel()
+    with np.load(path, allow_pickle=False) as z:
+        n, m = z["A"].shape[0], z["B"].shape[1]
+        if u0.shape != (m,):
+            raise ConfigError(f"rest_state: u0 has {u0.size} values, the system has {m} inputs")
+        return -(z["hold"] @ u0) if "hold" in z.files else np.zeros(n)
 
 
 def load_statespace(path: str | Path):
