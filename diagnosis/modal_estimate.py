@@ -63,6 +63,12 @@ class MeasuredModes:
     damping_std: np.ndarray
     gap_ratio: float
 
+    def select(self, keep: np.ndarray) -> "MeasuredModes":
+        """The modes where ``keep`` (a boolean mask) is true; the modal fit's gap ratio stays the whole fit's."""
+        keep = np.asarray(keep, dtype=bool)
+        return MeasuredModes(self.freq_hz[keep], self.damping[keep], self.freq_std[keep], self.damping_std[keep],
+                             self.gap_ratio)
+
     def to_dict(self) -> dict[str, list[float] | float]:
         """JSON-ready values."""
         return {"freq_hz": [float(v) for v in self.freq_hz], "damping": [float(v) for v in self.damping],

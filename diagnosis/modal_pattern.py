@@ -235,9 +235,11 @@ def pattern_fit(problem: GapProblem, evidence: ModalEvidence, beta0: np.ndarray,
         lam = _amplitude_scale(problem, effect, full(best.x))
         if lam is not None:
             held[:p][~free[:p]] = np.clip(held[:p][~free[:p]] * lam, lo[:p][~free[:p]], hi[:p][~free[:p]])
-            x0 = best.x.copy()
-            x0[:int(np.sum(free[:p]))] *= lam
-            best = polish(x0)
+            z0 = full(best.x)
+            z0[:p] *= lam
+            for i in effect.scaled if effect is not None else ():   # a mass, a stiffness: the same ratio to
+                z0[p + i] *= lam                                      # the beam, the same modes
+            best = polish(z0[free])
     z = full(best.x)
     s = z[p:]
     try:

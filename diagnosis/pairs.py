@@ -21,7 +21,6 @@ import numpy as np
 
 from .effects import PAIR_SEPARATOR, on_top_of
 from .effects.chain import FAMILY as CHAIN
-from .effects.point_mass import TRANSDUCER
 from .fitting import Fit
 from .refits import EffectRefit, explains, pair_refit
 from .score import score_effect
@@ -82,9 +81,9 @@ def pair_with(run: Search, single: EffectRefit, known: dict[str, Fit]
     first = run.catalogue.effect(single.label)
     with_prior = run.problem.prior is not None and run.problem.prior.count > 0
     # a chain's gain as the second effect only where a prior breaks its degeneracy (as on the shortlist); a
-    # transducer's mass never (the point mass, which nests it, stands in for it)
+    # special case never (the general effect that nests it stands in for it: diagnosis.nested)
     rescored = {e.label: score_effect(run.problem, single.fit, on_top_of(first, single.fit.s, e)).lm
-                for e in run.effects.values() if e.name != first.name and e.name != TRANSDUCER
+                for e in run.effects.values() if e.name != first.name and e.nested_in is None
                 and (with_prior or e.name not in CHAIN.names)}
     partners = [lab for lab in sorted(rescored, key=lambda k: -rescored[k]) if rescored[lab] > 0][:PAIR_PARTNERS]
     run.say(f"second-effect scores at the {single.label} refit: "

@@ -32,7 +32,8 @@ mass 0.5 m away from a withheld spring to ground, on accelerometers, left 11
 noise variances), the measured modes
 (:mod:`diagnosis.modal_estimate`) are matched by every structural effect with
 the baseline unknowns profiled out (:mod:`diagnosis.modal_pattern`), and the
-:data:`PATTERN_CANDIDATES` best matches are refitted from their match — in
+:data:`PATTERN_CANDIDATES` best matches (and a special case at a fixed place,
+:mod:`diagnosis.nested`, beside them when it matches best) are refitted from their match — in
 the right basin even when the baseline had compensated the effect and its
 one-sided score was 0.  Only then come the other baseline basins and the
 continuation refits.
@@ -52,9 +53,9 @@ import numpy as np
 
 from .effects import Catalogue, Effect
 from .effects.chain import FAMILY as CHAIN
-from .effects.point_mass import AT_SENSOR, TRANSDUCER
 from .fitting import Fit, GapProblem
 from .modal_pattern import ModalEvidence, PatternFit, pattern_fits
+from .nested import armature_refits, transducer_refits
 from .pairs import PAIR_MINIMUM, Early, early_pair, pair_explains, pair_with, same_fit
 from .refits import GAP_THRESHOLD, EffectRefit, better_baseline, explains, refit_from_match
 from .score import EffectScore, score_effect
@@ -132,13 +133,20 @@ def _pattern_stage(run: Search, evidence: ModalEvidence, local: Refits) -> tuple
             + ", ".join(f"{lab} {pf.chi2:.4g}" for lab, pf in patterns.items() if lab != "baseline"))
     matching = sorted((lab for lab in patterns if lab != "baseline" and patterns[lab].chi2 < base - BIC_MARGIN),
                       key=lambda lab: patterns[lab].chi2)
-    ranked = matching[:PATTERN_CANDIDATES]
+    # a special case at a fixed place (an armature at the drive point) is refitted beside the general matches
+    # when it matches best of all, never in their place: with three modes every two-variable structural effect
+    # matches within the errors, and a sprung mass at the drive point stood in for a spring 0.25 m away
+    general = [lab for lab in matching if run.effects[lab].nested_in is None]
+    special = [lab for lab in matching if run.effects[lab].nested_in is not None][:1]
+    ranked = general[:PATTERN_CANDIDATES]
     if ranked:   # a match far worse than the best one does not match: 2 per mode is a match within the errors
         limit = PATTERN_RIVAL * max(patterns[ranked[0]].chi2, 2.0 * evidence.n_modes)
         ranked = [lab for lab in ranked if patterns[lab].chi2 <= limit]
-    local = _refit_from_matches(run, patterns, ranked, local)
-    rest = [lab for lab in matching if lab not in ranked][:PATTERN_CANDIDATES]
-    if rest and not any(explains(local[lab][0], run.baseline) for lab in ranked):
+        special = [lab for lab in special if patterns[lab].chi2 < patterns[ranked[0]].chi2]
+    local = _refit_from_matches(run, patterns, ranked + special, local)
+    rest = [lab for lab in general if lab not in ranked][:PATTERN_CANDIDATES]
+    if (rest and not any(explains(local[lab][0], run.baseline) for lab in ranked)
+            and not run.at_noise_floor({lab: local[lab] for lab in special})):
         # the closest matches do not explain the records: the next ones (a pattern fit can stop short of its
         # optimum, and its match still lies in the right basin for the time-domain refit)
         local = _refit_from_matches(run, patterns, rest, local)
@@ -208,7 +216,8 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
     before, baseline, say = run.before, run.baseline, run.say
     labels = labels + [lab for lab in local if lab not in labels]    # (an early pair's effect alone)
     refits = {lab: run.summary(run.effects[lab], local[lab][0]) for lab in labels}
-    refits |= _transducer_refits(run, refits)
+    refits |= transducer_refits(run, refits)
+    refits = armature_refits(run, refits)
     for label, rf in refits.items():
         say(f"refit {label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
             f"dBIC {rf.delta_bic:.1f}")
@@ -242,25 +251,6 @@ def _order(refits: dict[str, EffectRefit], before: np.ndarray, by_score: list[st
     others = sorted((lab for lab in refits if lab not in paying),
                     key=lambda lab: float(np.mean(refits[lab].heldout_after)))
     return paying, paying + others + [lab for lab in by_score if lab not in refits]
-
-
-def _transducer_refits(run: Search, refits: dict[str, EffectRefit]) -> dict[str, EffectRefit]:
-    """The transducer masses of the sensors within :data:`~diagnosis.effects.point_mass.AT_SENSOR` of the point
-    mass's refit, each refitted from it (its mass as the start): the one-variable special case tried where the
-    data put the mass, for the evidence to weigh against the point mass's free position."""
-    pm = refits.get("point_mass")
-    if pm is None:
-        return {}
-    cfg, _ = run.problem.space.apply(run.problem.config, pm.fit.beta)
-    x = float(pm.fit.s[1])
-    out = {}
-    for sensor in cfg.sensors:
-        lab = f"{TRANSDUCER}[{sensor.name}]"
-        if lab in run.effects and abs(sensor.x - x) <= AT_SENSOR * cfg.beam.length:
-            fit = run.problem.fit(pm.fit.beta, run.effects[lab], pm.fit.s[:1], max_evaluations=run.max_evaluations)
-            out[lab] = run.summary(run.effects[lab], fit)
-            run.say(f"refit {lab} from the point mass at {x:.4g} m (sensor at {sensor.x:.4g} m)")
-    return out
 
 
 def settled(ranking: Ranking) -> bool:
@@ -351,8 +341,9 @@ def _shortlist(problem: GapProblem, effects: dict[str, Effect], scores: dict[str
     when it scores best of all, and — a prior on the beam breaking the degeneracy — whenever its score is
     significant."""
     chain = {lab for lab in effects if effects[lab].name in CHAIN.names}
-    # a transducer's mass is refitted from the point mass's refit (_transducer_refits), never from its score
-    nested = {lab for lab in effects if effects[lab].name == TRANSDUCER}
+    # a transducer's mass and a shaker's armature are refitted where a general effect's refit put them
+    # (diagnosis.nested), never from their score
+    nested = {lab for lab in effects if effects[lab].nested_in is not None}
     labels = [lab for lab in by_score if scores[lab].lm > 0 and lab not in chain | nested][:shortlist]
     with_prior = problem.prior is not None and problem.prior.count > 0
     extra = [lab for lab in by_score if lab in chain and scores[lab].lm > 0

@@ -205,18 +205,26 @@ def corrected_summary(config: BeamConfig, baseline: Mapping[str, float], row: Ef
             "sensors": {s.name: s.unit for s in config.sensors}}
 
 
-def _modal_source(problem: GapProblem, freq_hz: np.ndarray, damping: np.ndarray, above_hz: np.ndarray
-                  ) -> Callable[[np.ndarray], ModalEvidence]:
+def _modal_source(problem: GapProblem, freq_hz: np.ndarray, damping: np.ndarray, above_hz: np.ndarray,
+                  band_hz: float) -> Callable[[np.ndarray], ModalEvidence]:
     """The measured modes' evidence at baseline unknowns ``beta`` (:mod:`diagnosis.modal_pattern`); the modes
-    are estimated from the fit windows once, when first asked for, starting from the baseline's ``freq_hz``."""
+    are estimated from the fit windows once, when first asked for, starting from the baseline's ``freq_hz``.
+
+    Only the modes estimated inside the excited band (up to ``band_hz``; the first always) are evidence: a mode
+    above it is seen only through the band's edge, and its oscillator takes up what the others leave — its
+    frequency, with a standard error that knows nothing of that, can be far from any mode (measured: a
+    cantilever's fourth mode at 60.8 Hz, the top of a 60 Hz multisine, estimated at 74.9 Hz 73 standard errors
+    away, which then dominated every modal match).  It still takes part in the modal fit as a regressor."""
     measured: list[MeasuredModes] = []
 
     def evidence(beta: np.ndarray) -> ModalEvidence:
         if not measured:
             fit = [r for r in problem.records if r.has_fit]
-            measured.append(estimate_modes([r.inputs[:r.fit_end] for r in fit], [r.outputs[:r.fit_end] for r in fit],
-                                           problem.noise_std, problem.config.time.dt, freq_hz, damping,
-                                           above_hz=above_hz))
+            modes = estimate_modes([r.inputs[:r.fit_end] for r in fit], [r.outputs[:r.fit_end] for r in fit],
+                                   problem.noise_std, problem.config.time.dt, freq_hz, damping, above_hz=above_hz)
+            keep = modes.freq_hz <= band_hz
+            keep[0] = True
+            measured.append(modes.select(keep))
         return modal_evidence(problem, beta, measured[0])
 
     return evidence
@@ -333,7 +341,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         fit_records = [r for r in records if r.has_fit]
         catalogue = _catalogue(problem, base_cfg, base_params, mf, f_hi)
         ranking = _ranking(problem, baseline, catalogue, shortlist, executor, workers,
-                           _modal_source(problem, mf, mz, freqs[~in_band][:1]), say)
+                           _modal_source(problem, mf, mz, freqs[~in_band][:1], f_hi), say)
         baseline = ranking.baseline
         # the model's own discretisation error: a gap that refining the grid changes is not blamed on physics
         say("numerical adequacy of the model's grid")

@@ -110,15 +110,22 @@ def score_effect(problem: GapProblem, baseline: Fit, effect: Effect) -> EffectSc
 
 def trial_values(lower: np.ndarray, upper: np.ndarray, off: np.ndarray) -> list[np.ndarray]:
     """A coarse grid of an effect's variables around "off": the switch variable on a geometric grid up to its
-    bound (both ways for a two-sided effect), times :data:`MASS_GRID` positions when there is a second variable.
-    The linearisation at "off" can badly misjudge a large effect; refits start from the best of these."""
+    bound (both ways for a two-sided effect), times :data:`MASS_GRID` positions when there is a second variable
+    — or, when the second is a one-sided size too (its off value on its lower bound: a shaker's suspension
+    beside its mass), times that size on the same geometric grid and at its off value.  The linearisation at
+    "off" can badly misjudge a large effect; refits start from the best of these."""
     lo, hi, off = (np.asarray(v, dtype=float) for v in (lower, upper, off))
     if off[0] <= lo[0]:
         values = off[0] + (hi[0] - off[0]) * np.geomspace(1e-3, 1.0, 7)
     else:
         mag = (hi[0] - lo[0]) / 2 * np.geomspace(1e-3, 1.0, 4)
         values = np.clip(np.concatenate([off[0] - mag, off[0] + mag]), lo[0], hi[0])
-    positions = [None] if off.size == 1 else list(np.linspace(lo[1], hi[1], MASS_GRID))
+    if off.size == 1:
+        positions: list[float | None] = [None]
+    elif off[1] <= lo[1]:
+        positions = [float(off[1])] + list(off[1] + (hi[1] - off[1]) * np.geomspace(1e-3, 1.0, 7))
+    else:
+        positions = list(np.linspace(lo[1], hi[1], MASS_GRID))
     out = []
     for x in positions:
         for v in values:

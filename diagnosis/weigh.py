@@ -7,7 +7,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .effects import Effect
+from .effects import PAIR_SEPARATOR, Effect
 from .effects.chain import FAMILY as CHAIN
 from .evidence import posterior_probabilities
 from .fitting import GapProblem
@@ -28,18 +28,22 @@ class Weighed:
     modal_data: dict[str, dict[str, Any]]
 
 
-def _adequate_special_case(ranking: Ranking, by_label: Mapping[str, Effect]) -> str | None:
+def _adequate_special_case(ranking: Ranking, by_label: Mapping[str, Effect]) -> tuple[str, str] | None:
     """Among the verdict and its ties, a special case of another of them (:attr:`Effect.nested_in`) whose refit
     brings the held-out records within :data:`~diagnosis.refits.GAP_THRESHOLD` of the noise floor — the
-    general effect's extra variables then buy fit the held-out records do not confirm."""
+    general effect's extra variables then buy fit the held-out records do not confirm.  Returns the special
+    case's label and the general one's."""
     group = [ranking.verdict, *ranking.indistinguishable]
     if ranking.verdict not in ranking.refits:
         return None
+    # (a pair's label in either order: the armature is nested in the pair of a point mass and a spring)
+    members = {frozenset(lab.split(PAIR_SEPARATOR)): lab for lab in group}
     for lab in group:
         e = by_label.get(lab)
-        if (e is not None and e.nested_in in group and lab in ranking.refits
+        general = None if e is None or e.nested_in is None else frozenset(e.nested_in.split(PAIR_SEPARATOR))
+        if (general in members and lab in ranking.refits
                 and float(np.mean(ranking.refits[lab].heldout_after)) - 1.0 <= GAP_THRESHOLD):
-            return lab
+            return lab, members[general]
     return None
 
 
@@ -54,9 +58,9 @@ def weigh(problem: GapProblem, ranking: Ranking, by_label: Mapping[str, Effect])
     if conflicts:
         reason += "; baseline: " + "; ".join(conflicts)
     probs = posterior_probabilities(problem, ranking.baseline, {lab: rf.fit for lab, rf in ranking.refits.items()})
-    simpler = _adequate_special_case(ranking, by_label)
-    if simpler is not None:
-        general = by_label[simpler].nested_in
+    special = _adequate_special_case(ranking, by_label)
+    if special is not None:
+        simpler, general = special
         rf = ranking.refits[simpler]
         reason += (f"; {simpler} is {general} with fewer variables and brings the held-out records to the noise "
                    f"floor on its own (gap ratio {np.mean(rf.heldout_after):.3g}): named instead of {general}")

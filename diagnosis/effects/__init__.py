@@ -25,6 +25,7 @@ boundary_translational_<side>  kt [N/m]             constrained: c = EI/(kt L³)
 point_mass                     mass [kg], x [m]     μ = mass/(ρA L) (0), x
 transducer_mass[<sensor>]      mass [kg]            μ = mass/(ρA L) (0) at the sensor's position
 grounded_spring                k [N/m], x [m]       κ = k L³/EI (0), x
+shaker_armature[<actuator>]    mass [kg], k [N/m]   μ (0), κ (0) at the actuator's position
 stiffness_loss                 compliance [1],      c = (1/f − 1) ℓ/L (0), x, ℓ/L: EI f over ℓ,
                                x [m], length [m],   f = 1/(1 + c L/ℓ)
                                factor f [1]
@@ -56,7 +57,7 @@ from typing import Any
 
 from ebb_model.config import BeamConfig
 
-from . import axial, beam_terms, boundary, chain, lag, local_stiffness, point_mass, supports
+from . import axial, beam_terms, boundary, chain, lag, local_stiffness, point_mass, shaker, supports
 from .base import (
     PAIR_SEPARATOR,
     AugmentedModel,
@@ -78,6 +79,7 @@ FAMILIES: tuple[Family, ...] = (
     boundary.FAMILY,
     point_mass.FAMILY,
     supports.FAMILY,
+    shaker.FAMILY,
     local_stiffness.FAMILY,
     beam_terms.FAMILY,
     lag.FAMILY,

@@ -177,6 +177,11 @@ class Effect:
     #: the label of the effect this one is a special case of (a transducer's mass: a point mass at its sensor);
     #: tied with it, this one is named when it explains the held-out records on its own (:mod:`diagnosis.weigh`)
     nested_in: str | None = None
+    #: the search variables proportional to a physical size the beam's force-like constants measure (a mass in
+    #: units of the nominal ρA L, a stiffness in units of EI/L³): multiplying them with EI, ρA, c and N by λ
+    #: leaves the modes alone and divides the response by λ (:mod:`diagnosis.modal_pattern` sets that scale from
+    #: the amplitudes)
+    scaled: tuple[int, ...] = ()
 
     @property
     def label(self) -> str:

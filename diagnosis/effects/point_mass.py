@@ -54,7 +54,7 @@ def candidates(config: BeamConfig, scales: Scales, identified: tuple[str, ...]) 
     plausible = {"mass": (0.0, PLAUSIBLE_MASS_RATIO * nominal_mass)}
     return (Effect("point_mass", None, ("mass_ratio", "x"), (0.0, 0.02 * L), (1.0, 0.98 * L), (0.0, 0.5 * L),
                    "attached point mass (sensor, shaker, load cell, clamp block)", {"mass": "kg", "x": "m"}, apply,
-                   lambda s: {"mass": float(s[0] * unit), "x": float(s[1])}, plausible),) + tuple(
+                   lambda s: {"mass": float(s[0] * unit), "x": float(s[1])}, plausible, scaled=(0,)),) + tuple(
         _transducer(sensor.name, unit, plausible) for sensor in config.sensors)
 
 
@@ -71,7 +71,7 @@ def _transducer(sensor: str, unit: float, plausible: dict[str, tuple[float, floa
 
     return Effect(TRANSDUCER, sensor, ("mass_ratio",), (0.0,), (1.0,), (0.0,),
                   f"the mass of the transducer of sensor {sensor} at its position", {"mass": "kg"}, apply,
-                  lambda s: {"mass": float(s[0] * unit)}, plausible, nested_in="point_mass")
+                  lambda s: {"mass": float(s[0] * unit)}, plausible, nested_in="point_mass", scaled=(0,))
 
 
 #: This module's entry in the catalogue.

@@ -39,7 +39,8 @@ def candidates(config: BeamConfig, scales: Scales, identified: tuple[str, ...]) 
 
     return (Effect("grounded_spring", None, ("stiffness_scaled", "x"), (0.0, 0.02 * L), (STIFFEST, 0.98 * L),
                    (0.0, 0.5 * L), "spring to ground inside the span (intermediate support, suspension, stinger)",
-                   {"k": "N/m", "x": "m"}, apply, lambda s: {"k": float(s[0] * unit), "x": float(s[1])}),)
+                   {"k": "N/m", "x": "m"}, apply, lambda s: {"k": float(s[0] * unit), "x": float(s[1])},
+                   scaled=(0,)),)
 
 
 #: This module's entry in the catalogue.
