@@ -31,8 +31,8 @@ __all__ = ["Early", "PAIR_MINIMUM", "PAIR_PARTNERS", "best_pair", "early_pair", 
            "same_fit"]
 
 #: How many further candidates (in ranking order) are tried as the second effect of a pair (five: with the
-#: catalogue's 17 effects a foundation absorbed into the axial load ranked fourth at an actuator lag's refit,
-#: behind a weak segment, a point mass and a spring that each mimic part of it).
+#: catalogue's 17 effects before the armature, a foundation absorbed into the axial load ranked fourth at an
+#: actuator lag's refit, behind a weak segment, a point mass and a spring that each mimic part of it).
 PAIR_PARTNERS = 5
 #: Fraction of the held-out gap the best single effect must close before a pair with it is tried (two effects
 #: of like size each close about half of it alone; one that closes almost nothing is not half of a pair).
