@@ -50,12 +50,12 @@ def _starts(run: Search, refits: dict[str, EffectRefit], actuator_x: float) -> l
     """Where an armature's refit starts: a point mass's (its mass, no suspension) and a spring's refit (its
     stiffness, no mass) that landed within :data:`AT_SENSOR` of the actuator."""
     starts = []
+    reach = AT_SENSOR * run.problem.config.beam.length      # (the length is never a baseline unknown)
     for source, i in (("point_mass", 0), ("grounded_spring", 1)):
         rf = refits.get(source)
         if rf is None:
             continue
-        cfg, _ = run.problem.space.apply(run.problem.config, rf.fit.beta)
-        if abs(float(rf.fit.s[1]) - actuator_x) <= AT_SENSOR * cfg.beam.length:
+        if abs(float(rf.fit.s[1]) - actuator_x) <= reach:
             s0 = np.zeros(2)
             s0[i] = rf.fit.s[0]
             starts.append((rf.fit.beta, s0))

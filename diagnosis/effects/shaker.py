@@ -48,14 +48,14 @@ def candidates(config: BeamConfig, scales: Scales, identified: tuple[str, ...]) 
 def _armature(actuator: str, mass_unit: float, spring_unit: float, plausible: dict[str, tuple[float, float]]
               ) -> Effect:
     def apply(cfg: BeamConfig, params: dict[str, float], s: np.ndarray) -> AugmentedModel:
+        if s[0] == 0.0 and s[1] == 0.0:
+            return AugmentedModel(cfg, params)
         x = float(next(a.x for a in cfg.actuators if a.name == actuator))
         masses, springs = tuple(cfg.masses), tuple(cfg.springs)
         if s[0] != 0.0:
             masses += (PointMass(f"_diagnosis_armature_{actuator}", x, float(s[0] * mass_unit)),)
         if s[1] != 0.0:
             springs += (PointSpring(f"_diagnosis_suspension_{actuator}", x, float(s[1] * spring_unit)),)
-        if not masses and not springs:
-            return AugmentedModel(cfg, params)
         return AugmentedModel(replace(cfg, masses=masses, springs=springs), params)
 
     return Effect(ARMATURE, actuator, ("mass_ratio", "stiffness_scaled"), (0.0, 0.0), (1.0, STIFFEST), (0.0, 0.0),
@@ -71,16 +71,17 @@ def parts(armature: Effect) -> tuple[Effect, Effect]:
     point."""
 
     def part(i: int, name: str) -> Effect:
+        def full(s: np.ndarray) -> np.ndarray:
+            z = np.zeros(2)
+            z[i] = s[0]
+            return z
+
         def apply(cfg: BeamConfig, params: dict[str, float], s: np.ndarray) -> AugmentedModel:
-            full = np.zeros(2)
-            full[i] = s[0]
-            return armature.apply(cfg, params, full)
+            return armature.apply(cfg, params, full(s))
 
         def physical(s: np.ndarray) -> dict[str, float]:
-            full = np.zeros(2)
-            full[i] = s[0]
             key = ("mass", "k")[i]
-            return {key: armature.physical(full)[key]}
+            return {key: armature.physical(full(s))[key]}
 
         return replace(armature, name=name, variables=(armature.variables[i],), lower=(armature.lower[i],),
                        upper=(armature.upper[i],), off=(armature.off[i],), _apply=apply, _physical=physical,
