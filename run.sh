@@ -53,7 +53,9 @@ case "$cmd" in
     test)
         setup
         shift || true
-        "$PY" -m pytest -q "$@"
+        # one test process per core, each taking the next test when it is free (the blind diagnoses are long and
+        # uneven); -n 0 runs them in this process
+        "$PY" -m pytest -q -n auto --dist worksteal "$@"
         ;;
     lint)
         setup

@@ -209,23 +209,37 @@ def _bending(n: int, h: float, rows: np.ndarray, E: np.ndarray, e: np.ndarray) -
     nodes, mirrored onto the ghost nodes ``-1`` and ``n + 2``."""
     ext = np.concatenate([[1.0, e[0]], e, [e[-1], 1.0]])      # extended indices 0 … n+5 (nodes -2 … n+3)
     n_ext = n + 6
-    C2 = np.zeros((n_ext, n_ext))
-    for k in range(1, n_ext - 1):
-        C2[k, k - 1:k + 2] = (1.0, -2.0, 1.0)
-    moments = ext[:, None] * (C2 @ E)
-    R = np.zeros((rows.size, n_ext))
-    for j, r in enumerate(rows):
-        R[j, r - 1:r + 2] = (1.0, -2.0, 1.0)
-    return (R @ moments) / h ** 4
+    C2 = _stencil_rows(np.arange(1, n_ext - 1), n_ext, _SECOND)
+    moments = np.zeros((n_ext, E.shape[1]))
+    moments[1:-1] = ext[1:-1, None] * (C2 @ E)
+    return (_stencil_rows(rows, n_ext, _SECOND) @ moments) / h ** 4
+
+
+#: Central-difference stencils: second and fourth differences (times ``h²``, ``h⁴``).
+_SECOND = np.array([1.0, -2.0, 1.0])
+_FOURTH = np.array([1.0, -4.0, 6.0, -4.0, 1.0])
+
+
+def _stencil_rows(rows: np.ndarray, n_ext: int, taps: np.ndarray) -> np.ndarray:
+    """One row per entry of ``rows`` (indices on the extended numbering, ``n_ext`` columns) with the centred
+    stencil ``taps`` around it."""
+    half = taps.size // 2
+    out = np.zeros((rows.size, n_ext))
+    out[np.arange(rows.size)[:, None], rows[:, None] + np.arange(-half, half + 1)] = taps
+    return out
+
+
+def _apply(D: np.ndarray, E: np.ndarray, unknown: np.ndarray, ghost: np.ndarray) -> np.ndarray:
+    """``D @ E`` for the extension ``E`` (identity on the unknowns' rows, zero on fixed nodes' rows, the ghost
+    relations on the rows ``ghost``): the unknowns' columns of ``D`` plus its ghost columns through ``E``."""
+    return D[:, unknown + 2] + D[:, ghost] @ E[ghost]
 
 
 def _extension(n: int, h: float, EI: float, N: float, left, right, unknown: np.ndarray) -> np.ndarray:
     """Matrix E mapping unknowns to grid values on indices -2 … n+3 (offset +2)."""
     n_ext = n + 6
     E = np.zeros((n_ext, unknown.size))
-    col = {int(node): j for j, node in enumerate(unknown)}
-    for node, j in col.items():
-        E[node + 2, j] = 1.0
+    E[unknown + 2, np.arange(unknown.size)] = 1.0
 
     def ghosts(end, b: int, s: int) -> None:
         # b: boundary node index, s: +1 going inwards.  Rows in the extended
@@ -283,14 +297,10 @@ def discretise(config: BeamConfig, params: Mapping[str, float] | None = None) ->
 
     E = _extension(n, h, EI, N, left, right, unknown)
     rows = unknown + 2
+    ghost = np.array([0, 1, n + 4, n + 5])     # the ghost nodes -2, -1, n+2, n+3 on the extended numbering
     # D4 and D2 rows on the extended numbering, one row per unknown node
-    D4 = np.zeros((nu, n + 6))
-    D2 = np.zeros((nu, n + 6))
-    for j, r in enumerate(rows):
-        D4[j, r - 2:r + 3] = (1.0, -4.0, 6.0, -4.0, 1.0)
-        D2[j, r - 1:r + 2] = (1.0, -2.0, 1.0)
-    D4 /= h ** 4
-    D2 /= h ** 2
+    D4 = _stencil_rows(rows, n + 6, _FOURTH) / h ** 4
+    D2 = _stencil_rows(rows, n + 6, _SECOND) / h ** 2
     V = np.full(nu, h)
     if not left.translation_fixed:
         V[0] = h / 2.0
@@ -300,8 +310,8 @@ def discretise(config: BeamConfig, params: Mapping[str, float] | None = None) ->
     if config.weak_segments:
         B4 = V[:, None] * _bending(n, h, rows, E, cell_stiffness(L, n, config.weak_segments))
     else:
-        B4 = V[:, None] * (D4 @ E)
-    K = EI * B4 - N * (V[:, None] * (D2 @ E))
+        B4 = V[:, None] * _apply(D4, E, unknown, ghost)
+    K = EI * B4 - N * (V[:, None] * _apply(D2, E, unknown, ghost))
     C = eta * EI * B4
     K[np.diag_indices(nu)] += kf * V
     C[np.diag_indices(nu)] += c * V

@@ -42,7 +42,7 @@ from .modal_form import MAX_BASIS_CONDITION, ModalStateSpace, basis_condition, i
 from .statespace import DiscreteStateSpace, with_input_delays
 
 __all__ = ["exact_model", "exact_modal", "exact_statespace", "continuous_modes", "ContinuousModes",
-           "modal_matrices", "ModalMatrices", "modal_poles", "richardson_modes",
+           "modal_matrices", "ModalMatrices", "richardson_modes", "extrapolated", "lowest_modes", "modal_state_matrix",
            "refined_config", "companion_config", "pole_integrals"]
 
 #: Largest refined grid: the eigen-solver's round-off grows with the stiffness matrix's condition number
@@ -52,7 +52,7 @@ _MAX_REFINED_NODES = 201
 
 
 #: Smallest ``ω²`` relative to ``tr K / tr M`` (about the grid's largest ``ω²``) for which ``K`` counts as
-#: positive definite in :func:`_lowest_modes` (the clamped 199-node grid's lowest mode: 3e-7).
+#: positive definite in :func:`lowest_modes` (the clamped 199-node grid's lowest mode: 3e-7).
 _SINGULAR_K = 1e-11
 
 
@@ -70,7 +70,7 @@ def refined_config(config: BeamConfig) -> BeamConfig:
     return other if other.beam.nodes > config.beam.nodes else config
 
 
-def _lowest_modes(beam: SemiDiscreteBeam, n_modes: int, *, vectors: bool = True):
+def lowest_modes(beam: SemiDiscreteBeam, n_modes: int, *, vectors: bool = True):
     """The ``n_modes`` lowest ``ω²`` (and mass-normalised modes) of ``K ψ = ω² M ψ``, to relative accuracy.
 
     ``eigh(K, M)`` resolves ``ω²`` only to ``eps·‖K‖`` absolutely, i.e. ``eps·κ(K)`` relatively for the
@@ -81,10 +81,13 @@ def _lowest_modes(beam: SemiDiscreteBeam, n_modes: int, *, vectors: bool = True)
     an inverted problem whose smallest ``ω²`` is below :data:`_SINGULAR_K` of the grid's scale
     ``tr K / tr M`` is such a case (it put a 24-node free–free beam's mode 3 2e-4 off) and goes direct too.
     """
+    size = beam.n_unknowns
     try:   # all pairs by divide and conquer ("gvd"): twice as fast as a subset by "gvx" at these sizes
         if vectors:
             mu, psi = sla.eigh(beam.M, beam.K, driver="gvd")
             mu, psi = mu[-n_modes:], psi[:, -n_modes:]
+        elif 4 * n_modes <= size:   # a few values: bisection for them alone (a third of "gvd"'s time at 119)
+            mu = sla.eigh(beam.M, beam.K, eigvals_only=True, subset_by_index=(size - n_modes, size - 1))
         else:
             mu = sla.eigh(beam.M, beam.K, eigvals_only=True, driver="gvd")[-n_modes:]
     except np.linalg.LinAlgError:     # K not positive definite
@@ -115,14 +118,22 @@ def richardson_modes(coarse: SemiDiscreteBeam, fine: SemiDiscreteBeam, n_modes: 
     n_modes
         How many of the lowest modes to return (at most the fine grid's unknowns).
     """
-    w2_f, psi = _lowest_modes(fine, n_modes)
+    w2_f, psi = lowest_modes(fine, n_modes)
     m = min(coarse.n_unknowns, n_modes)
-    w2_c = _lowest_modes(coarse, m, vectors=False)
+    return extrapolated(w2_f, lowest_modes(coarse, m, vectors=False), coarse, fine, m), psi
+
+
+def extrapolated(w2_f: np.ndarray, w2_c: np.ndarray, coarse: SemiDiscreteBeam, fine: SemiDiscreteBeam, m: int
+                 ) -> np.ndarray:
+    """The Richardson values of :func:`richardson_modes` from the fine grid's lowest ``ω²`` (``w2_f``) and the
+    coarse grid's lowest ``w2_c`` (at most as many), ``m`` being how many the pair extrapolates (the fade's
+    scale): the lowest modes come out the same whether all or a few of them are computed."""
     h_f, h_c = np.diff(fine.x[:2])[0], np.diff(coarse.x[:2])[0]
-    weight = np.clip(2.0 * (1.0 - np.arange(m) / m), 0.0, 1.0)   # 1 for the lower half, fading to 0
+    j = w2_c.size
+    weight = np.clip(2.0 * (1.0 - np.arange(j) / m), 0.0, 1.0)   # 1 for the lower half, fading to 0
     w2 = w2_f.copy()
-    w2[:m] += weight * (w2_f[:m] - w2_c) / ((h_c / h_f) ** 2 - 1.0)
-    return w2, psi
+    w2[:j] += weight * (w2_f[:j] - w2_c) / ((h_c / h_f) ** 2 - 1.0)
+    return w2
 
 
 def polynomial_integrals(s: np.ndarray, T: float, degree: int = 3) -> tuple[np.ndarray, np.ndarray]:
@@ -341,76 +352,14 @@ def continuous_modes(config: BeamConfig, params: Mapping[str, float]) -> Continu
         s, V, Win = _mode_poles(w2, mm.damping)
         B_modal = Win @ Fm                                # (2k, m) pole coordinates
     else:                                                 # coupled by the damping: eigen-decomposition
-        s, V = np.linalg.eig(_state_matrix(w2, mm.Cm))
+        s, V = np.linalg.eig(modal_state_matrix(w2, mm.Cm))
         if basis_condition(V) > MAX_BASIS_CONDITION:
             raise np.linalg.LinAlgError("the modes' eigenvector basis is ill-conditioned")
         B_modal = np.linalg.solve(V, np.vstack([np.zeros_like(Fm), Fm]))
     return ContinuousModes(s, V, B_modal, mm.C, mm.D, mm.shapes, w2)
 
 
-def modal_poles(config: BeamConfig, params: Mapping[str, float], lowest: int | None = None) -> np.ndarray:
-    """The continuous-time poles of :func:`modal_matrices` (closed form when the damping is proportional).
-
-    Unlike :func:`continuous_modes` this needs no eigenvectors, so it never fails for an ill-conditioned basis.
-    With ``lowest``, only the poles of the ``lowest`` lowest modes are needed: when the damping couples the
-    modes they are then found by :func:`_coupled_poles` (each refined from its decoupled value, a few
-    ``k × k`` solves instead of the ``2k × 2k`` eigenvalue problem) and only they are returned; otherwise
-    (decoupled modes, or the refinement declined) all of them.
-    """
-    mm = modal_matrices(config, params)
-    if mm.damping is not None:
-        root = np.sqrt((mm.damping ** 2 / 4 - mm.frequencies2).astype(complex))
-        return np.concatenate([-mm.damping / 2 + root, -mm.damping / 2 - root])
-    if lowest is not None:
-        s = _coupled_poles(mm.frequencies2, mm.Cm, lowest)
-        if s is not None:
-            return np.concatenate([s, s.conj()])
-    return np.linalg.eigvals(_state_matrix(mm.frequencies2, mm.Cm))
-
-
-#: Newton iterations allowed per pole (quadratic from the decoupled value, off by the coupling squared).
-_NEWTON_STEPS = 8
-
-
-def _coupled_poles(w2: np.ndarray, Cm: np.ndarray, n: int) -> np.ndarray | None:
-    r"""The upper poles of the ``n`` lowest modes of ``q̈ + C_m q̇ + Λ q = 0`` to round-off, or ``None``.
-
-    Each is a root of ``det Q(s)``, ``Q(s) = s² I + s C_m + Λ``, found by Newton's iteration
-    ``s ← s − 1 / tr(Q(s)⁻¹ Q'(s))`` from the decoupled pole ``−d_i/2 + i√(ω_i² − d_i²/4)`` (``d_i`` the
-    diagonal of ``C_m``).  ``None`` — the caller solves the full eigenvalue problem — when a wanted mode is not
-    underdamped, when an iteration does not converge, or when a root left the half-gap around its start
-    (it might have converged to a neighbour's pole).
-    """
-    k = w2.size
-    if n >= k or not np.all(np.diff(w2[:n + 1]) > 0):
-        return None
-    d = np.diag(Cm)
-    if np.any(d[:n + 1] ** 2 / 4 >= w2[:n + 1]) or np.any(w2[:n + 1] <= 0):
-        return None
-    start = -d[:n] / 2 + 1j * np.sqrt(w2[:n] - d[:n] ** 2 / 4)
-    w = np.sqrt(w2[:n + 1])
-    gap = 0.5 * np.minimum(np.diff(w)[:n], np.concatenate([[w[0]], np.diff(w)[:n - 1]]))
-    eye, lam = np.eye(k), np.diag(w2)
-    out = np.empty(n, dtype=complex)
-    for i, s in enumerate(start):
-        for _ in range(_NEWTON_STEPS):
-            Q = s * s * eye + s * Cm + lam
-            try:
-                step = 1.0 / np.trace(np.linalg.solve(Q, 2.0 * s * eye + Cm))
-            except np.linalg.LinAlgError:      # s is a root to round-off
-                step = 0.0
-            s = s - step
-            if abs(step) <= 1e-14 * abs(s):
-                break
-        else:
-            return None
-        if not abs(s - start[i]) < gap[i]:
-            return None
-        out[i] = s
-    return out
-
-
-def _state_matrix(w2: np.ndarray, Cm: np.ndarray) -> np.ndarray:
+def modal_state_matrix(w2: np.ndarray, Cm: np.ndarray) -> np.ndarray:
     """``A`` of ``ẋ = A x`` for ``x = (q, q̇)``: ``[[0, I], [−Λ, −C_m]]``."""
     k = w2.size
     return np.block([[np.zeros((k, k)), np.eye(k)], [-np.diag(w2), -Cm]])
@@ -468,7 +417,7 @@ def exact_statespace(config: BeamConfig, params: Mapping[str, float]) -> Discret
         Invalid parameter values (from the discretisation).
     """
     mm = modal_matrices(config, params)
-    A = _state_matrix(mm.frequencies2, mm.Cm)
+    A = modal_state_matrix(mm.frequencies2, mm.Cm)
     B = np.vstack([np.zeros_like(mm.Fm), mm.Fm])
     n, m = B.shape
     T_s = config.time.dt

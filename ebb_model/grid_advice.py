@@ -28,7 +28,7 @@ import numpy as np
 from .config import BeamConfig
 from .config_types import MAX_NODES
 from .discretisation import discretise
-from .exact_modal import _lowest_modes, companion_config, richardson_modes
+from .exact_modal import lowest_modes, companion_config, richardson_modes
 from .modal import discrete_frequencies
 from .parameter_values import resolve_parameters
 
@@ -101,7 +101,7 @@ def _space_omega(config: BeamConfig, p: Mapping[str, float], k: int) -> np.ndarr
                                          key=lambda b: b.n_unknowns), beam.n_unknowns)
         w2 = w2[:k]
     else:
-        w2 = _lowest_modes(beam, k, vectors=False)
+        w2 = lowest_modes(beam, k, vectors=False)
     return np.sqrt(np.abs(w2))
 
 

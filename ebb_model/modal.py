@@ -101,9 +101,9 @@ def discrete_frequencies(config: BeamConfig, params: Mapping[str, float] | None 
     conjugate pair, sorted by frequency; the difference to :func:`modes` is the
     scheme's period elongation.  With ``n_modes``, the ``n_modes`` lowest only
     (the exact scheme then needs only their poles:
-    :func:`ebb_model.exact_modal.modal_poles`).
+    :func:`ebb_model.modal_poles.modal_poles`).
     """
-    from .exact_modal import modal_poles
+    from .modal_poles import modal_poles
     from .theta_scheme import discretise_time
 
     if n_modes is not None and (isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer))

@@ -18,7 +18,7 @@ import pytest
 
 from ebb_model import assemble, config_from_dict
 from ebb_model.errors import ConfigError
-from ebb_model.exact_modal import _state_matrix, exact_model, modal_matrices
+from ebb_model.exact_modal import modal_state_matrix, exact_model, modal_matrices
 from ebb_model.truncation import design_model, in_band, static_correction_bound
 from identification.export_statespace import continuous_equivalent, load_statespace, rest_state, save_statespace
 
@@ -42,7 +42,7 @@ def _frf_discrete(s, f: np.ndarray) -> np.ndarray:
 
 def _continuous(cfg):
     mm = modal_matrices(cfg, cfg.parameter_values())
-    A = _state_matrix(mm.frequencies2, mm.Cm)
+    A = modal_state_matrix(mm.frequencies2, mm.Cm)
     B = np.vstack([np.zeros_like(mm.Fm), mm.Fm])
     return A, B, mm.C, mm.D
 

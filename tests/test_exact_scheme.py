@@ -347,7 +347,8 @@ def test_polynomial_integrals_equal_the_matrix_exponential():
 def test_lowest_poles_of_damping_coupled_modes_equal_the_full_eigenproblem(cfg_factory, extra):
     # a point mass with viscous damping couples the modes through C_m: the lowest poles by Newton on
     # det(s²I + sC_m + Λ) must be the 2k × 2k eigenvalue problem's, and they must be found that way
-    from ebb_model.exact_modal import _coupled_poles, modal_matrices
+    from ebb_model.exact_modal import modal_matrices
+    from ebb_model.modal_poles import _coupled_poles
 
     cfg = cfg_factory("clamped", "pinned", nodes=40, c=3.0, scheme="exact", **extra)
     mm = modal_matrices(cfg, cfg.parameter_values())
@@ -360,6 +361,34 @@ def test_lowest_poles_of_damping_coupled_modes_equal_the_full_eigenproblem(cfg_f
     # eigenvalue solver's round-off on the balanced companion matrix; a neighbour's pole would be off by 1e0
     np.testing.assert_allclose(f5, f_all[:5], rtol=1e-12)
     np.testing.assert_allclose(z5, z_all[:5], rtol=1e-9)
+
+
+@pytest.mark.parametrize("ends,extra", [(("clamped", "pinned"), {}), (("pinned", "pinned"), {"N": -40.0}),
+                                        (("clamped", "free"), {"springs": [("k", 0.6, 400.0)]}),
+                                        (("clamped", "clamped"), {"c": 0.0})])
+def test_lowest_poles_of_mass_proportional_damping_need_no_mode_shapes(cfg_factory, ends, extra):
+    # viscous damping per unit mass (C = c/ρA · M) leaves the modes decoupled: the lowest poles come from the
+    # two grids' lowest eigenvalues alone (no shapes) and must equal the full route's
+    from ebb_model.modal_poles import _mass_proportional_poles
+
+    kw = {"c": 3.0, **extra}
+    cfg = cfg_factory(*ends, nodes=60, scheme="exact", **kw)
+    assert _mass_proportional_poles(cfg, cfg.parameter_values(), 5) is not None     # the short route is taken
+    f_all, z_all = em.discrete_frequencies(cfg)
+    f5, z5 = em.discrete_frequencies(cfg, None, 5)
+    # measured: at most 4e-13 (frequencies) and 8e-13 (damping ratios; the compressed and the cantilever grids,
+    # 1.5e-14 on the clamped–pinned one) — bisection for five eigenvalues against divide and conquer for all of
+    # them, both on the inverted problem, whose round-off grows with κ(K); a neighbour's mode is 1e-1 away
+    np.testing.assert_allclose(f5, f_all[:5], rtol=1e-11)
+    np.testing.assert_allclose(z5, z_all[:5], rtol=1e-11, atol=0.0)
+
+
+def test_damping_that_is_not_mass_proportional_takes_the_full_route(cfg_factory):
+    from ebb_model.modal_poles import _mass_proportional_poles
+
+    for extra in ({"masses": [("m", 0.7, 0.1)]}, {"eta": 2e-4}):
+        cfg = cfg_factory("clamped", "pinned", nodes=40, c=3.0, scheme="exact", **extra)
+        assert _mass_proportional_poles(cfg, cfg.parameter_values(), 5) is None
 
 
 @pytest.mark.parametrize("bad", [0, -3, 2.5, True, "5"])

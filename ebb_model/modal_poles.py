@@ -1,0 +1,132 @@
+"""The continuous-time poles of the accurate realisation, without its state space.
+
+What a modal comparison needs (:func:`ebb_model.modal.discrete_frequencies`: frequencies and damping ratios, often
+of the few lowest modes only) is the poles of :func:`~ebb_model.exact_modal.modal_matrices`' modal system
+``q̈ + C_m q̇ + Λ q = 0``, not its input and output rows.  Three routes, each exact to round-off:
+
+* **mass-proportional damping, a few modes** (``C = α M``: viscous damping per unit mass, no Kelvin–Voigt term,
+  every mass distributed like the damping — the modes are then decoupled, each with ``d_i = α``): the Richardson
+  values ``ω_i²`` of those modes alone (eigenvalues only, bisection for the wanted ones on both grids), no
+  eigenvectors; the poles in closed form.  This is the modal-pattern search's common case, and about a third of
+  the full route's cost;
+* **damping coupling the modes, a few modes**: every mode's shape is needed for ``C_m``; the lowest poles are
+  refined by Newton's iteration from their decoupled values (:func:`_coupled_poles`);
+* otherwise every pole: closed form when ``C_m`` is diagonal, else the ``2k × 2k`` eigenvalue problem.
+"""
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from .config import BeamConfig
+from .discretisation import SemiDiscreteBeam, discretise
+from .exact_modal import modal_state_matrix, companion_config, extrapolated, lowest_modes, modal_matrices
+
+__all__ = ["modal_poles"]
+
+#: Relative size of ``C − α M`` below which the damping counts as mass-proportional (the two matrices are built
+#: from the same lumped lengths: exactly proportional up to one rounding per entry).
+_PROPORTIONAL_RTOL = 1e-12
+
+#: Newton iterations allowed per pole (quadratic from the decoupled value, off by the coupling squared).
+_NEWTON_STEPS = 8
+
+
+def modal_poles(config: BeamConfig, params: Mapping[str, float], lowest: int | None = None) -> np.ndarray:
+    """The continuous-time poles of :func:`~ebb_model.exact_modal.modal_matrices` (module docstring).
+
+    Unlike :func:`~ebb_model.exact_modal.continuous_modes` this needs no eigenvector basis of the state, so it
+    never fails for an ill-conditioned one.  With ``lowest``, only the poles of the ``lowest`` lowest modes are
+    needed: for mass-proportional damping and for damping that couples the modes only they are returned (both
+    poles of each mode), otherwise all of them.
+
+    Raises
+    ------
+    ParameterError
+        Invalid parameter values (from the discretisation).
+    """
+    if lowest is not None:
+        s = _mass_proportional_poles(config, params, lowest)
+        if s is not None:
+            return s
+    mm = modal_matrices(config, params)
+    if mm.damping is not None:
+        root = np.sqrt((mm.damping ** 2 / 4 - mm.frequencies2).astype(complex))
+        return np.concatenate([-mm.damping / 2 + root, -mm.damping / 2 - root])
+    if lowest is not None:
+        s = _coupled_poles(mm.frequencies2, mm.Cm, lowest)
+        if s is not None:
+            return np.concatenate([s, s.conj()])
+    return np.linalg.eigvals(modal_state_matrix(mm.frequencies2, mm.Cm))
+
+
+def _mass_proportional_rate(beam: SemiDiscreteBeam) -> float | None:
+    """``α`` when ``C = α M`` to round-off (then ``Ψᵀ C Ψ = α I`` for mass-normalised modes), else ``None``."""
+    alpha = float(np.trace(beam.C) / np.trace(beam.M))
+    scale = max(float(np.max(np.abs(beam.C), initial=0.0)), float(np.finfo(float).tiny))
+    if float(np.max(np.abs(beam.C - alpha * beam.M), initial=0.0)) > _PROPORTIONAL_RTOL * scale:
+        return None
+    return alpha
+
+
+def _mass_proportional_poles(config: BeamConfig, params: Mapping[str, float], n: int) -> np.ndarray | None:
+    """Both poles of each of the ``n`` lowest modes when the damping is mass-proportional and those modes are
+    underdamped (then so is every higher one, ``d`` being the same for all), else ``None``.
+
+    The values are :func:`~ebb_model.exact_modal.modal_matrices`' (the same two grids, the same extrapolation,
+    the fade scaled by the full count), computed for these modes alone.
+    """
+    grids = (discretise(config, params), discretise(companion_config(config), params))
+    k = grids[0].n_unknowns                       # the realisation's mode count (modal_matrices)
+    if n >= k:
+        return None
+    coarse, fine = sorted(grids, key=lambda b: b.n_unknowns)
+    alpha = _mass_proportional_rate(fine)
+    if alpha is None:
+        return None
+    m = min(coarse.n_unknowns, k)
+    w2_f = lowest_modes(fine, n, vectors=False)
+    w2 = extrapolated(w2_f, lowest_modes(coarse, min(n, m), vectors=False), coarse, fine, m)
+    if not (np.all(np.diff(w2) > 0) and w2[0] > 0 and alpha * alpha / 4 < w2[0]):
+        return None
+    s = -alpha / 2 + 1j * np.sqrt(w2 - alpha * alpha / 4)
+    return np.concatenate([s, s.conj()])
+
+
+def _coupled_poles(w2: np.ndarray, Cm: np.ndarray, n: int) -> np.ndarray | None:
+    r"""The upper poles of the ``n`` lowest modes of ``q̈ + C_m q̇ + Λ q = 0`` to round-off, or ``None``.
+
+    Each is a root of ``det Q(s)``, ``Q(s) = s² I + s C_m + Λ``, found by Newton's iteration
+    ``s ← s − 1 / tr(Q(s)⁻¹ Q'(s))`` from the decoupled pole ``−d_i/2 + i√(ω_i² − d_i²/4)`` (``d_i`` the
+    diagonal of ``C_m``).  ``None`` — the caller solves the full eigenvalue problem — when a wanted mode is not
+    underdamped, when an iteration does not converge, or when a root left the half-gap around its start
+    (it might have converged to a neighbour's pole).
+    """
+    k = w2.size
+    if n >= k or not np.all(np.diff(w2[:n + 1]) > 0):
+        return None
+    d = np.diag(Cm)
+    if np.any(d[:n + 1] ** 2 / 4 >= w2[:n + 1]) or np.any(w2[:n + 1] <= 0):
+        return None
+    start = -d[:n] / 2 + 1j * np.sqrt(w2[:n] - d[:n] ** 2 / 4)
+    w = np.sqrt(w2[:n + 1])
+    gap = 0.5 * np.minimum(np.diff(w)[:n], np.concatenate([[w[0]], np.diff(w)[:n - 1]]))
+    eye, lam = np.eye(k), np.diag(w2)
+    out = np.empty(n, dtype=complex)
+    for i, s in enumerate(start):
+        for _ in range(_NEWTON_STEPS):
+            Q = s * s * eye + s * Cm + lam
+            try:
+                step = 1.0 / np.trace(np.linalg.solve(Q, 2.0 * s * eye + Cm))
+            except np.linalg.LinAlgError:      # s is a root to round-off
+                step = 0.0
+            s = s - step
+            if abs(step) <= 1e-14 * abs(s):
+                break
+        else:
+            return None
+        if not abs(s - start[i]) < gap[i]:
+            return None
+        out[i] = s
+    return out
