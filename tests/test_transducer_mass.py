@@ -9,6 +9,11 @@ With displacement sensors the evidence prefers it too; with accelerometers (held
 the point mass's free position buys ΔBIC 70 by moving 0.05 mm (measured: held-out 1.02 against the transducer's
 1.06) — the model's own representation of a mass between grid nodes, which the held-out records do not confirm.
 A mass 0.1 m from the sensor stays a ``point_mass`` (``test_diagnosis_blind``'s point-mass cases).
+
+A second bench: the cantilever of :mod:`test_rig_effects` (1–60 Hz multisine, displacement sensors at mid-length
+and the tip) with 50 g (5 % of the beam) on the tip sensor, where a point mass's position cannot reach (its bounds
+keep it inside the span: it stops at 0.98 m with 37 g).  Measured: ``transducer_mass[y2]`` 0.04998 kg, 49 s alone
+on 2 cores; on the mid-length sensor (not in the suite) 0.04993 kg, the point mass at 0.5003 m.
 """
 from __future__ import annotations
 
@@ -18,7 +23,10 @@ from ebb_model.reference.withheld import WithheldEffect
 
 from diagnosis.run import diagnose
 
-from test_diagnosis_blind import SIZE_TOLERANCE, _write, bench_config
+from ebb_model.reference.excitation import band_limited_input
+
+from test_diagnosis_blind import DT, N_SAMPLES, SIZE_TOLERANCE, _write, bench_config
+from test_rig_effects import _write_cantilever, cantilever_bench
 
 MASS = 0.08
 
@@ -41,3 +49,17 @@ def test_a_mass_on_a_sensor_is_named_as_its_transducer(tmp_path, kind, f_max):
         assert p["transducer_mass[y2]"] > p["point_mass"], p
     else:
         assert "brings the held-out records to the noise floor on its own" in doc["reason"], doc["reason"]
+
+
+def test_a_mass_on_the_cantilevers_tip_sensor_is_named_as_its_transducer(tmp_path):
+    cfg = cantilever_bench()
+    u = band_limited_input(N_SAMPLES, DT, 1.0, 60.0, seed=3)
+    data = _write_cantilever(tmp_path, cfg, WithheldEffect("point_mass", {"mass": 0.05, "x": 1.0}), u)
+    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document
+    assert doc["verdict"] == "transducer_mass[y2]", doc["reason"]
+    refit = {e["label"]: e for e in doc["effects"]}["transducer_mass[y2]"]["refit"]
+    print(f"\ncantilever tip: {doc['verdict']}, mass {refit['effect_parameters']['mass']:.5f} kg, "
+          f"closed {refit['closed']:.4f}")
+    assert refit["closed"] >= 0.8, refit
+    assert refit["effect_parameters"]["mass"] == pytest.approx(0.05, rel=SIZE_TOLERANCE), refit
+    assert all(v <= 1.25 for v in refit["heldout_gap_ratio_after"].values()), refit
