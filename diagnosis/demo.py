@@ -110,7 +110,8 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
                  progress=(lambda m: print(f"    {m}")) if progress else None)
     report = text_report(d.report)
     truth_label = WITHHELD[0]
-    lines = ["", *comparison_table(identified, d.report, TRUTH, WITHHELD),
+    title = "ebb demo: identify a beam from synthetic data with a withheld effect, export it, diagnose the gap"
+    lines = [title, "=" * len(title), "", *comparison_table(identified, d.report, TRUTH, WITHHELD),
              "exports:  " + ", ".join(str(f) for f in files),
              *([f"corrected model: {out / 'diagnosis' / 'corrected'}"] if d.report.corrected_files else []),
              "", report, "",

@@ -37,7 +37,7 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, effects: Mappi
         fig.tight_layout()
         paths.append(out_dir / "effects.png")
         with atomic_path(paths[-1], suffix=".png") as tmp:
-            fig.savefig(tmp, dpi=100)
+            fig.savefig(tmp, dpi=100, bbox_inches="tight")
         plt.close(fig)
     _, before = problem.heldout(ranking.baseline.beta)
     after = None
@@ -53,13 +53,13 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, effects: Mappi
         ax.plot(t, rb[:, j], lw=0.6, label="baseline")
         if after is not None:
             ax.plot(t, after[0][:, j], lw=0.6, label=f"with {ranking.verdict}")
-        ax.set_ylabel(f"{name} residual / σ")
-        ax.legend(loc="upper right", fontsize=8)
+        ax.set_ylabel(f"{name} residual / σ [-]")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0.0)
     axes[-1, 0].set_xlabel("time in the held-out window [s]")
     fig.tight_layout()
     paths.append(out_dir / "heldout_residuals.png")
     with atomic_path(paths[-1], suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=100)
+        fig.savefig(tmp, dpi=100, bbox_inches="tight")
     plt.close(fig)
     try:
         from .report_plots import plot_localisation
@@ -69,6 +69,8 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, effects: Mappi
     y0 = problem.simulate(ranking.baseline.beta, until="all")[0]
     sub = out_dir / "localisation"
     make_dir(sub, exist_ok=True)
-    paths += [Path(p) for p in plot_localisation(localisations[0], problem.config.time.dt, r0.inputs,
-                                                 r0.outputs, y0, sub)]
+    cfg = problem.config
+    units = {s.name: s.unit for s in cfg.sensors} | {a.name: "N" for a in cfg.actuators}   # point forces
+    paths += [Path(p) for p in plot_localisation(localisations[0], cfg.time.dt, r0.inputs, r0.outputs, y0, sub,
+                                                 units=units)]
     return paths

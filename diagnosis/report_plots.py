@@ -8,7 +8,7 @@ residual auto- and cross-correlations with their 99 % bands.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -18,7 +18,7 @@ from ebb_model.output import atomic_path, make_dir
 
 from .localise import Localisation, estimate_frf
 
-__all__ = ["plot_localisation"]
+__all__ = ["plot_localisation", "localisation_figures"]
 
 
 def _pyplot():
@@ -30,8 +30,36 @@ def _pyplot():
     return plt
 
 
+def localisation_figures(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray,
+                         units: Mapping[str, str] | None = None) -> dict[str, Any]:
+    """The localisation's figures by file name (``residuals.png``, ``frf.png``, ``windows.png``,
+    ``amplitude.png``, ``correlation.png``, ``bands.png``); arguments as :func:`plot_localisation`."""
+    u2, y2, yh2 = as_matrix(u, "u"), as_matrix(y, "y"), as_matrix(y_hat, "y_hat")
+    if y2.shape != yh2.shape or y2.shape[1] != len(loc.sensor_names) or u2.shape[0] != y2.shape[0] \
+            or u2.shape[1] != len(loc.input_names):
+        raise DataError(f"plot_localisation: data shapes u {u2.shape}, y {y2.shape}, y_hat {yh2.shape} do not "
+                        f"match the localisation ({len(loc.input_names)} inputs, {len(loc.sensor_names)} sensors)")
+    plt = _pyplot()
+    unit = _Units(dict(units or {}))
+    t = np.arange(y2.shape[0]) * dt
+    figures = {"residuals.png": _residuals_figure(plt, loc, t, y2, yh2, unit),
+               "frf.png": _frf_figure(plt, loc, dt, u2, y2, yh2, unit),
+               "windows.png": _windows_figure(plt, loc, unit),
+               "amplitude.png": _amplitude_figure(plt, loc, unit),
+               "correlation.png": _correlation_figure(plt, loc),
+               "bands.png": _bands_figure(plt, loc)}
+    for fig in figures.values():
+        fig.tight_layout()
+        for ax in fig.axes:
+            for axis in (ax.xaxis, ax.yaxis):
+                fmt = axis.get_major_formatter()
+                if hasattr(fmt, "set_useOffset"):
+                    fmt.set_useOffset(False)     # plain tick labels, no "+3.499" offsets
+    return figures
+
+
 def plot_localisation(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray,
-                      out_dir: str | Path) -> list[Path]:
+                      out_dir: str | Path, units: Mapping[str, str] | None = None) -> list[Path]:
     """Write the localisation plots as PNG files into ``out_dir``.
 
     Parameters
@@ -42,6 +70,9 @@ def plot_localisation(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray
         The data given to :func:`~diagnosis.localise.localise`.
     out_dir
         Directory (created if missing).
+    units
+        The unit of each signal by name (sensors and inputs, e.g. ``{"y1": "m", "F1": "N"}``); a signal
+        without one is labelled without a unit.
 
     Returns
     -------
@@ -49,35 +80,49 @@ def plot_localisation(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray
         ``residuals.png``, ``frf.png``, ``windows.png``, ``amplitude.png``,
         ``correlation.png``, ``bands.png``.
     """
-    u2, y2, yh2 = as_matrix(u, "u"), as_matrix(y, "y"), as_matrix(y_hat, "y_hat")
-    if y2.shape != yh2.shape or y2.shape[1] != len(loc.sensor_names) or u2.shape[0] != y2.shape[0] \
-            or u2.shape[1] != len(loc.input_names):
-        raise DataError(f"plot_localisation: data shapes u {u2.shape}, y {y2.shape}, y_hat {yh2.shape} do not "
-                        f"match the localisation ({len(loc.input_names)} inputs, {len(loc.sensor_names)} sensors)")
+    figures = localisation_figures(loc, dt, u, y, y_hat, units)
     out = Path(out_dir)
     make_dir(out, exist_ok=True, parents=True)
     plt = _pyplot()
-    t = np.arange(y2.shape[0]) * dt
     files: list[Path] = []
-
-    def save(fig, name: str) -> None:
-        fig.tight_layout()
+    for name, fig in figures.items():
         p = out / name
         with atomic_path(p, suffix=".png") as tmp:
-            fig.savefig(tmp, dpi=100)
+            fig.savefig(tmp, dpi=100, bbox_inches="tight")
         plt.close(fig)
         files.append(p)
-
-    save(_residuals_figure(plt, loc, t, y2, yh2), "residuals.png")
-    save(_frf_figure(plt, loc, dt, u2, y2, yh2), "frf.png")
-    save(_windows_figure(plt, loc), "windows.png")
-    save(_amplitude_figure(plt, loc), "amplitude.png")
-    save(_correlation_figure(plt, loc), "correlation.png")
-    save(_bands_figure(plt, loc), "bands.png")
     return files
 
 
-def _residuals_figure(plt: Any, loc: Localisation, t: np.ndarray, y2: np.ndarray, yh2: np.ndarray) -> Any:
+class _Units:
+    """Axis-label units of the signals by name."""
+
+    def __init__(self, units: dict[str, str]) -> None:
+        self.units = units
+
+    def of(self, name: str) -> str:
+        """`` [unit]`` of a signal, or nothing."""
+        u = self.units.get(name)
+        return f" [{u}]" if u else ""
+
+    def ratio(self, out: str, inp: str) -> str:
+        """`` [out/in]`` of a frequency response, or nothing."""
+        a, b = self.units.get(out), self.units.get(inp)
+        return f" [{a}/{b}]" if a and b else ""
+
+    def common(self, names: list[str]) -> str:
+        """`` [unit]`` when every named signal has the same unit, else nothing."""
+        found = {self.units.get(n) for n in names}
+        return f" [{found.pop()}]" if len(found) == 1 and None not in found else ""
+
+
+def _outside_legend(ax: Any) -> None:
+    """The axis' legend to the right of its data."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, borderaxespad=0.0)
+
+
+def _residuals_figure(plt: Any, loc: Localisation, t: np.ndarray, y2: np.ndarray, yh2: np.ndarray, unit: _Units
+                      ) -> Any:
     """The residual time series per sensor with the ±2σ noise band."""
     names = loc.sensor_names
     n_out = len(names)
@@ -88,15 +133,21 @@ def _residuals_figure(plt: Any, loc: Localisation, t: np.ndarray, y2: np.ndarray
         ax.plot(t, y2[:, o] - yh2[:, o], lw=0.5, color="C3", label="residual y - ŷ")
         ax.axhline(2 * s.noise_std, color="k", ls=":", lw=0.8, label="±2σ noise")
         ax.axhline(-2 * s.noise_std, color="k", ls=":", lw=0.8)
-        ax.set_ylabel(names[o])
+        ax.set_ylabel(f"{names[o]} residual{unit.of(names[o])}")
         ax.set_title(f"{names[o]}: NRMSE {s.nrmse:.3g}, gap ratio {s.gap_ratio:.3g}", fontsize=9)
-    axes[0, 0].legend(loc="upper right", fontsize=8)
+    _outside_legend(axes[0, 0])
     axes[-1, 0].set_xlabel("time [s]")
     return fig
 
 
-def _frf_figure(plt: Any, loc: Localisation, dt: float, u2: np.ndarray, y2: np.ndarray, yh2: np.ndarray) -> Any:
-    """FRF magnitude and phase, measured against model, with the modes marked."""
+#: Fewer excited frequencies than this (tones): the model's FRF is marked at them, not joined by lines that would
+#: cross resonances the tones do not see.
+_FEW_LINES = 12
+
+
+def _frf_figure(plt: Any, loc: Localisation, dt: float, u2: np.ndarray, y2: np.ndarray, yh2: np.ndarray,
+                unit: _Units) -> Any:
+    """FRF magnitude and (unwrapped) phase, measured against model, with the modes marked."""
     names = loc.sensor_names
     n_out = len(names)
     # FRF magnitude and phase, measured vs model, with mode markers
@@ -109,10 +160,11 @@ def _frf_figure(plt: Any, loc: Localisation, dt: float, u2: np.ndarray, y2: np.n
             exc = fm.excited[:, j]
             f = fm.f[exc]
             axm, axp = axes[2 * o, j], axes[2 * o + 1, j]
-            axm.semilogy(f, np.abs(fm.H[exc, o, j]), ".", ms=2, color="C0", label="measured")
-            axm.semilogy(f, np.abs(fh.H[exc, o, j]), "-", lw=0.8, color="C1", label="model")
-            axp.plot(f, np.degrees(np.angle(fm.H[exc, o, j])), ".", ms=2, color="C0")
-            axp.plot(f, np.degrees(np.angle(fh.H[exc, o, j])), "-", lw=0.8, color="C1")
+            style = "x" if f.size < _FEW_LINES else "-"
+            axm.semilogy(f, np.abs(fh.H[exc, o, j]), style, lw=0.8, color="C1", label="model")
+            axm.semilogy(f, np.abs(fm.H[exc, o, j]), ".", ms=3, color="C0", label="measured", zorder=5)
+            axp.plot(f, np.degrees(np.unwrap(np.angle(fh.H[exc, o, j]))), style, lw=0.8, color="C1")
+            axp.plot(f, np.degrees(np.unwrap(np.angle(fm.H[exc, o, j]))), ".", ms=3, color="C0", zorder=5)
             for m in loc.modes:
                 if m.sensor != names[o] or m.input != loc.input_names[j]:
                     continue
@@ -120,15 +172,15 @@ def _frf_figure(plt: Any, loc: Localisation, dt: float, u2: np.ndarray, y2: np.n
                     ax.axvline(m.model_freq_hz, color="C1", ls="--", lw=0.6)
                     if m.fit_ok:
                         ax.axvline(m.measured_freq_hz, color="C0", ls=":", lw=0.8)
-            axm.set_ylabel(f"|H| {names[o]}/{loc.input_names[j]}")
-            axp.set_ylabel("phase [deg]")
-    axes[0, 0].legend(loc="upper right", fontsize=8)
+            axm.set_ylabel(f"|H| {names[o]}/{loc.input_names[j]}{unit.ratio(names[o], loc.input_names[j])}")
+            axp.set_ylabel("phase, unwrapped [deg]")
+    _outside_legend(axes[0, -1])
     for j in range(n_in):
         axes[-1, j].set_xlabel("frequency [Hz]  (dashed: model modes, dotted: measured fit)")
     return fig
 
 
-def _windows_figure(plt: Any, loc: Localisation) -> Any:
+def _windows_figure(plt: Any, loc: Localisation, unit: _Units) -> Any:
     """Residual RMS, gain and phase per time window (drift)."""
     # per time window
     fig, axes = plt.subplots(3, 1, figsize=(7, 7), sharex=True)
@@ -138,17 +190,17 @@ def _windows_figure(plt: Any, loc: Localisation) -> Any:
         axes[0].plot(tc, w.linear_rms, "s--", color=f"C{o}", mfc="none", label=f"{w.sensor}: y - y_lin")
         axes[1].plot(tc, w.gain, "o-", color=f"C{o}", label=f"{w.sensor} (p={w.gain_p:.2g})")
         axes[2].plot(tc, w.phase_deg, "o-", color=f"C{o}", label=f"{w.sensor} (p={w.phase_p:.2g})")
-    axes[0].set_ylabel("residual RMS")
-    axes[1].set_ylabel("gain y / y_lin")
+    axes[0].set_ylabel(f"residual RMS{unit.common([w.sensor for w in loc.windows])}")
+    axes[1].set_ylabel("gain y / y_lin [-]")
     axes[2].set_ylabel("phase y vs y_lin [deg]")
     axes[2].set_xlabel("window centre [s]")
     for ax in axes:
-        ax.legend(fontsize=7)
+        _outside_legend(ax)
     axes[0].set_title("per time window (drift)", fontsize=9)
     return fig
 
 
-def _amplitude_figure(plt: Any, loc: Localisation) -> Any:
+def _amplitude_figure(plt: Any, loc: Localisation, unit: _Units) -> Any:
     """Residual RMS and gain per response amplitude level (nonlinearity)."""
     # per amplitude level
     fig, axes = plt.subplots(2, 1, figsize=(7, 5.5))
@@ -158,11 +210,12 @@ def _amplitude_figure(plt: Any, loc: Localisation) -> Any:
                        label=f"{a.sensor} (exponent {a.rms_exponent:.2g})")
         axes[0].axhline(loc.sensors[o].noise_std, color=f"C{o}", ls=":", lw=0.8)
         axes[1].semilogx(lv, a.gain, "o-", color=f"C{o}", label=f"{a.sensor} (p={a.gain_p:.2g})")
-    axes[0].set_ylabel("residual RMS (dotted: noise σ)")
-    axes[1].set_ylabel("gain y / y_lin")
-    axes[1].set_xlabel("response envelope level")
+    common = unit.common([a.sensor for a in loc.amplitude])
+    axes[0].set_ylabel(f"residual RMS{common}\n(dotted: noise σ)")
+    axes[1].set_ylabel("gain y / y_lin [-]")
+    axes[1].set_xlabel(f"response envelope level{common}")
     for ax in axes:
-        ax.legend(fontsize=7)
+        _outside_legend(ax)
     axes[0].set_title("per amplitude level (nonlinearity)", fontsize=9)
     return fig
 
@@ -180,7 +233,8 @@ def _correlation_figure(plt: Any, loc: Localisation) -> Any:
         ax.bar(lags, h.autocorr, color="C0", width=0.8)
         ax.axhspan(-h.band, h.band, color="k", alpha=0.15)
         ax.set_title(f"{h.sensor}: autocorr (LB p={h.ljung_box_p:.2g})", fontsize=8)
-        ax.set_xlabel("lag")
+        ax.set_xlabel("lag [samples]")
+        ax.set_ylabel("correlation [-]")
     for c in loc.cross_correlation:
         o = names.index(c.sensor)
         j = loc.input_names.index(c.input)
@@ -189,7 +243,8 @@ def _correlation_figure(plt: Any, loc: Localisation) -> Any:
         ax.bar(np.arange(-m, m + 1), c.xcorr, color="C1", width=0.8)
         ax.axhspan(-c.band, c.band, color="k", alpha=0.15)
         ax.set_title(f"{c.sensor} vs {c.input}: xcorr (p={c.p:.2g})", fontsize=8)
-        ax.set_xlabel("lag")
+        ax.set_xlabel("lag [samples]")
+        ax.set_ylabel("correlation [-]")
     return fig
 
 
@@ -207,8 +262,8 @@ def _bands_figure(plt: Any, loc: Localisation) -> Any:
         ax.bar(x + 0.2, [0.0 if not np.isfinite(b.excess_fraction) else b.excess_fraction for b in bs],
                width=0.4, label="model-error energy")
         ax.set_xticks(x, labels, fontsize=7)
-        ax.set_ylabel(names[o])
+        ax.set_ylabel(f"{names[o]}: energy fraction [-]", fontsize=8)
         ax.set_ylim(0, 1)
-    axes[0, 0].legend(fontsize=7)
+    _outside_legend(axes[0, 0])
     axes[-1, 0].set_xlabel("band [Hz]")
     return fig

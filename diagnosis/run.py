@@ -362,7 +362,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
 
         # where: localisation of the baseline residual per record
         base_all = cast(list[np.ndarray], problem.simulate(baseline.beta, until="all"))   # "all": every record
-        locs = [localise(dt, r.inputs, r.outputs, y, cfg.output_names, mf, mz, noise_std=sigma)
+        locs = [localise(dt, r.inputs, r.outputs, y, cfg.output_names, mf, mz, noise_std=sigma,
+                         input_names=cfg.input_names)
                 for r, y in zip(records, base_all)]
         if ranking.verdict == UNEXPLAINED:
             # what the localisation found is the user's lead, not the least-bad name

@@ -1,24 +1,37 @@
-"""Report plots of an identification run (matplotlib, Agg backend, PNG files)."""
+"""Report plots of an identification run (matplotlib, Agg backend, PNG files).
+
+Each figure is built by a function of arrays (:func:`fit_figure`, :func:`spread_figure`, :func:`front_figure`)
+and written by :func:`plot_results`; every axis carries its unit, signal names come from the config, legends sit
+outside the data, and tick labels are plain numbers (no offset such as ``+3.499``).
+"""
 from __future__ import annotations
 
 from itertools import combinations
-from typing import Any
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from ebb_model.beam import PARAMETER_UNITS
 from ebb_model.output import atomic_path
 
-__all__ = ["plot_results"]
+__all__ = ["plot_results", "fit_figure", "spread_figure", "front_figure", "zoom_window", "dominant_hz"]
+
+
+def _pyplot() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
 
 
 def _save(fig: Any, path: Any) -> None:
     """Write ``fig`` as a PNG to ``path`` atomically and close it."""
-    import matplotlib.pyplot as plt
-
+    plt = _pyplot()
     try:
         with atomic_path(path, suffix=".png") as tmp:
-            fig.savefig(tmp, dpi=110)
+            fig.savefig(tmp, dpi=110, bbox_inches="tight")
     finally:
         plt.close(fig)
 
@@ -32,78 +45,139 @@ def _parameter_label(name: str) -> str:
     return f"{name} [{unit}]" if unit else name
 
 
-def plot_results(res: Any, evaluator: Any) -> list[str]:
-    """Pareto front (every pair of objectives), measured vs simulated per sensor, parameter spread.
+def _plain_ticks(ax: Any) -> None:
+    """Tick labels as plain numbers: no offset (``+3.499``) and no shared exponent on a linear axis."""
+    for axis in (ax.xaxis, ax.yaxis):
+        fmt = axis.get_major_formatter()
+        if hasattr(fmt, "set_useOffset"):
+            fmt.set_useOffset(False)
 
-    Returns the file names.  Every axis carries its unit; the knee and the identified model (polished knee)
-    are marked in every panel, with a legend.
+
+def dominant_hz(y: np.ndarray, dt: float) -> float:
+    """The frequency [Hz] of the largest spectral line of ``y`` (mean removed)."""
+    spectrum = np.abs(np.fft.rfft(y - np.mean(y)))
+    return float(np.fft.rfftfreq(y.size, dt)[int(np.argmax(spectrum))])
+
+
+def zoom_window(n: int, dt: float, *, periods_hz: float | None = None) -> slice:
+    """A readable stretch of an ``n``-sample record: ten periods of ``periods_hz`` (else a twentieth of the
+    record), at least 200 samples, from the middle of the record."""
+    if periods_hz is not None and periods_hz > 0:
+        width = int(round(10.0 / (periods_hz * dt)))
+    else:
+        width = n // 20
+    width = int(min(n, max(200, width)))
+    start = max(0, min(n - width, n // 2))
+    return slice(start, start + width)
+
+
+def fit_figure(t: np.ndarray, measured: np.ndarray, models: Mapping[str, np.ndarray], names: Sequence[str],
+               units: Sequence[str], *, zoom: slice | None = None) -> Any:
+    """Measured against simulated outputs, one row per sensor: the whole record (left) and a zoom (right).
+
+    The models are drawn first and the measurement on top (black, thin), so the data stay visible where the
+    model fits them.
     """
-    import matplotlib
+    plt = _pyplot()
+    n_out = measured.shape[1]
+    zoom = zoom if zoom is not None else zoom_window(t.size, float(t[1] - t[0]) if t.size > 1 else 1.0)
+    fig, axes = plt.subplots(n_out, 2, figsize=(11, 2.5 * n_out + 0.6), squeeze=False,
+                             gridspec_kw={"width_ratios": [2, 1]})
+    for j in range(n_out):
+        for ax, sl in ((axes[j, 0], slice(None)), (axes[j, 1], zoom)):
+            for k, (label, y) in enumerate(models.items()):
+                ax.plot(t[sl], y[sl, j], lw=1.4, color=f"C{k}", alpha=0.8, label=label)
+            ax.plot(t[sl], measured[sl, j], lw=0.6, color="k", label="measured", zorder=5)
+            _plain_ticks(ax)
+        axes[j, 0].set_ylabel(f"{names[j]} [{units[j]}]")
+        axes[j, 1].set_title(f"{names[j]}: zoom {t[zoom][0]:.4g}–{t[zoom][-1]:.4g} s", fontsize=8)
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]")
+    axes[0, 0].axvspan(t[zoom][0], t[zoom][-1], color="0.85", zorder=0)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, bbox_to_anchor=(0.5, -0.01))
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
+    return fig
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
+def spread_figure(X: np.ndarray, names: Sequence[str], knee: int, identified: np.ndarray | None) -> Any:
+    """The unknowns over the Pareto set, the knee and the identified model marked; legend below the panels."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, X.shape[1], figsize=(2.6 * X.shape[1] + 0.4, 3.6), squeeze=False)
+    for j, ax in enumerate(axes[0]):
+        ax.plot(np.zeros(len(X)), X[:, j], "o", alpha=0.5, label="Pareto set (GA)")
+        ax.plot([0], [X[knee, j]], "r*", ms=12, label="knee (not polished)")
+        if identified is not None:
+            ax.plot([0], [identified[j]], "kx", ms=10, label="identified (polished knee)")
+        ax.set_ylabel(_parameter_label(names[j]))
+        ax.set_xticks([])
+        _plain_ticks(ax)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
+    fig.tight_layout(rect=(0, 0.1, 1, 1))
+    return fig
+
+
+def front_figure(F: np.ndarray, names: Sequence[str], knee: int, identified: np.ndarray | None) -> Any:
+    """The Pareto front, every pair of objectives; one objective: the final set's values, sorted (a single
+    objective has no front — the set is the GA's best members)."""
+    plt = _pyplot()
+    pairs = list(combinations(range(F.shape[1]), 2))
+    if pairs:
+        fig, axes = plt.subplots(1, len(pairs), figsize=(4.6 * len(pairs), 4.2), squeeze=False)
+        for ax, (a, b) in zip(axes[0], pairs):
+            ax.scatter(F[:, a], F[:, b], c="C0", s=18, label="Pareto set (GA)")
+            ax.scatter(F[knee, a], F[knee, b], c="C3", marker="*", s=150, label="knee (not polished)")
+            if identified is not None:
+                ax.scatter(identified[a], identified[b], c="k", marker="x", s=80, label="identified (polished knee)")
+            ax.set_xlabel(_objective_label(names[a]))
+            ax.set_ylabel(_objective_label(names[b]))
+            _plain_ticks(ax)
+        fig.suptitle("Pareto front" + (" (all pairs of objectives)" if len(pairs) > 1 else ""))
+        ax0 = axes[0, 0]
+    else:
+        fig, ax0 = plt.subplots(figsize=(5, 4.2))
+        order = np.argsort(F[:, 0])
+        ax0.plot(np.arange(1, len(F) + 1), F[order, 0], "o", label="GA's final set")
+        if identified is not None:
+            ax0.axhline(identified[0], color="k", ls="--", label="identified (polished knee)")
+        ax0.set_xlabel("member of the GA's final set, best first [-]")
+        ax0.set_ylabel(_objective_label(names[0]))
+        ax0.set_title("one objective: no front, the GA's best members")
+        _plain_ticks(ax0)
+    handles, labels = ax0.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
+    fig.tight_layout(rect=(0, 0.08, 1, 0.97))
+    return fig
+
+
+def plot_results(res: Any, evaluator: Any) -> list[str]:
+    """``pareto_front.png``, ``knee_fit.png`` (measured vs simulated per sensor) and ``parameter_spread.png``
+    into the run's directory; returns the file names.  The knee and the identified model (polished knee) are
+    marked in every panel."""
     p = res.pareto
     out = res.out_dir
-    files = []
     polished = getattr(res, "polished", ())
-    f_pol = np.asarray(polished[0].objectives) if polished else None
-    pairs = list(combinations(range(p.F.shape[1]), 2))
-    if pairs:
-        fig, axes = plt.subplots(1, len(pairs), figsize=(4.6 * len(pairs), 4), squeeze=False)
-        for ax, (a, b) in zip(axes[0], pairs):
-            ax.scatter(p.F[:, a], p.F[:, b], c="C0", s=18, label="Pareto set (GA)")
-            ax.scatter(p.F[p.knee, a], p.F[p.knee, b], c="C3", marker="*", s=150, label="knee (not polished)")
-            if f_pol is not None:
-                ax.scatter(f_pol[a], f_pol[b], c="k", marker="x", s=80, label="identified (polished knee)")
-            ax.set_xlabel(_objective_label(p.objective_names[a]))
-            ax.set_ylabel(_objective_label(p.objective_names[b]))
-        axes[0, 0].legend(fontsize=8)
-        fig.suptitle("Pareto front" + (" (all pairs of objectives)" if len(pairs) > 1 else ""))
-    else:
-        fig, ax = plt.subplots(figsize=(5, 4))
-        ax.plot(p.F[:, 0], "o", label="Pareto set (GA)")
-        if f_pol is not None:
-            ax.axhline(f_pol[0], color="k", ls="--", label="identified (polished knee)")
-        ax.set_xlabel("point")
-        ax.set_ylabel(_objective_label(p.objective_names[0]))
-        ax.legend(fontsize=8)
-        ax.set_title("Pareto front")
-    fig.tight_layout()
-    _save(fig, out / "pareto_front.png")
-    files.append("pareto_front.png")
+    identified_f = np.asarray(polished[0].objectives) if polished else None
+    files = ["pareto_front.png"]
+    _save(front_figure(p.F, p.objective_names, p.knee, identified_f), out / files[-1])
 
     sims = evaluator.simulate(p.X[p.knee]).outputs
     sims_pol = evaluator.simulate(polished[0].x).outputs if polished else ()
     if sims:
         e0 = evaluator.experiments[0]
-        n_out = e0.outputs.shape[1]
-        fig, axes = plt.subplots(n_out, 1, figsize=(8, 2.5 * n_out), squeeze=False)
         dt = evaluator.config.time.dt
         t = np.arange(e0.outputs.shape[0]) * dt
-        for j, ax in enumerate(axes[:, 0]):
-            sensor = evaluator.config.sensors[j]
-            ax.plot(t, e0.outputs[:, j], lw=0.8, label="measured")
-            ax.plot(t, sims[0][:, j], lw=0.8, label="simulated (knee, not polished)")
-            if sims_pol:
-                ax.plot(t, sims_pol[0][:, j], lw=0.8, ls="--", label="simulated (identified: polished knee)")
-            ax.set_ylabel(f"{sensor.name} [{sensor.unit}]")
-        axes[0, 0].legend(loc="upper right", fontsize=8)
-        axes[-1, 0].set_xlabel("time [s]")
-        fig.tight_layout()
-        _save(fig, out / "knee_fit.png")
+        models = {"simulated (knee, not polished)": sims[0]}
+        if sims_pol:
+            models["simulated (identified: polished knee)"] = sims_pol[0]
+        sensors = evaluator.config.sensors
         files.append("knee_fit.png")
+        zoom = zoom_window(t.size, dt, periods_hz=dominant_hz(e0.outputs[:, 0], dt))
+        _save(fit_figure(t, e0.outputs, models, [s.name for s in sensors], [s.unit for s in sensors], zoom=zoom),
+              out / files[-1])
 
-    fig, axes = plt.subplots(1, p.X.shape[1], figsize=(2.4 * p.X.shape[1], 3.2), squeeze=False)
-    for j, ax in enumerate(axes[0]):
-        ax.plot(np.zeros(len(p.X)), p.X[:, j], "o", alpha=0.5, label="Pareto set (GA)")
-        ax.plot([0], [p.X[p.knee, j]], "r*", ms=12, label="knee (not polished)")
-        if polished:
-            ax.plot([0], [polished[0].x[j]], "kx", ms=10, label="identified (polished knee)")
-        ax.set_ylabel(_parameter_label(p.parameter_names[j]))
-        ax.set_xticks([])
-    axes[0, 0].legend(fontsize=7, loc="best")
-    fig.tight_layout()
-    _save(fig, out / "parameter_spread.png")
     files.append("parameter_spread.png")
+    _save(spread_figure(p.X, p.parameter_names, p.knee, np.asarray(polished[0].x) if polished else None),
+          out / files[-1])
     return files

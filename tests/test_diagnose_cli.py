@@ -103,6 +103,7 @@ def test_demo_quick_runs_the_whole_workflow(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["demo", "--quick", "--quiet", "--out", str(out)]) == 0
     text = (out / "report.txt").read_text()
+    assert text.startswith("ebb demo: ")                  # a title, not a blank line
     assert "withheld effect: boundary_rotational_left -> diagnosis RIGHT" in text
     assert (out / "diagnosis" / "gap.json").is_file()
     # the identified model (polished knee) is what is exported; the corrected model comes from the diagnosis

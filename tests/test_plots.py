@@ -1,0 +1,123 @@
+"""The report plots a person reads (issue 34): every axis labelled with its unit, signal names from the config,
+unwrapped phase, the measurement drawn above the model, a zoom beside the whole record, plain tick labels, one
+objective shown as what it is.  Each figure is rendered from small arrays and its axes inspected."""
+from __future__ import annotations
+
+import re
+
+import matplotlib
+import numpy as np
+import pytest
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+from diagnosis.localise import localise  # noqa: E402
+from diagnosis.report_plots import localisation_figures  # noqa: E402
+from identification.plots import dominant_hz, fit_figure, front_figure, spread_figure, zoom_window  # noqa: E402
+
+from test_localise import DT, FREQS, RES, ZETAS, _input, _modal, _noisy  # noqa: E402
+
+UNIT = re.compile(r"\[[^\]]+\]")
+
+
+@pytest.fixture(scope="module")
+def localisation_plots():
+    rng = np.random.default_rng(10)
+    u = _input(rng, n=6000)[:, 0]
+    y_hat = _modal(u, FREQS, ZETAS, RES)
+    y, _ = _noisy(_modal(u, [20.0, 55.0 * 0.97, 130.0], ZETAS, RES), rng, 0.05)
+    loc = localise(DT, u, y, y_hat, ["y1", "y2"], FREQS, ZETAS, input_names=["force"])
+    figures = localisation_figures(loc, DT, u, y, y_hat, units={"y1": "m", "y2": "m", "force": "N"})
+    yield figures
+    for fig in figures.values():
+        plt.close(fig)
+
+
+def test_every_localisation_axis_has_its_unit(localisation_plots):
+    for name, fig in localisation_plots.items():
+        for ax in fig.axes:
+            if ax.get_ylabel():
+                assert UNIT.search(ax.get_ylabel()), (name, ax.get_ylabel())
+            if ax.get_xlabel():
+                assert UNIT.search(ax.get_xlabel()), (name, ax.get_xlabel())
+    frf = localisation_plots["frf.png"]
+    assert "|H| y1/force [m/N]" in [ax.get_ylabel() for ax in frf.axes]           # the config's input name
+    assert "y2 residual [m]" in [ax.get_ylabel() for ax in localisation_plots["residuals.png"].axes]
+    texts = [t for fig in localisation_plots.values() for ax in fig.axes
+             for t in (ax.get_xlabel(), ax.get_ylabel(), ax.get_title())]
+    assert not any("u1" in t for t in texts), [t for t in texts if "u1" in t]
+
+
+def test_phase_is_unwrapped_and_the_measurement_is_drawn_above_the_model(localisation_plots):
+    frf = localisation_plots["frf.png"]
+    phase_axes = [ax for ax in frf.axes if ax.get_ylabel().startswith("phase")]
+    assert phase_axes
+    for ax in phase_axes:
+        for line in ax.get_lines():
+            y = np.asarray(line.get_ydata(), dtype=float)
+            if y.size > 1:
+                # wrapped phase jumps by ~360° between neighbouring lines; unwrapped it moves by less than 180°
+                assert np.max(np.abs(np.diff(y))) < 180.0, line.get_label()
+    for ax in frf.axes:
+        z = {line.get_label(): line.get_zorder() for line in ax.get_lines()}
+        if "measured" in z and "model" in z:
+            assert z["measured"] > z["model"]
+
+
+def test_no_offset_tick_labels_and_legends_outside_the_data(localisation_plots):
+    for fig in localisation_plots.values():
+        fig.canvas.draw()
+        for ax in fig.axes:
+            for axis in (ax.xaxis, ax.yaxis):
+                assert getattr(axis.get_major_formatter(), "offset", 0) == 0     # no "+3.499" offsets
+            legend = ax.get_legend()
+            if legend is not None:      # anchored right of the axes, outside its data
+                box = legend.get_window_extent()
+                assert box.x0 >= ax.get_window_extent().x1 - 1.0
+
+
+def test_fit_figure_has_a_zoom_and_the_data_on_top():
+    dt = 2.5e-4
+    t = np.arange(80000) * dt                       # 20 s of a 120 Hz tone: a solid band if drawn whole
+    y = np.column_stack([np.sin(2 * np.pi * 120 * t), 0.5 * np.sin(2 * np.pi * 120 * t + 1)])
+    zoom = zoom_window(t.size, dt, periods_hz=dominant_hz(y[:, 0], dt))
+    assert dominant_hz(y[:, 0], dt) == pytest.approx(120.0, abs=0.05)
+    assert (zoom.stop - zoom.start) * dt == pytest.approx(10 / 120, rel=0.01)     # ten periods
+    fig = fit_figure(t, y, {"model": 0.98 * y}, ["y1", "a1"], ["m", "m/s^2"], zoom=zoom)
+    try:
+        assert [ax.get_ylabel() for ax in fig.axes[::2]] == ["y1 [m]", "a1 [m/s^2]"]
+        assert all(ax.get_xlabel() == "time [s]" for ax in fig.axes[-2:])
+        left, right = fig.axes[0], fig.axes[1]
+        assert right.get_xlim()[1] - right.get_xlim()[0] < 0.1 < left.get_xlim()[1] - left.get_xlim()[0]
+        for ax in fig.axes:
+            z = {line.get_label(): line.get_zorder() for line in ax.get_lines()}
+            assert z["measured"] > z["model"]
+    finally:
+        plt.close(fig)
+
+
+def test_parameter_spread_has_plain_ticks_and_units():
+    rng = np.random.default_rng(1)
+    X = np.column_stack([3.499 + 1e-5 * rng.standard_normal(9), 1e-8 + 4e-5 + 1e-12 * rng.standard_normal(9)])
+    fig = spread_figure(X, ["EI", "eta"], 0, X[0])
+    try:
+        fig.canvas.draw()
+        assert [ax.get_ylabel() for ax in fig.axes] == ["EI [N.m2]", "eta [s]"]
+        for ax in fig.axes:      # the values differ in their 5th and 8th digits: an offset would be chosen
+            assert ax.yaxis.get_major_formatter().offset == 0
+        assert fig.legends and all(ax.get_legend() is None for ax in fig.axes)   # one legend, below the panels
+    finally:
+        plt.close(fig)
+
+
+def test_one_objective_is_not_drawn_as_a_front():
+    F = np.array([[0.3], [0.1], [0.2]])
+    fig = front_figure(F, ["nrmse_y1"], 1, np.array([0.05]))
+    try:
+        ax = fig.axes[0]
+        assert "front" not in ax.get_xlabel() and ax.get_xlabel().endswith("[-]")
+        assert ax.get_ylabel() == "nrmse_y1 [-]"
+        assert list(ax.get_lines()[0].get_ydata()) == [0.1, 0.2, 0.3]          # best first
+    finally:
+        plt.close(fig)
