@@ -41,9 +41,9 @@ from .discretisation import SemiDiscreteBeam, discretise
 from .modal_form import MAX_BASIS_CONDITION, ModalStateSpace, basis_condition, is_proportional
 from .statespace import DiscreteStateSpace, with_input_delays
 
-__all__ = ["exact_model", "exact_modal", "exact_statespace", "continuous_modes", "ContinuousModes",
-           "modal_matrices", "ModalMatrices", "richardson_modes", "extrapolated", "lowest_modes", "modal_state_matrix",
-           "refined_config", "companion_config", "pole_integrals"]
+__all__ = ["exact_model", "exact_modal", "exact_statespace", "continuous_modes", "ContinuousModes", "modal_matrices",
+           "pair_modal_matrices", "ModalMatrices", "richardson_modes", "extrapolated", "lowest_modes",
+           "modal_state_matrix", "refined_config", "companion_config", "pole_integrals"]
 
 #: Largest refined grid: the eigen-solver's round-off grows with the stiffness matrix's condition number
 #: (``∝ n⁴``: 4e7 at 199 nodes), and beyond this it shows as noise in the identification's difference
@@ -318,9 +318,14 @@ def modal_matrices(config: BeamConfig, params: Mapping[str, float]) -> ModalMatr
     ParameterError
         Invalid parameter values (from the discretisation).
     """
-    grids = (discretise(config, params), discretise(companion_config(config), params))
-    coarse, fine = sorted(grids, key=lambda b: b.n_unknowns)
-    k = grids[0].n_unknowns                               # as many modes as the config's grid has unknowns
+    return pair_modal_matrices(discretise(config, params), discretise(companion_config(config), params))
+
+
+def pair_modal_matrices(own: SemiDiscreteBeam, companion: SemiDiscreteBeam) -> ModalMatrices:
+    """:func:`modal_matrices` of the beam discretised on the config's grid (``own``) and on its
+    :func:`companion_config` grid."""
+    coarse, fine = sorted((own, companion), key=lambda b: b.n_unknowns)
+    k = own.n_unknowns                                    # as many modes as the config's grid has unknowns
     w2, psi = richardson_modes(coarse, fine, k)
     proportional, d = is_proportional(psi, fine.C)
     if proportional:

@@ -21,7 +21,7 @@ import numpy as np
 
 from .config import BeamConfig
 from .discretisation import SemiDiscreteBeam, discretise
-from .exact_modal import modal_state_matrix, companion_config, extrapolated, lowest_modes, modal_matrices
+from .exact_modal import companion_config, extrapolated, lowest_modes, modal_state_matrix, pair_modal_matrices
 
 __all__ = ["modal_poles"]
 
@@ -46,11 +46,12 @@ def modal_poles(config: BeamConfig, params: Mapping[str, float], lowest: int | N
     ParameterError
         Invalid parameter values (from the discretisation).
     """
+    own, companion = discretise(config, params), discretise(companion_config(config), params)
     if lowest is not None:
-        s = _mass_proportional_poles(config, params, lowest)
+        s = _mass_proportional_poles(own, companion, lowest)
         if s is not None:
             return s
-    mm = modal_matrices(config, params)
+    mm = pair_modal_matrices(own, companion)
     if mm.damping is not None:
         root = np.sqrt((mm.damping ** 2 / 4 - mm.frequencies2).astype(complex))
         return np.concatenate([-mm.damping / 2 + root, -mm.damping / 2 - root])
@@ -70,18 +71,18 @@ def _mass_proportional_rate(beam: SemiDiscreteBeam) -> float | None:
     return alpha
 
 
-def _mass_proportional_poles(config: BeamConfig, params: Mapping[str, float], n: int) -> np.ndarray | None:
+def _mass_proportional_poles(own: SemiDiscreteBeam, companion: SemiDiscreteBeam, n: int) -> np.ndarray | None:
     """Both poles of each of the ``n`` lowest modes when the damping is mass-proportional and those modes are
-    underdamped (then so is every higher one, ``d`` being the same for all), else ``None``.
+    underdamped (then so is every higher one, ``d`` being the same for all), else ``None``; ``own`` and
+    ``companion`` as :func:`~ebb_model.exact_modal.pair_modal_matrices`.
 
     The values are :func:`~ebb_model.exact_modal.modal_matrices`' (the same two grids, the same extrapolation,
     the fade scaled by the full count), computed for these modes alone.
     """
-    grids = (discretise(config, params), discretise(companion_config(config), params))
-    k = grids[0].n_unknowns                       # the realisation's mode count (modal_matrices)
+    k = own.n_unknowns                            # the realisation's mode count (modal_matrices)
     if n >= k:
         return None
-    coarse, fine = sorted(grids, key=lambda b: b.n_unknowns)
+    coarse, fine = sorted((own, companion), key=lambda b: b.n_unknowns)
     alpha = _mass_proportional_rate(fine)
     if alpha is None:
         return None
@@ -97,9 +98,12 @@ def _mass_proportional_poles(config: BeamConfig, params: Mapping[str, float], n:
 def _coupled_poles(w2: np.ndarray, Cm: np.ndarray, n: int) -> np.ndarray | None:
     r"""The upper poles of the ``n`` lowest modes of ``q̈ + C_m q̇ + Λ q = 0`` to round-off, or ``None``.
 
-    Each is a root of ``det Q(s)``, ``Q(s) = s² I + s C_m + Λ``, found by Newton's iteration
-    ``s ← s − 1 / tr(Q(s)⁻¹ Q'(s))`` from the decoupled pole ``−d_i/2 + i√(ω_i² − d_i²/4)`` (``d_i`` the
-    diagonal of ``C_m``).  ``None`` — the caller solves the full eigenvalue problem — when a wanted mode is not
+    Each is a root of ``det Q(s)``, ``Q(s) = s² I + s C_m + Λ``: with the mode ``i`` split from the rest ``r``
+    (``e`` the column ``C_m[r, i]``), ``det Q = det Q_rr · f_i`` and the pole of mode ``i`` is the root of
+    ``f_i(s) = s² + s d_i + ω_i² − s² eᵀ Q_rr(s)⁻¹ e`` near the decoupled pole ``−d_i/2 + i√(ω_i² − d_i²/4)``
+    (``d_i`` the diagonal of ``C_m``), found by Newton's iteration — one solve with one right-hand side per step
+    (``x = Q_rr⁻¹ e``, ``f_i' = 2s + d_i − 2s eᵀx + s² xᵀ(2s I + C_rr) x``, ``Q`` being symmetric).
+    ``None`` — the caller solves the full eigenvalue problem — when a wanted mode is not
     underdamped, when an iteration does not converge, or when a root left the half-gap around its start
     (it might have converged to a neighbour's pole).
     """
@@ -112,15 +116,21 @@ def _coupled_poles(w2: np.ndarray, Cm: np.ndarray, n: int) -> np.ndarray | None:
     start = -d[:n] / 2 + 1j * np.sqrt(w2[:n] - d[:n] ** 2 / 4)
     w = np.sqrt(w2[:n + 1])
     gap = 0.5 * np.minimum(np.diff(w)[:n], np.concatenate([[w[0]], np.diff(w)[:n - 1]]))
-    eye, lam = np.eye(k), np.diag(w2)
     out = np.empty(n, dtype=complex)
     for i, s in enumerate(start):
+        rest = np.delete(np.arange(k), i)
+        e, C_rr, diag_r = Cm[rest, i], Cm[np.ix_(rest, rest)], np.diag_indices(k - 1)
         for _ in range(_NEWTON_STEPS):
-            Q = s * s * eye + s * Cm + lam
+            Q_rr = s * C_rr
+            Q_rr[diag_r] += s * s + w2[rest]
             try:
-                step = 1.0 / np.trace(np.linalg.solve(Q, 2.0 * s * eye + Cm))
-            except np.linalg.LinAlgError:      # s is a root to round-off
-                step = 0.0
+                x = np.linalg.solve(Q_rr, e)
+            except np.linalg.LinAlgError:      # another mode's pole: not this mode's root
+                return None
+            ex = e @ x
+            f = s * s + s * d[i] + w2[i] - s * s * ex
+            df = 2.0 * s + d[i] - 2.0 * s * ex + s * s * (x @ (2.0 * s * x + C_rr @ x))
+            step = f / df
             s = s - step
             if abs(step) <= 1e-14 * abs(s):
                 break
