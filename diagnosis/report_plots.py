@@ -15,6 +15,7 @@ import numpy as np
 from ebb_model.arrays import as_matrix
 from ebb_model.errors import DataError
 from ebb_model.output import atomic_path, make_dir
+from identification.plots import plain_ticks
 
 from .localise import Localisation, estimate_frf
 
@@ -51,10 +52,7 @@ def localisation_figures(loc: Localisation, dt: float, u: np.ndarray, y: np.ndar
     for fig in figures.values():
         fig.tight_layout()
         for ax in fig.axes:
-            for axis in (ax.xaxis, ax.yaxis):
-                fmt = axis.get_major_formatter()
-                if hasattr(fmt, "set_useOffset"):
-                    fmt.set_useOffset(False)     # plain tick labels, no "+3.499" offsets
+            plain_ticks(ax)
     return figures
 
 

@@ -14,7 +14,8 @@ import numpy as np
 from ebb_model.beam import PARAMETER_UNITS
 from ebb_model.output import atomic_path
 
-__all__ = ["plot_results", "fit_figure", "spread_figure", "front_figure", "zoom_window", "dominant_hz"]
+__all__ = ["plot_results", "fit_figure", "spread_figure", "front_figure", "zoom_window", "dominant_hz",
+           "plain_ticks"]
 
 
 def _pyplot() -> Any:
@@ -45,7 +46,7 @@ def _parameter_label(name: str) -> str:
     return f"{name} [{unit}]" if unit else name
 
 
-def _plain_ticks(ax: Any) -> None:
+def plain_ticks(ax: Any) -> None:
     """Tick labels as plain numbers: no offset (``+3.499``) and no shared exponent on a linear axis."""
     for axis in (ax.xaxis, ax.yaxis):
         fmt = axis.get_major_formatter()
@@ -88,7 +89,7 @@ def fit_figure(t: np.ndarray, measured: np.ndarray, models: Mapping[str, np.ndar
             for k, (label, y) in enumerate(models.items()):
                 ax.plot(t[sl], y[sl, j], lw=1.4, color=f"C{k}", alpha=0.8, label=label)
             ax.plot(t[sl], measured[sl, j], lw=0.6, color="k", label="measured", zorder=5)
-            _plain_ticks(ax)
+            plain_ticks(ax)
         axes[j, 0].set_ylabel(f"{names[j]} [{units[j]}]")
         axes[j, 1].set_title(f"{names[j]}: zoom {t[zoom][0]:.4g}–{t[zoom][-1]:.4g} s", fontsize=8)
     for ax in axes[-1]:
@@ -111,7 +112,7 @@ def spread_figure(X: np.ndarray, names: Sequence[str], knee: int, identified: np
             ax.plot([0], [identified[j]], "kx", ms=10, label="identified (polished knee)")
         ax.set_ylabel(_parameter_label(names[j]))
         ax.set_xticks([])
-        _plain_ticks(ax)
+        plain_ticks(ax)
     handles, labels = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
     fig.tight_layout(rect=(0, 0.1, 1, 1))
@@ -132,7 +133,7 @@ def front_figure(F: np.ndarray, names: Sequence[str], knee: int, identified: np.
                 ax.scatter(identified[a], identified[b], c="k", marker="x", s=80, label="identified (polished knee)")
             ax.set_xlabel(_objective_label(names[a]))
             ax.set_ylabel(_objective_label(names[b]))
-            _plain_ticks(ax)
+            plain_ticks(ax)
         fig.suptitle("Pareto front" + (" (all pairs of objectives)" if len(pairs) > 1 else ""))
         ax0 = axes[0, 0]
     else:
@@ -144,7 +145,7 @@ def front_figure(F: np.ndarray, names: Sequence[str], knee: int, identified: np.
         ax0.set_xlabel("member of the GA's final set, best first [-]")
         ax0.set_ylabel(_objective_label(names[0]))
         ax0.set_title("one objective: no front, the GA's best members")
-        _plain_ticks(ax0)
+        plain_ticks(ax0)
     handles, labels = ax0.get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
     fig.tight_layout(rect=(0, 0.08, 1, 0.97))
