@@ -39,8 +39,6 @@ __all__ = ["MeasuredModes", "estimate_modes"]
 
 #: Half-width of the frequency scan around the model's value (relative).
 SEARCH = 0.12
-#: A fitted variable whose Jacobian column is below this share of the largest one is not determined by the records.
-UNDETERMINED = 1e-8
 #: Largest number of trial frequencies per mode in the scan.
 MAX_TRIALS = 600
 
@@ -199,17 +197,10 @@ def estimate_modes(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], 
                                                                                      np.ones(m)]))
     n = sol.fun.size
     var = float(sol.fun @ sol.fun) / max(n - theta0.size, 1)
-    # a variable the records do not determine (a damping driven towards zero, whose log has no effect left: its
-    # Jacobian column vanishes) has no standard error — infinite, not the pseudo-inverse's zero, which would make
-    # it the most certain value of all (measured: a compressed beam's fourth mode, ζ → 5e-20 with "std" 0, put
-    # every candidate's modal match at 1e8)
-    std = np.full(theta0.size, np.inf)
-    norms = np.linalg.norm(sol.jac, axis=0)
-    known = norms > UNDETERMINED * np.max(norms, initial=0.0)
     try:
-        J = sol.jac[:, known]
-        std[known] = np.sqrt(np.maximum(np.diag(np.linalg.pinv(J.T @ J)) * var, 0.0))
+        cov = np.linalg.pinv(sol.jac.T @ sol.jac) * var
+        std = np.sqrt(np.maximum(np.diag(cov), 0.0))
     except np.linalg.LinAlgError:
-        pass
+        std = np.full(theta0.size, np.inf)
     fs, zs = sol.x[:m], np.exp(sol.x[m:])
     return MeasuredModes(fs, zs, std[:m], std[m:] * zs, var)

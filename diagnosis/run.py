@@ -205,22 +205,16 @@ def corrected_summary(config: BeamConfig, baseline: Mapping[str, float], row: Ef
             "sensors": {s.name: s.unit for s in config.sensors}}
 
 
-#: The share of the excited band's top below which an estimated mode counts as measured (:func:`_modal_source`).
-BAND_EDGE = 0.97
-
-
 def _modal_source(problem: GapProblem, freq_hz: np.ndarray, damping: np.ndarray, above_hz: np.ndarray,
                   band_hz: float) -> Callable[[np.ndarray], ModalEvidence]:
     """The measured modes' evidence at baseline unknowns ``beta`` (:mod:`diagnosis.modal_pattern`); the modes
     are estimated from the fit windows once, when first asked for, starting from the baseline's ``freq_hz``.
 
-    Only the modes estimated inside the excited band, clear of its top edge (below :data:`BAND_EDGE` of
-    ``band_hz``; the first always), are evidence: a mode above the band is seen only through its edge, and its
-    oscillator takes up what the others leave — its frequency, with a standard error that knows nothing of that,
-    can be far from any mode (measured: a cantilever's fourth mode at 60.8 Hz, the top of a 60 Hz multisine,
-    estimated at 74.9 Hz 73 standard errors away, which then dominated every modal match) or sit on the edge
-    itself (a compressed beam's fifth mode at 118.6 Hz, above a 2–100 Hz sweep, estimated at 99.0 Hz: every
-    candidate's modal match 1e8).  It still takes part in the modal fit as a regressor."""
+    Only the modes estimated inside the excited band (up to ``band_hz``; the first always) are evidence: a mode
+    above it is seen only through the band's edge, and its oscillator takes up what the others leave — its
+    frequency, with a standard error that knows nothing of that, can be far from any mode (measured: a
+    cantilever's fourth mode at 60.8 Hz, the top of a 60 Hz multisine, estimated at 74.9 Hz 73 standard errors
+    away, which then dominated every modal match).  It still takes part in the modal fit as a regressor."""
     measured: list[MeasuredModes] = []
 
     def evidence(beta: np.ndarray) -> ModalEvidence:
@@ -228,7 +222,7 @@ def _modal_source(problem: GapProblem, freq_hz: np.ndarray, damping: np.ndarray,
             fit = [r for r in problem.records if r.has_fit]
             modes = estimate_modes([r.inputs[:r.fit_end] for r in fit], [r.outputs[:r.fit_end] for r in fit],
                                    problem.noise_std, problem.config.time.dt, freq_hz, damping, above_hz=above_hz)
-            keep = modes.freq_hz <= BAND_EDGE * band_hz
+            keep = modes.freq_hz <= band_hz
             keep[0] = True
             measured.append(modes.select(keep))
         return modal_evidence(problem, beta, measured[0])
