@@ -86,7 +86,7 @@ def lowest_modes(beam: SemiDiscreteBeam, n_modes: int, *, vectors: bool = True):
         if vectors:
             mu, psi = sla.eigh(beam.M, beam.K, driver="gvd")
             mu, psi = mu[-n_modes:], psi[:, -n_modes:]
-        elif 4 * n_modes <= size:   # a few values: bisection for them alone (a third of "gvd"'s time at 119)
+        elif 4 * n_modes <= size:   # a few values by bisection (measured at 119: 0.60 ms, all by "gvd" 0.62 ms)
             mu = sla.eigh(beam.M, beam.K, eigvals_only=True, subset_by_index=(size - n_modes, size - 1))
         else:
             mu = sla.eigh(beam.M, beam.K, eigvals_only=True, driver="gvd")[-n_modes:]

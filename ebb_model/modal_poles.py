@@ -7,8 +7,8 @@ of the few lowest modes only) is the poles of :func:`~ebb_model.exact_modal.moda
 * **mass-proportional damping, a few modes** (``C = α M``: viscous damping per unit mass, no Kelvin–Voigt term,
   every mass distributed like the damping — the modes are then decoupled, each with ``d_i = α``): the Richardson
   values ``ω_i²`` of those modes alone (eigenvalues only, bisection for the wanted ones on both grids), no
-  eigenvectors; the poles in closed form.  This is the modal-pattern search's common case, and about a third of
-  the full route's cost;
+  eigenvectors; the poles in closed form.  This is the modal-pattern search's common case, and about half the
+  full route's cost (measured 0.55× on the family's bench, the eigenvectors being what it saves);
 * **damping coupling the modes, a few modes**: every mode's shape is needed for ``C_m``; the lowest poles are
   refined by Newton's iteration from their decoupled values (:func:`_coupled_poles`);
 * otherwise every pole: closed form when ``C_m`` is diagonal, else the ``2k × 2k`` eigenvalue problem.
