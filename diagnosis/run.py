@@ -210,11 +210,13 @@ def _modal_source(problem: GapProblem, freq_hz: np.ndarray, damping: np.ndarray,
     """The measured modes' evidence at baseline unknowns ``beta`` (:mod:`diagnosis.modal_pattern`); the modes
     are estimated from the fit windows once, when first asked for, starting from the baseline's ``freq_hz``.
 
-    Only the modes estimated inside the excited band (up to ``band_hz``; the first always) are evidence: a mode
-    above it is seen only through the band's edge, and its oscillator takes up what the others leave — its
-    frequency, with a standard error that knows nothing of that, can be far from any mode (measured: a
-    cantilever's fourth mode at 60.8 Hz, the top of a 60 Hz multisine, estimated at 74.9 Hz 73 standard errors
-    away, which then dominated every modal match).  It still takes part in the modal fit as a regressor."""
+    Only the modes the baseline puts inside the excited band (up to ``band_hz``) and estimated inside it (the
+    first always) are evidence: a mode above it is seen only through the band's edge, and its oscillator takes up
+    what the others leave — its frequency, with a standard error that knows nothing of that, can be far from any
+    mode (measured: a cantilever's fourth mode at 60.8 Hz, the top of a 60 Hz multisine, estimated at 74.9 Hz 73
+    standard errors away, which then dominated every modal match) or land on the edge inside the band (a
+    compressed beam's fifth mode, 118.6 Hz, above a 2–100 Hz sweep, estimated at 99.0 Hz in one run).  It still
+    takes part in the modal fit as a regressor."""
     measured: list[MeasuredModes] = []
 
     def evidence(beta: np.ndarray) -> ModalEvidence:
@@ -222,7 +224,7 @@ def _modal_source(problem: GapProblem, freq_hz: np.ndarray, damping: np.ndarray,
             fit = [r for r in problem.records if r.has_fit]
             modes = estimate_modes([r.inputs[:r.fit_end] for r in fit], [r.outputs[:r.fit_end] for r in fit],
                                    problem.noise_std, problem.config.time.dt, freq_hz, damping, above_hz=above_hz)
-            keep = modes.freq_hz <= band_hz
+            keep = (modes.freq_hz <= band_hz) & (freq_hz <= band_hz)
             keep[0] = True
             measured.append(modes.select(keep))
         return modal_evidence(problem, beta, measured[0])

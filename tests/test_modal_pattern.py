@@ -112,3 +112,29 @@ def test_modal_pattern_finds_a_compensated_clamp(tmp_path):
     assert kr / ratio == pytest.approx(200.0, rel=0.05)
     for k in ("EI", "N"):
         assert clamp.beta[space.names.index(k)] / ratio == pytest.approx(TRUTH[k], rel=0.05), k
+
+
+def test_standard_errors_are_those_of_the_linearised_fit_and_infinite_when_undetermined():
+    """The modal estimate's standard errors (:func:`diagnosis.modal_estimate._standard_errors`) on a residual
+    linear in the frequencies and damping ratios, where the covariance is exactly ``var (AᵀA)⁻¹``: equal to it,
+    with a damping near the floor as determined as any; and a damping the residual does not depend on at all gets
+    an infinite standard error — not the pseudo-inverse's zero, which once made a compressed beam's fourth mode
+    (ζ → 6e-20) the most certain value of all and every modal match ~1e8."""
+    from diagnosis.modal_estimate import _standard_errors
+
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(200, 4))
+    b = rng.normal(size=200)
+    fs, zs, var = np.array([10.0, 30.0]), np.array([0.02, 2e-6]), 0.7
+
+    def resid(theta: np.ndarray) -> np.ndarray:
+        return A @ np.concatenate([theta[:2], np.exp(theta[2:])]) - b
+
+    std = _standard_errors(resid, fs, zs, var)
+    exact = np.sqrt(np.diag(np.linalg.inv(A.T @ A)) * var)
+    # central differences of a linear residual are exact up to round-off in the steps (1e-6 f, 1e-7 absolute ζ)
+    assert std == pytest.approx(exact, rel=1e-6)
+    A[:, 3] = 0.0                                     # the second damping no longer changes the residual
+    std = _standard_errors(resid, fs, zs, var)
+    assert np.isinf(std[3]) and np.all(np.isfinite(std[:3]))
+    assert std[:3] == pytest.approx(np.sqrt(np.diag(np.linalg.inv(A[:, :3].T @ A[:, :3])) * var), rel=1e-6)
