@@ -26,7 +26,7 @@ from .errors import ConfigError
 from .modal_form import ModalStateSpace
 from .statespace import DiscreteStateSpace
 
-__all__ = ["in_band", "design_model", "static_correction_bound"]
+__all__ = ["in_band", "design_model", "design_modal_model", "static_correction_bound"]
 
 
 def _block_dc(modal: ModalStateSpace) -> np.ndarray:
@@ -74,6 +74,33 @@ def static_correction_bound(modal: ModalStateSpace, f_max: float, f_hz: np.ndarr
     return np.einsum("fb,bpm->fpm", r2 / (1.0 - r2), R)
 
 
+def design_modal_model(config: BeamConfig, params: Mapping[str, float] | None = None, *,
+                       f_max: float | None = None) -> ModalStateSpace | DiscreteStateSpace:
+    """:func:`design_model` before its realisation as one StateSpace: the modal form in the band when the model
+    has one (its frequency response is cheap, :func:`ebb_model.modal.frequency_response`), else the whole model.
+
+    Raises
+    ------
+    ConfigError, ParameterError, StabilityError
+        As :func:`design_model`.
+    """
+    from .assemble import assemble, check_stable
+    from .exact_modal import exact_model
+    from .parameter_values import resolve_parameters
+
+    if f_max is not None and not f_max > 0:
+        raise ConfigError(f"the cut-off frequency must be > 0 Hz, got {f_max!r}")
+    cut = 0.5 / config.time.dt if f_max is None else f_max
+    if math.isinf(cut) or config.time.scheme != "exact":
+        return assemble(config, params)
+    p = resolve_parameters(config, params)
+    model = exact_model(config, p)
+    check_stable(config, p, model.spectral_radius())
+    if isinstance(model, DiscreteStateSpace) or model.frequencies_hz is None:
+        return model
+    return in_band(model, cut)
+
+
 def design_model(config: BeamConfig, params: Mapping[str, float] | None = None, *,
                  f_max: float | None = None) -> DiscreteStateSpace:
     """The beam as a discrete StateSpace for control design: the modes up to ``f_max`` (default: the Nyquist
@@ -89,18 +116,5 @@ def design_model(config: BeamConfig, params: Mapping[str, float] | None = None, 
     ParameterError, StabilityError
         As :func:`ebb_model.assemble.assemble`.
     """
-    from .assemble import assemble, check_stable
-    from .exact_modal import exact_model
-    from .parameter_values import resolve_parameters
-
-    if f_max is not None and not f_max > 0:
-        raise ConfigError(f"the cut-off frequency must be > 0 Hz, got {f_max!r}")
-    cut = 0.5 / config.time.dt if f_max is None else f_max
-    if math.isinf(cut) or config.time.scheme != "exact":
-        return assemble(config, params)
-    p = resolve_parameters(config, params)
-    model = exact_model(config, p)
-    check_stable(config, p, model.spectral_radius())
-    if isinstance(model, DiscreteStateSpace) or model.frequencies_hz is None:
-        return model if isinstance(model, DiscreteStateSpace) else model.to_statespace()
-    return in_band(model, cut).to_statespace()
+    model = design_modal_model(config, params, f_max=f_max)
+    return model if isinstance(model, DiscreteStateSpace) else model.to_statespace()

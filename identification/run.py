@@ -55,6 +55,7 @@ from .result import RESULT_FILE, IdentificationResult, PolishedPoint
 from .runners import Runner, make_runner
 from .noise import given_noise_std
 from .settings import identification_settings, load_identification_config
+from .uncertainty import uncertainty_model, write_uncertainty
 
 __all__ = ["BACKENDS", "IdentificationResult", "PolishedPoint", "Progress", "identify",
            "load_identification_config", "read_data"]
@@ -211,6 +212,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                 shutil.rmtree(tmp_fmu_dir, ignore_errors=True)
         res = _result(evaluator, pareto, polished_raw, fisher0, noise_std is not None, out,
                       Path(config).stem if not isinstance(config, BeamConfig) else "beam")
+        _write_uncertainty(res, evaluator)
         _write_results(res, evaluator)
         if export:
             from .export import export_points
@@ -229,6 +231,18 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         _remove_partial(out, created)
         raise OutputError(f"{exc}; nothing was kept", path=exc.path, errno=exc.errno) from None
     return res
+
+
+def _write_uncertainty(res: IdentificationResult, evaluator: NativeEvaluator) -> None:
+    """The identified model's uncertainty into ``out_dir/uncertainty`` (:mod:`identification.uncertainty`);
+    nothing when it is unstable."""
+    x = res.polished[0].x if res.polished else res.pareto.X[res.pareto.knee]
+    assert res.noise is not None            # _result sets it; only a result read back has none
+    try:
+        model = uncertainty_model(evaluator, x, res.noise)
+    except StabilityError:
+        return
+    write_uncertainty(model, evaluator, res.out_dir, f"{res.config_name}_identified")
 
 
 def _remove_partial(out: Path, created: bool) -> None:
