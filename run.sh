@@ -52,6 +52,13 @@ case "$cmd" in
         ;;
     test)
         setup
+        # the HTML reports are checked in a real headless browser: Debian's Chromium (Playwright drives it)
+        if ! command -v chromium >/dev/null 2>&1; then
+            echo "run.sh: installing Debian's chromium for the HTML report tests"
+            { apt-get install -y -q chromium >/dev/null 2>&1 \
+                || { apt-get update -q >/dev/null 2>&1 && apt-get install -y -q chromium >/dev/null 2>&1; }; } \
+                || { echo "run.sh: could not install Debian's chromium (apt-get install chromium)" >&2; exit 1; }
+        fi
         shift || true
         # one test process per core, each taking the next test when it is free (the blind diagnoses are long and
         # uneven); -n 0 runs them in this process

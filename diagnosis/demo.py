@@ -120,6 +120,20 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
     text = "\n".join(lines)
     with atomic_path(out / "report.txt") as tmp:
         tmp.write_text(text + "\n")
+    from dataclasses import replace
+
+    from ebb_model.htmlio import PAGE, Section, write_page
+    from identification.report import html_sections as identify_sections
+
+    from .report import html_sections
+
+    summary = Section("Result", lead=lines[-2], preformatted="\n".join(comparison_table(identified, d.report, TRUTH,
+                                                                                         WITHHELD)),
+                      paragraphs=(lines[-1], "exports: " + ", ".join(str(f) for f in files)))
+    write_page(out / PAGE, title, [summary, *(replace(s, title=f"Identification — {s.title}")
+                                              for s in identify_sections(res)),
+                                   *(replace(s, title=f"Diagnosis — {s.title}")
+                                     for s in html_sections(d.report, out / "diagnosis"))])
     print(text)
     return {"verdict": d.verdict, "truth": truth_label, "identified": identified,
             "exports": [str(f) for f in files], "document": d.document}

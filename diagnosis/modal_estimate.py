@@ -208,8 +208,8 @@ def estimate_modes(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], 
 
 def _standard_errors(resid: Callable[[np.ndarray], np.ndarray], fs: np.ndarray, zs: np.ndarray,
                      var: float) -> np.ndarray:
-    """Standard errors (infinite: not determined) of the frequencies and damping ratios ``(fs, zs)``, from central differences in those
-    variables themselves, scaled by the residual variance ``var``.
+    """Standard errors (infinite: not determined) of the frequencies and damping ratios ``(fs, zs)``, from
+    central differences in those variables themselves, scaled by the residual variance ``var``.
 
     Not from the fit's own Jacobian: its damping variable is the logarithm, and a damping the records do not
     determine runs towards zero, where the logarithm's column vanishes and the pseudo-inverse gives it a

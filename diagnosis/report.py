@@ -1,9 +1,13 @@
 """A short human-readable report of a diagnosis (:class:`~diagnosis.result.GapReport`)."""
 from __future__ import annotations
 
+from pathlib import Path
+
+from ebb_model.htmlio import Section, Table, figures_in
+
 from .result import GapReport
 
-__all__ = ["text_report"]
+__all__ = ["text_report", "html_sections", "FIGURES"]
 
 
 def _pct(v: float | None) -> str:
@@ -38,3 +42,48 @@ def text_report(report: GapReport, *, top: int = 6) -> str:
         else:
             lines.append(f"  {row.rank:>4}  {row.label:<32} {score}  {'-':>9}  {'   -':>6}")
     return "\n".join(lines)
+
+
+#: The diagnosis' figures and their captions, in the page's order (:func:`html_sections`).
+FIGURES = {"effects.png": "The candidates: score-test statistic, and the share of the held-out gap each refit closes",
+           "heldout_residuals.png": "Held-out residuals in noise standard deviations, before and after the verdict",
+           "residuals.png": "Where the model and the record disagree: the residual over time",
+           "frf.png": "Measured and modelled frequency response",
+           "windows.png": "The residual's size window by window",
+           "amplitude.png": "The residual against the response amplitude (a nonlinearity's sign)",
+           "correlation.png": "The residual's correlation with the input",
+           "bands.png": "The residual's power by frequency band"}
+
+
+def html_sections(report: GapReport, out_dir: Path, *, top: int = 10) -> list[Section]:
+    """The diagnosis as sections of an HTML page (:func:`ebb_model.htmlio.write_page`): the verdict, the
+    baseline, where the gap lies, the ranked effects, the corrected model and the figures found in ``out_dir``
+    (and its ``localisation`` folder)."""
+    base = report.baseline
+    verdict = Section("Verdict", lead=f"verdict: {report.verdict}", paragraphs=(report.reason,))
+    baseline = Section("Baseline (the identifying model without an effect)", tables=(Table(
+        ("sensor", "held-out gap ratio (1 = noise floor)"),
+        [(k, f"{v:.4g}") for k, v in base.heldout_gap_ratio.items()]),),
+        paragraphs=(*(c.line() for c in report.priors), f"baseline's {base.numerical_adequacy.summary()}",
+                    base.grid_advice.summary(),
+                    *(f"not named, implausible: {lab}: " + "; ".join(why) for lab, why in report.implausible.items())))
+    rows = []
+    for row in report.effects[:top]:
+        rf = row.refit
+        rows.append((str(row.rank), row.label, "(pair)" if row.score is None else f"{row.score:.4g}",
+                     "-" if rf is None else f"{rf.delta_bic:.1f}", "-" if rf is None else _pct(rf.closed).strip(),
+                     "" if rf is None else ", ".join(f"{k} = {v:.4g}" for k, v in rf.effect_parameters.items())))
+    effects = Section("Effects", tables=(Table(("rank", "effect", "score", "ΔBIC", "held-out gap closed",
+                                                "fitted values"), rows,
+                                               "score test of every candidate, then the refit of the shortlist"),))
+    sections = [verdict, baseline]
+    if report.summary:
+        sections.append(Section("Where the gap lies", paragraphs=tuple(report.summary)))
+    sections.append(effects)
+    if report.corrected_files:
+        sections.append(Section("Corrected model", paragraphs=(
+            "the baseline with the verdict's effect, in corrected/: " + ", ".join(report.corrected_files),)))
+    figures = figures_in(out_dir, FIGURES) + figures_in(out_dir / "localisation", FIGURES)
+    if figures:
+        sections.append(Section("Figures", figures=tuple(figures)))
+    return sections

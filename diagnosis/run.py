@@ -23,6 +23,7 @@ import numpy as np
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
 from ebb_model.adequacy import excited_band, numerical_adequacy
+from ebb_model.htmlio import PAGE, write_page
 from ebb_model.grid_advice import grid_advice
 from ebb_model.jsonio import write_json
 from ebb_model.output import check_new_output_dir, staged_dir
@@ -54,6 +55,7 @@ from .weigh import Weighed, weigh
 from .rank import Ranking, rank_effects
 from .verdict import BIC_MARGIN, UNEXPLAINED
 from .refits import GAP_THRESHOLD
+from .report import html_sections
 from .records import Record, split_records
 from .result import (BandClosure, BaselineSummary, DiagnosisSettings, EffectRow, GapReport, PatternMatch,
                      RefitSummary)
@@ -484,4 +486,6 @@ def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, 
             from .gap_plots import plot_diagnosis
 
             plot_diagnosis(report, problem, ranking, by_label, locs, tmp)
+        write_page(tmp / PAGE, "ebb diagnose: where the model and the records disagree, and why",
+                   html_sections(report, tmp), subtitle="records: " + ", ".join(r.name for r in problem.records))
     return report

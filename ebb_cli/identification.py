@@ -17,6 +17,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from identification.optimise import CHECKPOINT
     from identification.report import identified_lines
     from identification.run import identify
+    from identification.uncertainty import FOLDER
 
     try:
         res = identify(config_with_spectrum_modes(args), args.data, args.out, backend=args.backend,
@@ -44,6 +45,15 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         print(f"total evaluations (GA + polish): {res.n_evaluations}")
     for line in identified_lines(res):
         print(line)
+    bound = res.out_dir / FOLDER / "bound.json"
+    if bound.is_file():
+        doc = json.loads(bound.read_text())
+        if doc.get("band_hz"):
+            lo, hi = doc["band_hz"]
+            parts = [f"{s} median {v['median']:.3g}, max {v['max']:.3g}"
+                     for s, v in doc["multiplicative_bound_in_band"].items()]
+            print(f"uncertainty: multiplicative bound in the band {lo:.3g}–{hi:.3g} Hz: " + "; ".join(parts)
+                  + f" ({doc['samples']} sampled models in {bound.parent})")
     print(f"wrote {res.out_dir / 'pareto.json'}")
     return 0
 

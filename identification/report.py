@@ -1,14 +1,17 @@
-"""The identified model of an identification run as plain text (:func:`identified_lines`)."""
+"""The identified model of an identification run as plain text (:func:`identified_lines`) and as sections of
+the run's HTML page (:func:`html_sections`)."""
 from __future__ import annotations
 
+import json
 from typing import TYPE_CHECKING
 
 from ebb_model.beam import PARAMETER_UNITS
+from ebb_model.htmlio import Section, Table, figures_in
 
 if TYPE_CHECKING:  # pragma: no cover
     from .result import IdentificationResult
 
-__all__ = ["identified_lines"]
+__all__ = ["identified_lines", "html_sections", "FIGURES"]
 
 
 def identified_lines(res: IdentificationResult) -> list[str]:
@@ -49,3 +52,46 @@ def identified_lines(res: IdentificationResult) -> list[str]:
     if res.adequacy is not None:
         lines.append("  " + res.adequacy.summary())
     return lines
+
+
+#: The identification's figures and their captions, in the page's order (:func:`html_sections`).
+FIGURES = {"knee_fit.png": "Measured and simulated outputs (the knee, and the identified model: the polished knee)",
+           "pareto_front.png": "The GA's front (or its convergence, for a single objective)",
+           "parameter_spread.png": "The unknowns over the front, with the knee and the identified model"}
+
+
+def html_sections(res: IdentificationResult) -> list[Section]:
+    """The identification as sections of an HTML page (:func:`ebb_model.htmlio.write_page`): the identified
+    model with its standard deviations, the fit, the uncertainty written beside it, the search, the figures."""
+    from .uncertainty import FOLDER
+
+    ident = res.identified
+    names = list(ident["parameters"])
+    rows = [(k, f"{v:.6g}", f"{ident['cramer_rao_std'][k]:.2g}",
+             PARAMETER_UNITS.get(k, "m" if k.startswith("x_") else "")) for k, v in ident["parameters"].items()]
+    lines = identified_lines(res)[1 + len(names):]
+    sections = [Section("Identified model", lead=f"identified model ({ident['from']})",
+                        tables=(Table(("parameter", "value", "Cramér–Rao std", "unit"), rows),),
+                        paragraphs=tuple(line.strip() for line in lines))]
+    bound = res.out_dir / FOLDER / "bound.json"
+    if bound.is_file():
+        doc = json.loads(bound.read_text())
+        if doc.get("band_hz"):
+            lo, hi = doc["band_hz"]
+            sections.append(Section("Uncertainty", paragraphs=(
+                f"multiplicative bound |G − G0| ≤ w |G0| per output in the excited band {lo:.3g}–{hi:.3g} Hz, "
+                f"covering {doc['samples']} models sampled from the parameters' covariance and the fit residual's "
+                f"part coherent with the force; files in {FOLDER}/",), tables=(Table(
+                    ("output", "median w", "largest w"),
+                    [(s, f"{v['median']:.3g}", f"{v['max']:.3g}")
+                     for s, v in doc["multiplicative_bound_in_band"].items()]),)))
+    f, p = res.fisher_nominal, res.pareto
+    fisher = () if f is None else (f"Fisher information at the nominal point: rank {f.rank}/{len(f.names)}, "
+                                   f"condition number {f.condition_number:.3g}", *f.messages)
+    sections.append(Section("Search", paragraphs=(
+        *fisher, f"{len(p.X)} Pareto points after {p.generations} generations, {p.n_evaluations} evaluations",
+        *(f"noise: {line}" for line in res.noise_model))))
+    figures = figures_in(res.out_dir, FIGURES)
+    if figures:
+        sections.append(Section("Figures", figures=tuple(figures)))
+    return sections

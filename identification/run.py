@@ -36,6 +36,7 @@ from ebb_model.output import atomic_path
 from ebb_model.config import BeamConfig
 from ebb_model.threads import one_blas_thread
 from ebb_model.errors import ConfigError, OutputError, StabilityError
+from ebb_model.htmlio import PAGE, write_page
 from ebb_model.jsonio import write_json
 from ebb_model.output import check_new_output_dir, check_writable_dir, make_dir
 
@@ -45,6 +46,7 @@ from .fisher import fisher_information
 from .noise_model import NoiseModel, estimate_noise_model
 from .modal_data import ModalData, modal_data
 from .prior import Prior, PriorCheck
+from .report import html_sections
 from .native import ExperimentArrays, NativeEvaluator
 from .objectives import objective_names
 from .optimise import CHECKPOINT, ParetoSet, check_settings, knee_index, knee_order, optimise
@@ -421,6 +423,8 @@ def _write_results(res: IdentificationResult, evaluator: NativeEvaluator) -> Non
     from .plots import plot_results
 
     plot_results(res, evaluator)
+    write_page(res.out_dir / PAGE, f"ebb identify: {res.config_name}", html_sections(res),
+               subtitle="records: " + ", ".join(e.name for e in evaluator.experiments))
     write_json(res.out_dir / RESULT_FILE, doc)  # last: it marks the run as finished
 
 

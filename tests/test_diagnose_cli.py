@@ -115,3 +115,30 @@ def test_demo_quick_runs_the_whole_workflow(tmp_path, capsys):
     kr = next(line for line in text.splitlines() if line.startswith("boundary_rotational_left.kr"))
     assert kr.split()[1] == "N.m/rad" and kr.split()[-1] == "300"    # unit, withheld value
     assert "held-out gap ratio (1 = noise floor):" in text and "-> corrected" in text
+    _check_pages(out, tmp_path)
+
+
+def _check_pages(out, tmp_path):
+    """The demo's three pages (the demo's, the identification's, the diagnosis') open in a real headless Chromium:
+    titled, every figure loaded, nothing failed, the verdict and the identified values on them."""
+    from browser import render
+
+    verdict, identified = "verdict: boundary_rotational_left", "identified model (polished knee"
+    pages = {out / "report.html": (["Result", "Identification — Identified model", "Diagnosis — Verdict",
+                                    "Diagnosis — Effects", "Diagnosis — Figures", "Identification — Figures"],
+                                   [verdict, identified]),
+             out / "identify" / "report.html": (["Identified model", "Uncertainty", "Search", "Figures"],
+                                                [identified, "rhoA"]),
+             out / "diagnosis" / "report.html": (["Verdict", "Baseline (the identifying model without an effect)",
+                                                  "Effects", "Corrected model", "Figures"], [verdict])}
+    for page, (headings, texts) in pages.items():
+        seen = render(page, tmp_path / f"{page.parent.name}.png")
+        assert seen.title.startswith("ebb "), seen.title
+        assert all(h in seen.headings for h in headings), (page, seen.headings)
+        assert seen.images and all(ok and width > 0 for _, ok, width in seen.images), seen.images
+        assert not seen.errors, seen.errors
+        assert all(t in seen.text for t in texts), (page, texts)
+    # the demo's page shows every figure of both runs
+    demo = render(out / "report.html")
+    n_figures = len(list((out / "identify").glob("*.png"))) + len(list((out / "diagnosis").rglob("*.png")))
+    assert len(demo.images) == n_figures
