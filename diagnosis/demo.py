@@ -1,4 +1,4 @@
-"""``ebb demo``: the whole workflow on an embedded example, in about two minutes on 2 cores.
+"""``ebb demo``: the whole workflow on an embedded example, in about a minute on 2 cores.
 
 1. *Truth*: a clamped–pinned test bench simulated by the independent
    reference (cubic-Hermite finite elements integrated exactly in time, not

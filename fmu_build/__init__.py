@@ -6,7 +6,7 @@ Flat functional API in FMPy's style::
     build_fmu("examples/seed_clamped.toml", "beam.fmu", field=False)
     build_standalone_fmu("examples/seed_clamped.toml", "beam_c.fmu")   # C, no Python at run time
 
-The ``ebb build-fmu`` sub-command lives in :mod:`ebb_cli.fmu`.  See the "FMU" section of the project README.
+The ``ebb build-fmu`` sub-command lives in :mod:`ebb_cli.fmu`.  See docs/fmu.md.
 """
 from .builder import build_fmu
 from .standalone import build_standalone_fmu

@@ -20,7 +20,7 @@ checks down (memory limits are still enforced, once a second).  Measured on
 speed-up of 2 workers over 1): 1.69× with Dask's defaults, 1.73× with the
 profiler off, 1.73× with the slower checks, 1.78× with both.  The same
 settings help a cluster started by hand: put them into the Dask
-configuration of the scheduler's and the workers' machines (see the README).
+configuration of the scheduler's and the workers' machines (see docs/benchmarks.md, "Dask settings").
 
 Whoever starts a cluster closes it; :class:`~identification.runners.DaskRunner`
 does so for the cluster it starts from ``"local:K"``.

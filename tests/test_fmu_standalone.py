@@ -4,7 +4,7 @@ References: ``ebb_model.simulate`` of the same config and parameters (and ``ebb 
 pythonfmu FMU, the plain C master run with an empty environment, libcosim, and for model exchange the exact
 solution of the same modal ODE (matrix exponential).  The agreement with the Python model is limited by the
 round-off of the two eigen-solvers (LAPACK there, Cholesky + Jacobi here): measured 2e-11 … 7e-11 on these
-records; two LAPACK drivers in Python itself differ by about as much (see the README, "Standalone FMU").
+records; two LAPACK drivers in Python itself differ by about as much (see docs/fmu.md, "Standalone FMU").
 """
 from __future__ import annotations
 

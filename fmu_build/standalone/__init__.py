@@ -5,7 +5,7 @@
     from fmu_build.standalone import build_standalone_fmu
     build_standalone_fmu("examples/seed_clamped.toml", "beam.fmu")
 
-See :mod:`fmu_build.standalone.builder` and the "Standalone FMU" section of the project README.
+See :mod:`fmu_build.standalone.builder` and the "Standalone FMU" section of docs/fmu.md.
 """
 from .builder import build_standalone_fmu
 
