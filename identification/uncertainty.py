@@ -185,11 +185,13 @@ def residual_response(inputs: Sequence[np.ndarray], residuals: Sequence[np.ndarr
     Suu, Sur, Srr = (sum(wi * p[k] for wi, p in zip(w, parts)) for k in range(3))
     f = signal.welch(inputs[0][:, 0], fs=fs, nperseg=nperseg)[0]
     # Suu[f, i, j] = E[U_i* U_j], Sur[f, i, s] = E[U_i* R_s]; R_s = Σ_j E_sj U_j  ⇒  Sur = Suu Eᵀ
-    Et = np.linalg.solve(Suu, Sur)                                      # (nf, n_in, n_out)
+    # the pseudo-inverse: inputs driven by one signal (or a bin without power) leave S_uu singular
+    Suu_inv = np.linalg.pinv(Suu, rcond=1e-12, hermitian=True)
+    Et = Suu_inv @ Sur                                                  # (nf, n_in, n_out)
     E = Et.transpose(0, 2, 1)
     coherent = np.einsum("fis,fij,fjs->fs", Et.conj(), Suu, Et).real    # the residual's power the inputs explain
     incoherent = np.maximum(Srr - coherent, 0.0)
-    inv_diag = np.real(np.diagonal(np.linalg.inv(Suu), axis1=1, axis2=2))   # [S_uu⁻¹]_kk
+    inv_diag = np.real(np.diagonal(Suu_inv, axis1=1, axis2=2))          # [S_uu⁻¹]_kk
     sigma = np.sqrt(incoherent[:, :, None] * inv_diag[:, None, :] / n_d)
     return f, E, sigma
 

@@ -103,3 +103,17 @@ def test_the_bound_covers_held_out_data(tmp_path, effect, param_cover):
     assert np.all(np.abs(z) < 5.0) and 0.5 < np.std(z) < 1.5      # 128 standard-normal draws
     sys0 = load_statespace(tmp_path / "out" / FOLDER / "sample_0.npz")
     assert sys0.dt == DT and sys0.ninputs == 1 and sys0.noutputs == 2
+
+
+def test_inputs_driven_by_one_signal_do_not_break_the_residual_response():
+    """Two forces from one signal (a rig's two shakers in parallel): S_uu is singular at every frequency; the
+    response is the minimum-norm one, finite, and the two inputs share the filter's response equally."""
+    rng = np.random.default_rng(2)
+    u1 = rng.standard_normal(8000)
+    b, a = signal.butter(2, 0.2)
+    y = signal.lfilter(b, a, u1) + 0.1 * rng.standard_normal(8000)
+    f, E, sigma = residual_response([np.column_stack([u1, u1])], [y[:, None]], 1e-3, 256)
+    assert np.all(np.isfinite(E)) and np.all(np.isfinite(sigma))
+    truth = signal.freqz(b, a, worN=f, fs=1e3)[1]
+    assert np.allclose(E[:, 0, 0], E[:, 0, 1])
+    assert np.median(np.abs(2 * E[:, 0, 0] - truth)) < 0.05 * np.max(np.abs(truth))
