@@ -245,6 +245,10 @@ def write_uncertainty(model: UncertaintyModel, evaluator: NativeEvaluator, out_d
     with atomic_path(d / "bound.npz", suffix=".npz") as tmp:
         np.savez(tmp, **arrays)
     written = [d / "bound.npz", write_json(d / "bound.json", model.summary())]
+    for stale in d.glob("sample_*.npz"):          # a resumed run's earlier samples (it may draw fewer)
+        index = stale.stem.removeprefix("sample_")
+        if index.isdigit() and int(index) >= len(model.samples):
+            stale.unlink()
     for j, xj in enumerate(model.samples):
         c, params = evaluator.space.apply(evaluator.config, xj)
         written.append(save_statespace(design_model(c, params), d / f"sample_{j}.npz", name=f"{title}_sample_{j}",

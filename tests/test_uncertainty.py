@@ -17,7 +17,7 @@ from identification.export_statespace import load_statespace
 from identification.native import NativeEvaluator, experiments_from_arrays
 from identification.noise import welch_nperseg
 from identification.run import identify
-from identification.uncertainty import FOLDER, load_bound, residual_response
+from identification.uncertainty import FOLDER, load_bound, residual_response, uncertainty_model, write_uncertainty
 
 from test_diagnose_cli import _toml
 from test_diagnosis_blind import DT, TRUTH, bench_config
@@ -103,6 +103,13 @@ def test_the_bound_covers_held_out_data(tmp_path, effect, param_cover):
     assert np.all(np.abs(z) < 5.0) and 0.5 < np.std(z) < 1.5      # 128 standard-normal draws
     sys0 = load_statespace(tmp_path / "out" / FOLDER / "sample_0.npz")
     assert sys0.dt == DT and sys0.ninputs == 1 and sys0.noutputs == 2
+    if effect is None:
+        # written again with fewer samples (a resumed run), no earlier sample is left behind
+        fit = NativeEvaluator(res.config, res.space, experiments_from_arrays([("fit", recs[0].inputs,
+                                                                                recs[0].outputs)]))
+        write_uncertainty(uncertainty_model(fit, x, res.noise, n_samples=5), fit, tmp_path / "out", "again")
+        assert sorted(p.name for p in (tmp_path / "out" / FOLDER).glob("sample_*.npz")) == [
+            f"sample_{j}.npz" for j in range(5)]
 
 
 def test_inputs_driven_by_one_signal_do_not_break_the_residual_response():
