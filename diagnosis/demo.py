@@ -111,12 +111,14 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
     report = text_report(d.report)
     truth_label = WITHHELD[0]
     title = "ebb demo: identify a beam from synthetic data with a withheld effect, export it, diagnose the gap"
-    lines = [title, "=" * len(title), "", *comparison_table(identified, d.report, TRUTH, WITHHELD),
+    comparison = comparison_table(identified, d.report, TRUTH, WITHHELD)
+    outcome = f"withheld effect: {truth_label} -> diagnosis {'RIGHT' if d.verdict == truth_label else 'WRONG'}"
+    elapsed = f"elapsed: {time.perf_counter() - t0:.0f} s; results in {out}"
+    lines = [title, "=" * len(title), "", *comparison,
              "exports:  " + ", ".join(str(f) for f in files),
              *([f"corrected model: {out / 'diagnosis' / 'corrected'}"] if d.report.corrected_files else []),
              "", report, "",
-             f"withheld effect: {truth_label} -> diagnosis {'RIGHT' if d.verdict == truth_label else 'WRONG'}",
-             f"elapsed: {time.perf_counter() - t0:.0f} s; results in {out}"]
+             outcome, elapsed]
     text = "\n".join(lines)
     with atomic_path(out / "report.txt") as tmp:
         tmp.write_text(text + "\n")
@@ -127,9 +129,8 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
 
     from .report import html_sections
 
-    summary = Section("Result", lead=lines[-2], preformatted="\n".join(comparison_table(identified, d.report, TRUTH,
-                                                                                         WITHHELD)),
-                      paragraphs=(lines[-1], "exports: " + ", ".join(str(f) for f in files)))
+    summary = Section("Result", lead=outcome, preformatted="\n".join(comparison),
+                      paragraphs=(elapsed, "exports: " + ", ".join(str(f) for f in files)))
     write_page(out / PAGE, title, [summary, *(replace(s, title=f"Identification — {s.title}")
                                               for s in identify_sections(res)),
                                    *(replace(s, title=f"Diagnosis — {s.title}")

@@ -43,7 +43,9 @@ from ebb_model.errors import DataError, StabilityError
 from ebb_model.jsonio import write_json
 from ebb_model.modal import frequency_response
 from ebb_model.output import atomic_path, make_dir
-from ebb_model.truncation import design_model, design_modal_model
+from ebb_model.modal_form import ModalStateSpace
+from ebb_model.statespace import DiscreteStateSpace
+from ebb_model.truncation import design_modal_model
 
 from .fisher import fisher_information
 from .native import NativeEvaluator
@@ -76,6 +78,8 @@ class UncertaintyModel:
         The additive shares :math:`a^{par}`, :math:`a^{res}` (``nan`` outside the band), ``(nf, n_out, n_in)``.
     input_names, output_names
         The signals.
+    systems
+        The sampled models as StateSpace design models, one per row of ``samples``.
     """
 
     names: tuple[str, ...]
@@ -89,6 +93,7 @@ class UncertaintyModel:
     residual: np.ndarray
     input_names: tuple[str, ...]
     output_names: tuple[str, ...]
+    systems: tuple[DiscreteStateSpace, ...] = ()
 
     @property
     def additive(self) -> np.ndarray:
@@ -145,16 +150,19 @@ def _draw(point: np.ndarray, cov: np.ndarray, lower: np.ndarray, upper: np.ndarr
 
 
 def _responses(evaluator: NativeEvaluator, xs: Sequence[np.ndarray], f_hz: np.ndarray
-               ) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """The design models' responses at ``f_hz`` of the parameter sets ``xs`` that are stable, and those sets."""
-    H, kept = [], []
+               ) -> tuple[list[np.ndarray], list[np.ndarray], list[ModalStateSpace | DiscreteStateSpace]]:
+    """The design models' responses at ``f_hz`` of the parameter sets ``xs`` that are stable, those sets and
+    their design models (:func:`ebb_model.truncation.design_modal_model`)."""
+    H, kept, models = [], [], []
     for x in xs:
         try:
-            H.append(frequency_response(design_modal_model(*evaluator.space.apply(evaluator.config, x)), f_hz).H)
+            model = design_modal_model(*evaluator.space.apply(evaluator.config, x))
         except StabilityError:
             continue
+        H.append(frequency_response(model, f_hz).H)
         kept.append(x)
-    return H, kept
+        models.append(model)
+    return H, kept, models
 
 
 def residual_response(inputs: Sequence[np.ndarray], residuals: Sequence[np.ndarray], dt: float,
@@ -221,12 +229,13 @@ def uncertainty_model(evaluator: NativeEvaluator, x: np.ndarray, noise: NoiseMod
                                     dt, nperseg)
     lo, hi = excited_band([e.inputs for e in exps], dt)
     measured = (f >= lo) & (f <= hi) & (f > 0)
-    (G0,), _ = _responses(evaluator, [x], f)
-    H, kept = _responses(evaluator, list(draws), f)
+    (G0,), _, _ = _responses(evaluator, [x], f)
+    H, kept, models = _responses(evaluator, list(draws), f)
     parametric = np.max(np.abs(np.array(H) - G0[None]), axis=0) if H else np.zeros(G0.shape)
     residual = np.where(measured[:, None, None], np.abs(E) + 2.0 * sigma, np.nan)
     return UncertaintyModel(tuple(space.names), x, cov, np.array(kept).reshape(-1, x.size), f, measured, G0,
-                            parametric, residual, tuple(cfg.input_names), tuple(cfg.output_names))
+                            parametric, residual, tuple(cfg.input_names), tuple(cfg.output_names),
+                            tuple(m if isinstance(m, DiscreteStateSpace) else m.to_statespace() for m in models))
 
 
 def write_uncertainty(model: UncertaintyModel, evaluator: NativeEvaluator, out_dir: str | Path,
@@ -251,7 +260,7 @@ def write_uncertainty(model: UncertaintyModel, evaluator: NativeEvaluator, out_d
             stale.unlink()
     for j, xj in enumerate(model.samples):
         c, params = evaluator.space.apply(evaluator.config, xj)
-        written.append(save_statespace(design_model(c, params), d / f"sample_{j}.npz", name=f"{title}_sample_{j}",
+        written.append(save_statespace(model.systems[j], d / f"sample_{j}.npz", name=f"{title}_sample_{j}",
                                        parameters=params, config=c.to_dict()))
     return written
 
