@@ -12,7 +12,7 @@ Printed:
 * cost of one evaluation (assemble + simulate 20,000 samples) of benchmark case R1 (seed config, 50 nodes)
   with each scheme, medians, and their ratio (target <= 3).
 
-Run: ``python benchmarks/bench_accuracy.py [--repeats R]``.
+Run: ``python benchmarks/bench_accuracy.py [--repeats R] [--json PATH]``.
 """
 from __future__ import annotations
 
@@ -27,6 +27,7 @@ from ebb_model.reference.exact_fe import exact_fe_response
 from ebb_model.reference.excitation import band_limited_input
 from ebb_model.reference.hermite_fe import hermite_beam
 
+from figures import add_json_argument, write_figures  # benchmarks/figures.py
 from timing import median_time  # benchmarks/timing.py
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -62,26 +63,34 @@ def truth(u: np.ndarray, n_elements: int, case: dict = STRIP) -> np.ndarray:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=21)
+    add_json_argument(ap)
     args = ap.parse_args()
+    rows: list[dict] = []         # residual at the true parameters [noise variances] per record and model
     with threadpool_limits(limits=1, user_api="blas"):
         u = band_limited_input(4000, DT, 5.0, 300.0, seed=4)
         y = truth(u, 96)
         noise_var = (0.01 * y.std(axis=0)) ** 2
 
-        def res(yy: np.ndarray) -> str:
-            return " / ".join(f"{v:9.3f}" for v in np.mean((yy - y) ** 2, axis=0) / noise_var)
+        def res(yy: np.ndarray, record: str = "strip", model: str = "", nv: np.ndarray = noise_var,
+                ref: np.ndarray = y) -> str:
+            v = np.mean((yy - ref) ** 2, axis=0) / nv
+            rows.append({"record": record, "model": model, "noise_variances": v.tolist(), "largest": float(v.max())})
+            return " / ".join(f"{x:9.3f}" for x in v)
 
         print("Steel strip (the issue's case).  Truth convergence (noise variances): 48 elements",
-              res(truth(u, 48)), "| 64 elements", res(truth(u, 64)), "(time: exact for the spline force)")
+              res(truth(u, 48), model="truth 48 elements"), "| 64 elements",
+              res(truth(u, 64), model="truth 64 elements"),
+              "(time: exact for the spline force)")
         print("Residual at the true parameters, noise variances per accelerometer (target <= 1.5):")
         for nodes in (30, 60, 120, 240):
             y_c = em.simulate(em.fast_model(config(nodes, "exact")), u).outputs
-            print(f"  exact  {nodes:4d} nodes (cubic input)  {res(y_c)}")
+            print(f"  exact  {nodes:4d} nodes (cubic input)  {res(y_c, model=f'exact {nodes} nodes cubic')}")
             y_f = em.simulate(em.fast_model(config(nodes, "exact", input_hold="foh")), u).outputs
-            print(f"  exact  {nodes:4d} nodes (foh input)    {res(y_f)}")
+            print(f"  exact  {nodes:4d} nodes (foh input)    {res(y_f, model=f'exact {nodes} nodes foh')}")
             for sub in (1, 4, 16):
                 y_t = em.simulate(em.fast_model(config(nodes, "theta", sub)), u).outputs
-                print(f"  theta  {nodes:4d} nodes, {sub:2d} sub-steps  {res(y_t)}")
+                print(f"  theta  {nodes:4d} nodes, {sub:2d} sub-steps  "
+                      f"{res(y_t, model=f'theta {nodes} nodes {sub} substeps')}")
         ul = band_limited_input(LIGHT["samples"], LIGHT["dt"], *LIGHT["band"], seed=4)
         yl = truth(ul, 96, LIGHT)
         nvl = (0.01 * yl.std(axis=0)) ** 2
@@ -89,7 +98,7 @@ def main() -> None:
         for nodes in (30, 60, 120):
             for hold in ("cubic", "foh"):
                 yy = em.simulate(em.fast_model(config(nodes, "exact", case=LIGHT, input_hold=hold)), ul).outputs
-                r = " / ".join(f"{v:9.3f}" for v in np.mean((yy - yl) ** 2, axis=0) / nvl)
+                r = res(yy, "light", f"exact {nodes} nodes {hold}", nvl, yl)
                 print(f"  exact  {nodes:4d} nodes ({hold} input) {r}")
         seed = em.load_config(ROOT / "examples" / "seed_clamped.toml")
         d = seed.to_dict()
@@ -106,6 +115,8 @@ def main() -> None:
     print(f"  theta scheme: {t_theta * 1e3:7.3f} ms")
     print(f"  exact scheme: {t_exact * 1e3:7.3f} ms")
     print(f"  ratio exact / theta: {t_exact / t_theta:5.2f} x   (target <= 3)")
+    write_figures(args.json, {"residuals": rows, "r1_theta_ms": t_theta * 1e3, "r1_exact_ms": t_exact * 1e3,
+                              "r1_ratio": t_exact / t_theta})
 
 
 if __name__ == "__main__":

@@ -9,15 +9,21 @@ Printed (medians over repeats, all measured in this one run):
 * fast path (modal realisation + compiled recursion), split into assembly and simulation;
 * ``scipy.signal.dlsim`` on the same (Φ, Γ, C, D) (assembly excluded — only its simulation);
 * the ratio dlsim / fast;
+* the *compiled floor*: the same modal recursion (the fast model's own blocks, input taps and outputs) as plain C
+  compiled with ``gcc -O3 -march=native`` (the re-association the numba kernel is allowed, no more) in this run,
+  its output checked equal to the fast path's, and the evaluation's and the simulation's ratios to it;
 * growth exponents when the number of samples doubles and when the number of nodes doubles:
   ``log2(t(2x) / t(x))``.
 
-Run: ``python benchmarks/bench_core.py [--repeats R]``.
+Run: ``python benchmarks/bench_core.py [--repeats R] [--json PATH]``.
 """
 from __future__ import annotations
 
 import argparse
+import ctypes
 import math
+import subprocess
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +32,7 @@ from threadpoolctl import threadpool_limits
 
 import ebb_model as em
 
+from figures import add_json_argument, write_figures  # benchmarks/figures.py
 from timing import median_time  # benchmarks/timing.py
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -42,9 +49,74 @@ def evaluation(cfg: em.BeamConfig, u: np.ndarray, rng: np.random.Generator) -> n
     return em.simulate(em.fast_model(cfg, p), u).outputs
 
 
+#: The modal recursion of :func:`ebb_model.simulate` written as plain C: ``nb`` 2×2 blocks, ``ni`` input columns
+#: (the cubic's taps included), ``no`` outputs; row-major arrays as the numba kernel receives them.
+FLOOR_C = r"""
+void modal_floor(int nb, int ni, int no, int ns,
+                 const double *restrict t00, const double *restrict t01, const double *restrict t10,
+                 const double *restrict t11, const double *restrict g0, const double *restrict g1,
+                 const double *restrict c0, const double *restrict c1, const double *restrict D,
+                 const double *restrict u, double *restrict y, double *restrict z0, double *restrict z1,
+                 double *restrict a0, double *restrict a1)
+{
+    for (int k = 0; k < ns; ++k) {
+        const double *uk = u + (long)k * ni;
+        for (int o = 0; o < no; ++o) {
+            double acc = 0.0;
+            for (int b = 0; b < nb; ++b) acc += c0[o * nb + b] * z0[b] + c1[o * nb + b] * z1[b];
+            for (int i = 0; i < ni; ++i) acc += D[o * ni + i] * uk[i];
+            y[(long)k * no + o] = acc;
+        }
+        for (int b = 0; b < nb; ++b) {
+            a0[b] = t00[b] * z0[b] + t01[b] * z1[b];
+            a1[b] = t10[b] * z0[b] + t11[b] * z1[b];
+        }
+        for (int i = 0; i < ni; ++i)
+            for (int b = 0; b < nb; ++b) {
+                a0[b] += g0[i * nb + b] * uk[i];
+                a1[b] += g1[i * nb + b] * uk[i];
+            }
+        for (int b = 0; b < nb; ++b) { z0[b] = a0[b]; z1[b] = a1[b]; }
+    }
+}
+"""
+
+
+def compiled_floor(fm: em.ModalStateSpace, u: np.ndarray, workdir: Path):
+    """A callable running the fast model's recursion in compiled C on ``u`` (returns the outputs)."""
+    src, lib = workdir / "floor.c", workdir / "floor.so"
+    src.write_text(FLOOR_C)
+    subprocess.run(["gcc", "-O3", "-march=native", "-fassociative-math", "-fno-signed-zeros", "-fno-trapping-math",
+                    "-ffp-contract=fast", "-shared", "-fPIC", "-o", str(lib), str(src)], check=True)
+    fn = ctypes.CDLL(str(lib)).modal_floor
+    # the input columns the kernel reads: u[k], u[k−1], … for the cubic's taps (u[−j] = u[0])
+    cols = [np.vstack([np.repeat(u[:1], j, axis=0), u[:u.shape[0] - j]]) for j in range(fm.delays + 1)]
+    U = np.ascontiguousarray(np.hstack(cols))
+    D = np.ascontiguousarray(np.hstack([fm.D, np.zeros((fm.D.shape[0], fm.D.shape[1] * fm.delays))]))
+    T, G, Cm = fm.T, fm.G, fm.Cm
+    arrays = [np.ascontiguousarray(a) for a in (T[:, 0, 0], T[:, 0, 1], T[:, 1, 0], T[:, 1, 1], G[:, 0, :].T,
+                                                G[:, 1, :].T, Cm[:, :, 0], Cm[:, :, 1], D, U)]
+    nb, (ns, ni), no = fm.nblocks, U.shape, D.shape[0]
+    y = np.empty((ns, no))
+    work = [np.zeros(nb) for _ in range(4)]
+    # at rest as em.simulate starts it: zero, or −Γ₁ u[0] for a first-order-hold realisation
+    z_start = np.zeros((nb, 2)) if fm.hold is None else -np.einsum("bim,m->bi", fm.hold, u[0])
+    ptr = ctypes.POINTER(ctypes.c_double)
+    fn.argtypes = [ctypes.c_int] * 4 + [ptr] * 15
+    args = [a.ctypes.data_as(ptr) for a in (*arrays, y, *work)]
+
+    def run() -> np.ndarray:
+        work[0][:], work[1][:] = z_start[:, 0], z_start[:, 1]
+        fn(nb, ni, no, ns, *args)
+        return y
+
+    return run
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=31)
+    add_json_argument(ap)
     args = ap.parse_args()
     rng = np.random.default_rng(0)
     with threadpool_limits(limits=1, user_api="blas"):
@@ -61,6 +133,10 @@ def main() -> None:
         y_fast = em.simulate(fm, u).outputs
         _, y_dl, _ = ss.dlsim((sys.A, sys.B, sys.C, sys.D, sys.dt), u)
         rel = np.linalg.norm(y_fast - y_dl) / np.linalg.norm(y_dl)
+        with tempfile.TemporaryDirectory() as tmp:
+            floor = compiled_floor(fm, u, Path(tmp))
+            rel_floor = np.linalg.norm(floor() - y_fast) / np.linalg.norm(y_fast)
+            t_floor = median_time(floor, args.repeats)
 
         u2 = rng.standard_normal((40_000, 1))
         t_fast_2s = median_time(lambda: evaluation(cfg, u2, rng), args.repeats)
@@ -75,10 +151,22 @@ def main() -> None:
     print(f"  scipy.signal.dlsim, same matrices:     {t_dlsim * 1e3:8.3f} ms")
     print(f"  ratio dlsim / fast evaluation:         {t_dlsim / t_fast:8.1f} x   (target >= 40)")
     print(f"  relative difference fast vs dlsim:     {rel:8.2e}")
+    print(f"  compiled floor (the same recursion in C, {fm.nblocks} blocks = {2 * fm.nblocks} states): "
+          f"{t_floor * 1e3:8.3f} ms  (its outputs vs the fast path's: {rel_floor:.1e})")
+    print(f"  ratio fast evaluation / floor:         {t_fast / t_floor:8.2f} x   (target <= 1.5)")
+    print(f"  ratio simulation alone / floor:        {t_sim / t_floor:8.2f} x")
     print(f"  samples x2 (40,000): {t_fast_2s * 1e3:8.3f} ms -> growth exponent "
           f"{math.log2(t_fast_2s / t_fast):.2f} (target <= 1.1)")
     print(f"  nodes x2 (100):      {t_fast_2n * 1e3:8.3f} ms -> growth exponent "
           f"{math.log2(t_fast_2n / t_fast):.2f} (target <= 1.5)")
+    write_figures(args.json, {
+        "states": 2 * fm.nblocks, "samples": int(u.shape[0]), "repeats": args.repeats,
+        "evaluation_ms": t_fast * 1e3, "assembly_ms": t_asm * 1e3, "simulation_ms": t_sim * 1e3,
+        "dlsim_ms": t_dlsim * 1e3, "dlsim_ratio": t_dlsim / t_fast, "dlsim_relative_difference": rel,
+        "floor_ms": t_floor * 1e3, "floor_relative_difference": rel_floor,
+        "floor_ratio": t_fast / t_floor, "simulation_floor_ratio": t_sim / t_floor,
+        "samples_x2_ms": t_fast_2s * 1e3, "samples_exponent": math.log2(t_fast_2s / t_fast),
+        "nodes_x2_ms": t_fast_2n * 1e3, "nodes_exponent": math.log2(t_fast_2n / t_fast)})
 
 
 if __name__ == "__main__":

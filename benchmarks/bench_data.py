@@ -24,6 +24,7 @@ import ebb_model as em
 from ebb_model.errors import DataWarning
 from identification.data import load_experiment
 
+from figures import add_json_argument, write_figures  # benchmarks/figures.py
 from timing import median_time  # benchmarks/timing.py
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -33,6 +34,7 @@ ARTS_LVM = ROOT / ".." / "shared" / "data" / "arts-lab-cantilever" / "test_1_320
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=7)
+    add_json_argument(ap)
     args = ap.parse_args()
     if not ARTS_LVM.is_file():
         sys.exit(f"{ARTS_LVM}: not found (the shared data folder must sit beside the repository)")
@@ -53,6 +55,7 @@ def main() -> None:
     print(f"  load_experiment (.lvm -> checked Experiment): {t_read * 1e3:8.1f} ms   (target < 2000 ms)")
     print(f"  numpy.loadtxt of the numbers alone:            {t_parse * 1e3:8.1f} ms")
     print(f"  ratio reader / parsing alone:                  {t_read / t_parse:8.2f} x")
+    write_figures(args.json, {"read_ms": t_read * 1e3, "loadtxt_ms": t_parse * 1e3, "ratio": t_read / t_parse})
 
 
 if __name__ == "__main__":

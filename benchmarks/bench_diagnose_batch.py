@@ -6,7 +6,7 @@ Kelvin–Voigt damping, an actuator lag; generated first, not timed) are diagnos
 includes starting and closing the cluster (what a user waits for); the speed-up is against one worker, and the
 share of the ideal divides it by min(K, cores).  The verdicts are checked against the withheld effects.
 
-Run as ``python benchmarks/bench_diagnose_batch.py [--workers 1 2 4]``.
+Run as ``python benchmarks/bench_diagnose_batch.py [--workers 1 2 4] [--json PATH]``.
 """
 from __future__ import annotations
 
@@ -23,6 +23,7 @@ import test_diagnosis_blind as blind  # noqa: E402
 from ebb_model.reference.withheld import WithheldEffect  # noqa: E402
 
 from diagnosis.batch import diagnose_each  # noqa: E402
+from figures import add_json_argument, write_figures  # noqa: E402  benchmarks/figures.py
 
 RECORDS = {"none": None, "foundation": WithheldEffect("foundation", {"kf": 200.0}),
            "kelvin_voigt": WithheldEffect("kelvin_voigt", {"eta": 6e-5}),
@@ -33,7 +34,9 @@ def main() -> None:
     """Generate the records, time the batch on each cluster size, print the table."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2, 4])
+    add_json_argument(ap)
     args = ap.parse_args()
+    rows = []
     cores = os.cpu_count() or 1
     cfg = blind.bench_config()
     with tempfile.TemporaryDirectory() as tmp:
@@ -55,6 +58,11 @@ def main() -> None:
             speed = base / times[k]
             print(f"{k:>12}{times[k]:>10.1f}{speed:>10.2f}{speed / min(k, cores):>10.2f}  "
                   f"{sum(right)}/{len(right)} right", flush=True)
+            rows.append({"workers": k, "seconds": times[k], "speedup": speed, "of_ideal": speed / min(k, cores),
+                         "right": sum(right), "records": len(right)})
+    write_figures(args.json, {"cores": cores, "records": len(RECORDS), "rows": rows,
+                              **{f"workers_{r['workers']}_s": r["seconds"] for r in rows},
+                              **{f"speedup_{r['workers']}": r["speedup"] for r in rows}})
 
 
 if __name__ == "__main__":

@@ -6,7 +6,7 @@ is printed with the verdict and the posterior probability the diagnosis gives th
 over the baseline and the refitted candidates, :mod:`diagnosis.evidence`; "-" when the right effect was not
 refitted).  The median and the largest time over the chosen cases close the table.
 
-Run as ``python benchmarks/bench_diagnosis.py [CASE ...]`` (default: every case; ``--list`` names them).
+Run as ``python benchmarks/bench_diagnosis.py [CASE ...] [--json PATH]`` (default: every case; ``--list`` names them).
 """
 from __future__ import annotations
 
@@ -22,6 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import test_diagnosis_blind as blind  # noqa: E402
 
 from diagnosis.run import diagnose  # noqa: E402
+from figures import add_json_argument, write_figures  # noqa: E402  benchmarks/figures.py
 
 
 def cases() -> dict[str, tuple[str, float, object, set[str]]]:
@@ -49,6 +50,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("cases", nargs="*", help="case names (default: all)")
     ap.add_argument("--list", action="store_true", help="list the case names")
+    add_json_argument(ap)
     args = ap.parse_args()
     if args.list:
         print("\n".join(table))
@@ -59,6 +61,7 @@ def main() -> None:
         ap.error(f"unknown case(s) {unknown}; --list names them")
     seed = {"disp-none": 5}
     times = []
+    rows = []
     print(f"{'case':<44}{'diagnosis [s]':>14}{'P(right)':>10}  verdict")
     for name in chosen:
         kind, f_max, effect, right = table[name]
@@ -75,7 +78,13 @@ def main() -> None:
         shown = "-" if p_right is None else f"{p_right:.3g}"
         print(f"{name:<44}{dt:>14.1f}{shown:>10}  {d.verdict} ({'right' if verdict in right else 'WRONG'})",
               flush=True)
+        rows.append({"case": name, "seconds": dt, "p_right": p_right, "verdict": d.verdict,
+                     "right": verdict in right})
     print(f"median {statistics.median(times):.1f} s, largest {max(times):.1f} s over {len(times)} case(s)")
+    slowest = max(rows, key=lambda r: r["seconds"])
+    write_figures(args.json, {"cases": len(rows), "right": sum(r["right"] for r in rows),
+                              "median_s": statistics.median(times), "largest_s": slowest["seconds"],
+                              "slowest_case": slowest["case"], "rows": rows})
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ clamped–clamped beam, 50 nodes, dt = 1e-4 s, 1 force), each varying one size w
 Printed: median times (single-threaded BLAS, all in this one run) and the growth exponent of each sweep — the
 least-squares slope of log t against log size over its upper half (where the dominant term shows).
 
-Run: ``python benchmarks/bench_growth.py [--repeats R]``.
+Run: ``python benchmarks/bench_growth.py [--repeats R] [--json PATH]``.
 """
 from __future__ import annotations
 
@@ -22,6 +22,7 @@ from threadpoolctl import threadpool_limits
 
 import ebb_model as em
 
+from figures import add_json_argument, write_figures  # benchmarks/figures.py
 from timing import median_time  # benchmarks/timing.py
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -48,7 +49,8 @@ def exponent(sizes: list[float], times: list[float]) -> float:
     return float(np.polyfit(np.log(sizes[k:]), np.log(times[k:]), 1)[0])
 
 
-def sweep(name: str, sizes: list[int], make, repeats: int, rng: np.random.Generator) -> None:
+def sweep(name: str, sizes: list[int], make, repeats: int, rng: np.random.Generator) -> dict:
+    """Median evaluation time per size (printed), returned as ``{"sizes", "ms", "exponent"}``."""
     times = []
     for s in sizes:
         cfg, u = make(s)
@@ -56,21 +58,24 @@ def sweep(name: str, sizes: list[int], make, repeats: int, rng: np.random.Genera
         times.append(median_time(lambda: evaluation(cfg, u, rng), repeats))
     print(f"{name:>14}: " + "  ".join(f"{s}: {1e3 * t:.3g} ms" for s, t in zip(sizes, times))
           + f"   exponent {exponent(sizes, times):.2f}")
+    return {"sizes": sizes, "ms": [1e3 * t for t in times], "exponent": exponent(sizes, times)}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=7)
+    add_json_argument(ap)
     args = ap.parse_args()
     rng = np.random.default_rng(0)
     fs = 1e4
     with threadpool_limits(limits=1, user_api="blas"):
-        sweep("nodes", [50, 100, 200, 400, 800],
+        nodes = sweep("nodes", [50, 100, 200, 400, 800],
               lambda n: (config(nodes=n), rng.standard_normal((int(fs), 1))), args.repeats, rng)
-        sweep("record [s]", [1, 4, 15, 60],
+        record = sweep("record [s]", [1, 4, 15, 60],
               lambda s: (config(), rng.standard_normal((int(s * fs), 1))), max(3, args.repeats // 2), rng)
-        sweep("sensors", [1, 2, 4, 8, 16],
+        sensors = sweep("sensors", [1, 2, 4, 8, 16],
               lambda m: (config(sensors=m), rng.standard_normal((int(fs), 1))), args.repeats, rng)
+    write_figures(args.json, {"nodes": nodes, "record_s": record, "sensors": sensors})
 
 
 if __name__ == "__main__":

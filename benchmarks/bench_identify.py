@@ -42,7 +42,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import shutil
 import statistics
@@ -62,6 +61,7 @@ for p in (ROOT, ROOT / "tests"):
 
 from identification.run import Progress, identify  # noqa: E402
 from test_recovery import TRUTH, fd_config, recovery_case  # noqa: E402
+from figures import write_figures  # noqa: E402  benchmarks/figures.py
 
 TOL = 0.01
 
@@ -282,10 +282,16 @@ def main(argv: list[str] | None = None) -> int:
             ev_a, t_a = _median([r.evaluations_to_target for r in a]), _median([r.seconds_to_target for r in a])
             ok = ev_a is not None and t_a is not None and ev_a <= 3000 and t_a <= 30.0
             print(f"(a) target <= 3000 evaluations and <= 30 s: {'met' if ok else 'NOT met'}")
-        if args.json:
-            Path(args.json).write_text(json.dumps({"records": [asdict(r) for r in records],
-                                                   "dask_speedup": {k: v[0] for k, v in speedups.items()},
-                                                   "load_after": _load()}, indent=2))
+        table = [{"configuration": label, "runs": len(recs),
+                  "evaluations_to_target": _median([r.evaluations_to_target for r in recs]),
+                  "seconds_to_target": _median([r.seconds_to_target for r in recs]),
+                  "search_evaluations": _median([r.search_evaluations for r in recs]),
+                  "search_seconds": _median([r.search_seconds for r in recs])} for label, recs in rows]
+        write_figures(Path(args.json) if args.json else None, {
+            "records": [asdict(r) for r in records], "rows": table, "load_after": _load(),
+            "dask_speedup": {k: v[0] for k, v in speedups.items()},
+            "dask_speedup_ga": {k: v[1] for k, v in speedups.items()},
+            "dask_speedup_polish": {k: v[2] for k, v in speedups.items()}})
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return 0

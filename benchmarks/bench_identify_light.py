@@ -33,6 +33,8 @@ from ebb_model.reference.excitation import band_limited_input
 from ebb_model.reference.synthetic import synthesize
 from identification.run import Progress, identify
 
+from figures import add_json_argument, write_figures  # benchmarks/figures.py
+
 TRUTH = {"EI": 10.0, "rhoA": 1.0, "c": 2.0, "N": 20.0}
 PRIOR = {"EI": 11.5, "rhoA": 0.88, "c": 2.3, "N": 23.0}
 BOUNDS = {"EI": (5.0, 16.0), "rhoA": (0.5, 1.6), "c": (1.0, 3.2), "N": (10.0, 32.0)}
@@ -82,6 +84,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--workers", type=int, default=2)
+    add_json_argument(ap)
     args = ap.parse_args()
     work = Path(tempfile.mkdtemp())
     rows = []
@@ -103,6 +106,14 @@ def main() -> None:
           f"{statistics.median(r['total'] for r in rows):.1f} s ({args.workers} workers)")
     worst = {n: max(abs(r["errors"][n]) for r in rows) for n in TRUTH}
     print("largest error over the runs: " + ", ".join(f"{n} {e:.3f} %" for n, e in worst.items()))
+    gaps = [g for r in rows for g in r["gap"].values()]
+    crb = [s for r in rows for s in r["crb"].values()]
+    write_figures(args.json, {
+        "runs": len(rows), "within": len(hits), "median_to_target_s": statistics.median(hits) if hits else None,
+        "median_total_s": statistics.median(r["total"] for r in rows), "workers": args.workers,
+        "stages": sorted({str(r["stage"]).split()[0] for r in rows}), "largest_error_percent": worst,
+        "fit_gap_min": min(gaps), "fit_gap_max": max(gaps), "crb_percent_min": min(crb), "crb_percent_max": max(crb),
+        "rows": rows})
 
 
 if __name__ == "__main__":
