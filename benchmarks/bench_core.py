@@ -49,34 +49,33 @@ def evaluation(cfg: em.BeamConfig, u: np.ndarray, rng: np.random.Generator) -> n
     return em.simulate(em.fast_model(cfg, p), u).outputs
 
 
-#: The modal recursion of :func:`ebb_model.simulate` written as plain C: ``nb`` 2×2 blocks, ``ni`` input columns
-#: (the cubic's taps included), ``no`` outputs; row-major arrays as the numba kernel receives them.
+#: The modal recursion of :func:`ebb_model.simulate` written as plain C, compiled for the case's sizes (``NB``
+#: 2×2 blocks, ``NI`` input columns — the cubic's taps included —, ``NO`` outputs as compile-time constants, so
+#: the compiler unrolls and vectorises what it can); row-major arrays as the numba kernel receives them.
 FLOOR_C = r"""
-void modal_floor(int nb, int ni, int no, int ns,
-                 const double *restrict t00, const double *restrict t01, const double *restrict t10,
+void modal_floor(const double *restrict t00, const double *restrict t01, const double *restrict t10,
                  const double *restrict t11, const double *restrict g0, const double *restrict g1,
                  const double *restrict c0, const double *restrict c1, const double *restrict D,
-                 const double *restrict u, double *restrict y, double *restrict z0, double *restrict z1,
-                 double *restrict a0, double *restrict a1)
+                 const double *restrict u, double *restrict y, double *restrict z0, double *restrict z1, long ns)
 {
-    for (int k = 0; k < ns; ++k) {
-        const double *uk = u + (long)k * ni;
-        for (int o = 0; o < no; ++o) {
+    for (long k = 0; k < ns; ++k) {
+        const double *uk = u + k * NI;
+        for (int o = 0; o < NO; ++o) {
             double acc = 0.0;
-            for (int b = 0; b < nb; ++b) acc += c0[o * nb + b] * z0[b] + c1[o * nb + b] * z1[b];
-            for (int i = 0; i < ni; ++i) acc += D[o * ni + i] * uk[i];
-            y[(long)k * no + o] = acc;
+            for (int b = 0; b < NB; ++b) acc += c0[o * NB + b] * z0[b] + c1[o * NB + b] * z1[b];
+            for (int i = 0; i < NI; ++i) acc += D[o * NI + i] * uk[i];
+            y[k * NO + o] = acc;
         }
-        for (int b = 0; b < nb; ++b) {
-            a0[b] = t00[b] * z0[b] + t01[b] * z1[b];
-            a1[b] = t10[b] * z0[b] + t11[b] * z1[b];
-        }
-        for (int i = 0; i < ni; ++i)
-            for (int b = 0; b < nb; ++b) {
-                a0[b] += g0[i * nb + b] * uk[i];
-                a1[b] += g1[i * nb + b] * uk[i];
+        for (int b = 0; b < NB; ++b) {
+            double v0 = t00[b] * z0[b] + t01[b] * z1[b];
+            double v1 = t10[b] * z0[b] + t11[b] * z1[b];
+            for (int i = 0; i < NI; ++i) {
+                v0 += g0[i * NB + b] * uk[i];
+                v1 += g1[i * NB + b] * uk[i];
             }
-        for (int b = 0; b < nb; ++b) { z0[b] = a0[b]; z1[b] = a1[b]; }
+            z0[b] = v0;
+            z1[b] = v1;
+        }
     }
 }
 """
@@ -84,11 +83,6 @@ void modal_floor(int nb, int ni, int no, int ns,
 
 def compiled_floor(fm: em.ModalStateSpace, u: np.ndarray, workdir: Path):
     """A callable running the fast model's recursion in compiled C on ``u`` (returns the outputs)."""
-    src, lib = workdir / "floor.c", workdir / "floor.so"
-    src.write_text(FLOOR_C)
-    subprocess.run(["gcc", "-O3", "-march=native", "-fassociative-math", "-fno-signed-zeros", "-fno-trapping-math",
-                    "-ffp-contract=fast", "-shared", "-fPIC", "-o", str(lib), str(src)], check=True)
-    fn = ctypes.CDLL(str(lib)).modal_floor
     # the input columns the kernel reads: u[k], u[k−1], … for the cubic's taps (u[−j] = u[0])
     cols = [np.vstack([np.repeat(u[:1], j, axis=0), u[:u.shape[0] - j]]) for j in range(fm.delays + 1)]
     U = np.ascontiguousarray(np.hstack(cols))
@@ -97,17 +91,23 @@ def compiled_floor(fm: em.ModalStateSpace, u: np.ndarray, workdir: Path):
     arrays = [np.ascontiguousarray(a) for a in (T[:, 0, 0], T[:, 0, 1], T[:, 1, 0], T[:, 1, 1], G[:, 0, :].T,
                                                 G[:, 1, :].T, Cm[:, :, 0], Cm[:, :, 1], D, U)]
     nb, (ns, ni), no = fm.nblocks, U.shape, D.shape[0]
+    src, lib = workdir / "floor.c", workdir / "floor.so"
+    src.write_text(FLOOR_C)
+    subprocess.run(["gcc", "-O3", "-march=native", "-fassociative-math", "-fno-signed-zeros", "-fno-trapping-math",
+                    "-ffp-contract=fast", f"-DNB={nb}", f"-DNI={ni}", f"-DNO={no}", "-shared", "-fPIC", "-o",
+                    str(lib), str(src)], check=True)
+    fn = ctypes.CDLL(str(lib)).modal_floor
     y = np.empty((ns, no))
-    work = [np.zeros(nb) for _ in range(4)]
+    z = [np.zeros(nb), np.zeros(nb)]
     # at rest as em.simulate starts it: zero, or −Γ₁ u[0] for a first-order-hold realisation
     z_start = np.zeros((nb, 2)) if fm.hold is None else -np.einsum("bim,m->bi", fm.hold, u[0])
     ptr = ctypes.POINTER(ctypes.c_double)
-    fn.argtypes = [ctypes.c_int] * 4 + [ptr] * 15
-    args = [a.ctypes.data_as(ptr) for a in (*arrays, y, *work)]
+    fn.argtypes = [ptr] * 13 + [ctypes.c_long]
+    args = [a.ctypes.data_as(ptr) for a in (*arrays, y, *z)]
 
     def run() -> np.ndarray:
-        work[0][:], work[1][:] = z_start[:, 0], z_start[:, 1]
-        fn(nb, ni, no, ns, *args)
+        z[0][:], z[1][:] = z_start[:, 0], z_start[:, 1]
+        fn(*args, ns)
         return y
 
     return run

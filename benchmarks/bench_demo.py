@@ -44,7 +44,7 @@ def main() -> None:
             runs.append({"seconds": seconds, "outcome": outcome, "right": outcome.endswith("RIGHT")})
             print(f"ebb demo: {seconds:.1f} s; {outcome}", flush=True)
     write_figures(args.json, {"seconds": statistics.median(r["seconds"] for r in runs),
-                              "right": sum(r["right"] for r in runs), "runs": runs})
+                              "right": sum(r["right"] for r in runs), "repeats": args.repeats, "runs": runs})
 
 
 if __name__ == "__main__":

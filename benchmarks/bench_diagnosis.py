@@ -4,7 +4,9 @@ Each case's record is generated first (not timed: the independent FE truth is th
 cost), then :func:`diagnosis.run.diagnose` runs blind with its defaults (two worker processes) and its wall time
 is printed with the verdict and the posterior probability the diagnosis gives the right answer (Laplace evidence
 over the baseline and the refitted candidates, :mod:`diagnosis.evidence`; "-" when the right effect was not
-refitted).  The median and the largest time over the chosen cases close the table.
+refitted); the JSON (``--json``) also gives, for a named effect, the share of the held-out gap its refit closes
+and its largest size error against the withheld values.  The median and the largest time over the chosen cases
+close the table.
 
 Run as ``python benchmarks/bench_diagnosis.py [CASE ...] [--json PATH]`` (default: every case; ``--list`` names them).
 """
@@ -22,6 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import test_diagnosis_blind as blind  # noqa: E402
 
 from diagnosis.run import diagnose  # noqa: E402
+from ebb_model.reference.withheld import WithheldEffect  # noqa: E402
 from figures import add_json_argument, write_figures  # noqa: E402  benchmarks/figures.py
 
 
@@ -42,6 +45,26 @@ def cases() -> dict[str, tuple[str, float, object, set[str]]]:
     for labels, effects in blind.PAIR_CASES:
         out["pair-" + "+".join(sorted(labels))] = ("displacement", 60.0, effects, {"+".join(sorted(labels))})
     return out
+
+
+def _size(doc: dict, effect: object) -> tuple[float | None, float | None]:
+    """The named effect's share of the held-out gap closed [%] and its largest size error [%] against the
+    withheld values (a point mass's position as a share of the beam's length), when the verdict names it."""
+    if not doc["effects"] or doc["effects"][0]["label"] != doc["verdict"] or doc["effects"][0]["refit"] is None:
+        return None, None
+    refit = doc["effects"][0]["refit"]
+    effects = effect if isinstance(effect, (list, tuple)) else [effect]
+    if not all(isinstance(e, WithheldEffect) for e in effects):
+        return 100.0 * refit["closed"], None
+    fitted, errors = refit["effect_parameters"], []
+    for e in effects:
+        label = f"{e.name}[{e.sensor}]" if e.sensor else e.name
+        for k, v in e.values.items():
+            got = fitted.get(k if len(effects) == 1 else f"{label}.{k}")
+            if got is None:
+                return 100.0 * refit["closed"], None
+            errors.append(abs(got - v) / (blind.bench_config().beam.length if k == "x" else abs(v)))
+    return 100.0 * refit["closed"], 100.0 * max(errors)
 
 
 def main() -> None:
@@ -78,8 +101,9 @@ def main() -> None:
         shown = "-" if p_right is None else f"{p_right:.3g}"
         print(f"{name:<44}{dt:>14.1f}{shown:>10}  {d.verdict} ({'right' if verdict in right else 'WRONG'})",
               flush=True)
+        closed, size_error = _size(d.document, effect)
         rows.append({"case": name, "seconds": dt, "p_right": p_right, "verdict": d.verdict,
-                     "right": verdict in right})
+                     "right": verdict in right, "closed_percent": closed, "size_error_percent": size_error})
     print(f"median {statistics.median(times):.1f} s, largest {max(times):.1f} s over {len(times)} case(s)")
     slowest = max(rows, key=lambda r: r["seconds"])
     write_figures(args.json, {"cases": len(rows), "right": sum(r["right"] for r in rows),

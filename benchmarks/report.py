@@ -14,9 +14,11 @@ Usage (from the repository's root, alone on the machine: the figures are timings
     python -m benchmarks.report --render             # render the pages from docs/figures.json only
     python -m benchmarks.report --check              # exit 1 when a page is not its rendered source
 
-Placeholders: ``{{SOURCE.KEY}}`` (nested keys and list indices by dots; ``|SPEC`` a format spec),
-``{{table SOURCE.KEY|COLUMN:SPEC,COLUMN,...}}`` (a list of rows as a Markdown table), ``{{sources}}`` (when,
-where and with what each source was measured).
+Placeholders: ``{{SOURCE.KEY}}`` (nested keys, list indices and ``FIELD=VALUE&…`` — a list's first row
+whose fields have those values — by dots; ``|SPEC`` a format spec, exponents written ``1.6e3``; for a yes/no
+figure ``|WORDS IF TRUE/WORDS IF FALSE``; a list is formatted item by item),
+``{{table SOURCE.KEY|FIELD:SPEC=HEADER,FIELD,...}}`` (a list of rows as a Markdown table), ``{{sources}}`` (when,
+where and with what each source was measured), ``{{report_minutes}}`` (the run time of all of them).
 """
 from __future__ import annotations
 
@@ -39,19 +41,23 @@ ROOT = Path(__file__).resolve().parents[1]
 FIGURES = ROOT / "docs" / "figures.json"
 SOURCES_DIR = ROOT / "docs" / "src"
 
-#: The benchmarks whose figures the pages quote: name → (script under benchmarks/, extra arguments).
+#: The benchmarks and examples whose figures the pages quote: name → (script, extra arguments).  A benchmark
+#: writes its figures with ``--json PATH``; an example writes ``summary.json`` into ``--out DIR`` (its wall time is
+#: added as ``wall_seconds``).
 BENCHMARKS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "bench_core": ("bench_core.py", ()),
-    "bench_growth": ("bench_growth.py", ()),
-    "bench_accuracy": ("bench_accuracy.py", ()),
-    "bench_data": ("bench_data.py", ()),
-    "bench_fmu": ("bench_fmu.py", ()),
-    "bench_fmu_standalone": ("bench_fmu_standalone.py", ()),
-    "bench_demo": ("bench_demo.py", ()),
-    "bench_identify_light": ("bench_identify_light.py", ()),
-    "bench_identify": ("bench_identify.py", ()),
-    "bench_diagnose_batch": ("bench_diagnose_batch.py", ()),
-    "bench_diagnosis": ("bench_diagnosis.py", ()),
+    "bench_core": ("benchmarks/bench_core.py", ()),
+    "bench_growth": ("benchmarks/bench_growth.py", ()),
+    "bench_accuracy": ("benchmarks/bench_accuracy.py", ()),
+    "bench_data": ("benchmarks/bench_data.py", ()),
+    "bench_fmu": ("benchmarks/bench_fmu.py", ()),
+    "bench_fmu_standalone": ("benchmarks/bench_fmu_standalone.py", ()),
+    "bench_demo": ("benchmarks/bench_demo.py", ()),
+    "bench_identify_light": ("benchmarks/bench_identify_light.py", ()),
+    "bench_identify": ("benchmarks/bench_identify.py", ()),
+    "bench_diagnose_batch": ("benchmarks/bench_diagnose_batch.py", ()),
+    "bench_diagnosis": ("benchmarks/bench_diagnosis.py", ()),
+    "arts_identify": ("examples/arts_identify.py", ()),
+    "arts_diagnose": ("examples/arts_diagnose.py", ()),
 }
 
 #: The libraries whose versions are recorded with each run.
@@ -95,7 +101,10 @@ def _lookup(figures: dict[str, Any], path: str) -> Any:
     else:
         raise KeyError(path)
     for part in parts:
-        if isinstance(node, list):
+        if isinstance(node, list) and "=" in part:     # the first row whose fields have those values
+            wanted = [c.partition("=") for c in part.split("&")]
+            node = next(row for row in node if all(str(row.get(k)) == v for k, _, v in wanted))
+        elif isinstance(node, list):
             node = node[int(part)]
         else:
             node = node[part]
@@ -105,25 +114,33 @@ def _lookup(figures: dict[str, Any], path: str) -> Any:
 def _format(value: Any, spec: str) -> str:
     if value is None:
         raise KeyError("null")
+    if isinstance(value, list):
+        return ", ".join(_format(v, spec) for v in value)
+    if isinstance(value, bool) and "/" in spec:       # {{…|words if true/words if false}}
+        yes, _, no = spec.partition("/")
+        return yes if value else no
     if spec:
-        return format(value, spec)
+        return re.sub(r"e([+-])0*(\d)", lambda m: "e" + m.group(1).replace("+", "") + m.group(2),
+                      format(value, spec))
     if isinstance(value, bool) or isinstance(value, int) or isinstance(value, str):
         return str(value)
     if isinstance(value, float):
         return f"{value:.0f}" if abs(value) >= 100 else f"{value:.3g}"
-    if isinstance(value, list):
-        return ", ".join(_format(v, "") for v in value)
     raise KeyError(f"not a number: {type(value).__name__}")
 
 
 def _table(figures: dict[str, Any], body: str) -> str:
     path, _, columns = body.partition("|")
     rows = _lookup(figures, path.strip())
-    cols = [c.partition(":") for c in columns.split(",")] if columns else [(k, "", "") for k in rows[0]]
-    lines = ["| " + " | ".join(c[0].strip() for c in cols) + " |", "|" + "---|" * len(cols)]
+    cols = []                                   # (field, spec, header) from FIELD[:SPEC][=HEADER]
+    for c in (columns.split(",") if columns else list(rows[0])):
+        c, _, header = c.partition("=")
+        field, _, spec = c.strip().partition(":")
+        cols.append((field, spec, header.strip() or field))
+    lines = ["| " + " | ".join(h for _, _, h in cols) + " |", "|" + "---|" * len(cols)]
     for row in rows:
-        lines.append("| " + " | ".join("–" if row.get(c[0].strip()) is None else _format(row[c[0].strip()], c[2])
-                                        for c in cols) + " |")
+        lines.append("| " + " | ".join("–" if row.get(f) is None else _format(row[f], spec) for f, spec, _ in cols)
+                     + " |")
     return "\n".join(lines)
 
 
@@ -148,11 +165,13 @@ def render(text: str, figures: dict[str, Any], name: str = "page") -> str:
         try:
             if body == "sources":
                 return _sources_table(figures)
+            if body == "report_minutes":
+                return f"{sum(s['seconds'] for s in figures['sources'].values()) / 60:.0f}"
             if body.startswith("table "):
                 return _table(figures, body[len("table "):])
             path, _, spec = body.partition("|")
             return _format(_lookup(figures, path.strip()), spec.strip())
-        except (KeyError, IndexError, ValueError, TypeError) as exc:
+        except (KeyError, IndexError, ValueError, TypeError, StopIteration) as exc:
             raise PlaceholderError(f"{name}: {{{{{body}}}}} names no measured figure in {FIGURES.name} "
                                    f"({exc})") from None
 
@@ -214,16 +233,22 @@ def run_benchmark(name: str) -> dict[str, Any]:
         The benchmark exited with an error (its last output lines are in the message).
     """
     script, extra = BENCHMARKS[name]
+    example = script.startswith("examples/")
     with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "figures.json"
+        out = Path(tmp) / ("summary.json" if example else "figures.json")
+        where = ["--out", str(Path(tmp) / "run")] if example else ["--json", str(out)]
         t0 = time.perf_counter()
-        proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / script), "--json", str(out), *extra],
+        proc = subprocess.run([sys.executable, str(ROOT / script), *where, *extra],
                               cwd=ROOT, capture_output=True, text=True, check=False)
         seconds = time.perf_counter() - t0
+        if example:
+            out = Path(tmp) / "run" / "summary.json"
         if proc.returncode != 0 or not out.exists():
             tail = " | ".join((proc.stderr or proc.stdout).strip().splitlines()[-3:])
             raise ReportError(f"{name} failed (exit {proc.returncode}): {tail}")
         figures = json.loads(out.read_text(encoding="utf-8"))
+        if example:
+            figures["wall_seconds"] = seconds
     return {"date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M"),
             "commit": _commit(), "seconds": seconds, "machine": _machine(), "versions": _versions(),
             "output": proc.stdout.splitlines(), "figures": figures}

@@ -179,18 +179,22 @@ def _frf_figure(plt: Any, loc: Localisation, dt: float, u2: np.ndarray, y2: np.n
 
 
 def _windows_figure(plt: Any, loc: Localisation, unit: _Units) -> Any:
-    """Residual RMS, gain and phase per time window (drift)."""
+    """The model's residual RMS per time window against the noise level, and the data's gain and phase per window
+    relative to their own time-invariant linear fit (drift: a trend there; the fit is a reference for change
+    over time, not a model of the beam, so its own residual is not drawn)."""
     # per time window
     fig, axes = plt.subplots(3, 1, figsize=(7, 7), sharex=True)
+    noise = {s.sensor: s.noise_std for s in loc.sensors}
     for o, w in enumerate(loc.windows):
         tc = np.asarray(w.t_center)
-        axes[0].plot(tc, w.rms, "o-", color=f"C{o}", label=f"{w.sensor}: y - ŷ")
-        axes[0].plot(tc, w.linear_rms, "s--", color=f"C{o}", mfc="none", label=f"{w.sensor}: y - y_lin")
-        axes[1].plot(tc, w.gain, "o-", color=f"C{o}", label=f"{w.sensor} (p={w.gain_p:.2g})")
-        axes[2].plot(tc, w.phase_deg, "o-", color=f"C{o}", label=f"{w.sensor} (p={w.phase_p:.2g})")
-    axes[0].set_ylabel(f"residual RMS{unit.common([w.sensor for w in loc.windows])}")
-    axes[1].set_ylabel("gain y / y_lin [-]")
-    axes[2].set_ylabel("phase y vs y_lin [deg]")
+        axes[0].plot(tc, w.rms, "o-", color=f"C{o}", label=f"{w.sensor}: measured − model")
+        if w.sensor in noise:
+            axes[0].axhline(noise[w.sensor], color=f"C{o}", ls=":", lw=0.8)
+        axes[1].plot(tc, w.gain, "o-", color=f"C{o}", label=f"{w.sensor} (trend p={w.gain_p:.2g})")
+        axes[2].plot(tc, w.phase_deg, "o-", color=f"C{o}", label=f"{w.sensor} (trend p={w.phase_p:.2g})")
+    axes[0].set_ylabel(f"model residual RMS{unit.common([w.sensor for w in loc.windows])}\n(dotted: noise σ)")
+    axes[1].set_ylabel("gain vs. time-invariant\nlinear fit [-]")
+    axes[2].set_ylabel("phase vs. time-invariant\nlinear fit [deg]")
     axes[2].set_xlabel("window centre [s]")
     for ax in axes:
         _outside_legend(ax)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 import pickle
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -49,6 +49,10 @@ class ParetoSet:
         Model evaluations used by the GA.
     generations
         Generations run.
+    history
+        The search's convergence, one row per generation: the model evaluations so far, then the best value of
+        each objective in that generation's non-dominated set (for one objective: the best so far); shape
+        (generations, 1 + n_obj), empty for a result read back from an older file.
     """
 
     X: np.ndarray
@@ -58,6 +62,7 @@ class ParetoSet:
     knee: int
     n_evaluations: int
     generations: int
+    history: np.ndarray = field(default_factory=lambda: np.empty((0, 0)))
 
 
 #: Name of the stabilising objective (the θ-scheme's largest growth factor), see :mod:`identification.objectives`.
@@ -106,6 +111,9 @@ def knee_order(F: np.ndarray, names: Sequence[str] | None = None) -> np.ndarray:
     d[k] = -1.0  # the knee first, also when another point coincides with it
     return np.argsort(d, kind="stable")
 
+
+#: Key of the convergence history in the pymoo algorithm's ``data`` (pickled with the checkpoint).
+HISTORY = "ebb_history"
 
 #: ``callback(generation, n_evaluations, X, F)`` after every generation (current non-dominated set).
 GenerationCallback = Callable[[int, int, np.ndarray, np.ndarray], None]
@@ -180,6 +188,9 @@ def optimise(problem: IdentificationProblem, *, pop: int = 40, generations: int 
     try:
         while algo.has_next():
             algo.next()
+            # kept in the algorithm's own data, so that the checkpoint carries it across a resume
+            algo.data.setdefault(HISTORY, []).append(
+                [float(problem.n_evaluations), *np.atleast_2d(algo.opt.get("F")).min(axis=0).tolist()])
             if ckpt is not None:
                 _save_atomic(algo, ckpt)
             if bar is not None:
@@ -199,5 +210,6 @@ def optimise(problem: IdentificationProblem, *, pop: int = 40, generations: int 
     order = np.lexsort(F.T[::-1])
     X, F = X[order], F[order]
     knee = knee_index(F, problem.objective_names)
+    history = np.array(algo.data.get(HISTORY, []), dtype=float).reshape(-1, 1 + F.shape[1])
     return ParetoSet(X, F, problem.parameter_names, problem.objective_names, knee,
-                     problem.n_evaluations, int(algo.n_gen - 1))
+                     problem.n_evaluations, int(algo.n_gen - 1), history)

@@ -119,9 +119,11 @@ def spread_figure(X: np.ndarray, names: Sequence[str], knee: int, identified: np
     return fig
 
 
-def front_figure(F: np.ndarray, names: Sequence[str], knee: int, identified: np.ndarray | None) -> Any:
-    """The Pareto front, every pair of objectives; one objective: the final set's values, sorted (a single
-    objective has no front — the set is the GA's best members)."""
+def front_figure(F: np.ndarray, names: Sequence[str], knee: int, identified: np.ndarray | None,
+                 history: np.ndarray | None = None) -> Any:
+    """The Pareto front, every pair of objectives.  One objective has no front: the GA's convergence (the best
+    value against the model evaluations, from ``history`` — :attr:`~identification.optimise.ParetoSet.history`),
+    or without a history the final set's values, sorted."""
     plt = _pyplot()
     pairs = list(combinations(range(F.shape[1]), 2))
     if pairs:
@@ -136,6 +138,18 @@ def front_figure(F: np.ndarray, names: Sequence[str], knee: int, identified: np.
             plain_ticks(ax)
         fig.suptitle("Pareto front" + (" (all pairs of objectives)" if len(pairs) > 1 else ""))
         ax0 = axes[0, 0]
+    elif history is not None and history.size:
+        fig, ax0 = plt.subplots(figsize=(5.5, 4.2))
+        best = np.minimum.accumulate(history[:, 1])
+        ax0.plot(history[:, 0], best, "o-", ms=3, label="GA: best so far")
+        if identified is not None:
+            ax0.axhline(identified[0], color="k", ls="--", label="identified (polished knee)")
+        if np.all(best > 0) and (identified is None or identified[0] > 0):
+            ax0.set_yscale("log")
+        ax0.set_xlabel("model evaluations [-]")
+        ax0.set_ylabel(_objective_label(names[0]))
+        ax0.set_title("one objective: the GA's convergence (no front)")
+        plain_ticks(ax0)
     else:
         fig, ax0 = plt.subplots(figsize=(5, 4.2))
         order = np.argsort(F[:, 0])
@@ -161,7 +175,7 @@ def plot_results(res: Any, evaluator: Any) -> list[str]:
     polished = getattr(res, "polished", ())
     identified_f = np.asarray(polished[0].objectives) if polished else None
     files = ["pareto_front.png"]
-    _save(front_figure(p.F, p.objective_names, p.knee, identified_f), out / files[-1])
+    _save(front_figure(p.F, p.objective_names, p.knee, identified_f, p.history), out / files[-1])
 
     sims = evaluator.simulate(p.X[p.knee]).outputs
     sims_pol = evaluator.simulate(polished[0].x).outputs if polished else ()

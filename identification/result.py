@@ -12,6 +12,9 @@ The schema of ``pareto.json`` is written and read here only:
     The unknowns, the objectives, the knee's index into ``points``, the GA's generations.
 ``n_evaluations``, ``n_evaluations_ga``, ``n_evaluations_polish``
     Model evaluations of the search (GA plus polish), and of each part.
+``history``
+    The GA's convergence per generation: ``evaluations`` so far and ``best``, each objective's best value in
+    the generation's non-dominated set (:attr:`~identification.optimise.ParetoSet.history`).
 ``points``, ``polished``
     Every Pareto point and every polished point: parameters, objectives, Cramér–Rao standard deviations,
     growth factor and stability (polished points also their start, evaluations and the local solver's verdict).
@@ -222,6 +225,8 @@ class IdentificationResult:
             "n_evaluations_ga": int(p.n_evaluations),
             "n_evaluations_polish": int(n_polish),
             "generations": int(p.generations),
+            "history": {"evaluations": [int(v) for v in p.history[:, 0]] if p.history.size else [],
+                        "best": p.history[:, 1:].tolist() if p.history.size else []},
             "points": points,
             "polished": polished,
             # at the reported point (the polished knee, else the knee): how much of its gap is the grid's
@@ -278,9 +283,13 @@ class IdentificationResult:
         pts = list(doc["points"])
         X = np.array([vec(q, "parameters", names) for q in pts]).reshape(len(pts), len(names))
         F = np.array([vec(q, "objectives", objectives) for q in pts]).reshape(len(pts), len(objectives))
+        hist = doc.get("history") or {}
+        history = np.column_stack([np.asarray(hist.get("evaluations", []), dtype=float),
+                                   np.asarray(hist.get("best", []), dtype=float).reshape(-1, len(objectives))]) \
+            if hist.get("evaluations") else np.empty((0, 0))
         pareto = ParetoSet(X, F, names, objectives, int(doc.get("knee", 0)),
                            int(doc.get("n_evaluations_ga", doc.get("n_evaluations", 0))),
-                           int(doc.get("generations", 0)))
+                           int(doc.get("generations", 0)), history)
         polished = tuple(
             PolishedPoint(int(q.get("from_index", 0)), vec(q, "parameters", names), vec(q, "objectives", objectives),
                           vec(q, "cramer_rao_std", names), float(q.get("growth_factor", np.nan)),

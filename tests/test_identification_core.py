@@ -189,6 +189,11 @@ def test_checkpoint_resume_gives_identical_front(tmp_path):
     np.testing.assert_array_equal(full.F, resumed.F)
     assert resumed.generations == 5
     assert knee_index(full.F, full.objective_names) == full.knee
+    # the convergence history rides in the checkpoint: the resumed run's is the uninterrupted run's
+    np.testing.assert_array_equal(full.history, resumed.history)
+    assert full.history.shape == (5, 1 + len(names))
+    assert np.all(np.diff(full.history[:, 0]) > 0)                        # evaluations so far
+    np.testing.assert_array_equal(full.history[-1, 1:], full.F.min(axis=0))   # the last generation's set
 
 
 def test_knee_is_a_compromise_of_the_fit_among_strictly_stable_points():

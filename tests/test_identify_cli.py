@@ -58,7 +58,8 @@ def test_result_reads_back_and_exports_by_target_name(case, capsys):
                  "--no-progress", "--target", "statespace"]) == 0
     assert sorted(p.suffix for p in (out / "export").iterdir()) == [".npz"] * len(list((out / "export").iterdir()))
     res = IdentificationResult.read(out)
-    assert res.to_dict() == json.loads((out / "pareto.json").read_text())
+    assert res.to_dict() == json.loads((out / "pareto.json").read_text())   # the GA's history included:
+    assert res.pareto.history.shape == (2, 3) and res.pareto.history[-1, 0] == res.pareto.n_evaluations
     assert res.best == json.loads((out / "pareto.json").read_text())["identified"]["parameters"]
     capsys.readouterr()
     assert main(["export", str(out), "--polished", "0", "--target", "nonsense"]) == 2

@@ -49,6 +49,18 @@ def test_every_localisation_axis_has_its_unit(localisation_plots):
     assert not any("u1" in t for t in texts), [t for t in texts if "u1" in t]
 
 
+def test_the_windows_plot_draws_the_models_residual_against_the_noise(localisation_plots):
+    """The drift plot's first panel: the model's residual per window and each sensor's noise σ — not the data's
+    own linear fit, which is the reference of the gain and phase panels, not a rival model."""
+    ax = localisation_plots["windows.png"].axes[0]
+    lines = ax.get_lines()
+    named = [line.get_label() for line in lines if not line.get_label().startswith("_")]
+    assert named == ["y1: measured − model", "y2: measured − model"]
+    flat = [line for line in lines if len(set(np.asarray(line.get_ydata(), dtype=float))) == 1]
+    assert len(flat) == 2                                                     # one noise level per sensor
+    assert all("linear fit" in a.get_ylabel() for a in localisation_plots["windows.png"].axes[1:3])
+
+
 def test_phase_is_unwrapped_and_the_measurement_is_drawn_above_the_model(localisation_plots):
     frf = localisation_plots["frf.png"]
     phase_axes = [ax for ax in frf.axes if ax.get_ylabel().startswith("phase")]
@@ -111,7 +123,21 @@ def test_parameter_spread_has_plain_ticks_and_units():
         plt.close(fig)
 
 
-def test_one_objective_is_not_drawn_as_a_front():
+def test_one_objective_is_drawn_as_the_searchs_convergence():
+    history = np.array([[40, 0.5], [80, 0.3], [120, 0.3], [160, 0.12]])   # evaluations, best of the generation
+    fig = front_figure(np.array([[0.12], [0.2]]), ["nrmse_y1"], 0, np.array([0.05]), history)
+    try:
+        ax = fig.axes[0]
+        assert ax.get_xlabel() == "model evaluations [-]" and ax.get_ylabel() == "nrmse_y1 [-]"
+        assert "convergence" in ax.get_title() and ax.get_yscale() == "log"
+        line = ax.get_lines()[0]
+        assert list(line.get_xdata()) == [40, 80, 120, 160] and list(line.get_ydata()) == [0.5, 0.3, 0.3, 0.12]
+        assert ax.get_lines()[1].get_ydata()[0] == 0.05                    # the polished knee
+    finally:
+        plt.close(fig)
+
+
+def test_one_objective_without_a_history_is_not_drawn_as_a_front():
     F = np.array([[0.3], [0.1], [0.2]])
     fig = front_figure(F, ["nrmse_y1"], 1, np.array([0.05]))
     try:
