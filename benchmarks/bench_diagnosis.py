@@ -5,8 +5,9 @@ cost), then :func:`diagnosis.run.diagnose` runs blind with its defaults (two wor
 is printed with the verdict and the posterior probability the diagnosis gives the right answer (Laplace evidence
 over the baseline and the refitted candidates, :mod:`diagnosis.evidence`; "-" when the right effect was not
 refitted); the JSON (``--json``) also gives, for a named effect, the share of the held-out gap its refit closes
-and its largest size error against the withheld values.  The median and the largest time over the chosen cases
-close the table.
+and its largest size error against the withheld values, and the family's time per stage of the diagnosis
+(``stage_seconds`` of ``gap.json``, :mod:`diagnosis.stages`) with its share.  The median and the largest time
+over the chosen cases close the table.
 
 Run as ``python benchmarks/bench_diagnosis.py [CASE ...] [--json PATH]`` (default: every case; ``--list`` names them).
 """
@@ -102,13 +103,28 @@ def main() -> None:
         print(f"{name:<44}{dt:>14.1f}{shown:>10}  {d.verdict} ({'right' if verdict in right else 'WRONG'})",
               flush=True)
         closed, size_error = _size(d.document, effect)
+        stages = d.document.get("stage_seconds", {})
         rows.append({"case": name, "seconds": dt, "p_right": p_right, "verdict": d.verdict,
-                     "right": verdict in right, "closed_percent": closed, "size_error_percent": size_error})
+                     "right": verdict in right, "closed_percent": closed, "size_error_percent": size_error,
+                     "slowest_stage": max(stages, key=stages.get) if stages else None, "stages": stages})
     print(f"median {statistics.median(times):.1f} s, largest {max(times):.1f} s over {len(times)} case(s)")
     slowest = max(rows, key=lambda r: r["seconds"])
+    # where the family's time goes: each stage's seconds over all cases (gap.json's stage_seconds)
+    total: dict[str, float] = {}
+    for r in rows:
+        for stage, s in r["stages"].items():
+            total[stage] = total.get(stage, 0.0) + s
+    shares = [{"stage": k, "seconds": v, "share_percent": 100.0 * v / sum(times)}
+              for k, v in sorted(total.items(), key=lambda kv: -kv[1])]
+    shares.append({"stage": "outside the stages (reading, set-up, the report)",
+                   "seconds": sum(times) - sum(total.values()),
+                   "share_percent": 100.0 * (1.0 - sum(total.values()) / sum(times))})
+    for s in shares:
+        print(f"{s['stage']:<52}{s['seconds']:>8.1f} s{s['share_percent']:>7.1f} %")
     write_figures(args.json, {"cases": len(rows), "right": sum(r["right"] for r in rows),
                               "median_s": statistics.median(times), "largest_s": slowest["seconds"],
-                              "slowest_case": slowest["case"], "rows": rows})
+                              "slowest_case": slowest["case"], "total_s": sum(times), "stage_shares": shares,
+                              "rows": rows})
 
 
 if __name__ == "__main__":

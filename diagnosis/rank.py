@@ -60,6 +60,7 @@ from .pairs import PAIR_MINIMUM, Early, early_pair, pair_explains, pair_with, sa
 from .refits import GAP_THRESHOLD, EffectRefit, better_baseline, explains, refit_from_match
 from .score import EffectScore, score_effect
 from .search import Refits, Search
+from .stages import StageClock
 from .verdict import BIC_MARGIN, NAMED_CLOSURE, UNEXPLAINED, paying_refits, verdict_rule
 
 __all__ = ["Ranking", "Refits", "settled", "rank_effects", "verdict_rule", "BIC_MARGIN", "NAMED_CLOSURE",
@@ -125,7 +126,8 @@ def _pattern_stage(run: Search, evidence: ModalEvidence, local: Refits) -> tuple
         run.say(f"measured modes: their fit leaves {evidence.measured.gap_ratio:.3g} noise variances — the records "
                 f"are not those of a linear time-invariant system, no modal pattern to compare")
         return {}, local
-    patterns = pattern_fits(run.problem, evidence, run.baseline.beta, run.catalogue, run.executor)
+    with run.clock.stage("modal pattern fits"):
+        patterns = pattern_fits(run.problem, evidence, run.baseline.beta, run.catalogue, run.executor)
     base = patterns["baseline"].chi2
     run.say(f"measured modes {np.round(evidence.measured.freq_hz, 3)} Hz (their fit leaves "
             f"{evidence.measured.gap_ratio:.3g} noise variances); modal pattern chi2 ({evidence.n_modes} modes; "
@@ -143,13 +145,15 @@ def _pattern_stage(run: Search, evidence: ModalEvidence, local: Refits) -> tuple
         limit = PATTERN_RIVAL * max(patterns[ranked[0]].chi2, 2.0 * evidence.n_modes)
         ranked = [lab for lab in ranked if patterns[lab].chi2 <= limit]
         special = [lab for lab in special if patterns[lab].chi2 < patterns[ranked[0]].chi2]
-    local = _refit_from_matches(run, patterns, ranked + special, local)
+    with run.clock.stage("refits from modal matches"):
+        local = _refit_from_matches(run, patterns, ranked + special, local)
     rest = [lab for lab in general if lab not in ranked][:PATTERN_CANDIDATES]
     if (rest and not any(explains(local[lab][0], run.baseline) for lab in ranked)
             and not run.at_noise_floor({lab: local[lab] for lab in special})):
         # the closest matches do not explain the records: the next ones (a pattern fit can stop short of its
         # optimum, and its match still lies in the right basin for the time-domain refit)
-        local = _refit_from_matches(run, patterns, rest, local)
+        with run.clock.stage("refits from modal matches"):
+            local = _refit_from_matches(run, patterns, rest, local)
     return patterns, local
 
 
@@ -158,15 +162,18 @@ def _modal_stage(run: Search, evidence: ModalEvidence, labels: list[str], local:
     """The modal pattern, then a pair, then the other baseline basins, each only while the gap is unexplained
     (module docstring).  Returns the pattern fits, the refitted labels (the shortlist and the matches, in
     catalogue order after the shortlist), the early pair and the refits with the stage's."""
-    patterns, local = _pattern_stage(run, evidence, local)
+    with run.clock.stage("modal stage (the rest)"):
+        patterns, local = _pattern_stage(run, evidence, local)
     labels = labels + [lab for lab in run.effects if lab in local and lab not in labels]
     early: Early = None
     if not run.explained(local):
-        early, local = early_pair(run, labels, local)
+        with run.clock.stage("pairs"):
+            early, local = early_pair(run, labels, local)
     if not run.explained(local) and not pair_explains(early, run.baseline):
         # (a better basin cannot make a linear time-invariant effect explain records no such model can)
         tried = [lab for lab in labels if _linear(evidence) or not run.time_invariant(lab)]
-        local = local | run.refit(tried, {lab: local[lab] for lab in tried}, stage="basins")
+        with run.clock.stage("other basins"):
+            local = local | run.refit(tried, {lab: local[lab] for lab in tried}, stage="basins")
     return patterns, labels, early, local
 
 
@@ -196,7 +203,8 @@ def _continuation_stage(run: Search, labels: list[str], local: Refits, early: Ea
         pending = [lab for lab in pending if lab not in matched]
     while pending:
         group, pending = pending[:max(1, parallel)], pending[max(1, parallel):]
-        local = local | run.refit(group, {lab: local[lab] for lab in group}, stage="continuation")
+        with run.clock.stage("continuation refits"):
+            local = local | run.refit(group, {lab: local[lab] for lab in group}, stage="continuation")
         for lab in group:
             fit = local[lab][0]
             run.say(f"continuation refit {lab}: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
@@ -216,8 +224,9 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
     before, baseline, say = run.before, run.baseline, run.say
     labels = labels + [lab for lab in local if lab not in labels]    # (an early pair's effect alone)
     refits = {lab: run.summary(run.effects[lab], local[lab][0]) for lab in labels}
-    refits |= transducer_refits(run, refits)
-    refits = armature_refits(run, refits)
+    with run.clock.stage("nested refits"):
+        refits |= transducer_refits(run, refits)
+        refits = armature_refits(run, refits)
     for label, rf in refits.items():
         say(f"refit {label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
             f"dBIC {rf.delta_bic:.1f}")
@@ -232,7 +241,8 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
                 pair = early[1]
             else:
                 # the pair's effects alone from its optimum, where they beat their refits, rank as singles
-                pair, singles = pair_with(run, best, {lab: rf.fit for lab, rf in refits.items()})
+                with run.clock.stage("pairs"):
+                    pair, singles = pair_with(run, best, {lab: rf.fit for lab, rf in refits.items()})
                 refits |= singles
                 paying, order = _order(refits, before, by_score)
             if pair is not None:
@@ -266,7 +276,8 @@ def settled(ranking: Ranking) -> bool:
 def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, shortlist: int = 4,
                  max_evaluations: int = 300, progress: Any = None, executor: Executor | None = None,
                  parallel: int = 1, rebaseline: bool = True, rounds: int = 2,
-                 modal: Callable[[np.ndarray], ModalEvidence] | None = None) -> Ranking:
+                 modal: Callable[[np.ndarray], ModalEvidence] | None = None,
+                 clock: StageClock | None = None) -> Ranking:
     """Score every effect, refit the ``shortlist`` best, rank and decide — again from a better baseline basin
     when the refits reveal one (the one re-baselining loop).
 
@@ -301,6 +312,8 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
     modal
         The measured modes with their uncertainties for baseline unknowns ``beta`` (called only when no local
         refit explains the gap): then the modal-pattern stage runs first (module docstring).
+    clock
+        Where the stages' wall time is counted (:class:`diagnosis.stages.StageClock`); a new one when omitted.
 
     Returns
     -------
@@ -308,10 +321,11 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
         Its :attr:`Ranking.baseline` is the baseline the final ranking used.
     """
     say = progress or (lambda _m: None)
+    clock = clock if clock is not None else StageClock()
     early_rebaseline, left = rebaseline, rounds
     while True:
         outcome = _rank_once(problem, baseline, catalogue, shortlist, max_evaluations, say, executor, parallel,
-                             early_rebaseline, modal)
+                             early_rebaseline, modal, clock)
         if isinstance(outcome, Fit):
             # a local refit's baseline unknowns lie in a better basin: rank from there, before the costly stages
             say(f"baseline re-fit from a local refit's optimum: RSS {baseline.rss:.4g} -> {outcome.rss:.4g}; "
@@ -324,7 +338,9 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
         left -= 1
         # an effect's refit may have moved the baseline unknowns into a better basin (refits.better_baseline)
         say("baseline re-fit from the effects' optima")
-        better = better_baseline(problem, ranking.baseline, [rf.fit for rf in ranking.refits.values()], executor)
+        with clock.stage("re-baseline"):
+            better = better_baseline(problem, ranking.baseline, [rf.fit for rf in ranking.refits.values()],
+                                     executor)
         if better is None:
             return ranking
         say(f"baseline re-fit from an effect's optimum: RSS {ranking.baseline.rss:.4g} -> {better.rss:.4g}; "
@@ -353,20 +369,22 @@ def _shortlist(problem: GapProblem, effects: dict[str, Effect], scores: dict[str
 
 def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortlist: int, max_evaluations: int,
                say: Callable[[str], None], executor: Executor | None, parallel: int, rebaseline: bool,
-               modal: Callable[[np.ndarray], ModalEvidence] | None) -> Ranking | Fit:
+               modal: Callable[[np.ndarray], ModalEvidence] | None, clock: StageClock) -> Ranking | Fit:
     """One ranking from ``baseline`` (the stages of the module docstring), or — with ``rebaseline``, before the
     continuation refits — the better baseline a local refit revealed (:func:`rank_effects` ranks from it)."""
     effects = {e.label: e for e in catalogue.effects()}
     before, _ = problem.heldout(baseline.beta)
     scores = {}
-    for lab, e in effects.items():
-        scores[lab] = score_effect(problem, baseline, e)
-        say(f"score {lab}: {scores[lab].lm:.4g}")
-    run = Search(problem, baseline, catalogue, effects, before, scores, max_evaluations, executor, say)
+    with clock.stage("score tests"):
+        for lab, e in effects.items():
+            scores[lab] = score_effect(problem, baseline, e)
+            say(f"score {lab}: {scores[lab].lm:.4g}")
+    run = Search(problem, baseline, catalogue, effects, before, scores, max_evaluations, executor, say, clock)
     by_score = sorted(effects, key=lambda lab: -scores[lab].lm)
     labels = _shortlist(problem, effects, scores, by_score, shortlist)
     # with the modal pattern at hand, the other basins wait until it has been tried (it is cheaper)
-    local = run.refit(labels, stage="local" if modal is None else "first")
+    with clock.stage("local refits"):
+        local = run.refit(labels, stage="local" if modal is None else "first")
     for lab, (fit, _) in local.items():
         say(f"local refit {lab}: fit RSS/n {baseline.rss / baseline.n:.4g} -> {fit.rss / fit.n:.4g} "
             f"({fit.n_evaluations} evaluations)")
@@ -376,14 +394,17 @@ def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortli
     if modal is not None and not run.at_noise_floor(local):
         # also when a refit explains the dominant part only: the effect that leaves 11 noise variances may be
         # another's stand-in found first (a spring to ground 0.5 m off, measured), its modal match puts it right
-        evidence = modal(baseline.beta)
+        with clock.stage("measured modes"):
+            evidence = modal(baseline.beta)
         patterns, labels, early, local = _modal_stage(run, evidence, labels, local)
     if not run.explained(local) and not pair_explains(early, baseline):
-        better = (better_baseline(problem, baseline, [fit for fit, _ in local.values()], executor)
-                  if rebaseline else None)
+        with clock.stage("re-baseline"):
+            better = (better_baseline(problem, baseline, [fit for fit, _ in local.values()], executor)
+                      if rebaseline else None)
         if better is not None:
             return better
         if evidence is None:     # (the modal stage, when it ran, has tried the pair already)
-            early, local = early_pair(run, labels, local)
+            with clock.stage("pairs"):
+                early, local = early_pair(run, labels, local)
         local = _continuation_stage(run, labels, local, early, evidence, patterns, parallel)
     return _decide(run, by_score, labels, local, early, patterns, evidence)

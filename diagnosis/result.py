@@ -167,6 +167,8 @@ class GapReport:
         (:meth:`identification.modal_data.ModalData.agreement`), when it gives them.
     polarity
         The baseline with the measured force as read and reversed (:mod:`diagnosis.polarity`).
+    stage_seconds
+        Wall seconds per stage of the run, each second counted once (:mod:`diagnosis.stages`).
     """
 
     verdict: str
@@ -188,6 +190,7 @@ class GapReport:
     confounded: Mapping[str, str] = field(default_factory=dict)
     modal_data: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     polarity: PolarityCheck | None = None
+    stage_seconds: Mapping[str, float] = field(default_factory=dict)
 
     def row(self, label: str) -> EffectRow | None:
         """The row of effect ``label`` (``None`` if it is not in the catalogue)."""
@@ -220,4 +223,6 @@ class GapReport:
             doc["baseline"]["priors"] = {c.name: c.to_dict() for c in self.priors}
         if self.corrected_files is not None:
             doc["corrected"] = {"directory": "corrected", "files": list(self.corrected_files)}
+        if self.stage_seconds:
+            doc["stage_seconds"] = {k: float(v) for k, v in self.stage_seconds.items()}
         return doc

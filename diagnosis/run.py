@@ -53,6 +53,7 @@ from .plausibility import plausible_verdict, prior_checks
 from .polarity import PolarityCheck, check_polarity
 from .weigh import Weighed, weigh
 from .rank import Ranking, rank_effects
+from .stages import StageClock
 from .verdict import BIC_MARGIN, UNEXPLAINED
 from .refits import GAP_THRESHOLD
 from .report import html_sections
@@ -318,20 +319,23 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     sigma = given if given is not None else records_noise_std([r.inputs for r in records],
                                                               [r.outputs for r in records], dt)
     problem = GapProblem(cfg, space, records, sigma, prior=Prior.of(cfg, space.names), modes=modal_data(cfg))
+    clock = StageClock()
     executor = refit_pool(workers, dask)
     try:
         # the measured force's sign is evidence too: the baseline fitted with the force as read and reversed (side
         # by side when there are workers)
         say("baseline fit, with the force as read and reversed (its sign as evidence)")
-        problem, baseline, polarity = check_polarity(problem, partial(_baseline_fit, beta0=beta0), executor)
+        with clock.stage("baseline and the force's sign"):
+            problem, baseline, polarity = check_polarity(problem, partial(_baseline_fit, beta0=beta0), executor)
         records = problem.records
         say(polarity.line())
         if given is None:
             # the noise as it is in each record (level and colour), from the baseline's residual, and the
             # baseline fitted again under it
-            problem = problem.with_noise(estimate_noise_model([r.inputs for r in records], [
-                r.outputs - y for r, y in zip(records, problem.simulate(baseline.beta, until="all"))], dt))
-            baseline = problem.fit(baseline.beta)
+            with clock.stage("noise model"):
+                problem = problem.with_noise(estimate_noise_model([r.inputs for r in records], [
+                    r.outputs - y for r, y in zip(records, problem.simulate(baseline.beta, until="all"))], dt))
+                baseline = problem.fit(baseline.beta)
             say("noise model: " + "; ".join(problem.noise_model.describe(cfg.output_names, [r.name for r in records])))
         sigma = problem.noise_std
         base_cfg, base_params = space.apply(cfg, baseline.beta)
@@ -344,42 +348,47 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         mf, mz = freqs[in_band], zetas[in_band]
         fit_records = [r for r in records if r.has_fit]
         catalogue = _catalogue(problem, base_cfg, base_params, mf, f_hi)
-        ranking = _ranking(problem, baseline, catalogue, shortlist, executor, workers,
-                           _modal_source(problem, mf, mz, freqs[~in_band][:1], f_hi), say)
+        with clock.stage("ranking (the rest)"):
+            ranking = _ranking(problem, baseline, catalogue, shortlist, executor, workers,
+                               _modal_source(problem, mf, mz, freqs[~in_band][:1], f_hi), say, clock)
         baseline = ranking.baseline
         # the model's own discretisation error: a gap that refining the grid changes is not blamed on physics
         say("numerical adequacy of the model's grid")
-        adequacy = numerical_adequacy(
-            base_cfg, base_params, [(r.inputs[:r.fit_end], r.outputs[:r.fit_end]) for r in fit_records], sigma,
-            band_hz=f_hi)
-        advice = grid_advice(base_cfg, base_params, band_hz=f_hi)
+        with clock.stage("numerical adequacy"):
+            adequacy = numerical_adequacy(
+                base_cfg, base_params, [(r.inputs[:r.fit_end], r.outputs[:r.fit_end]) for r in fit_records], sigma,
+                band_hz=f_hi)
+            advice = grid_advice(base_cfg, base_params, band_hz=f_hi)
         ranking = _numerical_verdict(ranking, float(np.max(adequacy.numerical_share)), advice.summary())
         by_label = {e.label: e for e in catalogue.effects()} | {lab: catalogue.effect(lab) for lab in ranking.refits}
         # a refit that explains the data with values no rig has is not the cause (diagnosis.plausibility)
-        ranking = plausible_verdict(ranking, problem, by_label)
-        for lab, lines in ranking.implausible.items():
-            say(f"{lab} needs implausible values: " + "; ".join(lines))
-        ranking, weighed = weigh(problem, ranking, by_label)
+        with clock.stage("plausibility and evidence"):
+            ranking = plausible_verdict(ranking, problem, by_label)
+            for lab, lines in ranking.implausible.items():
+                say(f"{lab} needs implausible values: " + "; ".join(lines))
+            ranking, weighed = weigh(problem, ranking, by_label)
         if polarity.reversed or not polarity.decided:
             ranking = replace(ranking, reason=f"{ranking.reason}; {polarity.line()}")
         say(f"verdict: {ranking.verdict}")
 
         # where: localisation of the baseline residual per record
-        base_all = cast(list[np.ndarray], problem.simulate(baseline.beta, until="all"))   # "all": every record
-        locs = [localise(dt, r.inputs, r.outputs, y, cfg.output_names, mf, mz, noise_std=sigma,
-                         input_names=cfg.input_names)
-                for r, y in zip(records, base_all)]
+        with clock.stage("localisation"):
+            base_all = cast(list[np.ndarray], problem.simulate(baseline.beta, until="all"))   # every record
+            locs = [localise(dt, r.inputs, r.outputs, y, cfg.output_names, mf, mz, noise_std=sigma,
+                             input_names=cfg.input_names)
+                    for r, y in zip(records, base_all)]
         if ranking.verdict == UNEXPLAINED:
             # what the localisation found is the user's lead, not the least-bad name
             found = [f"{r.name}: {s}" for r, loc in zip(records, locs) for s in loc.summary[:2]]
             if found:
                 ranking = replace(ranking, reason=f"{ranking.reason}; where the gap is: " + "; ".join(found))
         edges = np.concatenate([[0.0], 0.5 * (mf[1:] + mf[:-1]), [f_top], [0.5 / dt]])
-        effect_rows = _effect_rows(problem, ranking, by_label, edges, len(mf) + 1)
+        with clock.stage("held-out closure per band"):
+            effect_rows = _effect_rows(problem, ranking, by_label, edges, len(mf) + 1)
         settings = DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, shortlist,
                                      GAP_THRESHOLD, BIC_MARGIN, NUMERICAL_SHARE_LIMIT)
-        report = _report(problem, ranking, (f_lo, f_hi), mf, adequacy, advice, locs, effect_rows, settings, weighed,
-                         polarity)
+        report = replace(_report(problem, ranking, (f_lo, f_hi), mf, adequacy, advice, locs, effect_rows, settings,
+                                 weighed, polarity), stage_seconds=dict(clock.seconds))
         if out is None:
             return Diagnosis(ranking, report, None)
         report = _write(out, problem, ranking, report, by_label, locs, plots=plots, export=export,
@@ -432,12 +441,13 @@ def _report(problem: GapProblem, ranking: Ranking, band: tuple[float, float], mf
 
 
 def _ranking(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortlist: int, executor: Executor | None,
-             workers: int, modal: Callable[[np.ndarray], ModalEvidence], say: Callable[[str], None]) -> Ranking:
+             workers: int, modal: Callable[[np.ndarray], ModalEvidence], say: Callable[[str], None],
+             clock: StageClock) -> Ranking:
     """:func:`diagnosis.rank.rank_effects` on the executor's processes or Dask workers (ranked again, up to
     twice, from a better baseline basin that an effect's refit revealed)."""
     parallel = executor.workers if isinstance(executor, DaskExecutor) else workers
     return rank_effects(problem, baseline, catalogue=catalogue, shortlist=shortlist, progress=say,
-                        executor=executor, parallel=parallel, rounds=2, modal=modal)
+                        executor=executor, parallel=parallel, rounds=2, modal=modal, clock=clock)
 
 
 def _effect_rows(problem: GapProblem, ranking: Ranking, by_label: Mapping[str, Effect], edges: np.ndarray,

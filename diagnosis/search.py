@@ -13,6 +13,7 @@ from .fitting import Fit, GapProblem
 from .modal_pattern import time_invariant
 from .refits import GAP_THRESHOLD, EffectRefit, explains, map_refits, summarise
 from .score import EffectScore
+from .stages import StageClock
 from .workers import side_by_side
 
 __all__ = ["Refits", "Search"]
@@ -24,7 +25,7 @@ Refits = dict[str, tuple[Fit, list]]
 @dataclass(frozen=True, eq=False)
 class Search:
     """What the stages of one ranking share: the problem, the baseline and its held-out gap, the scores, the
-    refits' budget and where they run, and the progress callback."""
+    refits' budget and where they run, the progress callback and the stages' clock."""
 
     problem: GapProblem
     baseline: Fit
@@ -35,6 +36,7 @@ class Search:
     max_evaluations: int
     executor: Executor | None
     say: Callable[[str], None]
+    clock: StageClock
 
     def refit(self, labels: list[str], previous: dict[str, tuple[Fit, list]] | None = None, *, stage: str
               ) -> dict[str, tuple[Fit, list]]:

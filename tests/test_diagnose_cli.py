@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import time
 
 import pytest
 
@@ -46,10 +47,18 @@ def _toml(cfg) -> str:
 def test_diagnose_with_holdout_file_writes_gap_json_and_plots(bench, capsys):
     d, (fit, held) = bench
     out = d / "gap"
+    t0 = time.perf_counter()
     rc = main(["diagnose", str(d / "bench.toml"), str(fit), "--holdout", str(held), "--out", str(out), "--quiet"])
+    elapsed = time.perf_counter() - t0
     assert rc == 0
     doc = json.loads((out / "gap.json").read_text())
     assert doc["verdict"] == "actuator_lag"
+    # where the time went, each second once: the stages add up to less than the call (reading the records and
+    # writing the results are outside them) and cover most of it
+    stages = doc["stage_seconds"]
+    assert {"baseline and the force's sign", "noise model", "score tests", "local refits",
+            "localisation"} <= set(stages)
+    assert all(v >= 0 for v in stages.values()) and 0.5 * elapsed < sum(stages.values()) < elapsed
     # the gap is the withheld lag's, not the grid's: refining the baseline's grid changes little of it
     assert doc["baseline"]["numerical_adequacy"]["max_numerical_share"] < 0.1
     top = doc["effects"][0]
