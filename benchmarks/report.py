@@ -147,7 +147,7 @@ def _table(figures: dict[str, Any], body: str) -> str:
 def _sources_table(figures: dict[str, Any]) -> str:
     lines = ["| benchmark | measured (UTC) | commit | run time | machine | versions |", "|---|---|---|---|---|---|"]
     for name, s in sorted(figures.get("sources", {}).items()):
-        versions = ", ".join(f"{k} {v}" for k, v in s["versions"].items())
+        versions = ", ".join(f"{k} {v}" for k, v in sorted(s["versions"].items()))   # as the file keeps them
         lines.append(f"| `{name}` | {s['date']} | {s['commit']} | {s['seconds']:.0f} s | {s['machine']} | {versions} |")
     return "\n".join(lines)
 
@@ -311,6 +311,7 @@ def main(argv: list[str] | None = None) -> int:
                     continue
                 print(f"{name}: {figures['sources'][name]['seconds']:.0f} s", flush=True)
                 _write_figures(figures)
+        figures = load_figures()       # render from the file as written, as the test and --render do
         for path in write_pages(figures):
             print(f"wrote {path.relative_to(ROOT)}")
         if failed:
