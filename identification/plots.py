@@ -145,7 +145,11 @@ def front_figure(F: np.ndarray, names: Sequence[str], knee: int, identified: np.
         if identified is not None:
             ax0.axhline(identified[0], color="k", ls="--", label="identified (polished knee)")
         if np.all(best > 0) and (identified is None or identified[0] > 0):
+            from matplotlib.ticker import FuncFormatter
+
             ax0.set_yscale("log")
+            for set_formatter in (ax0.yaxis.set_major_formatter, ax0.yaxis.set_minor_formatter):
+                set_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))    # 0.06, not 6×10⁻²
         ax0.set_xlabel("model evaluations [-]")
         ax0.set_ylabel(_objective_label(names[0]))
         ax0.set_title("one objective: the GA's convergence (no front)")
