@@ -214,7 +214,7 @@ def _amplitude_figure(plt: Any, loc: Localisation, unit: _Units) -> Any:
         axes[1].semilogx(lv, a.gain, "o-", color=f"C{o}", label=f"{a.sensor} (p={a.gain_p:.2g})")
     common = unit.common([a.sensor for a in loc.amplitude])
     axes[0].set_ylabel(f"residual RMS{common}\n(dotted: noise σ)")
-    axes[1].set_ylabel("gain y / y_lin [-]")
+    axes[1].set_ylabel("gain vs. time-invariant\nlinear fit [-]")
     axes[1].set_xlabel(f"response envelope level{common}")
     for ax in axes:
         _outside_legend(ax)
