@@ -57,14 +57,14 @@ def _size(doc: dict, effect: object) -> tuple[float | None, float | None]:
     effects = effect if isinstance(effect, (list, tuple)) else [effect]
     if not all(isinstance(e, WithheldEffect) for e in effects):
         return 100.0 * refit["closed"], None
-    fitted, errors = refit["effect_parameters"], []
+    fitted, errors, length = refit["effect_parameters"], [], blind.bench_config().beam.length
     for e in effects:
         label = f"{e.name}[{e.sensor}]" if e.sensor else e.name
         for k, v in e.values.items():
             got = fitted.get(k if len(effects) == 1 else f"{label}.{k}")
             if got is None:
                 return 100.0 * refit["closed"], None
-            errors.append(abs(got - v) / (blind.bench_config().beam.length if k == "x" else abs(v)))
+            errors.append(abs(got - v) / (length if k == "x" else abs(v)))
     return 100.0 * refit["closed"], 100.0 * max(errors)
 
 

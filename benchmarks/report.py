@@ -37,9 +37,11 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from ebb_model.errors import OutputError
+from ebb_model.output import atomic_path
+
 ROOT = Path(__file__).resolve().parents[1]
 FIGURES = ROOT / "docs" / "figures.json"
-SOURCES_DIR = ROOT / "docs" / "src"
 
 #: The benchmarks and examples whose figures the pages quote: name → (script, extra arguments).  A benchmark
 #: writes its figures with ``--json PATH``; an example writes ``summary.json`` into ``--out DIR`` (its wall time is
@@ -255,9 +257,8 @@ def run_benchmark(name: str) -> dict[str, Any]:
 
 
 def _write_figures(figures: dict[str, Any]) -> None:
-    tmp = FIGURES.with_name(f".{FIGURES.name}.tmp")
-    tmp.write_text(json.dumps(figures, indent=1, sort_keys=True) + "\n", encoding="utf-8")
-    tmp.replace(FIGURES)
+    with atomic_path(FIGURES) as tmp:
+        tmp.write_text(json.dumps(figures, indent=1, sort_keys=True) + "\n", encoding="utf-8")
 
 
 def write_pages(figures: dict[str, Any], root: Path = ROOT) -> list[Path]:
@@ -266,9 +267,8 @@ def write_pages(figures: dict[str, Any], root: Path = ROOT) -> list[Path]:
     written = []
     for target, text in texts:
         if not target.exists() or target.read_text(encoding="utf-8") != text:
-            tmp = target.with_name(f".{target.name}.tmp")
-            tmp.write_text(text, encoding="utf-8")
-            tmp.replace(target)
+            with atomic_path(target) as tmp:
+                tmp.write_text(text, encoding="utf-8")
             written.append(target)
     return written
 
@@ -280,8 +280,8 @@ def stale_pages(figures: dict[str, Any], root: Path = ROOT) -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """The command line (see the module's docstring); exit 2 for bad use, 1 for a failed benchmark or stale
-    pages."""
+    """The command line (see the module's docstring); exit 2 for bad use or a file it cannot write (nothing
+    partial is left), 1 for a failed benchmark or stale pages."""
     ap = argparse.ArgumentParser(prog="python -m benchmarks.report", description=__doc__.splitlines()[0])
     group = ap.add_mutually_exclusive_group()
     group.add_argument("--only", nargs="+", metavar="NAME", help=f"benchmarks to re-run: {', '.join(BENCHMARKS)}")
@@ -317,7 +317,7 @@ def main(argv: list[str] | None = None) -> int:
         if failed:
             print(f"error: failed (their earlier figures kept): {', '.join(failed)}", file=sys.stderr)
             return 1
-    except PlaceholderError as exc:
+    except (PlaceholderError, OutputError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -162,8 +162,7 @@ def _modal_stage(run: Search, evidence: ModalEvidence, labels: list[str], local:
     """The modal pattern, then a pair, then the other baseline basins, each only while the gap is unexplained
     (module docstring).  Returns the pattern fits, the refitted labels (the shortlist and the matches, in
     catalogue order after the shortlist), the early pair and the refits with the stage's."""
-    with run.clock.stage("modal stage (the rest)"):
-        patterns, local = _pattern_stage(run, evidence, local)
+    patterns, local = _pattern_stage(run, evidence, local)   # (its parts are timed inside)
     labels = labels + [lab for lab in run.effects if lab in local and lab not in labels]
     early: Early = None
     if not run.explained(local):
