@@ -61,8 +61,8 @@ case "$cmd" in
         fi
         shift || true
         # one test process per core, each taking the next test when it is free (the blind diagnoses are long and
-        # uneven); -n 0 runs them in this process
-        "$PY" -m pytest -q -n auto --dist worksteal "$@"
+        # uneven); -n 0 runs them in this process; the 25 slowest tests are listed at the end
+        "$PY" -m pytest -q -n auto --dist worksteal --durations=25 "$@"
         ;;
     lint)
         setup

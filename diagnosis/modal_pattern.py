@@ -283,10 +283,18 @@ def _pattern_task(problem: GapProblem, evidence: ModalEvidence, beta: np.ndarray
 
 
 def pattern_fits(problem: GapProblem, evidence: ModalEvidence, beta: np.ndarray, catalogue: Catalogue,
-                 executor: Executor | None = None) -> dict[str, PatternFit]:
+                 executor: Executor | None = None, *, margin: float = 0.0) -> dict[str, PatternFit]:
     """The baseline's (key ``"baseline"``) and every structural effect's pattern fit from the baseline
-    unknowns ``beta``, on ``executor``'s processes when given."""
+    unknowns ``beta``, on ``executor``'s processes when given.
+
+    The baseline's fit comes first; when its χ² is at most ``margin`` the effects' fits are not made (the
+    baseline alone is returned): a χ² is a sum of squares, so no effect could match better by more than the
+    margin.  (Measured on the displacement actuator-lag record of the blind family, whose baseline matches its
+    five modes with χ² 1.6: 33 of its 48 s were these fits.)
+    """
+    base = pattern_fit(problem, evidence, beta)
+    if base.chi2 <= margin:
+        return {"baseline": base}
     moving = sorted((e for e in catalogue.effects() if moves_modes(problem, beta, e)), key=lambda e: -e.dim)
-    labels: list[str | None] = [e.label for e in moving] + [None]   # the costliest first
-    args = [(problem, evidence, beta, catalogue, lab) for lab in labels]
-    return {f.label: f for f in side_by_side(executor, _pattern_task, args)}
+    args = [(problem, evidence, beta, catalogue, e.label) for e in moving]   # the costliest first
+    return {"baseline": base} | {f.label: f for f in side_by_side(executor, _pattern_task, args)}

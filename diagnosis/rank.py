@@ -35,8 +35,10 @@ the baseline unknowns profiled out (:mod:`diagnosis.modal_pattern`), and the
 :data:`PATTERN_CANDIDATES` best matches (and a special case at a fixed place,
 :mod:`diagnosis.nested`, beside them when it matches best) are refitted from their match — in
 the right basin even when the baseline had compensated the effect and its
-one-sided score was 0.  Only then come the other baseline basins and the
-continuation refits.
+one-sided score was 0.  When the baseline itself matches the measured modes
+within :data:`BIC_MARGIN` of χ² no effect can match them better by the margin
+(a χ² is a sum of squares) and the effects' pattern fits are not made.  Only
+then come the other baseline basins and the continuation refits.
 
 Two effects at once
 -------------------
@@ -54,7 +56,7 @@ import numpy as np
 from .effects import Catalogue, Effect
 from .effects.chain import FAMILY as CHAIN
 from .fitting import Fit, GapProblem
-from .modal_pattern import ModalEvidence, PatternFit, pattern_fits
+from .modal_pattern import ModalEvidence, PatternFit, moves_modes, pattern_fits
 from .nested import armature_refits, transducer_refits
 from .pairs import PAIR_MINIMUM, Early, early_pair, pair_explains, pair_with, same_fit
 from .refits import GAP_THRESHOLD, EffectRefit, better_baseline, explains, refit_from_match
@@ -127,8 +129,14 @@ def _pattern_stage(run: Search, evidence: ModalEvidence, local: Refits) -> tuple
                 f"are not those of a linear time-invariant system, no modal pattern to compare")
         return {}, local
     with run.clock.stage("modal pattern fits"):
-        patterns = pattern_fits(run.problem, evidence, run.baseline.beta, run.catalogue, run.executor)
+        patterns = pattern_fits(run.problem, evidence, run.baseline.beta, run.catalogue, run.executor,
+                                margin=BIC_MARGIN)
     base = patterns["baseline"].chi2
+    if len(patterns) == 1:
+        run.say(f"measured modes {np.round(evidence.measured.freq_hz, 3)} Hz: the baseline matches them (modal "
+                f"pattern chi2 {base:.4g} for {evidence.n_modes} modes, within the BIC margin {BIC_MARGIN:g}): no "
+                f"effect can match them better, no effect's pattern fitted")
+        return patterns, local
     run.say(f"measured modes {np.round(evidence.measured.freq_hz, 3)} Hz (their fit leaves "
             f"{evidence.measured.gap_ratio:.3g} noise variances); modal pattern chi2 ({evidence.n_modes} modes; "
             f"baseline {base:.4g}): "
@@ -195,10 +203,11 @@ def _continuation_stage(run: Search, labels: list[str], local: Refits, early: Ea
                     f"{evidence.measured.gap_ratio:.3g} noise variances, beyond any linear time-invariant effect")
         pending = [lab for lab in pending if lab not in lti]
     if patterns:
-        # a structural effect's basin is where its modal pattern put it: continuation cannot add to that
-        matched = [lab for lab in pending if lab in patterns]
+        # a structural effect's basin is where its modal pattern put it (or the pattern showed that no effect
+        # matches the modes better than the baseline): continuation cannot add to that
+        matched = [lab for lab in pending if moves_modes(run.problem, run.baseline.beta, run.effects[lab])]
         if matched:
-            run.say(f"continuation refits of {', '.join(matched)} skipped: refitted from their modal match")
+            run.say(f"continuation refits of {', '.join(matched)} skipped: their modal pattern was weighed")
         pending = [lab for lab in pending if lab not in matched]
     while pending:
         group, pending = pending[:max(1, parallel)], pending[max(1, parallel):]
