@@ -1,4 +1,6 @@
-"""Wall time of the gap diagnosis on the blind family's records (``tests/test_diagnosis_blind.py``).
+"""Wall time of the gap diagnosis on the blind family's records (``tests/test_diagnosis_blind.py``), or with
+``--family rig`` on the rig and specimen effects' (``tests/test_rig_effects.py``, ``tests/test_transducer_mass.py``:
+other benches, excitations and sensors).
 
 Each case's record is generated first (not timed: the independent FE truth is the test's, not the diagnosis'
 cost), then :func:`diagnosis.run.diagnose` runs blind with its defaults (two worker processes) and its wall time
@@ -9,7 +11,8 @@ and its largest size error against the withheld values, and the family's time pe
 (``stage_seconds`` of ``gap.json``, :mod:`diagnosis.stages`) with its share.  The median and the largest time
 over the chosen cases close the table.
 
-Run as ``python benchmarks/bench_diagnosis.py [CASE ...] [--json PATH]`` (default: every case; ``--list`` names them).
+Run as ``python benchmarks/bench_diagnosis.py [CASE ...] [--family blind|rig] [--json PATH]`` (default: every case
+of the blind family; ``--list`` names them).
 """
 from __future__ import annotations
 
@@ -18,64 +21,167 @@ import statistics
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Callable
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import test_diagnosis_blind as blind  # noqa: E402
+import test_rig_effects as rig  # noqa: E402
+import test_transducer_mass as transducer  # noqa: E402
 
 from diagnosis.run import diagnose  # noqa: E402
+from ebb_model.reference.excitation import band_limited_input  # noqa: E402
 from ebb_model.reference.withheld import WithheldEffect  # noqa: E402
 from figures import add_json_argument, write_figures  # noqa: E402  benchmarks/figures.py
 
 
-def cases() -> dict[str, tuple[str, float, object, set[str]]]:
-    """``{name: (sensor kind, band top [Hz], withheld effect(s), right verdicts)}`` of the blind family."""
-    out: dict[str, tuple[str, float, object, set[str]]] = {}
+@dataclass(frozen=True)
+class Case:
+    """One record of a family: ``write(folder) -> (config, record path)`` (the independent generator's record),
+    the withheld effect(s), the right verdicts and, when the fitted variables are not the withheld ones (an
+    armature, a crack's compliance, a transducer), the true values of the fitted variables."""
+
+    write: Callable[[Path], tuple[Any, Path]]
+    effect: Any
+    right: set[str]
+    values: dict[str, float] | None = None
+
+
+def _blind(kind: str, f_max: float, effect: Any, seed: int = 3) -> Callable[[Path], tuple[Any, Path]]:
+    def write(folder: Path) -> tuple[Any, Path]:
+        cfg = blind.bench_config(kind)
+        return cfg, blind._write(folder, cfg, effect, seed=seed, f_max=f_max)
+    return write
+
+
+def cases() -> dict[str, Case]:
+    """The blind family of ``tests/test_diagnosis_blind.py``."""
+    out: dict[str, Case] = {}
     for c in blind.CASES:
         label, effect = c.values if hasattr(c, "values") else c
-        out[f"disp-{label}"] = ("displacement", 60.0, effect, {label})
+        out[f"disp-{label}"] = Case(_blind("displacement", 60.0, effect), effect, {label})
     for label, effect in blind.ACCEL_CASES:
-        out[f"accel-{label}"] = ("acceleration", 150.0, effect, {label})
+        out[f"accel-{label}"] = Case(_blind("acceleration", 150.0, effect), effect, {label})
     for label, effect in blind.WIDE_CASES:
-        out[f"wide-{label}"] = ("displacement", 150.0, effect, {label})
-    out["disp-none"] = ("displacement", 60.0, None, {"none"})
-    out["accel-none"] = ("acceleration", 150.0, None, {"none"})
+        out[f"wide-{label}"] = Case(_blind("displacement", 150.0, effect), effect, {label})
+    out["disp-none"] = Case(_blind("displacement", 60.0, None, seed=5), None, {"none"})
+    out["accel-none"] = Case(_blind("acceleration", 150.0, None), None, {"none"})
     for label, effect in blind.OUTSIDE_CASES:
-        out[f"outside-{label}"] = ("displacement", 60.0, effect, {"unexplained"})
+        out[f"outside-{label}"] = Case(_blind("displacement", 60.0, effect), effect, {"unexplained"})
     for labels, effects in blind.PAIR_CASES:
-        out["pair-" + "+".join(sorted(labels))] = ("displacement", 60.0, effects, {"+".join(sorted(labels))})
+        key = "+".join(sorted(labels))
+        out["pair-" + key] = Case(_blind("displacement", 60.0, effects), effects, {key})
     return out
 
 
-def _size(doc: dict, effect: object) -> tuple[float | None, float | None]:
+def rig_cases() -> dict[str, Case]:
+    """The rig and specimen effects of ``tests/test_rig_effects.py`` and ``tests/test_transducer_mass.py``:
+    other benches (pinned–pinned under compression with velocity sensors and a swept sine, a cantilever under a
+    multisine or hammer hits, clamped–clamped with two forces, mixed sensors and pink noise), a spring to ground,
+    a shaker's armature, a local stiffness loss, a transducer's mass, effects near the detection limit, a pair."""
+    def swept(effect: Any) -> Callable[[Path], tuple[Any, Path]]:
+        def write(folder: Path) -> tuple[Any, Path]:
+            cfg = rig.pinned_bench()
+            return cfg, rig._write_swept(folder, cfg, effect, seed=4)
+        return write
+
+    def cantilever(effect: Any, hits: bool = False) -> Callable[[Path], tuple[Any, Path]]:
+        def write(folder: Path) -> tuple[Any, Path]:
+            cfg = rig.cantilever_bench()
+            u = rig.hammer(blind.N_SAMPLES) if hits else band_limited_input(blind.N_SAMPLES, blind.DT, 1.0, 60.0,
+                                                                             seed=3)
+            return cfg, rig._write_cantilever(folder, cfg, effect, u)
+        return write
+
+    def crack(values: dict[str, float]) -> dict[str, float]:   # what the records determine (test_rig_effects)
+        return {"x": values["x"], "compliance": (1.0 / values["factor"] - 1.0) * values["length"]}
+
+    W = WithheldEffect
+    spring, lag = W("grounded_spring", rig.SPRING), W("actuator_lag", {"tau": 5e-4})
+    pinned_crack = {"x": 0.6, "length": 0.04, "factor": 0.3}
+    hammer_spring = {"k": 20.0, "x": 0.6}
+    out: dict[str, Case] = {
+        "disp-grounded_spring": Case(_blind("displacement", 60.0, spring), spring, {"grounded_spring"}),
+        "accel-grounded_spring": Case(_blind("acceleration", 150.0, spring), spring, {"grounded_spring"}),
+        "pinned-none": Case(swept(None), None, {"none"}),
+        "pinned-grounded_spring": Case(swept(W("grounded_spring", rig.PINNED_SPRING)),
+                                       W("grounded_spring", rig.PINNED_SPRING), {"grounded_spring"}),
+        "hammer-none": Case(cantilever(None, hits=True), None, {"none"}),
+        "hammer-grounded_spring": Case(cantilever(W("grounded_spring", hammer_spring), hits=True),
+                                       W("grounded_spring", hammer_spring), {"grounded_spring"}),
+        "mixed-pink-none": Case(rig.write_mixed, None, {"none"}),
+        "pair-actuator_lag+grounded_spring": Case(_blind("displacement", 60.0, [spring, lag]), [spring, lag],
+                                                  {"actuator_lag+grounded_spring"}),
+        "disp-stiffness_loss": Case(_blind("displacement", 60.0, W("stiffness_loss", rig.CRACK)), None,
+                                    {"stiffness_loss"}, crack(rig.CRACK)),
+        "accel-stiffness_loss": Case(_blind("acceleration", 150.0, W("stiffness_loss", rig.CRACK)), None,
+                                     {"stiffness_loss"}, crack(rig.CRACK)),
+        "pinned-stiffness_loss": Case(swept(W("stiffness_loss", pinned_crack)), None, {"stiffness_loss"},
+                                      crack(pinned_crack)),
+        "disp-armature": Case(_blind("displacement", 60.0, rig._armature(0.55, rig.ARMATURE)), None,
+                              {"shaker_armature[F1]"}, rig.ARMATURE),
+        "accel-armature": Case(_blind("acceleration", 150.0, rig._armature(0.55, rig.ARMATURE)), None,
+                               {"shaker_armature[F1]"}, rig.ARMATURE),
+        "pinned-armature": Case(swept(rig._armature(0.45, {"mass": 0.1, "k": 300.0})), None,
+                                {"shaker_armature[F1]"}, {"mass": 0.1, "k": 300.0}),
+        "cantilever-armature": Case(cantilever(rig._armature(0.9, {"mass": 0.05, "k": 20.0})), None,
+                                    {"shaker_armature[F1]"}, {"mass": 0.05, "k": 20.0}),
+        "disp-point_mass_at_drive": Case(_blind("displacement", 60.0, W("point_mass", {"mass": 0.1, "x": 0.55})),
+                                         W("point_mass", {"mass": 0.1, "x": 0.55}), {"point_mass"}),
+    }
+    for share in (0.01, 0.003):   # near the detection limit: 1 % and 0.3 % of the cantilever's mass
+        mass = W("point_mass", {"mass": share, "x": 0.7})
+        out[f"cantilever-point_mass-{100 * share:g}%"] = Case(cantilever(mass), mass, {"point_mass"})
+    for prefix, kind, f_max in (("disp", "displacement", 60.0), ("accel", "acceleration", 150.0)):
+        on_sensor = W("point_mass", {"mass": transducer.MASS, "x": 0.8})
+        out[f"{prefix}-transducer_mass"] = Case(_blind(kind, f_max, on_sensor), None, {"transducer_mass[y2]"},
+                                                {"mass": transducer.MASS})
+    out["cantilever-transducer_mass_tip"] = Case(cantilever(W("point_mass", {"mass": 0.05, "x": 1.0})), None,
+                                                 {"transducer_mass[y2]"}, {"mass": 0.05})
+    return out
+
+
+FAMILIES = {"blind": cases, "rig": rig_cases}
+
+
+def _size(doc: dict, case: Case) -> tuple[float | None, float | None]:
     """The named effect's share of the held-out gap closed [%] and its largest size error [%] against the
-    withheld values (a point mass's position as a share of the beam's length), when the verdict names it."""
+    withheld values (a position as a share of the beam's length), when the verdict names it."""
     if not doc["effects"] or doc["effects"][0]["label"] != doc["verdict"] or doc["effects"][0]["refit"] is None:
         return None, None
     refit = doc["effects"][0]["refit"]
-    effects = effect if isinstance(effect, (list, tuple)) else [effect]
-    if not all(isinstance(e, WithheldEffect) for e in effects):
-        return 100.0 * refit["closed"], None
-    fitted, errors, length = refit["effect_parameters"], [], blind.bench_config().beam.length
-    for e in effects:
-        label = f"{e.name}[{e.sensor}]" if e.sensor else e.name
-        for k, v in e.values.items():
-            got = fitted.get(k if len(effects) == 1 else f"{label}.{k}")
-            if got is None:
-                return 100.0 * refit["closed"], None
-            errors.append(abs(got - v) / (length if k == "x" else abs(v)))
+    fitted, length = refit["effect_parameters"], blind.bench_config().beam.length   # every bench is 1 m long
+    if case.values is not None:
+        truth = case.values
+    else:
+        effects = case.effect if isinstance(case.effect, (list, tuple)) else [case.effect]
+        if not all(isinstance(e, WithheldEffect) for e in effects):
+            return 100.0 * refit["closed"], None
+        truth = {}
+        for e in effects:
+            label = f"{e.name}[{e.sensor}]" if e.sensor else e.name
+            truth |= {(k if len(effects) == 1 else f"{label}.{k}"): v for k, v in e.values.items()}
+    errors = []
+    for k, v in truth.items():
+        got = fitted.get(k)
+        if got is None:
+            return 100.0 * refit["closed"], None
+        errors.append(abs(got - v) / (length if k == "x" or k.endswith(".x") else abs(v)))
     return 100.0 * refit["closed"], 100.0 * max(errors)
 
 
 def main() -> None:
     """Time the chosen cases and print the table."""
-    table = cases()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("cases", nargs="*", help="case names (default: all)")
+    ap.add_argument("--family", choices=sorted(FAMILIES), default="blind",
+                    help="the blind family (default) or the rig and specimen effects")
     ap.add_argument("--list", action="store_true", help="list the case names")
     add_json_argument(ap)
     args = ap.parse_args()
+    table = FAMILIES[args.family]()
     if args.list:
         print("\n".join(table))
         return
@@ -83,15 +189,14 @@ def main() -> None:
     unknown = [c for c in chosen if c not in table]
     if unknown:
         ap.error(f"unknown case(s) {unknown}; --list names them")
-    seed = {"disp-none": 5}
     times = []
     rows = []
     print(f"{'case':<44}{'diagnosis [s]':>14}{'P(right)':>10}  verdict")
     for name in chosen:
-        kind, f_max, effect, right = table[name]
+        case = table[name]
+        right = case.right
         with tempfile.TemporaryDirectory() as tmp:
-            cfg = blind.bench_config(kind)
-            data = blind._write(Path(tmp), cfg, effect, seed=seed.get(name, 3), f_max=f_max)
+            cfg, data = case.write(Path(tmp))
             t0 = time.perf_counter()
             d = diagnose(cfg, [data], None, plots=False, export=False)
             dt = time.perf_counter() - t0
@@ -102,7 +207,7 @@ def main() -> None:
         shown = "-" if p_right is None else f"{p_right:.3g}"
         print(f"{name:<44}{dt:>14.1f}{shown:>10}  {d.verdict} ({'right' if verdict in right else 'WRONG'})",
               flush=True)
-        closed, size_error = _size(d.document, effect)
+        closed, size_error = _size(d.document, case)
         stages = d.document.get("stage_seconds", {})
         rows.append({"case": name, "seconds": dt, "p_right": p_right, "verdict": d.verdict,
                      "right": verdict in right, "closed_percent": closed, "size_error_percent": size_error,

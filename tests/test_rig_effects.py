@@ -177,7 +177,9 @@ def test_a_point_mass_near_the_detection_limit_is_named(tmp_path, mass):
 CLAMPED_TRUTH = {"EI": 10.0, "rhoA": 1.0, "c": 2.0, "N": 20.0}
 
 
-def test_clamped_beam_with_two_forces_three_mixed_sensors_and_pink_noise_gives_none(tmp_path):
+def write_mixed(tmp_path):
+    """The clamped–clamped bench with two forces and three mixed sensors, its record under pink noise (no effect):
+    ``(config, path)``."""
     d = make_config("clamped", "clamped", nodes=60, dt=DT, substeps=4, EI=11.2, rhoA=0.9, c=2.3, N=23.0,
                     actuators=[("F1", 0.3), ("F2", 0.65)],
                     sensors=[("d1", 0.4, "displacement"), ("v1", 0.55, "velocity"),
@@ -192,6 +194,11 @@ def test_clamped_beam_with_two_forces_three_mixed_sensors_and_pink_noise_gives_n
                                                                                      for _ in range(3)])
     path = tmp_path / "measured.npz"
     np.savez(path, time=rec.time, F1=u[:, 0], F2=u[:, 1], d1=y[:, 0], v1=y[:, 1], a1=y[:, 2])
+    return cfg, path
+
+
+def test_clamped_beam_with_two_forces_three_mixed_sensors_and_pink_noise_gives_none(tmp_path):
+    cfg, path = write_mixed(tmp_path)
     res = diagnose(cfg, [path], tmp_path / "gap", plots=False, export=False)
     ratios = res.document["baseline"]["heldout_gap_ratio"]
     print(f"\nno effect (clamped-clamped, 2 forces, 3 mixed sensors, pink noise): {res.verdict}, held-out {ratios}")
