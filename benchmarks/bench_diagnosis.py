@@ -149,9 +149,10 @@ FAMILIES = {"blind": cases, "rig": rig_cases}
 def _size(doc: dict, case: Case) -> tuple[float | None, float | None]:
     """The named effect's share of the held-out gap closed [%] and its largest size error [%] against the
     withheld values (a position as a share of the beam's length), when the verdict names it."""
-    if not doc["effects"] or doc["effects"][0]["label"] != doc["verdict"] or doc["effects"][0]["refit"] is None:
+    row = next((e for e in doc["effects"] if e["label"] == doc["verdict"]), None)   # (a transducer's row follows
+    if row is None or row["refit"] is None:                                            # the point mass it nests in)
         return None, None
-    refit = doc["effects"][0]["refit"]
+    refit = row["refit"]
     fitted, length = refit["effect_parameters"], blind.bench_config().beam.length   # every bench is 1 m long
     if case.values is not None:
         truth = case.values
