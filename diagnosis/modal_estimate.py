@@ -129,14 +129,18 @@ class _Problem:
         self.static = np.column_stack([_input_columns(self.inputs, dt)]
                                       + [_mode_columns(self.inputs, w, z, dt) for w, z in fixed])
         self.scale = 1.0 / np.maximum(np.linalg.norm(self.static, axis=0), 1e-300)
+        self.scaled = self.static * self.scale
 
     def columns(self, omega: float, zeta: float) -> np.ndarray:
-        return _mode_columns(self.inputs, omega, zeta, self.dt)
+        """One mode's response columns, each scaled to unit norm (once: a scan re-uses the other modes')."""
+        b = _mode_columns(self.inputs, omega, zeta, self.dt)
+        with np.errstate(over="ignore", invalid="ignore"):
+            return b / np.maximum(np.linalg.norm(b, axis=0), 1e-300)
 
     def residual(self, blocks: Sequence[np.ndarray]) -> np.ndarray:
-        with np.errstate(over="ignore", invalid="ignore"):
-            X = np.column_stack([self.static * self.scale, *[b / np.maximum(np.linalg.norm(b, axis=0), 1e-300)
-                                                               for b in blocks]])
+        """The records' residual after the least-squares residues of the static columns and the modes'
+        ``blocks`` (from :meth:`columns`)."""
+        X = np.column_stack([self.scaled, *blocks])
         if not np.all(np.isfinite(X)):
             # a trial mode the step took outside the stable range (its filter diverged): worse than no mode
             return 10.0 * self.y.ravel()
