@@ -78,7 +78,7 @@ def test_modal_pattern_finds_a_compensated_clamp(tmp_path):
     from identification.run import read_data
     from diagnosis.effects import Catalogue, Scales
     from diagnosis.fitting import GapProblem
-    from diagnosis.modal_pattern import modal_evidence, pattern_fit
+    from diagnosis.modal_pattern import modal_evidence, pattern_fit, pattern_fits
     from diagnosis.records import split_records
     from diagnosis.run import _ordered
     from ebb_model.modal import discrete_frequencies
@@ -112,6 +112,10 @@ def test_modal_pattern_finds_a_compensated_clamp(tmp_path):
     assert kr / ratio == pytest.approx(200.0, rel=0.05)
     for k in ("EI", "N"):
         assert clamp.beta[space.names.index(k)] / ratio == pytest.approx(TRUTH[k], rel=0.05), k
+    # a baseline that matches the modes within the margin: no effect's fit is made (a χ² ≥ 0 cannot beat it by
+    # the margin), and its own fit is the one made alone
+    alone = pattern_fits(problem, ev, beta0, catalogue, margin=base.chi2)
+    assert list(alone) == ["baseline"] and alone["baseline"].chi2 == base.chi2
 
 
 def test_standard_errors_are_those_of_the_linearised_fit_and_infinite_when_undetermined():
