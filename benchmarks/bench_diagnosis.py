@@ -96,12 +96,11 @@ def rig_cases() -> dict[str, Case]:
         return write
 
     def crack(values: dict[str, float]) -> dict[str, float]:   # what the records determine (test_rig_effects)
-        return {"x": values["x"], "compliance": (1.0 / values["factor"] - 1.0) * values["length"]}
+        return {"x": values["x"], "compliance": rig.crack_compliance(values)}
 
     W = WithheldEffect
-    spring, lag = W("grounded_spring", rig.SPRING), W("actuator_lag", {"tau": 5e-4})
-    pinned_crack = {"x": 0.6, "length": 0.04, "factor": 0.3}
-    hammer_spring = {"k": 20.0, "x": 0.6}
+    spring, lag = W("grounded_spring", rig.SPRING), W("actuator_lag", rig.PAIR_LAG)
+    pinned_crack, hammer_spring = rig.PINNED_CRACK, rig.HAMMER_SPRING
     out: dict[str, Case] = {
         "disp-grounded_spring": Case(_blind("displacement", 60.0, spring), spring, {"grounded_spring"}),
         "accel-grounded_spring": Case(_blind("acceleration", 150.0, spring), spring, {"grounded_spring"}),
@@ -124,12 +123,12 @@ def rig_cases() -> dict[str, Case]:
                               {"shaker_armature[F1]"}, rig.ARMATURE),
         "accel-armature": Case(_blind("acceleration", 150.0, rig._armature(0.55, rig.ARMATURE)), None,
                                {"shaker_armature[F1]"}, rig.ARMATURE),
-        "pinned-armature": Case(swept(rig._armature(0.45, {"mass": 0.1, "k": 300.0})), None,
-                                {"shaker_armature[F1]"}, {"mass": 0.1, "k": 300.0}),
-        "cantilever-armature": Case(cantilever(rig._armature(0.9, {"mass": 0.05, "k": 20.0})), None,
-                                    {"shaker_armature[F1]"}, {"mass": 0.05, "k": 20.0}),
-        "disp-point_mass_at_drive": Case(_blind("displacement", 60.0, W("point_mass", {"mass": 0.1, "x": 0.55})),
-                                         W("point_mass", {"mass": 0.1, "x": 0.55}), {"point_mass"}),
+        "pinned-armature": Case(swept(rig._armature(0.45, rig.PINNED_ARMATURE)), None,
+                                {"shaker_armature[F1]"}, rig.PINNED_ARMATURE),
+        "cantilever-armature": Case(cantilever(rig._armature(0.9, rig.CANTILEVER_ARMATURE)), None,
+                                    {"shaker_armature[F1]"}, rig.CANTILEVER_ARMATURE),
+        "disp-point_mass_at_drive": Case(_blind("displacement", 60.0, W("point_mass", rig.DRIVE_POINT_MASS)),
+                                         W("point_mass", rig.DRIVE_POINT_MASS), {"point_mass"}),
     }
     for share in (0.01, 0.003):   # near the detection limit: 1 % and 0.3 % of the cantilever's mass
         mass = W("point_mass", {"mass": share, "x": 0.7})
@@ -138,8 +137,8 @@ def rig_cases() -> dict[str, Case]:
         on_sensor = W("point_mass", {"mass": transducer.MASS, "x": 0.8})
         out[f"{prefix}-transducer_mass"] = Case(_blind(kind, f_max, on_sensor), None, {"transducer_mass[y2]"},
                                                 {"mass": transducer.MASS})
-    out["cantilever-transducer_mass_tip"] = Case(cantilever(W("point_mass", {"mass": 0.05, "x": 1.0})), None,
-                                                 {"transducer_mass[y2]"}, {"mass": 0.05})
+    out["cantilever-transducer_mass_tip"] = Case(cantilever(W("point_mass", transducer.TIP_MASS)), None,
+                                                 {"transducer_mass[y2]"}, {"mass": transducer.TIP_MASS["mass"]})
     return out
 
 

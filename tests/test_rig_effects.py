@@ -73,6 +73,10 @@ def test_the_compressed_bench_is_half_way_to_buckling():
 
 SPRING = {"k": 400.0, "x": 0.3}
 PINNED_SPRING = {"k": 300.0, "x": 0.35}
+#: A soft spring to ground on the hammer-hit cantilever.
+HAMMER_SPRING = {"k": 20.0, "x": 0.6}
+#: The actuator lag of the pair with a spring to ground [s].
+PAIR_LAG = {"tau": 5e-4}
 
 
 def _check_named(doc, label, values):
@@ -154,7 +158,7 @@ def test_a_cantilever_hit_by_a_hammer_without_effect_gives_none(tmp_path):
 
 def test_a_spring_to_ground_is_named_from_hammer_hits_on_the_cantilever(tmp_path):
     cfg = cantilever_bench()
-    values = {"k": 20.0, "x": 0.6}
+    values = HAMMER_SPRING
     doc = diagnose(cfg, [_write_cantilever(tmp_path, cfg, WithheldEffect("grounded_spring", values),
                                            hammer(N_SAMPLES))], tmp_path / "gap", plots=False, export=False).document
     _check_named(doc, "grounded_spring", values)
@@ -209,7 +213,7 @@ def test_clamped_beam_with_two_forces_three_mixed_sensors_and_pink_noise_gives_n
 def test_a_spring_to_ground_and_an_actuator_lag_are_named_as_a_pair(tmp_path):
     """A pair with the new effect on the family's bench: both found, each at its size, each significant."""
     cfg = bench_config()
-    effects = [WithheldEffect("grounded_spring", SPRING), WithheldEffect("actuator_lag", {"tau": 5e-4})]
+    effects = [WithheldEffect("grounded_spring", SPRING), WithheldEffect("actuator_lag", PAIR_LAG)]
     doc = diagnose(cfg, [_write(tmp_path, cfg, effects, seed=3)], tmp_path / "gap", plots=False,
                    export=False).document
     top = doc["effects"][0]
@@ -220,7 +224,7 @@ def test_a_spring_to_ground_and_an_actuator_lag_are_named_as_a_pair(tmp_path):
     assert top["refit"]["closed"] >= 0.8, top["refit"]
     assert fitted["grounded_spring.k"] == pytest.approx(SPRING["k"], rel=SIZE_TOLERANCE), fitted
     assert abs(fitted["grounded_spring.x"] - SPRING["x"]) <= 0.05, fitted
-    assert fitted["actuator_lag.tau"] == pytest.approx(5e-4, rel=SIZE_TOLERANCE), fitted
+    assert fitted["actuator_lag.tau"] == pytest.approx(PAIR_LAG["tau"], rel=SIZE_TOLERANCE), fitted
     assert_both_significant(doc)
 
 
@@ -230,7 +234,7 @@ def _check_weak(doc, values):
     records determine (the length and the factor alone trade against each other)."""
     top = doc["effects"][0]
     fitted = top["refit"]["effect_parameters"]
-    compliance = (1.0 / values["factor"] - 1.0) * values["length"]          # L = 1 m
+    compliance = crack_compliance(values)
     print(f"\nstiffness_loss: verdict {doc['verdict']}, closed {top['refit']['closed']:.4f}, fitted {fitted} "
           f"(withheld {values}, compliance {compliance:.4g})")
     assert doc["verdict"] == "stiffness_loss", doc["reason"]
@@ -239,7 +243,14 @@ def _check_weak(doc, values):
     assert fitted["compliance"] == pytest.approx(compliance, rel=SIZE_TOLERANCE), fitted
 
 
+def crack_compliance(values: dict[str, float]) -> float:
+    """The segment's compliance ``(1/f − 1) ℓ/L`` (L = 1 m), what the records determine."""
+    return (1.0 / values["factor"] - 1.0) * values["length"]
+
+
 CRACK = {"x": 0.45, "length": 0.04, "factor": 0.3}
+#: The segment on the compressed bench.
+PINNED_CRACK = {"x": 0.6, "length": 0.04, "factor": 0.3}
 
 
 @pytest.mark.parametrize("kind,f_max", [("displacement", 60.0), ("acceleration", 150.0)])
@@ -259,9 +270,8 @@ def test_a_local_stiffness_loss_is_named_on_the_compressed_bench(tmp_path):
     the segment at 0.6 m.  Measured: compliance 0.0932 for 0.0933 at 0.6002 m, 100 % closed, 27 s alone on
     2 cores; on the cantilever under a 1–60 Hz multisine (not in the suite), at 0.5 m: 0.0935 at 0.4996 m."""
     cfg = pinned_bench()
-    crack = {"x": 0.6, "length": 0.04, "factor": 0.3}
-    data = _write_swept(tmp_path, cfg, WithheldEffect("stiffness_loss", crack), seed=4)
-    _check_weak(diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document, crack)
+    data = _write_swept(tmp_path, cfg, WithheldEffect("stiffness_loss", PINNED_CRACK), seed=4)
+    _check_weak(diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document, PINNED_CRACK)
 
 
 # ------------------------------------------------------------------------- the shaker's armature at the drive point
@@ -272,6 +282,10 @@ def _armature(x, values):
 
 
 ARMATURE = {"mass": 0.1, "k": 400.0}     # 10 % of the beam; its own resonance sqrt(k/m)/2π = 10 Hz, in band
+PINNED_ARMATURE = {"mass": 0.1, "k": 300.0}          # at the compressed bench's drive point
+CANTILEVER_ARMATURE = {"mass": 0.05, "k": 20.0}      # at the cantilever's drive point
+#: A bare mass at the family bench's drive point (not an armature).
+DRIVE_POINT_MASS = {"mass": 0.1, "x": 0.55}
 
 
 @pytest.mark.parametrize("kind,f_max", [("displacement", 60.0), ("acceleration", 150.0)])
@@ -296,7 +310,7 @@ def test_a_shakers_armature_is_named_on_the_compressed_bench(tmp_path):
     differences in the damping itself (measured: ζ 1e-6 ± 1.5e-3).  Measured: the armature's modal χ² 3.5 (the
     next 503), verdict ``shaker_armature[F1]``, 100 % closed (1.09e4 → 1.67 noise variances), 92 s alone."""
     cfg = pinned_bench()
-    values = {"mass": 0.1, "k": 300.0}
+    values = PINNED_ARMATURE
     doc = diagnose(cfg, [_write_swept(tmp_path, cfg, _armature(0.45, values), seed=4)], tmp_path / "gap",
                    plots=False, export=False).document
     _check_named(doc, "shaker_armature[F1]", values)
@@ -308,7 +322,7 @@ def test_a_shakers_armature_is_named_on_the_cantilever(tmp_path):
     limited to the excited band: the fourth (60.8 Hz in the truth, at the band's top) was estimated at 74.9 Hz,
     73 standard errors away, and dominated every modal match (:func:`diagnosis.run._modal_source`)."""
     cfg = cantilever_bench()
-    values = {"mass": 0.05, "k": 20.0}
+    values = CANTILEVER_ARMATURE
     u = band_limited_input(N_SAMPLES, DT, 1.0, 60.0, seed=3)
     doc = diagnose(cfg, [_write_cantilever(tmp_path, cfg, _armature(0.9, values), u)], tmp_path / "gap",
                    plots=False, export=False).document
@@ -318,7 +332,7 @@ def test_a_shakers_armature_is_named_on_the_cantilever(tmp_path):
 def test_a_point_mass_at_the_drive_point_is_not_an_armature(tmp_path):
     """The armature must pay for its suspension: a bare mass at the drive point is named a point mass."""
     cfg = bench_config()
-    values = {"mass": 0.1, "x": 0.55}
+    values = DRIVE_POINT_MASS
     data = _write(tmp_path, cfg, WithheldEffect("point_mass", values), seed=3)
     doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document
     _check_named(doc, "point_mass", values)

@@ -29,6 +29,8 @@ from test_diagnosis_blind import DT, N_SAMPLES, SIZE_TOLERANCE, _write, bench_co
 from test_rig_effects import _write_cantilever, cantilever_bench
 
 MASS = 0.08
+#: The cantilever's tip-sensor mass (5 % of the beam).
+TIP_MASS = {"mass": 0.05, "x": 1.0}
 
 
 @pytest.mark.parametrize("kind,f_max", [("displacement", 60.0), ("acceleration", 150.0)])
@@ -54,12 +56,12 @@ def test_a_mass_on_a_sensor_is_named_as_its_transducer(tmp_path, kind, f_max):
 def test_a_mass_on_the_cantilevers_tip_sensor_is_named_as_its_transducer(tmp_path):
     cfg = cantilever_bench()
     u = band_limited_input(N_SAMPLES, DT, 1.0, 60.0, seed=3)
-    data = _write_cantilever(tmp_path, cfg, WithheldEffect("point_mass", {"mass": 0.05, "x": 1.0}), u)
+    data = _write_cantilever(tmp_path, cfg, WithheldEffect("point_mass", TIP_MASS), u)
     doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document
     assert doc["verdict"] == "transducer_mass[y2]", doc["reason"]
     refit = {e["label"]: e for e in doc["effects"]}["transducer_mass[y2]"]["refit"]
     print(f"\ncantilever tip: {doc['verdict']}, mass {refit['effect_parameters']['mass']:.5f} kg, "
           f"closed {refit['closed']:.4f}")
     assert refit["closed"] >= 0.8, refit
-    assert refit["effect_parameters"]["mass"] == pytest.approx(0.05, rel=SIZE_TOLERANCE), refit
+    assert refit["effect_parameters"]["mass"] == pytest.approx(TIP_MASS["mass"], rel=SIZE_TOLERANCE), refit
     assert all(v <= 1.25 for v in refit["heldout_gap_ratio_after"].values()), refit
