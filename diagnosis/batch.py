@@ -4,8 +4,10 @@
 A lab's campaign is a batch of records — one per test, per day, per specimen — each asking its own question of
 the same model.  Each record is diagnosed on its own (its own baseline, its own held-out tail) as an independent
 task: on local worker processes, or on a Dask cluster (a scheduler address, or ``local:K``) when one machine is
-not enough.  Inside a task the diagnosis runs in one process, so the batch's parallelism is the records'; every
-task is deterministic with one BLAS thread, so a record's result does not depend on where it ran.
+not enough.  On local processes a record's diagnosis runs in its process, so the batch's parallelism is the
+records'; on a cluster a record's fits are tasks of the same cluster too (:mod:`diagnosis.workers`), so a long
+record's fits spread over the workers the short ones have freed.  Every task is deterministic with one BLAS
+thread, so a record's result does not depend on where it ran.
 
 Output: ``OUT/<record stem>/`` per record (``gap.json``, plots, the corrected model), as a single diagnosis writes
 it.  Every record is read and checked before the first task starts: a bad one stops the batch before anything is
@@ -22,16 +24,17 @@ from ebb_model.errors import ConfigError
 from ebb_model.output import check_new_output_dir, staged_dir
 from identification.run import load_identification_config, read_data
 
-from .workers import DaskExecutor, refit_pool, side_by_side
+from .workers import DaskExecutor, refit_pool, side_by_side, task_cluster
 
 __all__ = ["diagnose_each"]
 
 
 def _diagnose_one(config: BeamConfig, record: str, out: str, options: dict[str, Any]) -> dict[str, Any]:
-    """One record's diagnosis in this process; its ``gap.json`` document."""
+    """One record's diagnosis, its ``gap.json`` document: in this process, its fits as tasks of the cluster when
+    it runs on one (:func:`diagnosis.workers.task_cluster`)."""
     from .run import diagnose
 
-    return diagnose(config, [record], out, workers=1, **options).document
+    return diagnose(config, [record], out, workers=1, dask=task_cluster(), **options).document
 
 
 def diagnose_each(config: BeamConfig | str | Path, data: Sequence[str | Path], out_dir: str | Path, *,

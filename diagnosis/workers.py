@@ -2,17 +2,23 @@
 
 Every fit is deterministic and each process (or Dask worker) runs it with one BLAS thread, so a result does not
 depend on where it ran — only the wall time does.
+
+A diagnosis can itself be a task on the cluster (a batch of records, :mod:`diagnosis.batch`): its fits are then
+tasks of the same cluster (:func:`task_cluster`), submitted ahead of the records still queued, and while
+the record's task waits for them it gives its worker's thread back (``distributed.secede``/``rejoin``), so the
+other records and fits keep every worker busy — the records' uneven lengths no longer leave a worker idle while
+the last one finishes.
 """
 from __future__ import annotations
 
 import multiprocessing
 import signal
 from concurrent.futures import Executor, ProcessPoolExecutor
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 from ebb_model.threads import single_blas_thread
 
-__all__ = ["DaskExecutor", "refit_pool", "side_by_side"]
+__all__ = ["DaskExecutor", "refit_pool", "side_by_side", "task_cluster"]
 
 
 def _refit_worker() -> None:
@@ -43,6 +49,8 @@ class DaskExecutor(Executor):
         from identification.cluster import connect
 
         self.client, self._cluster, self._own = connect(address)
+        self._nested = _on_dask_worker()
+
 
     @property
     def workers(self) -> int:
@@ -53,13 +61,70 @@ class DaskExecutor(Executor):
         """A Dask future of ``fn(*args)`` run with one BLAS thread (``.result()`` as a concurrent one)."""
         if kwargs:
             raise TypeError("DaskExecutor.submit takes positional arguments only")
-        return self.client.submit(_in_one_blas_thread, fn, *args, pure=False)
+        # a task's own fits go ahead of the tasks still queued (Dask runs higher priorities first): the task
+        # waiting for them holds its record's results back
+        future = self.client.submit(_in_one_blas_thread, fn, *args, pure=False, priority=1 if self._nested else 0)
+        return _Awaited(future) if self._nested else future
+
+    def results(self, futures: Iterable[Any]) -> list[Any]:
+        """The results of futures this executor submitted, in order (waiting once, outside the worker's thread
+        pool when this is a task)."""
+        futures = list(futures)
+        if not self._nested:
+            return [f.result() for f in futures]
+        return _outside_pool(lambda: self.client.gather([f.future for f in futures]))
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         """Close the client and the local cluster this executor started (a given client is left open)."""
         from identification.cluster import disconnect
 
         disconnect(self.client, self._cluster, self._own)
+
+
+def task_cluster() -> Any:
+    """The Dask client of the cluster this code runs on as a task (hand it to :class:`DaskExecutor`: the fits
+    become tasks of the same cluster), or ``None`` when it is not a Dask task."""
+    if not _on_dask_worker():
+        return None
+    from distributed import get_client
+
+    return get_client()
+
+
+def _on_dask_worker() -> bool:
+    """Whether this code runs as a task of a Dask worker."""
+    try:
+        from distributed import get_worker
+
+        get_worker()
+    except (ImportError, ValueError):
+        return False
+    return True
+
+
+def _outside_pool(wait: Callable[[], Any]) -> Any:
+    """``wait()`` with this task's thread out of its worker's pool (the worker runs other tasks meanwhile); the
+    thread rejoins the pool before returning (``rejoin`` waits for a free slot: the worker's thread count holds)."""
+    from distributed import rejoin, secede
+
+    secede()
+    try:
+        return wait()
+    finally:
+        rejoin()
+
+
+class _Awaited:
+    """A Dask future submitted by a task: ``result()`` waits outside the worker's thread pool."""
+
+    def __init__(self, future: Any):
+        self.future = future
+
+    def result(self) -> Any:
+        """The task's result (its exception raised)."""
+        if self.future.done():
+            return self.future.result()
+        return _outside_pool(self.future.result)
 
 
 def refit_pool(workers: int, dask: Any = None) -> Executor | None:
@@ -77,4 +142,7 @@ def side_by_side(executor: Executor | None, task: Callable[..., Any], args: Sequ
     """``[task(*a) for a in args]``, on the executor's processes when given and there are two or more."""
     if executor is None or len(args) < 2:
         return [task(*a) for a in args]
-    return [f.result() for f in [executor.submit(task, *a) for a in args]]
+    futures = [executor.submit(task, *a) for a in args]
+    if isinstance(executor, DaskExecutor):
+        return executor.results(futures)
+    return [f.result() for f in futures]

@@ -20,10 +20,8 @@ from test_evidence import siso_lag_record
 from test_noise_model import truth_config, truth_records
 
 
-def test_the_refits_on_a_local_cluster_give_the_single_process_result(tmp_path):
-    cfg, rec = siso_lag_record(tmp_path)
-    here = diagnose(cfg, [rec], tmp_path / "here", plots=False, export=False, workers=1).document
-    there = diagnose(cfg, [rec], tmp_path / "there", plots=False, export=False, dask="local:2").document
+def _same_diagnosis(here: dict, there: dict) -> None:
+    """The verdict, the posterior probabilities and every refit's parameters (to 1e-9) agree."""
     assert there["verdict"] == here["verdict"] and there["indistinguishable"] == here["indistinguishable"]
     for lab, p in here["posterior_probability"].items():
         assert there["posterior_probability"][lab] == pytest.approx(p, rel=1e-9, abs=1e-12)
@@ -33,6 +31,39 @@ def test_the_refits_on_a_local_cluster_give_the_single_process_result(tmp_path):
         if e.get("refit"):
             for k, v in refits[e["label"]]["effect_parameters"].items():
                 assert e["refit"]["effect_parameters"][k] == pytest.approx(v, rel=1e-9), (e["label"], k)
+
+
+def test_the_refits_on_a_local_cluster_give_the_single_process_result(tmp_path):
+    cfg, rec = siso_lag_record(tmp_path)
+    here = diagnose(cfg, [rec], tmp_path / "here", plots=False, export=False, workers=1).document
+    there = diagnose(cfg, [rec], tmp_path / "there", plots=False, export=False, dask="local:2").document
+    _same_diagnosis(here, there)
+
+
+def _square(x: float) -> float:
+    return x * x
+
+
+def _fits_inside(xs: list[float]) -> tuple[bool, list[float]]:
+    """A task that runs fits as tasks of its own cluster (what a batch's record does)."""
+    from diagnosis.workers import DaskExecutor, side_by_side, task_cluster
+
+    client = task_cluster()
+    return client is not None, side_by_side(DaskExecutor(client), _square, [(x,) for x in xs])
+
+
+def test_a_tasks_fits_run_on_its_cluster_without_holding_the_worker():
+    """On a cluster of one single-threaded worker a task waiting for its own fits would wait forever if it kept
+    the worker's only thread; it gives the thread back while it waits.  Outside a task there is no task cluster."""
+    from distributed import Client
+
+    from diagnosis.workers import task_cluster
+    from identification.cluster import local_cluster
+
+    assert task_cluster() is None
+    with local_cluster(1) as cluster, Client(cluster) as client:
+        inside, squares = client.submit(_fits_inside, [1.0, 2.0, 3.0], pure=False).result(timeout=120)
+    assert inside and squares == [1.0, 4.0, 9.0]
 
 
 @pytest.mark.parametrize("where", [["--workers", "2"], ["--dask", "local:2"]], ids=["processes", "dask"])
@@ -48,6 +79,9 @@ def test_each_record_is_diagnosed_on_its_own(tmp_path, capsys, where):
         doc = json.loads((out / f.stem / "gap.json").read_text())
         assert doc["verdict"] == "none", doc["reason"]
         assert f"{f}: verdict none" in printed
+    # a record diagnosed in the batch (on the cluster: its fits as tasks of it) is the record diagnosed alone
+    alone = diagnose(cfg, [files[0]], None, plots=False, export=False, workers=1).document
+    _same_diagnosis(alone, json.loads((out / files[0].stem / "gap.json").read_text()))
 
 
 def test_bad_batches_and_addresses_stop_before_anything_is_written(tmp_path, capsys):
