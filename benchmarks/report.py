@@ -49,6 +49,7 @@ FIGURES = ROOT / "docs" / "figures.json"
 BENCHMARKS: dict[str, tuple[str, tuple[str, ...]]] = {
     "bench_core": ("benchmarks/bench_core.py", ()),
     "bench_growth": ("benchmarks/bench_growth.py", ()),
+    "bench_long_record": ("benchmarks/bench_long_record.py", ()),
     "bench_accuracy": ("benchmarks/bench_accuracy.py", ()),
     "bench_data": ("benchmarks/bench_data.py", ()),
     "bench_fmu": ("benchmarks/bench_fmu.py", ()),
