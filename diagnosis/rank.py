@@ -130,7 +130,8 @@ def _pattern_stage(run: Search, evidence: ModalEvidence, local: Refits) -> tuple
         return {}, local
     with run.clock.stage("modal pattern fits"):
         patterns = pattern_fits(run.problem, evidence, run.baseline.beta, run.catalogue, run.executor,
-                                margin=BIC_MARGIN)
+                                margin=BIC_MARGIN, previous=run.matches)
+    run.matches.update({lab: pf for lab, pf in patterns.items() if lab != "baseline"})
     base = patterns["baseline"].chi2
     if len(patterns) == 1:
         run.say(f"measured modes {np.round(evidence.measured.freq_hz, 3)} Hz: the baseline matches them (modal "
@@ -331,9 +332,10 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
     say = progress or (lambda _m: None)
     clock = clock if clock is not None else StageClock()
     early_rebaseline, left = rebaseline, rounds
+    matches: dict[str, PatternFit] = {}     # the modal matches, polished again by a later ranking
     while True:
         outcome = _rank_once(problem, baseline, catalogue, shortlist, max_evaluations, say, executor, parallel,
-                             early_rebaseline, modal, clock)
+                             early_rebaseline, modal, clock, matches)
         if isinstance(outcome, Fit):
             # a local refit's baseline unknowns lie in a better basin: rank from there, before the costly stages
             say(f"baseline re-fit from a local refit's optimum: RSS {baseline.rss:.4g} -> {outcome.rss:.4g}; "
@@ -377,7 +379,8 @@ def _shortlist(problem: GapProblem, effects: dict[str, Effect], scores: dict[str
 
 def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortlist: int, max_evaluations: int,
                say: Callable[[str], None], executor: Executor | None, parallel: int, rebaseline: bool,
-               modal: Callable[[np.ndarray], ModalEvidence] | None, clock: StageClock) -> Ranking | Fit:
+               modal: Callable[[np.ndarray], ModalEvidence] | None, clock: StageClock,
+               matches: dict[str, PatternFit]) -> Ranking | Fit:
     """One ranking from ``baseline`` (the stages of the module docstring), or — with ``rebaseline``, before the
     continuation refits — the better baseline a local refit revealed (:func:`rank_effects` ranks from it)."""
     effects = {e.label: e for e in catalogue.effects()}
@@ -387,7 +390,8 @@ def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortli
         for lab, e in effects.items():
             scores[lab] = score_effect(problem, baseline, e)
             say(f"score {lab}: {scores[lab].lm:.4g}")
-    run = Search(problem, baseline, catalogue, effects, before, scores, max_evaluations, executor, say, clock)
+    run = Search(problem, baseline, catalogue, effects, before, scores, max_evaluations, executor, say, clock,
+                 matches)
     by_score = sorted(effects, key=lambda lab: -scores[lab].lm)
     labels = _shortlist(problem, effects, scores, by_score, shortlist)
     # with the modal pattern at hand, the other basins wait until it has been tried (it is cheaper)

@@ -10,7 +10,7 @@ import numpy as np
 
 from .effects import Catalogue, Effect
 from .fitting import Fit, GapProblem
-from .modal_pattern import time_invariant
+from .modal_pattern import PatternFit, time_invariant
 from .refits import GAP_THRESHOLD, EffectRefit, explains, map_refits, summarise
 from .score import EffectScore
 from .stages import StageClock
@@ -25,7 +25,7 @@ Refits = dict[str, tuple[Fit, list]]
 @dataclass(frozen=True, eq=False)
 class Search:
     """What the stages of one ranking share: the problem, the baseline and its held-out gap, the scores, the
-    refits' budget and where they run, the progress callback and the stages' clock."""
+    refits' budget and where they run, the progress callback, the stages' clock and the modal matches so far."""
 
     problem: GapProblem
     baseline: Fit
@@ -37,6 +37,9 @@ class Search:
     executor: Executor | None
     say: Callable[[str], None]
     clock: StageClock
+    #: the effects' modal matches so far, shared by the rankings of one diagnosis (the modal stage adds its own
+    #: and polishes a later ranking's from them: :func:`diagnosis.modal_pattern.pattern_fits`)
+    matches: dict[str, PatternFit]
 
     def refit(self, labels: list[str], previous: dict[str, tuple[Fit, list]] | None = None, *, stage: str
               ) -> dict[str, tuple[Fit, list]]:

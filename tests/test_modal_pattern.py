@@ -116,6 +116,13 @@ def test_modal_pattern_finds_a_compensated_clamp(tmp_path):
     # the margin), and its own fit is the one made alone
     alone = pattern_fits(problem, ev, beta0, catalogue, margin=base.chi2)
     assert list(alone) == ["baseline"] and alone["baseline"].chi2 == base.chi2
+    # a later ranking's baseline (here the clamp's own baseline unknowns, as a re-baselining brings): the match is
+    # polished from the earlier one, and lands at the same clamp
+    again = pattern_fit(problem, ev, clamp.beta, catalogue.effect("boundary_rotational_left"), start=clamp)
+    ratio_again = again.beta[space.names.index("rhoA")] / TRUTH["rhoA"]
+    assert again.chi2 <= 2.0 * ev.n_modes
+    assert catalogue.effect("boundary_rotational_left").physical(again.s)["kr"] / ratio_again == pytest.approx(
+        200.0, rel=0.05)
 
 
 def test_standard_errors_are_those_of_the_linearised_fit_and_infinite_when_undetermined():
