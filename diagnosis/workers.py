@@ -51,7 +51,6 @@ class DaskExecutor(Executor):
         self.client, self._cluster, self._own = connect(address)
         self._nested = _on_dask_worker()
 
-
     @property
     def workers(self) -> int:
         """Workers of the cluster (at least 1)."""
