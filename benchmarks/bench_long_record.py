@@ -24,7 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import test_diagnosis_blind as blind  # noqa: E402
-from ebb_model.config import config_from_dict  # noqa: E402
+from ebb_model.config import BeamConfig, config_from_dict  # noqa: E402
 from ebb_model.reference.excitation import band_limited_input  # noqa: E402
 from ebb_model.reference.synthetic import synthesize  # noqa: E402
 from identification.run import identify  # noqa: E402
@@ -33,11 +33,12 @@ from figures import add_json_argument, write_figures  # noqa: E402  benchmarks/f
 
 SECONDS = 60.0
 DT = 2e-4
+N_SAMPLES = int(round(SECONDS / DT))
 SENSORS = (("y1", 0.35), ("y2", 0.6), ("y3", 0.8))
 F_MAX = 60.0
 
 
-def long_config():
+def long_config() -> BeamConfig:
     """The blind family's bench sampled at 5 kHz with three displacement sensors."""
     d = blind.bench_config().to_dict()
     d["time"]["dt"] = DT
@@ -45,10 +46,9 @@ def long_config():
     return config_from_dict(d, extra_sections=("identification",))
 
 
-def write_record(folder: Path, cfg) -> Path:
+def write_record(folder: Path, cfg: BeamConfig) -> Path:
     """The 60 s record from the independent generator (the family's truth, 1 % noise)."""
-    n = int(round(SECONDS / DT))
-    u = band_limited_input(n, DT, 2.0, F_MAX, seed=7)
+    u = band_limited_input(N_SAMPLES, DT, 2.0, F_MAX, seed=7)
     rec = synthesize(cfg, u, params=blind.TRUTH, noise=0.01, seed=107)
     path = folder / "long.npz"
     np.savez(path, time=rec.time, F1=rec.inputs[:, 0], **{name: rec.outputs[:, i] for i, (name, _) in
@@ -66,8 +66,7 @@ def main() -> None:
         t0 = time.perf_counter()
         path = write_record(Path(tmp), cfg)
         generated = time.perf_counter() - t0
-        n = int(round(SECONDS / DT))
-        print(f"record: {SECONDS:g} s at {1 / DT:g} Hz ({n} samples), {len(SENSORS)} sensors "
+        print(f"record: {SECONDS:g} s at {1 / DT:g} Hz ({N_SAMPLES} samples), {len(SENSORS)} sensors "
               f"(generated in {generated:.1f} s, not timed)")
         t0 = time.perf_counter()
         result = identify(cfg, [path], Path(tmp) / "out", progress=False)
@@ -75,7 +74,7 @@ def main() -> None:
     errors = {k: 100.0 * (v / blind.TRUTH[k] - 1.0) for k, v in result.best.items()}
     print(f"identify with the defaults: {seconds:.1f} s (target <= 120 s)")
     print("errors against the truth [%]: " + ", ".join(f"{k} {e:+.3f}" for k, e in errors.items()))
-    write_figures(args.json, {"seconds": seconds, "samples": n, "sensors": len(SENSORS), "record_s": SECONDS,
+    write_figures(args.json, {"seconds": seconds, "samples": N_SAMPLES, "sensors": len(SENSORS), "record_s": SECONDS,
                               "rate_hz": 1 / DT, "largest_error_percent": max(abs(e) for e in errors.values()),
                               "errors_percent": errors})
 
