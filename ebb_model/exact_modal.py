@@ -37,6 +37,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from .config import BeamConfig
+from .coupled_modes import LowRankDamping, coupled_modes, low_rank_damping
 from .discretisation import SemiDiscreteBeam, discretise
 from .modal_form import MAX_BASIS_CONDITION, ModalStateSpace, basis_condition, is_proportional
 from .statespace import DiscreteStateSpace, with_input_delays
@@ -303,7 +304,9 @@ class ModalMatrices:
     """The beam's modal system ``q̈ + C_m q̇ + Λ q = F_m u`` on the Richardson modes, with its sensor rows.
 
     ``C``, ``D`` give the outputs from ``x = (q, q̇)`` and ``u``; ``damping`` is the diagonal of ``C_m`` when
-    the damping is proportional (``C_m`` diagonal), else ``None``.
+    the damping is proportional (``C_m`` diagonal), else ``None``; ``low_rank`` is ``C_m``'s structure when
+    it is the identity times a rate plus a low-rank part (point masses on a viscously damped beam:
+    :mod:`ebb_model.coupled_modes`), else ``None``.
     """
 
     frequencies2: np.ndarray
@@ -313,6 +316,7 @@ class ModalMatrices:
     C: np.ndarray
     D: np.ndarray
     damping: np.ndarray | None
+    low_rank: LowRankDamping | None = None
 
 
 def modal_matrices(config: BeamConfig, params: Mapping[str, float]) -> ModalMatrices:
@@ -333,14 +337,20 @@ def pair_modal_matrices(own: SemiDiscreteBeam, companion: SemiDiscreteBeam) -> M
     k = own.n_unknowns                                    # as many modes as the config's grid has unknowns
     w2, psi = richardson_modes(coarse, fine, k)
     proportional, d = is_proportional(psi, fine.C)
+    low_rank = None if proportional else low_rank_damping(fine.M, fine.C, psi)
+    if low_rank is not None and low_rank.rank == 0:
+        # C = α M: decoupled, though the modes' orthogonality round-off made Ψᵀ C Ψ look coupled (near buckling)
+        proportional, low_rank = True, None
     if proportional:
         Cm = np.diag(d)
+    elif low_rank is not None:
+        Cm = low_rank.matrix()
     else:
         Cm = psi.T @ fine.C @ psi
         Cm = 0.5 * (Cm + Cm.T)
     Fm = psi.T @ fine.F
     C, D = _output_rows(fine, psi, w2, Cm, Fm)
-    return ModalMatrices(w2, psi, Cm, Fm, C, D, d if proportional else None)
+    return ModalMatrices(w2, psi, Cm, Fm, C, D, d if proportional else None, low_rank)
 
 
 def continuous_modes(config: BeamConfig, params: Mapping[str, float]) -> ContinuousModes:
@@ -358,9 +368,12 @@ def continuous_modes(config: BeamConfig, params: Mapping[str, float]) -> Continu
     """
     mm = modal_matrices(config, params)
     w2, Fm = mm.frequencies2, mm.Fm
+    coupled = None if mm.low_rank is None else coupled_modes(w2, mm.low_rank, Fm)
     if mm.damping is not None:                            # decoupled modes: poles in closed form
         s, V, Win = _mode_poles(w2, mm.damping)
         B_modal = Win @ Fm                                # (2k, m) pole coordinates
+    elif coupled is not None:                             # coupled by a low-rank part: Newton, mode by mode
+        s, V, B_modal = coupled
     else:                                                 # coupled by the damping: eigen-decomposition
         s, V = np.linalg.eig(modal_state_matrix(w2, mm.Cm))
         if basis_condition(V) > MAX_BASIS_CONDITION:

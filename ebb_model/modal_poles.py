@@ -9,8 +9,11 @@ of the few lowest modes only) is the poles of :func:`~ebb_model.exact_modal.moda
   values ``ω_i²`` of those modes alone (eigenvalues only, bisection for the wanted ones on both grids), no
   eigenvectors; the poles in closed form.  This is the modal-pattern search's common case, and about half the
   full route's cost (measured 0.55× on the family's bench, the eigenvectors being what it saves);
-* **damping coupling the modes, a few modes**: every mode's shape is needed for ``C_m``; the lowest poles are
-  refined by Newton's iteration from their decoupled values (:func:`_coupled_poles`);
+* **damping coupling the modes through a low-rank part** (point masses on a viscously damped beam): every
+  mode's shape is needed for ``C_m``; the wanted poles by Newton's iteration on ``r × r`` algebra
+  (:func:`ebb_model.coupled_modes.coupled_poles`);
+* **other damping coupling the modes, a few modes**: the lowest poles are refined by Newton's iteration from
+  their decoupled values with the full coupling (:func:`_coupled_poles`);
 * otherwise every pole: closed form when ``C_m`` is diagonal, else the ``2k × 2k`` eigenvalue problem.
 """
 from __future__ import annotations
@@ -20,6 +23,7 @@ from typing import Mapping
 import numpy as np
 
 from .config import BeamConfig
+from .coupled_modes import coupled_poles
 from .discretisation import SemiDiscreteBeam, discretise
 from .exact_modal import companion_config, extrapolated, lowest_modes, modal_state_matrix, pair_modal_matrices
 
@@ -55,6 +59,11 @@ def modal_poles(config: BeamConfig, params: Mapping[str, float], lowest: int | N
     if mm.damping is not None:
         root = np.sqrt((mm.damping ** 2 / 4 - mm.frequencies2).astype(complex))
         return np.concatenate([-mm.damping / 2 + root, -mm.damping / 2 - root])
+    if mm.low_rank is not None:
+        k = mm.frequencies2.size
+        found = coupled_poles(mm.frequencies2, mm.low_rank, None if lowest is None else min(lowest, k))
+        if found is not None:
+            return np.concatenate([found[0], found[0].conj()])
     if lowest is not None:
         s = _coupled_poles(mm.frequencies2, mm.Cm, lowest)
         if s is not None:
