@@ -91,6 +91,17 @@ def low_rank_damping(M: np.ndarray, C: np.ndarray, psi: np.ndarray) -> LowRankDa
     return LowRankDamping(alpha, psi[J].T.copy(), delta[np.ix_(J, J)])
 
 
+def _others(s: np.ndarray, alpha: float, w2: np.ndarray) -> np.ndarray:
+    """``1/D_j(s_i)`` for the other modes ``j ≠ i`` of each pole ``s_i`` (``i < s.size``), zero for ``j = i`` (whose
+    ``D_i`` vanishes at a decoupled root)."""
+    den = s[:, None] ** 2 + alpha * s[:, None] + w2[None, :]
+    idx = np.arange(s.size)
+    den[idx, idx] = 1.0
+    inv = 1.0 / den
+    inv[idx, idx] = 0.0
+    return inv
+
+
 def _start(w2: np.ndarray, d: np.ndarray) -> np.ndarray | None:
     if np.any(w2 <= 0) or np.any(d * d / 4 >= w2):
         return None
@@ -117,11 +128,9 @@ def coupled_poles(w2: np.ndarray, damping: LowRankDamping, n: int | None = None
     half_gap = 0.5 * np.minimum(below, above)
     s = s0[:n].copy()
     u = G[:n] @ E                                               # E g_i (E symmetric), (n, r)
-    idx = np.arange(n)
     r_eye = np.eye(G.shape[1])
     for _ in range(NEWTON_STEPS):
-        inv = 1.0 / (s[:, None] ** 2 + a * s[:, None] + w2[None, :])   # 1/D_j(s_i), (n, k)
-        inv[idx, idx] = 0.0                                     # j ≠ i
+        inv = _others(s, a, w2)                                 # 1/D_j(s_i), j ≠ i, (n, k)
         P = np.einsum("ij,ja,jb->iab", inv, G, G)               # (n, r, r)
         S2 = np.einsum("ij,ja,jb->iab", inv * inv, G, G)
         y = np.linalg.solve(r_eye + s[:, None, None] * (E @ P), u[:, :, None])[:, :, 0]
@@ -140,8 +149,7 @@ def coupled_poles(w2: np.ndarray, damping: LowRankDamping, n: int | None = None
     if not (np.all(np.abs(s - s0[:n]) < half_gap) and np.all(s.imag > CRITICAL_MARGIN * np.abs(s))):
         return None
     # y at the converged poles (the last iteration's is one step behind)
-    inv = 1.0 / (s[:, None] ** 2 + a * s[:, None] + w2[None, :])
-    inv[idx, idx] = 0.0
+    inv = _others(s, a, w2)
     P = np.einsum("ij,ja,jb->iab", inv, G, G)
     y = np.linalg.solve(r_eye + s[:, None, None] * (E @ P), u[:, :, None])[:, :, 0]
     return s, y
@@ -158,7 +166,7 @@ def coupled_modes(w2: np.ndarray, damping: LowRankDamping, Fm: np.ndarray
         return None
     s, y = found
     G, E, a = damping.G, damping.E, damping.alpha
-    inv = 1.0 / (s[:, None] ** 2 + a * s[:, None] + w2[None, :])     # (pole i, mode j)
+    inv = _others(s, a, w2)                                           # (pole i, mode j)
     idx = np.arange(k)
     X = -(s[:, None] * inv) * (y @ G.T)                               # row i: v_i over the modes j
     X[idx, idx] = 1.0
