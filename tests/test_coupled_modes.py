@@ -7,6 +7,7 @@ import pytest
 
 import ebb_model as em
 import ebb_model.coupled_modes as cmod
+from conftest import make_config
 from ebb_model.exact_modal import continuous_modes, exact_modal, exact_statespace, modal_matrices, \
     modal_state_matrix
 from ebb_model.modal_form import basis_condition
@@ -18,17 +19,14 @@ def beam(masses: list[tuple[float, float]], *, eta: float = 0.0, rhoI: float = 0
          nodes: int = 40) -> em.BeamConfig:
     """A clamped–pinned beam under tension with viscous damping (ζ 0.3–3 % over its first modes) and point
     masses ``(x, mass)`` — one on a node and others between nodes, so each spreads over one or two unknowns."""
-    return em.config_from_dict({
-        "beam": {"length": 1.0, "nodes": nodes, "left": "clamped", "right": "pinned"},
-        "time": {"dt": 5e-4},
-        "parameters": {"EI": {"value": 10.0}, "rhoA": {"value": 1.0}, "c": {"value": c}, "eta": {"value": eta},
-                       "N": {"value": 20.0}, "rhoI": {"value": rhoI}},
-        "masses": [{"name": f"m{i}", "x": x, "mass": m} for i, (x, m) in enumerate(masses)],
-        "actuators": [{"name": "F1", "x": 0.55}],
-        "sensors": [{"name": "a1", "x": 0.35, "kind": "acceleration"},
-                    {"name": "v1", "x": 0.62, "kind": "velocity"},
-                    {"name": "d1", "x": 0.8, "kind": "displacement"}],
-    })
+    cfg = make_config("clamped", "pinned", nodes=nodes, dt=5e-4, c=c, eta=eta, N=20.0, actuators=[("F1", 0.55)],
+                      sensors=[("a1", 0.35, "acceleration"), ("v1", 0.62, "velocity"), ("d1", 0.8, "displacement")],
+                      masses=[(f"m{i}", x, m) for i, (x, m) in enumerate(masses)])
+    if rhoI == 0.0:
+        return cfg
+    d = cfg.to_dict()
+    d["parameters"]["rhoI"] = {"value": rhoI}
+    return em.config_from_dict(d)
 
 
 MASSES = {"one mass between nodes": [(0.3, 0.08)], "one on a node": [(10 / 41, 0.05)],
@@ -148,13 +146,8 @@ def test_mass_proportional_damping_near_buckling_is_decoupled():
     from ebb_model.exact_modal import refined_config
     from ebb_model.modal_form import is_proportional
 
-    cfg = em.config_from_dict({
-        "beam": {"length": 1.0, "nodes": 60, "left": "pinned", "right": "pinned"},
-        "time": {"dt": 5e-4},
-        "parameters": {"EI": {"value": 11.2}, "rhoA": {"value": 0.9}, "c": {"value": 2.3}, "N": {"value": -43.0}},
-        "actuators": [{"name": "F1", "x": 0.45}],
-        "sensors": [{"name": "v1", "x": 0.3, "kind": "velocity"}, {"name": "v2", "x": 0.7, "kind": "velocity"}],
-    })
+    cfg = make_config("pinned", "pinned", nodes=60, dt=5e-4, EI=11.2, rhoA=0.9, c=2.3, N=-43.0,
+                      actuators=[("F1", 0.45)], sensors=[("v1", 0.3, "velocity"), ("v2", 0.7, "velocity")])
     p = cfg.parameter_values()
     mm = modal_matrices(cfg, p)
     assert not is_proportional(mm.shapes, discretise(refined_config(cfg), p).C)[0]   # the round-off is there
