@@ -119,33 +119,63 @@ def _input_columns(inputs: Sequence[np.ndarray], dt: float) -> np.ndarray:
     return np.concatenate(blocks)
 
 
+@dataclass(frozen=True)
+class _Projection:
+    """The records after the least-squares part of fixed columns is removed: an orthonormal basis ``U`` of the
+    columns' range, the outputs' residual ``y`` against it, and the columns' largest singular value ``top``."""
+
+    U: np.ndarray
+    y: np.ndarray
+    top: float
+
+
 class _Problem:
-    """Variable-projection residual of the modal model (module docstring)."""
+    """Variable-projection residual of the modal model (module docstring).
+
+    The residual is the outputs' component orthogonal to every column.  The columns held during a scan (the
+    static ones and the other modes') are projected out once (:meth:`projection`), and each trial removes only
+    its own mode's columns from what remains: the same residual as one least-squares solve with every column
+    (``numpy.linalg.lstsq``'s rank cutoff, ``eps·max(n, p)`` of the largest singular value), a quarter of the
+    work on a 44,000-sample record with eleven columns.
+    """
 
     def __init__(self, inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], sigma: np.ndarray, dt: float,
-                 fixed: Sequence[tuple[float, float]]):
+                 fixed: Sequence[tuple[float, float]], n_modes: int):
         self.inputs, self.dt = list(inputs), dt
         self.y = np.concatenate(outputs) / sigma
         self.static = np.column_stack([_input_columns(self.inputs, dt)]
                                       + [_mode_columns(self.inputs, w, z, dt) for w, z in fixed])
         self.scale = 1.0 / np.maximum(np.linalg.norm(self.static, axis=0), 1e-300)
         self.scaled = self.static * self.scale
+        n_cols = self.scaled.shape[1] + 2 * n_modes * self.inputs[0].shape[1]    # every column of the model
+        self.rcond = np.finfo(float).eps * max(self.y.shape[0], n_cols)        # lstsq's default cutoff
+        self.static_part = self.projection([])
 
     def columns(self, omega: float, zeta: float) -> np.ndarray:
         """One mode's response columns, each scaled to unit norm (once: a scan re-uses the other modes')."""
         b = _mode_columns(self.inputs, omega, zeta, self.dt)
         with np.errstate(over="ignore", invalid="ignore"):
-            return b / np.maximum(np.linalg.norm(b, axis=0), 1e-300)
+            return b / np.maximum(np.sqrt(np.einsum("ij,ij->j", b, b)), 1e-300)
 
-    def residual(self, blocks: Sequence[np.ndarray]) -> np.ndarray:
-        """The records' residual after the least-squares residues of the static columns and the modes'
-        ``blocks`` (from :meth:`columns`)."""
-        X = np.column_stack([self.scaled, *blocks])
-        if not np.all(np.isfinite(X)):
+    def projection(self, blocks: Sequence[np.ndarray]) -> _Projection:
+        """The static columns and the modes' ``blocks`` projected out of the records."""
+        U, s, _ = np.linalg.svd(np.column_stack([self.scaled, *blocks]), full_matrices=False)
+        U = U[:, s > self.rcond * s[0]]
+        return _Projection(U, self.y - U @ (U.T @ self.y), float(s[0]))
+
+    def residual(self, blocks: Sequence[np.ndarray], held: _Projection | None = None) -> np.ndarray:
+        """The records' residual after the least-squares residues of the static columns, of the columns ``held``
+        projects out (default: the static ones) and of the modes' ``blocks`` (from :meth:`columns`)."""
+        held = self.static_part if held is None else held
+        B = np.column_stack(blocks)
+        if not np.all(np.isfinite(B)):
             # a trial mode the step took outside the stable range (its filter diverged): worse than no mode
             return 10.0 * self.y.ravel()
-        coef, *_ = np.linalg.lstsq(X, self.y, rcond=None)
-        return (self.y - X @ coef).ravel()
+        for _ in range(2):     # twice: the columns may lie close to the held ones' range (Gram-Schmidt's rule)
+            B = B - held.U @ (held.U.T @ B)
+        V, s, _ = np.linalg.svd(B, full_matrices=False)
+        V = V[:, s > self.rcond * held.top]     # (the held columns' top singular value: ≥ 1, they have unit norm)
+        return (held.y - V @ (V.T @ held.y)).ravel()
 
 
 def estimate_modes(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], noise_std: np.ndarray, dt: float,
@@ -176,7 +206,7 @@ def estimate_modes(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], 
     f = np.asarray(freq_hz, dtype=float).copy()
     z = np.clip(np.asarray(damping, dtype=float), 1e-4, 0.5).copy()
     m = f.size
-    prob = _Problem(inputs, outputs, sigma, dt, [(2 * np.pi * fa, float(z[-1])) for fa in above_hz])
+    prob = _Problem(inputs, outputs, sigma, dt, [(2 * np.pi * fa, float(z[-1])) for fa in above_hz], m)
     blocks = [prob.columns(2 * np.pi * f[i], z[i]) for i in range(m)]
     duration = sum(u.shape[0] for u in inputs) * dt / len(inputs)
     # scan each mode in turn with the others held (the cost of one mode is smooth only within its bandwidth)
@@ -188,10 +218,10 @@ def estimate_modes(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], 
         if i + 1 < m:
             hi = min(hi, 0.5 * (f[i] + f[i + 1]))
         trials = np.linspace(lo, hi, int(min(MAX_TRIALS, max(3, (hi - lo) / step))))
+        held = prob.projection(blocks[:i] + blocks[i + 1:])
         costs = []
         for ft in trials:
-            blocks[i] = prob.columns(2 * np.pi * ft, z[i])
-            r = prob.residual(blocks)
+            r = prob.residual([prob.columns(2 * np.pi * ft, z[i])], held)
             costs.append(r @ r)
         f[i] = trials[int(np.argmin(costs))]
         blocks[i] = prob.columns(2 * np.pi * f[i], z[i])

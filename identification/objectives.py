@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
@@ -47,7 +48,7 @@ if TYPE_CHECKING:
     from .parameters import ParameterSpace
 
 __all__ = ["PENALTY", "STABILITY_TOLERANCE", "ObjectiveFunction", "SimulationOutcome", "nrmse", "objective_names",
-           "output_errors", "stability_margin"]
+           "measured_spread", "output_errors", "stability_margin"]
 
 #: Objective value given to unstable candidates (plus their spectral radius).
 PENALTY = 1.0e3
@@ -101,7 +102,8 @@ def objective_names(sensor_names: Sequence[str], experiment_names: Sequence[str]
     return base + (("growth_factor",) if stabilising else ())
 
 
-def output_errors(sims: Sequence[np.ndarray], meas: Sequence[np.ndarray], *, per: str = "sensor") -> np.ndarray:
+def output_errors(sims: Sequence[np.ndarray], meas: Sequence[np.ndarray], *, per: str = "sensor",
+                  spread: Sequence[np.ndarray] | None = None) -> np.ndarray:
     """Output-error objectives of one candidate.
 
     Parameters
@@ -111,16 +113,24 @@ def output_errors(sims: Sequence[np.ndarray], meas: Sequence[np.ndarray], *, per
     per
         ``"sensor"``: one objective per sensor, pooled over experiments;
         ``"experiment"``: one per experiment, pooled over sensors.
+    spread
+        :func:`measured_spread` of ``meas`` when the caller keeps it (it is the same for every candidate);
+        computed here otherwise.
     """
+    den_e = measured_spread(meas) if spread is None else spread
     if per == "sensor":
         num = sum(np.sum((s - m) ** 2, axis=0) for s, m in zip(sims, meas))
-        den = sum(np.sum((m - m.mean(axis=0)) ** 2, axis=0) for m in meas)
+        den = sum(den_e)
         return np.sqrt(num / np.where(den > 0, den, 1.0))
     out = []
-    for s, m in zip(sims, meas):
-        den = np.sum((m - m.mean(axis=0)) ** 2, axis=0)
+    for s, m, den in zip(sims, meas, den_e):
         out.append(np.sqrt(np.mean(np.sum((s - m) ** 2, axis=0) / np.where(den > 0, den, 1.0))))
     return np.array(out)
+
+
+def measured_spread(meas: Sequence[np.ndarray]) -> list[np.ndarray]:
+    """Each experiment's sum of squared deviations from the mean per sensor: the output errors' denominators."""
+    return [np.sum((m - m.mean(axis=0)) ** 2, axis=0) for m in meas]
 
 
 class ObjectiveFunction:
@@ -178,10 +188,19 @@ class ObjectiveFunction:
         if not sim.stable:
             errs = np.full(n_err, sim.penalty)
         else:
-            errs = output_errors(sim.outputs, [e.outputs for e in self.experiments], per=self.per)
+            errs = output_errors(sim.outputs, self._measured, per=self.per, spread=self._spread)
             if not np.all(np.isfinite(errs)):
                 errs = np.full(n_err, sim.penalty)
         return (np.concatenate([errs, [g]]) if self.stabilising else errs), stability_margin(sim)
+
+    @cached_property
+    def _measured(self) -> list[np.ndarray]:
+        return [e.outputs for e in self.experiments]
+
+    @cached_property
+    def _spread(self) -> list[np.ndarray]:
+        """The output errors' denominators (:func:`measured_spread`), computed once: every candidate shares them."""
+        return measured_spread(self._measured)
 
     def evaluate(self, X: np.ndarray) -> np.ndarray:
         """Objectives of a population ``X`` (n, dim) → ``F`` (n, n_obj)."""

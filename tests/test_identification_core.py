@@ -11,7 +11,7 @@ from ebb_model import ConfigError
 from identification.fisher import fisher_information
 from identification.noise import records_noise_std
 from identification.native import NativeEvaluator, experiments_from_arrays
-from identification.objectives import PENALTY, nrmse, objective_names
+from identification.objectives import PENALTY, measured_spread, nrmse, objective_names, output_errors
 from identification.optimise import knee_index, optimise
 from identification.parameters import parameter_space
 from identification.problem import IdentificationProblem
@@ -52,6 +52,21 @@ def test_nrmse_definition():
     y = np.sin(np.linspace(0, 10, 200))[:, None]
     assert nrmse(y, y)[0] == 0.0
     assert nrmse(np.full_like(y, y.mean()), y)[0] == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("per", ["sensor", "experiment"])
+def test_output_errors_with_the_measured_spread_kept_are_the_same_numbers(per):
+    # the evaluators keep the measured records' spread (it is every candidate's); the objectives must not move
+    rng = np.random.default_rng(3)
+    meas = [rng.standard_normal((300, 2)) + 1.0, rng.standard_normal((200, 2)) - 2.0]
+    sims = [m + 0.1 * rng.standard_normal(m.shape) for m in meas]
+    kept = output_errors(sims, meas, per=per, spread=measured_spread(meas))
+    assert np.array_equal(kept, output_errors(sims, meas, per=per))
+    # and the definition: per sensor, RSS over the measured spread about the mean, pooled over the experiments
+    if per == "sensor":
+        rss = sum(np.sum((s - m) ** 2, axis=0) for s, m in zip(sims, meas))
+        spread = sum(np.sum((m - m.mean(axis=0)) ** 2, axis=0) for m in meas)
+        np.testing.assert_allclose(kept, np.sqrt(rss / spread), rtol=1e-14)
 
 
 def test_unstable_candidates_get_finite_penalties():
