@@ -41,32 +41,42 @@ _FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
 
 
 @numba.njit(cache=True, nogil=True, fastmath=_FASTMATH)
-def _modal_kernel(t00, t01, t10, t11, g0, g1, c0, c1, D, u, y, s0, s1):  # pragma: no cover - compiled
+def _modal_kernel(t00, t01, t10, t11, g0, g1, c0, c1, D, u, delays, y, s0, s1):  # pragma: no cover - compiled
+    # input columns i = j m + l: input l at sample k − j (u[−j] = u[0]), j = 0 … delays, gathered per sample
     nb = t00.shape[0]
-    ns, ni = u.shape
+    ns, m = u.shape
+    ni = m * (delays + 1)
     no = D.shape[0]
+    back = np.empty(ni, dtype=np.int64)
+    col = np.empty(ni, dtype=np.int64)
+    for i in range(ni):
+        back[i] = i // m
+        col[i] = i % m
     z0 = s0.copy()
     z1 = s1.copy()
     a0 = np.empty(nb)
     a1 = np.empty(nb)
+    uk = np.empty(ni)
     for k in range(ns):
+        for i in range(ni):
+            uk[i] = u[max(k - back[i], 0), col[i]]
         for o in range(no):
             acc = 0.0
             for b in range(nb):
                 acc += c0[o, b] * z0[b] + c1[o, b] * z1[b]
             for i in range(ni):
-                acc += D[o, i] * u[k, i]
+                acc += D[o, i] * uk[i]
             y[k, o] = acc
         if ni == 1:
-            uk = u[k, 0]
+            ua = uk[0]
             for b in range(nb):
-                v0 = t00[b] * z0[b] + t01[b] * z1[b] + g0[0, b] * uk
-                v1 = t10[b] * z0[b] + t11[b] * z1[b] + g1[0, b] * uk
+                v0 = t00[b] * z0[b] + t01[b] * z1[b] + g0[0, b] * ua
+                v1 = t10[b] * z0[b] + t11[b] * z1[b] + g1[0, b] * ua
                 z0[b] = v0
                 z1[b] = v1
             continue
         if ni == 3:     # one input with the cubic's taps u[k], u[k−1], u[k−2] (or three inputs)
-            ua, ub, uc = u[k, 0], u[k, 1], u[k, 2]
+            ua, ub, uc = uk[0], uk[1], uk[2]
             for b in range(nb):
                 v0 = t00[b] * z0[b] + t01[b] * z1[b] + g0[0, b] * ua + g0[1, b] * ub + g0[2, b] * uc
                 v1 = t10[b] * z0[b] + t11[b] * z1[b] + g1[0, b] * ua + g1[1, b] * ub + g1[2, b] * uc
@@ -78,10 +88,10 @@ def _modal_kernel(t00, t01, t10, t11, g0, g1, c0, c1, D, u, y, s0, s1):  # pragm
             a0[b] = t00[b] * z0[b] + t01[b] * z1[b]
             a1[b] = t10[b] * z0[b] + t11[b] * z1[b]
         for i in range(ni):
-            uk = u[k, i]
+            ui = uk[i]
             for b in range(nb):
-                a0[b] += g0[i, b] * uk
-                a1[b] += g1[i, b] * uk
+                a0[b] += g0[i, b] * ui
+                a1[b] += g1[i, b] * ui
         for b in range(nb):
             z0[b] = a0[b]
             z1[b] = a1[b]
@@ -178,16 +188,12 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
             z = -np.einsum("bim,m->bi", system.hold, u[0])
         else:
             z = np.zeros((system.nblocks, 2))
-        U, D = u, system.D
-        if system.delays:   # the kernel reads u[k], u[k−1], … as extra input columns (u[−j] = u[0])
-            U = np.hstack([np.vstack([np.repeat(u[:1], j, axis=0), u[:max(u.shape[0] - j, 0)]])[:u.shape[0]]
-                           for j in range(system.delays + 1)])
-            D = np.hstack([D, np.zeros((D.shape[0], D.shape[1] * system.delays))])
+        D = np.hstack([system.D, np.zeros((system.D.shape[0], system.D.shape[1] * system.delays))])
         _modal_kernel(np.ascontiguousarray(T[:, 0, 0]), np.ascontiguousarray(T[:, 0, 1]),
                       np.ascontiguousarray(T[:, 1, 0]), np.ascontiguousarray(T[:, 1, 1]),
                       np.ascontiguousarray(G[:, 0, :].T), np.ascontiguousarray(G[:, 1, :].T),
                       np.ascontiguousarray(Cm[:, :, 0]), np.ascontiguousarray(Cm[:, :, 1]),
-                      np.ascontiguousarray(D), np.ascontiguousarray(U), y,
+                      np.ascontiguousarray(D), np.ascontiguousarray(u), system.delays, y,
                       np.ascontiguousarray(z[:, 0]), np.ascontiguousarray(z[:, 1]))
     else:
         u = as_matrix(u, "input", shape=(None, system.ninputs))
