@@ -198,3 +198,60 @@ def test_missing_c_compiler_is_an_fmu_error(tmp_path, monkeypatch):
     with pytest.raises(FmuError, match="compiler"):
         build_fmu(SEED_TOML, tmp_path / "beam.fmu")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_bundle_finds_every_import_statement_at_any_depth():
+    """The bundle renames and follows imports found by visiting statements only; every place a statement can
+    hold one must be reached (the reference: ``ast.walk`` over every node)."""
+    import ast
+
+    from fmu_build.bundle import _import_statements
+
+    source = '''
+import a
+from b import c
+def f():
+    import d
+    class K:
+        from e import g
+        def m(self):
+            if x:
+                import h
+            elif y:
+                import i
+            else:
+                import j
+for _ in range(2):
+    import k
+else:
+    import l
+while False:
+    import m
+else:
+    import n
+try:
+    import o
+except ImportError:
+    import p
+else:
+    import q
+finally:
+    import r
+with ctx():
+    import s
+async def af():
+    async with ctx():
+        import t
+    async for _ in it():
+        import u
+match v:
+    case 1:
+        import w
+    case _:
+        from . import z
+'''
+    tree = ast.parse(source)
+    reference = {ast.dump(n) for n in ast.walk(tree) if isinstance(n, (ast.Import, ast.ImportFrom))}
+    found = [ast.dump(n) for n in _import_statements(tree)]
+    assert len(reference) == 20          # a, b … z: one per place
+    assert sorted(found) == sorted(reference)
