@@ -171,7 +171,9 @@ class _Problem:
         if not np.all(np.isfinite(B)):
             # a trial mode the step took outside the stable range (its filter diverged): worse than no mode
             return 10.0 * self.y.ravel()
-        for _ in range(2):     # twice: the columns may lie close to the held ones' range (Gram-Schmidt's rule)
+        # twice (Gram-Schmidt's rule): V orthogonal to the held range to round-off even when the columns nearly
+        # lie in it (the residual itself is sensitive to that only to second order: held.y is orthogonal to it)
+        for _ in range(2):
             B = B - held.U @ (held.U.T @ B)
         V, s, _ = np.linalg.svd(B, full_matrices=False)
         V = V[:, s > self.rcond * held.top]     # (the held columns' top singular value: ≥ 1, they have unit norm)
