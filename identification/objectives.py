@@ -192,19 +192,16 @@ class ObjectiveFunction:
         if not sim.stable:
             errs = np.full(n_err, sim.penalty)
         else:
-            errs = output_errors(sim.outputs, self._measured, per=self.per, spread=self._spread)
+            errs = output_errors(sim.outputs, [e.outputs for e in self.experiments], per=self.per,
+                                 spread=self._spread)
             if not np.all(np.isfinite(errs)):
                 errs = np.full(n_err, sim.penalty)
         return (np.concatenate([errs, [g]]) if self.stabilising else errs), stability_margin(sim)
 
     @cached_property
-    def _measured(self) -> list[np.ndarray]:
-        return [e.outputs for e in self.experiments]
-
-    @cached_property
     def _spread(self) -> list[np.ndarray]:
         """The output errors' denominators (:func:`measured_spread`), computed once: every candidate shares them."""
-        return measured_spread(self._measured)
+        return measured_spread([e.outputs for e in self.experiments])
 
     def evaluate(self, X: np.ndarray) -> np.ndarray:
         """Objectives of a population ``X`` (n, dim) → ``F`` (n, n_obj)."""

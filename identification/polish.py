@@ -27,6 +27,7 @@ from ebb_model.errors import ParameterError
 
 from .modal_data import ModalData
 from .noise_model import NoiseModel
+from .objectives import measured_spread
 from .prior import Prior
 from .least_squares import CHI2_RESOLUTION, DIFF_STEP, Box, fit_least_squares, penalised
 from .runners import Runner, SerialRunner
@@ -59,7 +60,7 @@ class PolishResult:
 
 def residual_scale(experiments: Sequence[Any]) -> np.ndarray:
     """Per-sensor normaliser ``‖y_meas - ȳ_meas‖`` pooled over the experiments (1 where it is 0)."""
-    scale = np.sqrt(sum(np.sum((e.outputs - e.outputs.mean(axis=0)) ** 2, axis=0) for e in experiments))
+    scale = np.sqrt(sum(measured_spread([e.outputs for e in experiments])))
     return np.where(scale > 0, scale, 1.0)
 
 
