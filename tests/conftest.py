@@ -1,4 +1,11 @@
-"""Shared fixtures: config factories and a single-threaded BLAS for the whole session."""
+"""Shared fixtures: config factories and a single-threaded BLAS for the whole session.
+
+The suite's test processes are its parallelism (``run.sh test``: one per core), so the blind diagnoses run their
+refits in the test's own process (``diagnose(..., workers=1)``): a pool of their own would double-book the cores
+and start two interpreters per diagnosis (measured: 5.3 CPU-s more per diagnosis with both cores busy).  That the
+pool and a Dask cluster give the single process's diagnosis is tested in ``test_diagnose_dask.py``; the CLI's
+tests and the demo keep the default pool.
+"""
 from __future__ import annotations
 
 import math
@@ -108,7 +115,10 @@ def run_identify_signalled(cfg: Path, data: Path, out: Path, sig: int, after_gen
     Deterministic: the signal follows a given checkpoint, whatever the machine's speed (no polling race).
     """
     script = textwrap.dedent(f"""
-        import os, sys
+        import os, signal, sys
+        # Ctrl-C handled as under a terminal, whatever the test process left to its children (an inherited
+        # "ignore" would keep Python from installing its handler, and the run would finish)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         import identification.optimise as opt
         save = opt._save_atomic
         def save_then_signal(algo, path):

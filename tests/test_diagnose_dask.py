@@ -33,10 +33,11 @@ def _same_diagnosis(here: dict, there: dict) -> None:
                 assert e["refit"]["effect_parameters"][k] == pytest.approx(v, rel=1e-9), (e["label"], k)
 
 
-def test_the_refits_on_a_local_cluster_give_the_single_process_result(tmp_path):
+@pytest.mark.parametrize("where", [{"dask": "local:2"}, {"workers": 2}], ids=["dask", "processes"])
+def test_the_refits_on_other_processes_give_the_single_process_result(tmp_path, where):
     cfg, rec = siso_lag_record(tmp_path)
     here = diagnose(cfg, [rec], tmp_path / "here", plots=False, export=False, workers=1).document
-    there = diagnose(cfg, [rec], tmp_path / "there", plots=False, export=False, dask="local:2").document
+    there = diagnose(cfg, [rec], tmp_path / "there", plots=False, export=False, **where).document
     _same_diagnosis(here, there)
 
 

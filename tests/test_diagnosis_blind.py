@@ -75,7 +75,7 @@ CASES = [
 def test_withheld_effect_is_named_and_closes_the_gap(tmp_path, label, effect):
     cfg = bench_config()
     data = _write(tmp_path, cfg, effect, seed=3)
-    d = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False)
+    d = diagnose(cfg, [data], tmp_path / "gap", plots=False, workers=1, export=False)
     doc = d.document
     top = doc["effects"][0]
     fitted, base = top["refit"]["effect_parameters"], top["refit"]["baseline_parameters"]
@@ -99,7 +99,7 @@ def test_withheld_effect_is_named_and_closes_the_gap(tmp_path, label, effect):
 def test_no_effect_gives_none(tmp_path):
     cfg = bench_config()
     data = _write(tmp_path, cfg, None, seed=5)
-    d = diagnose(cfg, [data], tmp_path / "gap", plots=False)
+    d = diagnose(cfg, [data], tmp_path / "gap", plots=False, workers=1)
     assert d.verdict == "none", d.document["reason"]
     ratios = d.document["baseline"]["heldout_gap_ratio"]
     assert all(v < 1.25 for v in ratios.values()), ratios
@@ -148,7 +148,7 @@ WIDE_CASES = [
 def test_wider_band_families_name_the_effect(tmp_path, kind, label, effect):
     cfg = bench_config(kind)
     data = _write(tmp_path, cfg, effect, seed=3, f_max=150.0)
-    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document
+    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, workers=1, export=False).document
     top = doc["effects"][0]
     fitted = top["refit"]["effect_parameters"]
     print(f"\n{label} ({kind}, 2-150 Hz): verdict {doc['verdict']}, closed {top['refit']['closed']:.4f}, "
@@ -163,7 +163,7 @@ def test_wider_band_families_name_the_effect(tmp_path, kind, label, effect):
 def test_accelerometer_record_without_effect_gives_none(tmp_path):
     cfg = bench_config("acceleration")
     data = _write(tmp_path, cfg, None, seed=3, f_max=150.0)
-    d = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False)
+    d = diagnose(cfg, [data], tmp_path / "gap", plots=False, workers=1, export=False)
     ratios = d.document["baseline"]["heldout_gap_ratio"]
     print(f"\nno effect (accelerometers): verdict {d.verdict}, held-out gap ratio {ratios}")
     assert d.verdict == "none", d.document["reason"]
@@ -189,7 +189,7 @@ OUTSIDE_CASES = [
 def test_effect_outside_the_catalogue_is_not_named(tmp_path, label, effect):
     cfg = bench_config()
     data = _write(tmp_path, cfg, effect, seed=3)
-    d = diagnose(cfg, [data], tmp_path / "gap", plots=False)
+    d = diagnose(cfg, [data], tmp_path / "gap", plots=False, workers=1)
     doc = d.document
     print(f"\n{label} (outside the catalogue): verdict {doc['verdict']}: {doc['reason']}")
     assert doc["verdict"] == "unexplained", doc["reason"]
@@ -225,7 +225,7 @@ def assert_both_significant(doc):
 def test_two_withheld_effects_are_named_as_a_pair(tmp_path, labels, effects):
     cfg = bench_config()
     data = _write(tmp_path, cfg, effects, seed=3)
-    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document
+    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, workers=1, export=False).document
     top = doc["effects"][0]
     fitted = top["refit"]["effect_parameters"]
     print(f"\n{sorted(labels)}: verdict {doc['verdict']}, closed {top['refit']['closed']:.4f}, fitted {fitted}")

@@ -50,7 +50,7 @@ def record(tmp_path_factory):
 
 
 def test_a_coarse_seed_scheme_gap_is_called_the_grid(tmp_path, record):
-    d = diagnose(bench("theta", 60), [record], None, plots=False, export=False)
+    d = diagnose(bench("theta", 60), [record], None, plots=False, workers=1, export=False)
     base = d.document["baseline"]
     assert base["numerical_adequacy"]["max_numerical_share"] > NUMERICAL_SHARE_LIMIT, base["numerical_adequacy"]
     assert d.verdict == GRID_VERDICT, d.document["reason"]
@@ -59,7 +59,7 @@ def test_a_coarse_seed_scheme_gap_is_called_the_grid(tmp_path, record):
 
 
 def test_the_exact_scheme_on_the_same_grid_says_none(tmp_path, record):
-    d = diagnose(bench("exact", 60), [record], None, plots=False, export=False)
+    d = diagnose(bench("exact", 60), [record], None, plots=False, workers=1, export=False)
     base = d.document["baseline"]
     assert d.verdict == "none", d.document["reason"]
     assert base["numerical_adequacy"]["max_numerical_share"] < 0.1, base["numerical_adequacy"]
@@ -82,7 +82,7 @@ def test_a_wide_band_displacement_record_without_effect_says_none(tmp_path):
     rec = synthesize(cfg, u, params=TRUTH, noise=0.01, seed=10)
     path = tmp_path / "wide.npz"
     np.savez(path, time=rec.time, F1=rec.inputs[:, 0], y1=rec.outputs[:, 0], y2=rec.outputs[:, 1])
-    dg = diagnose(cfg, [path], None, plots=False, export=False)
+    dg = diagnose(cfg, [path], None, plots=False, workers=1, export=False)
     base = dg.document["baseline"]
     assert dg.verdict == "none", dg.document["reason"]
     assert base["numerical_adequacy"]["max_numerical_share"] < 0.1

@@ -70,7 +70,7 @@ def test_measured_modes_are_the_analytic_ones(kind):
     assert est.gap_ratio < 1.1                         # the modes explain the record to the noise
 
 
-def test_modal_pattern_finds_a_compensated_clamp(tmp_path):
+def test_modal_pattern_finds_a_compensated_clamp(tmp_path, monkeypatch):
     """A compliant clamp scores 0 in the one-sided test at a baseline that compensated it; its modal pattern,
     with the baseline profiled out, matches the measured modes — and a point mass' pattern does not."""
     from identification.noise import records_noise_std
@@ -100,7 +100,19 @@ def test_modal_pattern_finds_a_compensated_clamp(tmp_path):
     scales = Scales(EI=PRIOR["EI"], rhoA=PRIOR["rhoA"], N=PRIOR["N"], length=1.0, omega_low=2 * np.pi * f0[0],
                     omega_high=2 * np.pi * 150.0, duration=fit.fit_end * DT)
     catalogue = Catalogue(c0, scales, tuple(space.names))
+    import diagnosis.modal_pattern as mp
+    points, modes = [], mp._modes
+
+    def counted(problem_, beta, effect, s, m, *, refined=False):
+        points.append(np.concatenate([beta, [] if s is None else s]).tobytes())
+        return modes(problem_, beta, effect, s, m, refined=refined)
+
+    monkeypatch.setattr(mp, "_modes", counted)
     clamp = pattern_fit(problem, ev, beta0, catalogue.effect("boundary_rotational_left"))
+    monkeypatch.undo()
+    # the model's modes at each point once: the starts, the profiled grid, the polishes' first points and the final
+    # modes revisit points (measured without keeping them: 657 computations at 444 points)
+    assert len(points) > 50 and len(set(points)) == len(points)
     mass = pattern_fit(problem, ev, beta0, catalogue.effect("point_mass"))
     base = pattern_fit(problem, ev, beta0)
     kr = catalogue.effect("boundary_rotational_left").physical(clamp.s)["kr"]

@@ -97,14 +97,14 @@ def _check_named(doc, label, values):
 def test_a_spring_to_ground_is_named_on_the_family_bench(tmp_path, kind, f_max):
     cfg = bench_config(kind)
     data = _write(tmp_path, cfg, WithheldEffect("grounded_spring", SPRING), seed=3, f_max=f_max)
-    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document
+    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, workers=1, export=False).document
     _check_named(doc, "grounded_spring", SPRING)
 
 
 def test_the_compressed_bench_under_a_swept_sine_without_effect_gives_none(tmp_path):
     cfg = pinned_bench()
     data = _write_swept(tmp_path, cfg, None, seed=4)
-    d = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False)
+    d = diagnose(cfg, [data], tmp_path / "gap", plots=False, workers=1, export=False)
     ratios = d.document["baseline"]["heldout_gap_ratio"]
     print(f"\nno effect (compressed pinned-pinned, velocity, swept sine): {d.verdict}, held-out {ratios}")
     assert d.verdict == "none", d.document["reason"]
@@ -114,7 +114,7 @@ def test_the_compressed_bench_under_a_swept_sine_without_effect_gives_none(tmp_p
 def test_a_spring_to_ground_is_named_on_the_compressed_bench(tmp_path):
     cfg = pinned_bench()
     data = _write_swept(tmp_path, cfg, WithheldEffect("grounded_spring", PINNED_SPRING), seed=4)
-    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document
+    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, workers=1, export=False).document
     _check_named(doc, "grounded_spring", PINNED_SPRING)
 
 
@@ -149,7 +149,7 @@ def _write_cantilever(tmp_path, cfg, effect, u):
 def test_a_cantilever_hit_by_a_hammer_without_effect_gives_none(tmp_path):
     cfg = cantilever_bench()
     d = diagnose(cfg, [_write_cantilever(tmp_path, cfg, None, hammer(N_SAMPLES))], tmp_path / "gap", plots=False,
-                 export=False)
+                 workers=1, export=False)
     ratios = d.document["baseline"]["heldout_gap_ratio"]
     print(f"\nno effect (cantilever, hammer): {d.verdict}, held-out {ratios}")
     assert d.verdict == "none", d.document["reason"]
@@ -160,7 +160,8 @@ def test_a_spring_to_ground_is_named_from_hammer_hits_on_the_cantilever(tmp_path
     cfg = cantilever_bench()
     values = HAMMER_SPRING
     doc = diagnose(cfg, [_write_cantilever(tmp_path, cfg, WithheldEffect("grounded_spring", values),
-                                           hammer(N_SAMPLES))], tmp_path / "gap", plots=False, export=False).document
+                                           hammer(N_SAMPLES))], tmp_path / "gap", plots=False, workers=1,
+                   export=False).document
     _check_named(doc, "grounded_spring", values)
 
 
@@ -170,7 +171,7 @@ def test_a_point_mass_near_the_detection_limit_is_named(tmp_path, mass):
     values = {"mass": mass, "x": 0.7}
     u = band_limited_input(N_SAMPLES, DT, 1.0, 60.0, seed=3)
     doc = diagnose(cfg, [_write_cantilever(tmp_path, cfg, WithheldEffect("point_mass", values), u)],
-                   tmp_path / "gap", plots=False, export=False).document
+                   tmp_path / "gap", plots=False, workers=1, export=False).document
     before = doc["baseline"]["heldout_gap_ratio"]
     print(f"\npoint mass {mass} kg: held-out gap before {before}")
     assert max(before.values()) < 40.0       # near the limit: measured 14 / 9.7 (1 %), 2.2 / 1.65 (0.3 %)
@@ -203,7 +204,7 @@ def write_mixed(tmp_path):
 
 def test_clamped_beam_with_two_forces_three_mixed_sensors_and_pink_noise_gives_none(tmp_path):
     cfg, path = write_mixed(tmp_path)
-    res = diagnose(cfg, [path], tmp_path / "gap", plots=False, export=False)
+    res = diagnose(cfg, [path], tmp_path / "gap", plots=False, workers=1, export=False)
     ratios = res.document["baseline"]["heldout_gap_ratio"]
     print(f"\nno effect (clamped-clamped, 2 forces, 3 mixed sensors, pink noise): {res.verdict}, held-out {ratios}")
     assert res.verdict == "none", res.document["reason"]
@@ -214,7 +215,7 @@ def test_a_spring_to_ground_and_an_actuator_lag_are_named_as_a_pair(tmp_path):
     """A pair with the new effect on the family's bench: both found, each at its size, each significant."""
     cfg = bench_config()
     effects = [WithheldEffect("grounded_spring", SPRING), WithheldEffect("actuator_lag", PAIR_LAG)]
-    doc = diagnose(cfg, [_write(tmp_path, cfg, effects, seed=3)], tmp_path / "gap", plots=False,
+    doc = diagnose(cfg, [_write(tmp_path, cfg, effects, seed=3)], tmp_path / "gap", plots=False, workers=1,
                    export=False).document
     top = doc["effects"][0]
     fitted = top["refit"]["effect_parameters"]
@@ -262,7 +263,7 @@ def test_a_local_stiffness_loss_is_named_on_the_family_bench(tmp_path, kind, f_m
     (compliance 0.10 for 0.06, held-out 4.6 noise variances)."""
     cfg = bench_config(kind)
     data = _write(tmp_path, cfg, WithheldEffect("stiffness_loss", CRACK), seed=3, f_max=f_max)
-    _check_weak(diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document, CRACK)
+    _check_weak(diagnose(cfg, [data], tmp_path / "gap", plots=False, workers=1, export=False).document, CRACK)
 
 
 def test_a_local_stiffness_loss_is_named_on_the_compressed_bench(tmp_path):
@@ -271,7 +272,7 @@ def test_a_local_stiffness_loss_is_named_on_the_compressed_bench(tmp_path):
     2 cores; on the cantilever under a 1–60 Hz multisine (not in the suite), at 0.5 m: 0.0935 at 0.4996 m."""
     cfg = pinned_bench()
     data = _write_swept(tmp_path, cfg, WithheldEffect("stiffness_loss", PINNED_CRACK), seed=4)
-    _check_weak(diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document, PINNED_CRACK)
+    _check_weak(diagnose(cfg, [data], tmp_path / "gap", plots=False, workers=1, export=False).document, PINNED_CRACK)
 
 
 # ------------------------------------------------------------------------- the shaker's armature at the drive point
@@ -298,7 +299,7 @@ def test_a_shakers_armature_is_named_on_the_family_bench(tmp_path, kind, f_max):
     On the compressed pinned–pinned bench: :func:`test_a_shakers_armature_is_named_on_the_compressed_bench`."""
     cfg = bench_config(kind)
     data = _write(tmp_path, cfg, _armature(0.55, ARMATURE), seed=3, f_max=f_max)
-    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document
+    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, workers=1, export=False).document
     _check_named(doc, "shaker_armature[F1]", ARMATURE)
 
 
@@ -312,7 +313,7 @@ def test_a_shakers_armature_is_named_on_the_compressed_bench(tmp_path):
     cfg = pinned_bench()
     values = PINNED_ARMATURE
     doc = diagnose(cfg, [_write_swept(tmp_path, cfg, _armature(0.45, values), seed=4)], tmp_path / "gap",
-                   plots=False, export=False).document
+                   plots=False, workers=1, export=False).document
     _check_named(doc, "shaker_armature[F1]", values)
 
 
@@ -325,7 +326,7 @@ def test_a_shakers_armature_is_named_on_the_cantilever(tmp_path):
     values = CANTILEVER_ARMATURE
     u = band_limited_input(N_SAMPLES, DT, 1.0, 60.0, seed=3)
     doc = diagnose(cfg, [_write_cantilever(tmp_path, cfg, _armature(0.9, values), u)], tmp_path / "gap",
-                   plots=False, export=False).document
+                   plots=False, workers=1, export=False).document
     _check_named(doc, "shaker_armature[F1]", values)
 
 
@@ -334,5 +335,5 @@ def test_a_point_mass_at_the_drive_point_is_not_an_armature(tmp_path):
     cfg = bench_config()
     values = DRIVE_POINT_MASS
     data = _write(tmp_path, cfg, WithheldEffect("point_mass", values), seed=3)
-    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document
+    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, workers=1, export=False).document
     _check_named(doc, "point_mass", values)

@@ -37,7 +37,7 @@ TIP_MASS = {"mass": 0.05, "x": 1.0}
 def test_a_mass_on_a_sensor_is_named_as_its_transducer(tmp_path, kind, f_max):
     cfg = bench_config(kind)
     data = _write(tmp_path, cfg, WithheldEffect("point_mass", {"mass": MASS, "x": 0.8}), seed=3, f_max=f_max)
-    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document
+    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, workers=1, export=False).document
     assert doc["verdict"] == "transducer_mass[y2]", doc["reason"]
     rows = {e["label"]: e for e in doc["effects"]}
     refit = rows["transducer_mass[y2]"]["refit"]
@@ -57,7 +57,7 @@ def test_a_mass_on_the_cantilevers_tip_sensor_is_named_as_its_transducer(tmp_pat
     cfg = cantilever_bench()
     u = band_limited_input(N_SAMPLES, DT, 1.0, 60.0, seed=3)
     data = _write_cantilever(tmp_path, cfg, WithheldEffect("point_mass", TIP_MASS), u)
-    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, export=False).document
+    doc = diagnose(cfg, [data], tmp_path / "gap", plots=False, workers=1, export=False).document
     assert doc["verdict"] == "transducer_mass[y2]", doc["reason"]
     refit = {e["label"]: e for e in doc["effects"]}["transducer_mass[y2]"]["refit"]
     print(f"\ncantilever tip: {doc['verdict']}, mass {refit['effect_parameters']['mass']:.5f} kg, "
