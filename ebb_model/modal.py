@@ -138,7 +138,13 @@ class FrequencyResponse:
 
 
 def frequency_response(system: DiscreteStateSpace | ModalStateSpace, f_hz) -> FrequencyResponse:
-    """``H(e^{iωdt}) = C (zI - A)^{-1} B + D`` at the frequencies ``f_hz`` [Hz]."""
+    """``H(e^{iωdt}) = C (zI - A)^{-1} B + D`` at the frequencies ``f_hz`` [Hz].
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        A frequency is a pole of a dense model (``zI − A`` singular).
+    """
     f = np.atleast_1d(np.asarray(f_hz, dtype=float))
     z = np.exp(2j * np.pi * f * system.dt)
     if isinstance(system, ModalStateSpace):
@@ -158,8 +164,11 @@ def frequency_response(system: DiscreteStateSpace | ModalStateSpace, f_hz) -> Fr
         # 188 frequencies: 1.2 s → 0.09 s per model)
         Hs, Q = sla.hessenberg(np.asarray(system.A, dtype=float), calc_q=True)
         H = np.empty((f.size, system.noutputs, system.ninputs), dtype=complex)
-        _hessenberg_response(Hs, (Q.T @ system.B).astype(complex), np.ascontiguousarray(system.C @ Q),
-                             np.asarray(system.D, dtype=float), z, H)
+        try:
+            _hessenberg_response(Hs, (Q.T @ system.B).astype(complex), np.ascontiguousarray(system.C @ Q),
+                                 np.asarray(system.D, dtype=float), z, H)
+        except ZeroDivisionError:    # a zero pivot after row exchanges: zI − A is singular
+            raise np.linalg.LinAlgError("Singular matrix: a frequency of f_hz is a pole of the system") from None
     return FrequencyResponse(f, H, tuple(system.input_names), tuple(system.output_names))
 
 

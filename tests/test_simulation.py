@@ -147,6 +147,10 @@ def test_the_dense_frequency_response_is_the_solve_at_every_frequency():
         ref = np.array([system.C @ np.linalg.solve(zi * np.eye(n) - A, system.B) + system.D
                         for zi in np.exp(2j * np.pi * f * 1e-3)])
         assert np.max(np.abs(H - ref)) < 1e-12 * np.max(np.abs(ref))   # measured 1.8e-15, 1.6e-15
+    # a frequency at a pole (z = 1 is an eigenvalue): the singular system is an error, as a dense solve's
+    at_pole = DiscreteStateSpace(np.diag([1.0, 0.5]), np.ones((2, 1)), np.ones((1, 2)), np.zeros((1, 1)), 1e-3)
+    with pytest.raises(np.linalg.LinAlgError, match="pole"):
+        frequency_response(at_pole, [0.0])
     cfg = load_config(EXAMPLES / "seed_two_sensors.toml")      # 200 nodes, θ-scheme, ζ ≈ 0.1 %
     f = np.linspace(1.0, 2000.0, 60)
     dense, modal = frequency_response(assemble(cfg), f).H, frequency_response(fast_model(cfg), f).H
