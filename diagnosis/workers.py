@@ -11,11 +11,11 @@ the last one finishes.
 """
 from __future__ import annotations
 
-import multiprocessing
 import signal
-from concurrent.futures import Executor, ProcessPoolExecutor
+from concurrent.futures import Executor
 from typing import Any, Callable, Iterable, Sequence
 
+from ebb_model.processes import process_pool
 from ebb_model.threads import single_blas_thread
 
 __all__ = ["DaskExecutor", "refit_pool", "side_by_side", "task_cluster"]
@@ -128,13 +128,13 @@ class _Awaited:
 
 def refit_pool(workers: int, dask: Any = None) -> Executor | None:
     """The refits' executor: ``dask`` (a :class:`DaskExecutor` address or client) when given, else ``workers``
-    local processes (``spawn``: no inherited locks or threads); ``None`` for one worker and no Dask."""
+    local processes (``spawn``: no inherited locks or threads; safe from a script's top level,
+    :mod:`ebb_model.processes`); ``None`` for one worker and no Dask."""
     if dask is not None:
         return DaskExecutor(dask)
     if workers <= 1:
         return None
-    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_refit_worker)
+    return process_pool(workers, _refit_worker)
 
 
 def side_by_side(executor: Executor | None, task: Callable[..., Any], args: Sequence[tuple]) -> list[Any]:

@@ -18,6 +18,7 @@ from typing import Callable, Sequence
 import numpy as np
 from pymoo.algorithms.moo.nsga2 import NSGA2
 from pymoo.algorithms.moo.nsga3 import NSGA3
+from pymoo.operators.sampling.rnd import FloatRandomSampling
 from pymoo.util.ref_dirs import get_reference_directions
 
 from ebb_model.output import atomic_path
@@ -134,13 +135,28 @@ def check_settings(pop: int, generations: int, algorithm: str) -> None:
         raise ConfigError(f"`algorithm`: unknown {algorithm!r}; allowed: {', '.join(ALGORITHMS)}")
 
 
-def _algorithm(name: str, pop: int, n_obj: int):
+class _Seeded(FloatRandomSampling):
+    """pymoo's random first population with its first rows replaced by given candidates."""
+
+    def __init__(self, initial: np.ndarray):
+        super().__init__()
+        self.initial = np.atleast_2d(np.asarray(initial, dtype=float))
+
+    def _do(self, problem, n_samples: int, *args, random_state=None, **kwargs):  # type: ignore[override]
+        X = super()._do(problem, n_samples, *args, random_state=random_state, **kwargs)
+        k = min(len(self.initial), len(X))
+        X[:k] = np.clip(self.initial[:k], *problem.bounds())
+        return X
+
+
+def _algorithm(name: str, pop: int, n_obj: int, initial: np.ndarray | None = None):
+    sampling = FloatRandomSampling() if initial is None else _Seeded(initial)
     if name == "nsga2":
-        return NSGA2(pop_size=pop)
+        return NSGA2(pop_size=pop, sampling=sampling)
     if name == "nsga3":
         parts = max(1, {1: pop, 2: pop - 1, 3: 12, 4: 6}.get(n_obj, 4))
         ref = get_reference_directions("das-dennis", n_obj, n_partitions=parts)
-        return NSGA3(ref_dirs=ref, pop_size=max(pop, len(ref)))
+        return NSGA3(ref_dirs=ref, pop_size=max(pop, len(ref)), sampling=sampling)
     raise ConfigError(f"algorithm: unknown {name!r}; allowed: {', '.join(ALGORITHMS)}")
 
 
@@ -154,8 +170,11 @@ def _save_atomic(obj: object, path: Path) -> None:
 def optimise(problem: IdentificationProblem, *, pop: int = 40, generations: int = 30, seed: int = 1,
              algorithm: str = "nsga2", out_dir: str | Path | None = None, resume: bool = False,
              runner: Runner | None = None, progress: bool = True,
-             callback: GenerationCallback | None = None) -> ParetoSet:
+             callback: GenerationCallback | None = None, initial: np.ndarray | None = None) -> ParetoSet:
     """Run the GA; checkpoint into ``out_dir`` each generation; resume from it on request.
+
+    ``initial`` (rows of candidates, e.g. the records' start of :mod:`identification.data_start`) replaces the
+    first members of the random first population (a resumed run keeps its own population).
 
     ``callback(generation, n_evaluations, X, F)`` is called after every
     generation with the current non-dominated candidates (e.g. to monitor
@@ -175,7 +194,7 @@ def optimise(problem: IdentificationProblem, *, pop: int = 40, generations: int 
             algo = pickle.load(fh)
         problem = algo.problem
     else:
-        algo = _algorithm(algorithm, pop, problem.n_obj)
+        algo = _algorithm(algorithm, pop, problem.n_obj, initial)
         algo.setup(problem, termination=("n_gen", generations), seed=seed, verbose=False)
     if runner is not None:
         problem.attach(runner)

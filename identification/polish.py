@@ -29,7 +29,8 @@ from .modal_data import ModalData
 from .noise_model import NoiseModel
 from .objectives import measured_spread
 from .prior import Prior
-from .least_squares import CHI2_RESOLUTION, DIFF_STEP, Box, fit_least_squares, penalised
+from .coordinates import BeamCoordinates
+from .least_squares import CHI2_RESOLUTION, DIFF_STEP, fit_least_squares, penalised
 from .runners import Runner, SerialRunner
 
 __all__ = ["CHI2_RESOLUTION", "PolishResult", "ResidualEvaluator", "polish", "residual_scale"]
@@ -160,6 +161,10 @@ def polish(evaluator: Any, x0: np.ndarray, *, runner: Runner | None = None, max_
     run = runner or SerialRunner()
     res_ev = ResidualEvaluator(evaluator, noise, prior, modes)
     sp = evaluator.space
-    fit = fit_least_squares(lambda X: run(res_ev, X), x0, Box(sp.lower, sp.upper), max_evaluations=max_evaluations,
-                            xtol=xtol, ftol=ftol, diff_step=diff_step, chi2_resolution=chi2_resolution)
-    return PolishResult(fit.x, fit.rss, fit.n_evaluations, fit.success, fit.message)
+    # in the beam's own coordinates: the level is one of them (identification.coordinates)
+    coords = BeamCoordinates.of(sp.names, sp.lower, sp.upper)
+    x0 = np.clip(np.asarray(x0, dtype=float), sp.lower, sp.upper)
+    fit = fit_least_squares(lambda T: run(res_ev, coords.to_physical(T)), coords.to_internal(x0), coords.box(),
+                            max_evaluations=max_evaluations, xtol=xtol, ftol=ftol, diff_step=diff_step,
+                            chi2_resolution=chi2_resolution)
+    return PolishResult(coords.to_physical(fit.x), fit.rss, fit.n_evaluations, fit.success, fit.message)

@@ -32,6 +32,11 @@ def identified_lines(res: IdentificationResult) -> list[str]:
     for k, v in ident["parameters"].items():
         unit = PARAMETER_UNITS.get(k, "m" if k.startswith("x_") else "")
         lines.append(f"  {k:<6} = {v:.6g} ± {ident['cramer_rao_std'][k]:.2g} {unit}  (Cramér–Rao std)")
+    for k, b in (ident.get("on_bounds") or {}).items():
+        lines.append(f"  caution: {k} ended on its {b['bound']} bound {b['value']:.6g}: the value is the search range's, "
+                     "not the data's (widen the bound, or check the model and the records)")
+    if ident.get("cramer_rao_note"):
+        lines.append(f"  Cramér–Rao std {ident['cramer_rao_note']}")
     gap = ident.get("fit_gap_ratio")
     if gap:
         worst = max(gap.values())
@@ -41,6 +46,7 @@ def identified_lines(res: IdentificationResult) -> list[str]:
             lines.append(f"  caution: the fit leaves {worst:.3g} noise variances; the Cramér–Rao bound assumes a fit "
                          "at the noise floor and understates the uncertainty here (model or data do not match yet: "
                          "see `ebb diagnose`)")
+    lines += [f"  hint: {h}" for h in ident.get("hints") or ()]
     if res.priors:
         lines.append("  against the priors:")
         lines += [f"    {c.line()}" for c in res.priors]

@@ -22,6 +22,9 @@ The schema of ``pareto.json`` is written and read here only:
     The grid's share of the gap at the identified model (:class:`~ebb_model.adequacy.NumericalAdequacy`).
 ``noise_model``
     Each experiment's noise per sensor: level and colour (:mod:`identification.noise_model`).
+``data_start``
+    What the records said before the search (:mod:`identification.data_start`): the start, the resonance
+    peaks, the records' level, notes.
 """
 from __future__ import annotations
 
@@ -37,6 +40,7 @@ from ebb_model.config import BeamConfig, config_from_dict
 from ebb_model.errors import ConfigError
 
 from .fisher import FisherReport
+from .fit_hints import bound_flags
 from .noise_model import NoiseModel
 from .prior import PriorCheck
 from .optimise import ParetoSet
@@ -124,6 +128,14 @@ class IdentificationResult:
     modal_agreement
         The identified model against the config's measured modes
         (:meth:`identification.modal_data.ModalData.agreement`), when it gives them.
+    data_start
+        What the records said before the search (:meth:`identification.data_start.DataStart.to_dict`: the
+        start, the resonance peaks, the records' level and any notes), ``None`` when nothing was read.
+    hints
+        What a simple transformation would supply to a fit far above the floor (:mod:`identification.fit_hints`),
+        and the records' notes before the search.
+    cramer_rao_note
+        Why the identified model's Cramér–Rao standard deviations cannot be computed, when they cannot.
     """
 
     config: BeamConfig
@@ -142,6 +154,9 @@ class IdentificationResult:
     noise: NoiseModel | None = None
     priors: tuple[PriorCheck, ...] = ()
     modal_agreement: Mapping[str, Any] | None = None
+    data_start: Mapping[str, Any] | None = None
+    hints: tuple[str, ...] = ()
+    cramer_rao_note: str | None = None
 
     @property
     def knee(self) -> dict[str, float]:
@@ -164,7 +179,8 @@ class IdentificationResult:
         names = self.pareto.parameter_names
         if self.polished:
             q = self.polished[0]
-            source, x, crb = f"polished knee, from Pareto point {q.from_index}", q.x, q.cramer_rao_std
+            origin = "the records' start" if q.from_index < 0 else f"Pareto point {q.from_index}"
+            source, x, crb = f"polished, from {origin}", q.x, q.cramer_rao_std
         else:
             i = self.pareto.knee
             source, x, crb = f"knee of the GA front, Pareto point {i}, NOT polished", self.pareto.X[i], \
@@ -180,6 +196,13 @@ class IdentificationResult:
         if gap is not None:
             doc["fit_gap_ratio"] = gap
             doc["cramer_rao_valid"] = bool(max(gap.values(), default=0.0) <= CRB_GAP_LIMIT)
+        on = bound_flags(names, self.space.lower, self.space.upper, np.asarray(x, dtype=float))
+        if on:
+            doc["on_bounds"] = on
+        if self.cramer_rao_note:
+            doc["cramer_rao_note"] = self.cramer_rao_note
+        if self.hints:
+            doc["hints"] = list(self.hints)
         if self.priors:
             doc["priors"] = {c.name: c.to_dict() for c in self.priors}
         if self.modal_agreement is not None:
@@ -232,6 +255,7 @@ class IdentificationResult:
             # at the reported point (the polished knee, else the knee): how much of its gap is the grid's
             "numerical_adequacy": self.adequacy.to_dict() if self.adequacy is not None else None,
             "noise_model": list(self.noise_model),
+            "data_start": None if self.data_start is None else dict(self.data_start),
         }
 
     def _point(self, x: np.ndarray, f: np.ndarray, crb: np.ndarray, growth: float, stable: bool
@@ -300,7 +324,10 @@ class IdentificationResult:
                    np.array([float(q.get("growth_factor", np.nan)) for q in pts]),
                    np.array([bool(q.get("stable", True)) for q in pts]), out_dir,
                    str(doc.get("config_name") or out_dir.name), polished, _adequacy(doc.get("numerical_adequacy")),
-                   None, (doc.get("identified") or {}).get("fit_gap_ratio"), tuple(doc.get("noise_model") or ()))
+                   None, (doc.get("identified") or {}).get("fit_gap_ratio"), tuple(doc.get("noise_model") or ()),
+                   data_start=doc.get("data_start"),
+                   hints=tuple((doc.get("identified") or {}).get("hints") or ()),
+                   cramer_rao_note=(doc.get("identified") or {}).get("cramer_rao_note"))
 
 
 def _adequacy(doc: Mapping[str, Any] | None) -> NumericalAdequacy | None:

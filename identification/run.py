@@ -41,8 +41,10 @@ from ebb_model.jsonio import write_json
 from ebb_model.output import check_new_output_dir, check_writable_dir, make_dir
 
 from .data import Experiment, load_experiments
+from .data_start import DataStart, data_start
 from .export_targets import DEFAULT_TARGETS, check_targets
 from .fisher import fisher_information
+from .fit_hints import fit_hints
 from .noise_model import NoiseModel, estimate_noise_model
 from .modal_data import ModalData, modal_data
 from .prior import Prior, PriorCheck
@@ -198,13 +200,16 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
 
         try:
             with make_runner(workers=workers, dask=dask) as runner:
+                # what the records say first: the basin of the global answer (identification.data_start)
+                start = data_start(evaluator, runner)
                 pareto = optimise(problem, pop=pop, generations=generations, seed=seed, algorithm=algorithm,
                                   out_dir=out, resume=resume, runner=runner, progress=progress,
-                                  callback=generation_done)
+                                  callback=generation_done, initial=None if start is None else start.x[None, :])
                 polish_noise = (NoiseModel.white(noise_std, len(exps)) if noise_std is not None
-                                else _noise_at(evaluator, pareto.X[pareto.knee]))
+                                else _noise_at(evaluator, _better(evaluator, pareto.X[pareto.knee], start)))
                 polished_raw = _polish_front(pareto, search_evaluator, runner, int(polish), int(polish_evaluations),
-                                             on_progress, polish_noise, Prior.of(cfg, space.names), modal_data(cfg))
+                                             on_progress, polish_noise, Prior.of(cfg, space.names), modal_data(cfg),
+                                             start)
         finally:
             if search_evaluator is not evaluator:
                 search_evaluator.close()
@@ -213,7 +218,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
 
                 shutil.rmtree(tmp_fmu_dir, ignore_errors=True)
         res = _result(evaluator, pareto, polished_raw, fisher0, noise_std is not None, out,
-                      Path(config).stem if not isinstance(config, BeamConfig) else "beam")
+                      Path(config).stem if not isinstance(config, BeamConfig) else "beam", start)
         _write_uncertainty(res, evaluator)
         _write_results(res, evaluator)
         if export:
@@ -317,7 +322,7 @@ def _fmu_evaluator(native: NativeEvaluator, fmu: str | Path | None, parameters: 
 
 def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
             polished_raw: list[tuple[int, np.ndarray, np.ndarray, int, Any]], fisher0: Any, noise_given: bool,
-            out: Path, config_name: str) -> IdentificationResult:
+            out: Path, config_name: str, start: DataStart | None = None) -> IdentificationResult:
     """The run's result: the noise model of each experiment (the given white level, else estimated from the
     identified model's residual, :mod:`identification.noise_model`), and under it the Cramér–Rao std of every
     Pareto and polished point, their growth factor and stability (native model), the identified model's whitened
@@ -343,14 +348,34 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
     modes = modal_data(cfg)
     agreement = modes.agreement(*space.apply(cfg, best_x)) if modes is not None else None
     fit_gap = None
+    hints = list(start.notes) if start is not None else []
     if best.stable:
         whitened = np.concatenate([noise.whiten(i, y - e.outputs) for i, (e, y) in enumerate(zip(exps, best.outputs))])
         fit_gap = dict(zip(cfg.output_names, map(float, np.mean(whitened ** 2, axis=0))))
+        hints += fit_hints(cfg.output_names, [e.outputs for e in exps], best.outputs, fit_gap,
+                           "EI" in space.names and "rhoA" in space.names)
+    best_crb = polished[0].cramer_rao_std if polished else props[pareto.knee][0]
     return IdentificationResult(cfg, space, pareto, np.array([p[0] for p in props]),
                                 np.array([p[1] for p in props]), np.array([p[2] for p in props]), out,
                                 config_name, polished, adequacy, fisher0, fit_gap,
                                 tuple(noise.describe(cfg.output_names, [e.name for e in exps])), noise, priors,
-                                agreement)
+                                agreement, None if start is None else start.to_dict(space.names), tuple(hints),
+                                _cramer_rao_note(evaluator, best_x, noise, best_crb))
+
+
+def _cramer_rao_note(evaluator: NativeEvaluator, x: np.ndarray, noise: NoiseModel, crb: np.ndarray) -> str | None:
+    """Why the identified point's Cramér–Rao standard deviations cannot be computed (some are not finite);
+    ``None`` when they can."""
+    if np.all(np.isfinite(crb)):
+        return None
+    try:
+        fi = fisher_information(evaluator, x, noise=noise)
+    except StabilityError as exc:
+        return f"not computable: {exc}"
+    if fi.singular:
+        return (f"not computable: the Fisher information is singular at the identified point (rank {fi.rank} of "
+                f"{len(crb)}): " + "; ".join(fi.messages))
+    return "not computable: the Fisher information could not be inverted at the identified point"
 
 
 def _noise_at(evaluator: NativeEvaluator, x: np.ndarray) -> NoiseModel | None:
@@ -365,24 +390,45 @@ def _noise_at(evaluator: NativeEvaluator, x: np.ndarray) -> NoiseModel | None:
                                 evaluator.config.time.dt)
 
 
+def _better(evaluator: NativeEvaluator, x: np.ndarray, start: DataStart | None) -> np.ndarray:
+    """``x`` or the records' start, whichever fits the records better (sum of the squared output errors)."""
+    if start is None:
+        return x
+    f = evaluator.evaluate(np.vstack([x, start.x]))[:, :len(evaluator.config.output_names)]
+    return start.x if float(np.sum(f[1] ** 2)) < float(np.sum(f[0] ** 2)) else x
+
+
+#: ``from_index`` of the polished point that started from the records' start (not a Pareto point).
+FROM_START = -1
+
+
 def _polish_front(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, budget: int,
                   on_progress: Callable[[Progress], None] | None, noise: NoiseModel | None = None,
-                  prior: Prior | None = None, modes: ModalData | None = None
+                  prior: Prior | None = None, modes: ModalData | None = None, start: DataStart | None = None
                   ) -> list[tuple[int, np.ndarray, np.ndarray, int, Any]]:
     """Polish the ``k`` points nearest the knee (knee first), their residuals whitened by ``noise`` when given
     and the ``prior`` and measured ``modes`` added (the posterior's mode): ``(from_index, x, F, evaluations,
-    result)``."""
+    result)``.
+
+    With ``k >= 1`` and the records' ``start``, the start is polished too (``from_index`` :data:`FROM_START`)
+    and whichever of it and the polished knee reaches the lower χ² comes first: the identified model is the
+    better of two local fits from different basins, never a silent local optimum of one."""
     out: list[tuple[int, np.ndarray, np.ndarray, int, Any]] = []
     n_done = pareto.n_evaluations
-    for step, i in enumerate(knee_order(pareto.F, pareto.objective_names)[:k]):
-        r = polish_point(evaluator, pareto.X[i], runner=runner, max_evaluations=budget, noise=noise, prior=prior,
+    todo = [(int(i), pareto.X[i]) for i in knee_order(pareto.F, pareto.objective_names)[:k]]
+    if k >= 1 and start is not None:
+        todo.insert(1, (FROM_START, start.x))
+    for step, (i, x0) in enumerate(todo):
+        r = polish_point(evaluator, x0, runner=runner, max_evaluations=budget, noise=noise, prior=prior,
                          modes=modes)
         f = np.asarray(runner(evaluator, r.x[None, :]))[0]
         n_ev = r.n_evaluations + 1
         n_done += n_ev
-        out.append((int(i), r.x, f, n_ev, r))
+        out.append((i, r.x, f, n_ev, r))
         if on_progress is not None:
             on_progress(Progress("polish", step, n_done, r.x[None, :], f[None, :], 0))
+    if len(out) >= 2 and out[1][0] == FROM_START and out[1][4].cost < out[0][4].cost:
+        out[0], out[1] = out[1], out[0]
     return out
 
 

@@ -13,13 +13,12 @@ creates a runner closes it (context manager).
 """
 from __future__ import annotations
 
-import concurrent.futures as cf
-import multiprocessing as mp
 import signal
 from typing import Any, Protocol
 
 import numpy as np
 
+from ebb_model.processes import process_pool
 from ebb_model.threads import single_blas_thread
 
 __all__ = ["Runner", "SerialRunner", "ProcessRunner", "DaskRunner", "make_runner"]
@@ -80,14 +79,14 @@ def _ignore_sigint() -> None:
 
 
 class ProcessRunner(Runner):
-    """Evaluate chunks in ``workers`` local processes (``spawn``: no inherited locks or threads)."""
+    """Evaluate chunks in ``workers`` local processes (``spawn``: no inherited locks or threads; safe to start
+    from a script's top level, :mod:`ebb_model.processes`)."""
 
     def __init__(self, workers: int):
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
         self.workers = workers
-        self._pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
-                                            initializer=_ignore_sigint)
+        self._pool = process_pool(workers, _ignore_sigint)
 
     def __call__(self, evaluator: Evaluator, X: np.ndarray) -> np.ndarray:
         futs = [self._pool.submit(_evaluate_chunk, evaluator, c) for c in _chunks(X, self.workers)]

@@ -132,7 +132,8 @@ def test_kill_9_then_resume_gives_the_uninterrupted_front(case):
 
 
 def test_identify_polish_writes_polished_points_and_exports_them(case, capsys):
-    """``--polish 2``: the two points nearest the knee (knee first) refined; counts, files and exports."""
+    """``--polish 2``: the two points nearest the knee refined, and the records' start beside them (the lower
+    χ² of the knee's and the start's first); counts, files and exports."""
     cfg, data, tmp = case
     out = tmp / "out"
     rc = main(["identify", str(cfg), str(data), "--out", str(out), "--pop", "8", "--generations", "3",
@@ -141,12 +142,16 @@ def test_identify_polish_writes_polished_points_and_exports_them(case, capsys):
     printed = capsys.readouterr().out
     doc = json.loads((out / "pareto.json").read_text())
     pol = doc["polished"]
-    assert len(pol) == min(2, len(doc["points"]))
-    assert pol[0]["from_index"] == doc["knee"]
+    assert len(pol) == min(2, len(doc["points"])) + 1
+    starts = [q["from_index"] for q in pol]
+    assert sorted(starts[:2]) == sorted([doc["knee"], -1]) and doc["data_start"]["parameters"]
+    assert pol[0]["cost"] <= pol[1]["cost"]
     for q in pol:
         assert set(q) >= {"parameters", "objectives", "cramer_rao_std", "growth_factor", "stable",
                           "n_evaluations", "from_index"}
         assert q["stable"] and q["n_evaluations"] > len(doc["parameter_names"])
+        if q["from_index"] < 0:
+            continue
         # a least-squares polish never ends worse than its start: sum of squared output errors
         start = doc["points"][q["from_index"]]["objectives"]
         sse = sum(v ** 2 for k, v in q["objectives"].items() if k.startswith("nrmse_"))
@@ -160,7 +165,8 @@ def test_identify_polish_writes_polished_points_and_exports_them(case, capsys):
         assert abs(pol[0]["parameters"][k] - v) <= 4 * pol[0]["cramer_rao_std"][k], (k, pol[0])
     rows = (out / "polished.csv").read_text().splitlines()
     assert rows[0].startswith("index,from_index,EI,N,") and len(rows) == 1 + len(pol)
-    assert f"identified model (polished knee, from Pareto point {doc['knee']}):" in printed
+    origin = "the records' start" if pol[0]["from_index"] < 0 else f"Pareto point {doc['knee']}"
+    assert f"identified model (polished, from {origin}):" in printed
     assert f"total evaluations (GA + polish): {doc['n_evaluations']}" in printed
     assert doc["identified"]["parameters"] == pol[0]["parameters"] and doc["identified"]["cramer_rao_valid"]
     # exports of a polished point: StateSpace with the polished values, and an FMU

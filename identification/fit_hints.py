@@ -1,0 +1,85 @@
+"""What a fit far from the noise floor may be missing that a simple transformation would supply.
+
+A fit that stays hundreds of noise variances above the floor is either a model that lacks something (the
+diagnosis' question) or records that differ from the model by something simple: a sensor's gain or sign (a
+calibration, a unit — a record in mm read as m is a gain of 1000), or the level of the whole model (EI, ρA, c and
+N scaled together) that the bounds kept out of reach.  Each is one inner product away: the best gain of a
+sensor's simulated output, ``a = ⟨ŷ, y⟩ / ⟨ŷ, ŷ⟩``, and what it would leave.  :func:`fit_hints` names each
+transformation that would remove at least half of the misfit above the floor, with its value, so that a user
+reads "units, calibration or the bounds" instead of a bare "the fit leaves 1.04e4 noise variances"; and
+:func:`bound_flags` names every unknown that ended on a bound of its search (its value is then the bound's, not
+the data's, and its Cramér–Rao standard deviation describes a point that is not an optimum).
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+__all__ = ["ON_BOUND", "bound_flags", "fit_hints"]
+
+#: An unknown within this share of its search range of a bound is on that bound.
+ON_BOUND = 1e-4
+#: A transformation is named when it removes at least this share of the misfit above the noise floor.
+REMOVES = 0.5
+#: Only fits above this many noise variances (on some sensor) are examined.
+EXAMINED_ABOVE = 2.0
+
+
+def bound_flags(names: Sequence[str], lower: np.ndarray, upper: np.ndarray, x: np.ndarray) -> dict[str, dict[str, Any]]:
+    """``{name: {"bound": "lower" | "upper", "value": bound}}`` for every unknown on a bound of its range."""
+    out: dict[str, dict[str, Any]] = {}
+    for n, lo, hi, v in zip(names, lower, upper, np.asarray(x, float)):
+        tol = ON_BOUND * (hi - lo)
+        if v <= lo + tol:
+            out[n] = {"bound": "lower", "value": float(lo)}
+        elif v >= hi - tol:
+            out[n] = {"bound": "upper", "value": float(hi)}
+    return out
+
+
+def fit_hints(sensor_names: Sequence[str], measured: Sequence[np.ndarray], simulated: Sequence[np.ndarray],
+              gap: Mapping[str, float], level_free: bool) -> list[str]:
+    """The simple transformations that would bring a fit far above the floor down (module docstring).
+
+    Parameters
+    ----------
+    sensor_names
+        The sensors, in column order.
+    measured, simulated
+        Per experiment, the records' and the model's outputs ``(n, n_sensors)``.
+    gap
+        The fit's residual per sensor in noise variances (1: the floor).
+    level_free
+        Whether EI and ρA are both unknowns (a common scale of the model is then a change of the unknowns,
+        named as such when all sensors want the same gain).
+    """
+    gaps = np.array([float(gap.get(s, np.nan)) for s in sensor_names])
+    if not np.any(gaps > EXAMINED_ABOVE):
+        return []
+    y = np.concatenate([np.asarray(m, float) for m in measured])
+    h = np.concatenate([np.asarray(s, float) for s in simulated])
+    hy, hh = np.sum(h * y, axis=0), np.sum(h * h, axis=0)
+    rr = np.sum((y - h) ** 2, axis=0)
+    hints: list[str] = []
+    gains = np.where(hh > 0, hy / np.where(hh > 0, hh, 1.0), np.nan)
+    after = rr - np.where(hh > 0, hy * hy / np.where(hh > 0, hh, 1.0), 0.0)
+    wants = []
+    for j, s in enumerate(sensor_names):
+        if not (gaps[j] > EXAMINED_ABOVE and np.isfinite(gains[j]) and rr[j] > 0):
+            continue
+        left = gaps[j] * after[j] / rr[j]
+        if gaps[j] - left >= REMOVES * (gaps[j] - 1.0):
+            wants.append(j)
+            what = "a reversed sign" if gains[j] < 0 else "units or calibration"
+            hints.append(f"the records' level suggests a gain of {gains[j]:.4g} on {s}: it would leave "
+                         f"{max(left, 0.0):.3g} noise variances instead of {gaps[j]:.3g} — {what} of that channel "
+                         "([identification.data] units or gains), or the search")
+    if level_free and len(wants) == len(sensor_names) and len(sensor_names) > 0:
+        g = gains[wants]
+        if np.all(g > 0) and np.max(g) / np.min(g) < 1.1:
+            common = float(np.exp(np.mean(np.log(g))))
+            hints.append(f"every sensor wants the same gain {common:.4g}: a common scale of {1.0 / common:.4g} on EI, "
+                         "rhoA, c and N gives it without changing a frequency — widen their bounds if the scale is "
+                         "physical, else check the records' units")
+    return hints

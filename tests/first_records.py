@@ -1,0 +1,169 @@
+"""A blind family of "first own records": benches and configs as a new user makes and writes them.
+
+Each case is a bench (ends, length, sensors of one or mixed kinds, a shaker or a hammer, the excitation, the
+noise) whose record comes from the independent truth (:func:`ebb_model.reference.synthesize`: cubic Hermite
+finite elements integrated exactly in time under the spline force — no code shared with the identified model),
+and a config as a newcomer writes it: every nominal value 30–60 % off the truth, bounds ×0.25…×4 around the
+nominal, the grid of the examples.  The identification sees the config and the record only.
+
+Read by ``tests/test_first_records.py`` (the accuracy) and ``benchmarks/bench_first_records.py`` (the time).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import signal
+
+from ebb_model.config import BeamConfig, config_from_dict
+from ebb_model.reference import band_limited_input, synthesize
+from ebb_model.tomlio import dumps as dumps_toml
+
+__all__ = ["CASES", "FirstRecord", "write_case"]
+
+
+@dataclass(frozen=True)
+class FirstRecord:
+    """One bench of the family.
+
+    Attributes
+    ----------
+    name
+        Short name (test id).
+    left, right, length
+        The beam's ends and free length [m].
+    truth
+        EI [N m²], ρA [kg/m], c [N s/m²], N [N] of the truth.
+    guess
+        The newcomer's nominal value per unknown, as a factor of the truth (0.4–0.7 or 1.3–1.6).
+    actuator
+        Shaker or hammer position [m].
+    sensors
+        ``(name, x, kind)`` per sensor.
+    excitation
+        ``random`` (filtered white noise), ``chirp``, ``multisine`` (band 1 Hz to a tenth of the sampling rate: a
+        lab samples well above its band) or ``hammer`` (a 10 ms sin² blow).
+    noise
+        Noise std relative to each sensor's clean RMS.
+    dt, duration
+        Sample time and record length [s].
+    """
+
+    name: str
+    left: str
+    right: str
+    length: float
+    truth: dict[str, float]
+    guess: dict[str, float]
+    actuator: float
+    sensors: tuple[tuple[str, float, str], ...]
+    excitation: str
+    noise: float
+    dt: float = 1e-3
+    duration: float = 4.0
+
+    @property
+    def unknowns(self) -> tuple[str, ...]:
+        """What the config identifies: EI, ρA and c, and N on an axially loaded beam."""
+        return ("EI", "rhoA", "c", "N") if self.truth.get("N", 0.0) != 0.0 else ("EI", "rhoA", "c")
+
+    @property
+    def euler_load(self) -> float:
+        """The Euler load scale ``EI π²/L²`` [N] (the yardstick of N's error)."""
+        return self.truth["EI"] * math.pi ** 2 / self.length ** 2
+
+    def config_dict(self, nodes: int = 80) -> dict[str, Any]:
+        """The newcomer's config (module docstring)."""
+        params: dict[str, Any] = {}
+        for k in ("EI", "rhoA", "c", "eta", "N"):
+            true = self.truth.get(k, 0.0)
+            if k in self.unknowns:
+                v = true * self.guess[k]
+                lo, hi = sorted((0.25 * v, 4.0 * v))
+                if k == "N":      # a load of either sign may be bounded across zero by a cautious user
+                    lo, hi = -4.0 * abs(v), 4.0 * abs(v)
+                params[k] = {"value": v, "bounds": [lo, hi], "identify": True}
+            else:
+                params[k] = {"value": true}
+        return {"beam": {"length": self.length, "nodes": nodes, "left": self.left, "right": self.right},
+                "time": {"dt": self.dt}, "parameters": params,
+                "actuators": [{"name": "F1", "x": self.actuator}],
+                "sensors": [{"name": n, "x": x, "kind": k} for n, x, k in self.sensors]}
+
+    def truth_config(self) -> BeamConfig:
+        """The bench with the truth's values (what the generator reads)."""
+        d = self.config_dict()
+        for k, v in self.truth.items():
+            d["parameters"][k] = {"value": v}
+        return config_from_dict(d)
+
+    def force(self) -> np.ndarray:
+        """The excitation [N], from rest (module docstring of the case kinds)."""
+        n = int(round(self.duration / self.dt))
+        fs = 1.0 / self.dt
+        if self.excitation == "hammer":
+            u = np.zeros(n)
+            width = 10e-3
+            t = np.arange(n) * self.dt - 0.05
+            inside = (t >= 0) & (t <= width)
+            u[inside] = 50.0 * np.sin(np.pi * t[inside] / width) ** 2     # smooth: a blow has no kinks
+            return u
+        if self.excitation == "random":
+            rng = np.random.default_rng(7)
+            b, a = signal.butter(8, 0.1 * fs, fs=fs)
+            u = signal.lfilter(b, a, rng.standard_normal(n))
+            ramp = np.minimum(1.0, np.arange(n) / (0.05 * n))
+            return u * ramp / np.std(u)
+        return band_limited_input(n, self.dt, 1.0, 0.1 * fs, kind=self.excitation, seed=3)[:, 0]
+
+
+def write_case(case: FirstRecord, folder: Path) -> tuple[Path, Path]:
+    """The newcomer's ``config.toml`` and the truth's ``record.csv`` in ``folder``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    cfg_path = folder / "config.toml"
+    cfg_path.write_text(dumps_toml(case.config_dict()), encoding="utf-8")
+    u = case.force()
+    rec = synthesize(case.truth_config(), u[:, None], noise=case.noise, seed=11)
+    data = np.column_stack([rec.time, rec.inputs, rec.outputs])
+    header = ",".join(["time", *rec.input_names, *rec.output_names])
+    rec_path = folder / "record.csv"
+    np.savetxt(rec_path, data, delimiter=",", header=header, comments="", fmt="%.12g")
+    return cfg_path, rec_path
+
+
+def _g(ei: float, rho: float, c: float, n: float | None = None) -> dict[str, float]:
+    out = {"EI": ei, "rhoA": rho, "c": c}
+    if n is not None:
+        out["N"] = n
+    return out
+
+
+#: The family: every sensor kind alone and mixed, four pairs of ends, four excitations, 1–5 % noise.
+CASES = (
+    FirstRecord("cantilever-accel-random", "clamped", "free", 0.8, {"EI": 7.0, "rhoA": 0.9, "c": 0.6},
+                _g(1.43, 1.33, 1.67), 0.6, (("a1", 0.8, "acceleration"),), "random", 0.02),
+    FirstRecord("cantilever-velocity-chirp", "clamped", "free", 1.0, {"EI": 12.0, "rhoA": 1.5, "c": 1.2},
+                _g(0.6, 1.5, 0.5), 0.7, (("v1", 0.95, "velocity"),), "chirp", 0.03),
+    FirstRecord("cantilever-displacement-hammer", "clamped", "free", 0.6, {"EI": 4.0, "rhoA": 0.5, "c": 0.4},
+                _g(1.55, 0.65, 1.4), 0.55, (("d1", 0.6, "displacement"),), "hammer", 0.01, dt=5e-4),
+    FirstRecord("pinned-tension-mixed-multisine", "pinned", "pinned", 1.2,
+                {"EI": 15.0, "rhoA": 1.2, "c": 0.8, "N": 60.0}, _g(0.65, 1.4, 1.5, 0.6), 0.37,
+                (("d1", 0.5, "displacement"), ("a1", 0.8, "acceleration")), "multisine", 0.02),
+    FirstRecord("clamped-compression-mixed-random", "clamped", "clamped", 1.0,
+                {"EI": 10.0, "rhoA": 1.0, "c": 0.5, "N": -80.0}, _g(1.4, 0.6, 0.6, 1.5), 0.3,
+                (("v1", 0.45, "velocity"), ("a1", 0.7, "acceleration")), "random", 0.02),
+    FirstRecord("clamped-pinned-accel-hammer", "clamped", "pinned", 0.9, {"EI": 9.0, "rhoA": 1.1, "c": 0.9},
+                _g(0.55, 1.35, 1.6), 0.4, (("a1", 0.6, "acceleration"),), "hammer", 0.02, dt=5e-4),
+    FirstRecord("pinned-tension-velocity-chirp", "pinned", "pinned", 1.0,
+                {"EI": 8.0, "rhoA": 0.8, "c": 0.6, "N": 40.0}, _g(1.5, 0.7, 0.5, 1.4), 0.23,
+                (("v1", 0.61, "velocity"),), "chirp", 0.05),
+    FirstRecord("clamped-compression-displacement-multisine", "clamped", "clamped", 1.1,
+                {"EI": 20.0, "rhoA": 2.0, "c": 1.5, "N": -50.0}, _g(0.7, 1.6, 1.45, 0.55), 0.33,
+                (("d1", 0.55, "displacement"),), "multisine", 0.01),
+    FirstRecord("cantilever-mixed-chirp", "clamped", "free", 0.75, {"EI": 5.0, "rhoA": 0.7, "c": 0.5},
+                _g(1.6, 0.6, 1.3), 0.65, (("d1", 0.4, "displacement"), ("a1", 0.75, "acceleration")), "chirp",
+                0.04),
+)

@@ -1,0 +1,114 @@
+"""A user's first own record: default ``identify`` finds the global answer from a config written as a newcomer
+writes it, on records from the independent truth (``tests/first_records.py``), and says so when it cannot.
+
+Tolerances: the family's criterion (issue 51) — the fit at the noise floor, ≤ 1.5 noise variances per sensor,
+EI and ρA within 1 %, N within 2 % of the Euler load scale.  What the truth itself leaves on the model's grid
+(the spline force of the generator against the model's cubic hold, the grid's modes above the band) is
+measured per case in ``benchmarks/bench_first_records.py``: at most 1.42 noise variances at 80 nodes
+(the hammer on the clamped–pinned accelerometer), so the 1.5 criterion is reachable on every case and a
+search that stops short of the global optimum fails it.
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from first_records import CASES, write_case
+from identification.run import identify
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
+def test_first_record_reaches_the_truth(case, tmp_path):
+    cfg, rec = write_case(case, tmp_path / "bench")
+    res = identify(cfg, [rec], tmp_path / "run", progress=False, export=False)
+    ident = res.identified
+    p, gap = ident["parameters"], ident["fit_gap_ratio"]
+    assert max(gap.values()) <= 1.5, (case.name, gap, p)
+    for k in ("EI", "rhoA"):
+        assert abs(p[k] / case.truth[k] - 1.0) <= 0.01, (case.name, k, p)
+    if "N" in p:
+        assert abs(p["N"] - case.truth["N"]) <= 0.02 * case.euler_load, (case.name, p)
+    assert "on_bounds" not in ident and not ident.get("hints"), (case.name, ident)
+
+
+def _model_record(folder: Path, *, scale: float = 1.0) -> tuple[Path, Path]:
+    """Issue 51's first record: the project's own model (40 nodes) at EI 7, ρA 0.9, c 0.6 — a clamped–free strip
+    of 0.8 m, one tip accelerometer, a shaker at 0.6 m driven by white noise, 1 kHz, 4 s, 2 % noise — and the
+    config the user wrote (EI 10 in 2–20, ρA 1.2 in 0.3–3, c 1.0 in 0.05–5); ``scale`` multiplies the record
+    (1000: read in mm as if in m)."""
+    from ebb_model import fast_model, simulate
+    from ebb_model.config import config_from_dict
+    from ebb_model.tomlio import dumps
+
+    d = {"beam": {"length": 0.8, "nodes": 40, "left": "clamped", "right": "free"}, "time": {"dt": 1e-3},
+         "parameters": {"EI": {"value": 10.0, "bounds": [2.0, 20.0], "identify": True},
+                        "rhoA": {"value": 1.2, "bounds": [0.3, 3.0], "identify": True},
+                        "c": {"value": 1.0, "bounds": [0.05, 5.0], "identify": True},
+                        "eta": {"value": 0.0}, "N": {"value": 0.0}},
+         "actuators": [{"name": "F1", "x": 0.6}], "sensors": [{"name": "a1", "x": 0.8, "kind": "acceleration"}]}
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "config.toml").write_text(dumps(d), encoding="utf-8")
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(4000)
+    y = simulate(fast_model(config_from_dict(d), {"EI": 7.0, "rhoA": 0.9, "c": 0.6}), u[:, None]).outputs[:, 0]
+    y = (y + 0.02 * np.std(y) * rng.standard_normal(y.size)) * scale
+    np.savetxt(folder / "record.csv", np.column_stack([np.arange(4000) * 1e-3, u, y]), delimiter=",",
+               header="time,F1,a1", comments="")
+    return folder / "config.toml", folder / "record.csv"
+
+
+def test_issue_case_lands_on_the_truth(tmp_path):
+    """The record of issue 51 (EI, ρA 78 % off with exit 0 before the records' start): the truth within four
+    Cramér–Rao standard deviations, the fit at the floor."""
+    cfg, rec = _model_record(tmp_path / "bench")
+    res = identify(cfg, [rec], tmp_path / "run", progress=False, export=False)
+    ident = res.identified
+    for k, v in {"EI": 7.0, "rhoA": 0.9, "c": 0.6}.items():
+        assert abs(ident["parameters"][k] - v) <= 4 * ident["cramer_rao_std"][k], (k, ident)
+    assert ident["fit_gap_ratio"]["a1"] <= 1.1
+    doc = json.loads((tmp_path / "run" / "pareto.json").read_text())
+    assert doc["data_start"]["peaks_hz"] and doc["data_start"]["parameters"]
+
+
+def test_a_record_in_mm_gets_the_scale_hint(tmp_path):
+    """The same record read in mm as if in m: the level is out of the bounds' reach; the run says which scale the
+    records ask for, and flags what ended on a bound."""
+    cfg, rec = _model_record(tmp_path / "bench", scale=1000.0)
+    res = identify(cfg, [rec], tmp_path / "run", progress=False, export=False)
+    ident = res.identified
+    import re
+
+    level = [h for h in ident["hints"] if h.startswith("the records' level asks for")]
+    assert len(level) == 1 and "units" in level[0], ident["hints"]
+    # the level asked for is the truth's in mm: EI 7e-3, rhoA 9e-4 (the start's level, within 5 %)
+    asked = dict((k, float(v)) for k, v in re.findall(r"(EI|rhoA) ([0-9.e+-]+)", level[0])[:2])
+    assert abs(asked["EI"] / 7e-3 - 1) < 0.05 and abs(asked["rhoA"] / 9e-4 - 1) < 0.05, level
+    # the gain that would bring the fit down is named, and rhoA is flagged on the bound that stopped it
+    assert any("gain of" in h and "a1" in h for h in ident["hints"]), ident["hints"]
+    assert ident["on_bounds"]["rhoA"] == {"bound": "lower", "value": 0.3}, ident
+
+
+def test_scripted_run_without_a_main_guard(tmp_path):
+    """A page's snippet saved as a script and run: identify on worker processes from the script's top level,
+    no ``if __name__ == "__main__":`` — runs once, no BrokenProcessPool."""
+    cfg, rec = _model_record(tmp_path / "bench")
+    script = tmp_path / "snippet.py"
+    script.write_text(textwrap.dedent(f"""
+        from identification.run import identify
+        print("top level ran")
+        res = identify({str(cfg)!r}, [{str(rec)!r}], {str(tmp_path / 'run')!r}, progress=False, workers=2,
+                       pop=8, generations=2, export=False)
+        print("identified", sorted(res.identified["parameters"]))
+    """), encoding="utf-8")
+    out = subprocess.run([sys.executable, str(script)], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.count("top level ran") == 1, out.stdout
+    assert "identified ['EI', 'c', 'rhoA']" in out.stdout
