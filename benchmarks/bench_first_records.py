@@ -78,7 +78,8 @@ def main() -> None:
                 continue
             r = run(case, args.workers, work)
             rows.append(r)
-            print(f"{r['case']:<44} {r['total']:5.1f} s  " + ", ".join(f"{k} {e:+.3f} %" for k, e in r["errors"].items())
+            errors = ", ".join(f"{k} {e:+.3f} %" for k, e in r["errors"].items())
+            print(f"{r['case']:<44} {r['total']:5.1f} s  {errors}"
                   + f";  fit {r['gap']:.2f} (floor {r['floor']:.2f}) noise variances;  "
                   + ("right" if r["ok"] else "WRONG") + f"  ({r['source']})", flush=True)
     finally:

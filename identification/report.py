@@ -33,8 +33,8 @@ def identified_lines(res: IdentificationResult) -> list[str]:
         unit = PARAMETER_UNITS.get(k, "m" if k.startswith("x_") else "")
         lines.append(f"  {k:<6} = {v:.6g} ± {ident['cramer_rao_std'][k]:.2g} {unit}  (Cramér–Rao std)")
     for k, b in (ident.get("on_bounds") or {}).items():
-        lines.append(f"  caution: {k} ended on its {b['bound']} bound {b['value']:.6g}: the value is the search range's, "
-                     "not the data's (widen the bound, or check the model and the records)")
+        lines.append(f"  caution: {k} ended on its {b['bound']} bound {b['value']:.6g}: the value is the search "
+                     "range's, not the data's (widen the bound, or check the model and the records)")
     if ident.get("cramer_rao_note"):
         lines.append(f"  Cramér–Rao std {ident['cramer_rao_note']}")
     gap = ident.get("fit_gap_ratio")

@@ -4,9 +4,9 @@ writes it, on records from the independent truth (``tests/first_records.py``), a
 Tolerances: the family's criterion (issue 51) — the fit at the noise floor, ≤ 1.5 noise variances per sensor,
 EI and ρA within 1 %, N within 2 % of the Euler load scale.  What the truth itself leaves on the model's grid
 (the spline force of the generator against the model's cubic hold, the grid's modes above the band) is
-measured per case in ``benchmarks/bench_first_records.py``: at most 1.42 noise variances at 80 nodes
-(the hammer on the clamped–pinned accelerometer), so the 1.5 criterion is reachable on every case and a
-search that stops short of the global optimum fails it.
+measured per case in ``benchmarks/bench_first_records.py``: at most 1.43 noise variances at 80 nodes
+(the cantilever's tip accelerometer under the random force), so the 1.5 criterion is reachable on every case and
+a search that stops short of the global optimum fails it.
 """
 from __future__ import annotations
 

@@ -178,7 +178,8 @@ def test_identify_recovers_the_parameters_of_fe_data(case, tmp_path):
     names = res.pareto.parameter_names
     truth = np.array([TRUTH[n] for n in names])
     best = res.polished[0]
-    assert best.from_index == res.pareto.knee and best.success
+    # the better of the knee's polish and the records' start's (from_index -1) is the identified model
+    assert best.from_index in (res.pareto.knee, -1) and best.success
     rel = best.x / truth - 1.0
     tol = {"EI": 0.01, "rhoA": 0.01, "N": 0.01, "c": 0.10}
     # the discretisation bias: the same fit of the noise-free record, started at the truth
