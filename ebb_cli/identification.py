@@ -35,12 +35,20 @@ def _cmd_identify(args: argparse.Namespace) -> int:
           f"condition number {f.condition_number:.3g}")
     for m in f.messages:
         print(f"  {m}")
+    ds = res.data_start
+    if ds:
+        peaks = ds["peaks_hz"]
+        seen = (f"{len(peaks)} resonance peak(s), {peaks[0]:.4g}–{peaks[-1]:.4g} Hz" if peaks
+                else "no resonance peak")
+        print(f"the records: {seen}; start " + json.dumps({k: float(f"{v:.6g}") for k, v in ds["parameters"].items()})
+              + f" ({ds['n_evaluations']} evaluations)")
     p = res.pareto
     print(f"{len(p.X)} Pareto points after {p.generations} generations, {p.n_evaluations} evaluations")
     print("knee of the GA front (not polished): " + json.dumps({k: round(v, 6) for k, v in res.knee.items()}))
     for j, q in enumerate(res.polished[1:], start=1):
         values = {k: round(float(v), 6) for k, v in zip(p.parameter_names, q.x)}
-        print(f"polished {j} (from point {q.from_index}, {q.n_evaluations} evaluations): " + json.dumps(values))
+        origin = "the records' start" if q.from_index < 0 else f"point {q.from_index}"
+        print(f"polished {j} (from {origin}, {q.n_evaluations} evaluations): " + json.dumps(values))
     if res.polished:
         print(f"total evaluations (GA + polish): {res.n_evaluations}")
     for line in identified_lines(res):

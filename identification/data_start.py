@@ -23,7 +23,8 @@ answer.  The records themselves fix both, before any search:
 
 The GA's first population carries the start (:func:`identification.optimise.optimise`), and the polish runs from
 it as well as from the GA's knee (:func:`identification.run.identify`).  The model evaluations run through the
-identification's runner (worker processes or Dask) and are counted.
+identification's runner (worker processes or Dask), counted in ``DataStart.n_evaluations``
+(``data_start`` in ``pareto.json``), apart from the search's.
 """
 from __future__ import annotations
 

@@ -57,6 +57,8 @@ def identified_lines(res: IdentificationResult) -> list[str]:
                      + ", ".join(f"{v:.4g}" for v in a["model_hz"] or []) + " Hz)")
     if res.adequacy is not None:
         lines.append("  " + res.adequacy.summary())
+    if res.grid_advice is not None:
+        lines.append("  " + str(res.grid_advice["summary"]))
     return lines
 
 

@@ -22,6 +22,8 @@ The schema of ``pareto.json`` is written and read here only:
     The grid's share of the gap at the identified model (:class:`~ebb_model.adequacy.NumericalAdequacy`).
 ``noise_model``
     Each experiment's noise per sensor: level and colour (:mod:`identification.noise_model`).
+``grid_advice``
+    Which grid the records' band needs at the identified model (:func:`ebb_model.grid_advice.grid_advice`).
 ``data_start``
     What the records said before the search (:mod:`identification.data_start`): the start, the resonance
     peaks, the records' level, notes.
@@ -136,6 +138,9 @@ class IdentificationResult:
         and the records' notes before the search.
     cramer_rao_note
         Why the identified model's Cramér–Rao standard deviations cannot be computed, when they cannot.
+    grid_advice
+        Which grid the records' band needs at the identified model (:func:`ebb_model.grid_advice.grid_advice`,
+        the advice ``diagnose`` gives too), with its one-line ``summary``.
     """
 
     config: BeamConfig
@@ -157,6 +162,7 @@ class IdentificationResult:
     data_start: Mapping[str, Any] | None = None
     hints: tuple[str, ...] = ()
     cramer_rao_note: str | None = None
+    grid_advice: Mapping[str, Any] | None = None
 
     @property
     def knee(self) -> dict[str, float]:
@@ -256,6 +262,7 @@ class IdentificationResult:
             "numerical_adequacy": self.adequacy.to_dict() if self.adequacy is not None else None,
             "noise_model": list(self.noise_model),
             "data_start": None if self.data_start is None else dict(self.data_start),
+            "grid_advice": None if self.grid_advice is None else dict(self.grid_advice),
         }
 
     def _point(self, x: np.ndarray, f: np.ndarray, crb: np.ndarray, growth: float, stable: bool
@@ -327,7 +334,8 @@ class IdentificationResult:
                    None, (doc.get("identified") or {}).get("fit_gap_ratio"), tuple(doc.get("noise_model") or ()),
                    data_start=doc.get("data_start"),
                    hints=tuple((doc.get("identified") or {}).get("hints") or ()),
-                   cramer_rao_note=(doc.get("identified") or {}).get("cramer_rao_note"))
+                   cramer_rao_note=(doc.get("identified") or {}).get("cramer_rao_note"),
+                   grid_advice=doc.get("grid_advice"))
 
 
 def _adequacy(doc: Mapping[str, Any] | None) -> NumericalAdequacy | None:

@@ -31,7 +31,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ebb_model import max_growth_factor
-from ebb_model.adequacy import numerical_adequacy
+from ebb_model.adequacy import excited_band, numerical_adequacy
+from ebb_model.grid_advice import grid_advice
 from ebb_model.output import atomic_path
 from ebb_model.config import BeamConfig
 from ebb_model.threads import one_blas_thread
@@ -339,7 +340,12 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
     polished = tuple(PolishedPoint(i, x, f, *_point_properties(cfg, space, evaluator, x, noise), n_ev, r.cost,
                                    r.success, r.message) for i, x, f, n_ev, r in polished_raw)
     sigma = np.median(noise.std, axis=0)
-    adequacy = numerical_adequacy(*space.apply(cfg, best_x), [(e.inputs, e.outputs) for e in exps], sigma)
+    band_hz = excited_band([e.inputs for e in exps], cfg.time.dt)[1]
+    adequacy = numerical_adequacy(*space.apply(cfg, best_x), [(e.inputs, e.outputs) for e in exps], sigma,
+                                  band_hz=band_hz)
+    # the same advice `diagnose` gives at its baseline (one function, the same band)
+    advice = grid_advice(*space.apply(cfg, best_x), band_hz=band_hz)
+    grid = {**advice.to_dict(), "summary": advice.summary()}
     priors: tuple[PriorCheck, ...] = ()
     prior = Prior.of(cfg, space.names)
     if prior.count and best.stable:
@@ -360,7 +366,7 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
                                 config_name, polished, adequacy, fisher0, fit_gap,
                                 tuple(noise.describe(cfg.output_names, [e.name for e in exps])), noise, priors,
                                 agreement, None if start is None else start.to_dict(space.names), tuple(hints),
-                                _cramer_rao_note(evaluator, best_x, noise, best_crb))
+                                _cramer_rao_note(evaluator, best_x, noise, best_crb), grid)
 
 
 def _cramer_rao_note(evaluator: NativeEvaluator, x: np.ndarray, noise: NoiseModel, crb: np.ndarray) -> str | None:

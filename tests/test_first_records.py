@@ -112,3 +112,36 @@ def test_scripted_run_without_a_main_guard(tmp_path):
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.count("top level ran") == 1, out.stdout
     assert "identified ['EI', 'c', 'rhoA']" in out.stdout
+
+
+def test_one_grid_advice_and_it_delivers(tmp_path):
+    """The issue's record: ``identify``, ``diagnose`` with its result and ``diagnose`` alone give the same grid
+    advice, and the grid advised resolves what it promises — every listed mode within 5 % of its half-power
+    bandwidth of the analytic clamped–free beam (independent of the model and of the advice's own reference)."""
+    from dataclasses import replace
+
+    from diagnosis.run import diagnose
+    from ebb_model.grid_advice import BANDWIDTH_FRACTION
+    from ebb_model.modal import discrete_frequencies
+    from ebb_model.reference.analytic import analytic_frequencies_hz
+
+    cfg, rec = _model_record(tmp_path / "bench")
+    res = identify(cfg, [rec], tmp_path / "run", progress=False, export=False)
+    with_result = diagnose(cfg, [rec], tmp_path / "gap1", result=res, progress=None)
+    alone = diagnose(cfg, [rec], tmp_path / "gap2", progress=None)
+    advised = res.grid_advice
+    assert advised is not None and advised["nodes_needed"] is not None
+    for d in (with_result, alone):
+        grid = d.document["baseline"]["grid_advice"]
+        assert grid["nodes_needed"] == advised["nodes_needed"], (grid, advised)
+        # at the noise floor with or without the result: no grid verdict for a record the model explains
+        assert d.verdict != "grid", d.document["reason"]
+    # the advice delivers: the advised grid's modes against the closed form, in half-power bandwidths
+    p = res.identified["parameters"]
+    c = res.config
+    fine = replace(c, beam=replace(c.beam, nodes=advised["nodes_needed"]))
+    k = len(advised["frequencies_hz"])
+    f, z = discrete_frequencies(fine, {**c.parameter_values(), **p}, k)
+    exact = analytic_frequencies_hz("clamped", "free", length=0.8, EI=p["EI"], rhoA=p["rhoA"], N=0.0, n_modes=k)
+    err = np.abs(f - exact) / (2 * np.maximum(z, 1e-3) * exact)
+    assert np.all(err <= BANDWIDTH_FRACTION), err
