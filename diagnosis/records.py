@@ -15,7 +15,7 @@ deviation, so a perfect model leaves residuals of unit variance and the
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Sequence
 
 import numpy as np
 
@@ -106,25 +106,3 @@ def split_records(fit: Sequence[tuple[str, np.ndarray, np.ndarray]],
         out.append(Record(f"holdout:{name}", u, y, 0, 0))
     return tuple(out)
 
-
-def records_start(config: Any, space: Any, records: Sequence[Record]) -> np.ndarray:
-    """The baseline's start when no identification result is given: what the fit windows say
-    (:func:`identification.data_start.data_start`, polished in the beam's own coordinates by
-    :func:`identification.polish.polish`, which follows the level's valley where a fit in the config's
-    coordinates stops) or the config's nominal values, whichever fits them better (the sum of the squared output
-    errors)."""
-    from identification.data_start import data_start
-    from identification.native import NativeEvaluator, experiments_from_arrays
-    from identification.polish import polish
-
-    fit = [(r.name, r.inputs[:r.fit_end], r.outputs[:r.fit_end]) for r in records if r.has_fit]
-    nominal = np.asarray(space.nominal, dtype=float)
-    if not fit:
-        return nominal
-    ev = NativeEvaluator(config, space, experiments_from_arrays(fit), stabilising=False)
-    start = data_start(ev)
-    if start is None:
-        return nominal
-    x = polish(ev, start.x, max_evaluations=100).x
-    f = ev.evaluate(np.vstack([nominal, x]))
-    return x if float(np.sum(f[1] ** 2)) < float(np.sum(f[0] ** 2)) else nominal

@@ -57,7 +57,7 @@ from .stages import StageClock
 from .verdict import BIC_MARGIN, UNEXPLAINED
 from .refits import GAP_THRESHOLD
 from .report import html_sections
-from .records import Record, records_start, split_records
+from .records import Record, split_records
 from .result import (BandClosure, BaselineSummary, DiagnosisSettings, EffectRow, GapReport, PatternMatch,
                      RefitSummary)
 from .workers import DaskExecutor, refit_pool
@@ -313,7 +313,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     records = split_records([_ordered(cfg, e) for e in exps], [_ordered(cfg, e) for e in held],
                             holdout_fraction=holdout_fraction)
     space = parameter_space(cfg)
-    beta0 = _start_from_result(result, space.names) if result is not None else records_start(cfg, space, records)
+    beta0 = _start_from_result(result, space.names) if result is not None else np.asarray(space.nominal)
     dt = cfg.time.dt
     given = given_noise_std(cfg, noise_std)
     sigma = given if given is not None else records_noise_std([r.inputs for r in records],

@@ -132,7 +132,7 @@ def _check_pages(out, tmp_path):
     titled, every figure loaded, nothing failed, the verdict and the identified values on them."""
     from browser import render
 
-    verdict, identified = "verdict: boundary_rotational_left", "identified model (polished knee"
+    verdict, identified = "verdict: boundary_rotational_left", "identified model (polished, from "
     pages = {out / "report.html": (["Result", "Identification — Identified model", "Diagnosis — Verdict",
                                     "Diagnosis — Effects", "Diagnosis — Figures", "Identification — Figures"],
                                    [verdict, identified]),
