@@ -62,6 +62,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
                      for s, v in doc["multiplicative_bound_in_band"].items()]
             print(f"uncertainty: multiplicative bound in the band {lo:.3g}–{hi:.3g} Hz: " + "; ".join(parts)
                   + f" ({doc['samples']} sampled models in {bound.parent})")
+            if doc.get("samples_note"):
+                print(f"  {doc['samples_note']}")
     print(f"wrote {res.out_dir / 'pareto.json'}")
     return 0
 

@@ -59,11 +59,12 @@ def fit_hints(sensor_names: Sequence[str], measured: Sequence[np.ndarray], simul
         return []
     y = np.concatenate([np.asarray(m, float) for m in measured])
     h = np.concatenate([np.asarray(s, float) for s in simulated])
-    hy, hh = np.sum(h * y, axis=0), np.sum(h * h, axis=0)
+    hy, hh, yy = np.sum(h * y, axis=0), np.sum(h * h, axis=0), np.sum(y * y, axis=0)
     rr = np.sum((y - h) ** 2, axis=0)
     hints: list[str] = []
     gains = np.where(hh > 0, hy / np.where(hh > 0, hh, 1.0), np.nan)
-    after = rr - np.where(hh > 0, hy * hy / np.where(hh > 0, hh, 1.0), 0.0)
+    # min over a of |y - a h|^2 = |y|^2 - <h, y>^2 / |h|^2
+    after = np.maximum(yy - np.where(hh > 0, hy * hy / np.where(hh > 0, hh, 1.0), 0.0), 0.0)
     wants = []
     for j, s in enumerate(sensor_names):
         if not (gaps[j] > EXAMINED_ABOVE and np.isfinite(gains[j]) and rr[j] > 0):

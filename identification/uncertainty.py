@@ -119,7 +119,18 @@ class UncertaintyModel:
                 "multiplicative_bound_in_band": {
                     s: {"median": float(np.median(w[:, i])), "max": float(np.max(w[:, i]))}
                     for i, s in enumerate(self.output_names)} if w.size else {},
-                "parametric_share_in_band_median": float(np.median(share)) if share.size else None}
+                "parametric_share_in_band_median": float(np.median(share)) if share.size else None,
+                "samples_note": self._samples_note()}
+
+    def _samples_note(self) -> str | None:
+        """Why no model was sampled, when none was."""
+        if self.samples.shape[0]:
+            return None
+        if not np.all(np.isfinite(self.covariance)):
+            return ("no model sampled: the parameters' covariance is not finite (the Fisher information is singular "
+                    "at the identified point; the bound is the fit residual's share alone)")
+        return ("no model sampled: every draw from the parameters' covariance fell outside the search bounds or was "
+                "unstable (the bound is the fit residual's share alone)")
 
 
 def parameter_covariance(matrix: np.ndarray, scales: np.ndarray) -> np.ndarray:

@@ -127,3 +127,18 @@ def test_inputs_driven_by_one_signal_do_not_break_the_residual_response():
     truth = signal.freqz(b, a, worN=f, fs=1e3)[1]
     assert np.allclose(E[:, 0, 0], E[:, 0, 1])
     assert np.median(np.abs(2 * E[:, 0, 0] - truth)) < 0.05 * np.max(np.abs(truth))
+
+
+@pytest.mark.parametrize("covariance, why", [(np.full((2, 2), np.inf), "not finite"), (np.eye(2), "outside")])
+def test_no_sampled_model_says_why(covariance, why):
+    """A bound with no sampled model names the reason: a singular Fisher information (the covariance is not
+    finite) or draws that all left the bounds; with samples there is no note."""
+    from identification.uncertainty import UncertaintyModel
+
+    nf = 4
+    one = np.ones((nf, 1, 1))
+    args = (("EI", "rhoA"), np.ones(2), covariance)
+    rest = (np.linspace(1.0, 4.0, nf), np.ones(nf, bool), one, 0.1 * one, 0.1 * one, ("F1",), ("y1",))
+    empty = UncertaintyModel(*args, np.empty((0, 2)), *rest).summary()
+    assert empty["samples"] == 0 and why in empty["samples_note"]
+    assert UncertaintyModel(*args, np.ones((3, 2)), *rest).summary()["samples_note"] is None
