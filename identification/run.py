@@ -54,7 +54,7 @@ from .native import ExperimentArrays, NativeEvaluator
 from .objectives import objective_names
 from .optimise import CHECKPOINT, ParetoSet, check_settings, knee_index, knee_order, optimise
 from .parameters import ParameterSpace, parameter_space
-from .polish import polish as polish_point
+from .polish import ResidualEvaluator, polish as polish_point
 from .problem import IdentificationProblem
 from .result import RESULT_FILE, IdentificationResult, PolishedPoint
 from .runners import Runner, make_runner
@@ -397,11 +397,12 @@ def _noise_at(evaluator: NativeEvaluator, x: np.ndarray) -> NoiseModel | None:
 
 
 def _better(evaluator: NativeEvaluator, x: np.ndarray, start: DataStart | None) -> np.ndarray:
-    """``x`` or the records' start, whichever fits the records better (sum of the squared output errors)."""
+    """``x`` or the records' start, whichever fits the records better (the polish's sum of squared output errors,
+    each sensor normalised by its spread, whatever the objectives are)."""
     if start is None:
         return x
-    f = evaluator.evaluate(np.vstack([x, start.x]))[:, :len(evaluator.config.output_names)]
-    return start.x if float(np.sum(f[1] ** 2)) < float(np.sum(f[0] ** 2)) else x
+    r = ResidualEvaluator(evaluator).evaluate(np.vstack([x, start.x]))
+    return start.x if float(r[1] @ r[1]) < float(r[0] @ r[0]) else x
 
 
 #: ``from_index`` of the polished point that started from the records' start (not a Pareto point).
