@@ -36,6 +36,7 @@ import numpy as np
 
 from ebb_model.errors import EbbError
 
+from .polish import residual_scale
 from .record_peaks import resonance_peaks
 from .runners import Runner, SerialRunner
 
@@ -163,7 +164,7 @@ class ProjectedCost:
     def evaluate(self, X: np.ndarray) -> np.ndarray:
         out = np.empty((len(X), 2))
         exps = self.evaluator.experiments
-        w = 1.0 / np.maximum(sum(np.sum((e.outputs - e.outputs.mean(axis=0)) ** 2, axis=0) for e in exps), 1e-300)
+        w = 1.0 / residual_scale(exps) ** 2        # the polish's normalisation of each sensor
         yy = float(sum(np.sum(e.outputs ** 2 * w) for e in exps))
         for j, x in enumerate(np.atleast_2d(X)):
             try:
