@@ -17,7 +17,8 @@ def add_modes_arguments(parser: argparse.ArgumentParser) -> None:
                         help="a measured spectrum (.lvm or .csv: frequency [Hz], magnitude) whose resonance peaks "
                              "are fitted with the records as measured natural frequencies")
     parser.add_argument("--modes-count", type=int, default=None, metavar="N",
-                        help="with --modes: the lowest N peaks (default: every peak found)")
+                        help="with --modes: the lowest N peaks (default: the peaks up to the first that breaks "
+                             "a beam's widening mode spacing)")
     parser.add_argument("--modes-band", type=float, nargs=2, default=(1.0, float("inf")), metavar=("LO", "HI"),
                         help="with --modes: the band searched for peaks, Hz (default 1 Hz and up)")
     parser.add_argument("--modes-model-error", type=float, default=0.01, metavar="R",

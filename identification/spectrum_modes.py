@@ -12,8 +12,23 @@ The rule, stated so a user can check it by eye:
   misread as linear keeps its peaks where they are);
 - it is smoothed by a running mean over ``smooth_hz`` (an impulse test's spectrum is noisy bin to bin);
 - a peak counts when it stands ``prominence_db`` above its surroundings (:func:`scipy.signal.find_peaks`'
-  prominence) and within ``within_db`` of the spectrum's largest peak — weaker peaks are the fixture's or
-  torsional modes a beam model does not have —, peaks closer than ``separation_hz`` merged;
+  prominence) and within ``within_db`` of the largest peak within :data:`LEVEL_OCTAVES` octaves of it — a much
+  weaker peak beside a strong one is a fixture's or torsional mode a beam model does not have; the comparison is
+  local because a sensor's response rises or falls by tens of dB across the band (an accelerometer's lowest modes
+  stand 30–40 dB below its highest: measured on a tip accelerance, mode 2 of a cantilever 36 dB under mode 7) —,
+  peaks closer than ``separation_hz`` merged;
+- the peaks are read as the beam's lowest modes in order, so without ``count`` the list stops at the first peak
+  that breaks a beam's widening mode spacing: a uniform beam's modes grow further apart with frequency (any
+  supports, any axial load short of buckling; a taut string's stay evenly spaced), so a peak closer to its
+  predecessor than :data:`SPACING_SHRINK` times the spacing before means one of the two is not the beam's next
+  mode — an alias of a mode above Nyquist (an acquisition without an anti-alias filter folds them into the band),
+  a torsional or a fixture's mode —; which one a magnitude cannot tell (an alias can sit where the next mode
+  would, and the true mode then looks like the intruder), so neither of the pair nor anything above is taken;
+  likewise a spacing that grows by more than :data:`GAP_GROWTH` over the one before means a mode between is
+  missing from the list (too weak, or at a sensor's node), and the peaks above would be numbered wrong: the list
+  ends below the gap (give ``count`` to take peaks beyond).  These catch an image that breaks the pattern, not
+  one that happens to fall where the next mode could be: an acquisition without an anti-alias filter can fold
+  images anywhere, and only the filter removes them;
 - its frequency is the vertex of a parabola fitted by least squares to the unsmoothed dB within 3 dB of the
   peak's top (its half-power band), within ``smooth_hz`` of the smoothed peak — smoothing locates a peak, it
   does not place it (a running mean wider than a peak's half-power band pulls it towards the slope of its
@@ -34,12 +49,23 @@ from ebb_model.errors import DataError
 
 from .modal_data import ModalData
 
-__all__ = ["PEAK_BIAS", "spectrum_modes"]
+__all__ = ["GAP_GROWTH", "LEVEL_OCTAVES", "PEAK_BIAS", "SPACING_SHRINK", "spectrum_modes"]
 
 #: Relative bias of a parabola in dB over a resonance's half-power band: a resonance's dB is not a parabola there,
 #: and its neighbours tilt it — measured up to 2.7e-4 f on a noise-free four-mode accelerance at 0.05 Hz bins
 #: (tests/test_spectrum_modes.py); kept in every pick's uncertainty.
 PEAK_BIAS = 3e-4
+#: Octaves either side of a peak among which the strongest peak sets its level reference (``within_db``).
+LEVEL_OCTAVES = 1.0
+#: A peak's spacing to its predecessor below this share of the spacing before ends the list of the beam's modes
+#: (module docstring).  A uniform beam's spacing never shrinks; 0.8 leaves a fifth for a peak's uncertainty and for
+#: attachments that shift single modes (a tip mass of the beam's own mass: spacings 14.7, 34.6, 54.3 in units of
+#: its first frequency, still widening).
+SPACING_SHRINK = 0.8
+#: Largest growth of one mode spacing over the one before that a beam's list without a missing mode shows: for
+#: the second spacing over the first 3.0 (uniform beams up to 2.14, a cantilever's; with a mode missing at least
+#: 3.5, a clamped–clamped beam's), beyond it 1.8 (uniform beams up to 1.5; with a mode missing at least 2).
+GAP_GROWTH = (3.0, 1.8)
 
 
 def spectrum_modes(path: str | Path, *, count: int | None = None, band_hz: tuple[float, float] = (1.0, math.inf),
@@ -78,7 +104,10 @@ def spectrum_modes(path: str | Path, *, count: int | None = None, band_hz: tuple
     width = max(1, int(round(smooth_hz / df)) | 1)                  # odd: centred
     smooth = np.convolve(db, np.ones(width) / width, mode="same")
     peaks, _ = find_peaks(smooth, prominence=prominence_db, distance=max(1, int(separation_hz / df)))
-    peaks = np.array([i for i in peaks if smooth[i] >= smooth[peaks].max() - within_db and 0 < i < f.size - 1])
+    peaks = np.array([i for i in peaks
+                      if 0 < i < f.size - 1 and smooth[i] >= _local_top(f, smooth, peaks, i) - within_db], dtype=int)
+    if count is None:
+        peaks = peaks[:_widening(f[peaks])]
     if peaks.size == 0 or (count is not None and peaks.size < count):
         raise DataError(f"{src}: {peaks.size} resonance peak(s) stand {prominence_db:g} dB above their "
                         f"surroundings in {band_hz[0]:g}-{band_hz[1]:g} Hz"
@@ -87,6 +116,25 @@ def spectrum_modes(path: str | Path, *, count: int | None = None, band_hz: tuple
     freq = np.array([v for v, _ in fits])
     std = np.sqrt(np.array([e for _, e in fits]) ** 2 + df ** 2 / 12.0 + ((PEAK_BIAS + model_error) * freq) ** 2)
     return ModalData(freq, std)
+
+
+def _local_top(f: np.ndarray, smooth: np.ndarray, peaks: np.ndarray, i: int) -> float:
+    """Level of the strongest of ``peaks`` within :data:`LEVEL_OCTAVES` octaves of bin ``i``."""
+    near = peaks[np.abs(np.log2(f[peaks] / f[i])) <= LEVEL_OCTAVES]
+    return float(smooth[near].max())
+
+
+def _widening(freq: np.ndarray) -> int:
+    """How many of the ascending peaks ``freq`` are read as the beam's lowest modes: up to the first pair that
+    breaks a beam's widening spacing (:data:`SPACING_SHRINK`; the pair left out) or below the first gap where a
+    mode is missing (:data:`GAP_GROWTH`)."""
+    gaps = np.diff(freq)
+    for k in range(1, gaps.size):
+        if gaps[k] < SPACING_SHRINK * gaps[k - 1]:
+            return k
+        if gaps[k] > GAP_GROWTH[0 if k == 1 else 1] * gaps[k - 1]:
+            return k + 1
+    return freq.size
 
 
 def _vertex(f: np.ndarray, db: np.ndarray, smooth: np.ndarray, j: int) -> tuple[float, float]:
