@@ -22,7 +22,7 @@ import numpy as np
 
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
-from ebb_model.adequacy import excited_band, numerical_adequacy
+from ebb_model.adequacy import NOISE_FLOOR_EXCESS, excited_band, numerical_adequacy
 from ebb_model.htmlio import PAGE, write_page
 from ebb_model.grid_advice import grid_advice
 from ebb_model.jsonio import write_json
@@ -57,7 +57,7 @@ from .stages import StageClock
 from .verdict import BIC_MARGIN, UNEXPLAINED
 from .refits import GAP_THRESHOLD
 from .report import html_sections
-from .records import Record, split_records
+from .records import Record, records_start, split_records
 from .result import (BandClosure, BaselineSummary, DiagnosisSettings, EffectRow, GapReport, PatternMatch,
                      RefitSummary)
 from .workers import DaskExecutor, refit_pool
@@ -337,6 +337,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                     r.outputs - y for r, y in zip(records, problem.simulate(baseline.beta, until="all"))], dt))
                 baseline = problem.fit(baseline.beta)
             say("noise model: " + "; ".join(problem.noise_model.describe(cfg.output_names, [r.name for r in records])))
+        with clock.stage("baseline from the records' start"):
+            baseline = _floor_from_the_records(problem, baseline, say)
         sigma = problem.noise_std
         base_cfg, base_params = space.apply(cfg, baseline.beta)
         f_lo, f_hi = excited_band([r.inputs for r in records], dt)
@@ -406,6 +408,24 @@ def _baseline_fit(problem: GapProblem, beta0: np.ndarray) -> tuple[GapProblem, F
     basins = problem.baseline_basins(beta0, n_basins=3)
     problem = replace(problem, other_starts=tuple(problem.fit(b, max_evaluations=60).beta for b in basins[1:]))
     return problem, problem.fit(basins[0])
+
+
+def _floor_from_the_records(problem: GapProblem, baseline: Fit, say: Callable[[str], None]) -> Fit:
+    """The baseline, or — when it leaves a gap and the records' own start (:func:`diagnosis.records.records_start`)
+    explains the records to the noise floor — the fit from that start: then there is no gap to diagnose, the fit
+    from the config's values stopped in another basin (a lightly damped record's level valley)."""
+    floor = 1.0 + NOISE_FLOOR_EXCESS
+    if baseline.rss / baseline.n <= floor:
+        return baseline
+    x = records_start(problem)
+    if x is None:
+        return baseline
+    fit = problem.fit(x)
+    if fit.rss / fit.n > floor:
+        return baseline
+    say(f"the baseline from the start given stopped at {baseline.rss / baseline.n:.3g} noise variances; from the "
+        f"records' own start it reaches the noise floor ({fit.rss / fit.n:.3g}): that fit is the baseline")
+    return fit
 
 
 def _catalogue(problem: GapProblem, base_cfg: BeamConfig, base_params: Mapping[str, float], mf: np.ndarray,

@@ -72,8 +72,8 @@ def verdict_rule(before: np.ndarray, refits: Mapping[str, EffectRefit], paying: 
     paying = [lab for lab in paying if not _insignificant_part(lab, refits)]
     excess = float(np.mean(before)) - 1.0
     if excess < GAP_THRESHOLD:
-        return "none", [], (f"the held-out residual variance is only {excess:+.0%} above the noise floor "
-                            f"(threshold {GAP_THRESHOLD:.0%}): nothing to explain")
+        return "none", [], (f"the held-out residual variance is {excess + 1:.3g}× the noise variance, within "
+                            f"{GAP_THRESHOLD:.0%} of the noise floor: nothing to explain")
     if not paying:
         return UNEXPLAINED, [], (f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the "
                                  f"noise variance, but no candidate effect improves BIC by more than {BIC_MARGIN:g} "
