@@ -13,16 +13,23 @@
 * ``corrected.json`` — effect and baseline parameters with units, held-out gap before/after, and which file
   carries what.
 
-A model that is not time-invariant (axial drift, geometric stiffening) has no ``corrected.npz``; its FMU carries the
-refitted beam without the effect (``corrected.json`` says so).
+A part that adds a constant to a reading (a sensor offset) keeps the model time-invariant but makes it affine: the
+StateSpace carries the linear part, ``corrected.json``'s ``output_offsets`` the constants (the parts' own
+``outputs`` applied to zero readings — nothing to declare beyond the part itself).  A model that is not
+time-invariant (axial drift, geometric stiffening), a part that declares no StateSpace form, a constant force on
+the beam, or a declared form that does not reproduce the part's simulation (checked on a probe, every export) has
+no ``corrected.npz``; ``corrected.json`` says which, and its FMU carries the refitted beam without the effect.
+What each file carries is the export target's own words (``carries`` of its module).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
-from types import MappingProxyType
 from typing import Any, Mapping, Sequence
 
-from ebb_model import DiscreteStateSpace, assemble
+import numpy as np
+
+from ebb_model import DiscreteStateSpace, assemble, simulate
 from ebb_model.output import atomic_path, make_dir
 from ebb_model.jsonio import write_json
 from ebb_model.truncation import design_model
@@ -30,37 +37,111 @@ from identification.export_targets import DEFAULT_TARGETS
 
 from .effects import AugmentedModel
 
-__all__ = ["corrected_statespace", "export_corrected"]
+__all__ = ["StateSpaceForm", "corrected_statespace", "export_corrected", "statespace_form"]
+
+#: The StateSpace form must reproduce the diagnosis' simulation of the model to this share of the output's
+#: largest value on a probe (the exact series connection agrees to ~1e-11: tests/test_corrected.py).
+FORM_TOLERANCE = 1e-8
+#: Samples of the probe input the form is checked on.
+PROBE_SAMPLES = 400
 
 
-def corrected_statespace(model: AugmentedModel, beam: DiscreteStateSpace | None = None
-                         ) -> DiscreteStateSpace | None:
-    """The corrected model as one discrete system, or ``None`` when it is not time-invariant (drift, stretching).
+@dataclass(frozen=True)
+class StateSpaceForm:
+    """The corrected model as a discrete system and constant offsets of its readings, or why there is none.
 
-    The beam's system (``beam``, assembled from the model when not given) with each signal part in series
-    (:meth:`diagnosis.effects.Signal.in_series`).
+    Attributes
+    ----------
+    system
+        The beam with each signal part in series (:meth:`diagnosis.effects.Signal.in_series`); ``None`` when
+        the model has no such form (``reason`` says why).
+    output_offsets
+        Per sensor, the constant a part adds to its reading (a sensor offset: the model is time-invariant and
+        affine, ``y = system's output + offset``); empty when none.
+    reason
+        Why there is no ``system``: not time-invariant, a part declaring no StateSpace, an input offset, or a form
+        that does not reproduce the diagnosis' simulation.
+    """
+
+    system: DiscreteStateSpace | None
+    output_offsets: Mapping[str, float]
+    reason: str | None = None
+
+
+def _parts(model: AugmentedModel) -> str:
+    return "; ".join(dict.fromkeys(part.description for part in model.signals))
+
+
+def _constant_terms(model: AugmentedModel) -> tuple[np.ndarray, np.ndarray]:
+    """What the parts make of a zero force and of zero readings, held (steady): the affine terms."""
+    cfg, dt = model.config, model.config.time.dt
+    u = np.zeros((2, len(cfg.actuators)))
+    y = np.zeros((2, len(cfg.sensors)))
+    for part in model.signals:
+        u = part.inputs(u, dt)
+    for part in model.signals:
+        y = part.outputs(y, dt, cfg.output_names)
+    return np.asarray(u[-1], dtype=float), np.asarray(y[-1], dtype=float)
+
+
+def _in_series(model: AugmentedModel, beam: DiscreteStateSpace) -> DiscreteStateSpace | None:
+    sys: DiscreteStateSpace | None = beam
+    for part in model.signals:
+        sys = part.in_series(sys)
+        if sys is None:
+            return None
+    return sys
+
+
+def statespace_form(model: AugmentedModel, beam: DiscreteStateSpace | None = None) -> StateSpaceForm:
+    """The corrected model as one discrete system plus constant reading offsets (:class:`StateSpaceForm`).
+
+    The beam's system (``beam``, e.g. a design model; default the whole beam assembled from the model) with each
+    signal part in series; the affine terms are what the parts make of zero signals.  The form is checked
+    against the diagnosis' own simulation (:func:`diagnosis.augmented.simulate_effects`) of the whole beam on a
+    probe input: a part whose declared StateSpace (``in_series``) does not reproduce what it does to the signals
+    gives no system rather than a wrong one.
 
     Raises
     ------
     StabilityError
         The corrected beam is unstable.
     """
+    from .augmented import simulate_effects
+
+    parts = _parts(model)
     if not model.time_invariant:
-        return None
-    sys = assemble(model.config, model.params) if beam is None else beam
-    for part in model.signals:
-        sys = part.in_series(sys)
-    return sys
+        return StateSpaceForm(None, {}, f"{parts}: not time-invariant")
+    cfg = model.config
+    full = assemble(cfg, model.params)
+    whole = _in_series(model, full)
+    if whole is None:
+        missing = [p.description for p in model.signals if p.in_series(full) is None]
+        return StateSpaceForm(None, {}, f"{missing[0] if missing else parts}: declares no StateSpace form "
+                                        "(Signal.in_series)")
+    force, readings = _constant_terms(model)
+    if np.any(force != 0.0):
+        return StateSpaceForm(None, {}, f"{parts}: a constant force on the beam (an input offset) has no "
+                                        "StateSpace form")
+    # the check: the form against the simulation, on a smooth probe started away from zero
+    rng = np.random.default_rng(0)
+    u = np.cumsum(rng.standard_normal((PROBE_SAMPLES, len(cfg.actuators))), axis=0)
+    y_sim = simulate_effects(cfg, model.params, u, model.signals)
+    y_form = simulate(whole, u).outputs + readings
+    scale = float(np.max(np.abs(y_sim))) or 1.0
+    off = float(np.max(np.abs(y_form - y_sim))) / scale
+    if not off <= FORM_TOLERANCE:
+        return StateSpaceForm(None, {}, f"{parts}: its StateSpace form (Signal.in_series) does not reproduce its "
+                                        f"simulation (off by {off:.2g} of the largest output on a probe)")
+    sys = whole if beam is None else _in_series(model, beam)
+    offsets = {name: float(v) for name, v in zip(cfg.output_names, readings) if v != 0.0}
+    return StateSpaceForm(sys, offsets)
 
 
-#: What each export target of :data:`identification.export_targets.TARGETS` writes of the corrected model, and what that
-#: file carries (``{parts}``: the model's signal-level parts, ``{without}``: the FMU's note about them).
-_CARRIES: Mapping[str, tuple[str, str]] = MappingProxyType({
-    "statespace": ("corrected.npz", "StateSpace of the corrected model{parts}"),
-    "fmu": ("corrected.fmu", "FMU of the corrected beam{without}"),
-    "standalone": ("corrected_standalone.fmu", "standalone C FMU of the corrected beam (no Python at run time)"
-                                               "{without}"),
-})
+def corrected_statespace(model: AugmentedModel, beam: DiscreteStateSpace | None = None
+                         ) -> DiscreteStateSpace | None:
+    """The system of :func:`statespace_form` (``None`` when the model has none)."""
+    return statespace_form(model, beam).system
 
 
 def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mapping[str, Any], *,
@@ -79,8 +160,7 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
         An unknown target name (before anything is written).
     """
     from ebb_model.tomlio import dumps as toml_dumps
-    from identification.export_targets import check_targets, export_target
-    from identification.export_targets import ExportItem
+    from identification.export_targets import ExportItem, check_targets, export_target, target_carries
 
     targets = check_targets(targets)
     out = Path(out_dir)
@@ -89,24 +169,26 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
     written = [out / "corrected.toml"]
     with atomic_path(written[0]) as tmp:
         tmp.write_text(toml_dumps(cfg.to_dict()))
-    carries: dict[str, str] = {"corrected.toml": "config with the refitted values (structural effects included)"}
+    carries: dict[str, Any] = {"corrected.toml": "config with the refitted values (structural effects included)"}
     beam = assemble(model.config, model.params)
     # the StateSpace for control design: the modes up to the Nyquist frequency, the rest as a static correction
-    sys = corrected_statespace(model, design_model(model.config, model.params)) if model.time_invariant else None
-    parts = "; ".join(dict.fromkeys(part.description for part in model.signals))
-    words = {"parts": f" ({parts} as states in series)" if parts else "",
-             "without": f" (without {parts}: a signal effect outside the FMU's model)" if parts else ""}
-    item = ExportItem("corrected", "corrected", cfg, model.params, sys if sys is not None else beam,
-                      beam_system=beam)
+    form = statespace_form(model, design_model(model.config, model.params))
+    item = ExportItem("corrected", "corrected", cfg, model.params,
+                      form.system if form.system is not None else beam, beam_system=beam, parts=_parts(model))
     for name in targets:
-        if name == "statespace" and sys is None:
+        if name == "statespace" and form.system is None:
             continue
-        written.extend(export_target(name)(item, out))
-        if name in _CARRIES:
-            file, what = _CARRIES[name]
-            carries[file] = what.format(**words)
-    if sys is None:
-        carries["note"] = (f"{parts} not time-invariant: no StateSpace; the FMU carries the refitted beam "
-                           "without it")
-    written.append(write_json(out / "corrected.json", dict(summary) | {"files": carries}))
+        files = export_target(name)(item, out)
+        written.extend(files)
+        for f in files:
+            carries[f.name] = target_carries(name, item)
+    extra: dict[str, Any] = {}
+    if form.output_offsets:
+        units = {s.name: s.unit for s in model.config.sensors}
+        extra["output_offsets"] = {k: {"value": v, "unit": units.get(k, "")} for k, v in form.output_offsets.items()}
+        carries["note"] = ("a sensor reads the StateSpace's output plus a constant (output_offsets): the model is "
+                           "time-invariant and affine")
+    if form.system is None and "statespace" in targets:
+        carries["note"] = f"no StateSpace: {form.reason}; the FMU carries the refitted beam without it"
+    written.append(write_json(out / "corrected.json", dict(summary) | extra | {"files": carries}))
     return written

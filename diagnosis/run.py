@@ -437,7 +437,9 @@ def _catalogue(problem: GapProblem, base_cfg: BeamConfig, base_params: Mapping[s
                     length=base_cfg.beam.length, omega_low=2 * np.pi * float(mf[0]),
                     omega_high=2 * np.pi * max(float(mf[-1]), f_hi),
                     duration=max(r.fit_end for r in fit_records) * base_cfg.time.dt,
-                    stretch_max=_stretch_max(base_cfg, base_params, fit_records))
+                    stretch_max=_stretch_max(base_cfg, base_params, fit_records),
+                    output_rms=tuple(float(v) for v in np.sqrt(np.mean(np.concatenate(
+                        [r.outputs[:r.fit_end] for r in fit_records]) ** 2, axis=0))))
     return Catalogue(base_cfg, scales, tuple(problem.space.names))
 
 

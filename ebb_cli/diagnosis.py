@@ -31,8 +31,18 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     print(text_report(d.report))
     print(f"wrote {d.out_dir / 'gap.json'}")
     if d.report.corrected_files:
-        print(f"wrote the corrected model (config, StateSpace, FMU) to {d.out_dir / 'corrected'}")
+        _say_corrected(d.out_dir / "corrected")
     return 0
+
+
+def _say_corrected(folder: Path) -> None:
+    """What the corrected model's folder holds, in the words of its ``corrected.json`` (the export targets')."""
+    import json
+
+    files = json.loads((folder / "corrected.json").read_text(encoding="utf-8"))["files"]
+    print(f"wrote the corrected model to {folder}:")
+    for name, what in files.items():
+        print(f"  {name}: {what}" if name != "note" else f"  note: {what}")
 
 
 def _each(args: argparse.Namespace, say: Callable[[str], None]) -> int:
@@ -80,7 +90,8 @@ def add_parsers(sub: Subcommands) -> None:
                    help="diagnose each record on its own, as independent tasks (OUT/<record stem>/ per record)")
     p.add_argument("--no-plots", action="store_true", help="skip the report plots")
     p.add_argument("--no-export", action="store_true",
-                   help="do not write the corrected model (config, StateSpace, FMU) when an effect is named")
+                   help="do not write the corrected model (config and the export targets' files) when an "
+                        "effect is named")
     add_target_argument(p, "export targets of the corrected model")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=_cmd_diagnose)

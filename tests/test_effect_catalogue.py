@@ -6,6 +6,7 @@ here as a user would write a new module, runs through all of them with no other 
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -13,7 +14,7 @@ import pytest
 import ebb_model as em
 from diagnosis.augmented import simulate_effects
 from diagnosis.corrected import corrected_statespace
-from diagnosis.effects import (EFFECT_NAMES, FAMILIES, AugmentedModel, Scales, candidate_effects,
+from diagnosis.effects import (EFFECT_NAMES, FAMILIES, AugmentedModel, Scales, Signal, candidate_effects,
                                pair_effect, signal_effect)
 from diagnosis.effects.chain import SensorGain
 from diagnosis.effects.lag import ActuatorLag, first_order_lag
@@ -33,15 +34,20 @@ SCALES = Scales(EI=10.0, rhoA=1.0, N=20.0, length=1.0, omega_low=20.0, omega_hig
 
 
 def test_families_build_the_catalogue_in_report_order():
-    labels = [e.label for e in candidate_effects(bench("clamped", "clamped"), SCALES)]
-    assert labels == ["boundary_rotational_left", "boundary_translational_left", "boundary_rotational_right",
-                      "boundary_translational_right", "point_mass", "transducer_mass[y1]",
-                      "transducer_mass[a2]", "grounded_spring", "shaker_armature[F1]", "stiffness_loss",
-                      "kelvin_voigt", "rotary_inertia",
-                      "foundation", "actuator_lag", "sensor_lag[y1]", "sensor_lag[a2]", "actuator_gain",
-                      "sensor_gain[y1]", "sensor_gain[a2]", "axial_drift", "geometric_stiffening"]
-    assert {e.name for e in candidate_effects(bench("clamped", "clamped"), SCALES)} == set(EFFECT_NAMES)
-    assert len(EFFECT_NAMES) == len(set(EFFECT_NAMES)) == 18 and len(FAMILIES) == 9
+    """The catalogue is its families' candidates, family by family in registry order — derived from the registry,
+    not a list kept by hand: each family's candidates carry its names, every name of the registry is a candidate
+    on a bench with both ends constrained and sensors of two kinds, and no label repeats."""
+    cfg = bench("clamped", "clamped")
+    effects = candidate_effects(cfg, SCALES)
+    by_family = [f.candidates(cfg, SCALES, ()) for f in FAMILIES]
+    assert [e.label for e in effects] == [e.label for group in by_family for e in group]
+    for family, group in zip(FAMILIES, by_family):
+        assert group and {e.name for e in group} <= set(family.names), family.names
+    assert {e.name for e in effects} == set(EFFECT_NAMES) and len(EFFECT_NAMES) == len(set(EFFECT_NAMES))
+    assert len({e.label for e in effects}) == len(effects)
+    # a sensor-targeted family has one candidate per sensor, labelled by it
+    lags = [e.label for e in effects if e.name == "sensor_lag"]
+    assert lags == [f"sensor_lag[{s.name}]" for s in cfg.sensors]
     # an identified parameter is no candidate; stretching needs both ends axially fixed
     free = [e.label for e in candidate_effects(bench("clamped", "free"), SCALES, identified=("eta",))]
     assert "kelvin_voigt" not in free and "geometric_stiffening" not in free and "axial_drift" in free
@@ -146,3 +152,160 @@ def test_diagnose_names_and_exports_an_effect_added_the_documented_way(tmp_path,
     corrected = json.loads((out / "corrected" / "corrected.json").read_text())
     assert corrected["effect"] == "sensor_gain[y2]"
     assert corrected["effect_parameters"]["gain"]["unit"] == "1"
+
+
+# --- an output-level effect and an export target, each added exactly as docs/architecture.md says (issue 52) ---------
+@dataclass(frozen=True)
+class SensorOffset(Signal):
+    """A new module's signal part: a constant added to one sensor's reading (nothing else declared)."""
+
+    sensor: str
+    offset: float
+    description = "a constant offset of a sensor's reading"
+
+    def outputs(self, y: np.ndarray, dt: float, names: tuple[str, ...]) -> np.ndarray:
+        out = np.array(y, dtype=float)
+        out[:, names.index(self.sensor)] += self.offset
+        return out
+
+
+def sensor_offset_candidates(config, scales: Scales, identified: tuple[str, ...]):
+    """The new family's builder: one offset per sensor, searched within half the reading's RMS either side."""
+    return tuple(signal_effect("sensor_offset", s.name, "offset", (-0.5 * rms, 0.5 * rms), 0.0,
+                               f"a constant offset of sensor {s.name}",
+                               lambda v, name=s.name: SensorOffset(name, v), "offset", s.unit)
+                 for s, rms in zip(config.sensors, scales.output_rms))
+
+
+MAT_TARGET = '''
+"""Export target ``mat``: the model's matrices for MATLAB (``<stem>.mat``)."""
+from pathlib import Path
+
+from scipy.io import savemat
+
+from ebb_model.output import atomic_path
+
+
+def write(item, out_dir: Path) -> list[Path]:
+    path = out_dir / f"{item.stem}.mat"
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            savemat(fh, {"A": item.system.A, "B": item.system.B, "C": item.system.C, "D": item.system.D,
+                         "dt": item.system.dt})
+    return [path]
+'''
+
+
+def test_an_offset_and_a_mat_target_added_the_documented_way(tmp_path, monkeypatch, capsys):
+    """A sensor offset (a :class:`Signal` subclass and its family's line) and a ``mat`` export target (a module and
+    its line in ``TARGETS``), touching nothing else: ``ebb diagnose`` names the offset (0.2 mm on ``y1``), writes
+    the corrected model through both targets, lists every file in ``corrected.json`` in the targets' words, gives
+    the offset as an affine term beside the StateSpace (the model is time-invariant), and says so on the console.
+
+    The record: the independent FE generator without a withheld effect, then 0.2 mm added to ``y1``'s readings, as
+    an offset of a displacement sensor does."""
+    import json
+    import sys
+    from types import MappingProxyType
+
+    import diagnosis.effects as catalogue
+    import identification.export_targets as export_targets
+    from diagnosis.effects.base import Family
+    from ebb_cli import main
+    from ebb_model.reference.synthetic import synthesize
+    from identification.export_statespace import load_statespace
+    from test_diagnose_cli import _toml
+    from test_diagnosis_blind import DT, bench_config
+
+    monkeypatch.setattr(catalogue, "FAMILIES", FAMILIES + (Family(("sensor_offset",), sensor_offset_candidates),))
+    (tmp_path / "targets").mkdir()
+    (tmp_path / "targets" / "mat_target.py").write_text(MAT_TARGET)
+    monkeypatch.syspath_prepend(str(tmp_path / "targets"))
+    registry = dict(export_targets.TARGETS) | {"mat": "mat_target"}      # the registry's one new line
+    monkeypatch.setattr(export_targets, "TARGETS", MappingProxyType(registry))
+    cfg = bench_config()
+    (tmp_path / "bench.toml").write_text(_toml(cfg))
+    files = []
+    for seed in (41, 42):
+        u = band_limited_input(3000, DT, 2.0, 60.0, seed=seed)
+        rec = synthesize(cfg, u, noise=0.01, seed=seed)
+        path = tmp_path / f"rec{seed}.csv"
+        rec.to_csv(path)
+        lines = path.read_text().splitlines()
+        k = lines[0].split(",").index("y1")
+        rows = [[float(v) for v in line.split(",")] for line in lines[1:]]
+        for r in rows:
+            r[k] += 2e-4
+        path.write_text("\n".join([lines[0]] + [",".join(repr(v) for v in r) for r in rows]) + "\n")
+        files.append(path)
+    out = tmp_path / "gap"
+    rc = main(["diagnose", str(tmp_path / "bench.toml"), str(files[0]), "--holdout", str(files[1]), "--out", str(out),
+               "--workers", "1", "--no-plots", "--target", "statespace", "fmu", "mat"])
+    console = capsys.readouterr().out
+    assert rc == 0
+    doc = json.loads((out / "gap.json").read_text())
+    assert doc["verdict"] == "sensor_offset[y1]", doc["reason"]
+    refit = doc["effects"][0]["refit"]
+    # within 2 %: 1 % noise on 3000 samples leaves the mean's standard error ~1e-6 m; the rest is the baseline's
+    assert abs(refit["effect_parameters"]["offset"] - 2e-4) < 4e-6 and refit["closed"] >= 0.9, refit
+    corrected = json.loads((out / "corrected" / "corrected.json").read_text())
+    carries = corrected["files"]
+    assert set(carries) >= {"corrected.toml", "corrected.npz", "corrected.fmu", "corrected.mat", "note"}, carries
+    assert carries["corrected.mat"] == "written by the export target 'mat'"
+    assert carries["corrected.npz"].startswith("StateSpace of the model")
+    assert corrected["output_offsets"]["y1"]["unit"] == "m"
+    assert abs(corrected["output_offsets"]["y1"]["value"] - refit["effect_parameters"]["offset"]) < 1e-12
+    for name in carries:
+        if name != "note":
+            assert (out / "corrected" / name).is_file(), name
+            assert f"  {name}: {carries[name]}" in console, console
+    assert "affine" in console and "not time-invariant" not in console
+    sys_ = load_statespace(out / "corrected" / "corrected.npz")
+    assert sys_.nstates > 0 and "mat_target" in sys.modules
+
+
+@pytest.mark.parametrize("order", ["lag first", "offset first"])
+def test_an_offset_paired_with_a_lag_is_exported(tmp_path, order):
+    """The pair offset + actuator lag (either order): the StateSpace written, and with the offsets beside it
+    reproducing the diagnosis' own simulation to round-off (the exact series connection: 1e-11 of the largest
+    output, as the lags alone)."""
+    import json
+
+    from diagnosis.corrected import export_corrected, statespace_form
+
+    cfg = bench()
+    parts = (ActuatorLag(1e-3), SensorOffset("y1", 2e-4))
+    parts = parts if order == "lag first" else parts[::-1]
+    model = AugmentedModel(cfg, cfg.parameter_values(), parts)
+    form = statespace_form(model)
+    assert form.system is not None and form.output_offsets == {"y1": 2e-4}, form
+    u = band_limited_input(1200, cfg.time.dt, 2.0, 150.0, seed=5)
+    y_ref = simulate_effects(cfg, cfg.parameter_values(), u, parts)
+    y = em.simulate(form.system, u).outputs + np.array([2e-4, 0.0])
+    np.testing.assert_allclose(y, y_ref, rtol=0, atol=1e-11 * np.abs(y_ref).max())
+    export_corrected(model, tmp_path / "c", {"effect": "pair"})
+    doc = json.loads((tmp_path / "c" / "corrected.json").read_text())
+    assert "corrected.npz" in doc["files"] and doc["output_offsets"]["y1"]["value"] == 2e-4
+
+
+def test_a_part_whose_statespace_form_is_wrong_gives_none(tmp_path):
+    """A gain that forgets to declare its StateSpace form (the default ``in_series`` leaves the system as it is) is
+    caught by the probe: no StateSpace, and the reason, rather than a wrong file."""
+    import json
+
+    from diagnosis.corrected import export_corrected, statespace_form
+
+    @dataclass(frozen=True)
+    class Forgetful(Signal):
+        description = "a gain without its StateSpace form"
+
+        def outputs(self, y, dt, names):
+            return 1.5 * np.asarray(y, dtype=float)
+
+    cfg = bench()
+    model = AugmentedModel(cfg, cfg.parameter_values(), (Forgetful(),))
+    form = statespace_form(model)
+    assert form.system is None and "does not reproduce" in form.reason, form
+    export_corrected(model, tmp_path / "c", {"effect": "forgetful"})
+    doc = json.loads((tmp_path / "c" / "corrected.json").read_text())
+    assert "corrected.npz" not in doc["files"] and "does not reproduce" in doc["files"]["note"]

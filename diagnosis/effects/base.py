@@ -40,6 +40,9 @@ class Scales:
     stretch_max
         Largest ``∫ w_x² dx`` of the baseline response over the record (for the
         geometric-stiffening bound); 0 when unknown.
+    output_rms
+        Root-mean-square reading of each sensor over the fitted records, in the config's sensor order (what an
+        output-level effect — an offset, a drift of a reading — sizes its bounds from); empty when unknown.
     """
 
     EI: float
@@ -50,6 +53,7 @@ class Scales:
     omega_high: float
     duration: float
     stretch_max: float = 0.0
+    output_rms: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,10 @@
 """Export targets of identified models: one module per target, registered in :data:`TARGETS`.
 
 A target module provides ``write(item: ExportItem, out_dir: Path) -> list[Path]``, which writes the files of one
-identified model into ``out_dir`` (named after ``item.stem``) and returns them. Adding a target is one module
-here and one line in the registry.
+identified model into ``out_dir`` (named after ``item.stem``) and returns them, and may provide
+``carries(item: ExportItem) -> str``, what those files carry in words (``corrected.json``'s file map and the
+console say it; without it: "written by the export target NAME"). Adding a target is one module here and one
+line in the registry.
 
 ``statespace`` — python-control StateSpace (``.npz``, and a balanced truncation on request); ``fmu`` — the
 pythonfmu FMU; ``standalone`` — the standalone C FMU (no Python at run time).
@@ -19,7 +21,7 @@ from typing import Any
 from ebb_model import BeamConfig, DiscreteStateSpace
 from ebb_model.errors import ConfigError
 
-__all__ = ["DEFAULT_TARGETS", "ExportItem", "TARGETS", "check_targets", "export_target"]
+__all__ = ["DEFAULT_TARGETS", "ExportItem", "TARGETS", "check_targets", "export_target", "target_carries"]
 
 #: Export targets: name → module of :mod:`identification.export_targets` providing ``write(item, out_dir)``.
 TARGETS: Mapping[str, str] = MappingProxyType({
@@ -40,6 +42,13 @@ def export_target(name: str) -> Callable[[ExportItem, Path], list[Path]]:
         ``name`` is not in :data:`TARGETS` (the message lists them).
     """
     return importlib.import_module(TARGETS[check_targets([name])[0]]).write
+
+
+def target_carries(name: str, item: ExportItem) -> str:
+    """What the files export target ``name`` writes of ``item`` carry, in words (its module's ``carries``)."""
+    module = importlib.import_module(TARGETS[check_targets([name])[0]])
+    carries = getattr(module, "carries", None)
+    return carries(item) if carries is not None else f"written by the export target {name!r}"
 
 
 def check_targets(targets: Sequence[str]) -> tuple[str, ...]:
@@ -80,6 +89,9 @@ class ExportItem:
         Target options (``reduce_order`` for ``statespace``).
     beam_system
         The whole beam alone (what an FMU carries: every mode, no signal parts); ``None``: ``system``.
+    parts
+        The signal-level parts ``system`` has in series and ``beam`` has not, in words ("" for none: a corrected
+        model's lags and gains, :mod:`diagnosis.corrected`).
     """
 
     stem: str
@@ -89,6 +101,7 @@ class ExportItem:
     system: DiscreteStateSpace
     options: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     beam_system: DiscreteStateSpace | None = None
+    parts: str = ""
 
     @property
     def beam(self) -> DiscreteStateSpace:

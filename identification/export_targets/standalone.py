@@ -6,7 +6,13 @@ from pathlib import Path
 
 from . import ExportItem
 
-__all__ = ["write"]
+__all__ = ["carries", "write"]
+
+
+def carries(item: ExportItem) -> str:
+    """What the file carries."""
+    without = f" (without {item.parts}: a signal effect outside the FMU's model)" if item.parts else ""
+    return "standalone C FMU of the beam (no Python at run time)" + without
 
 
 def write(item: ExportItem, out_dir: Path) -> list[Path]:

@@ -13,7 +13,12 @@ from ebb_model.jsonio import write_json
 from ..export_statespace import balanced_truncation, save_statespace
 from . import ExportItem
 
-__all__ = ["write"]
+__all__ = ["carries", "write"]
+
+
+def carries(item: ExportItem) -> str:
+    """What the files carry."""
+    return "StateSpace of the model" + (f" ({item.parts} as states in series)" if item.parts else "")
 
 
 def write(item: ExportItem, out_dir: Path) -> list[Path]:
