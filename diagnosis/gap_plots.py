@@ -27,8 +27,16 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, effects: Mappi
     if rows:
         fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 0.5 * len(report.effects) + 2))
         labels = [r.label for r in report.effects][::-1]
-        a1.barh(labels, [max(r.score or 0.0, 1e-3) for r in report.effects][::-1])   # a pair has no score
+        scores = [r.score for r in report.effects][::-1]
+        drawn = [s for s in scores if s is not None and s > 0]
+        # a bar only for a positive score (log axis); a zero score and a pair (no score test) are said in words
+        a1.barh(labels, [s if s is not None and s > 0 else 0.0 for s in scores])
         a1.set_xscale("log")
+        left = min(drawn) / 10 if drawn else 1.0
+        a1.set_xlim(left=left)
+        for k, s in enumerate(scores):
+            if s is None or s <= 0:
+                a1.text(left, k, "  pair: no score test" if s is None else "  0", va="center", fontsize=7)
         a1.set_xlabel("score-test statistic (LM)")
         a2.barh([r.label for r in rows][::-1], [100 * (r.refit.closed or 0.0) for r in rows][::-1])
         a2.axvline(80, color="k", lw=0.5, ls="--")

@@ -145,7 +145,11 @@ _FEW_LINES = 12
 
 def _frf_figure(plt: Any, loc: Localisation, dt: float, u2: np.ndarray, y2: np.ndarray, yh2: np.ndarray,
                 unit: _Units) -> Any:
-    """FRF magnitude and (unwrapped) phase, measured against model, with the modes marked."""
+    """FRF magnitude and phase, measured against model, with the modes marked.
+
+    The phase is drawn wrapped to (−180°, 180°]: the excited bins need not be contiguous (tones, a band with
+    gaps) and near an antiresonance the measured phase turns by more than 180° between bins, where unwrapping
+    picks a branch at random (measured: an "unwrapped" curve falling to −360° and jumping back to −200°)."""
     names = loc.sensor_names
     n_out = len(names)
     # FRF magnitude and phase, measured vs model, with mode markers
@@ -161,8 +165,10 @@ def _frf_figure(plt: Any, loc: Localisation, dt: float, u2: np.ndarray, y2: np.n
             style = "x" if f.size < _FEW_LINES else "-"
             axm.semilogy(f, np.abs(fh.H[exc, o, j]), style, lw=0.8, color="C1", label="model")
             axm.semilogy(f, np.abs(fm.H[exc, o, j]), ".", ms=3, color="C0", label="measured", zorder=5)
-            axp.plot(f, np.degrees(np.unwrap(np.angle(fh.H[exc, o, j]))), style, lw=0.8, color="C1")
-            axp.plot(f, np.degrees(np.unwrap(np.angle(fm.H[exc, o, j]))), ".", ms=3, color="C0", zorder=5)
+            axp.plot(*_broken_at_wraps(f, np.degrees(np.angle(fh.H[exc, o, j]))), style, lw=0.8, color="C1")
+            axp.plot(f, np.degrees(np.angle(fm.H[exc, o, j])), ".", ms=3, color="C0", zorder=5)
+            axp.set_ylim(-185, 185)
+            axp.set_yticks([-180, -90, 0, 90, 180])
             for m in loc.modes:
                 if m.sensor != names[o] or m.input != loc.input_names[j]:
                     continue
@@ -171,7 +177,7 @@ def _frf_figure(plt: Any, loc: Localisation, dt: float, u2: np.ndarray, y2: np.n
                     if m.fit_ok:
                         ax.axvline(m.measured_freq_hz, color="C0", ls=":", lw=0.8)
             axm.set_ylabel(f"|H| {names[o]}/{loc.input_names[j]}{unit.ratio(names[o], loc.input_names[j])}")
-            axp.set_ylabel("phase, unwrapped [deg]")
+            axp.set_ylabel("phase [deg]")
     _outside_legend(axes[0, -1])
     for j in range(n_in):
         axes[-1, j].set_xlabel("frequency [Hz]  (dashed: model modes, dotted: measured fit)")
@@ -235,7 +241,7 @@ def _correlation_figure(plt: Any, loc: Localisation) -> Any:
         ax.bar(lags, h.autocorr, color="C0", width=0.8)
         ax.axhspan(-h.band, h.band, color="k", alpha=0.15)
         ax.set_title(f"{h.sensor}: autocorr (LB p={h.ljung_box_p:.2g})", fontsize=8)
-        ax.set_xlabel("lag [samples]")
+        ax.set_xlabel("lag [samples] (grey: 99 % band of white noise)", fontsize=7)
         ax.set_ylabel("correlation [-]")
     for c in loc.cross_correlation:
         o = names.index(c.sensor)
@@ -245,9 +251,21 @@ def _correlation_figure(plt: Any, loc: Localisation) -> Any:
         ax.bar(np.arange(-m, m + 1), c.xcorr, color="C1", width=0.8)
         ax.axhspan(-c.band, c.band, color="k", alpha=0.15)
         ax.set_title(f"{c.sensor} vs {c.input}: xcorr (p={c.p:.2g})", fontsize=8)
-        ax.set_xlabel("lag [samples]")
+        ax.set_xlabel("lag [samples] (grey: 99 % band, no input-related error)", fontsize=7)
         ax.set_ylabel("correlation [-]")
     return fig
+
+
+def _broken_at_wraps(f: np.ndarray, deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``f`` and the wrapped phase ``deg`` with a gap (NaN) where the phase wraps, so that a line does not cross
+    the axes from +180° to −180°."""
+    cut = np.flatnonzero(np.abs(np.diff(deg)) > 180.0) + 1
+    return np.insert(f.astype(float), cut, np.nan), np.insert(deg.astype(float), cut, np.nan)
+
+
+def _hz(f: float) -> str:
+    """A band edge in plain digits (``1000``, not ``1e+03``): whole hertz from 100 Hz, else three digits."""
+    return f"{f:.0f}" if f >= 100 else f"{f:.3g}"
 
 
 def _bands_figure(plt: Any, loc: Localisation) -> Any:
@@ -258,7 +276,7 @@ def _bands_figure(plt: Any, loc: Localisation) -> Any:
     fig, axes = plt.subplots(n_out, 1, figsize=(7, 2.2 * n_out), squeeze=False)
     for o, ax in enumerate(axes[:, 0]):
         bs = [b for b in loc.bands if b.sensor == names[o]]
-        labels = [f"{b.f_lo:.3g}–{b.f_hi:.3g}" + (f"\nmode {b.mode}" if b.mode else "") for b in bs]
+        labels = [f"{_hz(b.f_lo)}–{_hz(b.f_hi)}" + (f"\nmode {b.mode}" if b.mode else "") for b in bs]
         x = np.arange(len(bs))
         ax.bar(x - 0.2, [b.residual_fraction or 0.0 for b in bs], width=0.4, label="residual energy")
         ax.bar(x + 0.2, [0.0 if not np.isfinite(b.excess_fraction) else b.excess_fraction for b in bs],

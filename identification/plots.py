@@ -94,7 +94,7 @@ def fit_figure(t: np.ndarray, measured: np.ndarray, models: Mapping[str, np.ndar
         axes[j, 1].set_title(f"{names[j]}: zoom {t[zoom][0]:.4g}–{t[zoom][-1]:.4g} s", fontsize=8)
     for ax in axes[-1]:
         ax.set_xlabel("time [s]")
-    axes[0, 0].axvspan(t[zoom][0], t[zoom][-1], color="0.85", zorder=0)
+    axes[0, 0].axvspan(t[zoom][0], t[zoom][-1], color="0.85", zorder=0, label="zoomed (right)")
     handles, labels = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, bbox_to_anchor=(0.5, -0.01))
     fig.tight_layout(rect=(0, 0.05, 1, 1))

@@ -61,16 +61,22 @@ def test_the_windows_plot_draws_the_models_residual_against_the_noise(localisati
     assert all("linear fit" in a.get_ylabel() for a in localisation_plots["windows.png"].axes[1:3])
 
 
-def test_phase_is_unwrapped_and_the_measurement_is_drawn_above_the_model(localisation_plots):
+def test_phase_is_wrapped_and_the_measurement_is_drawn_above_the_model(localisation_plots):
+    """The phase in (−180°, 180°], as labelled (an "unwrapped" phase of sparse or noisy bins picked its branch at
+    random: issue 52), and the model's line broken where it wraps — no segment crosses the axes."""
     frf = localisation_plots["frf.png"]
     phase_axes = [ax for ax in frf.axes if ax.get_ylabel().startswith("phase")]
     assert phase_axes
     for ax in phase_axes:
+        assert "unwrapped" not in ax.get_ylabel()
         for line in ax.get_lines():
             y = np.asarray(line.get_ydata(), dtype=float)
-            if y.size > 1:
-                # wrapped phase jumps by ~360° between neighbouring lines; unwrapped it moves by less than 180°
-                assert np.max(np.abs(np.diff(y))) < 180.0, line.get_label()
+            y = y[np.isfinite(y)] if line.get_linestyle() in ("None", "") else y
+            assert np.all(np.abs(y[np.isfinite(y)]) <= 180.0 + 1e-9), line.get_label()
+            if line.get_linestyle() not in ("None", ""):
+                # a drawn segment joins two finite points less than 180° apart (a wrap is a gap)
+                d = np.abs(np.diff(y))
+                assert np.all(d[np.isfinite(d)] < 180.0), line.get_label()
     for ax in frf.axes:
         z = {line.get_label(): line.get_zorder() for line in ax.get_lines()}
         if "measured" in z and "model" in z:
@@ -105,8 +111,17 @@ def test_fit_figure_has_a_zoom_and_the_data_on_top():
         for ax in fig.axes:
             z = {line.get_label(): line.get_zorder() for line in ax.get_lines()}
             assert z["measured"] > z["model"]
+        # the grey band on the whole record marks the zoom: named in the figure's legend
+        labels = [t.get_text() for legend in fig.legends for t in legend.get_texts()]
+        assert "zoomed (right)" in labels, labels
     finally:
         plt.close(fig)
+
+
+def test_band_edges_in_plain_digits():
+    from diagnosis.report_plots import _hz
+
+    assert [_hz(v) for v in (2.0, 63.5, 99.94, 1000.0, 12500.0)] == ["2", "63.5", "99.9", "1000", "12500"]
 
 
 def test_parameter_spread_has_plain_ticks_and_units():
