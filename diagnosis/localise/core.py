@@ -31,16 +31,20 @@ Given the measured inputs ``u``, the measured outputs ``y`` and the outputs
   ``y_lin`` (``u`` filtered by the measured H1 FRF, i.e. the best time-invariant
   linear model the data allow): RMS of ``y - y_lin`` and the local complex gain
   ``c`` with ``y ≈ Re(c (y_lin + i H y_lin))`` (least squares on ``y_lin`` and its
-  Hilbert transform: amplitude ratio and phase) per window; linear trends whose
-  p-value is the larger of the OLS t-test and a t-test with the sampling variance
-  of a window value estimated from four sub-windows.  A slowly drifting resonance shows as a phase trend even when the
+  Hilbert transform: amplitude ratio and phase) per window; linear trends of their
+  differences from the record's *linear twins* (the model's output plus noise of the
+  measured level, analysed the same way: what the approximation itself makes of a
+  linear record under this input is no drift), tested against the twins' spread plus
+  the differences' own scatter (:mod:`.trends`; false alarms on linear records at
+  most the level, tests/test_localise_calibration.py).  A slowly drifting resonance shows as a phase trend even when the
   residual RMS is V-shaped (a model fitted to the whole record matches its
   middle); because ``y_lin`` already carries every time-invariant linear error,
   a sweep input with a wrong model cannot fake a trend;
 * **per amplitude level** — within every time window the samples are binned by
   quantiles of the response envelope ``|y_lin + i H y_lin|`` and the local complex
   gain of ``y`` over ``y_lin`` is computed per bin; the slope of gain (and phase)
-  against ``ln(level)`` is averaged over windows and t-tested across them.  A
+  against ``ln(level)`` beyond the linear twins' is averaged over windows and tested
+  like the trends.  A
   time-invariant linear system gives no slope (its output *is* ``y_lin`` plus
   noise), whatever the model error and whether the input is random, swept or a
   multisine; a significant slope indicates an amplitude-dependent (nonlinear)

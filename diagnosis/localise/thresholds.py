@@ -10,6 +10,4 @@ MIN_PHASE_DEG = 3.0       # phase change [deg]
 MIN_RMS_CHANGE = 0.2      # relative RMS change over the record
 #: Zero-padding factor of the FRFs used to locate peaks and to build the best linear approximation.
 PAD = 4
-#: Sub-windows per time window for the sampling variance of window statistics.
-_SUB = 4
 
