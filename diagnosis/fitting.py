@@ -15,7 +15,7 @@ residual of a window, 1 at the noise floor.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -31,6 +31,7 @@ from identification.parameters import ParameterSpace
 from .augmented import simulate_effects
 from .effects import AugmentedModel, Effect
 from .records import Record
+from .settings import Thresholds
 
 __all__ = ["GapProblem", "Fit"]
 
@@ -108,6 +109,8 @@ class GapProblem:
     modes: ModalData | None = None
     #: further starts of the baseline unknowns (other basins of the global search), tried by refits
     other_starts: tuple[np.ndarray, ...] = ()
+    #: the thresholds every stage decides with (:class:`diagnosis.settings.Thresholds`)
+    settings: Thresholds = field(default_factory=Thresholds)
 
     def __post_init__(self) -> None:
         if self.noise is None:

@@ -74,9 +74,9 @@ DIFF_STEP = 1e-6
 #: Relative decrease of χ² per iteration below which a polish stops (``least_squares``' ``ftol``; its default
 #: ``1e-8`` let the polishes crawl along the valleys where the baseline and an effect trade off: on the rig
 #: family's pair, 400 evaluations of the final polish moved χ² from 1.0905 to 1.0863).  What is decided from a
-#: match is by margins of :data:`~diagnosis.verdict.BIC_MARGIN` (10) and factors of 10 in χ², and its optimum is
-#: only a start of the time-domain refit; measured on that record's 14 fits: χ² within 0.015 of the default's,
-#: the same order of the matches, the same basins, 64 → 18 s.
+#: match is by margins of the BIC margin (10, :attr:`~diagnosis.settings.Thresholds.bic_margin`) and factors of
+#: 10 in χ², and its optimum is only a start of the time-domain refit; measured on that record's 14 fits: χ²
+#: within 0.015 of the default's, the same order of the matches, the same basins, 64 → 18 s.
 FTOL = 1e-3
 #: Value of χ² for a model that cannot be evaluated.
 FAILED = 1e12

@@ -10,8 +10,8 @@ at a fixed place would push a physical effect off it):
   point mass's or a spring's refit that lands within the same distance of an actuator (and kept from its modal
   match when the pattern stage refitted it).  It stays a candidate only when it pays for each of its parts: its
   BIC beats the mass alone and the suspension alone at the drive point (each refitted from its optimum) by
-  :data:`~diagnosis.verdict.BIC_MARGIN` — a point mass at the drive point is a point mass, not an armature with
-  a vanishing suspension.
+  the BIC margin (:attr:`~diagnosis.settings.Thresholds.bic_margin`) — a point mass at the drive point is a point
+  mass, not an armature with a vanishing suspension.
 """
 from __future__ import annotations
 
@@ -23,7 +23,6 @@ from .effects.shaker import ARMATURE, parts
 from .fitting import Fit
 from .refits import EffectRefit
 from .search import Search
-from .verdict import BIC_MARGIN
 
 __all__ = ["armature_refits", "transducer_refits"]
 
@@ -70,7 +69,7 @@ def _pays(run: Search, armature: Effect, fit: Fit, rf: EffectRefit) -> tuple[boo
         alone = run.summary(part, run.problem.fit(fit.beta, part, fit.s[i:i + 1],
                                                   max_evaluations=run.max_evaluations))
         said.append(f"{part.name} alone dBIC {alone.bic - rf.bic:+.1f}")
-        if rf.bic >= alone.bic - BIC_MARGIN:
+        if rf.bic >= alone.bic - run.problem.settings.bic_margin:
             return False, "; ".join(said)
     return True, "; ".join(said)
 

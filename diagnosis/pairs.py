@@ -1,13 +1,13 @@
 """Two effects at once: a second effect tried at the best single effect's refit.
 
 When the best effect pays for itself but leaves more than 10 % of the fit
-windows' excess (and closes at least :data:`PAIR_MINIMUM` of the held-out
+windows' excess (and closes at least ``pair_minimum`` of the held-out
 gap), every other effect is score-tested again *at that effect's refit* — the
 baseline fit may have hidden it (a foundation absorbed into the axial load
-scores 0 at the baseline) — and the :data:`PAIR_PARTNERS` best are refitted
+scores 0 at the baseline) — and the ``pair_partners`` best are refitted
 together with it.  A pair is reported when it improves BIC over the single
-effect by :data:`BIC_MARGIN` and lowers the held-out error; it is then named
-(``first+second``) under the same :data:`NAMED_CLOSURE` rule.  The pair is
+effect by the BIC margin and lowers the held-out error; it is then named
+(``first+second``) under the same named-closure rule (thresholds: :class:`diagnosis.settings.Thresholds`).  The pair is
 tried before the other baseline basins and the continuation refits (from the
 best local refit, when that effect is linear time-invariant: the nonlinear
 simulation of drift and stretching makes their pairs dearer than their
@@ -25,18 +25,11 @@ from .fitting import Fit
 from .refits import EffectRefit, explains, pair_refit
 from .score import score_effect
 from .search import Refits, Search
-from .verdict import BIC_MARGIN, paying_refits
+from .verdict import paying_refits
 
-__all__ = ["Early", "PAIR_MINIMUM", "PAIR_PARTNERS", "best_pair", "early_pair", "pair_explains", "pair_with",
+__all__ = ["Early", "best_pair", "early_pair", "pair_explains", "pair_with",
            "same_fit"]
 
-#: How many further candidates (in ranking order) are tried as the second effect of a pair (five: with the
-#: catalogue's 17 effects before the armature, a foundation absorbed into the axial load ranked fourth at an
-#: actuator lag's refit, behind a weak segment, a point mass and a spring that each mimic part of it).
-PAIR_PARTNERS = 5
-#: Fraction of the held-out gap the best single effect must close before a pair with it is tried (two effects
-#: of like size each close about half of it alone; one that closes almost nothing is not half of a pair).
-PAIR_MINIMUM = 0.25
 
 #: An early pair: ``(the single's fit it was tried at, its best pair or None)``; ``None`` when not tried.
 Early = tuple[Fit, EffectRefit | None] | None
@@ -44,7 +37,7 @@ Early = tuple[Fit, EffectRefit | None] | None
 
 def best_pair(run: Search, single: EffectRefit, partners: list[str]) -> EffectRefit | None:
     """The pair of ``single`` and one of ``partners`` that pays for its extra parameters against ``single``
-    (BIC better by :data:`BIC_MARGIN`, lower held-out error), the one with the lowest BIC of them — of pairs that
+    (BIC better by the BIC margin, lower held-out error), the one with the lowest BIC of them — of pairs that
     explain the records alike, the one with fewer parameters (a three-variable weak segment can mimic what a
     foundation adds beyond the axial load the baseline gave it) —; ``None`` if none pays."""
     labels = [f"{single.label}{PAIR_SEPARATOR}{p}" for p in partners]
@@ -55,7 +48,8 @@ def best_pair(run: Search, single: EffectRefit, partners: list[str]) -> EffectRe
         rf = run.summary(run.catalogue.effect(lab), fit)
         run.say(f"pair refit {lab}: held-out gap ratio {np.mean(run.before):.3g} -> "
                 f"{np.mean(rf.heldout_after):.3g}, dBIC vs {single.label} alone {rf.bic - single.bic:.1f}")
-        if (rf.bic < single.bic - BIC_MARGIN and np.mean(rf.heldout_after) < np.mean(single.heldout_after)
+        if (rf.bic < single.bic - run.problem.settings.bic_margin
+                and np.mean(rf.heldout_after) < np.mean(single.heldout_after)
                 and (best is None or rf.bic < best.bic)):
             best = rf
     return best
@@ -85,7 +79,8 @@ def pair_with(run: Search, single: EffectRefit, known: dict[str, Fit]
     rescored = {e.label: score_effect(run.problem, single.fit, on_top_of(first, single.fit.s, e)).lm
                 for e in run.effects.values() if e.name != first.name and e.nested_in is None
                 and (with_prior or e.name not in CHAIN.names)}
-    partners = [lab for lab in sorted(rescored, key=lambda k: -rescored[k]) if rescored[lab] > 0][:PAIR_PARTNERS]
+    partners = [lab for lab in sorted(rescored, key=lambda k: -rescored[k])
+                if rescored[lab] > 0][:run.problem.settings.pair_partners]
     run.say(f"second-effect scores at the {single.label} refit: "
             + ", ".join(f"{lab} {rescored[lab]:.4g}" for lab in partners))
     pair = best_pair(run, single, partners)
@@ -98,7 +93,7 @@ def pair_with(run: Search, single: EffectRefit, known: dict[str, Fit]
         alone = run.summary(effect, fit)
         run.say(f"{effect.label} alone from the pair's optimum: fit RSS/n {fit.rss / fit.n:.4g}, "
                 f"dBIC of the pair against it {pair.bic - alone.bic:.1f}")
-        pays = pays and pair.bic < alone.bic - BIC_MARGIN
+        pays = pays and pair.bic < alone.bic - run.problem.settings.bic_margin
         before = single.fit if effect is first else known.get(effect.label)
         if before is None or fit.rss < before.rss * (1.0 - 1e-3):     # beyond the refits' own last digits
             singles[effect.label] = alone
@@ -107,24 +102,24 @@ def pair_with(run: Search, single: EffectRefit, known: dict[str, Fit]
 
 def early_pair(run: Search, labels: list[str], local: Refits) -> tuple[Early, Refits]:
     """Two effects before the other basins and the continuation refits (module docstring): the best local
-    refit's effect paired, when it pays, closes :data:`PAIR_MINIMUM` and is linear time-invariant (pairs with
+    refit's effect paired, when it pays, closes ``pair_minimum`` and is linear time-invariant (pairs with
     drift or stretching need the costly nonlinear simulation, dearer than their continuation).  Returns the
     early pair and the refits, with the pair's effects refitted alone from its optimum where that is better."""
     now = {lab: run.summary(run.catalogue.effect(lab), local[lab][0]) for lab in labels}
-    lead = paying_refits(now, run.before)[:1]
-    if not (lead and now[lead[0]].closed >= PAIR_MINIMUM and run.time_invariant(lead[0])):
+    lead = paying_refits(now, run.before, run.problem.settings)[:1]
+    if not (lead and now[lead[0]].closed >= run.problem.settings.pair_minimum and run.time_invariant(lead[0])):
         return None, local
     pair, singles = pair_with(run, now[lead[0]], {lab: fit for lab, (fit, _) in local.items()})
     local = local | {lab: (rf.fit, local[lab][1] if lab in local else [(rf.fit.beta, rf.fit.s)])
                      for lab, rf in singles.items()}
-    if pair is not None and explains(pair.fit, run.baseline):
+    if pair is not None and explains(pair.fit, run.baseline, run.problem.settings.gap_threshold):
         run.say(f"the pair {pair.label} explains the gap: no other basins, re-baselining or continuation refits")
     return (now[lead[0]].fit, pair), local     # (a single improved here is paired again at the end)
 
 
-def pair_explains(early: Early, baseline: Fit) -> bool:
+def pair_explains(early: Early, baseline: Fit, gap_threshold: float) -> bool:
     """Whether the pair tried early explains the gap."""
-    return early is not None and early[1] is not None and explains(early[1].fit, baseline)
+    return early is not None and early[1] is not None and explains(early[1].fit, baseline, gap_threshold)
 
 
 def same_fit(a: Fit, b: Fit) -> bool:

@@ -22,15 +22,10 @@ from identification.prior import PriorCheck
 from .effects import Effect
 from .fitting import Fit, GapProblem
 from .rank import Ranking
-from .refits import GAP_THRESHOLD
-from .verdict import BIC_MARGIN, verdict_rule
+from .verdict import verdict_rule
 
-__all__ = ["CONFOUNDED", "confounded", "implausibilities", "plausible_verdict", "posterior_std", "prior_checks"]
+__all__ = ["confounded", "implausibilities", "plausible_verdict", "posterior_std", "prior_checks"]
 
-#: Share of an effect's sensitivity (norm of its Jacobian column on the data) that the baseline unknowns'
-#: sensitivities leave unexplained, below which the effect is degenerate with them: the data alone cannot
-#: separate the two (a sensor's gain and a common scale of EI, ρA and c), only a prior can.
-CONFOUNDED = 1e-3
 
 
 def posterior_std(problem: GapProblem, fit: Fit) -> np.ndarray:
@@ -89,9 +84,9 @@ def plausible_verdict(ranking: Ranking, problem: GapProblem, effects: Mapping[st
     if ranking.verdict not in issues:
         return replace(ranking, implausible=issues)
     refits = {lab: rf for lab, rf in ranking.refits.items() if lab not in issues}
-    paying = [lab for lab in ranking.order if lab in refits and refits[lab].delta_bic < -BIC_MARGIN
+    paying = [lab for lab in ranking.order if lab in refits and refits[lab].delta_bic < -problem.settings.bic_margin
               and np.mean(refits[lab].heldout_after) < np.mean(before)]
-    verdict, ties, reason = verdict_rule(before, refits, paying)
+    verdict, ties, reason = verdict_rule(before, refits, paying, problem.settings)
     why = (f"{ranking.verdict} is not named: its refit needs implausible values ({'; '.join(issues[ranking.verdict])})"
            f" — among the plausible candidates: {reason}")
     return replace(ranking, verdict=verdict, indistinguishable=ties, reason=why, implausible=issues)
@@ -132,7 +127,7 @@ def confounded(problem: GapProblem, effect: Effect, fit: Fit, *, at_baseline: bo
             continue
         coef = np.linalg.lstsq(Jb, col, rcond=None)[0]
         left = float(np.linalg.norm(col - Jb @ coef)) / norm
-        if left < CONFOUNDED:
+        if left < problem.settings.confounded:
             big = np.abs(coef) >= 0.1 * np.abs(coef).max()
             names = [n for n, b in zip(problem.space.names, big) if b]
             lines.append(f"{effect.variables[j]} is degenerate with {', '.join(names)} (the data leave "
@@ -148,8 +143,8 @@ def _prior_conflict_verdict(ranking: Ranking, problem: GapProblem, issues: Mappi
     if not conflicts:
         return ranking
     ok = [lab for lab in ranking.order if lab in ranking.refits and lab not in issues
-          and ranking.refits[lab].delta_bic < -BIC_MARGIN
-          and float(np.mean(ranking.refits[lab].heldout_after)) - 1.0 <= GAP_THRESHOLD]
+          and ranking.refits[lab].delta_bic < -problem.settings.bic_margin
+          and float(np.mean(ranking.refits[lab].heldout_after)) - 1.0 <= problem.settings.gap_threshold]
     if not ok:
         return ranking
     best = min(ok, key=lambda lab: ranking.refits[lab].delta_bic)

@@ -7,9 +7,9 @@ a gain passing from +1 to −1 goes through a reading of zero —, and with tran
 reversed force can even be half absorbed: moving a sensor across a node of the excited mode also reverses its
 reading.  So the diagnosis fits its baseline both ways.  The sign whose baseline has the greater evidence (the
 Laplace evidence of :mod:`diagnosis.evidence`: fit, priors and measured modes together) is taken when its odds
-reach :data:`~diagnosis.verdict.DECISIVE_ODDS`; otherwise the records are taken as read and the report says that
-they cannot decide the sign.  Reversing every sensor instead is the same hypothesis (the outputs change sign with
-the force); one sensor reversed among several is not tested here.
+reach the decisive odds (:attr:`~diagnosis.settings.Thresholds.decisive_odds`); otherwise the records are taken as
+read and the report says that they cannot decide the sign.  Reversing every sensor instead is the same hypothesis
+(the outputs change sign with the force); one sensor reversed among several is not tested here.
 """
 from __future__ import annotations
 
@@ -20,7 +20,6 @@ from typing import Any, Callable
 
 from .evidence import laplace_log_evidence
 from .fitting import Fit, GapProblem
-from .verdict import DECISIVE_ODDS
 
 __all__ = ["PolarityCheck", "check_polarity"]
 
@@ -33,6 +32,8 @@ class PolarityCheck:
     gap: dict[str, float]
     reversed: bool
     decided: bool
+    #: the odds from which the evidence decides (:attr:`~diagnosis.settings.Thresholds.decisive_odds`)
+    decisive_odds: float
 
     @property
     def log_odds(self) -> float:
@@ -45,7 +46,7 @@ class PolarityCheck:
                 f"times the noise variance, ln odds {self.log_odds:+.3g}")
         if not self.decided:
             return (f"the records cannot decide the measured force's sign ({both}; decisive from "
-                    f"{math.log(DECISIVE_ODDS):.2g}): taken as read")
+                    f"{math.log(self.decisive_odds):.2g}): taken as read")
         if self.reversed:
             return (f"the measured force's sign is REVERSED: the baseline explains the records far better with the "
                     f"force reversed ({both}); the diagnosis uses the reversed force — check the load cell's "
@@ -75,8 +76,8 @@ def check_polarity(problem: GapProblem, fit_baseline: Callable[[GapProblem], tup
             "reversed": laplace_log_evidence(flipped, flipped_fit)}
     gap = {"as_read": float(baseline.rss / baseline.n), "reversed": float(flipped_fit.rss / flipped_fit.n)}
     log_odds = logz["reversed"] - logz["as_read"]
-    decided = abs(log_odds) >= math.log(DECISIVE_ODDS)
-    check = PolarityCheck(logz, gap, decided and log_odds > 0, decided)
+    decided = abs(log_odds) >= math.log(problem.settings.decisive_odds)
+    check = PolarityCheck(logz, gap, decided and log_odds > 0, decided, problem.settings.decisive_odds)
     if check.reversed:
         return flipped, flipped_fit, check
     return problem, baseline, check

@@ -5,7 +5,7 @@ Refit and ranking
 -----------------
 The best-scoring effects are refitted together with the baseline unknowns on
 the fit windows (the local refit).  When no local refit leaves at most 10 % of
-the fit windows' excess unexplained — and more than :data:`GAP_THRESHOLD`
+the fit windows' excess unexplained — and more than the gap threshold
 above the noise floor, the level at which the verdict would be ``none`` (an
 excess of 0.7 closed to 0.09 is explained: the rest is the noise estimate's
 and the model's own few per cent) — the modal pattern is tried (below), then
@@ -13,15 +13,15 @@ the refit is repeated from the other basins of the baseline's global search,
 and when still no shortlisted effect explains the gap, each is refitted once
 more by continuation in the record length (:mod:`diagnosis.refits`), the most
 promising first, until one explains it.  Effects are ranked by held-out error
-among those whose BIC improves by more than :data:`BIC_MARGIN` (an extra
+among those whose BIC improves by more than the BIC margin (an extra
 parameter must pay for itself).  The verdict is ``none`` when the baseline's
-held-out gap is within :data:`GAP_THRESHOLD` of the noise floor.  An effect is
-named only when its refit closes at least :data:`NAMED_CLOSURE` of the
+held-out gap is within the gap threshold of the noise floor.  An effect is
+named only when its refit closes at least the named closure of the
 held-out gap; when no candidate pays for itself or the best one closes less,
 the verdict is :data:`UNEXPLAINED` — the gap is real but no effect of the
 catalogue accounts for it, and the least-bad candidate is not named.  Effects
 whose held-out improvement is within 5 % of the best and whose held-out error
-is not measurably higher (by at most :data:`GAP_THRESHOLD` or a quarter of the
+is not measurably higher (by at most the gap threshold or a quarter of the
 best's excess) are reported as indistinguishable from it.
 
 Modal pattern
@@ -32,11 +32,11 @@ mass 0.5 m away from a withheld spring to ground, on accelerometers, left 11
 noise variances), the measured modes
 (:mod:`diagnosis.modal_estimate`) are matched by every structural effect with
 the baseline unknowns profiled out (:mod:`diagnosis.modal_pattern`), and the
-:data:`PATTERN_CANDIDATES` best matches (and a special case at a fixed place,
+``pattern_candidates`` best matches (and a special case at a fixed place,
 :mod:`diagnosis.nested`, beside them when it matches best) are refitted from their match — in
 the right basin even when the baseline had compensated the effect and its
 one-sided score was 0.  When the baseline itself matches the measured modes
-within :data:`BIC_MARGIN` of χ² no effect can match them better by the margin
+within the BIC margin of χ² no effect can match them better by the margin
 (a χ² is a sum of squares) and the effects' pattern fits are not made.  Only
 then come the other baseline basins and the continuation refits.
 
@@ -58,22 +58,17 @@ from .effects.chain import FAMILY as CHAIN
 from .fitting import Fit, GapProblem
 from .modal_pattern import ModalEvidence, PatternFit, moves_modes, pattern_fits
 from .nested import armature_refits, transducer_refits
-from .pairs import PAIR_MINIMUM, Early, early_pair, pair_explains, pair_with, same_fit
-from .refits import GAP_THRESHOLD, EffectRefit, better_baseline, explains, refit_from_match
+from .pairs import Early, early_pair, pair_explains, pair_with, same_fit
+from .refits import EffectRefit, better_baseline, explains, refit_from_match
 from .score import EffectScore, score_effect
 from .search import Refits, Search
 from .stages import StageClock
-from .verdict import BIC_MARGIN, NAMED_CLOSURE, UNEXPLAINED, paying_refits, verdict_rule
+from .settings import Thresholds
+from .verdict import UNEXPLAINED, paying_refits, verdict_rule
 
-__all__ = ["Ranking", "Refits", "settled", "rank_effects", "verdict_rule", "BIC_MARGIN", "NAMED_CLOSURE",
-           "UNEXPLAINED"]
+__all__ = ["Ranking", "Refits", "settled", "rank_effects", "verdict_rule", "UNEXPLAINED"]
 
 
-#: How many of the best modal-pattern matches are refitted from their match (module docstring).
-PATTERN_CANDIDATES = 2
-#: A further pattern candidate is refitted only when its χ² is within this factor of the best match's (or of
-#: 2 per mode, a match within the errors).
-PATTERN_RIVAL = 10.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,10 +89,10 @@ class Ranking:
     implausible: dict[str, list[str]] = field(default_factory=dict)
 
 
-def _linear(evidence: ModalEvidence | None) -> bool:
-    """Whether the measured modes' oscillators reproduce the records (within :data:`GAP_THRESHOLD` of the noise
+def _linear(evidence: ModalEvidence | None, gap_threshold: float) -> bool:
+    """Whether the measured modes' oscillators reproduce the records (within ``gap_threshold`` of the noise
     floor): if not, no linear time-invariant effect can explain the gap (unknown evidence: assume they do)."""
-    return evidence is None or evidence.measured.gap_ratio <= 1.0 + GAP_THRESHOLD
+    return evidence is None or evidence.measured.gap_ratio <= 1.0 + gap_threshold
 
 
 # ---------------------------------------------------------------------------
@@ -122,42 +117,44 @@ def _refit_from_matches(run: Search, patterns: dict[str, PatternFit], labels: li
 
 
 def _pattern_stage(run: Search, evidence: ModalEvidence, local: Refits) -> tuple[dict[str, PatternFit], Refits]:
-    """Match the measured modes by every structural effect and refit the :data:`PATTERN_CANDIDATES` best
+    """Match the measured modes by every structural effect and refit the ``pattern_candidates`` best
     matches from their match (module docstring): the pattern fits, and the refits with theirs."""
-    if not _linear(evidence):
+    if not _linear(evidence, run.problem.settings.gap_threshold):
         run.say(f"measured modes: their fit leaves {evidence.measured.gap_ratio:.3g} noise variances — the records "
                 f"are not those of a linear time-invariant system, no modal pattern to compare")
         return {}, local
     with run.clock.stage("modal pattern fits"):
         patterns = pattern_fits(run.problem, evidence, run.baseline.beta, run.catalogue, run.executor,
-                                margin=BIC_MARGIN, previous=run.matches)
+                                margin=run.problem.settings.bic_margin, previous=run.matches)
     run.matches.update({lab: pf for lab, pf in patterns.items() if lab != "baseline"})
     base = patterns["baseline"].chi2
     if len(patterns) == 1:
         run.say(f"measured modes {np.round(evidence.measured.freq_hz, 3)} Hz: the baseline matches them (modal "
-                f"pattern chi2 {base:.4g} for {evidence.n_modes} modes, within the BIC margin {BIC_MARGIN:g}): no "
+                f"pattern chi2 {base:.4g} for {evidence.n_modes} modes, within the BIC margin "
+                f"{run.problem.settings.bic_margin:g}): no "
                 f"effect can match them better, no effect's pattern fitted")
         return patterns, local
     run.say(f"measured modes {np.round(evidence.measured.freq_hz, 3)} Hz (their fit leaves "
             f"{evidence.measured.gap_ratio:.3g} noise variances); modal pattern chi2 ({evidence.n_modes} modes; "
             f"baseline {base:.4g}): "
             + ", ".join(f"{lab} {pf.chi2:.4g}" for lab, pf in patterns.items() if lab != "baseline"))
-    matching = sorted((lab for lab in patterns if lab != "baseline" and patterns[lab].chi2 < base - BIC_MARGIN),
+    margin = run.problem.settings.bic_margin
+    matching = sorted((lab for lab in patterns if lab != "baseline" and patterns[lab].chi2 < base - margin),
                       key=lambda lab: patterns[lab].chi2)
     # a special case at a fixed place (an armature at the drive point) is refitted beside the general matches
     # when it matches best of all, never in their place: with three modes every two-variable structural effect
     # matches within the errors, and a sprung mass at the drive point stood in for a spring 0.25 m away
     general = [lab for lab in matching if run.effects[lab].nested_in is None]
     special = [lab for lab in matching if run.effects[lab].nested_in is not None][:1]
-    ranked = general[:PATTERN_CANDIDATES]
+    ranked = general[:run.problem.settings.pattern_candidates]
     if ranked:   # a match far worse than the best one does not match: 2 per mode is a match within the errors
-        limit = PATTERN_RIVAL * max(patterns[ranked[0]].chi2, 2.0 * evidence.n_modes)
+        limit = run.problem.settings.pattern_rival * max(patterns[ranked[0]].chi2, 2.0 * evidence.n_modes)
         ranked = [lab for lab in ranked if patterns[lab].chi2 <= limit]
         special = [lab for lab in special if patterns[lab].chi2 < patterns[ranked[0]].chi2]
     with run.clock.stage("refits from modal matches"):
         local = _refit_from_matches(run, patterns, ranked + special, local)
-    rest = [lab for lab in general if lab not in ranked][:PATTERN_CANDIDATES]
-    if (rest and not any(explains(local[lab][0], run.baseline) for lab in ranked)
+    rest = [lab for lab in general if lab not in ranked][:run.problem.settings.pattern_candidates]
+    if (rest and not any(explains(local[lab][0], run.baseline, run.problem.settings.gap_threshold) for lab in ranked)
             and not run.at_noise_floor({lab: local[lab] for lab in special})):
         # the closest matches do not explain the records: the next ones (a pattern fit can stop short of its
         # optimum, and its match still lies in the right basin for the time-domain refit)
@@ -177,9 +174,10 @@ def _modal_stage(run: Search, evidence: ModalEvidence, labels: list[str], local:
     if not run.explained(local):
         with run.clock.stage("pairs"):
             early, local = early_pair(run, labels, local)
-    if not run.explained(local) and not pair_explains(early, run.baseline):
+    if not run.explained(local) and not pair_explains(early, run.baseline, run.problem.settings.gap_threshold):
         # (a better basin cannot make a linear time-invariant effect explain records no such model can)
-        tried = [lab for lab in labels if _linear(evidence) or not run.time_invariant(lab)]
+        linear = _linear(evidence, run.problem.settings.gap_threshold)
+        tried = [lab for lab in labels if linear or not run.time_invariant(lab)]
         with run.clock.stage("other basins"):
             local = local | run.refit(tried, {lab: local[lab] for lab in tried}, stage="basins")
     return patterns, labels, early, local
@@ -193,10 +191,10 @@ def _continuation_stage(run: Search, labels: list[str], local: Refits, early: Ea
     """Continuation refits (:mod:`diagnosis.refits`), the most promising first, ``parallel`` at a time, until one
     explains the gap; skipped for effects no continuation can help.  Returns the refits with theirs."""
     pending = sorted(labels, key=lambda lab: local[lab][0].rss)
-    if pair_explains(early, run.baseline) or run.explained(local):
+    if pair_explains(early, run.baseline, run.problem.settings.gap_threshold) or run.explained(local):
         run.say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
         pending = []
-    if not _linear(evidence):
+    if not _linear(evidence, run.problem.settings.gap_threshold):
         # no set of linear oscillators reproduces the records: no linear time-invariant effect can
         lti = [lab for lab in pending if run.time_invariant(lab)]
         if lti:
@@ -217,7 +215,7 @@ def _continuation_stage(run: Search, labels: list[str], local: Refits, early: Ea
         for lab in group:
             fit = local[lab][0]
             run.say(f"continuation refit {lab}: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
-        if any(explains(local[lab][0], run.baseline) for lab in group):
+        if any(explains(local[lab][0], run.baseline, run.problem.settings.gap_threshold) for lab in group):
             if pending:
                 run.say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
             break
@@ -239,11 +237,12 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
     for label, rf in refits.items():
         say(f"refit {label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
             f"dBIC {rf.delta_bic:.1f}")
-    paying, order = _order(refits, before, by_score)
+    paying, order = _order(refits, before, by_score, run.problem.settings)
     excess = float(np.mean(before)) - 1.0
-    if excess >= GAP_THRESHOLD and paying:
+    if excess >= run.problem.settings.gap_threshold and paying:
         best = refits[paying[0]]
-        if not explains(best.fit, baseline) and best.closed >= PAIR_MINIMUM:
+        if (not explains(best.fit, baseline, run.problem.settings.gap_threshold)
+                and best.closed >= run.problem.settings.pair_minimum):
             # one effect leaves a significant remainder: a second one at once, when it pays for itself (tried
             # already before the continuation refits when this single's fit has not changed since)
             if early is not None and same_fit(early[0], best.fit):
@@ -253,33 +252,34 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
                 with run.clock.stage("pairs"):
                     pair, singles = pair_with(run, best, {lab: rf.fit for lab, rf in refits.items()})
                 refits |= singles
-                paying, order = _order(refits, before, by_score)
+                paying, order = _order(refits, before, by_score, run.problem.settings)
             if pair is not None:
                 refits[pair.label] = pair
                 order = [pair.label] + order
                 paying = [pair.label] + paying
-    verdict, ties, reason = verdict_rule(before, refits, paying)
+    verdict, ties, reason = verdict_rule(before, refits, paying, run.problem.settings)
     return Ranking(baseline, before, run.scores, refits, order, verdict, ties, reason, patterns=patterns,
                    modal=evidence)
 
 
-def _order(refits: dict[str, EffectRefit], before: np.ndarray, by_score: list[str]) -> tuple[list[str], list[str]]:
+def _order(refits: dict[str, EffectRefit], before: np.ndarray, by_score: list[str], settings: Thresholds
+           ) -> tuple[list[str], list[str]]:
     """The refits that pay for themselves (best first), and the report order: those, the other refits by held-out
     error, then the effects not refitted by score."""
-    paying = paying_refits(refits, before)
+    paying = paying_refits(refits, before, settings)
     others = sorted((lab for lab in refits if lab not in paying),
                     key=lambda lab: float(np.mean(refits[lab].heldout_after)))
     return paying, paying + others + [lab for lab in by_score if lab not in refits]
 
 
-def settled(ranking: Ranking) -> bool:
-    """Whether the named effect's refit leaves at most :data:`GAP_THRESHOLD` above the noise floor on the fit
+def settled(ranking: Ranking, gap_threshold: float) -> bool:
+    """Whether the named effect's refit leaves at most ``gap_threshold`` above the noise floor on the fit
     windows: then a better baseline basin cannot change the verdict (another effect could at most tie), and the
     ranking is final."""
     if ranking.verdict not in ranking.refits:
         return False
     fit = ranking.refits[ranking.verdict].fit
-    return fit.rss / fit.n - 1.0 <= GAP_THRESHOLD
+    return fit.rss / fit.n - 1.0 <= gap_threshold
 
 
 def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, shortlist: int = 4,
@@ -343,7 +343,7 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
             baseline, early_rebaseline = outcome, False
             continue
         ranking = outcome
-        if left == 0 or settled(ranking):
+        if left == 0 or settled(ranking, problem.settings.gap_threshold):
             return ranking
         left -= 1
         # an effect's refit may have moved the baseline unknowns into a better basin (refits.better_baseline)
@@ -409,7 +409,7 @@ def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortli
         with clock.stage("measured modes"):
             evidence = modal(baseline.beta)
         patterns, labels, early, local = _modal_stage(run, evidence, labels, local)
-    if not run.explained(local) and not pair_explains(early, baseline):
+    if not run.explained(local) and not pair_explains(early, baseline, problem.settings.gap_threshold):
         with clock.stage("re-baseline"):
             better = (better_baseline(problem, baseline, [fit for fit, _ in local.values()], executor)
                       if rebaseline else None)

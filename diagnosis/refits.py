@@ -3,7 +3,7 @@
 Every stage refits the baseline unknowns and one effect (or a pair) on the fit
 windows and is judged by :func:`explains` — whether the refit leaves at most
 10 % of the baseline's excess over the noise floor (or less than
-:data:`GAP_THRESHOLD`, no gap at all):
+the gap threshold, no gap at all):
 
 * **local** — from the best of the score test's step and a coarse grid of the
   effect, the baseline unknowns at their fitted values;
@@ -33,7 +33,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ebb_model.adequacy import NOISE_FLOOR_EXCESS
 
 from .effects import Catalogue, Effect
 from .fitting import Fit, GapProblem
@@ -42,11 +41,8 @@ from .score import EffectScore, trial_values
 from .workers import side_by_side
 
 __all__ = ["EffectRefit", "explains", "summarise", "map_refits", "refit_from_match", "pair_refit",
-           "better_baseline", "GAP_THRESHOLD", "CONTINUATION"]
+           "better_baseline", "CONTINUATION"]
 
-#: Relative excess of the held-out residual variance over the noise floor below which there is no gap to explain
-#: (the one noise-floor rule, :data:`ebb_model.adequacy.NOISE_FLOOR_EXCESS`).
-GAP_THRESHOLD = NOISE_FLOOR_EXCESS
 #: Fractions of the fit windows of the continuation refit (the first one searched globally).
 CONTINUATION = (0.1, 0.3, 1.0)
 
@@ -79,11 +75,12 @@ def _best_start(problem: GapProblem, baseline: Fit, effect: Effect, score: Effec
     return min(candidates, key=rss)
 
 
-def explains(fit: Fit, baseline: Fit) -> bool:
+def explains(fit: Fit, baseline: Fit, gap_threshold: float) -> bool:
     """Whether ``fit`` leaves at most 10 % of the baseline's excess over the noise floor on the fit windows, or
-    less than :data:`GAP_THRESHOLD` (nothing the verdict would call a gap)."""
+    less than ``gap_threshold`` (:attr:`~diagnosis.settings.Thresholds.gap_threshold`: nothing the verdict would
+    call a gap)."""
     excess_before = baseline.rss / baseline.n - 1.0
-    return excess_before <= GAP_THRESHOLD or fit.rss / fit.n - 1.0 <= max(0.1 * excess_before, GAP_THRESHOLD)
+    return excess_before <= gap_threshold or fit.rss / fit.n - 1.0 <= max(0.1 * excess_before, gap_threshold)
 
 
 def _continuation_fit(problem: GapProblem, starts: list[tuple[np.ndarray, np.ndarray]], effect: Effect,
@@ -139,7 +136,7 @@ def _basin_refits(problem: GapProblem, baseline: Fit, effect: Effect, score: Eff
     """``fit``, or the refit from the baseline's other basins when that is better and ``fit`` leaves the gap;
     ``starts`` gains the starts tried."""
     starts = list(starts)
-    if not explains(fit, baseline):
+    if not explains(fit, baseline, problem.settings.gap_threshold):
         # the baseline unknowns may sit in a basin that only suited the model without the effect
         used = fit.n_evaluations
         starts.append((fit.beta, fit.s))

@@ -18,6 +18,7 @@ from identification.prior import PriorCheck
 from .localise import Localisation
 from .modal_estimate import MeasuredModes
 from .polarity import PolarityCheck
+from .settings import Thresholds
 
 __all__ = ["BandClosure", "RefitSummary", "PatternMatch", "EffectRow", "BaselineSummary", "DiagnosisSettings",
            "GapReport"]
@@ -118,14 +119,16 @@ class BaselineSummary:
 
 @dataclass(frozen=True)
 class DiagnosisSettings:
-    """The settings a diagnosis ran with (held-out records or fraction, shortlist, thresholds)."""
+    """The settings a diagnosis ran with: held-out records or fraction, and every threshold
+    (:class:`~diagnosis.settings.Thresholds`, with the reason for each value)."""
 
     holdout: tuple[str, ...]
     holdout_fraction: float | None
-    shortlist: int
-    gap_threshold: float
-    bic_margin: float
-    numerical_share_limit: float
+    thresholds: Thresholds
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready: the held-out choice and the thresholds, side by side."""
+        return {"holdout": list(self.holdout), "holdout_fraction": self.holdout_fraction} | self.thresholds.to_dict()
 
 
 @dataclass(frozen=True)
@@ -208,7 +211,7 @@ class GapReport:
             "baseline": self.baseline.to_dict(), "measured_modes": jsonable(modes),
             "localisation": {name: loc.to_dict() for name, loc in self.localisation.items()},
             "summary": list(self.summary), "effects": [r.to_dict() for r in self.effects],
-            "settings": jsonable(self.settings)}
+            "settings": self.settings.to_dict()}
         if self.evidence:
             doc["posterior_probability"] = {k: float(v) for k, v in self.evidence.items()}
         if self.confounded:

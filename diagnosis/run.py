@@ -54,21 +54,19 @@ from .polarity import PolarityCheck, check_polarity
 from .weigh import Weighed, weigh
 from .rank import Ranking, rank_effects
 from .stages import StageClock
-from .verdict import BIC_MARGIN, UNEXPLAINED
-from .refits import GAP_THRESHOLD
+from .verdict import UNEXPLAINED
+from .settings import Thresholds, thresholds_from_config
 from .report import html_sections
 from .records import Record, records_start, split_records
 from .result import (BandClosure, BaselineSummary, DiagnosisSettings, EffectRow, GapReport, PatternMatch,
                      RefitSummary)
 from .workers import DaskExecutor, refit_pool
 
-__all__ = ["Diagnosis", "diagnose", "excited_band", "GAP_FILE", "GRID_VERDICT", "NUMERICAL_SHARE_LIMIT"]
+__all__ = ["Diagnosis", "diagnose", "excited_band", "GAP_FILE", "GRID_VERDICT"]
 
 GAP_FILE = "gap.json"
 #: The verdict when the gap is the model's own discretisation error.
 GRID_VERDICT = "grid"
-#: Largest numerical share of the baseline gap (:mod:`ebb_model.adequacy`) for which a physical effect is named.
-NUMERICAL_SHARE_LIMIT = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -159,16 +157,16 @@ def _band_closure(before: Sequence[np.ndarray], after: Sequence[np.ndarray], dt:
     return tuple(rows)
 
 
-def _numerical_verdict(ranking: Ranking, share: float, advice: str) -> Ranking:
+def _numerical_verdict(ranking: Ranking, share: float, advice: str, settings: Thresholds) -> Ranking:
     """The ranking with its verdict replaced by :data:`GRID_VERDICT` when the grid's share of the gap is above
-    :data:`NUMERICAL_SHARE_LIMIT`, or its reason qualified when the share is above a tenth.
+    ``settings.numerical_share_limit``, or its reason qualified when the share is above a tenth.
 
-    A held-out gap within :data:`~diagnosis.refits.GAP_THRESHOLD` of the noise floor is no gap: the verdict
+    A held-out gap within ``settings.gap_threshold`` of the noise floor is no gap: the verdict
     stays ``none`` whatever share of that remainder the grid makes (a share of almost nothing).
     """
-    if float(np.mean(ranking.heldout_before)) - 1.0 < GAP_THRESHOLD:
+    if float(np.mean(ranking.heldout_before)) - 1.0 < settings.gap_threshold:
         return ranking
-    if share > NUMERICAL_SHARE_LIMIT:
+    if share > settings.numerical_share_limit:
         instead = f" (the best-ranked effect, {ranking.verdict}, is not blamed)" if ranking.verdict != "none" else ""
         return replace(ranking, verdict=GRID_VERDICT, reason=(
             f"the model's grid: refining it changes the model by {100 * share:.0f} % of the baseline gap, so the "
@@ -244,7 +242,7 @@ def _modes_hz(model: Any, k: int) -> list[float]:
 @one_blas_thread
 def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_dir: str | Path | None, *,
              holdout: Sequence[str | Path] = (), result: IdentificationResult | str | Path | None = None,
-             holdout_fraction: float = 0.3, shortlist: int = 4, noise_std: Sequence[float] | None = None,
+             holdout_fraction: float = 0.3, shortlist: int | None = None, noise_std: Sequence[float] | None = None,
              plots: bool = True, export: bool = True, targets: Sequence[str] = DEFAULT_TARGETS, workers: int = 2,
              dask: Any = None, progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Locate the sim-to-real gap, name the effect that explains it, and measure how far it closes.
@@ -302,8 +300,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     if isinstance(dask, str):
         parse_local_address(dask)     # a malformed local:K stops the run before anything is written
     cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
-    if shortlist < 1:
-        raise ConfigError(f"`shortlist` must be >= 1, got {shortlist}")
+    settings = thresholds_from_config(cfg, shortlist=shortlist)
     targets = check_targets(targets)
     out = Path(out_dir) if out_dir is not None else None
     if out is not None:
@@ -318,7 +315,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     given = given_noise_std(cfg, noise_std)
     sigma = given if given is not None else records_noise_std([r.inputs for r in records],
                                                               [r.outputs for r in records], dt)
-    problem = GapProblem(cfg, space, records, sigma, prior=Prior.of(cfg, space.names), modes=modal_data(cfg))
+    problem = GapProblem(cfg, space, records, sigma, prior=Prior.of(cfg, space.names), modes=modal_data(cfg),
+                         settings=settings)
     clock = StageClock()
     executor = refit_pool(workers, dask)
     try:
@@ -351,7 +349,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         fit_records = [r for r in records if r.has_fit]
         catalogue = _catalogue(problem, base_cfg, base_params, mf, f_hi)
         with clock.stage("ranking (the rest)"):
-            ranking = _ranking(problem, baseline, catalogue, shortlist, executor, workers,
+            ranking = _ranking(problem, baseline, catalogue, settings.shortlist, executor, workers,
                                _modal_source(problem, mf, mz, freqs[~in_band][:1], f_hi), say, clock)
         baseline = ranking.baseline
         # the model's own discretisation error: a gap that refining the grid changes is not blamed on physics
@@ -361,7 +359,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                 base_cfg, base_params, [(r.inputs[:r.fit_end], r.outputs[:r.fit_end]) for r in fit_records], sigma,
                 band_hz=f_hi)
             advice = grid_advice(base_cfg, base_params, band_hz=f_hi)
-        ranking = _numerical_verdict(ranking, float(np.max(adequacy.numerical_share)), advice.summary())
+        ranking = _numerical_verdict(ranking, float(np.max(adequacy.numerical_share)), advice.summary(), settings)
         by_label = {e.label: e for e in catalogue.effects()} | {lab: catalogue.effect(lab) for lab in ranking.refits}
         # a refit that explains the data with values no rig has is not the cause (diagnosis.plausibility)
         with clock.stage("plausibility and evidence"):
@@ -387,9 +385,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         edges = np.concatenate([[0.0], 0.5 * (mf[1:] + mf[:-1]), [f_top], [0.5 / dt]])
         with clock.stage("held-out closure per band"):
             effect_rows = _effect_rows(problem, ranking, by_label, edges, len(mf) + 1)
-        settings = DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, shortlist,
-                                     GAP_THRESHOLD, BIC_MARGIN, NUMERICAL_SHARE_LIMIT)
-        report = replace(_report(problem, ranking, (f_lo, f_hi), mf, adequacy, advice, locs, effect_rows, settings,
+        ran_with = DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, settings)
+        report = replace(_report(problem, ranking, (f_lo, f_hi), mf, adequacy, advice, locs, effect_rows, ran_with,
                                  weighed, polarity), stage_seconds=dict(clock.seconds))
         if out is None:
             return Diagnosis(ranking, report, None)

@@ -11,7 +11,7 @@ import numpy as np
 from .effects import Catalogue, Effect
 from .fitting import Fit, GapProblem
 from .modal_pattern import PatternFit, time_invariant
-from .refits import GAP_THRESHOLD, EffectRefit, explains, map_refits, summarise
+from .refits import EffectRefit, explains, map_refits, summarise
 from .score import EffectScore
 from .stages import StageClock
 from .workers import side_by_side
@@ -49,12 +49,12 @@ class Search:
 
     def explained(self, local: dict[str, tuple[Fit, list]]) -> bool:
         """Whether one of the refits explains the gap."""
-        return any(explains(fit, self.baseline) for fit, _ in local.values())
+        return any(explains(fit, self.baseline, self.problem.settings.gap_threshold) for fit, _ in local.values())
 
     def at_noise_floor(self, local: dict[str, tuple[Fit, list]]) -> bool:
-        """Whether one of the refits leaves the fit windows within :data:`GAP_THRESHOLD` of the noise floor
+        """Whether one of the refits leaves the fit windows within the gap threshold of the noise floor
         (nothing left for another basin or effect to explain)."""
-        return any(fit.rss / fit.n - 1.0 <= GAP_THRESHOLD for fit, _ in local.values())
+        return any(fit.rss / fit.n - 1.0 <= self.problem.settings.gap_threshold for fit, _ in local.values())
 
     def summary(self, effect: Effect, fit: Fit) -> EffectRefit:
         """The refit's held-out gap, BIC and closure (:func:`diagnosis.refits.summarise`)."""

@@ -13,7 +13,6 @@ from .evidence import posterior_probabilities
 from .fitting import GapProblem
 from .plausibility import confounded, prior_checks
 from .rank import Ranking
-from .refits import GAP_THRESHOLD
 from .verdict import INDISTINGUISHABLE, by_evidence
 
 __all__ = ["Weighed", "weigh"]
@@ -28,9 +27,10 @@ class Weighed:
     modal_data: dict[str, dict[str, Any]]
 
 
-def _adequate_special_case(ranking: Ranking, by_label: Mapping[str, Effect]) -> tuple[str, str] | None:
+def _adequate_special_case(ranking: Ranking, by_label: Mapping[str, Effect], gap_threshold: float
+                           ) -> tuple[str, str] | None:
     """Among the verdict and its ties, a special case of another of them (:attr:`Effect.nested_in`) whose refit
-    brings the held-out records within :data:`~diagnosis.refits.GAP_THRESHOLD` of the noise floor — the
+    brings the held-out records within the gap threshold of the noise floor — the
     general effect's extra variables then buy fit the held-out records do not confirm.  Returns the special
     case's label and the general one's."""
     group = [ranking.verdict, *ranking.indistinguishable]
@@ -42,7 +42,7 @@ def _adequate_special_case(ranking: Ranking, by_label: Mapping[str, Effect]) -> 
         e = by_label.get(lab)
         general = None if e is None or e.nested_in is None else frozenset(e.nested_in.split(PAIR_SEPARATOR))
         if (general in members and lab in ranking.refits
-                and float(np.mean(ranking.refits[lab].heldout_after)) - 1.0 <= GAP_THRESHOLD):
+                and float(np.mean(ranking.refits[lab].heldout_after)) - 1.0 <= gap_threshold):
             return lab, members[general]
     return None
 
@@ -58,7 +58,7 @@ def weigh(problem: GapProblem, ranking: Ranking, by_label: Mapping[str, Effect])
     if conflicts:
         reason += "; baseline: " + "; ".join(conflicts)
     probs = posterior_probabilities(problem, ranking.baseline, {lab: rf.fit for lab, rf in ranking.refits.items()})
-    special = _adequate_special_case(ranking, by_label)
+    special = _adequate_special_case(ranking, by_label, problem.settings.gap_threshold)
     if special is not None:
         simpler, general = special
         rf = ranking.refits[simpler]
@@ -67,7 +67,8 @@ def weigh(problem: GapProblem, ranking: Ranking, by_label: Mapping[str, Effect])
         ranking = replace(ranking, verdict=simpler, indistinguishable=[])
     elif ranking.verdict in ranking.refits and ranking.indistinguishable:
         # the fits could not separate the verdict from its ties: the evidence decides, or says it cannot
-        verdict, listed, sentence = by_evidence(ranking.verdict, ranking.indistinguishable, probs)
+        verdict, listed, sentence = by_evidence(ranking.verdict, ranking.indistinguishable, probs,
+                                                problem.settings.decisive_odds)
         reason = (f"{sentence}; {reason}" if verdict == INDISTINGUISHABLE else f"{reason}; {sentence}")
         ranking = replace(ranking, verdict=verdict, indistinguishable=listed)
     if ranking.verdict in probs:

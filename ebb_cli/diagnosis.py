@@ -80,7 +80,8 @@ def add_parsers(sub: Subcommands) -> None:
     p.add_argument("--result", default=None, metavar="DIR", help="an `ebb identify` result to start from")
     p.add_argument("--out", required=True, help="output directory (gap.json, plots); must not exist or be empty")
     add_modes_arguments(p)
-    p.add_argument("--shortlist", type=int, default=4, help="effects refitted after the score test (default 4)")
+    p.add_argument("--shortlist", type=int, default=None,
+                   help="effects refitted after the score test (default: [diagnosis] shortlist, else 4)")
     p.add_argument("--workers", type=int, default=2, metavar="K",
                    help="processes refitting the shortlisted effects (with --each: diagnosing the records) side "
                         "by side (default 2)")

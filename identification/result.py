@@ -47,7 +47,7 @@ from .noise_model import NoiseModel
 from .prior import PriorCheck
 from .optimise import ParetoSet
 from .parameters import ParameterSpace, parameter_space
-from .settings import SECTION
+from .settings import CONFIG_SECTIONS
 
 __all__ = ["CRB_GAP_LIMIT", "IdentificationResult", "PolishedPoint", "RESULT_FILE"]
 
@@ -300,7 +300,7 @@ class IdentificationResult:
 
     @classmethod
     def _from_dict(cls, doc: Mapping[str, Any], out_dir: Path) -> IdentificationResult:
-        cfg = config_from_dict(doc["config"], extra_sections=(SECTION,))
+        cfg = config_from_dict(doc["config"], extra_sections=CONFIG_SECTIONS)
         space = parameter_space(cfg)
         names = tuple(doc["parameter_names"])
         if names != tuple(space.names):

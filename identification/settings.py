@@ -31,11 +31,13 @@ from ebb_model import load_config
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
 
-__all__ = ["SECTION", "IdentificationSettings", "identification_settings", "identification_table",
+__all__ = ["CONFIG_SECTIONS", "SECTION", "IdentificationSettings", "identification_settings", "identification_table",
            "load_identification_config"]
 
 #: Name of the config table this layer owns.
 SECTION = "identification"
+#: The config tables kept beside the model's: this layer's and the diagnosis' (checked by each).
+CONFIG_SECTIONS = (SECTION, "diagnosis")
 _KEYS = ("positions", "data", "noise_std", "per", "stabilising", "modes", "geometry")
 _DATA_KEYS = ("mapping", "units", "gains", "remove_offset", "pre_trigger", "band", "resample", "format")
 
@@ -114,7 +116,8 @@ def identification_settings(config: BeamConfig) -> IdentificationSettings:
 
 
 def load_identification_config(path: str | Path) -> BeamConfig:
-    """Load a config whose ``[identification]`` table is kept for this layer (and checked).
+    """Load a config whose ``[identification]`` table is kept for this layer (and checked), and whose
+    ``[diagnosis]`` table is kept for the diagnosis (checked there: :func:`diagnosis.settings.thresholds_from_config`).
 
     Raises
     ------
@@ -124,7 +127,7 @@ def load_identification_config(path: str | Path) -> BeamConfig:
     from .geometry import geometry_prior
     from .modal_data import modal_data
 
-    cfg = load_config(path, extra_sections=(SECTION,))
+    cfg = load_config(path, extra_sections=CONFIG_SECTIONS)
     identification_settings(cfg)
     # the tables read later are checked now: a bad one stops the run before its first simulation
     modal_data(cfg)

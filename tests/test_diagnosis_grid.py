@@ -21,7 +21,8 @@ from ebb_model.reference.synthetic import synthesize
 
 from conftest import make_config
 
-from diagnosis.run import GRID_VERDICT, NUMERICAL_SHARE_LIMIT, diagnose
+from diagnosis.run import GRID_VERDICT, diagnose
+from diagnosis.settings import Thresholds
 
 DT = 5e-4
 TRUTH = {"EI": 10.0, "rhoA": 1.0, "c": 2.0, "N": 20.0}
@@ -52,7 +53,8 @@ def record(tmp_path_factory):
 def test_a_coarse_seed_scheme_gap_is_called_the_grid(tmp_path, record):
     d = diagnose(bench("theta", 60), [record], None, plots=False, workers=1, export=False)
     base = d.document["baseline"]
-    assert base["numerical_adequacy"]["max_numerical_share"] > NUMERICAL_SHARE_LIMIT, base["numerical_adequacy"]
+    share = base["numerical_adequacy"]["max_numerical_share"]
+    assert share > Thresholds().numerical_share_limit, base["numerical_adequacy"]
     assert d.verdict == GRID_VERDICT, d.document["reason"]
     assert "the model's grid" in d.document["reason"] and "use [beam] nodes >= " in d.document["reason"]
     assert not base["grid_advice"]["adequate"]

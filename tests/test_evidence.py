@@ -128,7 +128,10 @@ def test_a_lag_on_the_only_force_or_the_only_sensor_is_indistinguishable(tmp_pat
     actuator lag withheld (the independent generator, 1 % noise): both refits close the held-out gap, the evidence
     splits evenly (measured 0.500 / 0.500) — the verdict is ``indistinguishable``, both listed, none exported."""
     from diagnosis.run import diagnose
-    from diagnosis.verdict import DECISIVE_ODDS, INDISTINGUISHABLE
+    from diagnosis.settings import Thresholds
+    from diagnosis.verdict import INDISTINGUISHABLE
+
+    DECISIVE_ODDS = Thresholds().decisive_odds
 
     cfg, rec = siso_lag_record(tmp_path)
     doc = diagnose(cfg, [rec], tmp_path / "gap", plots=False, export=True, workers=1).document

@@ -7,9 +7,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from diagnosis.verdict import (DECISIVE_ODDS, INDISTINGUISHABLE, NAMED_CLOSURE, UNEXPLAINED, by_evidence,
-                               verdict_rule)
-from diagnosis.refits import GAP_THRESHOLD, EffectRefit
+from diagnosis.refits import EffectRefit
+from diagnosis.settings import Thresholds
+from diagnosis.verdict import INDISTINGUISHABLE, UNEXPLAINED, by_evidence
+from diagnosis.verdict import verdict_rule as rule
+
+SETTINGS = Thresholds()
+GAP_THRESHOLD, NAMED_CLOSURE, DECISIVE_ODDS = SETTINGS.gap_threshold, SETTINGS.named_closure, SETTINGS.decisive_odds
+
+
+def verdict_rule(before, refits, paying, settings=SETTINGS):
+    """The rule with the default thresholds (the tests below check it at them)."""
+    return rule(before, refits, paying, settings)
 
 BEFORE = np.array([40.0, 60.0])      # held-out gap ratio of the baseline, per sensor (mean 50)
 
@@ -98,10 +107,18 @@ def test_the_evidence_decides_between_ties_or_says_it_cannot():
     """Ties the fits cannot separate go to the evidence: strong odds (≥ 20) name the most probable — even when
     the fit rule ranked the other first —; weaker odds give ``indistinguishable`` with the candidates listed,
     the most probable first, and their probabilities in the reason."""
-    verdict, listed, why = by_evidence("a", ["b"], {"a": 0.04, "b": 0.95, "none": 0.01})
+    verdict, listed, why = by_evidence("a", ["b"], {"a": 0.04, "b": 0.95, "none": 0.01}, DECISIVE_ODDS)
     assert (verdict, listed) == ("b", []) and "odds 23.8" in why
-    verdict, listed, why = by_evidence("a", ["b", "c"], {"a": 0.30, "b": 0.62, "c": 0.08})
+    verdict, listed, why = by_evidence("a", ["b", "c"], {"a": 0.30, "b": 0.62, "c": 0.08}, DECISIVE_ODDS)
     assert verdict == INDISTINGUISHABLE and listed == ["b", "a", "c"]
     assert "b 0.62, a 0.3, c 0.08" in why and f"< {DECISIVE_ODDS:g}" in why
     # the boundary itself: odds of exactly 20 decide
-    assert by_evidence("a", ["b"], {"a": 20.0 / 21.0, "b": 1.0 / 21.0})[0] == "a"
+    assert by_evidence("a", ["b"], {"a": 20.0 / 21.0, "b": 1.0 / 21.0}, DECISIVE_ODDS)[0] == "a"
+
+
+def test_a_threshold_moves_the_verdict():
+    """The same refit named under the default closure (0.8) is not under a stricter one (0.9)."""
+    rf = refit("foundation", 0.15 * np.mean(BEFORE))          # closes 86 % of the gap
+    assert verdict_rule(BEFORE, {"foundation": rf}, ["foundation"])[0] == "foundation"
+    strict = Thresholds(named_closure=0.9)
+    assert verdict_rule(BEFORE, {"foundation": rf}, ["foundation"], strict)[0] == UNEXPLAINED
