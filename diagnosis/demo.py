@@ -75,7 +75,7 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
     from ebb_model.reference.withheld import WithheldEffect
     from identification.export import export_points
     from identification.run import identify
-    from identification.settings import load_identification_config
+    from identification.config_file import load_identification_config
 
     from .report import text_report
     from .run import diagnose

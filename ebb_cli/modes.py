@@ -31,7 +31,7 @@ def config_with_spectrum_modes(args: argparse.Namespace) -> BeamConfig | str:
     if args.modes is None:
         return str(args.config)
     from identification.modal_data import with_modes
-    from identification.settings import load_identification_config
+    from identification.config_file import load_identification_config
     from identification.spectrum_modes import spectrum_modes
 
     cfg = load_identification_config(args.config)

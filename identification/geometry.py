@@ -30,6 +30,8 @@ import numpy as np
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
 
+from .settings import identification_table
+
 __all__ = ["QUANTITIES", "SectionPrior", "geometry_prior"]
 
 #: The section's quantities and their units.
@@ -58,8 +60,6 @@ def geometry_prior(config: BeamConfig) -> SectionPrior | None:
         Not a table, a quantity missing or unknown, a value or uncertainty not a finite number > 0 (an uncertainty
         may be 0), EI or ρA with a ``prior_std`` of its own as well (a prior is stated once) — every problem at once.
     """
-    from .settings import identification_table
-
     table = identification_table(config, "geometry", f"of {', '.join(QUANTITIES)}, each {{ value = ..., std = ... }}")
     if table is None:
         return None

@@ -25,6 +25,8 @@ import numpy as np
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError, EbbError
 
+from .settings import identification_table
+
 __all__ = ["ModalData", "modal_data", "with_modes"]
 
 
@@ -79,8 +81,6 @@ def modal_data(config: BeamConfig) -> ModalData | None:
         Not a table, lengths that differ, non-increasing frequencies, uncertainties not > 0 — every problem at
         once.
     """
-    from .settings import identification_table
-
     table = identification_table(config, "modes", "{ frequencies_hz = [...], std_hz = [...] }")
     if table is None:
         return None

@@ -59,7 +59,8 @@ from .problem import IdentificationProblem
 from .result import RESULT_FILE, IdentificationResult, PolishedPoint
 from .runners import Runner, make_runner
 from .noise import given_noise_std
-from .settings import identification_settings, load_identification_config
+from .config_file import load_identification_config
+from .settings import identification_settings
 from .uncertainty import uncertainty_model, write_uncertainty
 
 __all__ = ["BACKENDS", "IdentificationResult", "PolishedPoint", "Progress", "identify",

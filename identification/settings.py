@@ -23,16 +23,13 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from ebb_model import load_config
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
 
-__all__ = ["CONFIG_SECTIONS", "SECTION", "IdentificationSettings", "identification_settings", "identification_table",
-           "load_identification_config"]
+__all__ = ["CONFIG_SECTIONS", "SECTION", "IdentificationSettings", "identification_settings", "identification_table"]
 
 #: Name of the config table this layer owns.
 SECTION = "identification"
@@ -83,7 +80,8 @@ def identification_table(config: BeamConfig, key: str, shape: str) -> Mapping[st
 
 
 def identification_settings(config: BeamConfig) -> IdentificationSettings:
-    """Read the ``[identification]`` table of ``config`` (kept by :func:`load_identification_config`).
+    """Read the ``[identification]`` table of ``config`` (kept by
+    :func:`identification.config_file.load_identification_config`).
 
     Raises
     ------
@@ -113,23 +111,3 @@ def identification_settings(config: BeamConfig) -> IdentificationSettings:
         positions=MappingProxyType(dict(positions)),
         data=MappingProxyType(dict(data)), noise_std=ident.get("noise_std"), per=ident.get("per"),
         stabilising=ident.get("stabilising"))
-
-
-def load_identification_config(path: str | Path) -> BeamConfig:
-    """Load a config whose ``[identification]`` table is kept for this layer (and checked), and whose
-    ``[diagnosis]`` table is kept for the diagnosis (checked there: :func:`diagnosis.settings.thresholds_from_config`).
-
-    Raises
-    ------
-    ConfigError
-        Invalid config, or an invalid ``[identification]`` table.
-    """
-    from .geometry import geometry_prior
-    from .modal_data import modal_data
-
-    cfg = load_config(path, extra_sections=CONFIG_SECTIONS)
-    identification_settings(cfg)
-    # the tables read later are checked now: a bad one stops the run before its first simulation
-    modal_data(cfg)
-    geometry_prior(cfg)
-    return cfg

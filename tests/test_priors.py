@@ -113,7 +113,7 @@ def test_a_section_gives_ei_and_rhoa_a_correlated_prior():
 
 def test_a_section_table_with_problems_names_each_at_load(tmp_path):
     """Every problem of the table at once, one line each, when the config is loaded (not after a GA run)."""
-    from identification.settings import load_identification_config
+    from identification.config_file import load_identification_config
 
     bad = {"E": {"value": -1.0, "std": 1.0}, "width": {"value": 0.05}, "thickness": STRIP["thickness"],
            "colour": {"value": 1.0, "std": 0.0}}
