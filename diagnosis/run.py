@@ -22,14 +22,12 @@ import numpy as np
 
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
-from ebb_model.adequacy import NOISE_FLOOR_EXCESS, excited_band, numerical_adequacy
+from ebb_model.adequacy import excited_band, numerical_adequacy
 from ebb_model.htmlio import PAGE, write_page
 from ebb_model.grid_advice import grid_advice
 from ebb_model.jsonio import write_json
 from ebb_model.output import check_new_output_dir, staged_dir
 from ebb_model.modal import discrete_frequencies
-from ebb_model.assemble import field_config
-from ebb_model.simulate import fast_model, simulate
 from ebb_model.threads import one_blas_thread
 
 from identification.data import Experiment
@@ -43,8 +41,7 @@ from identification.prior import Prior
 from identification.result import IdentificationResult
 from identification.run import load_identification_config, read_data
 
-from .axial_terms import stretch_of_nodes
-from .effects import Catalogue, Effect, Scales
+from .effects import Catalogue, Effect
 from .fitting import Fit, GapProblem
 from .localise import Localisation, localise
 from .modal_estimate import MeasuredModes, estimate_modes
@@ -57,7 +54,9 @@ from .stages import StageClock
 from .verdict import UNEXPLAINED
 from .settings import Thresholds, thresholds_from_config
 from .report import html_sections
-from .records import Record, records_start, split_records
+from .baseline import baseline_fit, floor_from_the_records, start_from_result
+from .candidates import catalogue_of
+from .records import split_records
 from .result import (BandClosure, BaselineSummary, DiagnosisSettings, EffectRow, GapReport, PatternMatch,
                      RefitSummary)
 from .workers import DaskExecutor, refit_pool
@@ -93,38 +92,6 @@ class Diagnosis:
 def _ordered(config: BeamConfig, e: Experiment) -> tuple[str, np.ndarray, np.ndarray]:
     idx = [e.output_names.index(s.name) for s in config.sensors]
     return e.name, np.asarray(e.inputs, dtype=float), np.asarray(e.outputs, dtype=float)[:, idx]
-
-
-def _start_from_result(result: IdentificationResult | str | Path, names: Sequence[str]) -> np.ndarray:
-    """The identified model's values (:attr:`IdentificationResult.best`) of the unknowns ``names``."""
-    if not isinstance(result, IdentificationResult):
-        try:
-            result = IdentificationResult.read(result)
-        except ConfigError as exc:
-            raise ConfigError(f"`result` {exc}") from None
-    best = result.best
-    missing = [n for n in names if n not in best]
-    if missing:
-        raise ConfigError(f"`result` {result.out_dir}: the identification has no values of {', '.join(missing)}; "
-                          f"expected the parameters {', '.join(names)}")
-    return np.array([float(best[n]) for n in names])
-
-
-def _stretch_max(config: BeamConfig, params: Mapping[str, float], records: Sequence[Record]) -> float:
-    """Largest ``∫ w_x² dx`` of the baseline response over the records.
-
-    The deflection at every grid node (:func:`ebb_model.field_config`) and the
-    integral of its piecewise-linear interpolant — the quadrature the
-    stretching simulation itself uses (:func:`diagnosis.axial_terms.stretch_of_nodes`).
-    """
-    n_s = len(config.sensors)
-    model = fast_model(field_config(config), params)
-    h = config.beam.length / (config.beam.nodes + 1)
-    best = 0.0
-    for r in records:
-        w = simulate(model, r.inputs).outputs[:, n_s:]
-        best = max(best, float(np.max(stretch_of_nodes(w, h))))
-    return best
 
 
 def _band_closure(before: Sequence[np.ndarray], after: Sequence[np.ndarray], dt: float,
@@ -310,7 +277,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     records = split_records([_ordered(cfg, e) for e in exps], [_ordered(cfg, e) for e in held],
                             holdout_fraction=holdout_fraction)
     space = parameter_space(cfg)
-    beta0 = _start_from_result(result, space.names) if result is not None else np.asarray(space.nominal)
+    beta0 = start_from_result(result, space.names) if result is not None else np.asarray(space.nominal)
     dt = cfg.time.dt
     given = given_noise_std(cfg, noise_std)
     sigma = given if given is not None else records_noise_std([r.inputs for r in records],
@@ -324,7 +291,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         # by side when there are workers)
         say("baseline fit, with the force as read and reversed (its sign as evidence)")
         with clock.stage("baseline and the force's sign"):
-            problem, baseline, polarity = check_polarity(problem, partial(_baseline_fit, beta0=beta0), executor)
+            problem, baseline, polarity = check_polarity(problem, partial(baseline_fit, beta0=beta0), executor)
         records = problem.records
         say(polarity.line())
         if given is None:
@@ -336,7 +303,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                 baseline = problem.fit(baseline.beta)
             say("noise model: " + "; ".join(problem.noise_model.describe(cfg.output_names, [r.name for r in records])))
         with clock.stage("baseline from the records' start"):
-            baseline = _floor_from_the_records(problem, baseline, say)
+            baseline = floor_from_the_records(problem, baseline, say)
         sigma = problem.noise_std
         base_cfg, base_params = space.apply(cfg, baseline.beta)
         f_lo, f_hi = excited_band([r.inputs for r in records], dt)
@@ -347,7 +314,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         in_band[0] = True
         mf, mz = freqs[in_band], zetas[in_band]
         fit_records = [r for r in records if r.has_fit]
-        catalogue = _catalogue(problem, base_cfg, base_params, mf, f_hi)
+        catalogue = catalogue_of(problem, base_cfg, base_params, mf, f_hi)
         with clock.stage("ranking (the rest)"):
             ranking = _ranking(problem, baseline, catalogue, settings.shortlist, executor, workers,
                                _modal_source(problem, mf, mz, freqs[~in_band][:1], f_hi), say, clock)
@@ -396,48 +363,6 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     finally:
         if executor is not None:
             executor.shutdown(cancel_futures=True)
-
-
-def _baseline_fit(problem: GapProblem, beta0: np.ndarray) -> tuple[GapProblem, Fit]:
-    """The baseline fit: a short global search first, seeded with ``beta0`` (the identification result or the
-    nominal values), then the fit from its best basin.  Returns the problem with the other basins kept as
-    starts for the refits (the baseline may sit where it only compensates an effect), and the fit."""
-    basins = problem.baseline_basins(beta0, n_basins=3)
-    problem = replace(problem, other_starts=tuple(problem.fit(b, max_evaluations=60).beta for b in basins[1:]))
-    return problem, problem.fit(basins[0])
-
-
-def _floor_from_the_records(problem: GapProblem, baseline: Fit, say: Callable[[str], None]) -> Fit:
-    """The baseline, or — when it leaves a gap and the records' own start (:func:`diagnosis.records.records_start`)
-    explains the records to the noise floor — the fit from that start: then there is no gap to diagnose, the fit
-    from the config's values stopped in another basin (a lightly damped record's level valley)."""
-    floor = 1.0 + NOISE_FLOOR_EXCESS
-    if baseline.rss / baseline.n <= floor:
-        return baseline
-    x = records_start(problem)
-    if x is None:
-        return baseline
-    fit = problem.fit(x)
-    if fit.rss / fit.n > floor:
-        return baseline
-    say(f"the baseline from the start given stopped at {baseline.rss / baseline.n:.3g} noise variances; from the "
-        f"records' own start it reaches the noise floor ({fit.rss / fit.n:.3g}): that fit is the baseline")
-    return fit
-
-
-def _catalogue(problem: GapProblem, base_cfg: BeamConfig, base_params: Mapping[str, float], mf: np.ndarray,
-               f_hi: float) -> Catalogue:
-    """The candidate effects of the fitted baseline, their search bounds set by its scales (the in-band modes
-    ``mf`` [Hz], the excited band's top ``f_hi`` [Hz], the fit records' length and largest stretch)."""
-    fit_records = [r for r in problem.records if r.has_fit]
-    scales = Scales(EI=base_params["EI"], rhoA=base_params["rhoA"], N=base_params["N"],
-                    length=base_cfg.beam.length, omega_low=2 * np.pi * float(mf[0]),
-                    omega_high=2 * np.pi * max(float(mf[-1]), f_hi),
-                    duration=max(r.fit_end for r in fit_records) * base_cfg.time.dt,
-                    stretch_max=_stretch_max(base_cfg, base_params, fit_records),
-                    output_rms=tuple(float(v) for v in np.sqrt(np.mean(np.concatenate(
-                        [r.outputs[:r.fit_end] for r in fit_records]) ** 2, axis=0))))
-    return Catalogue(base_cfg, scales, tuple(problem.space.names))
 
 
 def _report(problem: GapProblem, ranking: Ranking, band: tuple[float, float], mf: np.ndarray, adequacy: Any,

@@ -16,11 +16,13 @@ to the whole record after removing its mean (zero phase, no delay).
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ebb_model.errors import DataError
 
-__all__ = ["band_limit", "check_band"]
+__all__ = ["band_limit", "check_band", "condition"]
 
 
 def check_band(band: object, dt: float, *, where: str) -> tuple[float, float]:
@@ -74,3 +76,42 @@ def band_limit(x: np.ndarray, dt: float, f_lo: float, f_hi: float, *, edge: floa
     mean = a.mean(axis=0) if f_lo > 0 else 0.0
     out = np.fft.irfft(np.fft.rfft(a - mean, axis=0) * mask[:, None], n=n, axis=0)
     return out.ravel() if vec else out
+
+
+def condition(x: np.ndarray, t: np.ndarray, *, mode: str | bool, pre_trigger: float | None, band: Any,
+               dt: float, src: str) -> np.ndarray:
+    """Remove the static offset (``mode``) and limit the band of the signals ``x``, as
+    :func:`identification.data.loaders.load_experiment` says.
+
+    Parameters
+    ----------
+    x, t
+        Signals ``(n_samples, n_signals)`` and their times (on the uniform grid).
+    mode, pre_trigger, band
+        The checked ``remove_offset``, ``pre_trigger`` and the ``band``.
+    dt, src
+        The config's sample interval (the filter's for a one-sample record); the file, for messages.
+
+    Returns
+    -------
+    numpy.ndarray
+        The conditioned signals.
+
+    Raises
+    ------
+    DataError
+        No sample in the pre-trigger window; an invalid band.
+    """
+    if mode == "mean":
+        x = x - x.mean(axis=0)
+    elif mode == "pre-trigger":
+        assert pre_trigger is not None
+        quiet = t < t[0] + pre_trigger
+        if not quiet.any():
+            raise DataError(f"{src}: no sample in the pre-trigger window of {pre_trigger:g} s")
+        x = x - x[quiet].mean(axis=0)
+    if band is not None:
+        dt_file = float(t[1] - t[0]) if t.size > 1 else dt
+        f_lo, f_hi = check_band(band, dt_file, where=f"{src}: band")
+        x = band_limit(x, dt_file, f_lo, f_hi)
+    return x

@@ -44,7 +44,7 @@ from ebb_model.textio import printable
 from .binary_formats import read_mat, read_npz
 from .csv_format import read_csv
 from .experiment import Experiment
-from .filtering import band_limit, check_band
+from .filtering import condition
 from .lvm import read_lvm
 from .table import RawTable
 from .timebase import regularise_time, resample_uniform
@@ -310,44 +310,6 @@ def _signal_in_si(table: RawTable, i: int, role: _Role, t: np.ndarray, cunits: M
     return a
 
 
-def _condition(x: np.ndarray, t: np.ndarray, *, mode: str | bool, pre_trigger: float | None, band: Any,
-               dt: float, src: str) -> np.ndarray:
-    """Remove the static offset (``mode``) and limit the band of the signals ``x``, as :func:`load_experiment` says.
-
-    Parameters
-    ----------
-    x, t
-        Signals ``(n_samples, n_signals)`` and their times (on the uniform grid).
-    mode, pre_trigger, band
-        The checked ``remove_offset``, ``pre_trigger`` and the ``band``.
-    dt, src
-        The config's sample interval (the filter's for a one-sample record); the file, for messages.
-
-    Returns
-    -------
-    numpy.ndarray
-        The conditioned signals.
-
-    Raises
-    ------
-    DataError
-        No sample in the pre-trigger window; an invalid band.
-    """
-    if mode == "mean":
-        x = x - x.mean(axis=0)
-    elif mode == "pre-trigger":
-        assert pre_trigger is not None
-        quiet = t < t[0] + pre_trigger
-        if not quiet.any():
-            raise DataError(f"{src}: no sample in the pre-trigger window of {pre_trigger:g} s")
-        x = x - x[quiet].mean(axis=0)
-    if band is not None:
-        dt_file = float(t[1] - t[0]) if t.size > 1 else dt
-        f_lo, f_hi = check_band(band, dt_file, where=f"{src}: band")
-        x = band_limit(x, dt_file, f_lo, f_hi)
-    return x
-
-
 def _checked_experiment(config: BeamConfig, name: str, t: np.ndarray, x: np.ndarray, si_units: dict[str, str],
                         src: str, resample: bool) -> Experiment:
     """The :class:`Experiment` of the signals ``x`` (inputs, then outputs), checked against ``config``.
@@ -469,7 +431,7 @@ def load_experiment(path: str | Path, config: BeamConfig, *, format: str | None 
     si_units = {sig: "N" if role == "actuator" else SENSOR_UNITS[quantity] for sig, role, quantity in roles}
     t = regularise_time(t, tol, config.time.dt, where=time_label)
     x = np.column_stack([cols[s] for s, _, _ in roles])
-    x = _condition(x, t, mode=mode, pre_trigger=pre_trigger, band=band, dt=config.time.dt, src=src)
+    x = condition(x, t, mode=mode, pre_trigger=pre_trigger, band=band, dt=config.time.dt, src=src)
     if resample:
         t, x, _ = resample_uniform(t, x, config.time.dt, where=time_label)
     return _checked_experiment(config, name if name is not None else p.stem, t, x, si_units, src, resample)
