@@ -20,7 +20,6 @@ from __future__ import annotations
 import numpy as np
 
 from .effects import PAIR_SEPARATOR, on_top_of
-from .effects.chain import FAMILY as CHAIN
 from .fitting import Fit
 from .refits import EffectRefit, explains, pair_refit
 from .score import score_effect
@@ -78,7 +77,7 @@ def pair_with(run: Search, single: EffectRefit, known: dict[str, Fit]
     # special case never (the general effect that nests it stands in for it: diagnosis.nested)
     rescored = {e.label: score_effect(run.problem, single.fit, on_top_of(first, single.fit.s, e)).lm
                 for e in run.effects.values() if e.name != first.name and e.nested_in is None
-                and (with_prior or e.name not in CHAIN.names)}
+                and (with_prior or not e.scale_degenerate)}
     partners = [lab for lab in sorted(rescored, key=lambda k: -rescored[k])
                 if rescored[lab] > 0][:run.problem.settings.pair_partners]
     run.say(f"second-effect scores at the {single.label} refit: "

@@ -54,7 +54,6 @@ from typing import Any, Callable
 import numpy as np
 
 from .effects import Catalogue, Effect
-from .effects.chain import FAMILY as CHAIN
 from .fitting import Fit, GapProblem
 from .modal_pattern import ModalEvidence, PatternFit, moves_modes, pattern_fits
 from .nested import armature_refits, transducer_refits
@@ -366,7 +365,7 @@ def _shortlist(problem: GapProblem, effects: dict[str, Effect], scores: dict[str
     shortlist (measured: a sensor's gain displaced the right clamp spring in the blind family); it is refitted
     when it scores best of all, and — a prior on the beam breaking the degeneracy — whenever its score is
     significant."""
-    chain = {lab for lab in effects if effects[lab].name in CHAIN.names}
+    chain = {lab for lab in effects if effects[lab].scale_degenerate}
     # a transducer's mass and a shaker's armature are refitted where a general effect's refit put them
     # (diagnosis.nested), never from their score
     nested = {lab for lab in effects if effects[lab].nested_in is not None}

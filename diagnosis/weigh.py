@@ -8,7 +8,6 @@ from typing import Any, Mapping
 import numpy as np
 
 from .effects import PAIR_SEPARATOR, Effect
-from .effects.chain import FAMILY as CHAIN
 from .evidence import posterior_probabilities
 from .fitting import GapProblem
 from .plausibility import confounded, prior_checks
@@ -82,7 +81,7 @@ def weigh(problem: GapProblem, ranking: Ranking, by_label: Mapping[str, Effect])
     if ranking.verdict == "none":
         # a model at the noise floor may still owe its scale to a miscalibrated chain: say which gains the data
         # cannot tell from the beam's unknowns
-        chain = {lab: line for lab, e in by_label.items() if e.name in CHAIN.names and lab not in tangled
+        chain = {lab: line for lab, e in by_label.items() if e.scale_degenerate and lab not in tangled
                  and (line := confounded(problem, e, ranking.baseline, at_baseline=True)) is not None}
         tangled |= chain
         if chain:

@@ -181,6 +181,12 @@ class Effect:
     #: the label of the effect this one is a special case of (a transducer's mass: a point mass at its sensor);
     #: tied with it, this one is named when it explains the held-out records on its own (:mod:`diagnosis.weigh`)
     nested_in: str | None = None
+    #: whether the effect is degenerate with a common scale of the beam's unknowns (a gain of the measurement chain:
+    #: scaling EI, ρA, c and N scales every output alike), so that its score at a baseline that took up the scale
+    #: says little of its worth: it is refitted apart from the shortlist, tried as a pair's second effect only
+    #: where a prior breaks the degeneracy, and named beside a model at the noise floor as what the data cannot
+    #: tell from the beam's scale (:mod:`diagnosis.rank`, :mod:`diagnosis.pairs`, :mod:`diagnosis.weigh`)
+    scale_degenerate: bool = False
     #: the search variables proportional to a physical size the beam's force-like constants measure (a mass in
     #: units of the nominal ρA L, a stiffness in units of EI/L³): multiplying them with EI, ρA, c and N by λ
     #: leaves the modes alone and divides the response by λ (:mod:`diagnosis.modal_pattern` sets that scale from

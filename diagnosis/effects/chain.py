@@ -111,7 +111,7 @@ def candidates(config: BeamConfig, scales: Scales, identified: tuple[str, ...]) 
                                      f"gain (calibration or unit) error of sensor {s.name}",
                                      lambda g, name=s.name: SensorGain(name, g), "gain", "1")
                        for s in config.sensors))
-    return tuple(replace(e, rescale=rescaled_start) for e in effects)
+    return tuple(replace(e, rescale=rescaled_start, scale_degenerate=True) for e in effects)
 
 
 #: This module's entry in the catalogue.
