@@ -98,9 +98,12 @@ def test_axial_terms_add_and_end_time_invariance():
 
 
 def sensor_gain_candidates(config, scales: Scales, identified: tuple[str, ...]):
-    """The new family's builder, as its module would define it: one gain error per sensor (off: 1)."""
-    return tuple(signal_effect("sensor_gain", s.name, "gain", (0.5, 2.0), 1.0, f"gain error of sensor {s.name}",
-                               lambda g, name=s.name: SensorGain(name, g), "gain", "1")
+    """The new family's builder, as its module would define it: one gain error per sensor (off: 1), declared
+    degenerate with a common scale of the beam's unknowns (a gain is: the docs say to declare it)."""
+    from dataclasses import replace
+
+    return tuple(replace(signal_effect("sensor_gain", s.name, "gain", (0.5, 2.0), 1.0, f"gain error of sensor {s.name}",
+                                       lambda g, name=s.name: SensorGain(name, g), "gain", "1"), scale_degenerate=True)
                  for s in config.sensors)
 
 
