@@ -10,29 +10,15 @@ import pytest
 from diagnosis.settings import Thresholds, thresholds_from_config
 from ebb_cli import main
 from ebb_model.errors import ConfigError
-from ebb_model.reference.excitation import band_limited_input
-from ebb_model.reference.synthetic import synthesize
 
 from test_diagnose_cli import _toml
 from test_diagnosis_blind import DT, bench_config
+from test_effect_catalogue import blind_bench_records
 
 
 def _records(tmp_path):
-    """Two records of the blind bench (independent FE generator), sensor y2 read 15 % high."""
-    cfg = bench_config()
-    files = []
-    for seed in (31, 32):
-        rec = synthesize(cfg, band_limited_input(3000, DT, 2.0, 60.0, seed=seed), noise=0.01, seed=seed)
-        path = tmp_path / f"rec{seed}.csv"
-        rec.to_csv(path)
-        lines = path.read_text().splitlines()
-        k = lines[0].split(",").index("y2")
-        rows = [[float(v) for v in line.split(",")] for line in lines[1:]]
-        for r in rows:
-            r[k] *= 1.15
-        path.write_text("\n".join([lines[0]] + [",".join(repr(v) for v in r) for r in rows]) + "\n")
-        files.append(path)
-    return cfg, files
+    """Two records of the blind bench, sensor y2 read 15 % high."""
+    return blind_bench_records(tmp_path, (31, 32), "y2", lambda v: v * 1.15)
 
 
 def test_a_threshold_set_in_the_config_moves_the_verdict(tmp_path, capsys):

@@ -97,6 +97,31 @@ def test_axial_terms_add_and_end_time_invariance():
         Stretching(-1.0)
 
 
+def blind_bench_records(tmp_path, seeds: tuple[int, int], sensor: str, change):
+    """The blind bench's config (written to ``bench.toml``) and two records of it — the independent FE generator,
+    no withheld effect, 1 % noise — written as CSV with ``change`` applied to ``sensor``'s readings, as a
+    miscalibrated or offset sensor records them."""
+    from ebb_model.reference.synthetic import synthesize
+    from test_diagnose_cli import _toml
+    from test_diagnosis_blind import DT, bench_config
+
+    cfg = bench_config()
+    (tmp_path / "bench.toml").write_text(_toml(cfg))
+    files = []
+    for seed in seeds:
+        rec = synthesize(cfg, band_limited_input(3000, DT, 2.0, 60.0, seed=seed), noise=0.01, seed=seed)
+        path = tmp_path / f"rec{seed}.csv"
+        rec.to_csv(path)
+        lines = path.read_text().splitlines()
+        k = lines[0].split(",").index(sensor)
+        rows = [[float(v) for v in line.split(",")] for line in lines[1:]]
+        for r in rows:
+            r[k] = change(r[k])
+        path.write_text("\n".join([lines[0]] + [",".join(repr(v) for v in r) for r in rows]) + "\n")
+        files.append(path)
+    return cfg, files
+
+
 def sensor_gain_candidates(config, scales: Scales, identified: tuple[str, ...]):
     """The new family's builder, as its module would define it: one gain error per sensor (off: 1), declared
     degenerate with a common scale of the beam's unknowns (a gain is: the docs say to declare it)."""
@@ -118,31 +143,13 @@ def test_diagnose_names_and_exports_an_effect_added_the_documented_way(tmp_path,
 
     import diagnosis.effects as catalogue
     from ebb_cli import main
-    from ebb_model.reference.synthetic import synthesize
-    from test_diagnose_cli import _toml
-    from test_diagnosis_blind import DT, bench_config
 
     from diagnosis.effects.base import Family
 
     # the built-in measurement-chain family replaced by this test's own module-to-be
     mine = tuple(f for f in FAMILIES if "sensor_gain" not in f.names)
     monkeypatch.setattr(catalogue, "FAMILIES", mine + (Family(("sensor_gain",), sensor_gain_candidates),))
-    cfg = bench_config()
-    (tmp_path / "bench.toml").write_text(_toml(cfg))
-    files = []
-    for seed in (31, 32):
-        u = band_limited_input(3000, DT, 2.0, 60.0, seed=seed)
-        rec = synthesize(cfg, u, noise=0.01, seed=seed)
-        path = tmp_path / f"rec{seed}.csv"
-        rec.to_csv(path)
-        lines = path.read_text().splitlines()
-        header = lines[0].split(",")
-        k = header.index("y2")
-        rows = [[float(v) for v in line.split(",")] for line in lines[1:]]
-        for r in rows:
-            r[k] *= 1.15
-        path.write_text("\n".join([lines[0]] + [",".join(repr(v) for v in r) for r in rows]) + "\n")
-        files.append(path)
+    _, files = blind_bench_records(tmp_path, (31, 32), "y2", lambda v: v * 1.15)
     out = tmp_path / "gap"
     # one process: the registry line is this test's (worker processes would read the module's own)
     rc = main(["diagnose", str(tmp_path / "bench.toml"), str(files[0]), "--holdout", str(files[1]),
@@ -215,10 +222,7 @@ def test_an_offset_and_a_mat_target_added_the_documented_way(tmp_path, monkeypat
     import identification.export_targets as export_targets
     from diagnosis.effects.base import Family
     from ebb_cli import main
-    from ebb_model.reference.synthetic import synthesize
     from identification.export_statespace import load_statespace
-    from test_diagnose_cli import _toml
-    from test_diagnosis_blind import DT, bench_config
 
     monkeypatch.setattr(catalogue, "FAMILIES", FAMILIES + (Family(("sensor_offset",), sensor_offset_candidates),))
     (tmp_path / "targets").mkdir()
@@ -226,21 +230,7 @@ def test_an_offset_and_a_mat_target_added_the_documented_way(tmp_path, monkeypat
     monkeypatch.syspath_prepend(str(tmp_path / "targets"))
     registry = dict(export_targets.TARGETS) | {"mat": "mat_target"}      # the registry's one new line
     monkeypatch.setattr(export_targets, "TARGETS", MappingProxyType(registry))
-    cfg = bench_config()
-    (tmp_path / "bench.toml").write_text(_toml(cfg))
-    files = []
-    for seed in (41, 42):
-        u = band_limited_input(3000, DT, 2.0, 60.0, seed=seed)
-        rec = synthesize(cfg, u, noise=0.01, seed=seed)
-        path = tmp_path / f"rec{seed}.csv"
-        rec.to_csv(path)
-        lines = path.read_text().splitlines()
-        k = lines[0].split(",").index("y1")
-        rows = [[float(v) for v in line.split(",")] for line in lines[1:]]
-        for r in rows:
-            r[k] += 2e-4
-        path.write_text("\n".join([lines[0]] + [",".join(repr(v) for v in r) for r in rows]) + "\n")
-        files.append(path)
+    _, files = blind_bench_records(tmp_path, (41, 42), "y1", lambda v: v + 2e-4)
     out = tmp_path / "gap"
     rc = main(["diagnose", str(tmp_path / "bench.toml"), str(files[0]), "--holdout", str(files[1]), "--out", str(out),
                "--workers", "1", "--no-plots", "--target", "statespace", "fmu", "mat"])
