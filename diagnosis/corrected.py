@@ -68,8 +68,11 @@ class StateSpaceForm:
     reason: str | None = None
 
 
-def _parts(model: AugmentedModel) -> str:
-    return "; ".join(dict.fromkeys(part.description for part in model.signals))
+def _parts(model: AugmentedModel, beam: DiscreteStateSpace | None = None) -> str:
+    """The signal parts' descriptions, joined; with ``beam``, only those that put states or terms in series with
+    it (a part whose ``in_series`` leaves the system as it is — a constant offset — is not in the StateSpace)."""
+    return "; ".join(dict.fromkeys(part.description for part in model.signals
+                                   if beam is None or part.in_series(beam) is not beam))
 
 
 def _constant_terms(model: AugmentedModel) -> tuple[np.ndarray, np.ndarray]:
@@ -174,7 +177,7 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
     # the StateSpace for control design: the modes up to the Nyquist frequency, the rest as a static correction
     form = statespace_form(model, design_model(model.config, model.params))
     item = ExportItem("corrected", "corrected", cfg, model.params,
-                      form.system if form.system is not None else beam, beam_system=beam, parts=_parts(model))
+                      form.system if form.system is not None else beam, beam_system=beam, parts=_parts(model, beam))
     for name in targets:
         if name == "statespace" and form.system is None:
             continue
@@ -186,8 +189,8 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
     if form.output_offsets:
         units = {s.name: s.unit for s in model.config.sensors}
         extra["output_offsets"] = {k: {"value": v, "unit": units.get(k, "")} for k, v in form.output_offsets.items()}
-        carries["note"] = ("a sensor reads the StateSpace's output plus a constant (output_offsets): the model is "
-                           "time-invariant and affine")
+        carries["note"] = ("a sensor reads the model's output plus a constant (output_offsets, in neither the "
+                           "StateSpace nor the FMU): the model is time-invariant and affine")
     if form.system is None and "statespace" in targets:
         carries["note"] = f"no StateSpace: {form.reason}; the FMU carries the refitted beam without it"
     written.append(write_json(out / "corrected.json", dict(summary) | extra | {"files": carries}))
