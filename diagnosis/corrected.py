@@ -96,14 +96,15 @@ def _in_series(model: AugmentedModel, beam: DiscreteStateSpace) -> DiscreteState
     return sys
 
 
-def statespace_form(model: AugmentedModel, beam: DiscreteStateSpace | None = None) -> StateSpaceForm:
+def statespace_form(model: AugmentedModel, beam: DiscreteStateSpace | None = None, *,
+                    full: DiscreteStateSpace | None = None) -> StateSpaceForm:
     """The corrected model as one discrete system plus constant reading offsets (:class:`StateSpaceForm`).
 
     The beam's system (``beam``, e.g. a design model; default the whole beam assembled from the model) with each
     signal part in series; the affine terms are what the parts make of zero signals.  The form is checked
     against the diagnosis' own simulation (:func:`diagnosis.augmented.simulate_effects`) of the whole beam on a
     probe input: a part whose declared StateSpace (``in_series``) does not reproduce what it does to the signals
-    gives no system rather than a wrong one.
+    gives no system rather than a wrong one.  ``full``: the whole beam when the caller has assembled it already.
 
     Raises
     ------
@@ -116,7 +117,7 @@ def statespace_form(model: AugmentedModel, beam: DiscreteStateSpace | None = Non
     if not model.time_invariant:
         return StateSpaceForm(None, {}, f"{parts}: not time-invariant")
     cfg = model.config
-    full = assemble(cfg, model.params)
+    full = assemble(cfg, model.params) if full is None else full
     whole = _in_series(model, full)
     if whole is None:
         missing = [p.description for p in model.signals if p.in_series(full) is None]
@@ -175,7 +176,7 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
     carries: dict[str, Any] = {"corrected.toml": "config with the refitted values (structural effects included)"}
     beam = assemble(model.config, model.params)
     # the StateSpace for control design: the modes up to the Nyquist frequency, the rest as a static correction
-    form = statespace_form(model, design_model(model.config, model.params))
+    form = statespace_form(model, design_model(model.config, model.params), full=beam)
     item = ExportItem("corrected", "corrected", cfg, model.params,
                       form.system if form.system is not None else beam, beam_system=beam, parts=_parts(model, beam))
     for name in targets:
