@@ -5,7 +5,7 @@ A lab's campaign is a batch of records â€” one per test, per day, per specimen â
 the same model.  Each record is diagnosed on its own (its own baseline, its own held-out tail) as an independent
 task: on local worker processes, or on a Dask cluster (a scheduler address, or ``local:K``) when one machine is
 not enough.  On local processes a record's diagnosis runs in its process, so the batch's parallelism is the
-records'; on a cluster a record's fits are tasks of the same cluster too (:mod:`diagnosis.workers`), so a long
+records'; on a cluster a record's fits are tasks of the same cluster too (:mod:`diagnosis.search.workers`), so a long
 record's fits spread over the workers the short ones have freed.  Every task is deterministic with one BLAS
 thread, so a record's result does not depend on where it ran.
 
@@ -24,14 +24,14 @@ from ebb_model.errors import ConfigError
 from ebb_model.output import check_new_output_dir, staged_dir
 from identification.run import load_identification_config, read_data
 
-from .workers import DaskExecutor, refit_pool, side_by_side, task_cluster
+from .search.workers import DaskExecutor, refit_pool, side_by_side, task_cluster
 
 __all__ = ["diagnose_each"]
 
 
 def _diagnose_one(config: BeamConfig, record: str, out: str, options: dict[str, Any]) -> dict[str, Any]:
     """One record's diagnosis, its ``gap.json`` document: in this process, its fits as tasks of the cluster when
-    it runs on one (:func:`diagnosis.workers.task_cluster`)."""
+    it runs on one (:func:`diagnosis.search.workers.task_cluster`)."""
     from .run import diagnose
 
     return diagnose(config, [record], out, workers=1, dask=task_cluster(), **options).document

@@ -23,7 +23,7 @@ import numpy as np
 from ebb_model.output import atomic_path, check_new_output_dir, make_dir
 
 if TYPE_CHECKING:
-    from .result import GapReport
+    from .report.result import GapReport
 
 __all__ = ["DEMO_CONFIG", "run_demo"]
 
@@ -77,7 +77,7 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
     from identification.run import identify
     from identification.config_file import load_identification_config
 
-    from .report import text_report
+    from .report.html import text_report
     from .run import diagnose
 
     out = make_dir(check_new_output_dir(out), exist_ok=True)
@@ -127,7 +127,7 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
     from ebb_model.htmlio import PAGE, Section, write_page
     from identification.report import html_sections as identify_sections
 
-    from .report import html_sections
+    from .report.html import html_sections
 
     summary = Section("Result", lead=outcome, preformatted="\n".join(comparison),
                       paragraphs=(elapsed, "exports: " + ", ".join(str(f) for f in files)))

@@ -42,24 +42,24 @@ from identification.result import IdentificationResult
 from identification.run import load_identification_config, read_data
 
 from .effects import Catalogue, Effect
-from .fitting import Fit, GapProblem
+from .problem.fitting import Fit, GapProblem
 from .localise import Localisation, localise
-from .modal_estimate import MeasuredModes, estimate_modes
-from .modal_pattern import ModalEvidence, modal_evidence
-from .plausibility import plausible_verdict, prior_checks
-from .polarity import PolarityCheck, check_polarity
-from .weigh import Weighed, weigh
-from .rank import Ranking, rank_effects
+from .search.modal_estimate import MeasuredModes, estimate_modes
+from .search.modal_pattern import ModalEvidence, modal_evidence
+from .judgement.plausibility import plausible_verdict, prior_checks
+from .baseline.polarity import PolarityCheck, check_polarity
+from .judgement.weigh import Weighed, weigh
+from .search.rank import Ranking, rank_effects
 from .stages import StageClock
-from .verdict import UNEXPLAINED
+from .judgement.verdict import UNEXPLAINED
 from .settings import Thresholds, thresholds_from_config
-from .report import html_sections
-from .baseline import baseline_fit, floor_from_the_records, start_from_result
-from .candidates import catalogue_of
-from .records import split_records
-from .result import (BandClosure, BaselineSummary, DiagnosisSettings, EffectRow, GapReport, PatternMatch,
+from .report.html import html_sections
+from .baseline.fit import baseline_fit, floor_from_the_records, start_from_result
+from .candidates.catalogue import catalogue_of
+from .problem.records import split_records
+from .report.result import (BandClosure, BaselineSummary, DiagnosisSettings, EffectRow, GapReport, PatternMatch,
                      RefitSummary)
-from .workers import DaskExecutor, refit_pool
+from .search.workers import DaskExecutor, refit_pool
 
 __all__ = ["Diagnosis", "diagnose", "excited_band", "GAP_FILE", "GRID_VERDICT"]
 
@@ -70,8 +70,8 @@ GRID_VERDICT = "grid"
 
 @dataclass(frozen=True, eq=False)
 class Diagnosis:
-    """Outcome of :func:`diagnose`: the ranking, what was found (:class:`~diagnosis.result.GapReport`) and where it
-    was written."""
+    """Outcome of :func:`diagnose`: the ranking, what was found (:class:`~diagnosis.report.result.GapReport`) and where
+    it was written."""
 
     ranking: Ranking
     report: GapReport
@@ -175,7 +175,7 @@ def corrected_summary(config: BeamConfig, baseline: Mapping[str, float], row: Ef
 
 def _modal_source(problem: GapProblem, freq_hz: np.ndarray, damping: np.ndarray, above_hz: np.ndarray,
                   band_hz: float) -> Callable[[np.ndarray], ModalEvidence]:
-    """The measured modes' evidence at baseline unknowns ``beta`` (:mod:`diagnosis.modal_pattern`); the modes
+    """The measured modes' evidence at baseline unknowns ``beta`` (:mod:`diagnosis.search.modal_pattern`); the modes
     are estimated from the fit windows once, when first asked for, starting from the baseline's ``freq_hz``.
 
     Only the modes the baseline puts inside the excited band (up to ``band_hz``) and estimated inside it (the
@@ -239,7 +239,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     export
         When the verdict names an effect, write the corrected model (baseline
         plus that effect, refitted) to ``out_dir/corrected/``: config,
-        python-control StateSpace and FMU (:mod:`diagnosis.corrected`).
+        python-control StateSpace and FMU (:mod:`diagnosis.corrected.export`).
     targets
         With ``export``, the export targets of the corrected model
         (:data:`identification.export_targets.TARGETS`; ``standalone`` adds
@@ -328,7 +328,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
             advice = grid_advice(base_cfg, base_params, band_hz=f_hi)
         ranking = _numerical_verdict(ranking, float(np.max(adequacy.numerical_share)), advice.summary(), settings)
         by_label = {e.label: e for e in catalogue.effects()} | {lab: catalogue.effect(lab) for lab in ranking.refits}
-        # a refit that explains the data with values no rig has is not the cause (diagnosis.plausibility)
+        # a refit that explains the data with values no rig has is not the cause (diagnosis.judgement.plausibility)
         with clock.stage("plausibility and evidence"):
             ranking = plausible_verdict(ranking, problem, by_label)
             for lab, lines in ranking.implausible.items():
@@ -387,7 +387,7 @@ def _report(problem: GapProblem, ranking: Ranking, band: tuple[float, float], mf
 def _ranking(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortlist: int, executor: Executor | None,
              workers: int, modal: Callable[[np.ndarray], ModalEvidence], say: Callable[[str], None],
              clock: StageClock) -> Ranking:
-    """:func:`diagnosis.rank.rank_effects` on the executor's processes or Dask workers (ranked again, up to
+    """:func:`diagnosis.search.rank.rank_effects` on the executor's processes or Dask workers (ranked again, up to
     twice, from a better baseline basin that an effect's refit revealed)."""
     parallel = executor.workers if isinstance(executor, DaskExecutor) else workers
     return rank_effects(problem, baseline, catalogue=catalogue, shortlist=shortlist, progress=say,
@@ -428,7 +428,7 @@ def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, 
     with staged_dir(out) as tmp:
         rf = ranking.refits.get(ranking.verdict)
         if export and rf is not None:
-            from .corrected import export_corrected
+            from .corrected.export import export_corrected
 
             model = problem.model(rf.fit.beta, by_label[ranking.verdict], rf.fit.s)
             summary = corrected_summary(problem.config, problem.space.to_dict(ranking.baseline.beta),
@@ -437,7 +437,7 @@ def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, 
             report = replace(report, corrected_files=tuple(f.name for f in files))
         write_json(tmp / GAP_FILE, report.to_dict())
         if plots:
-            from .gap_plots import plot_diagnosis
+            from .report.figures import plot_diagnosis
 
             plot_diagnosis(report, problem, ranking, by_label, locs, tmp)
         write_page(tmp / PAGE, "ebb diagnose: where the model and the records disagree, and why",

@@ -1,6 +1,6 @@
 """Every threshold the diagnosis decides with, in one object, each with the reason for its value.
 
-:class:`Thresholds` travels with the problem (:attr:`diagnosis.fitting.GapProblem.settings`) to every stage that
+:class:`Thresholds` travels with the problem (:attr:`diagnosis.problem.fitting.GapProblem.settings`) to every stage that
 decides — the verdict rule, the pairs, the modal pattern, plausibility, the evidence, the grid — and is written
 whole to ``gap.json`` (``settings``: the values and ``reasons``).  A config sets any of them in a ``[diagnosis]``
 table (:func:`thresholds_from_config`), checked like the rest of the config::

@@ -26,7 +26,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
                  holdout_fraction=args.holdout_fraction, shortlist=args.shortlist, plots=not args.no_plots,
                  export=not args.no_export, targets=args.target, workers=args.workers, dask=args.dask,
                  progress=say)
-    from diagnosis.report import text_report
+    from diagnosis.report.html import text_report
 
     print(text_report(d.report))
     print(f"wrote {d.out_dir / 'gap.json'}")

@@ -12,7 +12,7 @@ Steps:
 1. read the record as ``arts_diagnose.toml`` says (80–170 Hz band on input
    and output alike, in-band noise) and check the in-band noise level against
    adjacent 0.1 s periods; the load cell's sign is left as recorded — the
-   diagnosis weighs it (:mod:`diagnosis.polarity`);
+   diagnosis weighs it (:mod:`diagnosis.baseline.polarity`);
 2. :func:`diagnosis.run.diagnose` with what the user knows: a prior on EI and
    rhoA from the strip's section and material (``[identification.geometry]``:
    its two documented thicknesses), and the impulse test's natural frequencies

@@ -3,7 +3,7 @@
 Both fit stacked residual vectors of a model to records — the identification's
 polish (residuals normalised by each sensor's spread, :mod:`identification.polish`)
 and the diagnosis' baseline and effect refits (residuals normalised by the noise,
-:mod:`diagnosis.fitting`) — and both search globally before they fit locally.
+:mod:`diagnosis.problem.fitting`) — and both search globally before they fit locally.
 This module is the one place where that is done:
 
 * **Scaling.**  Unknowns are mapped to the unit cube by their bounds

@@ -1,4 +1,4 @@
-"""Native simulation of the signal-level and axial-force effects (diagnosis.augmented, diagnosis.effects).
+"""Native simulation of the signal-level and axial-force effects (diagnosis.problem.augmented, diagnosis.effects).
 
 Every check is against an independent truth: closed-form responses of the
 first-order lag, the frequency response 1/(1 + iωτ), the assembled LTI θ-scheme
@@ -18,8 +18,8 @@ import scipy.signal as ss
 from conftest import make_config as _make_config
 from scipy.special import ellipk
 
-from diagnosis.augmented import simulate_axial, simulate_effects
-from diagnosis.axial_terms import geometric_stiffness, stretch_integral
+from diagnosis.problem.augmented import simulate_axial, simulate_effects
+from diagnosis.problem.axial_terms import geometric_stiffness, stretch_integral
 from diagnosis.effects.axial import AxialDrift, Stretching
 from diagnosis.effects.lag import ActuatorLag, SensorLag, first_order_lag
 from ebb_model import (

@@ -1,4 +1,4 @@
-"""Axial drift and stretching on the exact-scheme model (diagnosis.axial_modal), against independent truths.
+"""Axial drift and stretching on the exact-scheme model (diagnosis.problem.axial_modal), against independent truths.
 
 * with ``δN ≡ 0`` the perturbed recursion is the linear model of :func:`ebb_model.exact_modal.exact_modal`
   (another code path: real blocks and the compiled modal kernel);
@@ -14,7 +14,7 @@ import pytest
 from conftest import make_config
 
 import ebb_model as em
-from diagnosis.augmented import simulate_axial
+from diagnosis.problem.augmented import simulate_axial
 from ebb_model.reference.synthetic import WithheldEffect, band_limited_input, synthesize
 
 SENSORS = [("y1", 0.4, "displacement"), ("a2", 0.7, "acceleration")]

@@ -1,7 +1,7 @@
 """The diagnosed model as a product: the corrected model exported as config, StateSpace and FMU.
 
 The StateSpace of a corrected model with a lag or a gain must reproduce the diagnosis' own simulation of that model
-(:func:`diagnosis.augmented.simulate_effects`, the lag applied to the signal) — the series connection is exact,
+(:func:`diagnosis.problem.augmented.simulate_effects`, the lag applied to the signal) — the series connection is exact,
 so to round-off.  The exported config reloads to the same model; the FMU runs it through fmpy.
 """
 from __future__ import annotations
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 import ebb_model as em
-from diagnosis.augmented import simulate_effects
-from diagnosis.corrected import corrected_statespace, export_corrected
+from diagnosis.problem.augmented import simulate_effects
+from diagnosis.corrected.export import corrected_statespace, export_corrected
 from diagnosis.effects import AugmentedModel
 from diagnosis.effects.axial import AxialDrift, Stretching
 from diagnosis.effects.chain import ActuatorGain, SensorGain

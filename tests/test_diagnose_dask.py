@@ -47,7 +47,7 @@ def _square(x: float) -> float:
 
 def _fits_inside(xs: list[float]) -> tuple[bool, list[float]]:
     """A task that runs fits as tasks of its own cluster (what a batch's record does)."""
-    from diagnosis.workers import DaskExecutor, side_by_side, task_cluster
+    from diagnosis.search.workers import DaskExecutor, side_by_side, task_cluster
 
     client = task_cluster()
     return client is not None, side_by_side(DaskExecutor(client), _square, [(x,) for x in xs])
@@ -58,7 +58,7 @@ def test_a_tasks_fits_run_on_its_cluster_without_holding_the_worker():
     the worker's only thread; it gives the thread back while it waits.  Outside a task there is no task cluster."""
     from distributed import Client
 
-    from diagnosis.workers import task_cluster
+    from diagnosis.search.workers import task_cluster
     from identification.cluster import local_cluster
 
     assert task_cluster() is None

@@ -22,7 +22,7 @@ from ebb_model.reference.withheld import WithheldEffect
 
 from conftest import make_config
 
-import diagnosis.augmented  # noqa: F401 - imported plainly: a broken import must fail the suite
+import diagnosis.problem.augmented  # noqa: F401 - imported plainly: a broken import must fail the suite
 from diagnosis.run import diagnose  # noqa: E402
 
 DT = 5e-4

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import ebb_model as em
-from diagnosis.augmented import simulate_effects
-from diagnosis.corrected import corrected_statespace
+from diagnosis.problem.augmented import simulate_effects
+from diagnosis.corrected.export import corrected_statespace
 from diagnosis.effects import (EFFECT_NAMES, FAMILIES, AugmentedModel, Scales, Signal, candidate_effects,
                                pair_effect, signal_effect)
 from diagnosis.effects.chain import SensorGain
@@ -264,7 +264,7 @@ def test_an_offset_paired_with_a_lag_is_exported(tmp_path, order):
     output, as the lags alone)."""
     import json
 
-    from diagnosis.corrected import export_corrected, statespace_form
+    from diagnosis.corrected.export import export_corrected, statespace_form
 
     cfg = bench()
     parts = (ActuatorLag(1e-3), SensorOffset("y1", 2e-4))
@@ -286,7 +286,7 @@ def test_a_part_whose_statespace_form_is_wrong_gives_none(tmp_path):
     caught by the probe: no StateSpace, and the reason, rather than a wrong file."""
     import json
 
-    from diagnosis.corrected import export_corrected, statespace_form
+    from diagnosis.corrected.export import export_corrected, statespace_form
 
     @dataclass(frozen=True)
     class Forgetful(Signal):

@@ -587,7 +587,7 @@ def test_model_exchange_with_a_host_solver_and_a_continuous_input(fmus, configs)
 def test_diagnosed_model_exports_a_standalone_fmu(tmp_path):
     """``export_corrected(..., targets=[..., "standalone"])`` (``ebb diagnose --target standalone``): the
     corrected beam in C."""
-    from diagnosis.corrected import export_corrected
+    from diagnosis.corrected.export import export_corrected
     from diagnosis.effects import AugmentedModel
 
     cfg = load_config(SEED_TOML)

@@ -1,4 +1,4 @@
-"""Gap localisation (diagnosis.localise, identification.noise, diagnosis.report_plots) on synthetic truth.
+"""Gap localisation (diagnosis.localise, identification.noise, diagnosis.report.plots) on synthetic truth.
 
 All signals are built here from analytic SDOF / multi-mode responses (scipy.signal, ZOH
 discretisation, which maps each continuous pole exactly) — not from the project's beam model —
@@ -321,7 +321,7 @@ def test_to_dict_is_json_and_table_has_rows():
 
 
 def test_plots_are_written(tmp_path):
-    from diagnosis.report_plots import plot_localisation
+    from diagnosis.report.plots import plot_localisation
 
     rng = np.random.default_rng(10)
     u = _input(rng, n=6000)[:, 0]

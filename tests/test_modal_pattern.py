@@ -17,7 +17,7 @@ from ebb_model.reference.withheld import WithheldEffect
 
 from conftest import make_config
 
-from diagnosis.modal_estimate import estimate_modes
+from diagnosis.search.modal_estimate import estimate_modes
 
 DT = 5e-4
 N_SAMPLES = 4000
@@ -77,9 +77,9 @@ def test_modal_pattern_finds_a_compensated_clamp(tmp_path, monkeypatch):
     from identification.parameters import parameter_space
     from identification.run import read_data
     from diagnosis.effects import Catalogue, Scales
-    from diagnosis.fitting import GapProblem
-    from diagnosis.modal_pattern import modal_evidence, pattern_fit, pattern_fits
-    from diagnosis.records import split_records
+    from diagnosis.problem.fitting import GapProblem
+    from diagnosis.search.modal_pattern import modal_evidence, pattern_fit, pattern_fits
+    from diagnosis.problem.records import split_records
     from diagnosis.run import _ordered
     from ebb_model.modal import discrete_frequencies
     from test_diagnosis_blind import PRIOR, TRUTH, _write, bench_config
@@ -100,7 +100,7 @@ def test_modal_pattern_finds_a_compensated_clamp(tmp_path, monkeypatch):
     scales = Scales(EI=PRIOR["EI"], rhoA=PRIOR["rhoA"], N=PRIOR["N"], length=1.0, omega_low=2 * np.pi * f0[0],
                     omega_high=2 * np.pi * 150.0, duration=fit.fit_end * DT)
     catalogue = Catalogue(c0, scales, tuple(space.names))
-    import diagnosis.modal_pattern as mp
+    import diagnosis.search.modal_pattern as mp
     points, modes = [], mp._modes
 
     def counted(problem_, beta, effect, s, m, *, refined=False):
@@ -138,12 +138,12 @@ def test_modal_pattern_finds_a_compensated_clamp(tmp_path, monkeypatch):
 
 
 def test_standard_errors_are_those_of_the_linearised_fit_and_infinite_when_undetermined():
-    """The modal estimate's standard errors (:func:`diagnosis.modal_estimate._standard_errors`) on a residual
+    """The modal estimate's standard errors (:func:`diagnosis.search.modal_estimate._standard_errors`) on a residual
     linear in the frequencies and damping ratios, where the covariance is exactly ``var (AᵀA)⁻¹``: equal to it,
     with a damping near the floor as determined as any; and a damping the residual does not depend on at all gets
     an infinite standard error — not the pseudo-inverse's zero, which once made a compressed beam's fourth mode
     (ζ → 6e-20) the most certain value of all and every modal match ~1e8."""
-    from diagnosis.modal_estimate import _standard_errors
+    from diagnosis.search.modal_estimate import _standard_errors
 
     rng = np.random.default_rng(3)
     A = rng.normal(size=(200, 4))
@@ -168,7 +168,7 @@ def test_a_scan_trial_leaves_the_residual_of_one_least_squares_solve_with_every_
     mode's; the residual must be the joint least-squares one — also when the trial mode nearly coincides with a
     held one (its columns then lie within 1e-7 of the held range).  Without the held projection the residual is
     2 % off: the check can fail."""
-    from diagnosis.modal_estimate import _Problem
+    from diagnosis.search.modal_estimate import _Problem
 
     f_true, z_true = _analytic(4)
     _, rec = _record("acceleration")

@@ -13,7 +13,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from diagnosis.localise import localise  # noqa: E402
-from diagnosis.report_plots import localisation_figures  # noqa: E402
+from diagnosis.report.plots import localisation_figures  # noqa: E402
 from identification.plots import dominant_hz, fit_figure, front_figure, spread_figure, zoom_window  # noqa: E402
 
 from test_localise import DT, FREQS, RES, ZETAS, _input, _modal, _noisy  # noqa: E402
@@ -119,7 +119,7 @@ def test_fit_figure_has_a_zoom_and_the_data_on_top():
 
 
 def test_band_edges_in_plain_digits():
-    from diagnosis.report_plots import _hz
+    from diagnosis.report.plots import _hz
 
     assert [_hz(v) for v in (2.0, 63.5, 99.94, 1000.0, 12500.0)] == ["2", "63.5", "99.9", "1000", "12500"]
 

@@ -1,4 +1,4 @@
-"""The measured force's sign as evidence (:mod:`diagnosis.polarity`).
+"""The measured force's sign as evidence (:mod:`diagnosis.baseline.polarity`).
 
 The blind bench at its truth (the independent generator, 1 % noise, no effect) with the load cell's sign
 reversed in the file: the diagnosis fits its baseline both ways, takes the reversed force (decisive odds), and

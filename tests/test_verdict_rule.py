@@ -7,10 +7,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from diagnosis.refits import EffectRefit
+from diagnosis.search.refits import EffectRefit
 from diagnosis.settings import Thresholds
-from diagnosis.verdict import INDISTINGUISHABLE, UNEXPLAINED, by_evidence
-from diagnosis.verdict import verdict_rule as rule
+from diagnosis.judgement.verdict import INDISTINGUISHABLE, UNEXPLAINED, by_evidence
+from diagnosis.judgement.verdict import verdict_rule as rule
 
 SETTINGS = Thresholds()
 GAP_THRESHOLD, NAMED_CLOSURE, DECISIVE_ODDS = SETTINGS.gap_threshold, SETTINGS.named_closure, SETTINGS.decisive_odds
@@ -24,7 +24,7 @@ BEFORE = np.array([40.0, 60.0])      # held-out gap ratio of the baseline, per s
 
 
 def refit(label: str, after: float, delta_bic: float = -500.0) -> EffectRefit:
-    """A refit leaving ``after`` noise variances on both sensors; closure as :func:`diagnosis.refits.summarise`
+    """A refit leaving ``after`` noise variances on both sensors; closure as :func:`diagnosis.search.refits.summarise`
     defines it (share of the gap above the noise floor)."""
     closed = (np.mean(BEFORE) - after) / (np.mean(BEFORE) - 1.0)
     return EffectRefit(label, None, {}, 0.0, 0.0, delta_bic, 0.0, np.array([after, after]), float(closed),

@@ -7,7 +7,7 @@ r"""Laws of an axial force the baseline does not have (signal-level: the beam is
     axially restrained).
 
 Both are terms of :class:`~diagnosis.effects.base.AxialLoad`, integrated by
-:func:`diagnosis.augmented.simulate_axial`; neither has a StateSpace.
+:func:`diagnosis.problem.augmented.simulate_axial`; neither has a StateSpace.
 """
 from __future__ import annotations
 

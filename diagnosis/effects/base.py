@@ -3,8 +3,8 @@
 An :class:`Effect` maps search values ``s`` and a baseline ``(config, params)`` to an :class:`AugmentedModel`:
 a config and parameters (structural effects change these: end springs, a point mass, beam terms) plus the
 :class:`Signal` parts no config can express (lags on the way in or out, laws of the axial force).  The
-simulation (:func:`diagnosis.augmented.simulate_effects`) and the corrected model's StateSpace
-(:func:`diagnosis.corrected.corrected_statespace`) ask each signal part what it does, so a new signal-level
+simulation (:func:`diagnosis.problem.augmented.simulate_effects`) and the corrected model's StateSpace
+(:func:`diagnosis.corrected.export.corrected_statespace`) ask each signal part what it does, so a new signal-level
 effect is its own module in this package: a :class:`Signal` subclass and the family that builds it.
 """
 from __future__ import annotations
@@ -60,7 +60,7 @@ class Scales:
 class AxialLoad:
     r"""Terms of the extra axial force :math:`\delta N(t) = \text{rate}\cdot t + \frac{EA}{2L}\int_0^L w_x^2\,dx`.
 
-    The laws the axial simulation (:func:`diagnosis.augmented.simulate_axial`) integrates; the terms of several
+    The laws the axial simulation (:func:`diagnosis.problem.augmented.simulate_axial`) integrates; the terms of several
     signal parts add.
     """
 
@@ -112,7 +112,7 @@ class Signal:
 
 @dataclass(frozen=True)
 class AugmentedModel:
-    """A baseline model with effects applied, ready for :func:`diagnosis.augmented.simulate_effects`.
+    """A baseline model with effects applied, ready for :func:`diagnosis.problem.augmented.simulate_effects`.
 
     Attributes
     ----------
@@ -160,7 +160,7 @@ class Effect:
     plausible
         The physically plausible range ``(lo, hi)`` of some physical parameters (catalogue units), narrower
         than the search bounds: a refit outside it explains the data with a value no rig has (a point mass
-        heavier than a quarter of the beam), and is not named as the cause (:mod:`diagnosis.plausibility`).
+        heavier than a quarter of the beam), and is not named as the cause (:mod:`diagnosis.judgement.plausibility`).
     """
 
     name: str
@@ -179,17 +179,19 @@ class Effect:
     rescale: Callable[[tuple[str, ...], np.ndarray, np.ndarray, Any], tuple[np.ndarray, np.ndarray] | None] | None \
         = field(default=None, repr=False)
     #: the label of the effect this one is a special case of (a transducer's mass: a point mass at its sensor);
-    #: tied with it, this one is named when it explains the held-out records on its own (:mod:`diagnosis.weigh`)
+    #: tied with it, this one is named when it explains the held-out records on its own
+    #: (:mod:`diagnosis.judgement.weigh`)
     nested_in: str | None = None
     #: whether the effect is degenerate with a common scale of the beam's unknowns (a gain of the measurement chain:
     #: scaling EI, ρA, c and N scales every output alike), so that its score at a baseline that took up the scale
     #: says little of its worth: it is refitted apart from the shortlist, tried as a pair's second effect only
     #: where a prior breaks the degeneracy, and named beside a model at the noise floor as what the data cannot
-    #: tell from the beam's scale (:mod:`diagnosis.rank`, :mod:`diagnosis.pairs`, :mod:`diagnosis.weigh`)
+    #: tell from the beam's scale (:mod:`diagnosis.search.rank`, :mod:`diagnosis.search.pairs`,
+    #: :mod:`diagnosis.judgement.weigh`)
     scale_degenerate: bool = False
     #: the search variables proportional to a physical size the beam's force-like constants measure (a mass in
     #: units of the nominal ρA L, a stiffness in units of EI/L³): multiplying them with EI, ρA, c and N by λ
-    #: leaves the modes alone and divides the response by λ (:mod:`diagnosis.modal_pattern` sets that scale from
+    #: leaves the modes alone and divides the response by λ (:mod:`diagnosis.search.modal_pattern` sets that scale from
     #: the amplitudes)
     scaled: tuple[int, ...] = ()
 

@@ -7,8 +7,8 @@
     special case of ``point_mass``, as common as it is easily missed.  Being nested in ``point_mass``, it does
     not compete for the score shortlist (a score at the sensor's position would push a physical effect off it);
     it is refitted from the point mass's refit when that lands within :data:`AT_SENSOR` of a sensor
-    (:mod:`diagnosis.rank`).  Tied with the point mass, it is named when its refit brings the held-out records to
-    the noise floor on its own (:mod:`diagnosis.weigh`): the free position's further gain on the fit window is
+    (:mod:`diagnosis.search.rank`).  Tied with the point mass, it is named when its refit brings the held-out records to
+    the noise floor on its own (:mod:`diagnosis.judgement.weigh`): the free position's further gain on the fit window is
     then below what the held-out records can see — at high signal-to-noise ratios it is the model's own
     representation of a mass between grid nodes that the position absorbs (an 80 g mass on accelerometers:
     0.05 mm, ΔBIC 70, held-out 1.02 against 1.06).

@@ -13,7 +13,7 @@
 Like a transducer's mass it is a special case — of the pair ``point_mass+grounded_spring`` at one position —
 and does not compete for the score shortlist: it is refitted where a point mass's or a spring's refit lands
 within :data:`~diagnosis.effects.point_mass.AT_SENSOR` of an actuator, or from its modal match
-(:mod:`diagnosis.nested`), and it stays a candidate only when it pays for each of its parts
+(:mod:`diagnosis.search.nested`), and it stays a candidate only when it pays for each of its parts
 (:func:`parts`: the mass alone and the suspension alone at the drive point).
 """
 from __future__ import annotations

@@ -91,7 +91,7 @@ class ExportItem:
         The whole beam alone (what an FMU carries: every mode, no signal parts); ``None``: ``system``.
     parts
         The signal-level parts ``system`` has in series and ``beam`` has not, in words ("" for none: a corrected
-        model's lags and gains, :mod:`diagnosis.corrected`).
+        model's lags and gains, :mod:`diagnosis.corrected.export`).
     """
 
     stem: str

@@ -15,10 +15,10 @@ from ebb_model.grid_advice import GridAdvice
 from ebb_model.jsonio import jsonable
 from identification.prior import PriorCheck
 
-from .localise import Localisation
-from .modal_estimate import MeasuredModes
-from .polarity import PolarityCheck
-from .settings import Thresholds
+from ..localise import Localisation
+from ..search.modal_estimate import MeasuredModes
+from ..baseline.polarity import PolarityCheck
+from ..settings import Thresholds
 
 __all__ = ["BandClosure", "RefitSummary", "PatternMatch", "EffectRow", "BaselineSummary", "DiagnosisSettings",
            "GapReport"]
@@ -37,7 +37,7 @@ class BandClosure:
 
 @dataclass(frozen=True)
 class RefitSummary:
-    """An effect's refit together with the baseline unknowns (:mod:`diagnosis.refits`), per sensor by name.
+    """An effect's refit together with the baseline unknowns (:mod:`diagnosis.search.refits`), per sensor by name.
 
     ``model_modes_hz`` are the refitted model's modes (the baseline's in-band ones and the next), for a
     cross-check against an independent modal test.
@@ -58,7 +58,7 @@ class RefitSummary:
 
 @dataclass(frozen=True)
 class PatternMatch:
-    """An effect's modal-pattern fit to the measured modes (:mod:`diagnosis.modal_pattern`)."""
+    """An effect's modal-pattern fit to the measured modes (:mod:`diagnosis.search.modal_pattern`)."""
 
     chi2: float
     freq_hz: tuple[float, ...]
@@ -157,19 +157,19 @@ class GapReport:
     corrected_files
         The corrected model's files (in ``corrected/`` beside ``gap.json``), when it was exported.
     implausible
-        The refits that need implausible values (:mod:`diagnosis.plausibility`), with what is implausible: never
-        the verdict, never exported.
+        The refits that need implausible values (:mod:`diagnosis.judgement.plausibility`), with what is implausible:
+        never the verdict, never exported.
     priors
         The baseline's unknowns against the user's priors (:class:`identification.prior.PriorCheck`).
     evidence
-        Posterior probability of the baseline (``"none"``) and of each refit (:mod:`diagnosis.evidence`).
+        Posterior probability of the baseline (``"none"``) and of each refit (:mod:`diagnosis.judgement.evidence`).
     confounded
         The refits degenerate with the baseline unknowns, and with which (only a prior separates them).
     modal_data
         The baseline (``"none"``) and each refit against the measured modes of the config
         (:meth:`identification.modal_data.ModalData.agreement`), when it gives them.
     polarity
-        The baseline with the measured force as read and reversed (:mod:`diagnosis.polarity`).
+        The baseline with the measured force as read and reversed (:mod:`diagnosis.baseline.polarity`).
     stage_seconds
         Wall seconds per stage of the run, each second counted once (:mod:`diagnosis.stages`).
     """

@@ -70,7 +70,7 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, effects: Mappi
         fig.savefig(tmp, dpi=100, bbox_inches="tight")
     plt.close(fig)
     try:
-        from .report_plots import plot_localisation
+        from .plots import plot_localisation
     except ImportError:  # pragma: no cover - localisation plots are optional
         return paths
     r0 = problem.records[0]

@@ -23,7 +23,7 @@ together by Levenberg–Marquardt.  Standard errors come from the polish's
 Jacobian, scaled by the residual variance.
 
 Nothing of the beam model enters except the start: the estimate is what the
-data say, and :mod:`diagnosis.modal_pattern` compares it with each effect's
+data say, and :mod:`diagnosis.search.modal_pattern` compares it with each effect's
 prediction.
 """
 from __future__ import annotations

@@ -27,8 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2
 
-from .effects import Effect
-from .fitting import Fit, GapProblem
+from ..effects import Effect
+from ..problem.fitting import Fit, GapProblem
 
 __all__ = ["EffectScore", "MASS_GRID", "score_effect", "trial_values"]
 

@@ -1,4 +1,4 @@
-"""Which effect: the score test (:mod:`diagnosis.score`) shortlists; refits (:mod:`diagnosis.refits`),
+"""Which effect: the score test (:mod:`diagnosis.candidates.score`) shortlists; refits (:mod:`diagnosis.search.refits`),
 information criteria and held-out error rank.
 
 Refit and ranking
@@ -11,7 +11,7 @@ excess of 0.7 closed to 0.09 is explained: the rest is the noise estimate's
 and the model's own few per cent) — the modal pattern is tried (below), then
 the refit is repeated from the other basins of the baseline's global search,
 and when still no shortlisted effect explains the gap, each is refitted once
-more by continuation in the record length (:mod:`diagnosis.refits`), the most
+more by continuation in the record length (:mod:`diagnosis.search.refits`), the most
 promising first, until one explains it.  Effects are ranked by held-out error
 among those whose BIC improves by more than the BIC margin (an extra
 parameter must pay for itself).  The verdict is ``none`` when the baseline's
@@ -30,10 +30,10 @@ When no local refit brings the fit windows to the noise floor (one that
 explains the dominant part only may be another effect's stand-in: a point
 mass 0.5 m away from a withheld spring to ground, on accelerometers, left 11
 noise variances), the measured modes
-(:mod:`diagnosis.modal_estimate`) are matched by every structural effect with
-the baseline unknowns profiled out (:mod:`diagnosis.modal_pattern`), and the
+(:mod:`diagnosis.search.modal_estimate`) are matched by every structural effect with
+the baseline unknowns profiled out (:mod:`diagnosis.search.modal_pattern`), and the
 ``pattern_candidates`` best matches (and a special case at a fixed place,
-:mod:`diagnosis.nested`, beside them when it matches best) are refitted from their match — in
+:mod:`diagnosis.search.nested`, beside them when it matches best) are refitted from their match — in
 the right basin even when the baseline had compensated the effect and its
 one-sided score was 0.  When the baseline itself matches the measured modes
 within the BIC margin of χ² no effect can match them better by the margin
@@ -43,7 +43,7 @@ then come the other baseline basins and the continuation refits.
 Two effects at once
 -------------------
 When the best single effect leaves a significant remainder, a second one is tried at its refit
-(:mod:`diagnosis.pairs`).  The stages share one :class:`diagnosis.search.Search`.
+(:mod:`diagnosis.search.pairs`).  The stages share one :class:`diagnosis.search.state.Search`.
 """
 from __future__ import annotations
 
@@ -53,17 +53,17 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .effects import Catalogue, Effect
-from .fitting import Fit, GapProblem
+from ..effects import Catalogue, Effect
+from ..problem.fitting import Fit, GapProblem
 from .modal_pattern import ModalEvidence, PatternFit, moves_modes, pattern_fits
 from .nested import armature_refits, transducer_refits
 from .pairs import Early, early_pair, pair_explains, pair_with, same_fit
 from .refits import EffectRefit, better_baseline, explains, refit_from_match
-from .score import EffectScore, score_effect
-from .search import Refits, Search
-from .stages import StageClock
-from .settings import Thresholds
-from .verdict import UNEXPLAINED, paying_refits, verdict_rule
+from ..candidates.score import EffectScore, score_effect
+from .state import Refits, Search
+from ..stages import StageClock
+from ..settings import Thresholds
+from ..judgement.verdict import UNEXPLAINED, paying_refits, verdict_rule
 
 __all__ = ["Ranking", "Refits", "settled", "rank_effects", "verdict_rule", "UNEXPLAINED"]
 
@@ -84,7 +84,7 @@ class Ranking:
     reason: str = ""
     patterns: dict[str, PatternFit] = field(default_factory=dict)   # modal-pattern fits, when they were needed
     modal: ModalEvidence | None = None
-    #: refits that need implausible values, with what is implausible (diagnosis.plausibility)
+    #: refits that need implausible values, with what is implausible (diagnosis.judgement.plausibility)
     implausible: dict[str, list[str]] = field(default_factory=dict)
 
 
@@ -187,7 +187,7 @@ def _modal_stage(run: Search, evidence: ModalEvidence, labels: list[str], local:
 # ---------------------------------------------------------------------------
 def _continuation_stage(run: Search, labels: list[str], local: Refits, early: Early,
                         evidence: ModalEvidence | None, patterns: dict[str, PatternFit], parallel: int) -> Refits:
-    """Continuation refits (:mod:`diagnosis.refits`), the most promising first, ``parallel`` at a time, until one
+    """Continuation refits (:mod:`diagnosis.search.refits`), the most promising first, ``parallel`` at a time, until one
     explains the gap; skipped for effects no continuation can help.  Returns the refits with theirs."""
     pending = sorted(labels, key=lambda lab: local[lab][0].rss)
     if pair_explains(early, run.baseline, run.problem.settings.gap_threshold) or run.explained(local):
@@ -367,7 +367,7 @@ def _shortlist(problem: GapProblem, effects: dict[str, Effect], scores: dict[str
     significant."""
     chain = {lab for lab in effects if effects[lab].scale_degenerate}
     # a transducer's mass and a shaker's armature are refitted where a general effect's refit put them
-    # (diagnosis.nested), never from their score
+    # (diagnosis.search.nested), never from their score
     nested = {lab for lab in effects if effects[lab].nested_in is not None}
     labels = [lab for lab in by_score if scores[lab].lm > 0 and lab not in chain | nested][:shortlist]
     with_prior = problem.prior is not None and problem.prior.count > 0

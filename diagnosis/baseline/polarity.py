@@ -6,7 +6,7 @@ A load cell mounted the other way round, a channel wired with its poles swapped,
 a gain passing from +1 to −1 goes through a reading of zero —, and with transducer positions among the unknowns a
 reversed force can even be half absorbed: moving a sensor across a node of the excited mode also reverses its
 reading.  So the diagnosis fits its baseline both ways.  The sign whose baseline has the greater evidence (the
-Laplace evidence of :mod:`diagnosis.evidence`: fit, priors and measured modes together) is taken when its odds
+Laplace evidence of :mod:`diagnosis.judgement.evidence`: fit, priors and measured modes together) is taken when its odds
 reach the decisive odds (:attr:`~diagnosis.settings.Thresholds.decisive_odds`); otherwise the records are taken as
 read and the report says that they cannot decide the sign.  Reversing every sensor instead is the same hypothesis
 (the outputs change sign with the force); one sensor reversed among several is not tested here.
@@ -18,8 +18,8 @@ from concurrent.futures import Executor
 from dataclasses import dataclass, replace
 from typing import Any, Callable
 
-from .evidence import laplace_log_evidence
-from .fitting import Fit, GapProblem
+from ..judgement.evidence import laplace_log_evidence
+from ..problem.fitting import Fit, GapProblem
 
 __all__ = ["PolarityCheck", "check_polarity"]
 

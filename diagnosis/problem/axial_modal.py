@@ -1,6 +1,6 @@
 r"""Axial-force perturbations (drift, mid-plane stretching) on the exact-scheme model.
 
-The counterpart of :func:`diagnosis.augmented.simulate_axial` for ``[time] scheme = "exact"``
+The counterpart of :func:`diagnosis.problem.augmented.simulate_axial` for ``[time] scheme = "exact"``
 (:mod:`ebb_model.exact_modal`), so that a candidate effect is simulated with the same accuracy as the
 baseline it is compared with.  In the Richardson modes ``q = Ψ η`` of the refined grid the extra axial
 force ``δN(t)`` is the modal load
@@ -11,7 +11,7 @@ force ``δN(t)`` is the modal load
     \delta N = \delta N_0 + \text{rate}\,t + \frac{EA}{2L}\,\eta^T \Psi^T G \Psi\,\eta,
 
 with the refined grid's geometric stiffness ``K_g = ∂K/∂N`` and ``G`` the matrix of ``∫ w_x² dx`` of the
-piecewise-linear grid deflection (as :func:`diagnosis.axial_terms.stretch_integral`).  ``g`` enters each
+piecewise-linear grid deflection (as :func:`diagnosis.problem.axial_terms.stretch_integral`).  ``g`` enters each
 pole's exact one-sample update like a force, linear between samples (the measured force with the config's
 input reconstruction, e.g. the cubic); its value at the
 end of the sample is predicted with the value at its start and corrected once (trapezoidal accuracy in the
@@ -125,7 +125,7 @@ def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None,
                          check_stability: bool = True) -> np.ndarray:
     """Outputs (n_samples, n_sensors) of the exact-scheme beam with the extra axial force ``δN(t)``.
 
-    Arguments as :func:`diagnosis.augmented.simulate_axial` (already validated there); starts at rest.
+    Arguments as :func:`diagnosis.problem.augmented.simulate_axial` (already validated there); starts at rest.
 
     Raises
     ------

@@ -7,11 +7,11 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .effects import PAIR_SEPARATOR, Effect
+from ..effects import PAIR_SEPARATOR, Effect
 from .evidence import posterior_probabilities
-from .fitting import GapProblem
+from ..problem.fitting import GapProblem
 from .plausibility import confounded, prior_checks
-from .rank import Ranking
+from ..search.rank import Ranking
 from .verdict import INDISTINGUISHABLE, by_evidence
 
 __all__ = ["Weighed", "weigh"]
@@ -49,8 +49,8 @@ def _adequate_special_case(ranking: Ranking, by_label: Mapping[str, Effect], gap
 def weigh(problem: GapProblem, ranking: Ranking, by_label: Mapping[str, Effect]) -> tuple[Ranking, Weighed]:
     """The evidence behind the verdict, said in its reason: the baseline against the user's priors (a conflict
     — the prior, the data or the model is wrong — is said, not hidden), the posterior probabilities of the
-    baseline and the refits (:mod:`diagnosis.evidence`), the refits degenerate with the baseline unknowns
-    (:func:`diagnosis.plausibility.confounded`), and each model against the measured modes when the config
+    baseline and the refits (:mod:`diagnosis.judgement.evidence`), the refits degenerate with the baseline unknowns
+    (:func:`diagnosis.judgement.plausibility.confounded`), and each model against the measured modes when the config
     gives them (:mod:`identification.modal_data`)."""
     reason = ranking.reason
     conflicts = [c.line() for c in prior_checks(problem, ranking.baseline) if c.status == "conflict"]

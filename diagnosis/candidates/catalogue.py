@@ -10,10 +10,10 @@ from ebb_model.assemble import field_config
 from ebb_model.config import BeamConfig
 from ebb_model.simulate import fast_model, simulate
 
-from .axial_terms import stretch_of_nodes
-from .effects import Catalogue, Scales
-from .fitting import GapProblem
-from .records import Record
+from ..problem.axial_terms import stretch_of_nodes
+from ..effects import Catalogue, Scales
+from ..problem.fitting import GapProblem
+from ..problem.records import Record
 
 __all__ = ["catalogue_of"]
 
@@ -38,7 +38,7 @@ def stretch_max(config: BeamConfig, params: Mapping[str, float], records: Sequen
 
     The deflection at every grid node (:func:`ebb_model.field_config`) and the
     integral of its piecewise-linear interpolant — the quadrature the
-    stretching simulation itself uses (:func:`diagnosis.axial_terms.stretch_of_nodes`).
+    stretching simulation itself uses (:func:`diagnosis.problem.axial_terms.stretch_of_nodes`).
     """
     n_s = len(config.sensors)
     model = fast_model(field_config(config), params)

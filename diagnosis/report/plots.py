@@ -17,7 +17,7 @@ from ebb_model.errors import DataError
 from ebb_model.output import atomic_path, make_dir
 from identification.plots import plain_ticks
 
-from .localise import Localisation, estimate_frf
+from ..localise import Localisation, estimate_frf
 
 __all__ = ["plot_localisation", "localisation_figures"]
 

@@ -12,8 +12,8 @@ from ebb_model.adequacy import NOISE_FLOOR_EXCESS
 from ebb_model.errors import ConfigError
 from identification.result import IdentificationResult
 
-from .fitting import Fit, GapProblem
-from .records import records_start
+from ..problem.fitting import Fit, GapProblem
+from ..problem.records import records_start
 
 __all__ = ["baseline_fit", "floor_from_the_records", "start_from_result"]
 
@@ -43,7 +43,8 @@ def baseline_fit(problem: GapProblem, beta0: np.ndarray) -> tuple[GapProblem, Fi
 
 
 def floor_from_the_records(problem: GapProblem, baseline: Fit, say: Callable[[str], None]) -> Fit:
-    """The baseline, or — when it leaves a gap and the records' own start (:func:`diagnosis.records.records_start`)
+    """The baseline, or — when it leaves a gap and the records' own start
+    (:func:`diagnosis.problem.records.records_start`)
     explains the records to the noise floor — the fit from that start: then there is no gap to diagnose, the fit
     from the config's values stopped in another basin (a lightly damped record's level valley)."""
     floor = 1.0 + NOISE_FLOOR_EXCESS

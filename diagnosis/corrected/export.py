@@ -35,7 +35,7 @@ from ebb_model.jsonio import write_json
 from ebb_model.truncation import design_model
 from identification.export_targets import DEFAULT_TARGETS
 
-from .effects import AugmentedModel
+from ..effects import AugmentedModel
 
 __all__ = ["StateSpaceForm", "corrected_statespace", "export_corrected", "statespace_form"]
 
@@ -102,7 +102,7 @@ def statespace_form(model: AugmentedModel, beam: DiscreteStateSpace | None = Non
 
     The beam's system (``beam``, e.g. a design model; default the whole beam assembled from the model) with each
     signal part in series; the affine terms are what the parts make of zero signals.  The form is checked
-    against the diagnosis' own simulation (:func:`diagnosis.augmented.simulate_effects`) of the whole beam on a
+    against the diagnosis' own simulation (:func:`diagnosis.problem.augmented.simulate_effects`) of the whole beam on a
     probe input: a part whose declared StateSpace (``in_series``) does not reproduce what it does to the signals
     gives no system rather than a wrong one.  ``full``: the whole beam when the caller has assembled it already.
 
@@ -111,7 +111,7 @@ def statespace_form(model: AugmentedModel, beam: DiscreteStateSpace | None = Non
     StabilityError
         The corrected beam is unstable.
     """
-    from .augmented import simulate_effects
+    from ..problem.augmented import simulate_effects
 
     parts = _parts(model)
     if not model.time_invariant:

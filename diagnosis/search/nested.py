@@ -1,11 +1,11 @@
-"""Special cases refitted where a general effect's refit put them (:mod:`diagnosis.rank`'s last stage).
+"""Special cases refitted where a general effect's refit put them (:mod:`diagnosis.search.rank`'s last stage).
 
 Two candidates are special cases at a place the set-up fixes, and never compete for the score shortlist (a score
 at a fixed place would push a physical effect off it):
 
 * a transducer's mass (:mod:`diagnosis.effects.point_mass`): the point mass at a sensor — refitted from the point
   mass's refit when that lands within :data:`~diagnosis.effects.point_mass.AT_SENSOR` of a sensor, for the
-  evidence to weigh against the free position (:mod:`diagnosis.weigh`);
+  evidence to weigh against the free position (:mod:`diagnosis.judgement.weigh`);
 * a shaker's armature (:mod:`diagnosis.effects.shaker`): a mass and a spring at the drive point — refitted from a
   point mass's or a spring's refit that lands within the same distance of an actuator (and kept from its modal
   match when the pattern stage refitted it).  It stays a candidate only when it pays for each of its parts: its
@@ -17,12 +17,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .effects import Effect
-from .effects.point_mass import AT_SENSOR, TRANSDUCER
-from .effects.shaker import ARMATURE, parts
-from .fitting import Fit
+from ..effects import Effect
+from ..effects.point_mass import AT_SENSOR, TRANSDUCER
+from ..effects.shaker import ARMATURE, parts
+from ..problem.fitting import Fit
 from .refits import EffectRefit
-from .search import Search
+from .state import Search
 
 __all__ = ["armature_refits", "transducer_refits"]
 

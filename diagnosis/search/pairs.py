@@ -19,12 +19,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .effects import PAIR_SEPARATOR, on_top_of
-from .fitting import Fit
+from ..effects import PAIR_SEPARATOR, on_top_of
+from ..problem.fitting import Fit
 from .refits import EffectRefit, explains, pair_refit
-from .score import score_effect
-from .search import Refits, Search
-from .verdict import paying_refits
+from ..candidates.score import score_effect
+from .state import Refits, Search
+from ..judgement.verdict import paying_refits
 
 __all__ = ["Early", "best_pair", "early_pair", "pair_explains", "pair_with",
            "same_fit"]
@@ -74,7 +74,7 @@ def pair_with(run: Search, single: EffectRefit, known: dict[str, Fit]
     first = run.catalogue.effect(single.label)
     with_prior = run.problem.prior is not None and run.problem.prior.count > 0
     # a chain's gain as the second effect only where a prior breaks its degeneracy (as on the shortlist); a
-    # special case never (the general effect that nests it stands in for it: diagnosis.nested)
+    # special case never (the general effect that nests it stands in for it: diagnosis.search.nested)
     rescored = {e.label: score_effect(run.problem, single.fit, on_top_of(first, single.fit.s, e)).lm
                 for e in run.effects.values() if e.name != first.name and e.nested_in is None
                 and (with_prior or not e.scale_degenerate)}

@@ -1,5 +1,5 @@
 """The verdict rule of the diagnosis: which refitted effect, if any, is named — from the refits' held-out gap, BIC
-and closure alone, no simulation (:func:`verdict_rule`; :mod:`diagnosis.rank` produces the refits).
+and closure alone, no simulation (:func:`verdict_rule`; :mod:`diagnosis.search.rank` produces the refits).
 """
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .effects import PAIR_SEPARATOR
-from .refits import EffectRefit
-from .settings import Thresholds
+from ..effects import PAIR_SEPARATOR
+from ..search.refits import EffectRefit
+from ..settings import Thresholds
 
 __all__ = ["INDISTINGUISHABLE", "UNEXPLAINED", "by_evidence", "paying_refits", "verdict_rule"]
 
@@ -103,7 +103,7 @@ def by_evidence(verdict: str, ties: Sequence[str], probabilities: Mapping[str, f
     """Between the verdict of :func:`verdict_rule` and its ties (candidates whose refits explain the records as
     well), the evidence decides: ``(verdict, listed, sentence)``.
 
-    The most probable of them (posterior ``probabilities``, :mod:`diagnosis.evidence`) is the verdict when its
+    The most probable of them (posterior ``probabilities``, :mod:`diagnosis.judgement.evidence`) is the verdict when its
     odds against the next reach ``decisive_odds`` (:attr:`~diagnosis.settings.Thresholds.decisive_odds`);
     otherwise the verdict is :data:`INDISTINGUISHABLE` and ``listed`` holds the candidates, the most probable
     first (an actuator's lag and a sensor's lag on a record with one force and one sensor: the two commute, and no

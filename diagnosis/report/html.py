@@ -1,4 +1,4 @@
-"""A short human-readable report of a diagnosis (:class:`~diagnosis.result.GapReport`)."""
+"""A short human-readable report of a diagnosis (:class:`~diagnosis.report.result.GapReport`)."""
 from __future__ import annotations
 
 from pathlib import Path

@@ -11,7 +11,7 @@ the gap threshold, no gap at all):
   when the local refit leaves the gap: the baseline may sit in a basin that
   only suited the model without the effect;
 * **from a modal match** — from an effect's modal-pattern fit
-  (:mod:`diagnosis.modal_pattern`);
+  (:mod:`diagnosis.search.modal_pattern`);
 * **continuation in the record length** — a global search (differential
   evolution) over the baseline unknowns and the effect together on the first
   :data:`CONTINUATION` fraction of every fit window, where a few-per-cent
@@ -24,7 +24,7 @@ the gap threshold, no gap at all):
 and information criteria (BIC/AIC, ``n ln(RSS/n) + k ln n``).  The ``*_task``
 functions run in this or a worker process (every refit is deterministic, so
 the results do not depend on where it ran); the order of the stages and the
-verdict are :mod:`diagnosis.rank`'s.
+verdict are :mod:`diagnosis.search.rank`'s.
 """
 from __future__ import annotations
 
@@ -34,10 +34,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 
-from .effects import Catalogue, Effect
-from .fitting import Fit, GapProblem
+from ..effects import Catalogue, Effect
+from ..problem.fitting import Fit, GapProblem
 from .modal_pattern import PatternFit
-from .score import EffectScore, trial_values
+from ..candidates.score import EffectScore, trial_values
 from .workers import side_by_side
 
 __all__ = ["EffectRefit", "explains", "summarise", "map_refits", "refit_from_match", "pair_refit",
@@ -65,7 +65,7 @@ class EffectRefit:
 
 def _best_start(problem: GapProblem, baseline: Fit, effect: Effect, score: EffectScore) -> np.ndarray:
     """The start of a refit with the lowest RSS among the score's Gauss–Newton step(s) and a coarse grid of the
-    effect (:func:`~diagnosis.score.trial_values`), the baseline unknowns held at their fitted values."""
+    effect (:func:`~diagnosis.candidates.score.trial_values`), the baseline unknowns held at their fitted values."""
     candidates = [score.start, *score.alternatives, *trial_values(effect.lower, effect.upper, effect.off)]
 
     def rss(s: np.ndarray) -> float:
@@ -210,7 +210,7 @@ def map_refits(executor: Executor | None, problem: GapProblem, catalogue: Catalo
 
 def _pair_start(problem: GapProblem, first: Fit, pair: Effect, k: int) -> np.ndarray:
     """Start of a pair's refit: the first effect's refit, the partner's variables the best of a coarse grid
-    (:func:`~diagnosis.score.trial_values`) with everything else held."""
+    (:func:`~diagnosis.candidates.score.trial_values`) with everything else held."""
     def rss(s2: np.ndarray) -> float:
         r = problem.residuals(first.beta, pair, np.concatenate([first.s, s2]))
         return float(r @ r)

@@ -29,9 +29,9 @@ from identification.prior import Prior
 from identification.parameters import ParameterSpace
 
 from .augmented import simulate_effects
-from .effects import AugmentedModel, Effect
+from ..effects import AugmentedModel, Effect
 from .records import Record
-from .settings import Thresholds
+from ..settings import Thresholds
 
 __all__ = ["GapProblem", "Fit"]
 

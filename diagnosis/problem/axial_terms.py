@@ -4,8 +4,8 @@ An extra axial force :math:`\delta N` acts on the beam of :mod:`ebb_model.discre
 :math:`K_g = \partial K/\partial N` (:func:`geometric_stiffness`); mid-plane stretching makes it
 :math:`\frac{EA}{2L}\int_0^L w_x^2\,dx`, the integral taken exactly for the piecewise-linear interpolant of
 the grid deflection (:func:`stretch_integral`, :func:`stretch_of_nodes`; as a quadratic form
-:func:`stretch_matrix`).  Both axial simulations use them: the θ-scheme's (:mod:`diagnosis.augmented`) and the
-exact scheme's (:mod:`diagnosis.axial_modal`).
+:func:`stretch_matrix`).  Both axial simulations use them: the θ-scheme's (:mod:`diagnosis.problem.augmented`) and the
+exact scheme's (:mod:`diagnosis.problem.axial_modal`).
 """
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""What the stages of one ranking share (:mod:`diagnosis.rank`, :mod:`diagnosis.pairs`): the problem, the baseline
-and its held-out gap, the scores, the refits' budget and where they run, and the progress callback."""
+"""What the stages of one ranking share (:mod:`diagnosis.search.rank`, :mod:`diagnosis.search.pairs`): the problem, the
+baseline and its held-out gap, the scores, the refits' budget and where they run, and the progress callback."""
 from __future__ import annotations
 
 from concurrent.futures import Executor
@@ -8,12 +8,12 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .effects import Catalogue, Effect
-from .fitting import Fit, GapProblem
+from ..effects import Catalogue, Effect
+from ..problem.fitting import Fit, GapProblem
 from .modal_pattern import PatternFit, time_invariant
 from .refits import EffectRefit, explains, map_refits, summarise
-from .score import EffectScore
-from .stages import StageClock
+from ..candidates.score import EffectScore
+from ..stages import StageClock
 from .workers import side_by_side
 
 __all__ = ["Refits", "Search"]
@@ -38,12 +38,12 @@ class Search:
     say: Callable[[str], None]
     clock: StageClock
     #: the effects' modal matches so far, shared by the rankings of one diagnosis (the modal stage adds its own
-    #: and polishes a later ranking's from them: :func:`diagnosis.modal_pattern.pattern_fits`)
+    #: and polishes a later ranking's from them: :func:`diagnosis.search.modal_pattern.pattern_fits`)
     matches: dict[str, PatternFit]
 
     def refit(self, labels: list[str], previous: dict[str, tuple[Fit, list]] | None = None, *, stage: str
               ) -> dict[str, tuple[Fit, list]]:
-        """The refits of ``labels`` at ``stage`` (:func:`diagnosis.refits.map_refits`)."""
+        """The refits of ``labels`` at ``stage`` (:func:`diagnosis.search.refits.map_refits`)."""
         return map_refits(self.executor, self.problem, self.catalogue, labels, self.baseline, self.scores,
                           self.max_evaluations, previous, stage=stage)
 
@@ -57,7 +57,7 @@ class Search:
         return any(fit.rss / fit.n - 1.0 <= self.problem.settings.gap_threshold for fit, _ in local.values())
 
     def summary(self, effect: Effect, fit: Fit) -> EffectRefit:
-        """The refit's held-out gap, BIC and closure (:func:`diagnosis.refits.summarise`)."""
+        """The refit's held-out gap, BIC and closure (:func:`diagnosis.search.refits.summarise`)."""
         return summarise(self.problem, self.baseline, self.before, effect, fit)
 
     def time_invariant(self, label: str) -> bool:
@@ -65,5 +65,5 @@ class Search:
         return time_invariant(self.problem, self.baseline.beta, self.catalogue.effect(label))
 
     def side_by_side(self, task: Callable[..., Any], args: list[tuple]) -> list[Any]:
-        """``task(*a)`` for each of ``args`` (:func:`diagnosis.workers.side_by_side`)."""
+        """``task(*a)`` for each of ``args`` (:func:`diagnosis.search.workers.side_by_side`)."""
         return side_by_side(self.executor, task, args)

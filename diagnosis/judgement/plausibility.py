@@ -7,8 +7,8 @@ deviations), and its modes consistent with the measured ones when the config giv
 A flexible wrong effect with compensating parameters can close most of a large gap — a "point mass" of 2.7 kg,
 three times the beam, on the accelerometer of a real bench, with the beam's density pushed to its bound.  Such a
 refit is not named as the cause (:func:`plausible_verdict`): the verdict goes to the best plausible candidate that
-meets the naming rule, or to :data:`diagnosis.verdict.UNEXPLAINED`, and the report says what the implausible one
-needed.  Nothing implausible is exported as the corrected model.
+meets the naming rule, or to :data:`diagnosis.judgement.verdict.UNEXPLAINED`, and the report says what the implausible
+one needed.  Nothing implausible is exported as the corrected model.
 """
 from __future__ import annotations
 
@@ -19,9 +19,9 @@ import numpy as np
 
 from identification.prior import PriorCheck
 
-from .effects import Effect
-from .fitting import Fit, GapProblem
-from .rank import Ranking
+from ..effects import Effect
+from ..problem.fitting import Fit, GapProblem
+from ..search.rank import Ranking
 from .verdict import verdict_rule
 
 __all__ = ["confounded", "implausibilities", "plausible_verdict", "posterior_std", "prior_checks"]

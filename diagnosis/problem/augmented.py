@@ -89,7 +89,7 @@ from ebb_model.theta_scheme import ThetaCoefficients, one_step, theta_coefficien
 
 from .axial_modal import simulate_axial_exact
 from .axial_terms import geometric_stiffness
-from .effects.base import AxialLoad, Signal
+from ..effects.base import AxialLoad, Signal
 
 __all__ = ["simulate_axial", "simulate_effects"]
 
@@ -197,7 +197,7 @@ def simulate_axial(config: BeamConfig, params: Mapping[str, float] | None, input
     .. math::  \delta N(t) = \text{offset} + \text{rate}\cdot t + \frac{EA}{2L}\int_0^L w_x^2\,dx .
 
     With ``time.scheme = "exact"`` the perturbation acts on the exact-scheme model instead
-    (:func:`diagnosis.axial_modal.simulate_axial_exact`), so candidates and baseline share its accuracy.
+    (:func:`diagnosis.problem.axial_modal.simulate_axial_exact`), so candidates and baseline share its accuracy.
 
     Parameters
     ----------

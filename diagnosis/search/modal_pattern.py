@@ -8,7 +8,7 @@ point mass follows the mode shape squared at its position, a compliant clamp
 moves the low modes most, Kelvin–Voigt damping ratios grow with ω.
 
 For every structural effect of the catalogue (and for the baseline alone) the
-measured modes (:mod:`diagnosis.modal_estimate`) are fitted by the model's
+measured modes (:mod:`diagnosis.search.modal_estimate`) are fitted by the model's
 own discrete modes, :func:`ebb_model.modal.discrete_frequencies`, over the
 baseline unknowns *and* the effect together — the baseline is profiled out
 globally, not linearised at the point where it compensated the effect:
@@ -26,7 +26,7 @@ more than it).  The last term only settles the directions the modes cannot see
 (EI and ρA move the frequencies only through their ratio).  The fit starts
 from the best of a coarse grid of the effect, with the baseline unknowns at the
 baseline's values and at the config's nominal ones
-(:func:`diagnosis.score.trial_values`; each start polished for :data:`RACE`
+(:func:`diagnosis.candidates.score.trial_values`; each start polished for :data:`RACE`
 evaluations, the best one to convergence; only the compared modes are
 computed, :func:`ebb_model.modal.discrete_frequencies` with ``n_modes``).  Its
 optimum is a start of the effect's time-domain refit that lies in the right
@@ -48,10 +48,10 @@ from ebb_model.adequacy import refined_grid
 from ebb_model.errors import EbbError
 from ebb_model.modal import discrete_frequencies
 
-from .effects import Catalogue, Effect
-from .fitting import GapProblem
+from ..effects import Catalogue, Effect
+from ..problem.fitting import GapProblem
 from .modal_estimate import MeasuredModes
-from .score import trial_values
+from ..candidates.score import trial_values
 from .workers import side_by_side
 
 __all__ = ["ModalEvidence", "PatternFit", "modal_evidence", "pattern_fit", "pattern_fits", "moves_modes",

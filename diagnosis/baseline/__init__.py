@@ -1,0 +1,2 @@
+"""Stage 1, the baseline: the model without any effect fitted to the records (:mod:`~diagnosis.baseline.fit`),
+with the measured force's sign weighed as evidence (:mod:`~diagnosis.baseline.polarity`)."""
