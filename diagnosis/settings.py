@@ -43,12 +43,22 @@ class Thresholds:
     named_closure: float = field(default=0.8, metadata=_reason(
         "share of the held-out gap a refit must close for its effect to be named the cause (a smaller share "
         "leaves most of the gap to something else)", 0.0, 1.0))
+    tie_gain: float = field(default=0.95, metadata=_reason(
+        "share of the named effect's held-out gain a rival must reach to tie with it (closing 95 % of what the "
+        "best closes is within what a second, different refit of the same records moves)", 0.0, 1.0))
+    tie_excess: float = field(default=0.25, metadata=_reason(
+        "a rival ties only when what it leaves exceeds what the named effect leaves by at most the gap threshold "
+        "or this share of the named effect's own excess (a rival leaving 349 noise variances where the best leaves "
+        "1.1 is decided, though both close 97-100 %)", 0.0, 1e3))
     decisive_odds: float = field(default=20.0, metadata=_reason(
         "posterior odds from which the evidence decides between candidates the fits do not separate, and the "
         "force's sign: a Bayes factor above 20 is 'strong' (Kass & Raftery 1995), 0.95 between two", 1.0, 1e9))
     numerical_share_limit: float = field(default=0.5, metadata=_reason(
         "largest share of the baseline gap that refining the model's grid changes for which a physical effect "
         "is still named (above it the gap is mostly the grid's)", 0.0, 1.0))
+    grid_caution: float = field(default=0.1, metadata=_reason(
+        "share of the baseline gap that refining the model's grid changes from which a named effect's reason "
+        "carries a caution and the grid advice", 0.0, 1.0))
     confounded: float = field(default=1e-3, metadata=_reason(
         "share of an effect's sensitivity (its Jacobian column on the data) the baseline unknowns leave "
         "unexplained, below which the effect is degenerate with them: only a prior separates the two (a sensor's "

@@ -21,7 +21,8 @@ from ebb_model.reference.synthetic import synthesize
 
 from conftest import make_config
 
-from diagnosis.run import GRID_VERDICT, diagnose
+from diagnosis.judgement.verdict import Kind
+from diagnosis.run import diagnose
 from diagnosis.settings import Thresholds
 
 DT = 5e-4
@@ -55,7 +56,7 @@ def test_a_coarse_seed_scheme_gap_is_called_the_grid(tmp_path, record):
     base = d.document["baseline"]
     share = base["numerical_adequacy"]["max_numerical_share"]
     assert share > Thresholds().numerical_share_limit, base["numerical_adequacy"]
-    assert d.verdict == GRID_VERDICT, d.document["reason"]
+    assert d.verdict == Kind.GRID.value and d.document["judgement"]["kind"] == "grid", d.document["reason"]
     assert "the model's grid" in d.document["reason"] and "use [beam] nodes >= " in d.document["reason"]
     assert not base["grid_advice"]["adequate"]
 

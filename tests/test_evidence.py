@@ -129,13 +129,13 @@ def test_a_lag_on_the_only_force_or_the_only_sensor_is_indistinguishable(tmp_pat
     splits evenly (measured 0.500 / 0.500) — the verdict is ``indistinguishable``, both listed, none exported."""
     from diagnosis.run import diagnose
     from diagnosis.settings import Thresholds
-    from diagnosis.judgement.verdict import INDISTINGUISHABLE
+    from diagnosis.judgement.verdict import Kind
 
     DECISIVE_ODDS = Thresholds().decisive_odds
 
     cfg, rec = siso_lag_record(tmp_path)
     doc = diagnose(cfg, [rec], tmp_path / "gap", plots=False, export=True, workers=1).document
-    assert doc["verdict"] == INDISTINGUISHABLE, doc["reason"]
+    assert doc["verdict"] == Kind.INDISTINGUISHABLE.value, doc["reason"]
     assert sorted(doc["indistinguishable"]) == ["actuator_lag", "sensor_lag[y2]"]
     p = doc["posterior_probability"]
     assert max(p["actuator_lag"], p["sensor_lag[y2]"]) < DECISIVE_ODDS * min(p["actuator_lag"], p["sensor_lag[y2]"])

@@ -80,13 +80,13 @@ def test_modal_pattern_finds_a_compensated_clamp(tmp_path, monkeypatch):
     from diagnosis.problem.fitting import GapProblem
     from diagnosis.search.modal_pattern import modal_evidence, pattern_fit, pattern_fits
     from diagnosis.problem.records import split_records
-    from diagnosis.run import _ordered
+    from diagnosis.problem.records import ordered_record
     from ebb_model.modal import discrete_frequencies
     from test_diagnosis_blind import PRIOR, TRUTH, _write, bench_config
 
     cfg = bench_config("acceleration")
     path = _write(tmp_path, cfg, WithheldEffect("boundary_rotational_left", {"kr": 200.0}), seed=3, f_max=150.0)
-    records = split_records([_ordered(cfg, e) for e in read_data(cfg, [path])], holdout_fraction=0.3)
+    records = split_records([ordered_record(cfg, e) for e in read_data(cfg, [path])], holdout_fraction=0.3)
     space = parameter_space(cfg)
     sigma = records_noise_std([r.inputs for r in records], [r.outputs for r in records], DT)
     problem = GapProblem(cfg, space, records, sigma)

@@ -1,7 +1,8 @@
-"""The diagnosis' verdict rule on its own: refit summaries in, verdict out — no simulation.
+"""The diagnosis' verdict on its own: refit summaries in, verdict out — no simulation.
 
 The summaries are made by hand (a held-out gap ratio per sensor after the refit, the closure, ΔBIC), so each
-branch of the rule is checked at its threshold.
+branch of the naming rule is checked at its threshold; then the whole pipeline of rules
+(:mod:`diagnosis.judgement.rules`) on hand-made rankings: each rule in its place, the reasons as values.
 """
 from __future__ import annotations
 
@@ -9,16 +10,20 @@ import numpy as np
 
 from diagnosis.search.refits import EffectRefit
 from diagnosis.settings import Thresholds
-from diagnosis.judgement.verdict import INDISTINGUISHABLE, UNEXPLAINED, by_evidence
-from diagnosis.judgement.verdict import verdict_rule as rule
+from diagnosis.judgement.verdict import Kind, Verdict, by_evidence, name_cause, named
 
 SETTINGS = Thresholds()
 GAP_THRESHOLD, NAMED_CLOSURE, DECISIVE_ODDS = SETTINGS.gap_threshold, SETTINGS.named_closure, SETTINGS.decisive_odds
 
 
+UNEXPLAINED, INDISTINGUISHABLE = Kind.UNEXPLAINED.value, Kind.INDISTINGUISHABLE.value
+
+
 def verdict_rule(before, refits, paying, settings=SETTINGS):
-    """The rule with the default thresholds (the tests below check it at them)."""
-    return rule(before, refits, paying, settings)
+    """The naming rule with the default thresholds (the tests below check it at them), as ``(name, ties, text)``."""
+    v = name_cause(before, refits, paying, settings)
+    assert all(r.rule == "naming" for r in v.reasons)
+    return v.name, list(v.ties), v.text()
 
 BEFORE = np.array([40.0, 60.0])      # held-out gap ratio of the baseline, per sensor (mean 50)
 
@@ -107,13 +112,19 @@ def test_the_evidence_decides_between_ties_or_says_it_cannot():
     """Ties the fits cannot separate go to the evidence: strong odds (≥ 20) name the most probable — even when
     the fit rule ranked the other first —; weaker odds give ``indistinguishable`` with the candidates listed,
     the most probable first, and their probabilities in the reason."""
-    verdict, listed, why = by_evidence("a", ["b"], {"a": 0.04, "b": 0.95, "none": 0.01}, DECISIVE_ODDS)
-    assert (verdict, listed) == ("b", []) and "odds 23.8" in why
-    verdict, listed, why = by_evidence("a", ["b", "c"], {"a": 0.30, "b": 0.62, "c": 0.08}, DECISIVE_ODDS)
-    assert verdict == INDISTINGUISHABLE and listed == ["b", "a", "c"]
-    assert "b 0.62, a 0.3, c 0.08" in why and f"< {DECISIVE_ODDS:g}" in why
+    def tied(*ties):
+        return named("a", ties).said("naming", "a closes 99 % of the held-out gap")
+
+    v = by_evidence(tied("b"), {"a": 0.04, "b": 0.95, "none": 0.01}, DECISIVE_ODDS)
+    assert (v.name, v.ties) == ("b", ()) and "odds 23.8" in v.reasons[-1].text
+    assert v.reasons[0].text == "a closes 99 % of the held-out gap"       # the fit rule's reason kept, first
+    v = by_evidence(tied("b", "c"), {"a": 0.30, "b": 0.62, "c": 0.08}, DECISIVE_ODDS)
+    assert v.kind is Kind.INDISTINGUISHABLE and v.name == INDISTINGUISHABLE and v.ties == ("b", "a", "c")
+    # the sentence that says why none is named comes first, the fit rule's reason after it
+    assert "b 0.62, a 0.3, c 0.08" in v.reasons[0].text and f"< {DECISIVE_ODDS:g}" in v.reasons[0].text
+    assert v.reasons[0].rule == "evidence and ties" and v.reasons[1].rule == "naming"
     # the boundary itself: odds of exactly 20 decide
-    assert by_evidence("a", ["b"], {"a": 20.0 / 21.0, "b": 1.0 / 21.0}, DECISIVE_ODDS)[0] == "a"
+    assert by_evidence(tied("b"), {"a": 20.0 / 21.0, "b": 1.0 / 21.0}, DECISIVE_ODDS).name == "a"
 
 
 def test_a_threshold_moves_the_verdict():
@@ -122,3 +133,13 @@ def test_a_threshold_moves_the_verdict():
     assert verdict_rule(BEFORE, {"foundation": rf}, ["foundation"])[0] == "foundation"
     strict = Thresholds(named_closure=0.9)
     assert verdict_rule(BEFORE, {"foundation": rf}, ["foundation"], strict)[0] == UNEXPLAINED
+
+
+def test_a_verdict_names_an_effect_exactly_when_it_is_of_that_kind():
+    assert named("foundation").name == "foundation" and Verdict(Kind.NONE).name == "none"
+    for bad in (lambda: Verdict(Kind.EFFECT), lambda: Verdict(Kind.GRID, "foundation")):
+        try:
+            bad()
+        except ValueError:
+            continue
+        raise AssertionError("a verdict's kind and label disagree without an error")

@@ -64,6 +64,7 @@ from .base import (
     AxialLoad,
     Effect,
     Family,
+    Landing,
     Scales,
     Signal,
     on_top_of,
@@ -71,8 +72,9 @@ from .base import (
     signal_effect,
 )
 
-__all__ = ["Scales", "Effect", "AugmentedModel", "AxialLoad", "Signal", "Family", "Catalogue", "candidate_effects",
-           "pair_effect", "on_top_of", "signal_effect", "FAMILIES", "EFFECT_NAMES", "PAIR_SEPARATOR"]
+__all__ = ["Scales", "Effect", "AugmentedModel", "AxialLoad", "Signal", "Family", "Landing", "Catalogue",
+           "candidate_effects", "pair_effect", "on_top_of", "signal_effect", "FAMILIES", "EFFECT_NAMES",
+           "PAIR_SEPARATOR"]
 
 #: The catalogue, in report order: one entry per family module.
 FAMILIES: tuple[Family, ...] = (

@@ -18,8 +18,8 @@ from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
 from ebb_model.statespace import DiscreteStateSpace
 
-__all__ = ["Scales", "AxialLoad", "Signal", "AugmentedModel", "Effect", "Family", "signal_effect", "pair_effect",
-           "on_top_of", "PAIR_SEPARATOR"]
+__all__ = ["Scales", "AxialLoad", "Signal", "AugmentedModel", "Effect", "Family", "Landing", "signal_effect",
+           "pair_effect", "on_top_of", "PAIR_SEPARATOR"]
 
 #: Joins the labels of two effects acting at once (``foundation+actuator_lag``).
 PAIR_SEPARATOR = "+"
@@ -137,6 +137,30 @@ class AugmentedModel:
         return all(s.time_invariant for s in self.signals)
 
 
+@dataclass(frozen=True)
+class Landing:
+    """Where the refit of a special case at a fixed place starts: a general effect's refit that landed near the
+    place (a point mass's refit within 5 % of the beam's length of a sensor starts that sensor's transducer mass).
+
+    Attributes
+    ----------
+    source
+        Label of the general effect.
+    position
+        Which of the source's search variables is its position [m].
+    copy
+        ``(this effect's variable, the source's variable)`` pairs taken from the landing; the other variables
+        start at their "off" value.
+    reach
+        How near the place the landing must be, as a share of the beam's length.
+    """
+
+    source: str
+    position: int
+    copy: tuple[tuple[int, int], ...]
+    reach: float
+
+
 @dataclass(frozen=True, eq=False)
 class Effect:
     """A candidate unmodelled effect.
@@ -180,15 +204,23 @@ class Effect:
         = field(default=None, repr=False)
     #: the label of the effect this one is a special case of (a transducer's mass: a point mass at its sensor);
     #: tied with it, this one is named when it explains the held-out records on its own
-    #: (:mod:`diagnosis.judgement.weigh`)
+    #: (:func:`diagnosis.judgement.rules.nested`)
     nested_in: str | None = None
     #: whether the effect is degenerate with a common scale of the beam's unknowns (a gain of the measurement chain:
     #: scaling EI, ρA, c and N scales every output alike), so that its score at a baseline that took up the scale
     #: says little of its worth: it is refitted apart from the shortlist, tried as a pair's second effect only
     #: where a prior breaks the degeneracy, and named beside a model at the noise floor as what the data cannot
     #: tell from the beam's scale (:mod:`diagnosis.search.rank`, :mod:`diagnosis.search.pairs`,
-    #: :mod:`diagnosis.judgement.weigh`)
+    #: :func:`diagnosis.judgement.rules.notes`)
     scale_degenerate: bool = False
+    #: for a special case at a place the set-up fixes: that place [m] in a config (a sensor's or an actuator's
+    #: position) and the general effects' landings its refit starts from (:mod:`diagnosis.search.nested`)
+    place: Callable[[BeamConfig], float] | None = field(default=None, repr=False)
+    landings: tuple[Landing, ...] = ()
+    #: the simpler effects it must beat, each by the BIC margin, to stay a candidate (an armature: its mass alone
+    #: and its suspension alone — a point mass at the drive point is a point mass, not an armature with a
+    #: vanishing suspension); given this effect, returns them
+    parts: Callable[[Effect], tuple[Effect, ...]] | None = field(default=None, repr=False)
     #: the search variables proportional to a physical size the beam's force-like constants measure (a mass in
     #: units of the nominal ρA L, a stiffness in units of EI/L³): multiplying them with EI, ρA, c and N by λ
     #: leaves the modes alone and divides the response by λ (:mod:`diagnosis.search.modal_pattern` sets that scale from

@@ -7,11 +7,11 @@
     special case of ``point_mass``, as common as it is easily missed.  Being nested in ``point_mass``, it does
     not compete for the score shortlist (a score at the sensor's position would push a physical effect off it);
     it is refitted from the point mass's refit when that lands within :data:`AT_SENSOR` of a sensor
-    (:mod:`diagnosis.search.rank`).  Tied with the point mass, it is named when its refit brings the held-out records to
-    the noise floor on its own (:mod:`diagnosis.judgement.weigh`): the free position's further gain on the fit window is
-    then below what the held-out records can see — at high signal-to-noise ratios it is the model's own
-    representation of a mass between grid nodes that the position absorbs (an 80 g mass on accelerometers:
-    0.05 mm, ΔBIC 70, held-out 1.02 against 1.06).
+    (:mod:`diagnosis.search.rank`).  Tied with the point mass, it is named when its refit brings the held-out
+    records to the noise floor on its own (:func:`diagnosis.judgement.rules.nested`): the free position's further
+    gain on the fit window is then below what the held-out records can see — at high signal-to-noise ratios it is
+    the model's own representation of a mass between grid nodes that the position absorbs (an 80 g mass on
+    accelerometers: 0.05 mm, ΔBIC 70, held-out 1.02 against 1.06).
 """
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ import numpy as np
 from ebb_model.beam import PointMass
 from ebb_model.config import BeamConfig
 
-from .base import AugmentedModel, Effect, Family, Scales
+from .base import AugmentedModel, Effect, Family, Landing, Scales
 
 __all__ = ["AT_SENSOR", "FAMILY", "PLAUSIBLE_MASS_RATIO", "TRANSDUCER"]
 
@@ -71,7 +71,9 @@ def _transducer(sensor: str, unit: float, plausible: dict[str, tuple[float, floa
 
     return Effect(TRANSDUCER, sensor, ("mass_ratio",), (0.0,), (1.0,), (0.0,),
                   f"the mass of the transducer of sensor {sensor} at its position", {"mass": "kg"}, apply,
-                  lambda s: {"mass": float(s[0] * unit)}, plausible, nested_in="point_mass", scaled=(0,))
+                  lambda s: {"mass": float(s[0] * unit)}, plausible, nested_in="point_mass", scaled=(0,),
+                  place=lambda cfg: float(next(sn.x for sn in cfg.sensors if sn.name == sensor)),
+                  landings=(Landing("point_mass", 1, ((0, 0),), AT_SENSOR),))
 
 
 #: This module's entry in the catalogue.

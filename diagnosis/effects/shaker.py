@@ -25,8 +25,8 @@ import numpy as np
 from ebb_model.beam import PointMass, PointSpring
 from ebb_model.config import BeamConfig
 
-from .base import PAIR_SEPARATOR, AugmentedModel, Effect, Family, Scales
-from .point_mass import PLAUSIBLE_MASS_RATIO
+from .base import PAIR_SEPARATOR, AugmentedModel, Effect, Family, Landing, Scales
+from .point_mass import AT_SENSOR, PLAUSIBLE_MASS_RATIO
 from .supports import STIFFEST
 
 __all__ = ["ARMATURE", "FAMILY", "parts"]
@@ -62,7 +62,10 @@ def _armature(actuator: str, mass_unit: float, spring_unit: float, plausible: di
                   f"the shaker's moving mass and suspension at actuator {actuator} (rigid stinger)",
                   {"mass": "kg", "k": "N/m"}, apply,
                   lambda s: {"mass": float(s[0] * mass_unit), "k": float(s[1] * spring_unit)}, plausible,
-                  nested_in=f"point_mass{PAIR_SEPARATOR}grounded_spring", scaled=(0, 1))
+                  nested_in=f"point_mass{PAIR_SEPARATOR}grounded_spring", scaled=(0, 1),
+                  place=lambda cfg: float(next(a.x for a in cfg.actuators if a.name == actuator)),
+                  landings=(Landing("point_mass", 1, ((0, 0),), AT_SENSOR),
+                            Landing("grounded_spring", 1, ((1, 0),), AT_SENSOR)), parts=parts)
 
 
 def parts(armature: Effect) -> tuple[Effect, Effect]:
@@ -85,7 +88,7 @@ def parts(armature: Effect) -> tuple[Effect, Effect]:
 
         return replace(armature, name=name, variables=(armature.variables[i],), lower=(armature.lower[i],),
                        upper=(armature.upper[i],), off=(armature.off[i],), _apply=apply, _physical=physical,
-                       nested_in=armature.label, scaled=(0,))
+                       nested_in=armature.label, scaled=(0,), place=None, landings=(), parts=None)
 
     return part(0, f"{ARMATURE}_mass"), part(1, f"{ARMATURE}_suspension")
 

@@ -6,14 +6,12 @@ deviations), and its modes consistent with the measured ones when the config giv
 
 A flexible wrong effect with compensating parameters can close most of a large gap — a "point mass" of 2.7 kg,
 three times the beam, on the accelerometer of a real bench, with the beam's density pushed to its bound.  Such a
-refit is not named as the cause (:func:`plausible_verdict`): the verdict goes to the best plausible candidate that
-meets the naming rule, or to :data:`diagnosis.judgement.verdict.UNEXPLAINED`, and the report says what the implausible
-one needed.  Nothing implausible is exported as the corrected model.
+refit is not named as the cause (the plausibility rule, :func:`diagnosis.judgement.rules.plausibility`): the
+verdict goes to the best plausible candidate that meets the naming rule, or is ``unexplained``, and the report says
+what the implausible one needed.  Nothing implausible is exported as the corrected model.  This module measures;
+the rule decides.
 """
 from __future__ import annotations
-
-from dataclasses import replace
-from typing import Mapping
 
 import numpy as np
 
@@ -21,11 +19,8 @@ from identification.prior import PriorCheck
 
 from ..effects import Effect
 from ..problem.fitting import Fit, GapProblem
-from ..search.rank import Ranking
-from .verdict import verdict_rule
 
-__all__ = ["confounded", "implausibilities", "plausible_verdict", "posterior_std", "prior_checks"]
-
+__all__ = ["confounded", "implausibilities", "posterior_std", "prior_checks"]
 
 
 def posterior_std(problem: GapProblem, fit: Fit) -> np.ndarray:
@@ -66,30 +61,6 @@ def implausibilities(problem: GapProblem, effect: Effect, fit: Fit) -> list[str]
                          f"({', '.join(f'{v:.4g}' for v in a['measured_hz'])} Hz): chi2 {a['chi2']:.3g} > "
                          f"{a['chi2_limit']:.3g}")
     return lines
-
-
-def plausible_verdict(ranking: Ranking, problem: GapProblem, effects: Mapping[str, Effect]) -> Ranking:
-    """The ranking's verdict among its plausible refits only; the implausible ones listed
-    (:attr:`Ranking.implausible`) and, when the verdict was one of them, named in the reason.  A baseline that
-    matches the records only by a parameter in conflict with its prior has something to explain too: a
-    plausible refit that keeps the records at the noise floor, pays for itself (ΔBIC, the priors' terms
-    included) and resolves the conflict is then the verdict (:func:`_prior_conflict_verdict`)."""
-    issues = {lab: implausibilities(problem, effects[lab], rf.fit) for lab, rf in ranking.refits.items()}
-    issues = {lab: v for lab, v in issues.items() if v}
-    if ranking.verdict == "none":
-        ranking = _prior_conflict_verdict(ranking, problem, issues)
-    if not issues:
-        return ranking
-    before = ranking.heldout_before
-    if ranking.verdict not in issues:
-        return replace(ranking, implausible=issues)
-    refits = {lab: rf for lab, rf in ranking.refits.items() if lab not in issues}
-    paying = [lab for lab in ranking.order if lab in refits and refits[lab].delta_bic < -problem.settings.bic_margin
-              and np.mean(refits[lab].heldout_after) < np.mean(before)]
-    verdict, ties, reason = verdict_rule(before, refits, paying, problem.settings)
-    why = (f"{ranking.verdict} is not named: its refit needs implausible values ({'; '.join(issues[ranking.verdict])})"
-           f" — among the plausible candidates: {reason}")
-    return replace(ranking, verdict=verdict, indistinguishable=ties, reason=why, implausible=issues)
 
 
 def _central_jacobian(problem: GapProblem, effect: Effect, z: np.ndarray, *, step: float = 1e-4) -> np.ndarray:
@@ -134,23 +105,3 @@ def confounded(problem: GapProblem, effect: Effect, fit: Fit, *, at_baseline: bo
                          f"{left:.1e} of its effect unexplained by them): only a prior on "
                          f"{'them' if len(names) > 1 else 'it'} separates the two")
     return f"{effect.label}: " + "; ".join(lines) if lines else None
-
-
-def _prior_conflict_verdict(ranking: Ranking, problem: GapProblem, issues: Mapping[str, list[str]]) -> Ranking:
-    """``ranking`` (verdict ``none``) unchanged unless its baseline is in conflict with a prior and a plausible
-    refit resolves it (module docstring of :func:`plausible_verdict`)."""
-    conflicts = [c for c in prior_checks(problem, ranking.baseline) if c.status == "conflict"]
-    if not conflicts:
-        return ranking
-    ok = [lab for lab in ranking.order if lab in ranking.refits and lab not in issues
-          and ranking.refits[lab].delta_bic < -problem.settings.bic_margin
-          and float(np.mean(ranking.refits[lab].heldout_after)) - 1.0 <= problem.settings.gap_threshold]
-    if not ok:
-        return ranking
-    best = min(ok, key=lambda lab: ranking.refits[lab].delta_bic)
-    names = ", ".join(c.name for c in conflicts)
-    reason = (f"the baseline matches the records only with {names} in conflict with the prior "
-              f"({'; '.join(c.line() for c in conflicts)}); {best} matches them as well with every prior kept "
-              f"(held-out gap ratio {np.mean(ranking.refits[best].heldout_after):.3g}, "
-              f"dBIC {ranking.refits[best].delta_bic:.1f} with the priors' terms)")
-    return replace(ranking, verdict=best, indistinguishable=[], reason=reason)

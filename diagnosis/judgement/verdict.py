@@ -1,9 +1,16 @@
-"""The verdict rule of the diagnosis: which refitted effect, if any, is named — from the refits' held-out gap, BIC
-and closure alone, no simulation (:func:`verdict_rule`; :mod:`diagnosis.search.rank` produces the refits).
+"""The verdict as a value, and the naming rule that makes the first one from the refits alone (no simulation).
+
+A :class:`Verdict` is a kind (:class:`Kind`), the named effect's label when it names one, the candidates the data
+cannot tell from it (its ties), and the reasons for it as values (:class:`Reason`: which rule said what).  The
+rules of :mod:`diagnosis.judgement.rules` each take one and return one; its text is rendered once, from the
+reasons (:meth:`Verdict.text`).  :func:`name_cause` is the first rule's decision (the search uses it too, to know
+when a ranking is settled); :func:`by_evidence` decides between tied candidates by their posterior odds.
 """
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from dataclasses import dataclass, replace
+from enum import Enum
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -11,12 +18,67 @@ from ..effects import PAIR_SEPARATOR
 from ..search.refits import EffectRefit
 from ..settings import Thresholds
 
-__all__ = ["INDISTINGUISHABLE", "UNEXPLAINED", "by_evidence", "paying_refits", "verdict_rule"]
+__all__ = ["Kind", "Reason", "Verdict", "by_evidence", "name_cause", "paying_refits"]
 
-#: The verdict when there is a gap that no effect of the catalogue explains.
-UNEXPLAINED = "unexplained"
-#: The verdict when several candidates explain the records equally well and their evidence does not separate them.
-INDISTINGUISHABLE = "indistinguishable"
+
+class Kind(Enum):
+    """What a verdict says: no gap, an effect named, a gap no candidate explains, candidates the evidence cannot
+    separate, or the model's own discretisation error."""
+
+    NONE = "none"
+    EFFECT = "effect"
+    UNEXPLAINED = "unexplained"
+    INDISTINGUISHABLE = "indistinguishable"
+    GRID = "grid"
+
+
+@dataclass(frozen=True)
+class Reason:
+    """One reason for a verdict: the rule that gave it (:data:`diagnosis.judgement.rules.RULES`) and what it says."""
+
+    rule: str
+    text: str
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """A verdict: its kind, the named effect (``label``, for :attr:`Kind.EFFECT` only), the candidates the data
+    cannot tell from it (``ties``; for :attr:`Kind.INDISTINGUISHABLE` the candidates, the most probable first) and
+    the reasons, in the order the rules gave them."""
+
+    kind: Kind
+    label: str | None = None
+    ties: tuple[str, ...] = ()
+    reasons: tuple[Reason, ...] = ()
+
+    def __post_init__(self) -> None:
+        if (self.kind is Kind.EFFECT) != (self.label is not None):
+            raise ValueError(f"a verdict of kind {self.kind.value} {'needs' if self.label is None else 'has no'} "
+                             f"an effect's label")
+
+    @property
+    def name(self) -> str:
+        """What ``gap.json`` calls it: the effect's label, or the kind (``none``, ``unexplained``,
+        ``indistinguishable``, ``grid``)."""
+        return self.label if self.label is not None else self.kind.value
+
+    def text(self) -> str:
+        """The reasons in words, in order (the verdict's ``reason`` in ``gap.json`` and on the console)."""
+        return "; ".join(r.text for r in self.reasons)
+
+    def said(self, rule: str, text: str) -> Verdict:
+        """This verdict with one more reason."""
+        return replace(self, reasons=(*self.reasons, Reason(rule, text)))
+
+    def to_dict(self) -> dict[str, Any]:
+        """The verdict as JSON values (``gap.json``'s ``judgement``)."""
+        return {"kind": self.kind.value, "label": self.label, "ties": list(self.ties),
+                "reasons": [{"rule": r.rule, "text": r.text} for r in self.reasons]}
+
+
+def named(label: str, ties: Sequence[str] = (), reasons: Sequence[Reason] = ()) -> Verdict:
+    """A verdict naming ``label`` (an effect or a pair of effects)."""
+    return Verdict(Kind.EFFECT, label, tuple(ties), tuple(reasons))
 
 
 def paying_refits(refits: Mapping[str, EffectRefit], before: np.ndarray, settings: Thresholds) -> list[str]:
@@ -38,9 +100,9 @@ def _insignificant_part(label: str, refits: Mapping[str, EffectRefit], bic_margi
                for part in label.split(PAIR_SEPARATOR))
 
 
-def verdict_rule(before: np.ndarray, refits: Mapping[str, EffectRefit], paying: Sequence[str],
-                 settings: Thresholds) -> tuple[str, list[str], str]:
-    """The verdict from the refits alone (no simulation): ``(verdict, ties, reason)``.
+def name_cause(before: np.ndarray, refits: Mapping[str, EffectRefit], paying: Sequence[str], settings: Thresholds,
+               *, rule: str = "naming") -> Verdict:
+    """The verdict from the refits alone (no simulation).
 
     Parameters
     ----------
@@ -54,30 +116,34 @@ def verdict_rule(before: np.ndarray, refits: Mapping[str, EffectRefit], paying: 
         refitted alone).
     settings
         The thresholds (:class:`~diagnosis.settings.Thresholds`: ``gap_threshold``, ``bic_margin``,
-        ``named_closure``).
+        ``named_closure``, ``tie_gain``, ``tie_excess``).
+    rule
+        The rule the reasons are credited to.
 
     Returns
     -------
-    tuple
-        ``"none"`` when the gap is within ``gap_threshold`` of the noise floor; :data:`UNEXPLAINED` when no
-        refit pays or the best closes less than ``named_closure`` of the gap; else the best's label, the
-        single effects that close nearly as much (≥ 95 % of its gain) and leave no measurably larger remainder
-        (its ties), and the reason in words.
+    Verdict
+        :attr:`Kind.NONE` when the gap is within ``gap_threshold`` of the noise floor; :attr:`Kind.UNEXPLAINED`
+        when no refit pays or the best closes less than ``named_closure`` of the gap; else the best named, with
+        the single effects that close nearly as much (``tie_gain`` of its gain) and leave no measurably larger
+        remainder as its ties.
     """
     paying = [lab for lab in paying if not _insignificant_part(lab, refits, settings.bic_margin)]
     excess = float(np.mean(before)) - 1.0
     if excess < settings.gap_threshold:
-        return "none", [], (f"the held-out residual variance is {excess + 1:.3g}× the noise variance, within "
-                            f"{settings.gap_threshold:.0%} of the noise floor: nothing to explain")
+        return Verdict(Kind.NONE, reasons=(Reason(rule, (
+            f"the held-out residual variance is {excess + 1:.3g}× the noise variance, within "
+            f"{settings.gap_threshold:.0%} of the noise floor: nothing to explain")),))
     if not paying:
-        return UNEXPLAINED, [], (f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the "
-                                 f"noise variance, but no candidate effect improves BIC by more than "
-                                 f"{settings.bic_margin:g} and the held-out error")
+        return Verdict(Kind.UNEXPLAINED, reasons=(Reason(rule, (
+            f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the noise variance, but no "
+            f"candidate effect improves BIC by more than {settings.bic_margin:g} and the held-out error")),))
     best = refits[paying[0]]
     if not best.closed >= settings.named_closure:
-        return UNEXPLAINED, [], (f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the "
-                                 f"noise variance and the best candidate, {paying[0]}, closes only {best.closed:.0%} "
-                                 f"of the gap (an effect is named from {settings.named_closure:.0%})")
+        return Verdict(Kind.UNEXPLAINED, reasons=(Reason(rule, (
+            f"not in the catalogue: the held-out residual variance is {excess + 1:.3g}× the noise variance and the "
+            f"best candidate, {paying[0]}, closes only {best.closed:.0%} of the gap (an effect is named from "
+            f"{settings.named_closure:.0%})")),))
     gain = float(np.mean(before) - np.mean(best.heldout_after))
     # a pair's own parts are not its rivals: the pair has paid for its second effect against the first
     parts = set(paying[0].split(PAIR_SEPARATOR))
@@ -85,38 +151,43 @@ def verdict_rule(before: np.ndarray, refits: Mapping[str, EffectRefit], paying: 
     # 349 noise variances where the best leaves 1.1 is decided, even though both close 97-100 %)
     left = float(np.mean(best.heldout_after))
     ties = [lab for lab in paying[1:] if PAIR_SEPARATOR not in lab and lab not in parts
-            and float(np.mean(before) - np.mean(refits[lab].heldout_after)) >= 0.95 * gain
-            and float(np.mean(refits[lab].heldout_after)) - left <= max(settings.gap_threshold, 0.25 * (left - 1.0))]
-    reason = (f"{paying[0]} closes {best.closed:.0%} of the held-out gap "
-              f"(gap ratio {np.mean(before):.3g} -> {np.mean(best.heldout_after):.3g}, dBIC {best.delta_bic:.1f})")
+            and float(np.mean(before) - np.mean(refits[lab].heldout_after)) >= settings.tie_gain * gain
+            and float(np.mean(refits[lab].heldout_after)) - left
+            <= max(settings.gap_threshold, settings.tie_excess * (left - 1.0))]
+    reasons = [Reason(rule, f"{paying[0]} closes {best.closed:.0%} of the held-out gap "
+                            f"(gap ratio {np.mean(before):.3g} -> {np.mean(best.heldout_after):.3g}, "
+                            f"dBIC {best.delta_bic:.1f})")]
     if left - 1.0 > settings.gap_threshold:
         # a share of the gap, not all of it: the dominant cause, named as such, and the remainder said
-        reason += (f"; it explains the dominant part only: {left:.3g}x the noise variance remains, which no "
-                   f"candidate of the catalogue explains")
+        reasons.append(Reason(rule, f"it explains the dominant part only: {left:.3g}x the noise variance remains, "
+                                    f"which no candidate of the catalogue explains"))
     if ties:
-        reason += "; the data cannot distinguish it from " + ", ".join(ties)
-    return paying[0], ties, reason
+        reasons.append(Reason(rule, "the data cannot distinguish it from " + ", ".join(ties)))
+    return named(paying[0], ties, reasons)
 
 
-def by_evidence(verdict: str, ties: Sequence[str], probabilities: Mapping[str, float], decisive_odds: float
-                ) -> tuple[str, list[str], str]:
-    """Between the verdict of :func:`verdict_rule` and its ties (candidates whose refits explain the records as
-    well), the evidence decides: ``(verdict, listed, sentence)``.
+def by_evidence(verdict: Verdict, probabilities: Mapping[str, float], decisive_odds: float,
+                *, rule: str = "evidence and ties") -> Verdict:
+    """Between a named ``verdict`` and its ties (candidates whose refits explain the records as well), the
+    evidence decides.
 
-    The most probable of them (posterior ``probabilities``, :mod:`diagnosis.judgement.evidence`) is the verdict when its
-    odds against the next reach ``decisive_odds`` (:attr:`~diagnosis.settings.Thresholds.decisive_odds`);
-    otherwise the verdict is :data:`INDISTINGUISHABLE` and ``listed`` holds the candidates, the most probable
-    first (an actuator's lag and a sensor's lag on a record with one force and one sensor: the two commute, and no
-    record of that pair can tell them apart).
+    The most probable of them (posterior ``probabilities``, :mod:`diagnosis.judgement.evidence`) is named, with
+    the sentence after the verdict's reasons, when its odds against the next reach ``decisive_odds``
+    (:attr:`~diagnosis.settings.Thresholds.decisive_odds`); otherwise the verdict is
+    :attr:`Kind.INDISTINGUISHABLE` with the candidates, the most probable first, as its ties and the sentence
+    before its reasons (an actuator's lag and a sensor's lag on a record with one force and one sensor: the two
+    commute, and no record of that pair can tell them apart).
     """
-    candidates = sorted([verdict, *ties], key=lambda lab: -probabilities.get(lab, 0.0))
+    candidates = sorted([verdict.name, *verdict.ties], key=lambda lab: -probabilities.get(lab, 0.0))
     p = [probabilities.get(lab, 0.0) for lab in candidates]
     odds = p[0] / p[1] if p[1] > 0.0 else float("inf")
     if odds >= decisive_odds:
-        return candidates[0], [], (f"the evidence decides between them: {candidates[0]} (posterior probability "
-                                   f"{p[0]:.3g}) over {candidates[1]} ({p[1]:.2g}), odds {odds:.3g}")
+        return named(candidates[0], (), verdict.reasons).said(rule, (
+            f"the evidence decides between them: {candidates[0]} (posterior probability {p[0]:.3g}) over "
+            f"{candidates[1]} ({p[1]:.2g}), odds {odds:.3g}"))
     listed = ", ".join(f"{lab} {v:.2g}" for lab, v in zip(candidates, p))
-    return INDISTINGUISHABLE, candidates, (
+    sentence = Reason(rule, (
         f"{' and '.join(candidates)} explain the records equally well and the evidence cannot separate them "
         f"(posterior probabilities {listed}; odds {odds:.3g} < {decisive_odds:g}): records that see their "
-        f"difference (another sensor or drive point) or a prior on one of them would; none is exported")
+        f"difference (another sensor or drive point) or a prior on one of them would; none is exported"))
+    return Verdict(Kind.INDISTINGUISHABLE, None, tuple(candidates), (sentence, *verdict.reasons))

@@ -22,7 +22,7 @@ import numpy as np
 from ebb_model.arrays import as_matrix
 from ebb_model.errors import ConfigError, DataError
 
-__all__ = ["Record", "split_records"]
+__all__ = ["Record", "ordered_record", "split_records"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,3 +130,11 @@ def records_start(problem: Any) -> np.ndarray | None:
     if start is None:
         return None
     return np.asarray(polish(ev, start.x, max_evaluations=100).x, dtype=float)
+
+
+def ordered_record(config: Any, experiment: Any) -> tuple[str, np.ndarray, np.ndarray]:
+    """``(name, inputs, outputs)`` of an :class:`identification.data.Experiment` with its outputs in the
+    config's sensor order (what :func:`split_records` takes)."""
+    idx = [experiment.output_names.index(s.name) for s in config.sensors]
+    return (experiment.name, np.asarray(experiment.inputs, dtype=float),
+            np.asarray(experiment.outputs, dtype=float)[:, idx])

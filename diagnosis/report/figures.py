@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -13,8 +13,8 @@ from .result import GapReport
 __all__ = ["plot_diagnosis"]
 
 
-def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, effects: Mapping[str, Any],
-                   localisations: Sequence[Any], out_dir: Path) -> list[Path]:
+def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, localisations: Sequence[Any], out_dir: Path
+                   ) -> list[Path]:
     """Write ``effects.png``, ``heldout_residuals.png`` and the localisation plots into ``out_dir``."""
     import matplotlib
 
@@ -49,9 +49,10 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, effects: Mappi
         plt.close(fig)
     _, before = problem.heldout(ranking.baseline.beta)
     after = None
-    if ranking.verdict in ranking.refits:
-        rf = ranking.refits[ranking.verdict]
-        _, after = problem.heldout(rf.fit.beta, effects[ranking.verdict], rf.fit.s)
+    named = report.judged.label
+    if named is not None and named in ranking.refits:
+        rf = ranking.refits[named]
+        _, after = problem.heldout(rf.fit.beta, ranking.effects[named], rf.fit.s)
     rb = before[0]
     n_s = rb.shape[1]
     fig, axes = plt.subplots(n_s, 1, figsize=(10, 2.2 * n_s + 0.5), squeeze=False)
@@ -60,7 +61,7 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, effects: Mappi
         ax = axes[j, 0]
         ax.plot(t, rb[:, j], lw=0.6, label="baseline")
         if after is not None:
-            ax.plot(t, after[0][:, j], lw=0.6, label=f"with {ranking.verdict}")
+            ax.plot(t, after[0][:, j], lw=0.6, label=f"with {named}")
         ax.set_ylabel(f"{name} residual / σ [-]")
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0.0)
     axes[-1, 0].set_xlabel("time in the held-out window [s]")

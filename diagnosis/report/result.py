@@ -18,6 +18,7 @@ from identification.prior import PriorCheck
 from ..localise import Localisation
 from ..search.modal_estimate import MeasuredModes
 from ..baseline.polarity import PolarityCheck
+from ..judgement.verdict import Verdict
 from ..settings import Thresholds
 
 __all__ = ["BandClosure", "RefitSummary", "PatternMatch", "EffectRow", "BaselineSummary", "DiagnosisSettings",
@@ -137,11 +138,10 @@ class GapReport:
 
     Attributes
     ----------
-    verdict, reason
-        The effect's label, ``"none"``, ``"unexplained"``, ``"indistinguishable"`` or ``"grid"``, and why.
-    indistinguishable
-        Effects the data cannot tell from the verdict (for ``"indistinguishable"``: the candidates, the most
-        probable first).
+    judged
+        The verdict (:class:`~diagnosis.judgement.verdict.Verdict`: its kind, the named effect, its ties and the
+        reasons each rule gave); :attr:`verdict`, :attr:`reason` and :attr:`indistinguishable` are its name, its
+        text and its ties.
     noise_std, excited_band_hz
         Noise standard deviation per sensor and the excited frequency band.
     baseline
@@ -174,9 +174,7 @@ class GapReport:
         Wall seconds per stage of the run, each second counted once (:mod:`diagnosis.stages`).
     """
 
-    verdict: str
-    reason: str
-    indistinguishable: tuple[str, ...]
+    judged: Verdict
     noise_std: Mapping[str, float]
     excited_band_hz: tuple[float, float]
     baseline: BaselineSummary
@@ -195,6 +193,22 @@ class GapReport:
     polarity: PolarityCheck | None = None
     stage_seconds: Mapping[str, float] = field(default_factory=dict)
 
+    @property
+    def verdict(self) -> str:
+        """The effect's label, ``"none"``, ``"unexplained"``, ``"indistinguishable"`` or ``"grid"``."""
+        return self.judged.name
+
+    @property
+    def reason(self) -> str:
+        """Why, in words (the verdict's reasons in the order the rules gave them)."""
+        return self.judged.text()
+
+    @property
+    def indistinguishable(self) -> tuple[str, ...]:
+        """Effects the data cannot tell from the verdict (for ``"indistinguishable"``: the candidates, the most
+        probable first)."""
+        return self.judged.ties
+
     def row(self, label: str) -> EffectRow | None:
         """The row of effect ``label`` (``None`` if it is not in the catalogue)."""
         return next((r for r in self.effects if r.label == label), None)
@@ -211,7 +225,7 @@ class GapReport:
             "baseline": self.baseline.to_dict(), "measured_modes": jsonable(modes),
             "localisation": {name: loc.to_dict() for name, loc in self.localisation.items()},
             "summary": list(self.summary), "effects": [r.to_dict() for r in self.effects],
-            "settings": self.settings.to_dict()}
+            "settings": self.settings.to_dict(), "judgement": self.judged.to_dict()}
         if self.evidence:
             doc["posterior_probability"] = {k: float(v) for k, v in self.evidence.items()}
         if self.confounded:

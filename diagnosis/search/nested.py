@@ -1,71 +1,57 @@
 """Special cases refitted where a general effect's refit put them (:mod:`diagnosis.search.rank`'s last stage).
 
-Two candidates are special cases at a place the set-up fixes, and never compete for the score shortlist (a score
-at a fixed place would push a physical effect off it):
+Some candidates are special cases at a place the set-up fixes, and never compete for the score shortlist (a score
+at a fixed place would push a physical effect off it).  Each declares what this stage needs
+(:class:`~diagnosis.effects.Effect`: ``place``, ``landings``, ``parts``) — nothing here names an effect:
 
-* a transducer's mass (:mod:`diagnosis.effects.point_mass`): the point mass at a sensor — refitted from the point
-  mass's refit when that lands within :data:`~diagnosis.effects.point_mass.AT_SENSOR` of a sensor, for the
-  evidence to weigh against the free position (:mod:`diagnosis.judgement.weigh`);
-* a shaker's armature (:mod:`diagnosis.effects.shaker`): a mass and a spring at the drive point — refitted from a
-  point mass's or a spring's refit that lands within the same distance of an actuator (and kept from its modal
-  match when the pattern stage refitted it).  It stays a candidate only when it pays for each of its parts: its
-  BIC beats the mass alone and the suspension alone at the drive point (each refitted from its optimum) by
-  the BIC margin (:attr:`~diagnosis.settings.Thresholds.bic_margin`) — a point mass at the drive point is a point
-  mass, not an armature with a vanishing suspension.
+* its refit starts from every general effect's refit that landed within the landing's reach of its place (a
+  transducer's mass from a point mass's refit near its sensor; a shaker's armature from a point mass's or a
+  spring's near its actuator), and from its own earlier refit (its modal match) when there is one: the best of
+  them is kept;
+* when it declares parts (an armature: its mass alone and its suspension alone at the drive point), it stays a
+  candidate only when it beats each of them, refitted from its optimum, by the BIC margin
+  (:attr:`~diagnosis.settings.Thresholds.bic_margin`) — a point mass at the drive point is a point mass, not an
+  armature with a vanishing suspension.
+
+Tied with its general effect, a special case that explains the held-out records on its own is then named
+instead of it (:func:`diagnosis.judgement.rules.nested`).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..effects import Effect
-from ..effects.point_mass import AT_SENSOR, TRANSDUCER
-from ..effects.shaker import ARMATURE, parts
 from ..problem.fitting import Fit
 from .refits import EffectRefit
 from .state import Search
 
-__all__ = ["armature_refits", "transducer_refits"]
+__all__ = ["landing_refits"]
 
 
-def transducer_refits(run: Search, refits: dict[str, EffectRefit]) -> dict[str, EffectRefit]:
-    """The transducer masses of the sensors within :data:`~diagnosis.effects.point_mass.AT_SENSOR` of the point
-    mass's refit, each refitted from it (its mass as the start)."""
-    pm = refits.get("point_mass")
-    if pm is None:
-        return {}
-    cfg, _ = run.problem.space.apply(run.problem.config, pm.fit.beta)
-    x = float(pm.fit.s[1])
-    out = {}
-    for sensor in cfg.sensors:
-        lab = f"{TRANSDUCER}[{sensor.name}]"
-        if lab in run.effects and abs(sensor.x - x) <= AT_SENSOR * cfg.beam.length:
-            fit = run.problem.fit(pm.fit.beta, run.effects[lab], pm.fit.s[:1], max_evaluations=run.max_evaluations)
-            out[lab] = run.summary(run.effects[lab], fit)
-            run.say(f"refit {lab} from the point mass at {x:.4g} m (sensor at {sensor.x:.4g} m)")
-    return out
-
-
-def _starts(run: Search, refits: dict[str, EffectRefit], actuator_x: float) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Where an armature's refit starts: a point mass's (its mass, no suspension) and a spring's refit (its
-    stiffness, no mass) that landed within :data:`AT_SENSOR` of the actuator."""
+def _starts(run: Search, effect: Effect, refits: dict[str, EffectRefit]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``(beta, s0)`` of every declared landing near the effect's place (the place read in the config at the
+    landing's baseline unknowns: a sensor's position may be one of them)."""
     starts = []
-    reach = AT_SENSOR * run.problem.config.beam.length      # (the length is never a baseline unknown)
-    for source, i in (("point_mass", 0), ("grounded_spring", 1)):
-        rf = refits.get(source)
+    assert effect.place is not None
+    for landing in effect.landings:
+        rf = refits.get(landing.source)
         if rf is None:
             continue
-        if abs(float(rf.fit.s[1]) - actuator_x) <= reach:
-            s0 = np.zeros(2)
-            s0[i] = rf.fit.s[0]
+        cfg, _ = run.problem.space.apply(run.problem.config, rf.fit.beta)
+        if abs(float(rf.fit.s[landing.position]) - effect.place(cfg)) <= landing.reach * cfg.beam.length:
+            s0 = np.asarray(effect.off, dtype=float).copy()
+            for mine, theirs in landing.copy:
+                s0[mine] = rf.fit.s[theirs]
             starts.append((rf.fit.beta, s0))
     return starts
 
 
-def _pays(run: Search, armature: Effect, fit: Fit, rf: EffectRefit) -> tuple[bool, str]:
-    """Whether the armature's refit beats its mass alone and its suspension alone (each refitted from its optimum)
-    by the BIC margin, and what they gave."""
+def _pays(run: Search, effect: Effect, fit: Fit, rf: EffectRefit) -> tuple[bool, str]:
+    """Whether the refit beats each of the effect's parts (each refitted from its optimum, its own variable's
+    value as the start) by the BIC margin, and what they gave."""
     said = []
-    for i, part in enumerate(parts(armature)):
+    assert effect.parts is not None
+    for i, part in enumerate(effect.parts(effect)):
         alone = run.summary(part, run.problem.fit(fit.beta, part, fit.s[i:i + 1],
                                                   max_evaluations=run.max_evaluations))
         said.append(f"{part.name} alone dBIC {alone.bic - rf.bic:+.1f}")
@@ -74,24 +60,24 @@ def _pays(run: Search, armature: Effect, fit: Fit, rf: EffectRefit) -> tuple[boo
     return True, "; ".join(said)
 
 
-def armature_refits(run: Search, refits: dict[str, EffectRefit]) -> dict[str, EffectRefit]:
-    """The refits with each actuator's armature refitted (module docstring) where a point mass or a spring landed
-    at it, and kept only where it pays for each of its parts (an armature from its modal match is checked alike)."""
+def landing_refits(run: Search, refits: dict[str, EffectRefit]) -> dict[str, EffectRefit]:
+    """The refits with every special case refitted where a general effect landed near its place (module
+    docstring), kept only where it pays for each of its parts."""
     out = dict(refits)
-    for lab, armature in run.effects.items():
-        if armature.name != ARMATURE:
+    for lab, effect in run.effects.items():
+        if effect.place is None or not effect.landings:
             continue
-        x = float(next(a.x for a in run.problem.config.actuators if a.name == armature.target))
-        fits = [run.problem.fit(beta, armature, s0, max_evaluations=run.max_evaluations)
-                for beta, s0 in _starts(run, refits, x)]
+        fits = [run.problem.fit(beta, effect, s0, max_evaluations=run.max_evaluations)
+                for beta, s0 in _starts(run, effect, refits)]
         if lab in refits:
             fits.append(refits[lab].fit)
         if not fits:
             continue
         best = min(fits, key=lambda f: f.rss)
-        rf = run.summary(armature, best)
-        pays, said = _pays(run, armature, best, rf)
-        run.say(f"refit {lab} at the drive point ({x:.4g} m): fit RSS/n {best.rss / best.n:.4g}; {said}"
+        rf = run.summary(effect, best)
+        pays, said = (True, "") if effect.parts is None else _pays(run, effect, best, rf)
+        run.say(f"refit {lab} at its place ({effect.place(run.problem.config):.4g} m) from "
+                f"{len(fits)} start(s): fit RSS/n {best.rss / best.n:.4g}" + (f"; {said}" if said else "")
                 + ("" if pays else ": not more than its parts, dropped"))
         if pays:
             out[lab] = rf

@@ -14,12 +14,10 @@ and when still no shortlisted effect explains the gap, each is refitted once
 more by continuation in the record length (:mod:`diagnosis.search.refits`), the most
 promising first, until one explains it.  Effects are ranked by held-out error
 among those whose BIC improves by more than the BIC margin (an extra
-parameter must pay for itself).  The verdict is ``none`` when the baseline's
-held-out gap is within the gap threshold of the noise floor.  An effect is
-named only when its refit closes at least the named closure of the
-held-out gap; when no candidate pays for itself or the best one closes less,
-the verdict is :data:`UNEXPLAINED` — the gap is real but no effect of the
-catalogue accounts for it, and the least-bad candidate is not named.  Effects
+parameter must pay for itself); the naming rule
+(:func:`diagnosis.judgement.verdict.name_cause`) tells when a ranking is settled,
+and the judgement (:mod:`diagnosis.judgement.rules`) makes the verdict from the
+ranking.  Effects
 whose held-out improvement is within 5 % of the best and whose held-out error
 is not measurably higher (by at most the gap threshold or a quarter of the
 best's excess) are reported as indistinguishable from it.
@@ -56,36 +54,35 @@ import numpy as np
 from ..effects import Catalogue, Effect
 from ..problem.fitting import Fit, GapProblem
 from .modal_pattern import ModalEvidence, PatternFit, moves_modes, pattern_fits
-from .nested import armature_refits, transducer_refits
+from .nested import landing_refits
 from .pairs import Early, early_pair, pair_explains, pair_with, same_fit
 from .refits import EffectRefit, better_baseline, explains, refit_from_match
 from ..candidates.score import EffectScore, score_effect
 from .state import Refits, Search
 from ..stages import StageClock
 from ..settings import Thresholds
-from ..judgement.verdict import UNEXPLAINED, paying_refits, verdict_rule
+from ..judgement.verdict import Kind, name_cause, paying_refits
 
-__all__ = ["Ranking", "Refits", "settled", "rank_effects", "verdict_rule", "UNEXPLAINED"]
+__all__ = ["Ranking", "Refits", "settled", "rank_effects"]
 
 
 
 
 @dataclass(frozen=True, eq=False)
 class Ranking:
-    """All scores, the refits, the order and the verdict."""
+    """What the search found: all scores, the refits, the report order, the refits that pay for themselves (best
+    first; a pair that pays, first of all) and the effect behind every label ranked (pairs included).  The verdict
+    is the judgement's (:func:`diagnosis.judgement.rules.judge`)."""
 
     baseline: Fit
     heldout_before: np.ndarray
     scores: dict[str, EffectScore]
     refits: dict[str, EffectRefit]
     order: list[str]
-    verdict: str
-    indistinguishable: list[str] = field(default_factory=list)
-    reason: str = ""
+    paying: list[str]
+    effects: dict[str, Effect]
     patterns: dict[str, PatternFit] = field(default_factory=dict)   # modal-pattern fits, when they were needed
     modal: ModalEvidence | None = None
-    #: refits that need implausible values, with what is implausible (diagnosis.judgement.plausibility)
-    implausible: dict[str, list[str]] = field(default_factory=dict)
 
 
 def _linear(evidence: ModalEvidence | None, gap_threshold: float) -> bool:
@@ -222,17 +219,16 @@ def _continuation_stage(run: Search, labels: list[str], local: Refits, early: Ea
 
 
 # ---------------------------------------------------------------------------
-# the verdict
+# the ranking
 # ---------------------------------------------------------------------------
 def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
             early: Early, patterns: dict[str, PatternFit], evidence: ModalEvidence | None) -> Ranking:
-    """Rank the refits, try a pair when the best leaves a significant remainder, and name the cause."""
+    """Rank the refits, and try a pair when the best leaves a significant remainder."""
     before, baseline, say = run.before, run.baseline, run.say
     labels = labels + [lab for lab in local if lab not in labels]    # (an early pair's effect alone)
     refits = {lab: run.summary(run.effects[lab], local[lab][0]) for lab in labels}
     with run.clock.stage("nested refits"):
-        refits |= transducer_refits(run, refits)
-        refits = armature_refits(run, refits)
+        refits = landing_refits(run, refits)
     for label, rf in refits.items():
         say(f"refit {label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
             f"dBIC {rf.delta_bic:.1f}")
@@ -256,9 +252,8 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
                 refits[pair.label] = pair
                 order = [pair.label] + order
                 paying = [pair.label] + paying
-    verdict, ties, reason = verdict_rule(before, refits, paying, run.problem.settings)
-    return Ranking(baseline, before, run.scores, refits, order, verdict, ties, reason, patterns=patterns,
-                   modal=evidence)
+    effects = run.effects | {lab: run.catalogue.effect(lab) for lab in refits if lab not in run.effects}
+    return Ranking(baseline, before, run.scores, refits, order, paying, effects, patterns=patterns, modal=evidence)
 
 
 def _order(refits: dict[str, EffectRefit], before: np.ndarray, by_score: list[str], settings: Thresholds
@@ -271,14 +266,15 @@ def _order(refits: dict[str, EffectRefit], before: np.ndarray, by_score: list[st
     return paying, paying + others + [lab for lab in by_score if lab not in refits]
 
 
-def settled(ranking: Ranking, gap_threshold: float) -> bool:
-    """Whether the named effect's refit leaves at most ``gap_threshold`` above the noise floor on the fit
-    windows: then a better baseline basin cannot change the verdict (another effect could at most tie), and the
-    ranking is final."""
-    if ranking.verdict not in ranking.refits:
+def settled(ranking: Ranking, settings: Thresholds) -> bool:
+    """Whether the effect the naming rule names (:func:`diagnosis.judgement.verdict.name_cause`) has a refit that
+    leaves at most the gap threshold above the noise floor on the fit windows: then a better baseline basin
+    cannot change the verdict (another effect could at most tie), and the ranking is final."""
+    verdict = name_cause(ranking.heldout_before, ranking.refits, ranking.paying, settings)
+    if verdict.kind is not Kind.EFFECT or verdict.label not in ranking.refits:
         return False
-    fit = ranking.refits[ranking.verdict].fit
-    return fit.rss / fit.n - 1.0 <= gap_threshold
+    fit = ranking.refits[verdict.label].fit
+    return fit.rss / fit.n - 1.0 <= settings.gap_threshold
 
 
 def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, shortlist: int = 4,
@@ -342,7 +338,7 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
             baseline, early_rebaseline = outcome, False
             continue
         ranking = outcome
-        if left == 0 or settled(ranking, problem.settings.gap_threshold):
+        if left == 0 or settled(ranking, problem.settings):
             return ranking
         left -= 1
         # an effect's refit may have moved the baseline unknowns into a better basin (refits.better_baseline)
