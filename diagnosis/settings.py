@@ -70,11 +70,19 @@ class Thresholds:
     pair_partners: int = field(default=5, metadata=_reason(
         "further candidates tried as the second effect of a pair (a foundation absorbed into the axial load ranked "
         "fourth at an actuator lag's refit, behind three effects that each mimic part of it)", 1, 100, True))
+    pair_rival_share: float = field(default=0.9, metadata=_reason(
+        "a single effect closing this share of what the best single closes is its near-equal rival: the pairs it "
+        "makes are refitted and weighed too (a foundation closing 52.7 % beside a spring closing 54.7 %)", 0.0, 1.0))
+    pair_rivals: int = field(default=2, metadata=_reason(
+        "near-equal rivals of the best single effect whose pairs are refitted besides its own", 0, 20, True))
     pattern_candidates: int = field(default=2, metadata=_reason(
         "structural effects refitted from the measured modes' pattern, best matches first", 1, 100, True))
     pattern_rival: float = field(default=10.0, metadata=_reason(
         "a further pattern match is refitted only while its chi2 is within this factor of the best match's (or of "
         "2 per mode, a match within the errors)", 1.0, 1e6))
+    score_significance: float = field(default=0.01, metadata=_reason(
+        "p-value of a score test below which a candidate asks to be refitted: one not refitted is listed with the "
+        "reason (gap.json's not_refitted), and a chain's gain under a prior on the beam is refitted", 0.0, 1.0))
     shortlist: int = field(default=4, metadata=_reason(
         "best-scoring effects refitted (the score test ranks; refits decide)", 1, 100, True))
 

@@ -143,3 +143,18 @@ def test_a_verdict_names_an_effect_exactly_when_it_is_of_that_kind():
         except ValueError:
             continue
         raise AssertionError("a verdict's kind and label disagree without an error")
+
+
+def test_a_pair_ties_with_the_pair_of_a_near_equal_rival():
+    """The pairs a spring and a foundation each make with a lag explain the records alike: the named pair's tie is
+    the other pair (then the evidence decides); a single that is one of its parts is never its tie."""
+    refits = {"grounded_spring+sensor_lag[y1]": refit("grounded_spring+sensor_lag[y1]", 1.05, delta_bic=-700.0),
+              "foundation+sensor_lag[y1]": refit("foundation+sensor_lag[y1]", 1.08, delta_bic=-690.0),
+              "grounded_spring": refit("grounded_spring", 23.0), "foundation": refit("foundation", 24.0)}
+    verdict, ties, reason = verdict_rule(BEFORE, refits, list(refits))
+    assert verdict == "grounded_spring+sensor_lag[y1]" and ties == ["foundation+sensor_lag[y1]"], reason
+    # a single effect's verdict is never tied with a pair
+    verdict, ties, _ = verdict_rule(BEFORE, {"point_mass": refit("point_mass", 1.02),
+                                             "foundation+sensor_lag[y1]": refit("foundation+sensor_lag[y1]", 1.05)},
+                                    ["point_mass", "foundation+sensor_lag[y1]"])
+    assert (verdict, ties) == ("point_mass", [])

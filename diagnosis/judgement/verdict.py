@@ -145,12 +145,14 @@ def name_cause(before: np.ndarray, refits: Mapping[str, EffectRefit], paying: Se
             f"best candidate, {paying[0]}, closes only {best.closed:.0%} of the gap (an effect is named from "
             f"{settings.named_closure:.0%})")),))
     gain = float(np.mean(before) - np.mean(best.heldout_after))
-    # a pair's own parts are not its rivals: the pair has paid for its second effect against the first
+    # a pair's own parts are not its rivals (the pair has paid for its second effect against the first); another
+    # pair is (the pairs of near-equal rivals: a spring or a foundation, each with a lag), a pair never a single's
     parts = set(paying[0].split(PAIR_SEPARATOR))
+    pair_named = PAIR_SEPARATOR in paying[0]
     # a rival ties when it closes nearly as much and what it leaves is not measurably more (a rival leaving
     # 349 noise variances where the best leaves 1.1 is decided, even though both close 97-100 %)
     left = float(np.mean(best.heldout_after))
-    ties = [lab for lab in paying[1:] if PAIR_SEPARATOR not in lab and lab not in parts
+    ties = [lab for lab in paying[1:] if (pair_named or PAIR_SEPARATOR not in lab) and lab not in parts
             and float(np.mean(before) - np.mean(refits[lab].heldout_after)) >= settings.tie_gain * gain
             and float(np.mean(refits[lab].heldout_after)) - left
             <= max(settings.gap_threshold, settings.tie_excess * (left - 1.0))]

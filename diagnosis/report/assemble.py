@@ -77,7 +77,8 @@ def effect_rows(problem: GapProblem, ranking: Ranking, edges: np.ndarray, n_mode
         match = None if pf is None else PatternMatch(pf.chi2, tuple(map(float, pf.freq_hz)),
                                                      tuple(map(float, pf.damping)))
         rows.append(EffectRow(rank_i, lab, e.name, e.target, e.description, None if sc is None else sc.lm,
-                              None if sc is None else sc.p_value, lab in ranking.refits, refit, match))
+                              None if sc is None else sc.p_value, lab in ranking.refits, refit, match,
+                              ranking.not_refitted.get(lab)))
     return tuple(rows)
 
 

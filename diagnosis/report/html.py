@@ -41,6 +41,10 @@ def text_report(report: GapReport, *, top: int = 6) -> str:
                          f"  {_pct(rf.closed)}  {params}")
         else:
             lines.append(f"  {row.rank:>4}  {row.label:<32} {score}  {'-':>9}  {'   -':>6}")
+    unseen = [f"  - {row.label}: {row.not_refitted}" for row in report.effects if row.not_refitted]
+    if unseen:
+        lines.append("significant scores not refitted:")
+        lines += unseen
     return "\n".join(lines)
 
 
@@ -75,7 +79,9 @@ def html_sections(report: GapReport, out_dir: Path, *, top: int = 10) -> list[Se
                      "" if rf is None else ", ".join(f"{k} = {v:.4g}" for k, v in rf.effect_parameters.items())))
     effects = Section("Effects", tables=(Table(("rank", "effect", "score", "ΔBIC", "held-out gap closed",
                                                 "fitted values"), rows,
-                                               "score test of every candidate, then the refit of the shortlist"),))
+                                               "score test of every candidate, then the refit of the shortlist"),),
+                      paragraphs=tuple(f"{row.label}: {row.not_refitted}" for row in report.effects
+                                       if row.not_refitted))
     sections = [verdict, baseline]
     if report.summary:
         sections.append(Section("Where the gap lies", paragraphs=tuple(report.summary)))

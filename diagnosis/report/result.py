@@ -83,10 +83,14 @@ class EffectRow:
     shortlisted: bool
     refit: RefitSummary | None = None
     modal_pattern: PatternMatch | None = None
+    #: for a candidate with a significant score and no refit: why (:mod:`diagnosis.search.exclusions`)
+    not_refitted: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready row (``refit`` and ``modal_pattern`` only when there is one)."""
-        row = {k: jsonable(v) for k, v in vars(self).items() if k not in ("refit", "modal_pattern")}
+        """JSON-ready row (``refit``, ``modal_pattern`` and ``not_refitted`` only when there is one)."""
+        row = {k: jsonable(v) for k, v in vars(self).items() if k not in ("refit", "modal_pattern", "not_refitted")}
+        if self.not_refitted is not None:
+            row["not_refitted"] = self.not_refitted
         if self.refit is not None:
             row["refit"] = jsonable(self.refit)
         if self.modal_pattern is not None:

@@ -60,10 +60,11 @@ def _pays(run: Search, effect: Effect, fit: Fit, rf: EffectRefit) -> tuple[bool,
     return True, "; ".join(said)
 
 
-def landing_refits(run: Search, refits: dict[str, EffectRefit]) -> dict[str, EffectRefit]:
+def landing_refits(run: Search, refits: dict[str, EffectRefit]
+                   ) -> tuple[dict[str, EffectRefit], dict[str, str]]:
     """The refits with every special case refitted where a general effect landed near its place (module
-    docstring), kept only where it pays for each of its parts."""
-    out = dict(refits)
+    docstring), kept only where it pays for each of its parts; and the ones dropped, with why."""
+    out, dropped = dict(refits), {}
     for lab, effect in run.effects.items():
         if effect.place is None or not effect.landings:
             continue
@@ -83,4 +84,5 @@ def landing_refits(run: Search, refits: dict[str, EffectRefit]) -> dict[str, Eff
             out[lab] = rf
         else:
             out.pop(lab, None)
-    return out
+            dropped[lab] = f"not more than its parts ({said})"
+    return out, dropped

@@ -51,9 +51,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..effects import Catalogue, Effect
+from ..effects import PAIR_SEPARATOR, Catalogue, Effect
 from ..problem.fitting import Fit, GapProblem
 from .modal_pattern import ModalEvidence, PatternFit, moves_modes, pattern_fits
+from .exclusions import not_refitted
 from .nested import landing_refits
 from .pairs import Early, early_pair, pair_explains, pair_with, same_fit
 from .refits import EffectRefit, better_baseline, explains, refit_from_match
@@ -83,6 +84,8 @@ class Ranking:
     effects: dict[str, Effect]
     patterns: dict[str, PatternFit] = field(default_factory=dict)   # modal-pattern fits, when they were needed
     modal: ModalEvidence | None = None
+    #: the candidates with a significant score and no refit, each with why (:mod:`diagnosis.search.exclusions`)
+    not_refitted: dict[str, str] = field(default_factory=dict)
 
 
 def _linear(evidence: ModalEvidence | None, gap_threshold: float) -> bool:
@@ -228,7 +231,7 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
     labels = labels + [lab for lab in local if lab not in labels]    # (an early pair's effect alone)
     refits = {lab: run.summary(run.effects[lab], local[lab][0]) for lab in labels}
     with run.clock.stage("nested refits"):
-        refits = landing_refits(run, refits)
+        refits, dropped = landing_refits(run, refits)
     for label, rf in refits.items():
         say(f"refit {label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
             f"dBIC {rf.delta_bic:.1f}")
@@ -248,12 +251,38 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
                     pair, singles = pair_with(run, best, {lab: rf.fit for lab, rf in refits.items()})
                 refits |= singles
                 paying, order = _order(refits, before, by_score, run.problem.settings)
-            if pair is not None:
-                refits[pair.label] = pair
-                order = [pair.label] + order
-                paying = [pair.label] + paying
+            pairs = [] if pair is None else [pair]
+            # the pairs the best single's near-equal rivals make: a pair is weighed against them, or the true
+            # partner of a rival is never seen (a foundation closing 52.7 % beside a spring closing 54.7 %)
+            for lab in _rivals(refits, paying, best, run.problem.settings):
+                with run.clock.stage("pairs"):
+                    rival_pair, singles = pair_with(run, refits[lab], {k: rf.fit for k, rf in refits.items()})
+                refits |= singles
+                same = {frozenset(rf.label.split(PAIR_SEPARATOR)) for rf in pairs}
+                if rival_pair is not None and frozenset(rival_pair.label.split(PAIR_SEPARATOR)) not in same:
+                    pairs.append(rival_pair)
+            if pairs:
+                paying, order = _order(refits, before, by_score, run.problem.settings)
+                pairs.sort(key=lambda rf: float(np.mean(rf.heldout_after)))
+                refits |= {rf.label: rf for rf in pairs}
+                order = [rf.label for rf in pairs] + order
+                paying = [rf.label for rf in pairs] + paying
     effects = run.effects | {lab: run.catalogue.effect(lab) for lab in refits if lab not in run.effects}
-    return Ranking(baseline, before, run.scores, refits, order, paying, effects, patterns=patterns, modal=evidence)
+    unseen = not_refitted(run.effects, run.scores, set(refits), patterns, dropped, run.problem.settings,
+                          with_prior=run.problem.prior is not None and run.problem.prior.count > 0)
+    for line in unseen.values():
+        say(line)
+    return Ranking(baseline, before, run.scores, refits, order, paying, effects, patterns=patterns, modal=evidence,
+                   not_refitted=unseen)
+
+
+def _rivals(refits: dict[str, EffectRefit], paying: list[str], best: EffectRefit, settings: Thresholds
+            ) -> list[str]:
+    """The single effects that close nearly as much as ``best`` (``pair_rival_share`` of its closure) and pay for
+    themselves: each is paired too (at most ``pair_rivals``), the closest first."""
+    near = [lab for lab in paying if lab != best.label and PAIR_SEPARATOR not in lab
+            and refits[lab].closed >= settings.pair_rival_share * best.closed]
+    return near[:settings.pair_rivals]
 
 
 def _order(refits: dict[str, EffectRefit], before: np.ndarray, by_score: list[str], settings: Thresholds
@@ -355,20 +384,25 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
 
 def _shortlist(problem: GapProblem, effects: dict[str, Effect], scores: dict[str, EffectScore], by_score: list[str],
                shortlist: int) -> list[str]:
-    """The effects to refit: the ``shortlist`` best-scoring physical ones, and the measurement chain's gains
-    apart from them.  A gain is degenerate with a common scale of the beam's unknowns, so its score at a
-    baseline that took up the scale says little of its worth, and it must not push a physical effect off the
-    shortlist (measured: a sensor's gain displaced the right clamp spring in the blind family); it is refitted
-    when it scores best of all, and — a prior on the beam breaking the degeneracy — whenever its score is
-    significant."""
+    """The effects to refit: the ``shortlist`` best-scoring physical ones, and apart from them the measurement
+    chain's gains and the special cases at a fixed place.  A gain is degenerate with a common scale of the beam's
+    unknowns, so its score at a baseline that took up the scale says little of its worth, and it must not push a
+    physical effect off the shortlist (measured: a sensor's gain displaced the right clamp spring in the blind
+    family); it is refitted when it scores best of all, and — a prior on the beam breaking the degeneracy —
+    whenever its score is significant.  A special case (a transducer's mass, a shaker's armature) is refitted
+    where a general effect's refit lands near its place (:mod:`diagnosis.search.nested`), and from its own score
+    when that is significant and the best of all: a score at a fixed place must not push a general effect off the
+    shortlist, but the candidate the records ask for most is never left out."""
+    significant = problem.settings.score_significance
     chain = {lab for lab in effects if effects[lab].scale_degenerate}
-    # a transducer's mass and a shaker's armature are refitted where a general effect's refit put them
-    # (diagnosis.search.nested), never from their score
     nested = {lab for lab in effects if effects[lab].nested_in is not None}
     labels = [lab for lab in by_score if scores[lab].lm > 0 and lab not in chain | nested][:shortlist]
     with_prior = problem.prior is not None and problem.prior.count > 0
     extra = [lab for lab in by_score if lab in chain and scores[lab].lm > 0
-             and ((with_prior and scores[lab].p_value < 0.01) or lab == by_score[0])]
+             and ((with_prior and scores[lab].p_value < significant) or lab == by_score[0])]
+    top = by_score[0] if by_score else None
+    if top in nested and scores[top].lm > 0 and scores[top].p_value < significant:
+        extra.append(top)
     return labels + extra
 
 
