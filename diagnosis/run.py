@@ -55,6 +55,7 @@ from .search.modal_pattern import modal_source
 from .search.rank import Ranking, rank_effects
 from .search.workers import DaskExecutor, refit_pool
 from .settings import thresholds_from_config
+from .setups import RIG_PARTS, setups_from_config
 from .stages import StageClock
 
 __all__ = ["Diagnosis", "diagnose", "GAP_FILE"]
@@ -145,6 +146,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         parse_local_address(dask)     # a malformed local:K stops the run before anything is written
     cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
     settings = thresholds_from_config(cfg, shortlist=shortlist)
+    setups = setups_from_config(cfg)
     targets = check_targets(targets)
     out = Path(out_dir) if out_dir is not None else None
     if out is not None:
@@ -159,8 +161,11 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     given = given_noise_std(cfg, noise_std)
     sigma = given if given is not None else records_noise_std([r.inputs for r in records],
                                                               [r.outputs for r in records], dt)
-    problem = GapProblem(cfg, space, records, sigma, prior=Prior.of(cfg, space.names), modes=modal_data(cfg),
-                         settings=settings)
+    modes = modal_data(cfg)
+    if setups is not None and modes is not None and "modes" not in setups.names:
+        raise ConfigError("setups: the config gives measured modes but no set-up holds them (evidence = [\"modes\"])")
+    problem = GapProblem(cfg, space, records, sigma, prior=Prior.of(cfg, space.names), modes=modes,
+                         settings=settings, modes_lack=frozenset() if setups is None else setups.modes_lack())
     clock = StageClock()
     executor = refit_pool(workers, dask)
     try:
@@ -191,7 +196,10 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         in_band[0] = True
         mf, mz = freqs[in_band], zetas[in_band]
         # stages 2 and 3, the candidates and the search
-        catalogue = catalogue_of(problem, base_cfg, base_params, mf, f_hi)
+        if setups is not None:
+            say("set-ups: " + setups.describe())
+        catalogue = catalogue_of(problem, base_cfg, base_params, mf, f_hi, absent=frozenset(
+            p for p in RIG_PARTS if setups is not None and not setups.records_have(p)))
         parallel = executor.workers if isinstance(executor, DaskExecutor) else workers
         with clock.stage("ranking (the rest)"):
             ranking = rank_effects(problem, baseline, catalogue=catalogue, shortlist=settings.shortlist,
@@ -226,7 +234,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
             rows = effect_rows(problem, ranking, edges, len(mf) + 1)
         ran_with = DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, settings)
         report = replace(gap_report(problem, ranking, judgement, (f_lo, f_hi), mf, adequacy, advice, locs, rows,
-                                    ran_with, polarity), stage_seconds=dict(clock.seconds))
+                                    ran_with, polarity), stage_seconds=dict(clock.seconds), setups=setups)
         if out is None:
             return Diagnosis(ranking, report, None)
         report = _write(out, problem, ranking, report, locs, plots=plots, export=export, targets=targets)

@@ -67,6 +67,11 @@ class Thresholds:
         "share of the held-out gap the best single effect must close before a pair with it is tried (two effects "
         "of like size each close about half of it alone; one that closes almost nothing is not half of a pair)",
         0.0, 1.0))
+    pair_remainder: float = field(default=5.0, metadata=_reason(
+        "held-out excess (noise variances above the floor) the best single effect may leave before a second effect "
+        "is tried even though it closes nearly all of a large gap (a foundation closing 97.7 % of 405 leaves 9.4: "
+        "a sensor's lag); the blind families' single truths leave up to 2.3, the model's own discretisation "
+        "against the independent truth on accelerometers", 0.0, 1e9))
     pair_partners: int = field(default=5, metadata=_reason(
         "further candidates tried as the second effect of a pair (a foundation absorbed into the axial load ranked "
         "fourth at an actuator lag's refit, behind three effects that each mimic part of it)", 1, 100, True))

@@ -34,7 +34,7 @@ __all__ = ["CONFIG_SECTIONS", "SECTION", "IdentificationSettings", "identificati
 #: Name of the config table this layer owns.
 SECTION = "identification"
 #: The config tables kept beside the model's: this layer's and the diagnosis' (checked by each).
-CONFIG_SECTIONS = (SECTION, "diagnosis")
+CONFIG_SECTIONS = (SECTION, "diagnosis", "setups")
 _KEYS = ("positions", "data", "noise_std", "per", "stabilising", "modes", "geometry")
 _DATA_KEYS = ("mapping", "units", "gains", "remove_offset", "pre_trigger", "band", "resample", "format")
 

@@ -19,9 +19,10 @@ __all__ = ["catalogue_of"]
 
 
 def catalogue_of(problem: GapProblem, base_cfg: BeamConfig, base_params: Mapping[str, float], mf: np.ndarray,
-               f_hi: float) -> Catalogue:
+               f_hi: float, *, absent: frozenset[str] = frozenset()) -> Catalogue:
     """The candidate effects of the fitted baseline, their search bounds set by its scales (the in-band modes
-    ``mf`` [Hz], the excited band's top ``f_hi`` [Hz], the fit records' length and largest stretch)."""
+    ``mf`` [Hz], the excited band's top ``f_hi`` [Hz], the fit records' length and largest stretch); none that
+    models a rig part ``absent`` from the records' set-up (:mod:`diagnosis.setups`)."""
     fit_records = [r for r in problem.records if r.has_fit]
     scales = Scales(EI=base_params["EI"], rhoA=base_params["rhoA"], N=base_params["N"],
                     length=base_cfg.beam.length, omega_low=2 * np.pi * float(mf[0]),
@@ -30,7 +31,7 @@ def catalogue_of(problem: GapProblem, base_cfg: BeamConfig, base_params: Mapping
                     stretch_max=stretch_max(base_cfg, base_params, fit_records),
                     output_rms=tuple(float(v) for v in np.sqrt(np.mean(np.concatenate(
                         [r.outputs[:r.fit_end] for r in fit_records]) ** 2, axis=0))))
-    return Catalogue(base_cfg, scales, tuple(problem.space.names))
+    return Catalogue(base_cfg, scales, tuple(problem.space.names), absent=absent)
 
 
 def stretch_max(config: BeamConfig, params: Mapping[str, float], records: Sequence[Record]) -> float:

@@ -106,17 +106,22 @@ class Catalogue:
         What :func:`candidate_effects` builds the candidates from.
     families
         The catalogue's families (default: :data:`FAMILIES` as registered when the catalogue is made).
+    absent
+        Rig parts the records' set-up did not have (:mod:`diagnosis.setups`): the effects modelling them are no
+        candidates.
     """
 
     config: BeamConfig
     scales: Scales
     identified: tuple[str, ...] = ()
     families: tuple[Family, ...] = field(default_factory=lambda: FAMILIES)
+    absent: frozenset[str] = frozenset()
 
     @cached_property
     def _index(self) -> dict[str, Effect]:
         return {e.label: e for family in self.families
-                for e in family.candidates(self.config, self.scales, tuple(self.identified))}
+                for e in family.candidates(self.config, self.scales, tuple(self.identified))
+                if e.rig_part is None or e.rig_part not in self.absent}
 
     def __getstate__(self) -> dict[str, Any]:
         return {k: v for k, v in self.__dict__.items() if k != "_index"}

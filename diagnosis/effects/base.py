@@ -221,6 +221,12 @@ class Effect:
     #: and its suspension alone — a point mass at the drive point is a point mass, not an armature with a
     #: vanishing suspension); given this effect, returns them
     parts: Callable[[Effect], tuple[Effect, ...]] | None = field(default=None, repr=False)
+    #: the rig part it models (:data:`diagnosis.setups.RIG_PARTS`: a shaker's armature, a transducer's mass): a
+    #: candidate only where the records' set-up has the part, off in evidence from a set-up without it
+    #: (:mod:`diagnosis.setups`); ``None``: the beam's own physics, shared by every set-up
+    rig_part: str | None = None
+    #: for a pair, its two effects (:func:`pair_effect`)
+    members: tuple[Effect, ...] = field(default=(), repr=False)
     #: the search variables proportional to a physical size the beam's force-like constants measure (a mass in
     #: units of the nominal ρA L, a stiffness in units of EI/L³): multiplying them with EI, ρA, c and N by λ
     #: leaves the modes alone and divides the response by λ (:mod:`diagnosis.search.modal_pattern` sets that scale from
@@ -313,7 +319,8 @@ def pair_effect(first: Effect, second: Effect) -> Effect:
                   first.lower + second.lower, first.upper + second.upper, first.off + second.off,
                   f"{first.description}, and {second.description}",
                   {f"{e.label}.{n}": u for e in (first, second) for n, u in e.units.items()}, apply, physical,
-                  {f"{e.label}.{n}": r for e in (first, second) for n, r in e.plausible.items()})
+                  {f"{e.label}.{n}": r for e in (first, second) for n, r in e.plausible.items()},
+                  members=(first, second))
 
 
 def on_top_of(first: Effect, s_first: np.ndarray, second: Effect) -> Effect:

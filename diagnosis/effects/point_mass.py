@@ -73,7 +73,7 @@ def _transducer(sensor: str, unit: float, plausible: dict[str, tuple[float, floa
                   f"the mass of the transducer of sensor {sensor} at its position", {"mass": "kg"}, apply,
                   lambda s: {"mass": float(s[0] * unit)}, plausible, nested_in="point_mass", scaled=(0,),
                   place=lambda cfg: float(next(sn.x for sn in cfg.sensors if sn.name == sensor)),
-                  landings=(Landing("point_mass", 1, ((0, 0),), AT_SENSOR),))
+                  landings=(Landing("point_mass", 1, ((0, 0),), AT_SENSOR),), rig_part="transducer")
 
 
 #: This module's entry in the catalogue.

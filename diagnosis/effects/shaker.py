@@ -65,7 +65,7 @@ def _armature(actuator: str, mass_unit: float, spring_unit: float, plausible: di
                   nested_in=f"point_mass{PAIR_SEPARATOR}grounded_spring", scaled=(0, 1),
                   place=lambda cfg: float(next(a.x for a in cfg.actuators if a.name == actuator)),
                   landings=(Landing("point_mass", 1, ((0, 0),), AT_SENSOR),
-                            Landing("grounded_spring", 1, ((1, 0),), AT_SENSOR)), parts=parts)
+                            Landing("grounded_spring", 1, ((1, 0),), AT_SENSOR)), parts=parts, rig_part="shaker")
 
 
 def parts(armature: Effect) -> tuple[Effect, Effect]:

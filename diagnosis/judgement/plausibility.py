@@ -53,7 +53,7 @@ def implausibilities(problem: GapProblem, effect: Effect, fit: Fit) -> list[str]
                          f"[{lo:.3g}, {hi:.3g}] {unit}")
     lines += [f"{effect.label}: {c.line()}" for c in prior_checks(problem, fit) if c.status == "conflict"]
     if problem.modes is not None:
-        m = problem.model(fit.beta, effect, fit.s)
+        m = problem.modes_model(fit.beta, effect, fit.s)
         a = problem.modes.agreement(m.config, m.params)
         if not a["agrees"]:
             model_hz = ", ".join(f"{v:.4g}" for v in a["model_hz"] or [])

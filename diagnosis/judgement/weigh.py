@@ -50,10 +50,10 @@ def weigh(problem: GapProblem, ranking: Ranking) -> Weighed:
                if (line := confounded(problem, effects[lab], rf.fit)) is not None}
     agreement: dict[str, dict[str, Any]] = {}
     if problem.modes is not None:
-        m = problem.model(ranking.baseline.beta)
+        m = problem.modes_model(ranking.baseline.beta)
         agreement["none"] = problem.modes.agreement(m.config, m.params)
         for lab, rf in ranking.refits.items():
-            m = problem.model(rf.fit.beta, effects[lab], rf.fit.s)
+            m = problem.modes_model(rf.fit.beta, effects[lab], rf.fit.s)
             agreement[lab] = problem.modes.agreement(m.config, m.params)
     return Weighed({lab: v for lab, v in issues.items() if v}, conflicts, probs, tangled, agreement)
 

@@ -111,6 +111,9 @@ class GapProblem:
     other_starts: tuple[np.ndarray, ...] = ()
     #: the thresholds every stage decides with (:class:`diagnosis.settings.Thresholds`)
     settings: Thresholds = field(default_factory=Thresholds)
+    #: the rig parts of the records' set-up that the measured modes' set-up did not have
+    #: (:meth:`diagnosis.setups.Setups.modes_lack`): effects modelling them are off in the modes' model
+    modes_lack: frozenset[str] = frozenset()
 
     def __post_init__(self) -> None:
         if self.noise is None:
@@ -124,6 +127,24 @@ class GapProblem:
         if effect is None:
             return AugmentedModel(cfg, params)
         return effect.apply(cfg, params, np.asarray(s, dtype=float))
+
+    def modes_model(self, beta: np.ndarray, effect: Effect | None = None, s: np.ndarray | None = None
+                    ) -> AugmentedModel:
+        """The model the measured modes are compared with: :meth:`model`, with the effect's parts that model a
+        rig part the modes' set-up did not have (:attr:`modes_lack`) off."""
+        if effect is None or not self.modes_lack:
+            return self.model(beta, effect, s)
+        members = effect.members or (effect,)
+        z = np.asarray(s, dtype=float)
+        kept, values, k = [], [], 0
+        for e in members:
+            if e.rig_part not in self.modes_lack:
+                kept.append(e)
+                values.append(z[k:k + e.dim])
+            k += e.dim
+        if len(kept) == len(members):
+            return self.model(beta, effect, s)
+        return self.model(beta, kept[0], values[0]) if kept else self.model(beta)
 
     def simulate(self, beta: np.ndarray, effect: Effect | None = None, s: np.ndarray | None = None, *,
                  until: str = "fit") -> list[np.ndarray | None]:
@@ -163,7 +184,7 @@ class GapProblem:
             parts = [noise.whiten(i, y - r.outputs[:r.fit_end]).ravel()
                      for i, (y, r) in enumerate(zip(sims, self.records)) if y is not None]
         if self.modes is not None:
-            m = self.model(beta, effect, s)
+            m = self.modes_model(beta, effect, s)
             parts.append(self.modes.residuals(m.config, m.params))
         if self.prior is not None and self.prior.count:
             parts.append(self.prior.residuals(beta))

@@ -20,6 +20,7 @@ from ..search.modal_estimate import MeasuredModes
 from ..baseline.polarity import PolarityCheck
 from ..judgement.verdict import Verdict
 from ..settings import Thresholds
+from ..setups import Setups
 
 __all__ = ["BandClosure", "RefitSummary", "PatternMatch", "EffectRow", "BaselineSummary", "DiagnosisSettings",
            "GapReport"]
@@ -176,6 +177,8 @@ class GapReport:
         The baseline with the measured force as read and reversed (:mod:`diagnosis.baseline.polarity`).
     stage_seconds
         Wall seconds per stage of the run, each second counted once (:mod:`diagnosis.stages`).
+    setups
+        Which set-up each kind of evidence was measured in, with its rig parts (:mod:`diagnosis.setups`).
     """
 
     judged: Verdict
@@ -196,6 +199,7 @@ class GapReport:
     modal_data: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     polarity: PolarityCheck | None = None
     stage_seconds: Mapping[str, float] = field(default_factory=dict)
+    setups: Setups | None = None
 
     @property
     def verdict(self) -> str:
@@ -240,6 +244,8 @@ class GapReport:
             doc["implausible"] = {k: list(v) for k, v in self.implausible.items()}
         if self.polarity is not None:
             doc["force_sign"] = self.polarity.to_dict()
+        if self.setups is not None:
+            doc["setups"] = self.setups.to_dict()
         if self.priors:
             doc["baseline"]["priors"] = {c.name: c.to_dict() for c in self.priors}
         if self.corrected_files is not None:

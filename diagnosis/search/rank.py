@@ -239,7 +239,9 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
     excess = float(np.mean(before)) - 1.0
     if excess >= run.problem.settings.gap_threshold and paying:
         best = refits[paying[0]]
-        if (not explains(best.fit, baseline, run.problem.settings.gap_threshold)
+        left = float(np.mean(best.heldout_after)) - 1.0
+        if ((not explains(best.fit, baseline, run.problem.settings.gap_threshold)
+             or left > run.problem.settings.pair_remainder)
                 and best.closed >= run.problem.settings.pair_minimum):
             # one effect leaves a significant remainder: a second one at once, when it pays for itself (tried
             # already before the continuation refits when this single's fit has not changed since)
