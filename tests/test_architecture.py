@@ -67,4 +67,4 @@ def test_the_diagnosis_folders_are_its_stages():
     assert folders == {"problem", "baseline", "effects", "candidates", "search", "localise", "judgement", "report",
                        "corrected"}
     loose = sorted(p.stem for p in (ROOT / "diagnosis").glob("*.py"))
-    assert loose == ["__init__", "batch", "demo", "run", "settings", "stages"], loose
+    assert loose == ["__init__", "batch", "demo", "run", "settings", "setups", "stages"], loose

@@ -62,6 +62,7 @@ from ..candidates.score import EffectScore, score_effect
 from .state import Refits, Search
 from ..stages import StageClock
 from ..settings import Thresholds
+from ..judgement.plausibility import implausibilities
 from ..judgement.verdict import Kind, name_cause, paying_refits
 
 __all__ = ["Ranking", "Refits", "settled", "rank_effects"]
@@ -239,9 +240,10 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
     excess = float(np.mean(before)) - 1.0
     if excess >= run.problem.settings.gap_threshold and paying:
         best = refits[paying[0]]
-        left = float(np.mean(best.heldout_after)) - 1.0
-        if ((not explains(best.fit, baseline, run.problem.settings.gap_threshold)
-             or left > run.problem.settings.pair_remainder)
+        # a remainder beyond pair_remainder asks for a second effect too — when the single is one a rig can have
+        remainder = (float(np.mean(best.heldout_after)) - 1.0 > run.problem.settings.pair_remainder
+                     and _plausible(run, best.label, best))
+        if ((not explains(best.fit, baseline, run.problem.settings.gap_threshold) or remainder)
                 and best.closed >= run.problem.settings.pair_minimum):
             # one effect leaves a significant remainder: a second one at once, when it pays for itself (tried
             # already before the continuation refits when this single's fit has not changed since)
@@ -257,6 +259,8 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
             # the pairs the best single's near-equal rivals make: a pair is weighed against them, or the true
             # partner of a rival is never seen (a foundation closing 52.7 % beside a spring closing 54.7 %)
             for lab in _rivals(refits, paying, best, run.problem.settings):
+                if not _plausible(run, lab, refits[lab]):
+                    continue      # a rival with values no rig has makes no pair worth weighing
                 with run.clock.stage("pairs"):
                     rival_pair, singles = pair_with(run, refits[lab], {k: rf.fit for k, rf in refits.items()})
                 refits |= singles
@@ -276,6 +280,13 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
         say(line)
     return Ranking(baseline, before, run.scores, refits, order, paying, effects, patterns=patterns, modal=evidence,
                    not_refitted=unseen)
+
+
+def _plausible(run: Search, label: str, refit: EffectRefit) -> bool:
+    """Whether a single effect's refit is one a rig can have: nothing implausible about it — its values, the
+    priors, the measured modes (:func:`diagnosis.judgement.plausibility.implausibilities`)."""
+    effect = run.effects.get(label)
+    return effect is not None and not implausibilities(run.problem, effect, refit.fit)
 
 
 def _rivals(refits: dict[str, EffectRefit], paying: list[str], best: EffectRefit, settings: Thresholds
