@@ -28,7 +28,6 @@ from ..baseline.polarity import PolarityCheck
 from ..effects import PAIR_SEPARATOR
 from ..problem.fitting import GapProblem
 from ..search.rank import Ranking
-from .plausibility import prior_checks
 from .verdict import Kind, Reason, Verdict, by_evidence, name_cause, named
 from .weigh import Weighed, chain_degeneracies
 
@@ -104,7 +103,7 @@ def plausibility(verdict: Verdict, case: Case) -> Verdict:
             f" — among the plausible candidates: {first.text}"))
         verdict = replace(among, reasons=(why, *rest))
     if case.weighed.conflicts:
-        verdict = verdict.said("plausibility", "baseline: " + "; ".join(case.weighed.conflicts))
+        verdict = verdict.said("plausibility", "baseline: " + "; ".join(c.line() for c in case.weighed.conflicts))
     return verdict
 
 
@@ -112,7 +111,7 @@ def _prior_conflict(verdict: Verdict, case: Case) -> Verdict:
     """``verdict`` (``none``) unchanged unless the baseline is in conflict with a prior and a plausible refit that
     keeps the records at the noise floor and pays for itself (ΔBIC with the priors' terms) resolves it."""
     problem, ranking = case.problem, case.ranking
-    conflicts = [c for c in prior_checks(problem, ranking.baseline) if c.status == "conflict"]
+    conflicts = case.weighed.conflicts
     if not conflicts:
         return verdict
     settings = problem.settings

@@ -7,6 +7,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from identification.prior import PriorCheck
+
 from ..problem.fitting import GapProblem
 from ..search.rank import Ranking
 from .evidence import posterior_probabilities
@@ -23,8 +25,9 @@ class Weighed:
     ----------
     implausible
         Per refit that needs implausible values, what is implausible (one line each).
-    conflicts
-        The baseline's conflicts with the user's priors, one line each.
+    priors
+        The baseline's unknowns against the user's priors (:class:`identification.prior.PriorCheck`, empty without
+        priors); :attr:`conflicts` are those in conflict.
     evidence
         Posterior probabilities of the baseline (``"none"``) and the refits (:mod:`diagnosis.judgement.evidence`).
     confounded
@@ -34,17 +37,22 @@ class Weighed:
     """
 
     implausible: dict[str, list[str]]
-    conflicts: list[str]
+    priors: list[PriorCheck]
     evidence: dict[str, float]
     confounded: dict[str, str]
     modal_data: dict[str, dict[str, Any]]
+
+    @property
+    def conflicts(self) -> list[PriorCheck]:
+        """The baseline's priors in conflict with it."""
+        return [c for c in self.priors if c.status == "conflict"]
 
 
 def weigh(problem: GapProblem, ranking: Ranking) -> Weighed:
     """Measure the evidence on every refit of ``ranking`` (the effects it carries, :attr:`Ranking.effects`)."""
     effects = ranking.effects
     issues = {lab: implausibilities(problem, effects[lab], rf.fit) for lab, rf in ranking.refits.items()}
-    conflicts = [c.line() for c in prior_checks(problem, ranking.baseline) if c.status == "conflict"]
+    priors = prior_checks(problem, ranking.baseline)
     probs = posterior_probabilities(problem, ranking.baseline, {lab: rf.fit for lab, rf in ranking.refits.items()})
     tangled = {lab: line for lab, rf in ranking.refits.items()
                if (line := confounded(problem, effects[lab], rf.fit)) is not None}
@@ -55,7 +63,7 @@ def weigh(problem: GapProblem, ranking: Ranking) -> Weighed:
         for lab, rf in ranking.refits.items():
             m = problem.modes_model(rf.fit.beta, effects[lab], rf.fit.s)
             agreement[lab] = problem.modes.agreement(m.config, m.params)
-    return Weighed({lab: v for lab, v in issues.items() if v}, conflicts, probs, tangled, agreement)
+    return Weighed({lab: v for lab, v in issues.items() if v}, priors, probs, tangled, agreement)
 
 
 def chain_degeneracies(problem: GapProblem, ranking: Ranking, weighed: Weighed) -> dict[str, str]:

@@ -9,7 +9,6 @@ import numpy as np
 from ebb_model.modal import discrete_frequencies
 
 from ..baseline.polarity import PolarityCheck
-from ..judgement.plausibility import prior_checks
 from ..judgement.rules import Judgement
 from ..localise import Localisation
 from ..problem.fitting import GapProblem
@@ -97,5 +96,5 @@ def gap_report(problem: GapProblem, ranking: Ranking, judgement: Judgement, band
         ranking.patterns["baseline"].chi2 if ranking.patterns else None,
         {r.name: loc for r, loc in zip(problem.records, locs)}, tuple(s for loc in locs for s in loc.summary),
         tuple(effect_rows), settings, implausible={k: tuple(v) for k, v in weighed.implausible.items()},
-        priors=tuple(prior_checks(problem, baseline)), evidence=weighed.evidence, confounded=judgement.confounded,
+        priors=tuple(weighed.priors), evidence=weighed.evidence, confounded=judgement.confounded,
         modal_data=weighed.modal_data, polarity=polarity)
