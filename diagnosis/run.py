@@ -4,9 +4,10 @@ config + data (+ held-out records or a held-out tail of each record) → **basel
 fitted on the fit windows from an identification result or the nominal values, the force's sign weighed, the
 noise model) → **candidates** (:mod:`diagnosis.candidates`) → **search** (:mod:`diagnosis.search`: score tests,
 refits, ranking) → numerical adequacy of the grid → **localisation** of the residual (:mod:`diagnosis.localise`:
-where) → **judgement** (:mod:`diagnosis.judgement`: the verdict through its ordered rules) → **report**
-(:mod:`diagnosis.report`: held-out gap before/after per sensor and band, ``gap.json``, figures, the page) and the
-**corrected model** (:mod:`diagnosis.corrected`).
+where) → **judgement** (:mod:`diagnosis.judgement`: the verdict through its ordered rules) → the **next
+experiment** when candidates remain tied (:mod:`diagnosis.design`) → **report** (:mod:`diagnosis.report`: held-out
+gap before/after per sensor and band, ``gap.json``, figures, the page) and the **corrected model**
+(:mod:`diagnosis.corrected`).
 
 Bad input is detected before anything is written, and the output directory
 appears only when complete (built under a temporary name, then renamed).
@@ -43,6 +44,7 @@ from identification.run import load_identification_config, read_data
 from .baseline.fit import baseline_fit, floor_from_the_records, start_from_result
 from .baseline.polarity import check_polarity
 from .candidates.catalogue import catalogue_of
+from .design import next_experiment
 from .judgement.rules import Case, judge
 from .judgement.weigh import weigh
 from .localise import Localisation, localise
@@ -65,9 +67,10 @@ GAP_FILE = "gap.json"
 
 @dataclass(frozen=True, eq=False)
 class Diagnosis:
-    """Outcome of :func:`diagnose`: the search's ranking, what was found (:class:`~diagnosis.report.result.GapReport`)
-    and where it was written."""
+    """Outcome of :func:`diagnose`: the problem solved (records, unknowns, noise — the force's sign as taken), the
+    search's ranking, what was found (:class:`~diagnosis.report.result.GapReport`) and where it was written."""
 
+    problem: GapProblem
     ranking: Ranking
     report: GapReport
     out_dir: Path | None
@@ -228,17 +231,23 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                                    advice.summary(), polarity,
                                    tuple(f"{r.name}: {s}" for r, loc in zip(records, locs) for s in loc.summary[:2])))
         say(f"verdict: {judgement.verdict.name}")
+        # when candidates remain tied or the gap is unexplained: the record that would separate them
+        with clock.stage("next experiment"):
+            nxt = next_experiment(problem, ranking, judgement, (f_lo, f_hi), freqs)
+        if nxt is not None:
+            say(nxt.line())
         # stage 5, the report
         edges = np.concatenate([[0.0], 0.5 * (mf[1:] + mf[:-1]), [f_top], [0.5 / dt]])
         with clock.stage("held-out closure per band"):
             rows = effect_rows(problem, ranking, edges, len(mf) + 1)
         ran_with = DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, settings)
         report = replace(gap_report(problem, ranking, judgement, (f_lo, f_hi), mf, adequacy, advice, locs, rows,
-                                    ran_with, polarity), stage_seconds=dict(clock.seconds), setups=setups)
+                                    ran_with, polarity), stage_seconds=dict(clock.seconds), setups=setups,
+                         next_experiment=nxt)
         if out is None:
-            return Diagnosis(ranking, report, None)
+            return Diagnosis(problem, ranking, report, None)
         report = _write(out, problem, ranking, report, locs, plots=plots, export=export, targets=targets)
-        return Diagnosis(ranking, report, out)
+        return Diagnosis(problem, ranking, report, out)
     finally:
         if executor is not None:
             executor.shutdown(cancel_futures=True)

@@ -88,6 +88,12 @@ class Thresholds:
     score_significance: float = field(default=0.01, metadata=_reason(
         "p-value of a score test below which a candidate asks to be refitted: one not refitted is listed with the "
         "reason (gap.json's not_refitted), and a chain's gain under a prior on the beam is refitted", 0.0, 1.0))
+    design_candidates: int = field(default=3, metadata=_reason(
+        "leading candidates a designed next experiment separates (the ties, or the plausible refits of an "
+        "unexplained gap, the most probable first): every pair of them is weighed on every design", 2, 10, True))
+    design_top_hz: float = field(default=0.0, metadata=_reason(
+        "highest frequency the bench's exciter can drive in a designed next experiment [Hz]; 0: up to 0.4 of the "
+        "sampling rate (below an anti-alias filter's edge)", 0.0, 1e9))
     shortlist: int = field(default=4, metadata=_reason(
         "best-scoring effects refitted (the score test ranks; refits decide)", 1, 100, True))
 

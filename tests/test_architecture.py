@@ -64,7 +64,7 @@ def test_no_import_cycle_between_modules():
 
 def test_the_diagnosis_folders_are_its_stages():
     folders = {p.name for p in (ROOT / "diagnosis").iterdir() if p.is_dir() and (p / "__init__.py").exists()}
-    assert folders == {"problem", "baseline", "effects", "candidates", "search", "localise", "judgement", "report",
-                       "corrected"}
+    assert folders == {"problem", "baseline", "effects", "candidates", "search", "localise", "judgement", "design",
+                       "report", "corrected"}
     loose = sorted(p.stem for p in (ROOT / "diagnosis").glob("*.py"))
     assert loose == ["__init__", "batch", "demo", "run", "settings", "setups", "stages"], loose

@@ -15,7 +15,8 @@ __all__ = ["plot_diagnosis"]
 
 def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, localisations: Sequence[Any], out_dir: Path
                    ) -> list[Path]:
-    """Write ``effects.png``, ``heldout_residuals.png`` and the localisation plots into ``out_dir``."""
+    """Write ``effects.png``, ``heldout_residuals.png``, ``next_experiment.png`` (when one was designed) and the
+    localisation plots into ``out_dir``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -70,6 +71,9 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, localisations:
     with atomic_path(paths[-1], suffix=".png") as tmp:
         fig.savefig(tmp, dpi=100, bbox_inches="tight")
     plt.close(fig)
+    nxt = report.next_experiment
+    if nxt is not None and nxt.designs:
+        paths.append(_plot_next_experiment(plt, nxt, out_dir / "next_experiment.png"))
     try:
         from .plots import plot_localisation
     except ImportError:  # pragma: no cover - localisation plots are optional
@@ -83,3 +87,31 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, localisations:
     paths += [Path(p) for p in plot_localisation(localisations[0], cfg.time.dt, r0.inputs, r0.outputs, y0, sub,
                                                  units=units)]
     return paths
+
+
+def _plot_next_experiment(plt: Any, nxt: Any, path: Path) -> Path:
+    """The designed experiments' expected log Bayes factors (the worst pair's, each direction of every pair
+    marked), the records' own design and the decisive level: :class:`diagnosis.design.NextExperiment`."""
+    shown = list(nxt.designs)
+    if nxt.as_recorded is not None and nxt.as_recorded not in shown:
+        shown.append(nxt.as_recorded)
+    names = [d.design.describe() + (" — the records' own" if d is nxt.as_recorded else "") for d in shown]
+    floor = 1e-3
+    rows = np.arange(len(shown))[::-1]          # the best at the top
+    fig, ax = plt.subplots(figsize=(11, 0.4 * len(shown) + 1.8))
+    ax.barh(rows, [max(d.rate * nxt.seconds, floor) for d in shown], color="0.6", label="worst pair")
+    for pair in nxt.designs[0].pairs:
+        ax.plot([max(d.pairs[pair] * nxt.seconds, floor) for d in shown], rows, "o", ms=3,
+                label=pair.replace(">", " true, against "))
+    ax.set_yticks(rows, names)
+    ax.axvline(nxt.decisive, color="k", lw=0.8, ls="--", label="decisive")
+    ax.set_xscale("log")
+    ax.set_xlabel(f"expected ln Bayes factor in a {nxt.seconds:.3g} s record")
+    ax.tick_params(axis="y", labelsize=7)
+    ax.legend(fontsize=7, loc="lower right")
+    ax.set_title("next experiment: " + " / ".join(nxt.candidates))
+    fig.tight_layout()
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=100, bbox_inches="tight")
+    plt.close(fig)
+    return path

@@ -45,6 +45,8 @@ def text_report(report: GapReport, *, top: int = 6) -> str:
     if unseen:
         lines.append("significant scores not refitted:")
         lines += unseen
+    if report.next_experiment is not None:
+        lines.append(report.next_experiment.line())
     return "\n".join(lines)
 
 
@@ -56,7 +58,9 @@ FIGURES = {"effects.png": "The candidates: score-test statistic, and the share o
            "windows.png": "The residual's size window by window",
            "amplitude.png": "The residual against the response amplitude (a nonlinearity's sign)",
            "correlation.png": "The residual's correlation with the input",
-           "bands.png": "The residual's power by frequency band"}
+           "bands.png": "The residual's power by frequency band",
+           "next_experiment.png": "The next experiment: expected log Bayes factor of the designs that separate the "
+                                  "leading candidates"}
 
 
 def html_sections(report: GapReport, out_dir: Path, *, top: int = 10) -> list[Section]:
@@ -86,6 +90,14 @@ def html_sections(report: GapReport, out_dir: Path, *, top: int = 10) -> list[Se
     if report.summary:
         sections.append(Section("Where the gap lies", paragraphs=tuple(report.summary)))
     sections.append(effects)
+    nxt = report.next_experiment
+    if nxt is not None:
+        sections.append(Section("The next experiment", lead=nxt.line(), tables=() if not nxt.designs else (Table(
+            ("design", "expected ln Bayes factor", "seconds to decide"),
+            [(d.design.describe(), f"{d.rate * nxt.seconds:.3g}",
+              "-" if (t := d.seconds_for(nxt.decisive)) is None else f"{t:.3g}") for d in nxt.designs],
+            f"the worst pair's expected log Bayes factor in a {nxt.seconds:.3g} s record; decisive from "
+            f"{nxt.decisive:.3g}"),)))
     if report.corrected_files:
         sections.append(Section("Corrected model", paragraphs=(
             "the baseline with the verdict's effect, in corrected/: " + ", ".join(report.corrected_files),)))

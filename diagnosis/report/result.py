@@ -20,6 +20,7 @@ from ..search.modal_estimate import MeasuredModes
 from ..baseline.polarity import PolarityCheck
 from ..judgement.verdict import Verdict
 from ..settings import Thresholds
+from ..design import NextExperiment
 from ..setups import Setups
 
 __all__ = ["BandClosure", "RefitSummary", "PatternMatch", "EffectRow", "BaselineSummary", "DiagnosisSettings",
@@ -179,6 +180,9 @@ class GapReport:
         Wall seconds per stage of the run, each second counted once (:mod:`diagnosis.stages`).
     setups
         Which set-up each kind of evidence was measured in, with its rig parts (:mod:`diagnosis.setups`).
+    next_experiment
+        When candidates remain tied or the gap is unexplained, the record that would separate the leading
+        candidates best (:mod:`diagnosis.design`).
     """
 
     judged: Verdict
@@ -200,6 +204,7 @@ class GapReport:
     polarity: PolarityCheck | None = None
     stage_seconds: Mapping[str, float] = field(default_factory=dict)
     setups: Setups | None = None
+    next_experiment: NextExperiment | None = None
 
     @property
     def verdict(self) -> str:
@@ -246,6 +251,8 @@ class GapReport:
             doc["force_sign"] = self.polarity.to_dict()
         if self.setups is not None:
             doc["setups"] = self.setups.to_dict()
+        if self.next_experiment is not None:
+            doc["next_experiment"] = self.next_experiment.to_dict()
         if self.priors:
             doc["baseline"]["priors"] = {c.name: c.to_dict() for c in self.priors}
         if self.corrected_files is not None:
