@@ -45,7 +45,8 @@ from .baseline.fit import baseline_fit, floor_from_the_records, start_from_resul
 from .baseline.polarity import check_polarity
 from .candidates.catalogue import catalogue_of
 from .design import next_experiment
-from .judgement.rules import Case, judge
+from .judgement.rules import Case, Judgement, judge
+from .judgement.verdict import Kind
 from .judgement.weigh import weigh
 from .localise import Localisation, localise
 from .problem.fitting import GapProblem
@@ -53,11 +54,12 @@ from .problem.records import ordered_record, split_records
 from .report.assemble import effect_rows, gap_report
 from .report.html import html_sections
 from .report.result import DiagnosisSettings, GapReport
+from .search.apart import SetupsApart, apart_parts, disagreement
 from .search.modal_pattern import modal_source
 from .search.rank import Ranking, rank_effects
 from .search.workers import DaskExecutor, refit_pool
 from .settings import thresholds_from_config
-from .setups import RIG_PARTS, setups_from_config
+from .setups import RIG_PARTS, Setups, setups_from_config
 from .stages import StageClock
 
 __all__ = ["Diagnosis", "diagnose", "GAP_FILE"]
@@ -223,14 +225,37 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                              input_names=cfg.input_names)
                     for r, y in zip(records, base_all)]
         # stage 4, the judgement: the evidence measured once, then the verdict through its rules
-        with clock.stage("plausibility and evidence"):
+        where = tuple(f"{r.name}: {s}" for r, loc in zip(records, locs) for s in loc.summary[:2])
+
+        def judged(problem: GapProblem, ranking: Ranking) -> Judgement:
             weighed = weigh(problem, ranking)
             for lab, lines in weighed.implausible.items():
                 say(f"{lab} needs implausible values: " + "; ".join(lines))
-            judgement = judge(Case(problem, ranking, weighed, float(np.max(adequacy.numerical_share)),
-                                   advice.summary(), polarity,
-                                   tuple(f"{r.name}: {s}" for r, loc in zip(records, locs) for s in loc.summary[:2])))
+            return judge(Case(problem, ranking, weighed, float(np.max(adequacy.numerical_share)), advice.summary(),
+                              polarity, where))
+
+        with clock.stage("plausibility and evidence"):
+            judgement = judged(problem, ranking)
         say(f"verdict: {judgement.verdict.name}")
+        # the records and the measured modes disagree more than one structure explains: try them as two set-ups
+        apart = None
+        parts = apart_parts(catalogue)
+        why = disagreement(problem, ranking, judgement.weighed) if setups is None and parts else None
+        if why is not None:
+            say(why + f"; ranking again with the measured modes taken without the {', '.join(sorted(parts))}")
+            with clock.stage("set-ups apart"):
+                two = replace(problem, modes_lack=parts)
+                ranking_two = rank_effects(two, ranking.baseline, catalogue=catalogue, shortlist=settings.shortlist,
+                                           progress=say, executor=executor, parallel=parallel, rounds=2,
+                                           clock=clock, modal=modal_source(two, mf, mz, freqs[~in_band][:1], f_hi))
+                judgement_two = judged(two, ranking_two)
+            adopted = judgement_two.verdict.kind is Kind.EFFECT
+            apart = SetupsApart(why, parts, judgement_two.verdict.name, adopted, judgement_two.verdict.text())
+            if adopted:
+                problem, ranking, judgement = two, ranking_two, judgement_two
+                setups = Setups.apart(parts)
+            judgement = replace(judgement, verdict=judgement.verdict.said("set-ups", apart.text()))
+            say(f"set-ups apart: {apart.verdict}{' (adopted)' if adopted else ' (one set-up kept)'}")
         # when candidates remain tied or the gap is unexplained: the record that would separate them
         with clock.stage("next experiment"):
             nxt = next_experiment(problem, ranking, judgement, (f_lo, f_hi), freqs)
@@ -243,7 +268,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         ran_with = DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, settings)
         report = replace(gap_report(problem, ranking, judgement, (f_lo, f_hi), mf, adequacy, advice, locs, rows,
                                     ran_with, polarity), stage_seconds=dict(clock.seconds), setups=setups,
-                         next_experiment=nxt)
+                         next_experiment=nxt, setups_apart=apart)
         if out is None:
             return Diagnosis(problem, ranking, report, None)
         report = _write(out, problem, ranking, report, locs, plots=plots, export=export, targets=targets)

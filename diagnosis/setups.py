@@ -44,6 +44,16 @@ class Setups:
 
     names: dict[str, str]                  # evidence kind -> set-up name
     parts: dict[str, frozenset[str]]       # evidence kind -> rig parts present
+    #: inferred by the diagnosis (:mod:`diagnosis.search.apart`), not declared
+    inferred: bool = False
+
+    @classmethod
+    def apart(cls, lacking: frozenset[str]) -> "Setups":
+        """The set-ups the diagnosis infers: the records with every rig part, the measured modes without
+        ``lacking``."""
+        every = frozenset(RIG_PARTS)
+        return cls({"records": "the records' (inferred)", "modes": "the measured modes' (inferred)"},
+                   {"records": every, "modes": every - lacking}, inferred=True)
 
     def modes_lack(self) -> frozenset[str]:
         """The rig parts of the records' set-up that the measured modes' set-up did not have."""
@@ -60,7 +70,11 @@ class Setups:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON values (``gap.json``'s ``setups``)."""
-        return {kind: {"setup": self.names[kind], "parts": sorted(self.parts[kind])} for kind in self.names}
+        out: dict[str, Any] = {kind: {"setup": self.names[kind], "parts": sorted(self.parts[kind])}
+                               for kind in self.names}
+        if self.inferred:
+            out["inferred"] = True
+        return out
 
 
 def setups_from_config(config: BeamConfig) -> Setups | None:

@@ -106,6 +106,8 @@ def run_case(data: Path, out: Path, *, quick: bool, **_: Any) -> dict[str, Any]:
             "baseline": {"parameters": dict(base.parameters), "heldout": base.heldout_gap_ratio["accel"],
                          "modes": _modal_error(base.model_modes_hz, measured_modes)},
             "impulse_modes_hz": measured_modes, "refits": rows,
+            "setups_apart": doc.get("setups_apart"), "next_experiment": doc.get("next_experiment"),
+            "next_experiment_line": None if rep.next_experiment is None else rep.next_experiment.line(),
             "beam_mass_nominal_kg": cfg.parameters["rhoA"].value * cfg.beam.length, "length": cfg.beam.length}
 
 
@@ -156,6 +158,12 @@ def report(s: dict[str, Any]) -> str:
     lines.append("    - " + ("the corrected model was exported" if s["exported"] else
                             "nothing was exported as a corrected model: no candidate explains the record with "
                             "plausible values"))
+    apart = s.get("setups_apart")
+    if apart:
+        lines.append(f"    - one set-up or two (the impulse test without the shaker?): read apart — the modes without "
+                     f"the {', '.join(apart['modes_without'])} — the verdict is {apart['verdict']}"
+                     + (", adopted" if apart["adopted"] else ", no better: the records cannot say whether the impulse "
+                        "test was made with the shaker on"))
     lines.append("  what the data cannot decide:")
     lines.append("    - three tones and one accelerometer give six numbers (amplitude and phase per tone) against "
                  "eight unknowns (beam level and damping, two positions, the effect); the measurement chain's "
@@ -163,6 +171,8 @@ def report(s: dict[str, Any]) -> str:
                  "documents' two thicknesses constrain; the record's misfit (thousands of noise variances, all "
                  "of it at the tones) outweighs both priors and the impulse test in any likelihood that treats "
                  "it as noise")
+    if s.get("next_experiment_line"):
+        lines.append("    - " + s["next_experiment_line"])
     lines.append("    - what would decide it: a broadband record with the force (the impulse test's time history "
                  "or a sweep through modes 1-4), and the load cell's and accelerometer's calibration sheets")
     return "\n".join(lines)

@@ -135,6 +135,13 @@ def test_arts_diagnosis_names_nothing_implausible_and_says_what_would_decide(tmp
     else:
         assert s["verdict"] in ("unexplained", "none", "indistinguishable")
     assert "what would decide it" in stdout
+    # every refit that closes the record's gap misfits the impulse test: the two are tried as two set-ups (the
+    # impulse test without the shaker), and that reading is adopted only when it names something plausible
+    apart = s["setups_apart"]
+    assert apart is not None and "shaker" in apart["modes_without"], apart
+    assert apart["adopted"] == (s["verdict"] == apart["verdict"] and s["verdict"] not in s["implausible"]
+                                and s["verdict"] not in ("unexplained", "none", "indistinguishable"))
+    assert "one set-up or two" in stdout
     for r in s["refits"]:
         worse = r["modes"]["max_abs_error"] > s["baseline"]["modes"]["max_abs_error"] + 0.01
         assert (r["label"] in s["consistent_with_impulse_test"]) == (not worse and r["closed"] >= 0.5)

@@ -21,6 +21,7 @@ from ..baseline.polarity import PolarityCheck
 from ..judgement.verdict import Verdict
 from ..settings import Thresholds
 from ..design import NextExperiment
+from ..search.apart import SetupsApart
 from ..setups import Setups
 
 __all__ = ["BandClosure", "RefitSummary", "PatternMatch", "EffectRow", "BaselineSummary", "DiagnosisSettings",
@@ -180,6 +181,9 @@ class GapReport:
         Wall seconds per stage of the run, each second counted once (:mod:`diagnosis.stages`).
     setups
         Which set-up each kind of evidence was measured in, with its rig parts (:mod:`diagnosis.setups`).
+    setups_apart
+        When the records and the measured modes disagreed more than one structure explains: the reading as two
+        set-ups and whether it was adopted (:mod:`diagnosis.search.apart`).
     next_experiment
         When candidates remain tied or the gap is unexplained, the record that would separate the leading
         candidates best (:mod:`diagnosis.design`).
@@ -205,6 +209,7 @@ class GapReport:
     stage_seconds: Mapping[str, float] = field(default_factory=dict)
     setups: Setups | None = None
     next_experiment: NextExperiment | None = None
+    setups_apart: SetupsApart | None = None
 
     @property
     def verdict(self) -> str:
@@ -251,6 +256,8 @@ class GapReport:
             doc["force_sign"] = self.polarity.to_dict()
         if self.setups is not None:
             doc["setups"] = self.setups.to_dict()
+        if self.setups_apart is not None:
+            doc["setups_apart"] = self.setups_apart.to_dict()
         if self.next_experiment is not None:
             doc["next_experiment"] = self.next_experiment.to_dict()
         if self.priors:

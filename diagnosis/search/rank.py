@@ -405,7 +405,9 @@ def _shortlist(problem: GapProblem, effects: dict[str, Effect], scores: dict[str
     whenever its score is significant.  A special case (a transducer's mass, a shaker's armature) is refitted
     where a general effect's refit lands near its place (:mod:`diagnosis.search.nested`), and from its own score
     when that is significant and the best of all: a score at a fixed place must not push a general effect off the
-    shortlist, but the candidate the records ask for most is never left out."""
+    shortlist, but the candidate the records ask for most is never left out.  When the measured modes come from a
+    set-up without some of the records' rig parts (:attr:`GapProblem.modes_lack`), the effects of those parts are
+    refitted too: they are what the two set-ups differ by."""
     significant = problem.settings.score_significance
     chain = {lab for lab in effects if effects[lab].scale_degenerate}
     nested = {lab for lab in effects if effects[lab].nested_in is not None}
@@ -416,6 +418,10 @@ def _shortlist(problem: GapProblem, effects: dict[str, Effect], scores: dict[str
     top = by_score[0] if by_score else None
     if top in nested and scores[top].lm > 0 and scores[top].p_value < significant:
         extra.append(top)
+    # the measured modes come from a set-up without some of the records' rig parts: the effects of those parts are
+    # the hypothesis the two set-ups stand for (a shaker attached for the records only), each refitted
+    extra += [lab for lab in by_score if effects[lab].rig_part in problem.modes_lack and scores[lab].lm > 0
+              and lab not in labels + extra]
     return labels + extra
 
 
