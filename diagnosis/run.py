@@ -42,14 +42,15 @@ from identification.result import IdentificationResult
 from identification.run import load_identification_config, read_data
 
 from .baseline.fit import baseline_fit, floor_from_the_records, start_from_result
-from .baseline.polarity import check_polarity
+from .baseline.polarity import PolarityCheck, check_polarity
 from .candidates.catalogue import catalogue_of
+from .effects import Catalogue
 from .design import next_experiment
 from .judgement.rules import Case, Judgement, judge
 from .judgement.verdict import Kind
 from .judgement.weigh import weigh
 from .localise import Localisation, localise
-from .problem.fitting import GapProblem
+from .problem.fitting import Fit, GapProblem
 from .problem.records import ordered_record, split_records
 from .report.assemble import effect_rows, gap_report
 from .report.html import html_sections
@@ -57,6 +58,7 @@ from .report.result import DiagnosisSettings, GapReport
 from .search.apart import SetupsApart, apart_parts, disagreement
 from .search.modal_pattern import modal_source
 from .search.rank import Ranking, rank_effects
+from .search.sign import sign_with_refits
 from .search.workers import DaskExecutor, refit_pool
 from .settings import thresholds_from_config
 from .setups import RIG_PARTS, Setups, setups_from_config
@@ -174,43 +176,23 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     clock = StageClock()
     executor = refit_pool(workers, dask)
     try:
-        # stage 1, the baseline: the measured force's sign is evidence too — the baseline fitted with the force as
-        # read and reversed (side by side when there are workers)
-        say("baseline fit, with the force as read and reversed (its sign as evidence)")
-        with clock.stage("baseline and the force's sign"):
-            problem, baseline, polarity = check_polarity(problem, partial(baseline_fit, beta0=beta0), executor)
-        records = problem.records
-        say(polarity.line())
-        if given is None:
-            # the noise as it is in each record (level and colour), from the baseline's residual, and the
-            # baseline fitted again under it
-            with clock.stage("noise model"):
-                problem = problem.with_noise(estimate_noise_model([r.inputs for r in records], [
-                    r.outputs - y for r, y in zip(records, problem.simulate(baseline.beta, until="all"))], dt))
-                baseline = problem.fit(baseline.beta)
-            say("noise model: " + "; ".join(problem.noise_model.describe(cfg.output_names, [r.name for r in records])))
-        with clock.stage("baseline from the records' start"):
-            baseline = floor_from_the_records(problem, baseline, say)
-        sigma = problem.noise_std
-        base_cfg, base_params = space.apply(cfg, baseline.beta)
-        f_lo, f_hi = excited_band([r.inputs for r in records], dt)
-        freqs, zetas = discrete_frequencies(base_cfg, base_params)
-        # the modes up to a fifth above the excited band, below Nyquist (an impact excites up to it)
-        f_top = min(1.2 * f_hi, 0.98 * 0.5 / dt)
-        in_band = freqs <= f_top
-        in_band[0] = True
-        mf, mz = freqs[in_band], zetas[in_band]
-        # stages 2 and 3, the candidates and the search
-        if setups is not None:
-            say("set-ups: " + setups.describe())
-        catalogue = catalogue_of(problem, base_cfg, base_params, mf, f_hi, absent=frozenset(
-            p for p in RIG_PARTS if setups is not None and not setups.records_have(p)))
-        parallel = executor.workers if isinstance(executor, DaskExecutor) else workers
-        with clock.stage("ranking (the rest)"):
-            ranking = rank_effects(problem, baseline, catalogue=catalogue, shortlist=settings.shortlist,
-                                   progress=say, executor=executor, parallel=parallel, rounds=2, clock=clock,
-                                   modal=modal_source(problem, mf, mz, freqs[~in_band][:1], f_hi))
-        baseline = ranking.baseline
+        search = partial(_search, beta0=beta0, fit_noise=given is None, setups=setups, executor=executor,
+                         parallel=executor.workers if isinstance(executor, DaskExecutor) else workers, clock=clock,
+                         say=say)
+        found = search(problem)
+        # the force's sign weighed with the mechanisms, when no refit reaches the noise floor with the sign taken
+        with clock.stage("the force's sign with the refits"):
+            resign = sign_with_refits(found.problem, found.ranking, found.catalogue, found.polarity, executor)
+        if resign is not None:
+            say(resign.line())
+            if resign.overturned:
+                found = search(problem, take=not found.polarity.reversed)
+            found = replace(found, polarity=replace(found.polarity, with_refits=resign))
+        problem, ranking, catalogue, polarity = found.problem, found.ranking, found.catalogue, found.polarity
+        records, sigma, baseline = problem.records, problem.noise_std, ranking.baseline
+        base_cfg, base_params = space.apply(cfg, found.baseline.beta)
+        (f_lo, f_hi), freqs, in_band = found.modes.band, found.modes.freqs, found.modes.in_band
+        mf, mz, f_top = freqs[in_band], found.modes.zetas[in_band], found.modes.f_top
         # the model's own discretisation error: a gap that refining the grid changes is not blamed on physics
         say("numerical adequacy of the model's grid")
         with clock.stage("numerical adequacy"):
@@ -245,9 +227,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
             say(why + f"; ranking again with the measured modes taken without the {', '.join(sorted(parts))}")
             with clock.stage("set-ups apart"):
                 two = replace(problem, modes_lack=parts)
-                ranking_two = rank_effects(two, ranking.baseline, catalogue=catalogue, shortlist=settings.shortlist,
-                                           progress=say, executor=executor, parallel=parallel, rounds=2,
-                                           clock=clock, modal=modal_source(two, mf, mz, freqs[~in_band][:1], f_hi))
+                ranking_two = _rank(two, ranking.baseline, catalogue, found.modes, executor, clock, say)
                 judgement_two = judged(two, ranking_two)
             adopted = judgement_two.verdict.kind is Kind.EFFECT
             apart = SetupsApart(why, parts, judgement_two.verdict.name, adopted, judgement_two.verdict.text())
@@ -276,6 +256,83 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     finally:
         if executor is not None:
             executor.shutdown(cancel_futures=True)
+
+
+@dataclass(frozen=True, eq=False)
+class _Modes:
+    """The baseline's band and modes the search works with: the excited band, every mode, which lie in (or a fifth
+    above) the band, its top, and how many refits run side by side."""
+
+    band: tuple[float, float]
+    freqs: np.ndarray
+    zetas: np.ndarray
+    in_band: np.ndarray
+    f_top: float
+    parallel: int
+
+
+@dataclass(frozen=True, eq=False)
+class _Found:
+    """What the search found with one sign of the force: the problem (records with that sign, the noise model),
+    the baseline it ranked from, the check of the sign, the candidates, the modes and the ranking."""
+
+    problem: GapProblem
+    baseline: Fit
+    polarity: PolarityCheck
+    catalogue: Catalogue
+    modes: _Modes
+    ranking: Ranking
+
+
+def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: Setups | None,
+            executor: Any, parallel: int, clock: StageClock, say: Callable[[str], None],
+            take: bool | None = None) -> _Found:
+    """Stages 1 to 3: the baseline with the force's sign weighed (``take``: that sign, as the refits decided),
+    the noise model, the candidates and the search."""
+    # stage 1, the baseline: the measured force's sign is evidence too — the baseline fitted with the force as
+    # read and reversed (side by side when there are workers)
+    say("baseline fit, with the force as read and reversed (its sign as evidence)")
+    with clock.stage("baseline and the force's sign"):
+        problem, baseline, polarity = check_polarity(problem, partial(baseline_fit, beta0=beta0), executor,
+                                                     take=take)
+    records, dt, cfg = problem.records, problem.config.time.dt, problem.config
+    say(polarity.line())
+    if fit_noise:
+        # the noise as it is in each record (level and colour), from the baseline's residual, and the
+        # baseline fitted again under it
+        with clock.stage("noise model"):
+            problem = problem.with_noise(estimate_noise_model([r.inputs for r in records], [
+                r.outputs - y for r, y in zip(records, problem.simulate(baseline.beta, until="all"))], dt))
+            baseline = problem.fit(baseline.beta)
+        say("noise model: " + "; ".join(problem.noise_model.describe(cfg.output_names, [r.name for r in records])))
+    with clock.stage("baseline from the records' start"):
+        baseline = floor_from_the_records(problem, baseline, say)
+    base_cfg, base_params = problem.space.apply(cfg, baseline.beta)
+    band = excited_band([r.inputs for r in records], dt)
+    freqs, zetas = discrete_frequencies(base_cfg, base_params)
+    # the modes up to a fifth above the excited band, below Nyquist (an impact excites up to it)
+    f_top = min(1.2 * band[1], 0.98 * 0.5 / dt)
+    in_band = freqs <= f_top
+    in_band[0] = True
+    # stages 2 and 3, the candidates and the search
+    if setups is not None:
+        say("set-ups: " + setups.describe())
+    catalogue = catalogue_of(problem, base_cfg, base_params, freqs[in_band], band[1], absent=frozenset(
+        p for p in RIG_PARTS if setups is not None and not setups.records_have(p)))
+    modes = _Modes(band, freqs, zetas, in_band, f_top, parallel)
+    with clock.stage("ranking (the rest)"):
+        ranking = _rank(problem, baseline, catalogue, modes, executor, clock, say)
+    return _Found(problem, baseline, polarity, catalogue, modes, ranking)
+
+
+def _rank(problem: GapProblem, baseline: Fit, catalogue: Catalogue, modes: _Modes, executor: Any,
+          clock: StageClock, say: Callable[[str], None]) -> Ranking:
+    """The search (:func:`diagnosis.search.rank.rank_effects`) on ``problem`` from ``baseline``, with the
+    baseline's ``modes``."""
+    return rank_effects(problem, baseline, catalogue=catalogue, shortlist=problem.settings.shortlist,
+                        progress=say, executor=executor, parallel=modes.parallel, rounds=2, clock=clock,
+                        modal=modal_source(problem, modes.freqs[modes.in_band], modes.zetas[modes.in_band],
+                                           modes.freqs[~modes.in_band][:1], modes.band[1]))
 
 
 def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, locs: Sequence[Localisation], *,

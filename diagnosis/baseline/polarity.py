@@ -10,18 +10,30 @@ Laplace evidence of :mod:`diagnosis.judgement.evidence`: fit, priors and measure
 reach the decisive odds (:attr:`~diagnosis.settings.Thresholds.decisive_odds`); otherwise the records are taken as
 read and the report says that they cannot decide the sign.  Reversing every sensor instead is the same hypothesis
 (the outputs change sign with the force); one sensor reversed among several is not tested here.
+
+The baseline's evidence decides the sign only as far as the baseline describes the records.  When no refit brings
+the records to the noise floor, the mechanism that explains them may need the other sign (an attachment that moves
+a resonance across the excited band turns the response's phase), so the sign is weighed with the mechanisms too
+(:func:`diagnosis.search.sign.sign_with_refits`): the candidates are scored and refitted with the other sign as
+well, and when a model with the other sign has decisively more evidence than every model with the sign taken, the
+sign is overturned and the diagnosis ranks again with it.
 """
 from __future__ import annotations
 
 import math
 from concurrent.futures import Executor
-from dataclasses import dataclass, replace
-from typing import Any, Callable
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any, Callable
+
+import numpy as np
 
 from ..judgement.evidence import laplace_log_evidence
 from ..problem.fitting import Fit, GapProblem
 
-__all__ = ["PolarityCheck", "check_polarity"]
+if TYPE_CHECKING:
+    from ..search.sign import SignWithRefits
+
+__all__ = ["PolarityCheck", "check_polarity", "reversed_force"]
 
 
 @dataclass(frozen=True)
@@ -34,6 +46,15 @@ class PolarityCheck:
     decided: bool
     #: the odds from which the evidence decides (:attr:`~diagnosis.settings.Thresholds.decisive_odds`)
     decisive_odds: float
+    #: the other sign's baseline unknowns (where its refits start), not written
+    other_beta: np.ndarray | None = field(default=None, repr=False, compare=False)
+    #: the sign weighed with the refits (:func:`diagnosis.search.sign.sign_with_refits`), when it was
+    with_refits: "SignWithRefits | None" = None
+
+    @property
+    def overturned(self) -> bool:
+        """Whether the refits overturned the baseline's sign (:attr:`with_refits`)."""
+        return self.with_refits is not None and self.with_refits.overturned
 
     @property
     def log_odds(self) -> float:
@@ -42,6 +63,8 @@ class PolarityCheck:
 
     def line(self) -> str:
         """One sentence."""
+        if self.with_refits is not None and self.with_refits.overturned:
+            return self.with_refits.line()
         both = (f"baseline fit {self.gap['as_read']:.3g} (as read) and {self.gap['reversed']:.3g} (reversed) "
                 f"times the noise variance, ln odds {self.log_odds:+.3g}")
         if not self.decided:
@@ -55,20 +78,30 @@ class PolarityCheck:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready."""
-        return {"log_evidence": dict(self.log_evidence), "fit_gap_ratio": dict(self.gap),
-                "reversed": self.reversed, "decided": self.decided, "log_odds_reversed": self.log_odds}
+        out = {"log_evidence": dict(self.log_evidence), "fit_gap_ratio": dict(self.gap),
+               "reversed": self.reversed, "decided": self.decided, "log_odds_reversed": self.log_odds}
+        if self.with_refits is not None:
+            out["with_refits"] = self.with_refits.to_dict()
+        return out
+
+
+def reversed_force(problem: GapProblem) -> GapProblem:
+    """``problem`` with every record's force reversed (no other basins: they belong to the other sign)."""
+    return replace(problem, records=tuple(replace(r, inputs=-r.inputs) for r in problem.records), other_starts=())
 
 
 def check_polarity(problem: GapProblem, fit_baseline: Callable[[GapProblem], tuple[GapProblem, Fit]],
-                   executor: Executor | None = None) -> tuple[GapProblem, Fit, PolarityCheck]:
+                   executor: Executor | None = None, *, take: bool | None = None
+                   ) -> tuple[GapProblem, Fit, PolarityCheck]:
     """The problem and baseline fit with the sign the evidence takes (module docstring), and the check.
 
     ``fit_baseline`` fits a problem's baseline (``(problem with its other basins, fit)``), the same way for both
     signs; with an ``executor`` the reversed one runs on it while this process fits the records as read
-    (``fit_baseline`` must then pickle: a module-level function or a partial of one).
+    (``fit_baseline`` must then pickle: a module-level function or a partial of one).  ``take`` (``True``:
+    reversed) takes that sign whatever the baselines say — the sign the refits decided
+    (:func:`diagnosis.search.sign.sign_with_refits`).
     """
-    flipped = replace(problem, records=tuple(replace(r, inputs=-r.inputs) for r in problem.records),
-                      other_starts=())
+    flipped = reversed_force(problem)
     pending = executor.submit(fit_baseline, flipped) if executor is not None else None
     problem, baseline = fit_baseline(problem)
     flipped, flipped_fit = pending.result() if pending is not None else fit_baseline(flipped)
@@ -77,7 +110,9 @@ def check_polarity(problem: GapProblem, fit_baseline: Callable[[GapProblem], tup
     gap = {"as_read": float(baseline.rss / baseline.n), "reversed": float(flipped_fit.rss / flipped_fit.n)}
     log_odds = logz["reversed"] - logz["as_read"]
     decided = abs(log_odds) >= math.log(problem.settings.decisive_odds)
-    check = PolarityCheck(logz, gap, decided and log_odds > 0, decided, problem.settings.decisive_odds)
-    if check.reversed:
+    rev = decided and log_odds > 0 if take is None else take
+    check = PolarityCheck(logz, gap, rev, decided or take is not None, problem.settings.decisive_odds,
+                          other_beta=baseline.beta if rev else flipped_fit.beta)
+    if rev:
         return flipped, flipped_fit, check
     return problem, baseline, check

@@ -182,7 +182,7 @@ def notes(verdict: Verdict, case: Case) -> Verdict:
         verdict = verdict.said("notes", (
             f"the {'baseline' if key == 'none' else key} model {'agrees' if a['agrees'] else 'DISAGREES'} with the "
             f"{a['modes']} measured modes (chi2 {a['chi2']:.3g}, limit {a['chi2_limit']:.3g})"))
-    if case.polarity.reversed or not case.polarity.decided:
+    if case.polarity.reversed or not case.polarity.decided or case.polarity.overturned:
         verdict = verdict.said("notes", case.polarity.line())
     if verdict.kind is Kind.UNEXPLAINED and case.where:
         # what the localisation found is the user's lead, not the least-bad name

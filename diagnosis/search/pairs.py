@@ -26,36 +26,44 @@ from ..candidates.score import score_effect
 from .state import Refits, Search
 from ..judgement.verdict import paying_refits
 
-__all__ = ["Early", "best_pair", "early_pair", "pair_explains", "pair_with",
-           "same_fit"]
+__all__ = ["Early", "best_pair", "early_pair", "pair_explains", "pair_with", "same_fit"]
 
 
-#: An early pair: ``(the single's fit it was tried at, its best pair or None)``; ``None`` when not tried.
-Early = tuple[Fit, EffectRefit | None] | None
+#: An early pair: ``(the single's fit it was tried at, its pairs: the best first, then the near-equal rivals;
+#: empty when none pays)``; ``None`` when not tried.
+Early = tuple[Fit, list[EffectRefit]] | None
 
 
-def best_pair(run: Search, single: EffectRefit, partners: list[str]) -> EffectRefit | None:
-    """The pair of ``single`` and one of ``partners`` that pays for its extra parameters against ``single``
-    (BIC better by the BIC margin, lower held-out error), the one with the lowest BIC of them — of pairs that
+def best_pair(run: Search, single: EffectRefit, partners: list[str]) -> list[EffectRefit]:
+    """The pairs of ``single`` and one of ``partners`` that pay for their extra parameters against ``single``
+    (BIC better by the BIC margin, lower held-out error): the one with the lowest BIC first — of pairs that
     explain the records alike, the one with fewer parameters (a three-variable weak segment can mimic what a
-    foundation adds beyond the axial load the baseline gave it) —; ``None`` if none pays."""
+    foundation adds beyond the axial load the baseline gave it) —, then its near-equal rivals, the paying pairs
+    whose held-out gain reaches ``pair_rival_share`` of the best's (a foundation's and a spring's pair with the
+    same lag: the evidence weighs them, or the tie is stated); empty if none pays."""
     labels = [f"{single.label}{PAIR_SEPARATOR}{p}" for p in partners]
     fits = run.side_by_side(pair_refit, [(run.problem, run.catalogue, lab, single.fit, run.max_evaluations)
                                          for lab in labels])
-    best = None
+    paying = []
     for lab, fit in zip(labels, fits):
         rf = run.summary(run.catalogue.effect(lab), fit)
         run.say(f"pair refit {lab}: held-out gap ratio {np.mean(run.before):.3g} -> "
                 f"{np.mean(rf.heldout_after):.3g}, dBIC vs {single.label} alone {rf.bic - single.bic:.1f}")
         if (rf.bic < single.bic - run.problem.settings.bic_margin
-                and np.mean(rf.heldout_after) < np.mean(single.heldout_after)
-                and (best is None or rf.bic < best.bic)):
-            best = rf
-    return best
+                and np.mean(rf.heldout_after) < np.mean(single.heldout_after)):
+            paying.append(rf)
+    if not paying:
+        return []
+    best = min(paying, key=lambda rf: rf.bic)
+    share = run.problem.settings.pair_rival_share
+    gain = float(np.mean(run.before) - np.mean(best.heldout_after))
+    rivals = [rf for rf in paying if rf is not best
+              and float(np.mean(run.before) - np.mean(rf.heldout_after)) >= share * gain]
+    return [best] + sorted(rivals, key=lambda rf: rf.bic)
 
 
 def pair_with(run: Search, single: EffectRefit, known: dict[str, Fit]
-              ) -> tuple[EffectRefit | None, dict[str, EffectRefit]]:
+              ) -> tuple[list[EffectRefit], dict[str, EffectRefit]]:
     """The best pair of ``single`` and a second effect that pays for itself (:func:`best_pair`), the partners
     score-tested afresh at ``single``'s refit (the baseline may have hidden them), and each of the pair's effects
     refitted alone from the pair's optimum where that beats its refit so far (``known``, by label; ``single``'s
@@ -69,7 +77,8 @@ def pair_with(run: Search, single: EffectRefit, known: dict[str, Fit]
     * against the second: the second may be the whole cause and the first a passenger that the pair's refit has
       shrunk to nothing (a Kelvin–Voigt record was once named ``point_mass+kelvin_voigt`` with a 26 mg mass).
 
-    Such a pair is not returned (``None``); the effects alone are, and are ranked with the other single refits.
+    Such a pair is not returned (nor its rivals: the list is empty); the effects alone are, and are ranked with
+    the other single refits.  The best pair's near-equal rivals (:func:`best_pair`) come after it.
     """
     first = run.catalogue.effect(single.label)
     with_prior = run.problem.prior is not None and run.problem.prior.count > 0
@@ -82,9 +91,10 @@ def pair_with(run: Search, single: EffectRefit, known: dict[str, Fit]
                 if rescored[lab] > 0][:run.problem.settings.pair_partners]
     run.say(f"second-effect scores at the {single.label} refit: "
             + ", ".join(f"{lab} {rescored[lab]:.4g}" for lab in partners))
-    pair = best_pair(run, single, partners)
-    if pair is None:
-        return None, {}
+    pairs = best_pair(run, single, partners)
+    if not pairs:
+        return [], {}
+    pair = pairs[0]
     second = run.catalogue.effect(pair.label.split(PAIR_SEPARATOR, 1)[1])
     pays, singles = True, {}
     for effect, s in ((first, pair.fit.s[:first.dim]), (second, pair.fit.s[first.dim:])):
@@ -96,7 +106,7 @@ def pair_with(run: Search, single: EffectRefit, known: dict[str, Fit]
         before = single.fit if effect is first else known.get(effect.label)
         if before is None or fit.rss < before.rss * (1.0 - 1e-3):     # beyond the refits' own last digits
             singles[effect.label] = alone
-    return (pair if pays else None), singles
+    return (pairs if pays else []), singles
 
 
 def early_pair(run: Search, labels: list[str], local: Refits) -> tuple[Early, Refits]:
@@ -108,17 +118,17 @@ def early_pair(run: Search, labels: list[str], local: Refits) -> tuple[Early, Re
     lead = paying_refits(now, run.before, run.problem.settings)[:1]
     if not (lead and now[lead[0]].closed >= run.problem.settings.pair_minimum and run.time_invariant(lead[0])):
         return None, local
-    pair, singles = pair_with(run, now[lead[0]], {lab: fit for lab, (fit, _) in local.items()})
+    pairs, singles = pair_with(run, now[lead[0]], {lab: fit for lab, (fit, _) in local.items()})
     local = local | {lab: (rf.fit, local[lab][1] if lab in local else [(rf.fit.beta, rf.fit.s)])
                      for lab, rf in singles.items()}
-    if pair is not None and explains(pair.fit, run.baseline, run.problem.settings.gap_threshold):
-        run.say(f"the pair {pair.label} explains the gap: no other basins, re-baselining or continuation refits")
-    return (now[lead[0]].fit, pair), local     # (a single improved here is paired again at the end)
+    if pairs and explains(pairs[0].fit, run.baseline, run.problem.settings.gap_threshold):
+        run.say(f"the pair {pairs[0].label} explains the gap: no other basins, re-baselining or continuation refits")
+    return (now[lead[0]].fit, pairs), local     # (a single improved here is paired again at the end)
 
 
 def pair_explains(early: Early, baseline: Fit, gap_threshold: float) -> bool:
     """Whether the pair tried early explains the gap."""
-    return early is not None and early[1] is not None and explains(early[1].fit, baseline, gap_threshold)
+    return early is not None and bool(early[1]) and explains(early[1][0].fit, baseline, gap_threshold)
 
 
 def same_fit(a: Fit, b: Fit) -> bool:

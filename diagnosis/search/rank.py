@@ -248,25 +248,23 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
             # one effect leaves a significant remainder: a second one at once, when it pays for itself (tried
             # already before the continuation refits when this single's fit has not changed since)
             if early is not None and same_fit(early[0], best.fit):
-                pair = early[1]
+                pairs = list(early[1])
             else:
                 # the pair's effects alone from its optimum, where they beat their refits, rank as singles
                 with run.clock.stage("pairs"):
-                    pair, singles = pair_with(run, best, {lab: rf.fit for lab, rf in refits.items()})
+                    pairs, singles = pair_with(run, best, {lab: rf.fit for lab, rf in refits.items()})
                 refits |= singles
                 paying, order = _order(refits, before, by_score, run.problem.settings)
-            pairs = [] if pair is None else [pair]
             # the pairs the best single's near-equal rivals make: a pair is weighed against them, or the true
             # partner of a rival is never seen (a foundation closing 52.7 % beside a spring closing 54.7 %)
             for lab in _rivals(refits, paying, best, run.problem.settings):
                 if not _plausible(run, lab, refits[lab]):
                     continue      # a rival with values no rig has makes no pair worth weighing
                 with run.clock.stage("pairs"):
-                    rival_pair, singles = pair_with(run, refits[lab], {k: rf.fit for k, rf in refits.items()})
+                    rival_pairs, singles = pair_with(run, refits[lab], {k: rf.fit for k, rf in refits.items()})
                 refits |= singles
                 same = {frozenset(rf.label.split(PAIR_SEPARATOR)) for rf in pairs}
-                if rival_pair is not None and frozenset(rival_pair.label.split(PAIR_SEPARATOR)) not in same:
-                    pairs.append(rival_pair)
+                pairs += [rf for rf in rival_pairs[:1] if frozenset(rf.label.split(PAIR_SEPARATOR)) not in same]
             if pairs:
                 paying, order = _order(refits, before, by_score, run.problem.settings)
                 pairs.sort(key=lambda rf: float(np.mean(rf.heldout_after)))
