@@ -340,12 +340,16 @@ static int category_enabled(const Instance *inst, fmi2String category)
     return 0;
 }
 
-/* Messages are passed on as printf formats: double every '%'. */
+/* Messages are passed on as printf formats: double every '%'.  A NULL instance name or category (pythonfmu logs
+ * some fatal errors with a NULL category) is passed on as "": hosts build strings from them (OMSimulator's
+ * std::string aborts the process on NULL). */
 static void emit(const Instance *inst, fmi2String name, fmi2Status status,
                  fmi2String category, fmi2String message)
 {
     if (!inst->host.logger) return;
     if (!message) message = "";
+    if (!name) name = inst->name ? inst->name : "";
+    if (!category) category = "";
     if (!strchr(message, '%')) {
         inst->host.logger(inst->host.componentEnvironment, name, status, category, message);
         return;

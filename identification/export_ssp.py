@@ -10,11 +10,15 @@
   connectors) bound to the default set: the identified model (the polished knee, else the knee);
 * ``<stem>.ssd`` — the same system bound to each other set (SSP's variants), for a host to load instead.
 
+Each system carries what masters need to run it without extra arguments: a default experiment (start 0, stop ten
+periods of the lowest mode) with the base step ``dt`` in the annotations libcosim and OMSimulator read.
+
 A point whose positions were identified has its own grid of forces and sensors, which one FMU cannot take as a
 parameter: such results are refused (export FMUs per point instead).
 """
 from __future__ import annotations
 
+import math
 import tempfile
 import zipfile
 from pathlib import Path
@@ -33,7 +37,9 @@ __all__ = ["export_ssp", "check_ssp", "DEFAULT_SET"]
 
 _NS = ('xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" '
        'xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon" '
-       'xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"')
+       'xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" '
+       'xmlns:osp="http://opensimulationplatform.com/SSP/OSPAnnotations" '
+       'xmlns:oms="https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd"')
 #: The component's name in every system of the package.
 COMPONENT = "beam"
 #: The package's default system (bound to the identified model's parameter set).
@@ -47,19 +53,45 @@ def _ssv(name: str, params: dict[str, float]) -> str:
             f"  <ssv:Parameters>\n{rows}\n  </ssv:Parameters>\n</ssv:ParameterSet>\n")
 
 
-def _ssd(name: str, config: BeamConfig, bound: str, dt: float) -> str:
-    conns = ([("input", n) for n in config.input_names] + [("output", n) for n in config.output_names]
-             + [("parameter", k) for k in PARAMETER_NAMES])
+def _ssd(name: str, config: BeamConfig, bound: str, dt: float, stop: float) -> str:
+    """The system: the component with its outputs and parameters as connectors, bound to the parameter set
+    ``bound``; the default experiment with its stop time and the base step in the annotations libcosim
+    (``osp:FixedStepAlgorithm``) and OMSimulator (``oms:FixedStepMaster``) read.  The inputs are not connectors:
+    SSP 1.0 masters differ on unconnected ones (fmpy's ``simulate_ssp`` stops on an input no connection feeds;
+    libcosim refuses a connection to the system's own connector) — a master sets them by the FMU's value
+    references (libcosim's manipulators), the FMU's modelDescription declares them."""
+    conns = [("output", n) for n in config.output_names] + [("parameter", k) for k in PARAMETER_NAMES]
     rows = "\n".join(f'          <ssd:Connector name={quoteattr(n)} kind="{kind}"><ssc:Real/></ssd:Connector>'
                      for kind, n in conns)
+    step = repr(float(dt))
     return (f'<?xml version="1.0" encoding="UTF-8"?>\n<ssd:SystemStructureDescription {_NS} version="1.0" '
             f'name={quoteattr(name)}>\n  <ssd:System name={quoteattr(name)}>\n    <ssd:Elements>\n'
             f'      <ssd:Component name="{COMPONENT}" source="resources/beam.fmu" '
             f'type="application/x-fmu-sharedlibrary">\n        <ssd:Connectors>\n{rows}\n        </ssd:Connectors>\n'
             f'        <ssd:ParameterBindings>\n          <ssd:ParameterBinding source="resources/{bound}.ssv"/>\n'
-            f"        </ssd:ParameterBindings>\n      </ssd:Component>\n    </ssd:Elements>\n  </ssd:System>\n"
-            f'  <ssd:DefaultExperiment startTime="0.0"/>\n</ssd:SystemStructureDescription>\n'
-            f"<!-- communication step: multiples of dt = {dt!r} s -->\n")
+            f"        </ssd:ParameterBindings>\n      </ssd:Component>\n    </ssd:Elements>\n"
+            f'    <ssd:Annotations>\n      <ssc:Annotation type="org.openmodelica">\n        <oms:Annotations>\n'
+            f'          <oms:SimulationInformation>\n            <oms:FixedStepMaster description="oms-ma" '
+            f'stepSize="{step}"/>\n          </oms:SimulationInformation>\n        </oms:Annotations>\n'
+            f"      </ssc:Annotation>\n    </ssd:Annotations>\n  </ssd:System>\n"
+            f'  <ssd:DefaultExperiment startTime="0.0" stopTime="{stop!r}">\n    <ssd:Annotations>\n'
+            f'      <ssc:Annotation type="com.opensimulationplatform">\n        <osp:Algorithm>\n'
+            f'          <osp:FixedStepAlgorithm baseStepSize="{step}"/>\n        </osp:Algorithm>\n'
+            f"      </ssc:Annotation>\n    </ssd:Annotations>\n  </ssd:DefaultExperiment>\n"
+            f"</ssd:SystemStructureDescription>\n"
+            f"<!-- inputs (set by value reference): {', '.join(config.input_names)}; communication step: multiples "
+            f"of dt = {step} s -->\n")
+
+
+def stop_time(config: BeamConfig, params: dict[str, float]) -> float:
+    """The default experiment's duration: ten periods of the model's lowest mode, a whole number of steps ``dt``
+    (at least one)."""
+    from ebb_model.modal import discrete_frequencies
+
+    dt = config.time.dt
+    freqs, _ = discrete_frequencies(config, params)
+    lowest = float(freqs[0]) if len(freqs) and freqs[0] > 0 else 1.0 / dt
+    return max(1, math.ceil(10.0 / lowest / dt)) * dt
 
 
 def check_ssp(result: IdentificationResult) -> None:
@@ -107,6 +139,7 @@ def export_ssp(result: IdentificationResult, points: Sequence[int] | str | None 
     stems = [stem for stem, _, _ in models]
     bound = default if default in stems else stems[0]
     config = result.config
+    stop = stop_time(config, next(p for stem, _, p in models if stem == bound))
     out = make_dir(d / "export", exist_ok=True) / f"{result.config_name}.ssp"
     with tempfile.TemporaryDirectory() as tmp, atomic_path(out, suffix=".ssp") as part:
         fmu = build_standalone_fmu(config, Path(tmp) / "beam.fmu")
@@ -115,6 +148,7 @@ def export_ssp(result: IdentificationResult, points: Sequence[int] | str | None 
             for stem, _, params in models:
                 z.writestr(f"resources/{stem}.ssv", _ssv(stem, params))
                 if stem != bound:
-                    z.writestr(f"{stem}.ssd", _ssd(f"{result.config_name}_{stem}", config, stem, config.time.dt))
-            z.writestr(DEFAULT_SET, _ssd(f"{result.config_name}_{bound}", config, bound, config.time.dt))
+                    z.writestr(f"{stem}.ssd", _ssd(f"{result.config_name}_{stem}", config, stem, config.time.dt,
+                                                      stop))
+            z.writestr(DEFAULT_SET, _ssd(f"{result.config_name}_{bound}", config, bound, config.time.dt, stop))
     return out

@@ -184,3 +184,30 @@ def test_no_use_after_free_when_the_process_exits(fmus, host, tmp_path, master):
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "ERROR SUMMARY" in proc.stderr  # valgrind did run to the end
     assert _valgrind_errors_in(proc.stderr, library) == []
+
+
+def test_a_master_that_accumulates_float_time(fmus):
+    """A master that accumulates its time in floating point (``t += dt``, as OMSimulator does) and passes it as the
+    communication point: 2000 steps of 1e-4 s arrive 5.7e-15 s short of its stop time 0.2 s, and it steps the
+    rest.  The FMU takes that remainder as no step (it refused it before: "not a positive integer multiple"); the
+    outputs equal fmpy's integer-time loop to the last digit, and after the remainder they are those after the last
+    full step."""
+    u = np.random.default_rng(5).standard_normal((2000, 1))
+    y = fmpy_outputs(fmus["seed"], u, protocol="accumulating")
+    assert _rel_err(y[:-1], fmpy_outputs(fmus["seed"], u)) <= RTOL_HOSTS
+    assert np.array_equal(y[-1], fmpy_outputs(fmus["seed"], u, protocol="after")[-1])
+
+
+def test_a_null_category_never_reaches_the_host(fmus, host, tmp_path):
+    """pythonfmu logs some fatal errors with a NULL category; a host that builds strings from it (OMSimulator)
+    aborts.  The loader passes "" on.  The C host here aborts on a NULL, as OMSimulator does; the FMU's Python
+    meets a numba that fails to import (a module of that name first on PYTHONPATH), so instantiation fails and
+    is logged — the host gets the message and an error status, not an abort."""
+    shadow = tmp_path / "shadow"
+    (shadow / "numba").mkdir(parents=True)
+    (shadow / "numba" / "__init__.py").write_text("raise ImportError('numba is broken in this environment')\n")
+    proc = host_run(host, fmus["seed"], np.zeros((3, 1)), tmp_path / "run",
+                    env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(shadow), "FMI2_HOST_REJECT_NULL": "1"})
+    assert "logger called with a NULL" not in proc.stderr, proc.stderr[-2000:]
+    assert proc.returncode == 3, (proc.returncode, proc.stderr[-2000:])
+    assert "numba is broken in this environment" in proc.stderr, proc.stderr[-2000:]

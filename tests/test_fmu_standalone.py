@@ -725,3 +725,13 @@ def test_two_standalone_fmus_and_a_pythonfmu_one_side_by_side(fmus, configs, tmp
         assert proc.returncode == 0, proc.stderr[-2000:]
         assert _rel_err(np.load(a), simulate(assemble(configs["seed"]), u).outputs) <= RTOL_CORE
         assert _rel_err(np.load(b), simulate(assemble(configs["mixed"]), np.hstack([u, u])).outputs) <= RTOL_CORE
+
+
+def test_a_master_that_accumulates_float_time(fmus):
+    """As for the pythonfmu FMU (``tests/test_fmu_hosts.py``): time accumulated in floating point, 2000 steps of
+    1e-4 s, then the master's 5.7e-15 s remainder to its stop time — taken as no step; outputs equal the
+    integer-time loop's to the last digit, and after the remainder those after the last full step."""
+    u = np.random.default_rng(5).standard_normal((2000, 1))
+    y = fmpy_outputs(fmus["seed"], u, protocol="accumulating")
+    assert _rel_err(y[:-1], fmpy_outputs(fmus["seed"], u)) <= RTOL_SAME
+    assert np.array_equal(y[-1], fmpy_outputs(fmus["seed"], u, protocol="after")[-1])

@@ -24,6 +24,9 @@ sys.path.insert(0, str(HOSTS))
 from fmu_loops import fmpy_outputs  # noqa: E402
 
 SSV = "{http://ssp-standard.org/SSP1/SystemStructureParameterValues}"
+SSD = "{http://ssp-standard.org/SSP1/SystemStructureDescription}"
+OSP = "{http://opensimulationplatform.com/SSP/OSPAnnotations}"
+OMS = "{https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd}"
 
 
 def _set(archive: zipfile.ZipFile, stem: str) -> dict[str, float]:
@@ -60,8 +63,10 @@ def test_export_ssp_is_loaded_by_libcosim_with_each_parameter_set(identify_case,
               key=lambda s: abs(sets[s]["EI"] - sets["polished_0"]["EI"]))
     results = {}
     for stem, ssd in (("polished_0", "SystemStructure.ssd"), (far, f"{far}.ssd")):
+        # as a user loads it: the file alone (its default experiment gives the base step; a crash — libcosim
+        # segfaulted on a package without it — must not take the session down: its own process)
         proc = subprocess.run([sys.executable, str(HOSTS / "fmu_loops.py"), "ssp", str(tmp_path / "ssp" / ssd),
-                               str(fmu), str(tmp_path / "u.npy"), str(tmp_path / f"{stem}.npy"), "1e-4"],
+                               str(fmu), str(tmp_path / "u.npy"), str(tmp_path / f"{stem}.npy")],
                               capture_output=True, text=True, timeout=300)
         assert proc.returncode == 0, proc.stderr[-2000:]
         results[stem] = np.load(tmp_path / f"{stem}.npy")
@@ -69,6 +74,18 @@ def test_export_ssp_is_loaded_by_libcosim_with_each_parameter_set(identify_case,
         # the same binary under two masters: round-off only
         np.testing.assert_allclose(results[stem], ref, rtol=0, atol=1e-12 * np.abs(ref).max())
     assert np.abs(results[far] - results["polished_0"]).max() > 1e-6 * np.abs(results[far]).max()
+    # every system carries its experiment: start, stop, and the base step where libcosim and OMSimulator read it
+    ssd = ET.parse(tmp_path / "ssp" / "SystemStructure.ssd").getroot()
+    experiment = ssd.find(f"{SSD}DefaultExperiment")
+    assert float(experiment.get("startTime")) == 0.0 and float(experiment.get("stopTime")) > 0.0
+    assert float(experiment.find(f".//{OSP}FixedStepAlgorithm").get("baseStepSize")) == 1e-4
+    assert float(ssd.find(f".//{OMS}FixedStepMaster").get("stepSize")) == 1e-4
+    # fmpy's SSP route, called as a user calls it (no stop time, no step): it runs (before, it stopped on an input
+    # connector no connection fed: UnboundLocalError)
+    from fmpy.ssp.simulation import simulate_ssp
+
+    rows = simulate_ssp(str(ssp))
+    assert len(rows) > 1 and all(np.isfinite(list(r)).all() for r in rows)
     # a cut-off that is no frequency: one line naming the flag, exit 2, nothing written
     before = {p: p.stat().st_mtime_ns for p in (out / "export").iterdir()}
     capsys.readouterr()

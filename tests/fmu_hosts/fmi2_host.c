@@ -19,6 +19,9 @@
  *                     deserialised, set (fmi2SetFMUstate) and points K … NSTEPS-1 are run again, their lines
  *                     prefixed with "R "
  *
+ * With FMI2_HOST_REJECT_NULL set in the environment the logger aborts the process when called with a NULL
+ * instance name, category or message, as a host building C++ strings from them does (OMSimulator).
+ *
  * Prints one line per communication point with the outputs (%.17g) on
  * stdout; the FMU's log messages go to stderr, and so does the state of
  * PYTHONHOME / PYTHONPATH right after fmi2Instantiate.  Exit status: 0 success,
@@ -68,6 +71,11 @@ static void log_message(fmi2ComponentEnvironment env, fmi2String name, fmi2Statu
                         fmi2String category, fmi2String message, ...)
 {
     (void)env;
+    if ((!name || !category || !message) && getenv("FMI2_HOST_REJECT_NULL")) {
+        /* as a host that builds C++ strings from them does (OMSimulator: std::logic_error, then abort) */
+        fprintf(stderr, "logger called with a NULL %s\n", !name ? "instance name" : !category ? "category" : "message");
+        abort();
+    }
     va_list args;
     va_start(args, message);
     fprintf(stderr, "[%s] status=%d category=%s: ", name ? name : "", (int)status, category ? category : "");
