@@ -111,15 +111,20 @@ def add_parsers(sub: Subcommands) -> None:
                    help="Dask scheduler address, or local:K for a local cluster of K worker processes set up "
                         "for model evaluations (profiler off, slower health checks; default: none, --workers)")
     add_modes_arguments(p)
-    p.add_argument("--pop", type=int, default=40, help="population size, at least 4 (default 40)")
-    p.add_argument("--generations", type=int, default=30, help="generations, at least 1 (default 30)")
-    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
-    p.add_argument("--algorithm", default="nsga2", help="nsga2 | nsga3 (default nsga2)")
+    p.add_argument("--pop", type=int, default=None,
+                   help="population size, at least 4 (default 40; with --resume the checkpoint's)")
+    p.add_argument("--generations", type=int, default=None,
+                   help="generations, at least 1 (default 30; with --resume the checkpoint's)")
+    p.add_argument("--seed", type=int, default=None, help="random seed (default 1; with --resume the checkpoint's)")
+    p.add_argument("--algorithm", default=None,
+                   help="nsga2 | nsga3 (default nsga2; with --resume the checkpoint's)")
     p.add_argument("--polish", type=int, default=1, metavar="K",
                    help="after the GA, refine the K Pareto points nearest the knee (knee first) by bounded least "
                         "squares (default 1: the polished knee is the identified model; 0: the GA's knee, reported "
                         "as not polished)")
-    p.add_argument("--resume", action="store_true", help="continue from the checkpoint in --out")
+    p.add_argument("--resume", action="store_true",
+                   help="continue from the checkpoint in --out (refused when the config, the data or an option "
+                        "given differs from what it was made with)")
     p.add_argument("--force", action="store_true", help="run even if the Fisher matrix is singular")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-export", action="store_true", help="skip the exports at the end")

@@ -56,6 +56,7 @@ from .optimise import CHECKPOINT, ParetoSet, check_settings, knee_index, knee_or
 from .parameters import ParameterSpace, parameter_space
 from .polish import ResidualEvaluator, polish as polish_point
 from .problem import IdentificationProblem
+from .resume import RunRecord
 from .result import RESULT_FILE, IdentificationResult, PolishedPoint
 from .runners import Runner, make_runner
 from .noise import given_noise_std
@@ -125,9 +126,9 @@ def _check_out_dir(out: Path, resume: bool) -> Path:
 
 @one_blas_thread
 def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_dir: str | Path, *,
-             backend: str = "auto", workers: int = 1, dask: str | None = None, pop: int = 40,
-             generations: int = 30, seed: int = 1, resume: bool = False, force: bool = False,
-             algorithm: str = "nsga2", per: str | None = None, stabilising: bool | None = None,
+             backend: str = "auto", workers: int = 1, dask: str | None = None, pop: int | None = None,
+             generations: int | None = None, seed: int | None = None, resume: bool = False, force: bool = False,
+             algorithm: str | None = None, per: str | None = None, stabilising: bool | None = None,
              noise_std: ArrayLike | None = None, progress: bool = True, export: bool = True,
              fmu: str | Path | None = None, fmu_parameters: Sequence[str] | None = None,
              fmu_inputs: Sequence[str] | None = None, fmu_outputs: Sequence[str] | None = None,
@@ -145,6 +146,10 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     ``workers = K`` evaluates on ``K`` local processes; ``dask`` on a Dask
     cluster: a scheduler address, or ``"local:K"`` for a local cluster
     started (and closed) for this run (:mod:`identification.cluster`).
+
+    ``pop``, ``generations``, ``seed`` and ``algorithm`` default to 40, 30, 1 and ``"nsga2"`` — resuming, to the
+    checkpoint's; ``resume`` refuses a checkpoint made with another config, other records or another value of an
+    option given (:mod:`identification.resume`).
 
     ``polish = K`` refines the ``K`` Pareto points nearest the knee (knee
     first) with bounded least squares on the search backend and workers, at
@@ -167,6 +172,11 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     """
     cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
     ident = identification_settings(cfg)
+    # the GA's options: as given, else — resuming — the checkpoint's, else the defaults (identification.resume)
+    stored = RunRecord.read(Path(out_dir)) if resume else None
+    ga = RunRecord.options_for(stored, {"pop": pop, "generations": generations, "seed": seed,
+                                        "algorithm": algorithm})
+    pop, generations, seed, algorithm = ga["pop"], ga["generations"], ga["seed"], ga["algorithm"]
     _check_options(backend, pop, generations, algorithm, fmu, workers, dask, polish, polish_evaluations)
     per = per or ident.per or "sensor"
     if per not in ("sensor", "experiment"):
@@ -178,6 +188,9 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     targets = check_targets(targets)
     out = _check_out_dir(Path(out_dir), resume)
     exps = read_data(cfg, data)
+    run_record = RunRecord.of(cfg, exps, ga)
+    if stored is not None:
+        stored.check(run_record, out)
     space: ParameterSpace = parameter_space(cfg)
     evaluator = NativeEvaluator(cfg, space, _arrays(cfg, exps), per=per, stabilising=bool(stabilising))
     fisher0 = fisher_information(evaluator, space.nominal, noise_std=noise_std)
@@ -194,6 +207,8 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     make_dir(out, exist_ok=True)
     try:
         write_json(out / "identifiability.json", fisher0.to_dict())
+        if not resume:
+            run_record.write(out)
         problem = IdentificationProblem(search_evaluator, names)
 
         def generation_done(gen: int, n_ev: int, X: np.ndarray, F: np.ndarray) -> None:
@@ -234,6 +249,10 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         raise
     except OutputError as exc:
         # a full disk or a file system gone read-only mid-run: the atomic writes left no partial file
+        if (out / RESULT_FILE).exists():
+            # the run has finished and its results are written; what failed is the exports
+            raise OutputError(f"{exc}; the results are written in {out} ({RESULT_FILE}): make room, then write "
+                              "the exports with `export_points` on it", path=exc.path, errno=exc.errno) from None
         if (out / CHECKPOINT).exists():
             raise OutputError(f"{exc}; the checkpoint of the last finished generation is kept in {out}: make room, "
                               "then continue with `resume`", path=exc.path, errno=exc.errno) from None

@@ -131,6 +131,51 @@ def test_kill_9_then_resume_gives_the_uninterrupted_front(case):
     assert a["points"] == b["points"]
 
 
+def test_resume_refuses_what_the_checkpoint_was_not_made_with(case, capsys):
+    """``--resume`` continues the run the checkpoint belongs to, or says in one line why not (exit 2, the checkpoint
+    untouched): the record scaled by 1000 (it exited 0 before: the GA front from the old data, the polish on the
+    new), a changed bound, another population; options not given are the checkpoint's."""
+    import signal
+
+    cfg, data, tmp = case
+    args = ["--pop", "8", "--generations", "30", "--no-progress", "--no-export", "--seed", "9"]
+    out = tmp / "killed"
+    proc = run_identify_signalled(cfg, data, out, signal.SIGKILL, 3, *args)
+    assert proc.returncode == -signal.SIGKILL, proc.stderr
+    saved = (out / "checkpoint.pkl").read_bytes()
+    table = np.loadtxt(data, delimiter=",", skiprows=1)
+    header = data.read_text().splitlines()[0]
+    scaled = tmp / "scaled" / "data.csv"
+    scaled.parent.mkdir()
+    table[:, 2:] *= 1000.0
+    np.savetxt(scaled, table, delimiter=",", header=header, comments="")
+    bounds = tmp / "bounds.toml"
+    bounds.write_text(_widened(cfg.read_text()))
+    for config, record, extra, expected in ((cfg, scaled, [], "different data in data"),
+                                            (bounds, data, [], "a different config"),
+                                            (cfg, data, ["--pop", "20"], "made with pop 8 (now 20)")):
+        capsys.readouterr()
+        assert main(["identify", str(config), str(record), "--out", str(out), "--resume", "--no-progress",
+                     "--no-export", *extra]) == 2, expected
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and expected in err[0], (expected, err)
+        assert (out / "checkpoint.pkl").read_bytes() == saved and not (out / "pareto.json").exists()
+    # nothing but the directory: the checkpoint's options, the same front as an uninterrupted run
+    assert main(["identify", str(cfg), str(data), "--out", str(out), "--resume", "--no-progress", "--no-export"]) == 0
+    assert main(["identify", str(cfg), str(data), "--out", str(tmp / "ref"), *args]) == 0
+    a = json.loads((tmp / "ref" / "pareto.json").read_text())
+    assert a["points"] == json.loads((out / "pareto.json").read_text())["points"]
+
+
+def _widened(text: str) -> str:
+    """The config with its first unknown's upper bound doubled."""
+    import re
+
+    m = re.search(r"bounds\s*=\s*\[\s*([^,\]]+),\s*([^\]]+)\]", text)
+    assert m, text
+    return text[:m.start()] + f"bounds = [{m.group(1)}, {2 * float(m.group(2))}]" + text[m.end():]
+
+
 def test_identify_polish_writes_polished_points_and_exports_them(case, capsys):
     """``--polish 2``: the two points nearest the knee refined, and the records' start beside them (the lower
     χ² of the knee's and the start's first); counts, files and exports."""

@@ -252,7 +252,7 @@ def test_disk_full_during_identify_keeps_a_checkpoint_that_resumes(identify_case
         assert "checkpoint.pkl: cannot write (No space left on device)" in line, line
         assert f"the checkpoint of the last finished generation is kept in {out}" in line
         assert "continue with --resume" in line
-        assert sorted(p.name for p in out.iterdir()) == ["checkpoint.pkl", "identifiability.json"]
+        assert sorted(p.name for p in out.iterdir()) == ["checkpoint.pkl", "identifiability.json", "run.json"]
         no_parts(disk)
         (disk / "ballast").unlink()
         monkeypatch.undo()
@@ -261,6 +261,42 @@ def test_disk_full_during_identify_keeps_a_checkpoint_that_resumes(identify_case
     capsys.readouterr()
     assert main(["identify", str(cfg), str(data), "--out", str(tmp_path / "ref"), *args]) == 0
     assert json.loads((tmp_path / "ref" / "pareto.json").read_text())["points"] == resumed["points"]
+
+
+@pytest.mark.skipif(not MOUNTS, reason="no tmpfs mounts here")
+def test_disk_full_during_the_exports_gives_advice_that_works(identify_case, tmp_path, monkeypatch, capsys):
+    """The disk fills while the exports are written (the run finished, pareto.json written): the advice names
+    `ebb export`, not `--resume` (which would say the run has finished, nothing to resume), and after making room
+    that command writes the exports."""
+    import identification.export as export
+
+    cfg, data, _ = identify_case
+    real = export.export_points
+
+    def filled_then_exported(*a, **kw):
+        with open(disk / "ballast", "wb", buffering=0) as fh:
+            try:
+                while True:
+                    fh.write(b"\0" * 65536)
+            except OSError as exc:
+                assert exc.errno == errno.ENOSPC
+        return real(*a, **kw)
+
+    with tmpfs(tmp_path / "disk", "size=4m") as disk:
+        out = disk / "run"
+        monkeypatch.setattr(export, "export_points", filled_then_exported)
+        assert main(["identify", str(cfg), str(data), "--out", str(out), "--pop", "6", "--generations", "2",
+                     "--no-progress", "--target", "statespace"]) == 2
+        line = one_line_error(capsys, "identify")
+        # (the exports check the free space first: "only 0 KiB free")
+        assert "free in" in line and "make room, then write the exports with `ebb export` on it" in line, line
+        assert "resume" not in line and f"the results are written in {out}" in line, line
+        assert (out / "pareto.json").is_file()
+        no_parts(disk)
+        (disk / "ballast").unlink()
+        monkeypatch.undo()
+        assert main(["export", str(out), "--target", "statespace"]) == 0
+        assert (out / "export" / "point_0.npz").is_file()
 
 
 @pytest.mark.skipif(not MOUNTS, reason="no tmpfs mounts here")
