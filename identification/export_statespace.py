@@ -151,22 +151,40 @@ def continuous_equivalent(sys):
 class BalancedModel:
     """A balanced-truncation reduced model and its certificate."""
 
-    system: DiscreteStateSpace
+    system: Any            # a DiscreteStateSpace, or a control.StateSpace for one
     hankel_singular_values: np.ndarray
     order: int
     error_bound: float
 
 
-def balanced_truncation(sys: DiscreteStateSpace, order: int) -> BalancedModel:
-    """Square-root balanced truncation of a stable discrete system to ``order`` states.
+def balanced_truncation(sys: Any, order: int) -> BalancedModel:
+    """Square-root balanced truncation of a stable discrete system to ``order`` states — the designer's reduction
+    of an export: python-control's ``balred`` and ``hsvd`` are SLICOT's continuous-time routines (``balred`` of a
+    discrete export returns a *continuous* model with only a warning).
+
+    Parameters
+    ----------
+    sys
+        A discrete :class:`ebb_model.statespace.DiscreteStateSpace`, or a discrete ``control.StateSpace`` (an
+        export read by :func:`load_statespace`).
+    order
+        States kept, ``1 … nstates``.
+
+    Returns
+    -------
+    BalancedModel
+        The reduced system of the same kind and sample time (a ``control.StateSpace`` for one, its states
+        ``balanced1 …``), the Hankel singular values and the a-priori bound ``‖G − G_r‖∞ ≤ 2 Σ_{i>r} σ_i``.
 
     Raises
     ------
     StabilityError
         If the spectral radius is not below one (no Gramians exist).
     ConfigError
-        If ``order`` is not in ``1 … nstates``.
+        If ``order`` is not in ``1 … nstates``, or ``sys`` is not discrete.
     """
+    if not isinstance(sys, DiscreteStateSpace):
+        return _control_truncation(sys, order)
     n = sys.nstates
     if isinstance(order, bool) or not 1 <= order <= n:
         raise ConfigError(f"order must lie in 1 … {n}, got {order}")
@@ -186,6 +204,26 @@ def balanced_truncation(sys: DiscreteStateSpace, order: int) -> BalancedModel:
     red = DiscreteStateSpace(Ti @ sys.A @ T, Ti @ sys.B, sys.C @ T, sys.D, sys.dt, sys.input_names,
                              sys.output_names)
     return BalancedModel(red, s, r, float(2 * np.sum(s[r:])))
+
+
+def _control_truncation(sys: Any, order: int) -> BalancedModel:
+    """:func:`balanced_truncation` of a discrete ``control.StateSpace``, returned as one (same sample time and
+    signal names)."""
+    import control
+
+    dt = getattr(sys, "dt", None)
+    if not isinstance(sys, control.StateSpace) or dt is None or dt is True or not dt:
+        raise ConfigError("balanced_truncation: needs a discrete system with its sample time (an export read by "
+                          "load_statespace); a continuous one reduces with control.balred")
+    inputs, outputs = list(sys.input_labels), list(sys.output_labels)
+    own = DiscreteStateSpace(np.asarray(sys.A, float), np.asarray(sys.B, float), np.asarray(sys.C, float),
+                             np.asarray(sys.D, float), float(dt), tuple(inputs), tuple(outputs))
+    bm = balanced_truncation(own, order)
+    red = bm.system
+    out = control.ss(red.A, red.B, red.C, red.D, float(dt), inputs=inputs, outputs=outputs,
+                     states=[f"balanced{i + 1}" for i in range(red.nstates)],
+                     name=f"{sys.name}_reduced{order}" if sys.name else None)
+    return BalancedModel(out, bm.hankel_singular_values, bm.order, bm.error_bound)
 
 
 def _psd_factor(W: np.ndarray) -> np.ndarray:

@@ -160,6 +160,24 @@ def test_balred_and_minimal_realization_run_on_an_export(export):
     np.testing.assert_allclose(control.dcgain(minimal), dc, rtol=1e-6, atol=1e-9 * np.abs(dc).max())
 
 
+def test_the_designers_reduction_stays_discrete(export):
+    """``balanced_truncation`` on an export as python-control reads it: a discrete StateSpace comes back, same
+    sample time and signal names (``control.balred`` on it returns a continuous model with a warning), every
+    channel within the a-priori bound 2 Σ_{i>r} σ_i; a continuous system is refused in one line."""
+    from identification.export_statespace import balanced_truncation
+
+    bm = balanced_truncation(export, 10)
+    red = bm.system
+    assert isinstance(red, control.StateSpace) and red.dt == export.dt and red.nstates == 10
+    assert list(red.input_labels) == list(export.input_labels)
+    assert list(red.output_labels) == list(export.output_labels)
+    z = np.exp(1j * np.linspace(1e-4, np.pi, 2000))
+    err = max(np.linalg.norm(red(x) - export(x), 2) for x in z)
+    assert err <= bm.error_bound * (1 + 1e-6), (err, bm.error_bound)
+    with pytest.raises(ConfigError, match="needs a discrete system"):
+        balanced_truncation(continuous_equivalent(export), 4)
+
+
 def test_hinfsyn_runs_on_the_continuous_equivalent_of_an_export(export):
     """A mixed-sensitivity H∞ design (S and KS weighted) for the force → displacement channel: ``hinfsyn`` (SLICOT
     sb10ad, continuous only) on the export's continuous equivalent; the controller, sampled by the same bilinear
