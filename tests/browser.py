@@ -1,9 +1,20 @@
-"""A real headless Chromium (Debian's, driven by Playwright) opening a page the project wrote, for the tests."""
+"""A real headless Chromium (driven by Playwright) opening a page the project wrote, for the tests.
+
+The browser is whichever is there (:func:`find_browser`): a Chromium or Chrome on ``PATH`` (Debian's
+``chromium``, ``chromium-browser``, ``google-chrome``), else Playwright's own download.  Where there is none, a
+page test is skipped — reported as not run, never as passed.  ``python tests/browser.py`` prints the browser
+found, or one line saying there is none (exit 1): ``run.sh test`` asks it before the suite.
+"""
 from __future__ import annotations
 
+import os
 import shutil
+import sys
 from dataclasses import dataclass
 from pathlib import Path
+
+#: Browser commands looked for on ``PATH``, in order.
+COMMANDS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable", "chrome")
 
 #: Chromium's flags on a machine with a closed network (no background connections, no first-run work).
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -23,11 +34,32 @@ class Rendered:
     height: int
 
 
+def find_browser(path: str | None = None) -> str | None:
+    """The executable of a Chromium-family browser: the first of :data:`COMMANDS` on ``path`` (default the
+    process's ``PATH``), else Playwright's own Chromium when it was downloaded; ``None`` when there is none."""
+    for cmd in COMMANDS:
+        exe = shutil.which(cmd, path=path if path is not None else os.environ.get("PATH", ""))
+        if exe:
+            return exe
+    try:
+        from playwright.sync_api import sync_playwright
+
+        with sync_playwright() as p:
+            own = p.chromium.executable_path
+    except Exception:       # no playwright, or no driver: no browser of its own either
+        return None
+    return own if own and Path(own).is_file() else None
+
+
 def render(page_path: Path, screenshot: Path | None = None) -> Rendered:
-    """Open ``page_path`` in headless Chromium, wait for it to load, and report what it shows."""
+    """Open ``page_path`` in headless Chromium, wait for it to load, and report what it shows (the calling test is
+    skipped, reported as not run, where no browser is found)."""
+    import pytest
     from playwright.sync_api import sync_playwright
 
-    exe = shutil.which("chromium") or "/usr/bin/chromium"
+    exe = find_browser()
+    if exe is None:
+        pytest.skip("no headless browser on this machine (chromium, chrome or Playwright's own): page not checked")
     errors: list[str] = []
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=exe, args=FLAGS)
@@ -46,3 +78,11 @@ def render(page_path: Path, screenshot: Path | None = None) -> Rendered:
             return out
         finally:
             browser.close()
+
+
+if __name__ == "__main__":
+    found = find_browser()
+    if found is None:
+        print("no browser found (chromium, chromium-browser, google-chrome, chrome on PATH, or Playwright's own)")
+        sys.exit(1)
+    print(found)

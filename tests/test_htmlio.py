@@ -2,6 +2,8 @@
 nothing partial; opened in a real headless Chromium."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import matplotlib
 import pytest
 
@@ -49,3 +51,24 @@ def test_a_figure_outside_the_pages_folder_is_refused_and_nothing_is_written(tmp
         write_page(tmp_path / "page" / "report.html", "t", [Section("s", figures=((tmp_path / "elsewhere.png",
                                                                                    "x"),))])
     assert list((tmp_path / "page").iterdir()) == []
+
+
+def test_without_a_browser_the_page_test_is_reported_as_not_run(tmp_path):
+    """On a machine with no browser (nothing on PATH, no Playwright download) the page test is skipped with the
+    reason — never reported as passed — and ``tests/browser.py`` says so in one line (exit 1), which ``run.sh test``
+    relays before running everything else."""
+    import os
+    import subprocess
+    import sys
+
+    here = Path(__file__).resolve().parent
+    env = {k: v for k, v in os.environ.items() if k != "PLAYWRIGHT_BROWSERS_PATH"}
+    env |= {"PATH": str(tmp_path), "PLAYWRIGHT_BROWSERS_PATH": str(tmp_path / "none")}
+    probe = subprocess.run([sys.executable, str(here / "browser.py")], capture_output=True, text=True, env=env,
+                           timeout=120)
+    assert probe.returncode == 1 and probe.stdout.startswith("no browser found"), (probe.stdout, probe.stderr)
+    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-rs", "-p", "no:cacheprovider", "-n", "0",
+                          f"{here / 'test_htmlio.py'}::test_a_page_shows_its_tables_and_figures_and_escapes_text"],
+                         capture_output=True, text=True, env=env, cwd=here.parent, timeout=300)
+    assert "1 skipped" in run.stdout and "passed" not in run.stdout, run.stdout[-2000:]
+    assert "no headless browser on this machine" in run.stdout, run.stdout[-2000:]
