@@ -222,6 +222,16 @@ def test_an_unwritable_place_is_refused_before_any_work(finished, tmp_path, requ
             assert not (result / "export").exists()
 
 
+def fill(place: Path) -> None:
+    """Fill the file system of ``place`` with a ballast file (``place/ballast``) until it reports ENOSPC."""
+    with open(place / "ballast", "wb", buffering=0) as fh:
+        try:
+            while True:
+                fh.write(b"\0" * 65536)
+        except OSError as exc:
+            assert exc.errno == errno.ENOSPC
+
+
 def fill_before_save(monkeypatch, place: Path, generation: int) -> None:
     """Fill ``place`` with a ballast file just before the checkpoint of ``generation`` is written (a real ENOSPC
     in the real writer: only the moment is chosen here)."""
@@ -229,12 +239,7 @@ def fill_before_save(monkeypatch, place: Path, generation: int) -> None:
 
     def filled_then_saved(algo, path):
         if algo.n_gen - 1 == generation:
-            with open(place / "ballast", "wb", buffering=0) as fh:
-                try:
-                    while True:
-                        fh.write(b"\0" * 65536)
-                except OSError as exc:
-                    assert exc.errno == errno.ENOSPC
+            fill(place)
         save(algo, path)
 
     monkeypatch.setattr(opt, "_save_atomic", filled_then_saved)
@@ -274,12 +279,7 @@ def test_disk_full_during_the_exports_gives_advice_that_works(identify_case, tmp
     real = export.export_points
 
     def filled_then_exported(*a, **kw):
-        with open(disk / "ballast", "wb", buffering=0) as fh:
-            try:
-                while True:
-                    fh.write(b"\0" * 65536)
-            except OSError as exc:
-                assert exc.errno == errno.ENOSPC
+        fill(disk)
         return real(*a, **kw)
 
     with tmpfs(tmp_path / "disk", "size=4m") as disk:
