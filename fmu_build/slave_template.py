@@ -83,8 +83,9 @@ CORE_PACKAGE = "ebb_model"
 #: The core's modules the slave imports (``""``: the package itself); the FMU bundles them and what they import.
 CORE_MODULES = ("", ".beam")
 
-#: A step ``h`` is accepted when ``|h/dt - n| <= STEP_TOLERANCE`` for an integer ``n >= 1``; a step of at most
-#: ``STEP_TOLERANCE * dt`` (a float-accumulating master's remainder) is accepted as no step.
+#: A step ``h`` is accepted when ``|h/dt - n| <= STEP_TOLERANCE`` for an integer ``n >= 1``; a positive step of at
+#: most ``STEP_TOLERANCE * dt`` (a float-accumulating master's remainder) is accepted as no step (FMI 2.0 has no
+#: step of 0).
 STEP_TOLERANCE = 1e-6
 
 #: Base name of the deflection outputs ``w[0] ... w[nodes+1]`` (``field=True``).
@@ -321,7 +322,7 @@ class BeamSlave(Fmi2Slave):
 
     def _do_steps(self, step_size: float) -> bool:
         ratio = step_size / self._dt
-        if math.isfinite(ratio) and 0.0 <= ratio <= STEP_TOLERANCE:
+        if math.isfinite(ratio) and 0.0 < ratio <= STEP_TOLERANCE:
             # a master's rounding remainder (time accumulated in floating point: 2000 steps of 1e-4 s fall
             # 5.7e-15 s short of 0.2 s, and the master steps the rest): no sample to take
             return True

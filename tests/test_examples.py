@@ -25,10 +25,10 @@ EXAMPLES = ROOT / "examples"
 ARTS_DATA = ROOT.parent / "shared" / "data" / "arts-lab-cantilever" / "test_1_3200Hz.lvm"
 
 
-def run_example(name: str, out: Path, *args: str) -> str:
+def run_example(name: str, out: Path, *args: str, timeout: float = 300) -> str:
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
     proc = subprocess.run([sys.executable, str(EXAMPLES / name), "--quick", "--out", str(out), *args],
-                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=300, check=False)
+                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout, check=False)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return proc.stdout
 
@@ -105,7 +105,9 @@ def test_arts_identification_reports_identifiability_and_improves_the_fit(tmp_pa
 
 @pytest.mark.skipif(not ARTS_DATA.is_file(), reason="ARTS-Lab record not available")
 def test_arts_diagnosis_names_nothing_implausible_and_says_what_would_decide(tmp_path):
-    stdout = run_example("arts_diagnose.py", tmp_path, str(ARTS_DATA))
+    # (184 s alone on 2 cores: the search runs again with the set-ups apart and the sign is weighed with the refits;
+    # beside the rest of the suite it took more than 300 s)
+    stdout = run_example("arts_diagnose.py", tmp_path, str(ARTS_DATA), timeout=900)
     s = json.loads((tmp_path / "summary.json").read_text())
     # the impulse test's peaks are the natural frequencies its README documents
     # (6.62-6.66, 41.3-41.4, 117.5 and about 230 Hz), found without being told them

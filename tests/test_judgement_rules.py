@@ -43,7 +43,7 @@ def case(refits: dict[str, EffectRefit], *, effects: dict | None = None, share: 
                     key=lambda lab: float(np.mean(refits[lab].heldout_after)))
     ranking = Ranking(SimpleNamespace(beta=np.zeros(2)), before, {}, refits, list(paying), paying,
                       effects if effects is not None else {lab: effect() for lab in refits})
-    polarity = SimpleNamespace(reversed=reversed_force, decided=True,
+    polarity = SimpleNamespace(reversed=reversed_force, decided=True, overturned=False,
                                line=lambda: "the force's sign: reversed (odds 1e9)")
     problem = SimpleNamespace(settings=settings, prior=None)
     weighed = Weighed(implausible or {}, [], evidence or {}, {}, {})

@@ -71,8 +71,8 @@ typedef struct {
 enum { ROLE_PARAMETER, ROLE_INPUT, ROLE_OUTPUT, ROLE_CONSTANT, ROLE_STATE, ROLE_DERIVATIVE };
 enum { TYPE_REAL, TYPE_INTEGER, TYPE_STRING };
 
-/* A step h is accepted when |h/dt - n| <= STEP_TOLERANCE for an integer n >= 1; a step of at most STEP_TOLERANCE
- * dt (a float-accumulating master's remainder) is accepted as no step. */
+/* A step h is accepted when |h/dt - n| <= STEP_TOLERANCE for an integer n >= 1; a positive step of at most
+ * STEP_TOLERANCE dt (a float-accumulating master's remainder) is accepted as no step; FMI 2.0 has no step of 0. */
 #define STEP_TOLERANCE 1e-6
 
 static const ebb_structure STRUCTURE = {
@@ -773,7 +773,7 @@ EBB_EXPORT fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real currentCommunicati
     if (c->type != fmi2CoSimulation)
         return fail(c, "fmi2DoStep", "the instance was created for model exchange");
     const double ratio = communicationStepSize / EBB_DT;
-    if (isfinite(ratio) && ratio >= 0.0 && ratio <= STEP_TOLERANCE) {
+    if (isfinite(ratio) && ratio > 0.0 && ratio <= STEP_TOLERANCE) {
         /* a master's rounding remainder (time accumulated in floating point: 2000 steps of 1e-4 s fall 5.7e-15 s
          * short of 0.2 s, and the master steps the rest): no sample to take */
         c->time = currentCommunicationPoint + communicationStepSize;
