@@ -71,7 +71,8 @@ def _bands(problem: GapProblem, band: tuple[float, float], mode_hz: np.ndarray, 
     for i, f in enumerate(np.asarray(mode_hz)[:MODE_BANDS]):
         if f * (1 + MODE_BAND_WIDTH) <= top and f * (1 - MODE_BAND_WIDTH) > lowest:
             out.append((f"around mode {i + 1}", (f * (1 - MODE_BAND_WIDTH), f * (1 + MODE_BAND_WIDTH))))
-    return [(name, b) for name, b in out if b[1] > b[0]]
+    # a band needs a few lines of the design record's spectrum (a short record cannot drive a narrow band)
+    return [(name, b) for name, b in out if b[1] - b[0] >= 2.0 * lowest]
 
 
 def bench_designs(problem: GapProblem, band: tuple[float, float], mode_hz: np.ndarray, setups: tuple[str, ...],
