@@ -61,11 +61,21 @@ class Design:
                 "added_sensor": None if self.sensor is None else {"kind": self.sensor[0], "x": self.sensor[1]}}
 
 
+def _samples(problem: GapProblem) -> int:
+    """Samples of the design record: the longest fit window, at most :data:`DESIGN_SAMPLES`."""
+    return min(DESIGN_SAMPLES, max(r.fit_end for r in problem.records if r.has_fit))
+
+
+def _added_sensors(problem: GapProblem) -> list[tuple[str, float]]:
+    """The sensors on offer: one of each kind on the bench at each of :data:`SENSOR_POSITIONS`."""
+    kinds = sorted({s.kind for s in problem.config.sensors})
+    return [(k, round(p * problem.config.beam.length, 12)) for k in kinds for p in SENSOR_POSITIONS]
+
+
 def _bands(problem: GapProblem, band: tuple[float, float], mode_hz: np.ndarray, top: float
            ) -> list[tuple[str, tuple[float, float]]]:
     """The bands on offer (module docstring), each within ``[lowest, top]``."""
-    n = min(DESIGN_SAMPLES, max(r.fit_end for r in problem.records if r.has_fit))
-    lowest = 2.0 / (n * problem.config.time.dt)         # two periods in the design record
+    lowest = 2.0 / (_samples(problem) * problem.config.time.dt)         # two periods in the design record
     out = [("the records' band", (max(band[0], lowest), min(band[1], top)))]
     out.append(("broadband", (lowest, top)))
     for i, f in enumerate(np.asarray(mode_hz)[:MODE_BANDS]):
@@ -80,10 +90,7 @@ def bench_designs(problem: GapProblem, band: tuple[float, float], mode_hz: np.nd
     """Every design on offer (module docstring): set-ups × bands × (no sensor added, or one of each kind on the
     bench at each of :data:`SENSOR_POSITIONS`).  ``top_hz`` 0: 0.4 of the sampling rate."""
     top = top_hz if top_hz > 0 else 0.4 / problem.config.time.dt
-    kinds = sorted({s.kind for s in problem.config.sensors})
-    length = problem.config.beam.length
-    sensors: list[tuple[str, float] | None] = [None]
-    sensors += [(k, round(p * length, 12)) for k in kinds for p in SENSOR_POSITIONS]
+    sensors: list[tuple[str, float] | None] = [None, *_added_sensors(problem)]
     return [Design(setup, b, name, s) for setup in setups for name, b in _bands(problem, band, mode_hz, top)
             for s in sensors]
 
@@ -106,12 +113,12 @@ class DesignBench:
         """The design record for ``band`` (the records' force RMS per actuator) with the rig parts ``lack`` off."""
         cfg = problem.config
         kinds = sorted({s.kind for s in cfg.sensors})
-        added = tuple((k, round(p * cfg.beam.length, 12)) for k in kinds for p in SENSOR_POSITIONS)
+        added = tuple(_added_sensors(problem))
         sigma = np.asarray(problem.noise_std, dtype=float)
         first = {k: float(sigma[[s.kind for s in cfg.sensors].index(k)]) for k in kinds}
         extra = tuple(Sensor(f"design_{k}_{i}", x, k) for i, (k, x) in enumerate(added))
         dcfg = replace(cfg, sensors=cfg.sensors + extra)
-        n = min(DESIGN_SAMPLES, max(r.fit_end for r in problem.records if r.has_fit))
+        n = _samples(problem)
         fit = [r.inputs[:r.fit_end] for r in problem.records if r.has_fit]
         rms = np.sqrt(np.mean(np.concatenate(fit) ** 2, axis=0))
         u = band_limited_input(n, cfg.time.dt, band[0], band[1], n_inputs=len(cfg.actuators), seed=seed)
