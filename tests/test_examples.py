@@ -144,6 +144,16 @@ def test_arts_diagnosis_names_nothing_implausible_and_says_what_would_decide(tmp
     assert apart["adopted"] == (s["verdict"] == apart["verdict"] and s["verdict"] not in s["implausible"]
                                 and s["verdict"] not in ("unexplained", "none", "indistinguishable"))
     assert "one set-up or two" in stdout
+    # nothing plausible: the next record is designed between the refits that close the gap (each implausible),
+    # so that "what would decide it" is a computed plan, not only advice
+    nxt = s["next_experiment"]
+    if s["verdict"] == "unexplained":
+        closes = {r["label"]: r["closed"] for r in s["refits"]}
+        assert nxt is not None and len(nxt["candidates"]) >= 2, nxt
+        assert all(closes[c] >= 0.8 for c in nxt["candidates"]), (nxt["candidates"], closes)
+        assert set(nxt["implausible"]) == set(nxt["candidates"]) & set(s["implausible"]), nxt
+        assert nxt["best"]["expected_log_bayes_factor"] > nxt["decisive_log_odds"], nxt["best"]
+        assert "next experiment to separate" in stdout
     for r in s["refits"]:
         worse = r["modes"]["max_abs_error"] > s["baseline"]["modes"]["max_abs_error"] + 0.01
         assert (r["label"] in s["consistent_with_impulse_test"]) == (not worse and r["closed"] >= 0.5)

@@ -118,3 +118,27 @@ def test_the_designed_record_separates_the_tie(tied, tmp_path):
     assert realised > math.log(d.problem.settings.decisive_odds), (realised, predicted)
     assert 0.5 * predicted <= realised <= 2.0 * predicted, (realised, predicted)
     print(f"designed record: realised ln Bayes factor {realised:.4g}, predicted {predicted:.4g}")
+
+
+def test_with_nothing_plausible_the_refits_that_close_the_gap_are_separated():
+    """``unexplained`` with fewer than two plausible refits (a real bench no catalogued structure explains with the
+    values its documents allow): the candidates to separate are the refits that close at least the named-closure
+    share of the gap — the plausible one first, then the most probable, then the most closing —; a refit that
+    closes less is never one of them; with two plausible refits nothing else is taken."""
+    from types import SimpleNamespace as NS
+
+    from diagnosis.design.discriminate import leading_candidates
+
+    closed = {"mass": 0.99, "gain": 0.995, "loss": 0.97, "spring": 0.40, "soft": 0.85}
+    ranking = NS(refits={k: NS(closed=v) for k, v in closed.items()})
+    verdict = NS(kind=Kind.UNEXPLAINED, label=None, ties=())
+
+    def judged(evidence, implausible):
+        return NS(verdict=verdict, weighed=NS(evidence=dict.fromkeys(evidence, 0.0), implausible=implausible))
+
+    every = {"mass", "gain", "loss", "spring", "soft"}
+    assert leading_candidates(judged(["mass"], every), ranking, 3, 0.8) == ("mass", "gain", "loss")
+    assert leading_candidates(judged(["mass"], every), ranking, 5, 0.8) == ("mass", "gain", "loss", "soft")
+    assert leading_candidates(judged(["mass", "soft"], every - {"soft"}), ranking, 3, 0.8) == ("soft", "mass",
+                                                                                               "gain")
+    assert leading_candidates(judged(["mass", "soft", "spring"], {"mass"}), ranking, 3, 0.8) == ("soft", "spring")

@@ -1,7 +1,10 @@
 """The next experiment, computed: the record that would separate the leading candidates best (:func:`next_experiment`).
 
 When the verdict leaves candidates tied, or says ``unexplained`` with plausible candidates refitted, the
-diagnosis asks which record the bench can make (:mod:`diagnosis.design.space`) would tell them apart.
+diagnosis asks which record the bench can make (:mod:`diagnosis.design.space`) would tell them apart.  When
+fewer than two refits are plausible but several close the records' gap, each needing implausible values (a real
+bench whose records no catalogued structure explains with the values its documents allow), the design separates
+those: which of the readings that fit — a mass, a chain gain, a softened section — is the one to question next.
 
 For a design ``d`` and two candidates A and B (each at its refit), the expected log Bayes factor of A over B on a
 record of ``d`` when A is true is, for Gaussian noise, half the non-centrality of B's misfit to A's prediction
@@ -79,6 +82,9 @@ class NextExperiment:
     reason: str | None = None
     #: how many designs were weighed
     weighed: int = 0
+    #: the candidates among them whose refits need implausible values (designed for when fewer than two are
+    #: plausible but these close the records' gap)
+    implausible: tuple[str, ...] = ()
 
     @property
     def best(self) -> ScoredDesign | None:
@@ -94,7 +100,10 @@ class NextExperiment:
         reach = "never" if need is None else f"from a {need:.3g} s record"
         now = "" if self.as_recorded is None else (
             f"; the records' own design: {self.as_recorded.rate * self.seconds:.3g}")
-        return (f"next experiment to separate {' / '.join(self.candidates)}: {b.design.describe()} — expected "
+        which = ' / '.join(self.candidates)
+        if self.implausible:
+            which += f" (refits that close the gap; {', '.join(self.implausible)} need implausible values)"
+        return (f"next experiment to separate {which}: {b.design.describe()} — expected "
                 f"ln Bayes factor {b.rate * self.seconds:.3g} in {self.seconds:.3g} s (decisive {self.decisive:.3g}, "
                 f"{reach}){now}")
 
@@ -106,17 +115,26 @@ class NextExperiment:
                 "as_recorded": None if self.as_recorded is None else self.as_recorded.to_dict(self.seconds,
                                                                                                 self.decisive),
                 "designs": [d.to_dict(self.seconds, self.decisive) for d in self.designs],
-                "reason": self.reason}
+                "reason": self.reason, "implausible": list(self.implausible)}
 
 
-def leading_candidates(judgement: Judgement, ranking: Ranking, most: int) -> tuple[str, ...]:
+def leading_candidates(judgement: Judgement, ranking: Ranking, most: int, closure: float) -> tuple[str, ...]:
     """The candidates a next record should separate: the verdict's ties (with the named effect), or — for
-    ``unexplained`` — the refits nothing implausible is found in, the most probable first; at most ``most``."""
+    ``unexplained`` — the refits nothing implausible is found in, the most probable first; when fewer than two are,
+    the refits that close at least ``closure`` of the records' gap follow, implausible or not (the most probable,
+    then the most closing first); at most ``most``."""
     v, weighed = judgement.verdict, judgement.weighed
     if v.kind is Kind.INDISTINGUISHABLE or (v.kind is Kind.EFFECT and v.ties):
         labels = ((v.label,) if v.label is not None else ()) + tuple(t for t in v.ties if t != v.label)
     elif v.kind is Kind.UNEXPLAINED:
         labels = tuple(lab for lab in weighed.evidence if lab in ranking.refits and lab not in weighed.implausible)
+        if len(labels) < 2:
+            order = list(weighed.evidence)
+            closing = sorted((lab for lab, rf in ranking.refits.items() if rf.closed >= closure
+                              and lab not in labels),
+                             key=lambda lab: (order.index(lab) if lab in order else len(order),
+                                              -ranking.refits[lab].closed))
+            labels += tuple(closing)
     else:
         return ()
     return tuple(lab for lab in labels if lab in ranking.refits)[:most]
@@ -136,7 +154,8 @@ def next_experiment(problem: GapProblem, ranking: Ranking, judgement: Judgement,
     """The designs that would separate the leading candidates (module docstring), best first; ``None`` when the
     verdict leaves nothing to separate."""
     s = problem.settings
-    labels = leading_candidates(judgement, ranking, s.design_candidates)
+    labels = leading_candidates(judgement, ranking, s.design_candidates, s.named_closure)
+    implausible = tuple(lab for lab in labels if lab in judgement.weighed.implausible)
     v = judgement.verdict
     if not labels and v.kind not in (Kind.UNEXPLAINED, Kind.INDISTINGUISHABLE):
         return None
@@ -145,8 +164,8 @@ def next_experiment(problem: GapProblem, ranking: Ranking, judgement: Judgement,
     probs = {lab: float(judgement.weighed.evidence.get(lab, 0.0)) for lab in labels}
     if len(labels) < 2:
         return NextExperiment(labels, probs, seconds, decisive,
-                              reason="fewer than two plausible candidates to separate (every other refit needs "
-                                     "implausible values)")
+                              reason="fewer than two candidates to separate (no other refit is plausible or closes "
+                                     f"{s.named_closure:.0%} of the records' gap)", implausible=implausible)
     effects: dict[str, Effect] = {lab: ranking.effects[lab] for lab in labels}
     z = {lab: np.concatenate([ranking.refits[lab].fit.beta, ranking.refits[lab].fit.s]) for lab in labels}
     parts = sorted({m.rig_part for e in effects.values() for m in (e.members or (e,)) if m.rig_part is not None})
@@ -169,7 +188,8 @@ def next_experiment(problem: GapProblem, ranking: Ranking, judgement: Judgement,
                 per = {f"{a}>{b}": _divergence(y[a], y[b], J[b], cols) / bench.duration for a, b in pairs}
                 scored.append(ScoredDesign(d, min(per.values()), per))
     if not scored:
-        return NextExperiment(labels, probs, seconds, decisive, reason="no design could be simulated")
+        return NextExperiment(labels, probs, seconds, decisive, reason="no design could be simulated",
+                              implausible=implausible)
     recorded = next((d for d in scored if d.design.setup == "as recorded" and d.design.band_name == "the records' "
                      "band" and d.design.sensor is None), None)
     # the best of each kind of design (set-up, band, kind of added sensor), so that the list shows the choices
@@ -179,4 +199,5 @@ def next_experiment(problem: GapProblem, ranking: Ranking, judgement: Judgement,
         if key not in best or d.rate > best[key].rate:
             best[key] = d
     ranked = tuple(sorted(best.values(), key=lambda d: -d.rate)[:KEPT])
-    return NextExperiment(labels, probs, seconds, decisive, ranked, recorded, weighed=len(scored))
+    return NextExperiment(labels, probs, seconds, decisive, ranked, recorded, weighed=len(scored),
+                          implausible=implausible)

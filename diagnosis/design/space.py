@@ -51,7 +51,8 @@ class Design:
     def describe(self) -> str:
         """One phrase."""
         where = ("the records' sensors" if self.sensor is None
-                 else f"the records' sensors and a {self.sensor[0]} sensor at x = {self.sensor[1]:.3g} m")
+                 else f"the records' sensors and {'an' if self.sensor[0][0] in 'aeiou' else 'a'} {self.sensor[0]} "
+                      f"sensor at x = {self.sensor[1]:.3g} m")
         lo, hi = self.band_hz
         return f"{self.setup}: random force over {lo:.3g}-{hi:.3g} Hz ({self.band_name}), {where}"
 
