@@ -99,9 +99,12 @@ def diagnose_each(config: BeamConfig | str | Path, data: Sequence[str | Path], o
         try:
             docs = side_by_side(executor, _diagnose_one, [(cfg, str(p), str(staged / s), dict(options))
                                                           for p, s in zip(paths, stems)])
+            events = executor.events() if isinstance(executor, DaskExecutor) else ()
         finally:
             if executor is not None:
                 executor.shutdown(cancel_futures=True)
+    for event in events:
+        say(f"note: {event}")
     for p, doc in zip(paths, docs):
         say(f"{p.name}: {doc['verdict']}")
     return docs

@@ -248,7 +248,10 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         ran_with = DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, settings)
         report = replace(gap_report(problem, ranking, judgement, (f_lo, f_hi), mf, adequacy, advice, locs, rows,
                                     ran_with, polarity), stage_seconds=dict(clock.seconds), setups=setups,
-                         next_experiment=nxt, setups_apart=apart)
+                         next_experiment=nxt, setups_apart=apart,
+                         events=executor.events() if isinstance(executor, DaskExecutor) else ())
+        for event in report.events:
+            say(f"note: {event}")
         if out is None:
             return Diagnosis(problem, ranking, report, None)
         report = _write(out, problem, ranking, report, locs, plots=plots, export=export, targets=targets)

@@ -64,6 +64,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
                   + f" ({doc['samples']} sampled models in {bound.parent})")
             if doc.get("samples_note"):
                 print(f"  {doc['samples_note']}")
+    for event in res.events:
+        print(f"note: {event}")
     print(f"wrote {res.out_dir / 'pareto.json'}")
     return 0
 

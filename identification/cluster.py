@@ -24,6 +24,11 @@ configuration of the scheduler's and the workers' machines (see docs/benchmarks.
 
 Whoever starts a cluster closes it; :class:`~identification.runners.DaskRunner`
 does so for the cluster it starts from ``"local:K"``.
+
+A worker lost mid-run (killed, out of memory, its machine gone) costs time, not results: Dask runs its tasks
+again on the workers left (a local cluster's nanny restarts it), the evaluator scattered to every worker is
+fetched from another, and every evaluation is deterministic.  :class:`WorkerWatch` notices the loss, so that
+the run can say what happened.
 """
 from __future__ import annotations
 
@@ -33,7 +38,7 @@ from typing import Any, Mapping
 
 from ebb_model.errors import ConfigError
 
-__all__ = ["LOW_OVERHEAD", "connect", "disconnect", "local_cluster", "parse_local_address"]
+__all__ = ["LOW_OVERHEAD", "WorkerWatch", "connect", "disconnect", "local_cluster", "parse_local_address"]
 
 #: Dask settings of :func:`local_cluster` (read-only; see the module docstring for what each costs).
 LOW_OVERHEAD: Mapping[str, Any] = MappingProxyType({
@@ -125,3 +130,41 @@ def disconnect(client: Any, cluster: Any, own: bool) -> None:
     finally:
         if cluster is not None:
             cluster.close()
+
+
+def _worker_addresses(dask_scheduler: Any) -> list[str]:
+    """The addresses of the scheduler's workers now (run on the scheduler)."""
+    return list(dask_scheduler.workers)
+
+
+class WorkerWatch:
+    """The workers of a cluster a run has lost: every worker seen at a :meth:`check` and not there at a later one
+    (a restarted worker comes back under a new address).
+
+    Parameters
+    ----------
+    client
+        A connected ``distributed.Client``.
+    """
+
+    def __init__(self, client: Any):
+        self._client = client
+        self._seen: set[str] = self._now()
+        self.lost: list[str] = []
+
+    def _now(self) -> set[str]:
+        return set(self._client.run_on_scheduler(_worker_addresses))
+
+    def check(self) -> None:
+        """Compare the scheduler's workers with those seen so far (one round trip to the scheduler)."""
+        now = self._now()
+        self.lost += sorted(self._seen - now - set(self.lost))
+        self._seen |= now
+
+    def note(self) -> str | None:
+        """What happened, in one sentence; ``None`` when no worker was lost."""
+        if not self.lost:
+            return None
+        return (f"{len(self.lost)} Dask worker(s) lost during the run ({', '.join(self.lost)}): their tasks ran "
+                f"again on the other workers; every evaluation is deterministic, so the results are those of a run "
+                f"without the loss")

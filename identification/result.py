@@ -24,6 +24,8 @@ The schema of ``pareto.json`` is written and read here only:
     Each experiment's noise per sensor: level and colour (:mod:`identification.noise_model`).
 ``grid_advice``
     Which grid the records' band needs at the identified model (:func:`ebb_model.grid_advice.grid_advice`).
+``events``
+    What happened to the run's workers (a Dask worker lost mid-run and its tasks run again), one sentence each.
 ``data_start``
     What the records said before the search (:mod:`identification.data_start`): the start, the resonance
     peaks, the records' level, notes.
@@ -141,6 +143,8 @@ class IdentificationResult:
     grid_advice
         Which grid the records' band needs at the identified model (:func:`ebb_model.grid_advice.grid_advice`,
         the advice ``diagnose`` gives too), with its one-line ``summary``.
+    events
+        What happened to the run's workers worth telling (a Dask worker lost mid-run), one sentence each.
     """
 
     config: BeamConfig
@@ -163,6 +167,7 @@ class IdentificationResult:
     hints: tuple[str, ...] = ()
     cramer_rao_note: str | None = None
     grid_advice: Mapping[str, Any] | None = None
+    events: tuple[str, ...] = ()
 
     @property
     def knee(self) -> dict[str, float]:
@@ -263,6 +268,7 @@ class IdentificationResult:
             "noise_model": list(self.noise_model),
             "data_start": None if self.data_start is None else dict(self.data_start),
             "grid_advice": None if self.grid_advice is None else dict(self.grid_advice),
+            "events": list(self.events),
         }
 
     def _point(self, x: np.ndarray, f: np.ndarray, crb: np.ndarray, growth: float, stable: bool
@@ -335,7 +341,7 @@ class IdentificationResult:
                    data_start=doc.get("data_start"),
                    hints=tuple((doc.get("identified") or {}).get("hints") or ()),
                    cramer_rao_note=(doc.get("identified") or {}).get("cramer_rao_note"),
-                   grid_advice=doc.get("grid_advice"))
+                   grid_advice=doc.get("grid_advice"), events=tuple(doc.get("events") or ()))
 
 
 def _adequacy(doc: Mapping[str, Any] | None) -> NumericalAdequacy | None:

@@ -23,7 +23,7 @@ run leaves nothing behind.
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -227,6 +227,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                 polished_raw = _polish_front(pareto, search_evaluator, runner, int(polish), int(polish_evaluations),
                                              on_progress, polish_noise, Prior.of(cfg, space.names), modal_data(cfg),
                                              start)
+                events = runner.events()
         finally:
             if search_evaluator is not evaluator:
                 search_evaluator.close()
@@ -236,6 +237,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                 shutil.rmtree(tmp_fmu_dir, ignore_errors=True)
         res = _result(evaluator, pareto, polished_raw, fisher0, noise_std is not None, out,
                       Path(config).stem if not isinstance(config, BeamConfig) else "beam", start)
+        res = replace(res, events=events)
         _write_uncertainty(res, evaluator)
         _write_results(res, evaluator)
         if export:

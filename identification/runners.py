@@ -48,6 +48,11 @@ class Runner:
     def close(self) -> None:
         """Release workers."""
 
+    def events(self) -> tuple[str, ...]:
+        """What happened to the workers during the run worth telling its user (a lost worker), one sentence
+        each."""
+        return ()
+
     def __enter__(self) -> "Runner":
         return self
 
@@ -109,10 +114,15 @@ class DaskRunner(Runner):
     """
 
     def __init__(self, address: str | Any):
-        from .cluster import connect
+        from .cluster import WorkerWatch, connect, disconnect
 
         self.client, self._cluster, self._own = connect(address)
-        self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
+        try:
+            self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
+            self._watch = WorkerWatch(self.client)
+        except BaseException:
+            disconnect(self.client, self._cluster, self._own)
+            raise
         self._scattered: tuple[Any, Any] | None = None  # (evaluator, its future on the workers)
         self._to_close: list[Any] = []  # evaluators with per-worker resources
 
@@ -123,7 +133,14 @@ class DaskRunner(Runner):
                 self._to_close.append(evaluator)
         ev = self._scattered[1]
         futs = [self.client.submit(_evaluate_chunk, ev, c, pure=False) for c in _chunks(X, self.workers)]
-        return np.vstack(self.client.gather(futs))
+        F = np.vstack(self.client.gather(futs))
+        self._watch.check()
+        return F
+
+    def events(self) -> tuple[str, ...]:
+        """A lost worker, said (:class:`identification.cluster.WorkerWatch`)."""
+        note = self._watch.note()
+        return () if note is None else (note,)
 
     def close(self) -> None:
         self._scattered = None

@@ -187,6 +187,8 @@ class GapReport:
     next_experiment
         When candidates remain tied or the gap is unexplained, the record that would separate the leading
         candidates best (:mod:`diagnosis.design`).
+    events
+        What happened to the run's workers worth telling (a Dask worker lost mid-run), one sentence each.
     """
 
     judged: Verdict
@@ -210,6 +212,7 @@ class GapReport:
     setups: Setups | None = None
     next_experiment: NextExperiment | None = None
     setups_apart: SetupsApart | None = None
+    events: tuple[str, ...] = ()
 
     @property
     def verdict(self) -> str:
@@ -264,6 +267,8 @@ class GapReport:
             doc["baseline"]["priors"] = {c.name: c.to_dict() for c in self.priors}
         if self.corrected_files is not None:
             doc["corrected"] = {"directory": "corrected", "files": list(self.corrected_files)}
+        if self.events:
+            doc["events"] = list(self.events)
         if self.stage_seconds:
             doc["stage_seconds"] = {k: float(v) for k, v in self.stage_seconds.items()}
         return doc

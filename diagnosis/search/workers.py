@@ -46,10 +46,15 @@ class DaskExecutor(Executor):
     """
 
     def __init__(self, address: Any):
-        from identification.cluster import connect
+        from identification.cluster import WorkerWatch, connect, disconnect
 
         self.client, self._cluster, self._own = connect(address)
         self._nested = _on_dask_worker()
+        try:
+            self._watch = WorkerWatch(self.client)
+        except BaseException:
+            disconnect(self.client, self._cluster, self._own)
+            raise
 
     @property
     def workers(self) -> int:
@@ -70,8 +75,16 @@ class DaskExecutor(Executor):
         pool when this is a task)."""
         futures = list(futures)
         if not self._nested:
-            return [f.result() for f in futures]
-        return _outside_pool(lambda: self.client.gather([f.future for f in futures]))
+            out = [f.result() for f in futures]
+        else:
+            out = _outside_pool(lambda: self.client.gather([f.future for f in futures]))
+        self._watch.check()
+        return out
+
+    def events(self) -> tuple[str, ...]:
+        """A worker lost while this executor ran fits, said (:class:`identification.cluster.WorkerWatch`)."""
+        note = self._watch.note()
+        return () if note is None else (note,)
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         """Close the client and the local cluster this executor started (a given client is left open)."""
