@@ -24,7 +24,7 @@ from ebb_model.errors import ConfigError
 from ebb_model.output import check_new_output_dir, staged_dir
 from identification.run import load_identification_config, read_data
 
-from .search.workers import DaskExecutor, refit_pool, side_by_side, task_cluster
+from .search.workers import DaskExecutor, close_refit_pool, refit_pool, side_by_side, task_cluster
 
 __all__ = ["diagnose_each"]
 
@@ -100,9 +100,14 @@ def diagnose_each(config: BeamConfig | str | Path, data: Sequence[str | Path], o
             docs = side_by_side(executor, _diagnose_one, [(cfg, str(p), str(staged / s), dict(options))
                                                           for p, s in zip(paths, stems)])
             events = executor.events() if isinstance(executor, DaskExecutor) else ()
+        except BaseException:
+            if executor is not None:
+                close_refit_pool(executor, now=True)   # Ctrl-C or a failed record: the others are not waited for
+                executor = None
+            raise
         finally:
             if executor is not None:
-                executor.shutdown(cancel_futures=True)
+                close_refit_pool(executor, now=False)
     for event in events:
         say(f"note: {event}")
     for p, doc in zip(paths, docs):

@@ -59,7 +59,7 @@ from .search.apart import SetupsApart, apart_parts, disagreement
 from .search.modal_pattern import modal_source
 from .search.rank import Ranking, rank_effects
 from .search.sign import sign_with_refits
-from .search.workers import DaskExecutor, refit_pool
+from .search.workers import DaskExecutor, close_refit_pool, refit_pool
 from .settings import thresholds_from_config
 from .setups import RIG_PARTS, Setups, setups_from_config
 from .stages import StageClock
@@ -256,9 +256,14 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
             return Diagnosis(problem, ranking, report, None)
         report = _write(out, problem, ranking, report, locs, plots=plots, export=export, targets=targets)
         return Diagnosis(problem, ranking, report, out)
+    except BaseException:
+        if executor is not None:
+            close_refit_pool(executor, now=True)     # Ctrl-C or a failure: the fits in flight are not waited for
+            executor = None
+        raise
     finally:
         if executor is not None:
-            executor.shutdown(cancel_futures=True)
+            close_refit_pool(executor, now=False)
 
 
 @dataclass(frozen=True, eq=False)

@@ -7,6 +7,9 @@ run), would then run again in every worker: a worker that starts its own pool, `
 parent.  The work sent to these pools is the project's own (evaluators, fits), never the script's, so the pool
 starts its workers without the main module's path (:func:`process_pool`): the children import the project's
 modules only, and the script runs once.
+
+An interrupted run must not wait for the work in flight (a diagnosis' refit can take a minute): :func:`stop_now`
+cancels what is queued and terminates the workers.
 """
 from __future__ import annotations
 
@@ -16,7 +19,7 @@ from concurrent.futures import Future, ProcessPoolExecutor
 from contextlib import contextmanager
 from typing import Any, Callable, Iterator
 
-__all__ = ["process_pool"]
+__all__ = ["process_pool", "stop_now"]
 
 
 @contextmanager
@@ -48,3 +51,18 @@ def process_pool(workers: int, initializer: Callable[[], Any] | None = None) -> 
     """A pool of ``workers`` spawned processes, each started with ``initializer`` (module docstring)."""
     return _ScriptSafePool(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                            initializer=initializer)
+
+
+def stop_now(pool: ProcessPoolExecutor, grace: float = 5.0) -> None:
+    """Shut ``pool`` down without waiting for its running tasks: queued ones are cancelled, the worker processes
+    terminated (SIGTERM) and reaped, each given ``grace`` seconds before it is killed."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        if p.is_alive():
+            p.terminate()
+    for p in processes:
+        p.join(timeout=grace)
+        if p.is_alive():
+            p.kill()
+            p.join()

@@ -18,7 +18,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from ebb_model.processes import process_pool
+from ebb_model.processes import process_pool, stop_now
 from ebb_model.threads import single_blas_thread
 
 __all__ = ["Runner", "SerialRunner", "ProcessRunner", "DaskRunner", "make_runner"]
@@ -99,6 +99,12 @@ class ProcessRunner(Runner):
 
     def close(self) -> None:
         self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def __exit__(self, exc_type: Any, *exc: Any) -> None:
+        if exc_type is None:
+            self.close()
+        else:       # Ctrl-C or a failure: the chunks in flight are not waited for
+            stop_now(self._pool)
 
 
 class DaskRunner(Runner):

@@ -12,13 +12,13 @@ the last one finishes.
 from __future__ import annotations
 
 import signal
-from concurrent.futures import Executor
+from concurrent.futures import Executor, ProcessPoolExecutor
 from typing import Any, Callable, Iterable, Sequence
 
-from ebb_model.processes import process_pool
+from ebb_model.processes import process_pool, stop_now
 from ebb_model.threads import single_blas_thread
 
-__all__ = ["DaskExecutor", "refit_pool", "side_by_side", "task_cluster"]
+__all__ = ["DaskExecutor", "close_refit_pool", "refit_pool", "side_by_side", "task_cluster"]
 
 
 def _refit_worker() -> None:
@@ -148,6 +148,16 @@ def refit_pool(workers: int, dask: Any = None) -> Executor | None:
     if workers <= 1:
         return None
     return process_pool(workers, _refit_worker)
+
+
+def close_refit_pool(executor: Executor, *, now: bool) -> None:
+    """Close the refits' executor: after the fits in flight, or — ``now``: an interrupted or failed run —
+    without waiting for them (queued fits cancelled, local worker processes terminated, so that Ctrl-C ends every
+    worker within seconds, not after the longest fit; a Dask cluster cancels the tasks of a closed client)."""
+    if now and isinstance(executor, ProcessPoolExecutor):
+        stop_now(executor)
+    else:
+        executor.shutdown(cancel_futures=True)
 
 
 def side_by_side(executor: Executor | None, task: Callable[..., Any], args: Sequence[tuple]) -> list[Any]:
