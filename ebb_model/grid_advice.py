@@ -32,7 +32,7 @@ from .exact_modal import lowest_modes, companion_config, richardson_modes
 from .modal import discrete_frequencies
 from .parameter_values import resolve_parameters
 
-__all__ = ["GridAdvice", "grid_advice", "BANDWIDTH_FRACTION", "ZETA_FLOOR"]
+__all__ = ["GridAdvice", "grid_advice", "mode_errors", "BANDWIDTH_FRACTION", "ZETA_FLOOR"]
 
 #: A mode is resolved by the grid when its frequency error is below this fraction of its half-power bandwidth.
 BANDWIDTH_FRACTION = 0.05
@@ -123,6 +123,20 @@ def _errors(config: BeamConfig, p: Mapping[str, float], w_ref: np.ndarray, width
         return e_space, np.zeros(k)
     tau = config.time.dt / config.time.substeps
     return e_space, np.abs(_theta_time_factor(w, tau, config.time.theta) - 1.0) / width
+
+
+def mode_errors(config: BeamConfig, params: Mapping[str, float] | None, k: int
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The first ``k`` modes' frequencies [Hz], damping ratios, estimated relative frequency errors against a
+    converged grid (the reference of the module docstring, space and time) and those errors in half-power
+    bandwidths — the yardstick :func:`grid_advice` judges a grid by."""
+    p = resolve_parameters(config, params)
+    f, zeta = discrete_frequencies(config, p)
+    k = min(max(k, 1), f.size)
+    width = 2.0 * np.maximum(np.nan_to_num(zeta[:k], nan=0.0), ZETA_FLOOR)
+    e_space, e_time = _errors(config, p, _reference_omega(config, p, k), width)
+    err = e_space + e_time
+    return f[:k], zeta[:k], err * width, err
 
 
 def grid_advice(config: BeamConfig, params: Mapping[str, float] | None = None, *, n_modes: int = 10,

@@ -16,13 +16,14 @@ corrected model choose them by name.
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from types import MappingProxyType
 from typing import Sequence
 
-from ebb_model import assemble
+from ebb_model import BeamConfig, assemble
 from ebb_model.errors import ConfigError, StabilityError
-from ebb_model.truncation import design_model
+from ebb_model.truncation import design_model, mode_resolution
 from ebb_model.output import check_writable_dir, make_dir
 
 from .export_targets import DEFAULT_TARGETS, ExportItem, check_targets, export_target
@@ -82,8 +83,9 @@ def export_points(result: IdentificationResult, points: Sequence[int] | str | No
     reduce_order
         The ``statespace`` target also writes a balanced truncation of this order.
     modes_up_to
-        The ``statespace`` target keeps the modes up to this frequency [Hz], the others as a static correction
-        (:func:`ebb_model.truncation.design_model`); default the Nyquist frequency, ``math.inf`` every mode.
+        The ``statespace`` target keeps the modes up to this frequency [Hz] that the grid resolves, the others
+        as a static correction (:func:`ebb_model.truncation.design_model`; which modes, with each one's error
+        estimate, in the file's metadata, ``modes``); default the Nyquist frequency, ``math.inf`` every mode.
         The FMUs always carry the whole beam.
 
     Returns
@@ -108,7 +110,10 @@ def export_points(result: IdentificationResult, points: Sequence[int] | str | No
     models = []
     for stem, c, params in result.models(*chosen(result, points, polished)):
         try:
-            models.append((stem, c, params, design_model(c, params, f_max=modes_up_to), assemble(c, params)))
+            beam = assemble(c, params)
+            resolution = mode_resolution(c, params, f_max=modes_up_to) if _resolvable(c, modes_up_to) else None
+            models.append((stem, c, params, design_model(c, params, f_max=modes_up_to, resolution=resolution),
+                           beam, resolution))
         except StabilityError:
             continue  # unstable points are listed in pareto.json but not exported
     if reduce_order is not None and models:
@@ -119,8 +124,14 @@ def export_points(result: IdentificationResult, points: Sequence[int] | str | No
     out = make_dir(d / "export", exist_ok=True)
     written: list[Path] = []
     options = MappingProxyType({"reduce_order": reduce_order} if reduce_order else {})
-    for stem, c, params, sys, beam in models:
-        item = ExportItem(stem, f"{result.config_name}_{stem}", c, params, sys, options, beam_system=beam)
+    for stem, c, params, sys, beam, resolution in models:
+        item = ExportItem(stem, f"{result.config_name}_{stem}", c, params, sys, options, beam_system=beam,
+                          modes=None if resolution is None else resolution.to_dict())
         for write in writers:
             written += write(item, out)
     return written
+
+
+def _resolvable(config: BeamConfig, f_max: float | None) -> bool:
+    """Whether the design model chooses its modes by resolution (the exact scheme, a finite cut)."""
+    return config.time.scheme == "exact" and not (f_max is not None and math.isinf(f_max))

@@ -31,10 +31,11 @@ __all__ = ["save_statespace", "load_statespace", "load_metadata", "rest_state", 
 
 
 def save_statespace(sys: DiscreteStateSpace, path: str | Path, *, name: str = "",
-                    parameters: Mapping[str, float] | None = None, config: Mapping[str, Any] | None = None
-                    ) -> Path:
-    """Write ``sys`` to ``path`` (``.npz``), atomically, with its name, parameter values (and units), config and
-    the hold matrix of a first-order-hold realisation (:func:`rest_state`)."""
+                    parameters: Mapping[str, float] | None = None, config: Mapping[str, Any] | None = None,
+                    modes: Mapping[str, Any] | None = None) -> Path:
+    """Write ``sys`` to ``path`` (``.npz``), atomically, with its name, parameter values (and units), config,
+    the hold matrix of a first-order-hold realisation (:func:`rest_state`) and — ``modes`` — which modes it keeps
+    with each one's frequency error estimate (:meth:`ebb_model.truncation.ModeResolution.to_dict`)."""
     path = Path(path)
     meta = {"name": name or path.stem,
             "parameters": {k: float(v) for k, v in (parameters or {}).items()},
@@ -43,6 +44,8 @@ def save_statespace(sys: DiscreteStateSpace, path: str | Path, *, name: str = ""
             "signal_units": {**{u: "N" for u in sys.input_names},
                              **({s.name: s.unit for s in _sensors(config)} if config else {})},
             "config": jsonable(dict(config)) if config else None}
+    if modes is not None:
+        meta["modes"] = jsonable(dict(modes))
     with atomic_path(path, suffix=".npz") as tmp:
         np.savez(tmp, A=sys.A, B=sys.B, C=sys.C, D=sys.D, dt=np.array(sys.dt),
                  inputs=np.array(sys.input_names), outputs=np.array(sys.output_names),

@@ -45,7 +45,7 @@ from ebb_model.modal import frequency_response
 from ebb_model.output import atomic_path, make_dir
 from ebb_model.modal_form import ModalStateSpace
 from ebb_model.statespace import DiscreteStateSpace
-from ebb_model.truncation import design_modal_model
+from ebb_model.truncation import ModeResolution, design_modal_model, mode_resolution
 
 from .fisher import fisher_information
 from .native import NativeEvaluator
@@ -160,14 +160,16 @@ def _draw(point: np.ndarray, cov: np.ndarray, lower: np.ndarray, upper: np.ndarr
     return np.array(out[:k]).reshape(-1, point.size)
 
 
-def _responses(evaluator: NativeEvaluator, xs: Sequence[np.ndarray], f_hz: np.ndarray
+def _responses(evaluator: NativeEvaluator, xs: Sequence[np.ndarray], f_hz: np.ndarray,
+               resolution: ModeResolution | None
                ) -> tuple[list[np.ndarray], list[np.ndarray], list[ModalStateSpace | DiscreteStateSpace]]:
     """The design models' responses at ``f_hz`` of the parameter sets ``xs`` that are stable, those sets and
-    their design models (:func:`ebb_model.truncation.design_modal_model`)."""
+    their design models (:func:`ebb_model.truncation.design_modal_model`, keeping the modes ``resolution``
+    keeps: the identified model's)."""
     H, kept, models = [], [], []
     for x in xs:
         try:
-            model = design_modal_model(*evaluator.space.apply(evaluator.config, x))
+            model = design_modal_model(*evaluator.space.apply(evaluator.config, x), resolution=resolution)
         except StabilityError:
             continue
         H.append(frequency_response(model, f_hz).H)
@@ -240,8 +242,10 @@ def uncertainty_model(evaluator: NativeEvaluator, x: np.ndarray, noise: NoiseMod
                                     dt, nperseg)
     lo, hi = excited_band([e.inputs for e in exps], dt)
     measured = (f >= lo) & (f <= hi) & (f > 0)
-    (G0,), _, _ = _responses(evaluator, [x], f)
-    H, kept, models = _responses(evaluator, list(draws), f)
+    # the export's design model: the modes the grid resolves at the identified point, kept in every draw too
+    resolution = mode_resolution(*space.apply(cfg, x)) if cfg.time.scheme == "exact" else None
+    (G0,), _, _ = _responses(evaluator, [x], f, resolution)
+    H, kept, models = _responses(evaluator, list(draws), f, resolution)
     parametric = np.max(np.abs(np.array(H) - G0[None]), axis=0) if H else np.zeros(G0.shape)
     residual = np.where(measured[:, None, None], np.abs(E) + 2.0 * sigma, np.nan)
     return UncertaintyModel(tuple(space.names), x, cov, np.array(kept).reshape(-1, x.size), f, measured, G0,

@@ -8,7 +8,8 @@ import pytest
 
 import ebb_model as em
 from ebb_cli import main
-from identification.export_statespace import load_statespace
+from ebb_model.truncation import design_model
+from identification.export_statespace import load_metadata, load_statespace
 
 from conftest import IDENTIFY_CFG as CFG
 from conftest import run_identify_signalled
@@ -218,8 +219,14 @@ def test_identify_polish_writes_polished_points_and_exports_them(case, capsys):
     assert main(["export", str(out), "--polished", "0"]) == 0
     sys_p = load_statespace(out / "export" / "polished_0.npz")
     c = em.config_from_dict(doc["config"], extra_sections=("identification",))
-    ref = em.assemble(c, {**c.parameter_values(), **pol[0]["parameters"]})
+    # (the design model: the modes up to the Nyquist frequency the grid resolves, the rest a static correction)
+    ref = design_model(c, {**c.parameter_values(), **pol[0]["parameters"]})
     np.testing.assert_allclose(sys_p.A, ref.A, rtol=1e-12, atol=0)
+    modes = load_metadata(out / "export" / "polished_0.npz")["modes"]
+    kept = [m for m in modes["modes"] if m["kept"]]
+    assert tuple(sys_p.state_labels[:2 * len(kept)]) == tuple(f"mode{i}_{p}" for i in range(1, len(kept) + 1)
+                                                        for p in ("re", "im"))
+    assert all(m["error_bandwidths"] <= modes["error_limit_bandwidths"] for m in kept)
     assert (out / "export" / "polished_0.fmu").is_file()
     assert not (out / "export" / "point_0.npz").exists()  # only the selection
     assert main(["export", str(out), "--polished", "5"]) == 2  # out of range: clear error

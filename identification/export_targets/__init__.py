@@ -92,6 +92,9 @@ class ExportItem:
     parts
         The signal-level parts ``system`` has in series and ``beam`` has not, in words ("" for none: a corrected
         model's lags and gains, :mod:`diagnosis.corrected.export`).
+    modes
+        Which modes ``system`` keeps, each with its frequency error estimate against a converged grid
+        (:meth:`ebb_model.truncation.ModeResolution.to_dict`); ``None`` when it did not choose them so.
     """
 
     stem: str
@@ -102,6 +105,7 @@ class ExportItem:
     options: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     beam_system: DiscreteStateSpace | None = None
     parts: str = ""
+    modes: Mapping[str, Any] | None = None
 
     @property
     def beam(self) -> DiscreteStateSpace:

@@ -25,7 +25,7 @@ def write(item: ExportItem, out_dir: Path) -> list[Path]:
     """Write ``<stem>.npz`` (and the reduced model on request) into ``out_dir``; return the files."""
     config = item.config.to_dict()
     written = [save_statespace(item.system, out_dir / f"{item.stem}.npz", name=item.title,
-                               parameters=item.params, config=config)]
+                               parameters=item.params, config=config, modes=item.modes)]
     order = item.options.get("reduce_order")
     if not order:
         return written
