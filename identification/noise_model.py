@@ -35,10 +35,12 @@ Bendat & Piersol, *Random Data*, 4th ed., §7.3, with its bias ``m/K`` removed).
 error is a response to the inputs and is coherent with them, so it does not enter the noise model; the noise
 does.  Its shape is fitted on the *quiet* bins only — outside the record's own excited band (from its input
 spectrum), where the record carries noise and no response: ``log S = c₀ + c₁ log f + c₂ (log f)²`` (degree 0:
-white; 1: a power law such as 1/f) or a white floor plus one second-order resonance (a transducer's mounted
+white; 1: a power law such as 1/f), either alone or ending in an acquisition's anti-alias edge
+``− log(1 + (f/f_c)^{2n})`` (a Butterworth-like roll-off of order ``n`` from its corner ``f_c``: every real
+record's noise has passed one), or a white floor plus one second-order resonance (a transducer's mounted
 resonance), chosen by BIC, carried across the excited band, and realised as the AR whitening polynomial of that
 shape (Yule–Walker, the smallest order within 5 % of it).  A model error lies in the excited band, where nothing
-is fitted, so it is not absorbed.  Quiet bins that follow none of these shapes (a filter's edge, a shelf) claim
+is fitted, so it is not absorbed.  Quiet bins that follow none of these shapes (a shelf) claim
 no colour: the noise is then white at the Welch floor above the
 band (:func:`identification.noise.noise_std`).  A record without a quiet range (an impact) takes another record's
 shape, levelled on its own spectrum.  The level's uncertainty is its relative standard error over the bins used.
@@ -73,6 +75,15 @@ _TOP = 0.8
 _SHAPE_TOLERANCE = 0.2
 #: Fewest quiet bins (every other one is used) for a spectrum's shape.
 _MIN_QUIET = 8
+#: Orders of the anti-alias edge a quiet spectrum may end in (``20 n`` dB per decade beyond the corner; a gentler
+#: edge would bend the whole quiet range and trade off against the slope carried across the band).
+_EDGE_ORDERS = (4, 6, 8)
+#: Corners tried for an edge: log-spaced over this range, in units of the Nyquist frequency (an acquisition's
+#: anti-alias corner lies near the top of its band — 0.39 of the sampling rate with the usual 2.56 ratio, 0.45 for
+#: a sigma-delta converter's —; a corner lower down would trade off against the shape's slope, which is carried
+#: across the excited band, so none is tried there).
+_EDGE_RANGE = (0.5, 2.0)
+_EDGE_CORNERS = 32
 
 
 @dataclass(frozen=True, eq=False)
@@ -252,35 +263,110 @@ def _fit_resonance(f: np.ndarray, logS: np.ndarray, var_log: float) -> tuple[np.
     return p, w > 0
 
 
-def _shapes(f: np.ndarray, logS: np.ndarray, var_log: float, max_degree: int):
+def _log_edge(f: np.ndarray, corner: float, order: int) -> np.ndarray:
+    """``− log(1 + (f/f_c)^{2n})``: the log power gain of an order-``n`` Butterworth low-pass (an anti-alias
+    filter's edge)."""
+    return -np.log1p((np.asarray(f, dtype=float) / corner) ** (2 * order))
+
+
+def _robust_polynomial(x: np.ndarray, logS: np.ndarray, d: int, var_log: float) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficients of the degree-``d`` polynomial in ``x`` fitted to ``logS`` with the bins that carry more than
+    noise (≥ 4σ above the fit) dropped, and the bins used."""
+    w = np.ones(x.size)
+    for _ in range(3):
+        c = _log_polynomial(x, logS, d, w)
+        dev = logS - np.polyval(c, x)
+        w = (dev <= 4.0 * math.sqrt(var_log) + np.median(dev)).astype(float)
+    return c, w > 0
+
+
+def _common_edge(f: np.ndarray, S: np.ndarray, nu: float, quiet: np.ndarray) -> tuple[float, int] | None:
+    """The anti-alias edge ``(corner, order)`` the quiet bins of a record's sensors end in, or ``None``.
+
+    One acquisition filters every channel alike, so the edge is fitted to all sensors at once: for each corner
+    (:data:`_EDGE_RANGE`) and order (:data:`_EDGE_ORDERS`) the sum over the sensors of the best log-polynomial
+    fit (degree 0 or 1) of ``log S − edge``; the edge is taken when it lowers that sum by more than BIC's price
+    of its two parameters.  Fitted per sensor the edge would trade off against each one's slope (a white floor
+    ending early mimics 1/f ending late); together the steep channels fix the corner for the flat ones."""
+    from scipy.special import polygamma
+
+    nyquist = float(f[-1])
+    keep = quiet & (f > 0) & (f <= _TOP * nyquist) & np.all(S > 0, axis=1)
+    idx = np.flatnonzero(keep)[::2]
+    if idx.size < _MIN_QUIET + 4:
+        return None
+    fq, logS = f[idx], np.log(S[idx])
+    var_log = float(polygamma(1, nu / 2.0))
+    x = np.log(fq)
+
+    def cost(edge: np.ndarray, resonance: bool = False) -> float:
+        total = 0.0
+        for s in range(logS.shape[1]):
+            best = np.inf
+            for d in (0, 1):
+                c, used = _robust_polynomial(x, logS[:, s] - edge, d, var_log)
+                rss = float(np.sum((logS[:, s] - edge - np.polyval(c, x))[used] ** 2)) / var_log
+                best = min(best, rss + 16.0 * int((~used).sum()) + (d + 1) * math.log(idx.size))
+            fit = _fit_resonance(fq, logS[:, s], var_log) if resonance else None
+            if fit is not None:
+                p, used = fit
+                rss = float(np.sum((logS[:, s] - _log_resonance(p, fq))[used] ** 2)) / var_log
+                best = min(best, rss + 16.0 * int((~used).sum()) + 4 * math.log(idx.size))
+            total += best
+        return total
+
+    # without an edge every shape may serve (a resonance rolls off too); with one, the polynomials: an edge is
+    # taken only where it explains what nothing else does
+    plain = cost(np.zeros(idx.size), resonance=True)
+    found = min(((cost(_log_edge(fq, corner, n)), float(corner), n)
+                 for n in _EDGE_ORDERS
+                 for corner in np.geomspace(_EDGE_RANGE[0] * nyquist, _EDGE_RANGE[1] * nyquist, _EDGE_CORNERS)),
+                key=lambda t: t[0])
+    if found[0] + 2.0 * math.log(idx.size * logS.shape[1]) < plain:
+        return found[1], found[2]
+    return None
+
+
+def _shapes(f: np.ndarray, logS: np.ndarray, var_log: float, max_degree: int,
+            edge: tuple[float, int] | None = None):
     """The candidate shapes of the quiet bins' log spectrum: ``(label, log-shape function of f, n_params, used)``
-    — polynomials in ``log f`` of degree ``0 … max_degree`` and a white floor plus one resonance."""
+    — polynomials in ``log f`` of degree ``0 … max_degree`` (ending in the record's anti-alias ``edge`` when it
+    has one, :func:`_common_edge`) and a white floor plus one resonance."""
     x = np.log(f)
+    e = np.zeros(f.size) if edge is None else _log_edge(f, *edge)
+    tail = "" if edge is None else f", ending in an order-{edge[1]} edge at {edge[0]:.4g} Hz"
     for d in range(0, max_degree + 1):
         if f.size < d + 4:
             break
-        w = np.ones(f.size)
-        for _ in range(3):                      # drop bins that carry more than noise (≥ 4σ above the fit)
-            c = _log_polynomial(x, logS, d, w)
-            dev = logS - np.polyval(c, x)
-            w = (dev <= 4.0 * math.sqrt(var_log) + np.median(dev)).astype(float)
-        yield ("white" if d == 0 else f"log-polynomial {d}",
-               (lambda g, c=c: np.polyval(c, np.log(g))), d + 1, w > 0)
+        c, used = _robust_polynomial(x, logS - e, d, var_log)
+        if edge is None:
+            yield ("white" if d == 0 else f"log-polynomial {d}",
+                   (lambda g, c=c: np.polyval(c, np.log(g))), d + 1, used)
+        else:
+            yield (f"log-polynomial {d}{tail}",
+                   (lambda g, c=c, fc=edge[0], n=edge[1]: np.polyval(c, np.log(g)) + _log_edge(g, fc, n)),
+                   d + 1, used)
     if f.size >= 8:
-        fit = _fit_resonance(f, logS, var_log)
+        fit = _fit_resonance(f, logS - e, var_log)
         if fit is not None:
             p, used = fit
-            yield "resonance", (lambda g, p=p: _log_resonance(p, g)), 4, used
+            if edge is None:
+                yield "resonance", (lambda g, p=p: _log_resonance(p, g)), 4, used
+            else:
+                yield (f"resonance{tail}",
+                       (lambda g, p=p, fc=edge[0], n=edge[1]: _log_resonance(p, g) + _log_edge(g, fc, n)), 4, used)
 
 
 def fit_spectrum(f: np.ndarray, S: np.ndarray, nu: float, dt: float, quiet: np.ndarray, *,
-                 max_degree: int = 2, max_order: int = MAX_ORDER) -> NoiseSpectrum:
+                 max_degree: int = 2, max_order: int = MAX_ORDER, edge: tuple[float, int] | None = None
+                 ) -> NoiseSpectrum:
     """The noise spectrum that fits the PSD estimate ``S`` on the ``quiet`` bins (where the record carries no
     signal), carried smoothly across the band the inputs excite.
 
     The shape is either ``log S = c₀ + c₁ log f + … + c_d (log f)^d`` (``d = 0``: white; ``d = 1``: a power law
     such as 1/f; ``d ≤ max_degree``) or a white floor plus one second-order resonance (a transducer's mounted
-    resonance; :func:`_log_resonance`), chosen by BIC of the log-periodogram regression (the log of a Welch bin
+    resonance; :func:`_log_resonance`), each ending in the record's anti-alias ``edge`` ``(corner, order)`` when
+    it has one (:func:`_common_edge`), chosen by BIC of the log-periodogram regression (the log of a Welch bin
     with ``ν`` degrees of freedom has variance ``ψ′(ν/2)``; every other bin, Hann bins being correlated in
     pairs); bins far above the fit (a response's tail, a harmonic) are dropped and the fit repeated.  The
     whitening polynomial is the Yule–Walker AR fit of that shape (the smallest order up to ``max_order`` within
@@ -302,7 +388,7 @@ def fit_spectrum(f: np.ndarray, S: np.ndarray, nu: float, dt: float, quiet: np.n
     fq, logS = f[idx], np.log(S[idx])
     var_log = float(polygamma(1, nu / 2.0))
     best: tuple[float, str, object, int, np.ndarray] | None = None
-    for label, logshape, k, used in _shapes(fq, logS, var_log, max_degree):
+    for label, logshape, k, used in _shapes(fq, logS, var_log, max_degree, edge):
         rss = float(np.sum((logS - logshape(fq))[used] ** 2)) / var_log
         bic = rss + k * math.log(max(int(used.sum()), 2))
         if best is None or bic < best[0]:
@@ -314,8 +400,8 @@ def fit_spectrum(f: np.ndarray, S: np.ndarray, nu: float, dt: float, quiet: np.n
     dof = max(int(used.sum()) - k, 1)
     excess = math.sqrt(max(float(np.mean(dev2)) - var_log, 0.0))      # misfit beyond the sampling scatter
     if (stats.chi2.sf(lack, dof) < 1e-3 and excess > _SHAPE_TOLERANCE) or used.sum() < 0.8 * used.size:
-        # the quiet bins do not follow one of the shapes (a filter's edge, a shelf): a shape the model cannot
-        # carry across the band — no colour is claimed
+        # the quiet bins do not follow one of the shapes (a shelf, an edge the record's other sensors do not
+        # share): a shape the model cannot carry across the band — no colour is claimed
         raise ShapeError("the noise spectrum outside the excited band is not one of the modelled shapes")
     # E[log of a chi-square with ν dof over ν] = ψ(ν/2) − log(ν/2): the log-periodogram's bias
     bias = float(digamma(nu / 2.0) - math.log(nu / 2.0))
@@ -377,7 +463,8 @@ def estimate_noise_model(inputs: Sequence[np.ndarray], residuals: Sequence[np.nd
         if np.count_nonzero(quiet[1:] & (f[1:] <= _TOP * f[-1])) < 2 * _MIN_QUIET:
             fitted.append(None)       # no quiet range: the shape comes from another record (below)
             continue
-        fitted.append(tuple(_spectrum_or_floor(f, S[:, s], nu, dt, quiet, max_order, r[:, s], u)
+        edge = _common_edge(f, S, nu, quiet)
+        fitted.append(tuple(_spectrum_or_floor(f, S[:, s], nu, dt, quiet, max_order, r[:, s], u, edge)
                             for s in range(S.shape[1])))
     donor = next((row for row in fitted if row is not None), None)
     out = [row if row is not None else _borrowed(donor, as_matrix(r, "r"), dt)
@@ -386,7 +473,7 @@ def estimate_noise_model(inputs: Sequence[np.ndarray], residuals: Sequence[np.nd
 
 
 def _spectrum_or_floor(f: np.ndarray, S: np.ndarray, nu: float, dt: float, quiet: np.ndarray, max_order: int,
-                       r: np.ndarray, u: np.ndarray) -> NoiseSpectrum:
+                       r: np.ndarray, u: np.ndarray, edge: tuple[float, int] | None) -> NoiseSpectrum:
     """:func:`fit_spectrum`, or — when the quiet bins follow no smooth shape it can carry across the band — white
     noise at the Welch floor above the excited band (:func:`identification.noise.noise_std`: the estimate used
     before there was a noise model)."""
@@ -395,7 +482,7 @@ def _spectrum_or_floor(f: np.ndarray, S: np.ndarray, nu: float, dt: float, quiet
     from .noise import noise_std
 
     try:
-        return fit_spectrum(f, S, nu, dt, quiet, max_order=max_order)
+        return fit_spectrum(f, S, nu, dt, quiet, max_order=max_order, edge=edge)
     except ShapeError:
         v = float(noise_std(r[:, None], dt, band=(0.0, excited_band([u], dt)[1]))[0])
         return NoiseSpectrum(v, np.array([1.0]), v * v, math.sqrt(2.0 / nu))
