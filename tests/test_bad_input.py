@@ -266,8 +266,14 @@ def test_export_polished_of_a_run_without_polish_refuses(case, capsys):
 
 def test_export_reduce_order_out_of_range(finished_run, capsys):
     tmp, out = finished_run
-    n = em.assemble(em.load_config(tmp / "cfg.toml")).nstates     # 2 × 16 modes + 2 delays of the cubic input
-    assert n == 34
+    # the exported StateSpace's states: the modes the 16-node grid resolves (of its 16) and the cubic input's two
+    # past samples (ebb_model.truncation.design_model)
+    from ebb_model.truncation import design_model
+    from identification.result import IdentificationResult
+
+    (_, c, params), = IdentificationResult.read(out).models([0])
+    n = design_model(c, params).nstates
+    assert 4 <= n < em.assemble(c, params).nstates == 34
     for order in ("0", "10000"):
         assert main(["export", str(out), "--points", "0", "--target", "statespace", "--reduce-order", order]) == 2
         assert f"--reduce-order: must lie in 1 … {n} (the model's states)" in one_line_error(capsys, "export")
