@@ -34,8 +34,8 @@ from .grid_advice import BANDWIDTH_FRACTION
 from .modal_form import ModalStateSpace
 from .statespace import DiscreteStateSpace
 
-__all__ = ["ModeResolution", "in_band", "design_model", "design_modal_model", "mode_resolution",
-           "static_correction_bound"]
+__all__ = ["ModeResolution", "in_band", "design_model", "design_modal_model", "design_resolution",
+           "mode_resolution", "static_correction_bound"]
 
 
 @dataclass(frozen=True)
@@ -79,6 +79,15 @@ class ModeResolution:
                 f"{100 * e.min():.2g}–{100 * e.max():.2g} %) are not resolved by the {self.nodes}-node grid within "
                 f"{self.error_limit:g} of a half-power bandwidth and are in the static correction (the grid that "
                 f"keeps them: `ebb modes CONFIG --band {self.cut_hz:.4g}`)")
+
+
+def design_resolution(config: BeamConfig, params: Mapping[str, float] | None = None, *,
+                      f_max: float | None = None) -> ModeResolution | None:
+    """:func:`mode_resolution` for a design model that chooses its modes by it (the exact scheme, a finite cut);
+    ``None`` otherwise (the θ-scheme's model and ``f_max = math.inf`` keep every mode)."""
+    if config.time.scheme != "exact" or (f_max is not None and math.isinf(f_max)):
+        return None
+    return mode_resolution(config, params, f_max=f_max)
 
 
 def mode_resolution(config: BeamConfig, params: Mapping[str, float] | None = None, *, f_max: float | None = None,

@@ -161,10 +161,10 @@ class WorkerWatch:
         self.lost += sorted(self._seen - now - set(self.lost))
         self._seen |= now
 
-    def note(self) -> str | None:
-        """What happened, in one sentence; ``None`` when no worker was lost."""
+    def events(self) -> tuple[str, ...]:
+        """What happened, one sentence (none when no worker was lost)."""
         if not self.lost:
-            return None
+            return ()
         return (f"{len(self.lost)} Dask worker(s) lost during the run ({', '.join(self.lost)}): their tasks ran "
                 f"again on the other workers; every evaluation is deterministic, so the results are those of a run "
-                f"without the loss")
+                f"without the loss",)

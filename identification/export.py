@@ -16,14 +16,13 @@ corrected model choose them by name.
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from types import MappingProxyType
 from typing import Sequence
 
-from ebb_model import BeamConfig, assemble
+from ebb_model import assemble
 from ebb_model.errors import ConfigError, StabilityError
-from ebb_model.truncation import design_model, mode_resolution
+from ebb_model.truncation import design_model, design_resolution
 from ebb_model.output import check_writable_dir, make_dir
 
 from .export_targets import DEFAULT_TARGETS, ExportItem, check_targets, export_target
@@ -111,7 +110,7 @@ def export_points(result: IdentificationResult, points: Sequence[int] | str | No
     for stem, c, params in result.models(*chosen(result, points, polished)):
         try:
             beam = assemble(c, params)
-            resolution = mode_resolution(c, params, f_max=modes_up_to) if _resolvable(c, modes_up_to) else None
+            resolution = design_resolution(c, params, f_max=modes_up_to)
             models.append((stem, c, params, design_model(c, params, f_max=modes_up_to, resolution=resolution),
                            beam, resolution))
         except StabilityError:
@@ -130,8 +129,3 @@ def export_points(result: IdentificationResult, points: Sequence[int] | str | No
         for write in writers:
             written += write(item, out)
     return written
-
-
-def _resolvable(config: BeamConfig, f_max: float | None) -> bool:
-    """Whether the design model chooses its modes by resolution (the exact scheme, a finite cut)."""
-    return config.time.scheme == "exact" and not (f_max is not None and math.isinf(f_max))

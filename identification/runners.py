@@ -145,8 +145,7 @@ class DaskRunner(Runner):
 
     def events(self) -> tuple[str, ...]:
         """A lost worker, said (:class:`identification.cluster.WorkerWatch`)."""
-        note = self._watch.note()
-        return () if note is None else (note,)
+        return self._watch.events()
 
     def close(self) -> None:
         self._scattered = None

@@ -45,7 +45,7 @@ from ebb_model.modal import frequency_response
 from ebb_model.output import atomic_path, make_dir
 from ebb_model.modal_form import ModalStateSpace
 from ebb_model.statespace import DiscreteStateSpace
-from ebb_model.truncation import ModeResolution, design_modal_model, mode_resolution
+from ebb_model.truncation import ModeResolution, design_modal_model, design_resolution
 
 from .fisher import fisher_information
 from .native import NativeEvaluator
@@ -243,7 +243,7 @@ def uncertainty_model(evaluator: NativeEvaluator, x: np.ndarray, noise: NoiseMod
     lo, hi = excited_band([e.inputs for e in exps], dt)
     measured = (f >= lo) & (f <= hi) & (f > 0)
     # the export's design model: the modes the grid resolves at the identified point, kept in every draw too
-    resolution = mode_resolution(*space.apply(cfg, x)) if cfg.time.scheme == "exact" else None
+    resolution = design_resolution(*space.apply(cfg, x))
     (G0,), _, _ = _responses(evaluator, [x], f, resolution)
     H, kept, models = _responses(evaluator, list(draws), f, resolution)
     parametric = np.max(np.abs(np.array(H) - G0[None]), axis=0) if H else np.zeros(G0.shape)

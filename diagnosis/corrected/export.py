@@ -32,7 +32,7 @@ import numpy as np
 from ebb_model import DiscreteStateSpace, assemble, simulate
 from ebb_model.output import atomic_path, make_dir
 from ebb_model.jsonio import write_json
-from ebb_model.truncation import design_model, mode_resolution
+from ebb_model.truncation import design_model, design_resolution
 from identification.export_targets import DEFAULT_TARGETS
 
 from ..effects import AugmentedModel
@@ -177,7 +177,7 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
     beam = assemble(model.config, model.params)
     # the StateSpace for control design: the modes up to the Nyquist frequency that the grid resolves, the rest as
     # a static correction
-    resolution = mode_resolution(model.config, model.params) if model.config.time.scheme == "exact" else None
+    resolution = design_resolution(model.config, model.params)
     form = statespace_form(model, design_model(model.config, model.params, resolution=resolution), full=beam)
     item = ExportItem("corrected", "corrected", cfg, model.params,
                       form.system if form.system is not None else beam, beam_system=beam, parts=_parts(model, beam),

@@ -83,8 +83,7 @@ class DaskExecutor(Executor):
 
     def events(self) -> tuple[str, ...]:
         """A worker lost while this executor ran fits, said (:class:`identification.cluster.WorkerWatch`)."""
-        note = self._watch.note()
-        return () if note is None else (note,)
+        return self._watch.events()
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         """Close the client and the local cluster this executor started (a given client is left open)."""
