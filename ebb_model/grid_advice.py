@@ -125,18 +125,38 @@ def _errors(config: BeamConfig, p: Mapping[str, float], w_ref: np.ndarray, width
     return e_space, np.abs(_theta_time_factor(w, tau, config.time.theta) - 1.0) / width
 
 
-def mode_errors(config: BeamConfig, params: Mapping[str, float] | None, k: int
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The first ``k`` modes' frequencies [Hz], damping ratios, estimated relative frequency errors against a
-    converged grid (the reference of the module docstring, space and time) and those errors in half-power
-    bandwidths — the yardstick :func:`grid_advice` judges a grid by."""
-    p = resolve_parameters(config, params)
+@dataclass(frozen=True)
+class _ModeTable:
+    """The first modes' frequencies [Hz], damping ratios, half-power bandwidths (relative), the reference's
+    undamped ω and the config grid's spatial and temporal errors in bandwidths."""
+
+    f: np.ndarray
+    zeta: np.ndarray
+    width: np.ndarray
+    w_ref: np.ndarray
+    e_space: np.ndarray
+    e_time: np.ndarray
+
+
+def _mode_table(config: BeamConfig, p: Mapping[str, float], k: int | None, f_max: float | None) -> _ModeTable:
+    """:class:`_ModeTable` of the first ``k`` modes, or of those up to ``f_max`` [Hz] (at least one)."""
     f, zeta = discrete_frequencies(config, p)
+    k = int(np.count_nonzero(f <= f_max)) if k is None else k
     k = min(max(k, 1), f.size)
     width = 2.0 * np.maximum(np.nan_to_num(zeta[:k], nan=0.0), ZETA_FLOOR)
-    e_space, e_time = _errors(config, p, _reference_omega(config, p, k), width)
-    err = e_space + e_time
-    return f[:k], zeta[:k], err * width, err
+    w_ref = _reference_omega(config, p, k)
+    e_space, e_time = _errors(config, p, w_ref, width)
+    return _ModeTable(f[:k], zeta[:k], width, w_ref, e_space, e_time)
+
+
+def mode_errors(config: BeamConfig, params: Mapping[str, float] | None, *, k: int | None = None,
+                f_max: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The first ``k`` modes' (or those up to ``f_max`` [Hz]) frequencies [Hz], damping ratios, estimated relative
+    frequency errors against a converged grid (the reference of the module docstring, space and time) and those
+    errors in half-power bandwidths — the yardstick :func:`grid_advice` judges a grid by."""
+    t = _mode_table(config, resolve_parameters(config, params), k, f_max)
+    err = t.e_space + t.e_time
+    return t.f, t.zeta, err * t.width, err
 
 
 def grid_advice(config: BeamConfig, params: Mapping[str, float] | None = None, *, n_modes: int = 10,
@@ -144,16 +164,12 @@ def grid_advice(config: BeamConfig, params: Mapping[str, float] | None = None, *
     """How well the config's grid resolves the modes up to ``band_hz`` (default: the first ``n_modes``),
     and which grid would (see the module docstring)."""
     p = resolve_parameters(config, params)
-    f, zeta = discrete_frequencies(config, p)
-    k = int(np.count_nonzero(f <= band_hz)) if band_hz is not None else min(n_modes, f.size)
-    k = min(max(k, 1), f.size)
-    width = 2.0 * np.maximum(np.nan_to_num(zeta[:k], nan=0.0), ZETA_FLOOR)
-    w_ref = _reference_omega(config, p, k)
-    e_space, e_time = _errors(config, p, w_ref, width)
-    err = e_space + e_time
+    t = _mode_table(config, p, None if band_hz is not None else n_modes, band_hz)
+    f, zeta, width, w_ref, e_space = t.f, t.zeta, t.width, t.w_ref, t.e_space
+    err = t.e_space + t.e_time
     n, m = config.beam.nodes, config.time.substeps
     if np.max(err) <= BANDWIDTH_FRACTION:
-        return GridAdvice(f[:k], zeta[:k], err, n, m, n, m)
+        return GridAdvice(f, zeta, err, n, m, n, m)
     # 20 % margin: the damping ratios (bandwidths) move a little with the grid too
     order, allowance = (4, 0.8 * BANDWIDTH_FRACTION) if config.time.scheme == "exact" else (2, 0.4 * BANDWIDTH_FRACTION)
     substeps = m
@@ -169,7 +185,7 @@ def grid_advice(config: BeamConfig, params: Mapping[str, float] | None = None, *
         nodes = int(np.ceil(1.25 * (nodes + 1))) - 1
         if nodes > MAX_NODES:
             nodes = None
-    return GridAdvice(f[:k], zeta[:k], err, n, m, nodes, substeps)
+    return GridAdvice(f, zeta, err, n, m, nodes, substeps)
 
 
 def _scaled(nodes: int, excess: float, order: int) -> int:

@@ -102,19 +102,16 @@ def mode_resolution(config: BeamConfig, params: Mapping[str, float] | None = Non
         ``error_limit`` not positive.
     """
     from .grid_advice import mode_errors
-    from .modal import discrete_frequencies
 
     if not error_limit > 0:
         raise ConfigError(f"the modes' error limit must be > 0 half-power bandwidths, got {error_limit!r}")
     cut = 0.5 / config.time.dt if f_max is None else f_max
-    if modes is None:
-        f, _ = discrete_frequencies(config, params)
-        modes = int(np.count_nonzero(f <= cut))
-    k = modes
-    if k == 0:
+    if modes == 0:
         empty = np.zeros(0)
         return ModeResolution(empty, empty, empty, empty, float(cut), float(error_limit), config.beam.nodes)
-    f, zeta, rel, bw = mode_errors(config, params, k)
+    f, zeta, rel, bw = mode_errors(config, params, k=modes, f_max=cut)
+    if modes is None and f[0] > cut:                  # no mode below the cut (mode_errors lists one at least)
+        return ModeResolution(f[:0], zeta[:0], rel[:0], bw[:0], float(cut), float(error_limit), config.beam.nodes)
     return ModeResolution(f, zeta, rel, bw, float(cut), float(error_limit), config.beam.nodes)
 
 

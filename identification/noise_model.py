@@ -58,6 +58,8 @@ from ebb_model.arrays import as_matrix
 from ebb_model.errors import DataError
 
 from .noise import psd_floor, welch_dof, welch_nperseg
+from .noise_shapes import MIN_QUIET, TOP, common_edge, shapes
+
 
 class ShapeError(ValueError):
     """A noise spectrum this model cannot represent (internal: the estimator then claims no colour)."""
@@ -68,23 +70,9 @@ __all__ = ["MAX_ORDER", "NoiseModel", "NoiseSpectrum", "conditioned_spectrum", "
 
 #: Largest AR order of the whitening filter of a coloured noise spectrum (smooth shapes such as 1/f).
 MAX_ORDER = 48
-#: Fraction of Nyquist above which anti-alias filters may pull the measured spectrum below the noise: excluded.
-_TOP = 0.8
 #: Misfit of the smooth shape (rms in the natural log of the spectrum, beyond the estimate's own scatter) above
 #: which the quiet bins are said to follow no smooth shape: 0.2 ≈ 20 % in the spectrum.
 _SHAPE_TOLERANCE = 0.2
-#: Fewest quiet bins (every other one is used) for a spectrum's shape.
-_MIN_QUIET = 8
-#: Orders of the anti-alias edge a quiet spectrum may end in (``20 n`` dB per decade beyond the corner; a gentler
-#: edge would bend the whole quiet range and trade off against the slope carried across the band).
-_EDGE_ORDERS = (4, 6, 8)
-#: Corners tried for an edge: log-spaced over this range, in units of the Nyquist frequency (an acquisition's
-#: anti-alias corner lies near the top of its band — 0.39 of the sampling rate with the usual 2.56 ratio, 0.45 for
-#: a sigma-delta converter's —; a corner lower down would trade off against the shape's slope, which is carried
-#: across the excited band, so none is tried there).
-_EDGE_RANGE = (0.5, 2.0)
-_EDGE_CORNERS = 32
-
 
 @dataclass(frozen=True, eq=False)
 class NoiseSpectrum:
@@ -226,137 +214,6 @@ def _yule_walker(S: np.ndarray, p: int) -> tuple[np.ndarray, float]:
     return np.concatenate([[1.0], a]), float(acov[0] + acov[1:p + 1] @ a)
 
 
-def _log_polynomial(x: np.ndarray, logS: np.ndarray, degree: int, weights: np.ndarray) -> np.ndarray:
-    """Weighted least-squares coefficients of ``log S`` as a polynomial of degree ``degree`` in ``x = log f``."""
-    V = np.vander(x, degree + 1)
-    return np.linalg.lstsq(V * weights[:, None], logS * weights, rcond=None)[0]
-
-
-def _log_resonance(p: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """``log(s_w + s_r |H(f)|²)``, ``H`` a second-order low-pass resonance at ``f_0`` with damping ratio ``ζ``;
-    ``p = (log s_w, log s_r, log f_0, log ζ)``: a white floor plus a transducer's (or an amplifier's)
-    resonance — flat at ``s_w + s_r`` well below ``f_0``, a peak ``≈ s_r / 4ζ²`` at it, ``s_w`` far above."""
-    r = f / math.exp(p[2])
-    h2 = 1.0 / ((1.0 - r * r) ** 2 + (2.0 * math.exp(p[3]) * r) ** 2)
-    return np.logaddexp(p[0], p[1] + np.log(h2))
-
-
-def _fit_resonance(f: np.ndarray, logS: np.ndarray, var_log: float) -> tuple[np.ndarray, np.ndarray] | None:
-    """Least-squares fit of :func:`_log_resonance` to the log spectrum (outlying bins dropped as for the
-    polynomial shapes): ``(p, used)``, or None when the bins show no peak to start from."""
-    from scipy import optimize
-
-    k = int(np.argmax(logS))
-    if k == 0 or k == len(f) - 1:
-        return None                          # no interior peak: no resonance in view
-    z0 = 0.2
-    p0 = np.array([float(np.median(logS)), float(logS[k]) + math.log(4 * z0 * z0), math.log(f[k]), math.log(z0)])
-    lo = np.array([-np.inf, -np.inf, math.log(f[0]), math.log(0.005)])
-    hi = np.array([np.inf, np.inf, math.log(f[-1]), math.log(2.0)])
-    w = np.ones(len(f))
-    p = p0
-    for _ in range(3):
-        res = optimize.least_squares(lambda q: (logS - _log_resonance(q, f)) * w, p, bounds=(lo, hi))
-        p = res.x
-        dev = logS - _log_resonance(p, f)
-        w = (dev <= 4.0 * math.sqrt(var_log) + np.median(dev)).astype(float)
-    return p, w > 0
-
-
-def _log_edge(f: np.ndarray, corner: float, order: int) -> np.ndarray:
-    """``− log(1 + (f/f_c)^{2n})``: the log power gain of an order-``n`` Butterworth low-pass (an anti-alias
-    filter's edge)."""
-    return -np.log1p((np.asarray(f, dtype=float) / corner) ** (2 * order))
-
-
-def _robust_polynomial(x: np.ndarray, logS: np.ndarray, d: int, var_log: float) -> tuple[np.ndarray, np.ndarray]:
-    """Coefficients of the degree-``d`` polynomial in ``x`` fitted to ``logS`` with the bins that carry more than
-    noise (≥ 4σ above the fit) dropped, and the bins used."""
-    w = np.ones(x.size)
-    for _ in range(3):
-        c = _log_polynomial(x, logS, d, w)
-        dev = logS - np.polyval(c, x)
-        w = (dev <= 4.0 * math.sqrt(var_log) + np.median(dev)).astype(float)
-    return c, w > 0
-
-
-def _common_edge(f: np.ndarray, S: np.ndarray, nu: float, quiet: np.ndarray) -> tuple[float, int] | None:
-    """The anti-alias edge ``(corner, order)`` the quiet bins of a record's sensors end in, or ``None``.
-
-    One acquisition filters every channel alike, so the edge is fitted to all sensors at once: for each corner
-    (:data:`_EDGE_RANGE`) and order (:data:`_EDGE_ORDERS`) the sum over the sensors of the best log-polynomial
-    fit (degree 0 or 1) of ``log S − edge``; the edge is taken when it lowers that sum by more than BIC's price
-    of its two parameters.  Fitted per sensor the edge would trade off against each one's slope (a white floor
-    ending early mimics 1/f ending late); together the steep channels fix the corner for the flat ones."""
-    from scipy.special import polygamma
-
-    nyquist = float(f[-1])
-    keep = quiet & (f > 0) & (f <= _TOP * nyquist) & np.all(S > 0, axis=1)
-    idx = np.flatnonzero(keep)[::2]
-    if idx.size < _MIN_QUIET + 4:
-        return None
-    fq, logS = f[idx], np.log(S[idx])
-    var_log = float(polygamma(1, nu / 2.0))
-    x = np.log(fq)
-
-    def cost(edge: np.ndarray, resonance: bool = False) -> float:
-        total = 0.0
-        for s in range(logS.shape[1]):
-            best = np.inf
-            for d in (0, 1):
-                c, used = _robust_polynomial(x, logS[:, s] - edge, d, var_log)
-                rss = float(np.sum((logS[:, s] - edge - np.polyval(c, x))[used] ** 2)) / var_log
-                best = min(best, rss + 16.0 * int((~used).sum()) + (d + 1) * math.log(idx.size))
-            fit = _fit_resonance(fq, logS[:, s], var_log) if resonance else None
-            if fit is not None:
-                p, used = fit
-                rss = float(np.sum((logS[:, s] - _log_resonance(p, fq))[used] ** 2)) / var_log
-                best = min(best, rss + 16.0 * int((~used).sum()) + 4 * math.log(idx.size))
-            total += best
-        return total
-
-    # without an edge every shape may serve (a resonance rolls off too); with one, the polynomials: an edge is
-    # taken only where it explains what nothing else does
-    plain = cost(np.zeros(idx.size), resonance=True)
-    found = min(((cost(_log_edge(fq, corner, n)), float(corner), n)
-                 for n in _EDGE_ORDERS
-                 for corner in np.geomspace(_EDGE_RANGE[0] * nyquist, _EDGE_RANGE[1] * nyquist, _EDGE_CORNERS)),
-                key=lambda t: t[0])
-    if found[0] + 2.0 * math.log(idx.size * logS.shape[1]) < plain:
-        return found[1], found[2]
-    return None
-
-
-def _shapes(f: np.ndarray, logS: np.ndarray, var_log: float, max_degree: int,
-            edge: tuple[float, int] | None = None):
-    """The candidate shapes of the quiet bins' log spectrum: ``(label, log-shape function of f, n_params, used)``
-    — polynomials in ``log f`` of degree ``0 … max_degree`` (ending in the record's anti-alias ``edge`` when it
-    has one, :func:`_common_edge`) and a white floor plus one resonance."""
-    x = np.log(f)
-    e = np.zeros(f.size) if edge is None else _log_edge(f, *edge)
-    tail = "" if edge is None else f", ending in an order-{edge[1]} edge at {edge[0]:.4g} Hz"
-    for d in range(0, max_degree + 1):
-        if f.size < d + 4:
-            break
-        c, used = _robust_polynomial(x, logS - e, d, var_log)
-        if edge is None:
-            yield ("white" if d == 0 else f"log-polynomial {d}",
-                   (lambda g, c=c: np.polyval(c, np.log(g))), d + 1, used)
-        else:
-            yield (f"log-polynomial {d}{tail}",
-                   (lambda g, c=c, fc=edge[0], n=edge[1]: np.polyval(c, np.log(g)) + _log_edge(g, fc, n)),
-                   d + 1, used)
-    if f.size >= 8:
-        fit = _fit_resonance(f, logS - e, var_log)
-        if fit is not None:
-            p, used = fit
-            if edge is None:
-                yield "resonance", (lambda g, p=p: _log_resonance(p, g)), 4, used
-            else:
-                yield (f"resonance{tail}",
-                       (lambda g, p=p, fc=edge[0], n=edge[1]: _log_resonance(p, g) + _log_edge(g, fc, n)), 4, used)
-
-
 def fit_spectrum(f: np.ndarray, S: np.ndarray, nu: float, dt: float, quiet: np.ndarray, *,
                  max_degree: int = 2, max_order: int = MAX_ORDER, edge: tuple[float, int] | None = None
                  ) -> NoiseSpectrum:
@@ -365,8 +222,8 @@ def fit_spectrum(f: np.ndarray, S: np.ndarray, nu: float, dt: float, quiet: np.n
 
     The shape is either ``log S = c₀ + c₁ log f + … + c_d (log f)^d`` (``d = 0``: white; ``d = 1``: a power law
     such as 1/f; ``d ≤ max_degree``) or a white floor plus one second-order resonance (a transducer's mounted
-    resonance; :func:`_log_resonance`), each ending in the record's anti-alias ``edge`` ``(corner, order)`` when
-    it has one (:func:`_common_edge`), chosen by BIC of the log-periodogram regression (the log of a Welch bin
+    resonance), each ending in the record's anti-alias ``edge`` ``(corner, order)`` when it has one (the shapes:
+    :mod:`identification.noise_shapes`), chosen by BIC of the log-periodogram regression (the log of a Welch bin
     with ``ν`` degrees of freedom has variance ``ψ′(ν/2)``; every other bin, Hann bins being correlated in
     pairs); bins far above the fit (a response's tail, a harmonic) are dropped and the fit repeated.  The
     whitening polynomial is the Yule–Walker AR fit of that shape (the smallest order up to ``max_order`` within
@@ -375,20 +232,20 @@ def fit_spectrum(f: np.ndarray, S: np.ndarray, nu: float, dt: float, quiet: np.n
     Raises
     ------
     DataError
-        Fewer than :data:`_MIN_QUIET` quiet bins with power.
+        Fewer than :data:`MIN_QUIET` quiet bins with power.
     ShapeError
         The quiet bins follow none of the shapes, or no AR order up to ``max_order`` realises it.
     """
     from scipy.special import digamma, polygamma
 
-    keep = quiet & (f > 0) & (f <= _TOP * f[-1]) & (S > 0)
+    keep = quiet & (f > 0) & (f <= TOP * f[-1]) & (S > 0)
     idx = np.flatnonzero(keep)[::2]
-    if idx.size < _MIN_QUIET:
+    if idx.size < MIN_QUIET:
         raise DataError("noise: too few frequency bins outside the excited band to estimate the noise")
     fq, logS = f[idx], np.log(S[idx])
     var_log = float(polygamma(1, nu / 2.0))
     best: tuple[float, str, object, int, np.ndarray] | None = None
-    for label, logshape, k, used in _shapes(fq, logS, var_log, max_degree, edge):
+    for label, logshape, k, used in shapes(fq, logS, var_log, max_degree, edge):
         rss = float(np.sum((logS - logshape(fq))[used] ** 2)) / var_log
         bic = rss + k * math.log(max(int(used.sum()), 2))
         if best is None or bic < best[0]:
@@ -460,10 +317,10 @@ def estimate_noise_model(inputs: Sequence[np.ndarray], residuals: Sequence[np.nd
     for u, r in zip(inputs, residuals):
         f, S, nu = conditioned_spectrum(r, u, dt)
         quiet = quiet_bins(f, as_matrix(u, "u"), dt)
-        if np.count_nonzero(quiet[1:] & (f[1:] <= _TOP * f[-1])) < 2 * _MIN_QUIET:
+        if np.count_nonzero(quiet[1:] & (f[1:] <= TOP * f[-1])) < 2 * MIN_QUIET:
             fitted.append(None)       # no quiet range: the shape comes from another record (below)
             continue
-        edge = _common_edge(f, S, nu, quiet)
+        edge = common_edge(f, S, nu, quiet)
         fitted.append(tuple(_spectrum_or_floor(f, S[:, s], nu, dt, quiet, max_order, r[:, s], u, edge)
                             for s in range(S.shape[1])))
     donor = next((row for row in fitted if row is not None), None)
@@ -498,7 +355,7 @@ def _borrowed(donor: tuple[NoiseSpectrum, ...] | None, r: np.ndarray, dt: float)
     nperseg = welch_nperseg(n)
     f, P = signal.welch(r, fs=1.0 / dt, window="hann", nperseg=nperseg, noverlap=nperseg // 2,
                         detrend="constant", scaling="density", axis=0)
-    band = (f >= 0.02 * f[-1]) & (f <= _TOP * f[-1])
+    band = (f >= 0.02 * f[-1]) & (f <= TOP * f[-1])
     nu = welch_dof(n, nperseg)
     m = max(8, int(np.count_nonzero(band)) // 32)
     row = []

@@ -195,22 +195,24 @@ def test_a_shape_the_model_cannot_carry_is_not_claimed_as_colour():
     np.testing.assert_allclose(model.std[0], noise_std(e, DT, band=(0.0, excited_band([u], DT)[1])), rtol=1e-12)
 
 
-def _edged(x: np.ndarray, corner_hz: float, order: int) -> np.ndarray:
-    """``x`` through an order-``order`` Butterworth magnitude (an anti-alias filter's edge), in the frequency domain."""
-    f = np.fft.rfftfreq(len(x), DT)
+def edged(x: np.ndarray, corner_hz: float, order: int, dt: float = DT) -> np.ndarray:
+    """``x`` through an order-``order`` Butterworth magnitude (an anti-alias filter's edge), shaped in the frequency
+    domain as the analog chain shapes it before sampling."""
+    f = np.fft.rfftfreq(len(x), dt)
     return np.fft.irfft(np.fft.rfft(x) / np.sqrt(1.0 + (f / corner_hz) ** (2 * order)), len(x))
 
 
 def test_an_anti_alias_edge_is_found_on_the_channels_together_and_whitened():
     """One acquisition filters every channel alike: the edge is fitted to the record's sensors at once
-    (``_common_edge``).  Pink and white channels through a 4th-, 6th- or 8th-order edge at 0.35 or 0.4 of the
-    sampling rate: the corner found within 10 % (measured 2.6–6.6 %).  Whitened, the noise has unit variance in
-    the excited band: the white channel within 25 % on every record (measured 0.94–1.21); a pink channel's level
-    is carried two decades down from the quiet bins, so one record's figure scatters (0.2–6 over twelve records,
-    as much without any edge: 0.2–4.6), and its median over eight records is held to 15 % (measured 1.01–1.05;
-    without an edge 0.995).  On 10 records each of white, pink and resonant noise without an edge none is claimed
-    (measured: none of 20 each)."""
-    from identification.noise_model import _common_edge, conditioned_spectrum, quiet_bins
+    (``identification.noise_shapes.common_edge``).  Pink and white channels through a 4th-, 6th- or 8th-order
+    edge at 0.35 or 0.4 of the sampling rate: the corner found within 10 % (measured 2.6–6.6 %).  Whitened, the
+    noise has unit variance in the excited band: the white channel within 25 % on every record (measured
+    0.94–1.21); a pink channel's level is carried two decades down from the quiet bins, so one record's figure
+    scatters (0.2–6 over twelve records, as much without any edge: 0.2–4.6), and its median over eight records is
+    held to 15 % (measured 1.01–1.05; without an edge 0.995).  On 10 records each of white, pink and resonant
+    noise without an edge none is claimed (measured: none of 20 each)."""
+    from identification.noise_model import conditioned_spectrum, quiet_bins
+    from identification.noise_shapes import common_edge
 
     u = band_limited_input(N, DT, 2.0, 60.0, seed=3)
     f = np.fft.rfftfreq(N, DT)
@@ -220,11 +222,11 @@ def test_an_anti_alias_edge_is_found_on_the_channels_together_and_whitened():
         pink_levels = []
         for seed in range(8):
             rng = np.random.default_rng(seed)
-            e = np.column_stack([_edged(pink(N, rng), corner, order), _edged(rng.standard_normal(N), corner, order),
-                                 _edged(pink(N, rng), corner, order)])
+            e = np.column_stack([edged(pink(N, rng), corner, order), edged(rng.standard_normal(N), corner, order),
+                                 edged(pink(N, rng), corner, order)])
             if seed < 2:
                 fq, S, nu = conditioned_spectrum(e, u, DT)
-                found = _common_edge(fq, S, nu, quiet_bins(fq, u, DT))
+                found = common_edge(fq, S, nu, quiet_bins(fq, u, DT))
                 assert found is not None and abs(found[0] / corner - 1.0) <= 0.10, (order, fraction, found)
             W = np.fft.rfft(estimate_noise_model([u], [e], DT).whiten(0, e), axis=0)
             level = np.mean(np.abs(W[band]) ** 2, axis=0) / N       # unit-variance white noise: E|W_k|² = N
@@ -239,7 +241,7 @@ def test_an_anti_alias_edge_is_found_on_the_channels_together_and_whitened():
             e = np.column_stack([make() for _ in range(3)])
             fq, S, nu = conditioned_spectrum(e, u, DT)
             assert np.all(S[1:] > 0)
-            assert _common_edge(fq, S, nu, quiet_bins(fq, u, DT)) is None, (kind, seed)
+            assert common_edge(fq, S, nu, quiet_bins(fq, u, DT)) is None, (kind, seed)
 
 
 # ------------------------------------------------------------------------------------------- Cramér–Rao bound

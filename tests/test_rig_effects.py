@@ -41,7 +41,7 @@ from conftest import make_config
 from diagnosis.run import diagnose
 
 from test_diagnosis_blind import DT, N_SAMPLES, SIZE_TOLERANCE, _write, assert_both_significant, bench_config
-from test_noise_model import pink
+from test_noise_model import edged, pink
 
 #: The compressed pinned–pinned bench's truth and prior (10–15 % off; N within its bounds, below buckling for
 #: every EI the bounds allow: π² · 8 = 79 N > 75 N).
@@ -197,11 +197,9 @@ def write_mixed(tmp_path, effect=None, edge: tuple[float, int] | None = None):
     u = band_limited_input(N_SAMPLES, DT, 2.0, 150.0, n_inputs=2, seed=6)
     rec = synthesize(cfg, u, params=CLAMPED_TRUTH, effect=effect, noise=0.0, seed=6)
     rng = np.random.default_rng(106)
-    gain = np.ones(N_SAMPLES // 2 + 1)
+    noise = [pink(N_SAMPLES, rng) for _ in range(3)]
     if edge is not None:
-        f = np.fft.rfftfreq(N_SAMPLES, DT)
-        gain = 1.0 / np.sqrt(1.0 + (f * DT / edge[0]) ** (2 * edge[1]))
-    noise = [np.fft.irfft(np.fft.rfft(pink(N_SAMPLES, rng)) * gain, N_SAMPLES) for _ in range(3)]
+        noise = [edged(x, edge[0] / DT, edge[1], DT) for x in noise]
     y = rec.outputs_clean + 0.01 * rec.outputs_clean.std(axis=0) * np.column_stack(noise)
     path = tmp_path / "measured.npz"
     np.savez(path, time=rec.time, F1=u[:, 0], F2=u[:, 1], d1=y[:, 0], v1=y[:, 1], a1=y[:, 2])
