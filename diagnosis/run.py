@@ -154,7 +154,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     cfg = load_identification_config(config) if not isinstance(config, BeamConfig) else config
     settings = thresholds_from_config(cfg, shortlist=shortlist)
     setups = setups_from_config(cfg)
-    targets = check_targets(targets)
+    targets = check_targets(targets, cfg)
     out = Path(out_dir) if out_dir is not None else None
     if out is not None:
         check_new_output_dir(out)

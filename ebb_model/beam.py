@@ -25,6 +25,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from .antialias import AntiAlias
+
 __all__ = [
     "PARAMETER_NAMES",
     "PARAMETER_UNITS",
@@ -143,6 +145,8 @@ class Sensor:
     name: str
     x: float
     kind: str = "displacement"
+    #: the acquisition's analog anti-alias filter on this channel (:mod:`ebb_model.antialias`), or ``None``
+    antialias: AntiAlias | None = None
 
     @property
     def unit(self) -> str:

@@ -159,7 +159,9 @@ class BeamConfig:
             "time": time,
             "parameters": params,
             "actuators": [{"name": a.name, "x": a.x} for a in self.actuators],
-            "sensors": [{"name": s.name, "x": s.x, "kind": s.kind} for s in self.sensors],
+            "sensors": [{"name": s.name, "x": s.x, "kind": s.kind,
+                         **({} if s.antialias is None else {"antialias": s.antialias.to_dict()})}
+                        for s in self.sensors],
         }
         if self.masses:
             out["masses"] = [{"name": m.name, "x": m.x, "mass": m.mass} for m in self.masses]

@@ -12,6 +12,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Mapping
 
+from .antialias import MAX_ORDER, AntiAlias
 from .beam import END_KINDS, PARAMETER_NAMES, SENSOR_KINDS, Actuator, End, PointMass, PointSpring, Sensor, WeakSegment
 from .config_types import (DEFAULT_INPUT, INPUT_HOLDS, MAX_NODES, SCHEMES, BeamConfig, BeamGeometry, ParameterSpec,
                            TimeSettings)
@@ -213,6 +214,39 @@ def _points(pr: Problems, data: Mapping[str, Any], key: str, length: float | Non
     return out
 
 
+def _antialias(pr: Problems, sensor: dict[str, Any], dt: float | None, scheme: str) -> AntiAlias | None:
+    """A sensor's ``antialias = {order, corner}`` (:mod:`ebb_model.antialias`), or ``None``; every problem added
+    to ``pr``."""
+    raw = sensor["raw"].get("antialias")
+    if raw is None:
+        return None
+    where = f"{sensor['where']}.antialias"
+    if not isinstance(raw, Mapping):
+        pr.add(where, "must be a table {order = N, corner = Hz} (a Butterworth low-pass before the sampler)")
+        return None
+    pr.unknown_keys(where, raw, ("order", "corner"))
+    order = raw.get("order")
+    if isinstance(order, bool) or not isinstance(order, int) or not 1 <= order <= MAX_ORDER:
+        pr.add(f"{where}.order", f"must be a whole number from 1 to {MAX_ORDER}, got {order!r}")
+        order = None
+    corner = None
+    if "corner" not in raw:
+        pr.add(f"{where}.corner", "missing (the filter's -3 dB corner, Hz)")
+    else:
+        corner = pr.number(f"{where}.corner", raw["corner"])
+        if corner is not None and not corner > 0:
+            pr.add(f"{where}.corner", f"must be > 0 Hz, got {corner:g}")
+            corner = None
+        elif corner is not None and dt is not None and corner * dt > 50.0:
+            pr.add(f"{where}.corner", f"{corner:g} Hz is more than 50 times the sample rate {1 / dt:g} Hz "
+                                      "(it leaves the record as it is): leave the filter out")
+            corner = None
+    if scheme == "theta":
+        pr.add(where, "needs scheme = \"exact\" (the filter is integrated exactly in time with the beam)")
+        return None
+    return AntiAlias(order, corner) if order is not None and corner is not None else None
+
+
 def _attached(pr: Problems, points: list[dict[str, Any]], key: str, unit: str) -> list[tuple[dict[str, Any], float]]:
     """The valid point attachments of ``points`` (``[[masses]]``, ``[[springs]]``) with their value ``key``
     (finite, >= 0, in ``unit``); every problem added to ``pr``."""
@@ -333,7 +367,7 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
     params = _parameters(pr, _table(pr, data, "parameters"))
 
     acts = _points(pr, data, "actuators", length, ("name", "x"), required=True)
-    sens = _points(pr, data, "sensors", length, ("name", "x", "kind"), required=True)
+    sens = _points(pr, data, "sensors", length, ("name", "x", "kind", "antialias"), required=True)
     mass = _points(pr, data, "masses", length, ("name", "x", "mass"), required=False)
     spring = _points(pr, data, "springs", length, ("name", "x", "k"), required=False)
     sensors: list[Sensor] = []
@@ -342,7 +376,7 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
         if kind not in SENSOR_KINDS:
             pr.add(f"{s['where']}.kind", f"unknown sensor kind {kind!r}; allowed: {', '.join(SENSOR_KINDS)}")
         elif s["name"] is not None and s["x"] is not None:
-            sensors.append(Sensor(s["name"], s["x"], kind))
+            sensors.append(Sensor(s["name"], s["x"], kind, _antialias(pr, s, dt, scheme)))
     masses = [PointMass(m["name"], m["x"], v) for m, v in _attached(pr, mass, "mass", "kg")]
     springs = [PointSpring(k["name"], k["x"], v) for k, v in _attached(pr, spring, "k", "N/m")]
     weak = _points(pr, data, "weak_segments", length, ("name", "x", "length", "factor"), required=False)

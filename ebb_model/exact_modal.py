@@ -36,6 +36,7 @@ from typing import Mapping
 import numpy as np
 import scipy.linalg as sla
 
+from .antialias import filtered_poles, series_statespace
 from .config import BeamConfig
 from .coupled_modes import LowRankDamping, coupled_modes, low_rank_damping
 from .discretisation import SemiDiscreteBeam, discretise
@@ -401,19 +402,36 @@ def exact_modal(config: BeamConfig, params: Mapping[str, float]) -> ModalStateSp
     cm = continuous_modes(config, params)
     T_s = config.time.dt
     taps = INPUT_TAPS[config.time.input_hold]
-    E, W = input_weights(cm.poles, T_s, config.time.input_hold)
+    filters = [s.antialias for s in config.sensors]
+    poles, V, inputs, C, D, added = cm.poles, cm.V, cm.inputs, cm.C, cm.D, 0
+    if any(f is not None for f in filters):               # the acquisition's filters in series, still diagonal
+        poles, inputs, C, D, added = filtered_poles(poles, inputs, C @ V, D, filters)
+        V = np.eye(poles.size)
+    E, W = input_weights(poles, T_s, config.time.input_hold)
     with np.errstate(over="ignore", invalid="ignore"):   # an unstable candidate: caught by the stability check
-        T, Gs, Cb = _real_blocks(E, cm.V, [w[:, None] * cm.inputs for w in W], cm.C)
+        T, Gs, Cb = _real_blocks(E, V, [w[:, None] * inputs for w in W], C)
+        freqs = _block_frequencies(E, poles) / (2 * math.pi)
+        if added:                                         # the filters' blocks last (ModalStateSpace.filters)
+            order = np.argsort(_block_poles(E) >= poles.size - added, kind="stable")
+            T, Gs, Cb, freqs = T[order], [g[order] for g in Gs], Cb[:, order], freqs[order]
         G = dict(zip(taps, Gs))
         hold = G.pop(1, None)                             # the lookahead u[k+1], made causal on ξ = z − Γ₁ u
-        D = cm.D.copy()
+        D = np.array(D.real, dtype=float)
         if hold is not None:
             G[0] = G[0] + np.matmul(T, hold)
             D = D + np.einsum("pbi,bim->pm", Cb, hold)
     delays = -min(taps)
     Gall = np.concatenate([G[-j] for j in range(delays + 1)], axis=2)
+    n_filter_blocks = int(np.count_nonzero(_block_poles(E) >= poles.size - added)) if added else 0
     return ModalStateSpace(T, Gall, Cb, D, T_s, config.input_names, config.output_names, None, hold, delays,
-                           _block_frequencies(E, cm.poles) / (2 * math.pi))
+                           freqs, n_filter_blocks)
+
+
+def _block_poles(lam: np.ndarray) -> np.ndarray:
+    """The index into ``lam`` of the pole each real block of :func:`_real_blocks` is made from (a real pair's
+    first)."""
+    reals = np.flatnonzero(lam.imag == 0)
+    return np.concatenate([np.flatnonzero(lam.imag > 0), reals[0::2]])
 
 
 def _block_frequencies(lam: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -442,6 +460,10 @@ def exact_statespace(config: BeamConfig, params: Mapping[str, float]) -> Discret
     mm = modal_matrices(config, params)
     A = modal_state_matrix(mm.frequencies2, mm.Cm)
     B = np.vstack([np.zeros_like(mm.Fm), mm.Fm])
+    C, D = mm.C, mm.D
+    filters = [s.antialias for s in config.sensors]
+    if any(f is not None for f in filters):               # the acquisition's filters in series: their own states
+        A, B, C, D = series_statespace(A, B, C, D, filters)
     n, m = B.shape
     T_s = config.time.dt
     taps = INPUT_TAPS[config.time.input_hold]
@@ -458,12 +480,12 @@ def exact_statespace(config: BeamConfig, params: Mapping[str, float]) -> Discret
     coef = _LAGRANGE[config.time.input_hold]
     P = {t: sum(coef[j, q] * Pq[q] for q in range(deg + 1)) for j, t in enumerate(taps)}
     hold = P.pop(1, None)
-    C, D = mm.C, mm.D
     if hold is not None:                                  # the lookahead, causal on ξ = x − Γ₁ u
         P[0] = P[0] + Phi @ hold
         D = D + C @ hold
-    k = n // 2
-    names = tuple(f"q{i}" for i in range(k)) + tuple(f"dq{i}" for i in range(k))
+    k = mm.frequencies2.size
+    names = (tuple(f"q{i}" for i in range(k)) + tuple(f"dq{i}" for i in range(k))
+             + tuple(f"filter{i}" for i in range(n - 2 * k)))
     return with_input_delays(Phi, [P[-j] for j in range(-min(taps) + 1)], C, D, T_s, config.input_names,
                              config.output_names, names, hold)
 

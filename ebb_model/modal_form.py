@@ -53,7 +53,8 @@ class ModalStateSpace:
     matrix ``Γ₁`` in block coordinates (a start at rest is ``z[0] = −Γ₁ u[0]``, see
     :class:`DiscreteStateSpace`).  ``frequencies_hz`` (nb,), when known, is the continuous natural frequency of
     each block's mode (:func:`ebb_model.truncation.in_band` keeps the modes in a band by it; the dense form then
-    names the states by mode).
+    names the states by mode).  The last ``filters`` blocks, when any, are the sensors' anti-alias filters
+    (:mod:`ebb_model.antialias`); their ``frequencies_hz`` are the filter poles' moduli.
     """
 
     T: np.ndarray
@@ -67,6 +68,8 @@ class ModalStateSpace:
     hold: np.ndarray | None = None
     delays: int = 0
     frequencies_hz: np.ndarray | None = None
+    #: how many of the last blocks are the acquisition's anti-alias filters (:mod:`ebb_model.antialias`), not modes
+    filters: int = 0
 
     def __post_init__(self) -> None:
         optional = tuple(k for k in ("to_nodal", "hold", "frequencies_hz") if getattr(self, k) is not None)
@@ -86,7 +89,9 @@ class ModalStateSpace:
         A = sla.block_diag(*self.T) if nb else np.zeros((0, 0))
         G = [self.G[:, :, j * m:(j + 1) * m].reshape(2 * nb, m) for j in range(self.delays + 1)]
         C = self.Cm.reshape(self.Cm.shape[0], 2 * nb)
-        names = (tuple(f"mode{b + 1}_{part}" for b in range(nb) for part in ("re", "im"))
+        modes = nb - self.filters
+        names = (tuple(f"mode{b + 1}_{part}" for b in range(modes) for part in ("re", "im"))
+                 + tuple(f"filter{b + 1}_{j}" for b in range(self.filters) for j in range(2))
                  if self.frequencies_hz is not None else tuple(f"z{b}_{j}" for b in range(nb) for j in range(2)))
         hold = self.hold.reshape(2 * nb, -1) if self.hold is not None else None
         return with_input_delays(A, G, C, self.D, self.dt, self.input_names, self.output_names, names, hold)

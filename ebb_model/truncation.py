@@ -139,7 +139,8 @@ def in_band(modal: ModalStateSpace, f_max: float, resolved: np.ndarray | None = 
     if not f_max > 0:
         raise ConfigError(f"in_band: the cut-off frequency must be > 0 Hz, got {f_max!r}")
     f = modal.frequencies_hz
-    keep = np.flatnonzero(f <= f_max)
+    modes = f.size - modal.filters                        # the anti-alias filters' blocks are kept as they are
+    keep = np.flatnonzero(f[:modes] <= f_max)
     keep = keep[np.argsort(f[keep], kind="stable")]
     if resolved is not None:
         resolved = np.asarray(resolved, dtype=bool)
@@ -147,6 +148,7 @@ def in_band(modal: ModalStateSpace, f_max: float, resolved: np.ndarray | None = 
             raise ConfigError(f"in_band: {resolved.size} resolution flags for the {keep.size} modes up to "
                               f"{f_max:.4g} Hz")
         keep = keep[resolved]
+    keep = np.concatenate([keep, np.arange(modes, f.size)])
     drop = np.setdiff1d(np.arange(f.size), keep)
     D = modal.D + _block_dc(modal)[drop].sum(axis=0) if drop.size else modal.D.copy()
     return replace(modal, T=modal.T[keep], G=modal.G[keep], Cm=modal.Cm[:, keep], D=D,
@@ -162,6 +164,7 @@ def static_correction_bound(modal: ModalStateSpace, f_max: float, f_hz: np.ndarr
         raise ConfigError("static_correction_bound: the modal form does not know its modes' frequencies")
     f_hz = np.atleast_1d(np.asarray(f_hz, dtype=float))
     drop = modal.frequencies_hz > f_max
+    drop[drop.size - modal.filters:] = False              # the filters' blocks are never dropped
     R = np.abs(_block_dc(modal)[drop])                                             # (nd, p, m)
     r2 = (f_hz[:, None] / modal.frequencies_hz[drop][None, :]) ** 2                 # (nf, nd)
     return np.einsum("fb,bpm->fpm", r2 / (1.0 - r2), R)
@@ -194,7 +197,7 @@ def design_modal_model(config: BeamConfig, params: Mapping[str, float] | None = 
         return model
     if resolution is None and math.isinf(error_limit):
         return in_band(model, cut)
-    n_band = int(np.count_nonzero(model.frequencies_hz <= cut))
+    n_band = int(np.count_nonzero(model.frequencies_hz[:model.nblocks - model.filters] <= cut))
     if resolution is None or resolution.kept.size != n_band:   # (a neighbour's: a mode crossed the cut)
         limit = error_limit if resolution is None else resolution.error_limit
         resolution = mode_resolution(config, p, f_max=cut, error_limit=limit, modes=n_band)

@@ -185,8 +185,9 @@ class BeamSlave(Fmi2Slave):
                            description=f"point force at x = {a.x:g} m")
         first_output = len(self._reals)
         for s in cfg.sensors:
+            through = "" if getattr(s, "antialias", None) is None else f", through its {s.antialias.describe()}"
             self._add_real(s.name, math.nan, s.unit, None, causality=Fmi2Causality.output,
-                           description=f"{s.kind} at x = {s.x:g} m")
+                           description=f"{s.kind} at x = {s.x:g} m{through}")
         if self._field:
             xs, _ = _core.field_matrix(cfg)
             for i, x in enumerate(xs):
@@ -215,6 +216,11 @@ class BeamSlave(Fmi2Slave):
         for s in cfg.sensors:
             self._add_constant(f"sensors.{s.name}.x", float(s.x), f"position of sensor {s.name}", "m")
             self._add_constant(f"sensors.{s.name}.kind", str(s.kind), f"quantity measured by sensor {s.name}")
+            if getattr(s, "antialias", None) is not None:
+                self._add_constant(f"sensors.{s.name}.antialias.order", int(s.antialias.order),
+                                   f"order of sensor {s.name}'s anti-alias filter (Butterworth)")
+                self._add_constant(f"sensors.{s.name}.antialias.corner", float(s.antialias.corner),
+                                   f"-3 dB corner of sensor {s.name}'s anti-alias filter", "Hz")
         for m in getattr(cfg, "masses", ()):
             self._add_constant(f"masses.{m.name}.x", float(m.x), f"position of point mass {m.name}", "m")
             self._add_constant(f"masses.{m.name}.mass", float(m.mass), f"point mass {m.name}", "kg")

@@ -101,7 +101,7 @@ def export_points(result: IdentificationResult, points: Sequence[int] | str | No
         ``result.out_dir`` cannot take the exports (read-only, full: checked before any work), or writing failed
         (no half-written file is left).
     """
-    writers = [export_target(t) for t in check_targets(targets)]
+    writers = [export_target(t) for t in check_targets(targets, result.config)]
     if modes_up_to is not None and not modes_up_to > 0:
         raise ConfigError(f"`modes_up_to`: must be > 0 Hz, got {modes_up_to!r}")
     d = result.out_dir

@@ -185,7 +185,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     if stabilising is None:
         stabilising = cfg.time.scheme == "theta" if ident.stabilising is None else ident.stabilising
     noise_std = given_noise_std(cfg, noise_std)
-    targets = check_targets(targets)
+    targets = check_targets(targets, cfg)
     out = _check_out_dir(Path(out_dir), resume)
     exps = read_data(cfg, data)
     run_record = RunRecord.of(cfg, exps, ga)

@@ -166,7 +166,7 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
     from ebb_model.tomlio import dumps as toml_dumps
     from identification.export_targets import ExportItem, check_targets, export_target, target_carries
 
-    targets = check_targets(targets)
+    targets = check_targets(targets, model.config)
     out = Path(out_dir)
     make_dir(out, exist_ok=True, parents=True)
     cfg = model.config.with_parameters(**model.params)

@@ -35,6 +35,7 @@ from collections.abc import Mapping
 import numba
 import numpy as np
 
+from ebb_model.antialias import filtered_poles
 from ebb_model.assemble import check_stable
 from ebb_model.config import BeamConfig
 from ebb_model.discretisation import discretise
@@ -135,37 +136,43 @@ def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None,
     p = resolve_parameters(config, params)
     cm = continuous_modes(config, p)
     dt = config.time.dt
-    E, phi0, phi1 = pole_integrals(cm.poles, dt)
-    if check_stability:
-        check_stable(config, p, float(np.max(np.abs(E))) if E.size else 0.0)
-    a0, a1 = phi0 - phi1, phi1                            # the modal load: straight line between samples
-    # the measured force's drive of every pole over each sample, with the config's input reconstruction
-    _, W = input_weights(cm.poles, dt, config.time.input_hold)
-    f = u @ cm.inputs.T                                   # (n, poles): the force in pole coordinates
-    n = f.shape[0]
-    Fu = np.zeros((max(n - 1, 0), f.shape[1]), dtype=complex)
-    for w, j in zip(W, INPUT_TAPS[config.time.input_hold]):   # u[k + j], constant beyond the record
-        Fu += w[None, :] * f[np.clip(np.arange(n - 1) + j, 0, n - 1)]
     fine = refined_config(config)
     kp = max(1, int(np.count_nonzero(cm.frequencies2 < (math.pi / dt) ** 2)))  # below Nyquist
     psi = cm.shapes[:, :kp]
-    Kg = psi.T @ geometric_stiffness(fine, p) @ psi
-    Gm = psi.T @ stretch_matrix(fine) @ psi
     k = cm.shapes.shape[1]
     Bg = np.linalg.solve(cm.V, np.vstack([np.zeros((k, kp)), np.eye(k, kp)]))
-    Vq = np.ascontiguousarray(cm.V[:kp])
-    Cz = cm.C @ cm.V
     fine_beam = discretise(fine, p)
     P = fine_beam.S @ psi
     Dg = np.zeros((len(config.sensors), kp))
     for o, kind in enumerate(fine_beam.sensor_kinds):
         if kind == "acceleration":
             Dg[o] = P[o]
+    # the modal load is one more input of the poles (Bg, Dg): the sensors' anti-alias filters in series take it
+    # with the measured force (their poles appended, outside the modal load's coordinates Vq)
+    m = cm.inputs.shape[1]
+    poles, inputs, Cz, D_all, _ = filtered_poles(cm.poles, np.hstack([cm.inputs, Bg]), cm.C @ cm.V,
+                                                 np.hstack([cm.D, Dg]), [s.antialias for s in config.sensors])
+    drive, Bg, D, Dg = inputs[:, :m], inputs[:, m:], D_all[:, :m].real, D_all[:, m:].real
+    Vq = np.zeros((kp, poles.size), dtype=complex)
+    Vq[:, :cm.poles.size] = cm.V[:kp]
+    E, phi0, phi1 = pole_integrals(poles, dt)
+    if check_stability:
+        check_stable(config, p, float(np.max(np.abs(E))) if E.size else 0.0)
+    a0, a1 = phi0 - phi1, phi1                            # the modal load: straight line between samples
+    # the measured force's drive of every pole over each sample, with the config's input reconstruction
+    _, W = input_weights(poles, dt, config.time.input_hold)
+    f = u @ drive.T                                       # (n, poles): the force in pole coordinates
+    n = f.shape[0]
+    Fu = np.zeros((max(n - 1, 0), f.shape[1]), dtype=complex)
+    for w, j in zip(W, INPUT_TAPS[config.time.input_hold]):   # u[k + j], constant beyond the record
+        Fu += w[None, :] * f[np.clip(np.arange(n - 1) + j, 0, n - 1)]
+    Kg = psi.T @ geometric_stiffness(fine, p) @ psi
+    Gm = psi.T @ stretch_matrix(fine) @ psi
     y = np.empty((u.shape[0], len(config.sensors)))
     _kernel(E.astype(np.complex128), a0.astype(np.complex128), a1.astype(np.complex128),
             np.ascontiguousarray(Fu, dtype=np.complex128), *_rows(Bg), *_rows(Vq),
             np.ascontiguousarray(Kg), np.ascontiguousarray(Gm),
-            np.ascontiguousarray(Cz, dtype=np.complex128), np.ascontiguousarray(cm.D), Dg,
+            np.ascontiguousarray(Cz, dtype=np.complex128), np.ascontiguousarray(D), np.ascontiguousarray(Dg),
             np.ascontiguousarray(u, dtype=float), float(dt), float(offset), float(rate),
             float(EA) / (2.0 * config.beam.length), y)
     if check_stability and not np.all(np.isfinite(y)):

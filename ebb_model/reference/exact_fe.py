@@ -60,7 +60,7 @@ def force_polynomials(inputs: np.ndarray, interpolation: str = "cubic") -> np.nd
 def exact_fe_response(beam: HermiteBeam, inputs: np.ndarray, dt: float, actuators: Sequence[float],
                       sensors: Sequence[tuple[float, str]], *,
                       interpolation: str = "cubic", actuator_tau: float = 0.0, lag_sensor: int = -1,
-                      sensor_tau: float = 0.0) -> np.ndarray:
+                      sensor_tau: float = 0.0, filters: Sequence[tuple[int, float] | None] = ()) -> np.ndarray:
     """Outputs (n_samples, n_sensors) of ``beam`` at ``t_k = k dt``, starting at rest.
 
     Parameters
@@ -83,6 +83,10 @@ def exact_fe_response(beam: HermiteBeam, inputs: np.ndarray, dt: float, actuator
     lag_sensor, sensor_tau
         Index of a sensor whose quantity reaches the output through a first-order lag of time constant
         ``sensor_tau`` [s] (``-1``: none); one extra state.
+    filters
+        Per sensor, ``(order, corner [Hz])`` of the acquisition's analog Butterworth low-pass on its channel, or
+        ``None`` (missing entries: none): scipy's realisation in series after the sensor's quantity, its states
+        integrated exactly with the beam.
     """
     u = as_matrix(inputs, "inputs", shape=(None, len(actuators)), finite=False, column="actuator")
     n, m = u.shape
@@ -126,7 +130,54 @@ def exact_fe_response(beam: HermiteBeam, inputs: np.ndarray, dt: float, actuator
         Al[ns, :ns], Al[ns, ns] = C[j] / sensor_tau, -1.0 / sensor_tau
         Bl = np.vstack([B, D[j][None, :] / sensor_tau])
         y[:, j] = _integrate_exact(Al, Bl, d, dt)[ns]
+    for j, spec in enumerate(filters):          # the channel's anti-alias filter after everything else
+        if spec is None:
+            continue
+        order, corner = spec
+        Af, Bf, Cf = _butterworth(int(order), float(corner))
+        Cj, Dj = C[j], D[j]
+        if j == lag_sensor and sensor_tau > 0:  # the lag's state first, then the filter
+            Cj, Dj = np.append(np.zeros(ns), 1.0), np.zeros(m)
+            Ab = np.zeros((ns + 1, ns + 1))
+            Ab[:ns, :ns] = A
+            Ab[ns, :ns], Ab[ns, ns] = C[j] / sensor_tau, -1.0 / sensor_tau
+            Bb = np.vstack([B, D[j][None, :] / sensor_tau])
+        else:
+            Ab, Bb = A, B
+        nb, nf_ = Ab.shape[0], Af.shape[0]
+        Aa = np.zeros((nb + nf_, nb + nf_))
+        Aa[:nb, :nb], Aa[nb:, nb:], Aa[nb:, :nb] = Ab, Af, Bf @ Cj[None, :]
+        Ba = np.vstack([Bb, Bf @ Dj[None, :]])
+        y[:, j] = (Cf @ _integrate_exact(Aa, Ba, d, dt)[nb:]).ravel()
     return y
+
+
+def _butterworth(order: int, corner: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(A, B, C)`` of the analog Butterworth low-pass (scipy's poles and gain), as a cascade of unit-DC-gain
+    sections on scaled states: ``ω²/(s² + 2σs + ω²)`` on ``(y, ẏ/ω)``, ``a/(s + a)`` on ``y``."""
+    _, poles, _ = ss.butter(order, 2.0 * np.pi * corner, analog=True, output="zpk")
+    sections = []
+    for p in poles[np.imag(poles) >= 0]:
+        if p.imag > 0:
+            w, sig = abs(p), -p.real
+            sections.append((np.array([[0.0, w], [-w, -2.0 * sig]]), np.array([0.0, w]), np.array([1.0, 0.0])))
+        else:
+            sections.append((np.array([[p.real]]), np.array([-p.real]), np.array([1.0])))
+    n = order
+    A, B, C = np.zeros((n, n)), np.zeros((n, 1)), np.zeros((1, n))
+    at, prev = 0, None
+    for As, bs, cs in sections:                 # each section driven by the previous one's output
+        k = As.shape[0]
+        A[at:at + k, at:at + k] = As
+        if prev is None:
+            B[at:at + k, 0] = bs
+        else:
+            A[at:at + k, prev[0]:prev[0] + prev[1].size] = np.outer(bs, prev[1])
+        prev = (at, cs)
+        at += k
+    assert prev is not None
+    C[0, prev[0]:prev[0] + prev[1].size] = prev[1]
+    return A, B, C
 
 
 def _integrate_exact(A: np.ndarray, B: np.ndarray, d: np.ndarray, dt: float) -> np.ndarray:

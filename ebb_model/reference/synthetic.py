@@ -318,8 +318,12 @@ def _simulate(beam: HermiteBeam, config: BeamConfig, truth: Truth, U: np.ndarray
     if exact:
         y = exact_fe_response(beam, U, dt, [a.x for a in config.actuators],
                               [(s.x, s.kind) for s in config.sensors], interpolation=interpolation,
-                              actuator_tau=truth.act_tau, lag_sensor=truth.lag_sensor, sensor_tau=truth.sen_tau)
+                              actuator_tau=truth.act_tau, lag_sensor=truth.lag_sensor, sensor_tau=truth.sen_tau,
+                              filters=[None if s.antialias is None else (s.antialias.order, s.antialias.corner)
+                                       for s in config.sensors])
     else:
+        if any(s.antialias is not None for s in config.sensors):
+            raise DataError("an anti-alias filter on a sensor needs the exact integrator (a time-invariant truth)")
         run = partial(_newmark_run, beam, operators, truth, U, dt, interpolation, float(config.beam.length))
         y = (4.0 * run(2 * substeps) - run(substeps)) / 3.0 if richardson else run(substeps)
     if not np.all(np.isfinite(y)):  # pragma: no cover - guarded by the positive-definiteness checks

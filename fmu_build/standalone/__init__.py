@@ -7,6 +7,6 @@
 
 See :mod:`fmu_build.standalone.builder` and the "Standalone FMU" section of docs/fmu.md.
 """
-from .builder import build_standalone_fmu
+from .builder import build_standalone_fmu, check_standalone
 
-__all__ = ["build_standalone_fmu"]
+__all__ = ["build_standalone_fmu", "check_standalone"]

@@ -84,6 +84,23 @@ def compile_binary(sources: Path, target: Path, *, compiler: str = "gcc") -> Non
                        function="build_standalone_fmu")
 
 
+def check_standalone(config: BeamConfig) -> None:
+    """Whether the standalone FMU can carry ``config`` (before anything is built or run).
+
+    Raises
+    ------
+    ConfigError
+        The grid exceeds :data:`MAX_NODES`, or a sensor has an anti-alias filter (the C model does not carry one).
+    """
+    if config.beam.nodes > MAX_NODES:
+        raise ConfigError(f"beam.nodes = {config.beam.nodes}: the standalone FMU's dense C solvers take at most "
+                          f"{MAX_NODES} nodes (initialisation time grows as nodes³)")
+    filtered = [s.name for s in config.sensors if s.antialias is not None]
+    if filtered:
+        raise ConfigError(f"sensors {', '.join(filtered)}: the standalone FMU does not carry anti-alias filters; "
+                          "export the Python FMU (target fmu) for this config")
+
+
 def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLike[str], *,
                          field: bool = False, system: DiscreteStateSpace | None = None) -> Path:
     """Build the standalone FMU (FMI 2.0, model exchange and co-simulation; C, no Python at run time).
@@ -128,9 +145,7 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
     if clashes:
         raise FmuError(f"actuator/sensor names {clashes} clash with the standalone FMU's state names (modes.q[i], "
                        "nodes.q[i])", function="build_standalone_fmu")
-    if cfg.beam.nodes > MAX_NODES:
-        raise ConfigError(f"beam.nodes = {cfg.beam.nodes}: the standalone FMU's dense C solvers take at most "
-                          f"{MAX_NODES} nodes (initialisation time grows as nodes³)")
+    check_standalone(cfg)
     if system is None:
         assemble(cfg)                                   # the nominal parameters must give a valid, stable model
     field_sensors = tuple(field_config(cfg).sensors[len(cfg.sensors):]) if field else ()

@@ -51,19 +51,25 @@ def target_carries(name: str, item: ExportItem) -> str:
     return carries(item) if carries is not None else f"written by the export target {name!r}"
 
 
-def check_targets(targets: Sequence[str]) -> tuple[str, ...]:
-    """``targets`` as a tuple of known export target names (before anything is written).
+def check_targets(targets: Sequence[str], config: BeamConfig | None = None) -> tuple[str, ...]:
+    """``targets`` as a tuple of known export target names (before anything is written); with ``config``, each
+    target whose module has ``check(config)`` also checks that it can carry the config's model.
 
     Raises
     ------
     ConfigError
-        A name not in :data:`TARGETS` (the message lists them), or a string instead of a list of names.
+        A name not in :data:`TARGETS` (the message lists them), a string instead of a list of names, or a target
+        that cannot carry ``config`` (e.g. the standalone FMU and an anti-alias filter).
     """
     if isinstance(targets, str):
         raise ConfigError(f"`targets`: expected a list of target names, got the string {targets!r}")
     unknown = [t for t in targets if t not in TARGETS]
     if unknown:
         raise ConfigError(f"`targets`: unknown export target {unknown[0]!r}; allowed: {', '.join(TARGETS)}")
+    for t in targets if config is not None else ():
+        check = getattr(importlib.import_module(TARGETS[t]), "check", None)
+        if check is not None:
+            check(config)
     return tuple(targets)
 
 

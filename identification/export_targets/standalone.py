@@ -4,9 +4,19 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ebb_model import BeamConfig
+
 from . import ExportItem
 
-__all__ = ["carries", "write"]
+__all__ = ["carries", "check", "write"]
+
+
+def check(config: BeamConfig) -> None:
+    """Refuse, before a run, a config the standalone FMU cannot carry
+    (:func:`fmu_build.standalone.check_standalone`)."""
+    from fmu_build.standalone import check_standalone
+
+    check_standalone(config)
 
 
 def carries(item: ExportItem) -> str:
