@@ -282,12 +282,14 @@ def test_errors_are_fmi2error_naming_the_cause(fmus, host, tmp_path):
 
 
 def test_the_c_model_accepts_the_magnitudes_the_api_accepts():
+    from ebb_model.antialias import MAX_ORDER
     from ebb_model.parameter_values import MAX_MAGNITUDE, MIN_POSITIVE
     from fmu_build.standalone.builder import SOURCE_DIR
 
     header = (SOURCE_DIR / "ebb_beam.h").read_text()
-    defined = dict(re.findall(r"#define (EBB_MAX_MAGNITUDE|EBB_MIN_POSITIVE) (\S+)", header))
+    defined = dict(re.findall(r"#define (EBB_MAX_MAGNITUDE|EBB_MIN_POSITIVE|EBB_MAX_FILTER) (\S+)", header))
     assert float(defined["EBB_MAX_MAGNITUDE"]) == MAX_MAGNITUDE and float(defined["EBB_MIN_POSITIVE"]) == MIN_POSITIVE
+    assert int(defined["EBB_MAX_FILTER"]) == MAX_ORDER       # the C model's buffers hold the highest filter order
 
 
 def test_errors_through_fmpy(fmus):

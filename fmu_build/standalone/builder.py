@@ -90,15 +90,11 @@ def check_standalone(config: BeamConfig) -> None:
     Raises
     ------
     ConfigError
-        The grid exceeds :data:`MAX_NODES`, or a sensor has an anti-alias filter (the C model does not carry one).
+        The grid exceeds :data:`MAX_NODES`.
     """
     if config.beam.nodes > MAX_NODES:
         raise ConfigError(f"beam.nodes = {config.beam.nodes}: the standalone FMU's dense C solvers take at most "
                           f"{MAX_NODES} nodes (initialisation time grows as nodes³)")
-    filtered = [s.name for s in config.sensors if s.antialias is not None]
-    if filtered:
-        raise ConfigError(f"sensors {', '.join(filtered)}: the standalone FMU does not carry anti-alias filters; "
-                          "export the Python FMU (target fmu) for this config")
 
 
 def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLike[str], *,

@@ -62,6 +62,11 @@ def n_modes(config: BeamConfig) -> int:
     return b.nodes + 2 - int(b.left.translation_fixed) - int(b.right.translation_fixed)
 
 
+def n_filter_states(config: BeamConfig) -> int:
+    """States of the sensors' anti-alias filters (:mod:`ebb_model.antialias`), after the modal ones."""
+    return sum(s.antialias.order for s in config.sensors if s.antialias is not None)
+
+
 def fmu_variables(config: BeamConfig, field_sensors: Sequence[Sensor] = ()) -> list[Variable]:
     """All variables of the standalone FMU, in value-reference order (see the module docstring)."""
     out: list[Variable] = []
@@ -72,7 +77,8 @@ def fmu_variables(config: BeamConfig, field_sensors: Sequence[Sensor] = ()) -> l
     for j, a in enumerate(config.actuators):
         out.append(Variable(a.name, "Real", "input", j, 0.0, "N", f"point force at x = {a.x:g} m"))
     for o, s in enumerate(config.sensors):
-        out.append(Variable(s.name, "Real", "output", o, None, s.unit, f"{s.kind} at x = {s.x:g} m"))
+        through = "" if s.antialias is None else f", through its {s.antialias.describe()}"
+        out.append(Variable(s.name, "Real", "output", o, None, s.unit, f"{s.kind} at x = {s.x:g} m{through}"))
     for o, s in enumerate(field_sensors, start=len(config.sensors)):
         out.append(Variable(s.name, "Real", "output", o, None, "m", f"deflection at grid node x = {s.x:g} m"))
 
@@ -99,6 +105,11 @@ def fmu_variables(config: BeamConfig, field_sensors: Sequence[Sensor] = ()) -> l
     for s in config.sensors:
         const(f"sensors.{s.name}.x", float(s.x), f"position of sensor {s.name}", "m")
         const(f"sensors.{s.name}.kind", str(s.kind), f"quantity measured by sensor {s.name}")
+        if s.antialias is not None:
+            const(f"sensors.{s.name}.antialias.order", int(s.antialias.order),
+                  f"order of sensor {s.name}'s anti-alias filter (Butterworth)")
+            const(f"sensors.{s.name}.antialias.corner", float(s.antialias.corner),
+                  f"-3 dB corner of sensor {s.name}'s anti-alias filter", "Hz")
     for m in config.masses:
         const(f"masses.{m.name}.x", float(m.x), f"position of point mass {m.name}", "m")
         const(f"masses.{m.name}.mass", float(m.mass), f"point mass {m.name}", "kg")
@@ -127,6 +138,13 @@ def fmu_variables(config: BeamConfig, field_sensors: Sequence[Sensor] = ()) -> l
         for i in range(k):
             out.append(Variable(f"modes.qd[{i + 1}]", "Real", "state", k + i, 0.0, None,
                                 f"velocity of Richardson mode {i + 1}"))
+        at = 2 * k
+        for s in config.sensors:             # the anti-alias filters' sections, in series after the sensor
+            for j in range(0 if s.antialias is None else s.antialias.order):
+                out.append(Variable(f"filters.{s.name}[{j + 1}]", "Real", "state", at + j, 0.0, None,
+                                    f"state {j + 1} of sensor {s.name}'s anti-alias filter (its sections' "
+                                    "outputs and scaled rates)"))
+            at += 0 if s.antialias is None else s.antialias.order
     for v in [v for v in out if v.role == "state"]:
         out.append(Variable(f"der({v.name})", "Real", "derivative", v.index, None, None, f"derivative of {v.name}"))
     return out
@@ -263,6 +281,8 @@ def config_header(config: BeamConfig, variables: Sequence[Variable], identity: F
         f"#define EBB_THETA_VALUE {_c_double(t.theta)}",
         f"#define EBB_SUBSTEPS {int(t.substeps)}",
         f"#define EBB_NMODES {n_modes(config)}",
+        f"#define EBB_NFILT {n_filter_states(config)}",
+        f"#define EBB_NSTATES {2 * n_modes(config) + n_filter_states(config)}",
         f"#define EBB_NACT {len(config.actuators)}",
         f"#define EBB_NSENS {len(sensors)}",
         f"#define EBB_NMASS {len(config.masses)}",
@@ -274,6 +294,9 @@ def config_header(config: BeamConfig, variables: Sequence[Variable], identity: F
     text += _array("double", "EBB_ACT_X", [_c_double(a.x) for a in config.actuators])
     text += _array("double", "EBB_SENS_X", [_c_double(s.x) for s in sensors])
     text += _array("int", "EBB_SENS_KIND", [str(SENSOR_KINDS.index(s.kind)) for s in sensors])
+    text += _array("int", "EBB_SENS_AA_ORDER", [str(0 if s.antialias is None else s.antialias.order) for s in sensors])
+    text += _array("double", "EBB_SENS_AA_CORNER",
+                   [_c_double(0.0 if s.antialias is None else s.antialias.corner) for s in sensors])
     text += _array("double", "EBB_MASS_X", [_c_double(m.x) for m in config.masses])
     text += _array("double", "EBB_MASS_M", [_c_double(m.mass) for m in config.masses])
     text += _array("double", "EBB_SPRING_X", [_c_double(sp.x) for sp in config.springs])

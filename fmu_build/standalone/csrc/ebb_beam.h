@@ -21,6 +21,10 @@ enum { EBB_EI, EBB_RHOA, EBB_C, EBB_ETA, EBB_N, EBB_RHOI, EBB_KF, EBB_NPARAM };
 #define EBB_MAX_MAGNITUDE 1e30
 #define EBB_MIN_POSITIVE 1e-30
 
+/* the highest anti-alias filter order (ebb_model.antialias.MAX_ORDER; a test compares them) */
+#define EBB_MAX_FILTER 10
+#define EBB_PI 3.14159265358979323846
+
 /* sensor kinds */
 enum { EBB_DISPLACEMENT = 0, EBB_VELOCITY = 1, EBB_ACCELERATION = 2 };
 
@@ -59,29 +63,34 @@ typedef struct {
     const double *weak_x;
     const double *weak_len;
     const double *weak_factor;
+    const int *sens_aa_order; /* per sensor: order of its anti-alias Butterworth (0: none) */
+    const double *sens_aa_corner;  /* per sensor: its -3 dB corner [Hz] */
 } ebb_structure;
 
 /* The discrete model of one parameter set, in the causal "xi" form of ebb_model
  * (scheme exact: x = (q, qdot) of the Richardson modes; scheme theta: x = (q^j, v^{j-1/2}) of the nodal
  * unknowns, dense, and for model exchange the nodal (q, qdot) with Kd = M^-1 K, Cm = M^-1 C, Fm = M^-1 F):
  *   xi[k+1] = Phi xi[k] + sum_j Q_j u[k-j]   (j = 0 .. delays),   y[k] = Cy xi[k] + Dy u[k],
- * with xi = x - H u (x = (q, qdot) of the Richardson modes).  mode-wise (proportional damping): 2x2 blocks
+ * with xi = x - H u (x = (q, qdot) of the Richardson modes, then the sensors' anti-alias filter states, which
+ * make the form dense: each filter in series after its sensor's continuous output, integrated with the beam).  mode-wise (proportional damping): 2x2 blocks
  * per mode acting on the modal force g = Fm u; dense otherwise.  The continuous-time modal system
  * (model exchange) is kept too: qddot = -w2 q - Cm qdot + Fm u, y = Cc x + Dc u. */
 typedef struct {
     int k, m, p;              /* modes, inputs, outputs */
+    int nf, nx;               /* anti-alias filter states (after the 2k modal ones; dense form), all states */
+    double *Fx, *Fu;          /* (nf x nx), (nf x m): the filters' ODE, fdot = Fx x + Fu u (NULL when nf = 0) */
     int dense;                /* 0: proportional damping, per-mode blocks; 1: coupled, dense */
     int delays;               /* past samples the input reconstruction reads (2 for the cubic) */
     double *w2;               /* (k) extrapolated omega^2 */
     double *Kd;               /* (k x k) stiffness of the ODE when not modal (theta: M^-1 K), else NULL */
     double *Cm;               /* (k x k) modal damping */
     double *Fm;               /* (k x m) modal forcing */
-    double *Cc, *Dc;          /* (p x 2k), (p x m) continuous outputs on x = (q, qdot) */
+    double *Cc, *Dc;          /* (p x nx), (p x m) continuous outputs on x = (q, qdot, filter states) */
     /* per-mode form: Phi (k x 4), Q (delays+1) x (k x 2), H (k x 2) acting on g = Fm u */
-    /* dense form:    Phi (2k x 2k), Q (delays+1) x (2k x m), H (2k x m) acting on u     */
+    /* dense form:    Phi (nx x nx), Q (delays+1) x (nx x m), H (nx x m) acting on u     */
     double *Phi, *Q, *H;
-    double *Cy, *Dy;          /* (p x 2k), (p x m): outputs from xi and u */
-    double *nominal;          /* (2k) state nominals for model exchange */
+    double *Cy, *Dy;          /* (p x nx), (p x m): outputs from xi and u */
+    double *nominal;          /* (nx) state nominals for model exchange */
     double spectral_radius;
 } ebb_model;
 

@@ -79,7 +79,7 @@ static const ebb_structure STRUCTURE = {
     EBB_LENGTH, EBB_NODES, {EBB_LEFT_KT, EBB_LEFT_KR}, {EBB_RIGHT_KT, EBB_RIGHT_KR}, EBB_DT, EBB_HOLD,
     EBB_SCHEME, EBB_THETA_VALUE, EBB_SUBSTEPS, EBB_NACT, EBB_ACT_X, EBB_NSENS, EBB_SENS_X, EBB_SENS_KIND,
     EBB_NMASS, EBB_MASS_X, EBB_MASS_M, EBB_NSPRING, EBB_SPRING_X, EBB_SPRING_K,
-    EBB_NWEAK, EBB_WEAK_X, EBB_WEAK_LEN, EBB_WEAK_FACTOR,
+    EBB_NWEAK, EBB_WEAK_X, EBB_WEAK_LEN, EBB_WEAK_FACTOR, EBB_SENS_AA_ORDER, EBB_SENS_AA_CORNER,
 };
 
 typedef struct {
@@ -92,11 +92,11 @@ typedef struct {
     double u[EBB_NACT];
     ebb_model mdl;
     int have_model, stale, at_start;
-    double xi[2 * EBB_NMODES];            /* co-simulation: causal state xi = x - H u */
+    double xi[EBB_NSTATES];            /* co-simulation: causal state xi = x - H u */
     double hist[2 * EBB_NACT + 1];        /* u[k-1], u[k-2] */
-    double x[2 * EBB_NMODES];             /* model exchange: (q, qdot) */
-    double g[3 * EBB_NMODES];             /* modal forces of u[k], u[k-1], u[k-2] */
-    double xn[2 * EBB_NMODES];
+    double x[EBB_NSTATES];             /* model exchange: (q, qdot) */
+    double g[3 * EBB_NMODES];             /* modal forces of u[k], u[k-1], u[k-2] (per-mode form) */
+    double xn[EBB_NSTATES];
     double time;
 } Instance;
 
@@ -160,7 +160,7 @@ static void modal_force(const ebb_model *m, const double *v, double *g)
 static void rest_start(Instance *c)
 {
     const ebb_model *m = &c->mdl;
-    const int k = m->k, nx = 2 * k;
+    const int k = m->k, nx = m->nx;
     if (!m->dense) {
         modal_force(m, c->u, c->g);
         for (int i = 0; i < k; i++) {
@@ -182,7 +182,7 @@ static void rest_start(Instance *c)
 static void step(Instance *c)
 {
     const ebb_model *m = &c->mdl;
-    const int k = m->k, nx = 2 * k, ni = m->m;
+    const int k = m->k, nx = m->nx, ni = m->m;
     if (!m->dense) {
         modal_force(m, c->u, c->g);
         for (int d = 0; d < m->delays; d++) modal_force(m, c->hist + d * ni, c->g + (d + 1) * k);
@@ -223,7 +223,7 @@ static void step(Instance *c)
 static void current_state(Instance *c, double *x)
 {
     const ebb_model *m = &c->mdl;
-    const int k = m->k, nx = 2 * k;
+    const int k = m->k, nx = m->nx;
     if (c->type == fmi2ModelExchange) { memcpy(x, c->x, sizeof(double) * (size_t)nx); return; }
     if (c->at_start) rest_start(c);
     if (!m->dense) {
@@ -251,7 +251,7 @@ static void derivatives(Instance *c, const double *x, double *dx)
 static double output(Instance *c, int o)
 {
     const ebb_model *m = &c->mdl;
-    const int nx = 2 * m->k;
+    const int nx = m->nx;
     const double *Crow, *Drow, *state;
     if (c->type == fmi2ModelExchange) {
         Crow = m->Cc + (size_t)o * nx; Drow = m->Dc + (size_t)o * m->m; state = c->x;
@@ -363,7 +363,7 @@ EBB_EXPORT fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference v
 {
     Instance *c = comp;
     if (!c) return fmi2Error;
-    double x[2 * EBB_NMODES], dx[2 * EBB_NMODES];
+    double x[EBB_NSTATES], dx[EBB_NSTATES];
     int have_x = 0;
     for (size_t i = 0; i < nvr; i++) {
         const fmi2ValueReference r = vr[i];
@@ -491,9 +491,9 @@ typedef struct {
     int type, at_start;
     double p[EBB_NPARAM];
     double u[EBB_NACT];
-    double xi[2 * EBB_NMODES];
+    double xi[EBB_NSTATES];
     double hist[2 * EBB_NACT + 1];
-    double x[2 * EBB_NMODES];
+    double x[EBB_NSTATES];
     double time;
 } Snapshot;
 
@@ -617,6 +617,13 @@ static void derivatives_of(const ebb_model *m, const double *x, const double *u,
         dx[i] = x[k + i];
         dx[k + i] = acc;
     }
+    for (int f = 0; f < m->nf; f++) {             /* the anti-alias filters, driven by their sensors */
+        double acc = 0.0;
+        const double *Frow = m->Fx + (size_t)f * m->nx;
+        for (int col = 0; col < m->nx; col++) acc += Frow[col] * x[col];
+        for (int j = 0; j < m->m; j++) acc += m->Fu[(size_t)f * m->m + j] * u[j];
+        dx[2 * k + f] = acc;
+    }
 }
 
 EBB_EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component comp, const fmi2ValueReference unknown[],
@@ -627,8 +634,8 @@ EBB_EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component comp, const fmi
     if (!c) return fmi2Error;
     if (ensure_model(c, "fmi2GetDirectionalDerivative") != 0) return fmi2Error;
     const ebb_model *m = &c->mdl;
-    const int nx = 2 * m->k;
-    double du[EBB_NACT], dxs[2 * EBB_NMODES], ddx[2 * EBB_NMODES];
+    const int nx = m->nx;
+    double du[EBB_NACT], dxs[EBB_NSTATES], ddx[EBB_NSTATES];
     memset(du, 0, sizeof(du));
     memset(dxs, 0, sizeof(dxs));
     for (size_t i = 0; i < n_known; i++) {
@@ -701,8 +708,8 @@ EBB_EXPORT fmi2Status fmi2SetContinuousStates(fmi2Component comp, const fmi2Real
 {
     Instance *c = comp;
     if (!c) return fmi2Error;
-    if (nx != 2 * EBB_NMODES)
-        return fail(c, "fmi2SetContinuousStates", "expected %d states, got %u", 2 * EBB_NMODES, (unsigned)nx);
+    if (nx != EBB_NSTATES)
+        return fail(c, "fmi2SetContinuousStates", "expected %d states, got %u", EBB_NSTATES, (unsigned)nx);
     for (size_t i = 0; i < nx; i++)
         if (!isfinite(x[i])) return fail(c, "fmi2SetContinuousStates", "state %u is not finite", (unsigned)i);
     memcpy(c->x, x, sizeof(double) * nx);
@@ -713,8 +720,8 @@ EBB_EXPORT fmi2Status fmi2GetDerivatives(fmi2Component comp, fmi2Real dx[], size
 {
     Instance *c = comp;
     if (!c) return fmi2Error;
-    if (nx != 2 * EBB_NMODES)
-        return fail(c, "fmi2GetDerivatives", "expected %d derivatives, got %u", 2 * EBB_NMODES, (unsigned)nx);
+    if (nx != EBB_NSTATES)
+        return fail(c, "fmi2GetDerivatives", "expected %d derivatives, got %u", EBB_NSTATES, (unsigned)nx);
     if (ensure_model(c, "fmi2GetDerivatives") != 0) return fmi2Error;
     derivatives(c, c->x, dx);
     return fmi2OK;
@@ -731,8 +738,8 @@ EBB_EXPORT fmi2Status fmi2GetContinuousStates(fmi2Component comp, fmi2Real x[], 
 {
     Instance *c = comp;
     if (!c) return fmi2Error;
-    if (nx != 2 * EBB_NMODES)
-        return fail(c, "fmi2GetContinuousStates", "expected %d states, got %u", 2 * EBB_NMODES, (unsigned)nx);
+    if (nx != EBB_NSTATES)
+        return fail(c, "fmi2GetContinuousStates", "expected %d states, got %u", EBB_NSTATES, (unsigned)nx);
     memcpy(x, c->x, sizeof(double) * nx);
     return fmi2OK;
 }
@@ -741,8 +748,8 @@ EBB_EXPORT fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component comp, fmi2
 {
     Instance *c = comp;
     if (!c) return fmi2Error;
-    if (nx != 2 * EBB_NMODES)
-        return fail(c, "fmi2GetNominalsOfContinuousStates", "expected %d states, got %u", 2 * EBB_NMODES,
+    if (nx != EBB_NSTATES)
+        return fail(c, "fmi2GetNominalsOfContinuousStates", "expected %d states, got %u", EBB_NSTATES,
                     (unsigned)nx);
     if (c->have_model && !c->stale) memcpy(x_nominal, c->mdl.nominal, sizeof(double) * nx);
     else for (size_t i = 0; i < nx; i++) x_nominal[i] = 1.0;

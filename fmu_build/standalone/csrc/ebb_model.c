@@ -352,6 +352,7 @@ void ebb_model_free(ebb_model *mdl)
 {
     free(mdl->w2); free(mdl->Kd); free(mdl->Cm); free(mdl->Fm); free(mdl->Cc); free(mdl->Dc);
     free(mdl->Phi); free(mdl->Q); free(mdl->H); free(mdl->Cy); free(mdl->Dy); free(mdl->nominal);
+    free(mdl->Fx); free(mdl->Fu);
     memset(mdl, 0, sizeof(*mdl));
 }
 
@@ -384,6 +385,90 @@ static int van_loan(const double *AT, const double *BT, int n, int nv, int deg, 
 }
 
 static int build_theta(const ebb_structure *s, const double *p, ebb_model *out, char *msg, size_t msglen);
+
+/* The anti-alias filter of order n and corner fc [Hz] (ebb_model/antialias.py): the Butterworth low-pass as a
+ * cascade of unit-DC-gain sections, w^2/(s^2 + 2 sig s + w^2) on the states (y, y'/w) and a/(s + a) on y, each
+ * driven by the previous one's output.  Writes A (n x n, row-major), b (n) and c (n). */
+static void butterworth(int n, double fc, double *A, double *b, double *c)
+{
+    const double wc = 2.0 * EBB_PI * fc;
+    memset(A, 0, sizeof(double) * (size_t)n * n);
+    memset(b, 0, sizeof(double) * (size_t)n);
+    memset(c, 0, sizeof(double) * (size_t)n);
+    int at = 0, prev = -1, prev_len = 0;
+    for (int kk = 1; kk <= n / 2 + n % 2; kk++) {
+        const int len = kk <= n / 2 ? 2 : 1;
+        if (len == 2) {                          /* poles wc e^{+-i theta}, theta = pi (2kk + n - 1)/(2n) */
+            const double sig = -wc * cos(EBB_PI * (2.0 * kk + n - 1.0) / (2.0 * n));
+            A[at * n + at + 1] = wc;
+            A[(at + 1) * n + at] = -wc;
+            A[(at + 1) * n + at + 1] = -2.0 * sig;
+        } else {
+            A[at * n + at] = -wc;
+        }
+        const double drive0 = len == 2 ? 0.0 : wc, drive1 = len == 2 ? wc : 0.0;
+        if (prev < 0) { b[at] = drive0; if (len == 2) b[at + 1] = drive1; }
+        else {                                   /* driven by the previous section's output, its first state */
+            A[at * n + prev] += drive0;
+            if (len == 2) A[(at + 1) * n + prev] += drive1;
+        }
+        (void)prev_len;
+        prev = at; prev_len = len;
+        at += len;
+    }
+    c[prev] = 1.0;
+}
+
+/* The filters' ODE fdot = Fx x + Fu u (each driven by its sensor's continuous output Cc x + Dc u), and the
+ * filtered sensors' outputs moved onto their filter's last section: Cc row = c_f, Dc row = 0.  Needs out->Cc,
+ * out->Dc (the beam's rows), out->nf, out->nx.  Returns -1 when out of memory. */
+static int filter_rows(const ebb_structure *s, ebb_model *out)
+{
+    const int nx = out->nx, m = out->m, base = nx - out->nf;
+    out->Fx = calloc((size_t)out->nf * nx, sizeof(double));
+    out->Fu = calloc((size_t)out->nf * m + 1, sizeof(double));
+    double A[EBB_MAX_FILTER * EBB_MAX_FILTER], b[EBB_MAX_FILTER], c[EBB_MAX_FILTER];
+    if (!out->Fx || !out->Fu) return -1;
+    int at = 0;
+    for (int o = 0; o < out->p; o++) {
+        const int n = s->sens_aa_order[o];
+        if (n <= 0) continue;
+        butterworth(n, s->sens_aa_corner[o], A, b, c);
+        double *Crow = out->Cc + (size_t)o * nx, *Drow = out->Dc + (size_t)o * m;
+        for (int i = 0; i < n; i++) {
+            double *Frow = out->Fx + (size_t)(at + i) * nx;
+            for (int j = 0; j < n; j++) Frow[base + at + j] = A[i * n + j];
+            for (int col = 0; col < base; col++) Frow[col] = b[i] * Crow[col];
+            for (int j = 0; j < m; j++) out->Fu[(size_t)(at + i) * m + j] = b[i] * Drow[j];
+        }
+        for (int col = 0; col < nx; col++) Crow[col] = 0.0;
+        for (int j = 0; j < n; j++) Crow[base + at + j] = c[j];
+        for (int j = 0; j < m; j++) Drow[j] = 0.0;
+        at += n;
+    }
+    return 0;
+}
+
+/* Model-exchange nominals of the filter states: the scale of the sensor's output they carry (their DC gain is
+ * 1), from the modal nominals: the filter's input row is b_f times the sensor's row, b_f = 2 pi fc. */
+static void filter_nominals(const ebb_structure *s, ebb_model *out)
+{
+    const int nx = out->nx, base = nx - out->nf;
+    int at = 0;
+    for (int o = 0; o < out->p; o++) {
+        const int n = s->sens_aa_order[o];
+        if (n <= 0) continue;
+        double scale = 0.0;
+        for (int i = 0; i < n; i++) {
+            const double *Frow = out->Fx + (size_t)(at + i) * nx;
+            double acc = 0.0;
+            for (int col = 0; col < base; col++) acc += fabs(Frow[col]) * out->nominal[col];
+            scale = fmax(scale, acc / (2.0 * EBB_PI * s->sens_aa_corner[o]));
+        }
+        for (int i = 0; i < n; i++) out->nominal[base + at + i] = scale > 0.0 ? scale : 1.0;
+        at += n;
+    }
+}
 
 int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, char *msg, size_t msglen)
 {
@@ -457,11 +542,18 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
             for (int r = 0; r < nuf; r++) acc += psi[r * k + i] * fine->F[r * m + j];
             out->Fm[i * m + j] = acc;
         }
-    out->Cc = calloc((size_t)np * 2 * k + 1, sizeof(double));
+    /* the sensors' anti-alias filters: their states after the modal ones, the whole system then dense */
+    int nf = 0;
+    for (int o = 0; o < np; o++) nf += s->sens_aa_order ? s->sens_aa_order[o] : 0;
+    out->nf = nf;
+    out->nx = 2 * k + nf;
+    if (nf > 0) out->dense = 1;
+    const int nx = out->nx;
+    out->Cc = calloc((size_t)np * nx + 1, sizeof(double));
     out->Dc = calloc((size_t)np * m + 1, sizeof(double));
     if (!out->Cc || !out->Dc) { snprintf(msg, msglen, "out of memory"); goto done; }
     for (int o = 0; o < np; o++) {
-        double *Crow = out->Cc + (size_t)o * 2 * k;
+        double *Crow = out->Cc + (size_t)o * nx;
         for (int i = 0; i < k; i++) {
             double P = 0.0;
             for (int r = 0; r < nuf; r++) P += fine->S[o * nuf + r] * psi[r * k + i];
@@ -474,6 +566,7 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
             }
         }
     }
+    if (nf > 0 && filter_rows(s, out) != 0) { snprintf(msg, msglen, "out of memory"); goto done; }
     /* time: exact integration of the modal system under the input polynomial */
     static const int taps_zoh[1] = {0}, taps_foh[2] = {0, 1}, taps_cubic[4] = {-2, -1, 0, 1};
     const int *taps = s->hold == EBB_CUBIC ? taps_cubic : (s->hold == EBB_FOH ? taps_foh : taps_zoh);
@@ -494,7 +587,6 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
         const double r = pole_radius(out->w2[i], out->Cm[i * k + i], T);
         if (r > out->spectral_radius) out->spectral_radius = r;
     }
-    const int nx = 2 * k;
     if (!out->dense) {
         out->Phi = malloc(sizeof(double) * (size_t)k * 4);
         out->Q = calloc((size_t)nd * k * 2, sizeof(double));
@@ -539,34 +631,55 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
         const size_t nxx = (size_t)nx * nx;
         double *AT = calloc(nxx, sizeof(double)), *BT = calloc((size_t)nx * m + 1, sizeof(double));
         double *Ph = malloc(sizeof(double) * nxx), *Pq = malloc(sizeof(double) * (size_t)(deg + 1) * nx * m + 1);
+        double *sx = malloc(sizeof(double) * (size_t)nx);   /* the state scaling: 1 on q, sc on qdot, sf on f */
         out->Phi = malloc(sizeof(double) * nxx);
         out->Q = calloc((size_t)nd * nx * m + 1, sizeof(double));
         out->H = calloc((size_t)nx * m + 1, sizeof(double));
-        if (!AT || !BT || !Ph || !Pq || !out->Phi || !out->Q || !out->H) {
-            free(AT); free(BT); free(Ph); free(Pq); free(scale);
+        if (!AT || !BT || !Ph || !Pq || !sx || !out->Phi || !out->Q || !out->H) {
+            free(AT); free(BT); free(Ph); free(Pq); free(sx); free(scale);
             snprintf(msg, msglen, "out of memory");
             goto done;
         }
-        /* scaled coordinates x' = (q, q'/sc): A' = [[0, Sc], [-w2/Sc, -Sc^-1 Cm Sc]], B' = [0; Sc^-1 Fm] */
+        /* scaled coordinates x' = (q, q'/sc, f): A' = [[0, Sc], [-w2/Sc, -Sc^-1 Cm Sc]], B' = [0; Sc^-1 Fm];
+         * the filter rows f' = Fx x + Fu u in the same coordinates (their own states unscaled) */
+        for (int i = 0; i < k; i++) { sx[i] = 1.0; sx[k + i] = scale[i]; }
         for (int i = 0; i < k; i++) {
             AT[i * nx + k + i] = scale[i] * T;
             AT[(k + i) * nx + i] = -out->w2[i] / scale[i] * T;
             for (int j = 0; j < k; j++) AT[(k + i) * nx + k + j] = -out->Cm[i * k + j] * scale[j] / scale[i] * T;
             for (int j = 0; j < m; j++) BT[(k + i) * m + j] = out->Fm[i * m + j] / scale[i] * T;
         }
+        /* a filter's states scaled by sf (one factor per filter, its own dynamics unchanged) so that its drive
+         * by the modal states is of order 1: an acceleration's row carries w2, and left unscaled it would
+         * dominate the exponential's norm and swamp the beam's entries with its round-off */
+        for (int f = 0; f < nf; f++) sx[2 * k + f] = 1.0;
+        for (int o = 0, at = 2 * k; o < np; o++) {
+            const int n = s->sens_aa_order[o];
+            if (n <= 0) continue;
+            double big = 1.0;
+            for (int f = at; f < at + n; f++)
+                for (int c = 0; c < 2 * k; c++) big = fmax(big, fabs(out->Fx[(size_t)(f - 2 * k) * nx + c] * sx[c] * T));
+            for (int f = at; f < at + n; f++) sx[f] = big;
+            at += n;
+        }
+        for (int f = 2 * k; f < nx; f++) {
+            for (int c = 0; c < nx; c++)
+                AT[f * nx + c] = out->Fx[(size_t)(f - 2 * k) * nx + c] * sx[c] / sx[f] * T;
+            for (int j = 0; j < m; j++) BT[f * m + j] = out->Fu[(size_t)(f - 2 * k) * m + j] / sx[f] * T;
+        }
         double bmax = 0.0;                             /* input block scaled to 1 (see the per-mode case) */
         for (size_t e = 0; e < (size_t)nx * m; e++) bmax = fmax(bmax, fabs(BT[e]));
         const double beta = bmax > 0.0 ? bmax : 1.0;
         for (size_t e = 0; e < (size_t)nx * m; e++) BT[e] /= beta;
         if (van_loan(AT, BT, nx, m, deg, Ph, Pq) != 0) {
-            free(AT); free(BT); free(Ph); free(Pq); free(scale);
+            free(AT); free(BT); free(Ph); free(Pq); free(sx); free(scale);
             snprintf(msg, msglen, "the matrix exponential of the modal system is not finite");
             goto done;
         }
         for (int r = 0; r < nx; r++) {                 /* back from the scaled coordinates */
-            const double sr = r < k ? 1.0 : scale[r - k];
+            const double sr = sx[r];
             for (int c = 0; c < nx; c++) {
-                const double sc = c < k ? 1.0 : scale[c - k];
+                const double sc = sx[c];
                 out->Phi[r * nx + c] = Ph[r * nx + c] * sr / sc;
             }
             for (int q = 0; q <= deg; q++)
@@ -583,7 +696,7 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
                 for (int c = 0; c < nx; c++) acc += out->Phi[r * nx + c] * out->H[c * m + j];
                 out->Q[r * m + j] += acc;
             }
-        free(AT); free(BT); free(Ph); free(Pq);
+        free(AT); free(BT); free(Ph); free(Pq); free(sx);
     }
     free(scale);
     /* outputs on xi: y = Cc (xi + Hfull u) + Dc u */
@@ -592,15 +705,11 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
     work = calloc((size_t)nx * m + 1, sizeof(double));  /* Hfull (nx x m) */
     out->nominal = malloc(sizeof(double) * (size_t)nx);
     if (!out->Cy || !out->Dy || !work || !out->nominal) { snprintf(msg, msglen, "out of memory"); goto done; }
-    for (int i = 0; i < k; i++)
+    if (out->dense) memcpy(work, out->H, sizeof(double) * (size_t)nx * m);
+    else for (int i = 0; i < k; i++)
         for (int j = 0; j < m; j++) {
-            if (out->dense) {
-                work[i * m + j] = out->H[i * m + j];
-                work[(k + i) * m + j] = out->H[(k + i) * m + j];
-            } else {
-                work[i * m + j] = out->H[i * 2] * out->Fm[i * m + j];
-                work[(k + i) * m + j] = out->H[i * 2 + 1] * out->Fm[i * m + j];
-            }
+            work[i * m + j] = out->H[i * 2] * out->Fm[i * m + j];
+            work[(k + i) * m + j] = out->H[i * 2 + 1] * out->Fm[i * m + j];
         }
     memcpy(out->Cy, out->Cc, sizeof(double) * (size_t)np * nx);
     for (int o = 0; o < np; o++)
@@ -609,7 +718,8 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
             for (int r = 0; r < nx; r++) acc += out->Cc[o * nx + r] * work[r * m + j];
             out->Dy[o * m + j] = acc;
         }
-    /* model-exchange nominals: each mode's static response to a unit force (floored at 1e-3 of the largest) */
+    /* model-exchange nominals: each mode's static response to a unit force (floored at 1e-3 of the largest);
+     * a filter's states: its sensor's output scale from those (filter_nominals) */
     double qmax = 0.0, vmax = 0.0;
     for (int i = 0; i < k; i++) {
         double f = 0.0;
@@ -624,6 +734,7 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
         out->nominal[i] = qmax > 0.0 ? fmax(out->nominal[i], 1e-3 * qmax) : 1.0;
         out->nominal[k + i] = vmax > 0.0 ? fmax(out->nominal[k + i], 1e-3 * vmax) : 1.0;
     }
+    filter_nominals(s, out);
     if (!(out->spectral_radius <= 1.0 + 1e-9)) {
         if (p[EBB_N] < 0.0)
             snprintf(msg, msglen, "unstable model (spectral radius %.9g > 1): N = %g N is beyond the buckling "
@@ -679,7 +790,7 @@ static int build_theta(const ebb_structure *s, const double *p, ebb_model *out, 
     if (fd_assemble(s, s->nodes, p, &b) != 0) { snprintf(msg, msglen, "out of memory"); goto done; }
     const int n = b.nu, m = s->n_act, np = s->n_sens, nx = 2 * n, ms = s->substeps, nr = 2 * n + m;
     const double tau = s->dt / ms, th = s->theta;
-    out->k = n; out->m = m; out->p = np; out->dense = 1; out->delays = 0;
+    out->k = n; out->m = m; out->p = np; out->dense = 1; out->delays = 0; out->nx = nx; out->nf = 0;
     L = malloc(sizeof(double) * (size_t)n * n);
     R = malloc(sizeof(double) * (size_t)n * nr);
     S = calloc((size_t)nx * nx, sizeof(double));
