@@ -15,6 +15,13 @@ The filter is the unit-DC-gain Butterworth low-pass ``H(s) = Π_k (−p_k)/(s �
 ``p_k = ω_c e^{iπ(2k + n − 1)/(2n)}``, ``k = 1 … n``.  Its group delay at DC, ``Σ_k −1/p_k``, is what a
 record lags the beam by in the band (:attr:`AntiAlias.group_delay`).
 
+The force's channel may declare its filter too (``[[actuators]] antialias = {…}``): the record then holds the
+force through it, while the beam felt the force itself, so a sensor filtered alike relates to the recorded force
+exactly as the unfiltered beam does (``H G H⁻¹ = G``: the two filters cancel, :func:`effective_filters`) — the
+usual case of one acquisition recording every channel.  A sensor without that filter, or with another one, would
+need the force's filter undone (``1/H`` is not realisable): the config is refused, naming the channels
+(:func:`channel_problems`).
+
 The model takes it exactly in time (:func:`filtered_poles`): in series after the beam the sensor's transfer is
 ``H(s) G(s)``, and in partial fractions over the beam's poles ``s_i`` and the filter's ``p_j``
 
@@ -35,7 +42,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ["AntiAlias", "MAX_ORDER", "filtered_poles", "series_statespace"]
+__all__ = ["AntiAlias", "MAX_ORDER", "channel_problems", "effective_filters", "filtered_poles",
+           "series_statespace"]
 
 #: The highest filter order taken (an acquisition's analog anti-alias filters are of order 2–8; higher Butterworth
 #: orders crowd their poles onto the circle, where the partial fractions lose accuracy).
@@ -85,6 +93,32 @@ class AntiAlias:
         """One phrase: order, corner, group delay."""
         return (f"Butterworth order {self.order}, corner {self.corner:.6g} Hz "
                 f"(group delay {self.group_delay * 1e6:.4g} µs)")
+
+
+def channel_problems(actuators: Sequence[Any], sensors: Sequence[Any]) -> list[tuple[str, str]]:
+    """``(field, message)`` of each channel whose filter the model cannot represent: the force channels' filters
+    (when any) must be one and the same, and every sensor must carry that same filter (it cancels); empty when
+    the channels are consistent."""
+    forces = {a.antialias for a in actuators}
+    if forces <= {None}:
+        return []
+    if len(forces) > 1:
+        return [("actuators", "the force channels' anti-alias filters differ (or some have none): the model can "
+                              "take one acquisition's filter on every force channel")]
+    (common,) = forces
+    return [(f"sensors.{s.name}.antialias",
+             f"the forces are recorded through a Butterworth order {common.order}, corner {common.corner:g} Hz, "
+             f"that this sensor's channel {'lacks' if s.antialias is None else 'does not share'}: the model cannot "
+             "undo a filter on the force; declare the same filter on the sensor (one acquisition) or none on the "
+             "forces") for s in sensors if s.antialias != common]
+
+
+def effective_filters(config: Any) -> list[AntiAlias | None]:
+    """Each sensor's filter as the model applies it: its own, or ``None`` where it cancels against the force
+    channels' identical filter (:func:`channel_problems` guarantees that every sensor then has it)."""
+    forces = {a.antialias for a in config.actuators}
+    cancelled = next(iter(forces)) if len(forces) == 1 else None
+    return [None if cancelled is not None and s.antialias == cancelled else s.antialias for s in config.sensors]
 
 
 def filtered_poles(poles: np.ndarray, inputs: np.ndarray, C: np.ndarray, D: np.ndarray,

@@ -136,6 +136,9 @@ class Actuator:
 
     name: str
     x: float
+    #: the anti-alias filter the force's record passed (:mod:`ebb_model.antialias`; it cancels against the
+    #: sensors' identical filters), or ``None``
+    antialias: AntiAlias | None = None
 
 
 @dataclass(frozen=True)

@@ -158,7 +158,9 @@ class BeamConfig:
             "beam": beam,
             "time": time,
             "parameters": params,
-            "actuators": [{"name": a.name, "x": a.x} for a in self.actuators],
+            "actuators": [{"name": a.name, "x": a.x,
+                           **({} if a.antialias is None else {"antialias": a.antialias.to_dict()})}
+                          for a in self.actuators],
             "sensors": [{"name": s.name, "x": s.x, "kind": s.kind,
                          **({} if s.antialias is None else {"antialias": s.antialias.to_dict()})}
                         for s in self.sensors],

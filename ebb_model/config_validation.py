@@ -12,7 +12,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Mapping
 
-from .antialias import MAX_ORDER, AntiAlias
+from .antialias import MAX_ORDER, AntiAlias, channel_problems
 from .beam import END_KINDS, PARAMETER_NAMES, SENSOR_KINDS, Actuator, End, PointMass, PointSpring, Sensor, WeakSegment
 from .config_types import (DEFAULT_INPUT, INPUT_HOLDS, MAX_NODES, SCHEMES, BeamConfig, BeamGeometry, ParameterSpec,
                            TimeSettings)
@@ -215,8 +215,8 @@ def _points(pr: Problems, data: Mapping[str, Any], key: str, length: float | Non
 
 
 def _antialias(pr: Problems, sensor: dict[str, Any], dt: float | None, scheme: str) -> AntiAlias | None:
-    """A sensor's ``antialias = {order, corner}`` (:mod:`ebb_model.antialias`), or ``None``; every problem added
-    to ``pr``."""
+    """A sensor's or actuator's ``antialias = {order, corner}`` (:mod:`ebb_model.antialias`), or ``None``; every
+    problem added to ``pr``."""
     raw = sensor["raw"].get("antialias")
     if raw is None:
         return None
@@ -366,7 +366,7 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
 
     params = _parameters(pr, _table(pr, data, "parameters"))
 
-    acts = _points(pr, data, "actuators", length, ("name", "x"), required=True)
+    acts = _points(pr, data, "actuators", length, ("name", "x", "antialias"), required=True)
     sens = _points(pr, data, "sensors", length, ("name", "x", "kind", "antialias"), required=True)
     mass = _points(pr, data, "masses", length, ("name", "x", "mass"), required=False)
     spring = _points(pr, data, "springs", length, ("name", "x", "k"), required=False)
@@ -381,7 +381,10 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
     springs = [PointSpring(k["name"], k["x"], v) for k, v in _attached(pr, spring, "k", "N/m")]
     weak = _points(pr, data, "weak_segments", length, ("name", "x", "length", "factor"), required=False)
     weak_segments = _weak_segments(pr, weak, length)
-    actuators = [Actuator(a["name"], a["x"]) for a in acts if a["name"] is not None and a["x"] is not None]
+    actuators = [Actuator(a["name"], a["x"], _antialias(pr, a, dt, scheme)) for a in acts
+                 if a["name"] is not None and a["x"] is not None]
+    for problem in channel_problems(actuators, sensors):
+        pr.add(*problem)
 
     names = [a["name"] for a in acts] + [s["name"] for s in sens] + [m["name"] for m in mass + spring + weak]
     seen: set[str] = set()

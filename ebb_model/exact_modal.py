@@ -36,7 +36,7 @@ from typing import Mapping
 import numpy as np
 import scipy.linalg as sla
 
-from .antialias import filtered_poles, series_statespace
+from .antialias import effective_filters, filtered_poles, series_statespace
 from .config import BeamConfig
 from .coupled_modes import LowRankDamping, coupled_modes, low_rank_damping
 from .discretisation import SemiDiscreteBeam, discretise
@@ -402,7 +402,7 @@ def exact_modal(config: BeamConfig, params: Mapping[str, float]) -> ModalStateSp
     cm = continuous_modes(config, params)
     T_s = config.time.dt
     taps = INPUT_TAPS[config.time.input_hold]
-    filters = [s.antialias for s in config.sensors]
+    filters = effective_filters(config)
     poles, V, inputs, C, D, added = cm.poles, cm.V, cm.inputs, cm.C, cm.D, 0
     if any(f is not None for f in filters):               # the acquisition's filters in series, still diagonal
         poles, inputs, C, D, added = filtered_poles(poles, inputs, C @ V, D, filters)
@@ -461,7 +461,7 @@ def exact_statespace(config: BeamConfig, params: Mapping[str, float]) -> Discret
     A = modal_state_matrix(mm.frequencies2, mm.Cm)
     B = np.vstack([np.zeros_like(mm.Fm), mm.Fm])
     C, D = mm.C, mm.D
-    filters = [s.antialias for s in config.sensors]
+    filters = effective_filters(config)
     if any(f is not None for f in filters):               # the acquisition's filters in series: their own states
         A, B, C, D = series_statespace(A, B, C, D, filters)
     n, m = B.shape

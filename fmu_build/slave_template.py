@@ -213,6 +213,12 @@ class BeamSlave(Fmi2Slave):
                            "exact: Richardson FD modes integrated exactly in time; theta: the seed's theta-scheme")
         for a in cfg.actuators:
             self._add_constant(f"actuators.{a.name}.x", float(a.x), f"position of actuator {a.name}", "m")
+            if getattr(a, "antialias", None) is not None:
+                self._add_constant(f"actuators.{a.name}.antialias.order", int(a.antialias.order),
+                                   f"order of the anti-alias filter on force {a.name}'s record (cancels the "
+                                   "sensors' own)")
+                self._add_constant(f"actuators.{a.name}.antialias.corner", float(a.antialias.corner),
+                                   f"-3 dB corner of the anti-alias filter on force {a.name}'s record", "Hz")
         for s in cfg.sensors:
             self._add_constant(f"sensors.{s.name}.x", float(s.x), f"position of sensor {s.name}", "m")
             self._add_constant(f"sensors.{s.name}.kind", str(s.kind), f"quantity measured by sensor {s.name}")

@@ -233,3 +233,31 @@ def test_the_model_matches_an_independent_truth_behind_the_same_filters():
         # budget: the grid's error itself, passed through the filter (measured within 2.5 % of the plain one)
         assert np.all(err < 1.1 * err_plain), (filt, err, err_plain)
         assert np.all(_rel(truth, truth_plain) > 5 * err_plain), filt     # the filter is far from negligible
+
+
+def test_a_filter_on_the_force_channel_cancels_the_sensors_identical_one():
+    """One acquisition records every channel through the same filter: the record relates the filtered force to
+    the filtered outputs exactly as the bare beam relates force and response (H G H⁻¹ = G); any other combination
+    would need the force's filter undone and is refused, naming the channel."""
+    from fmu_build.standalone.description import n_filter_states
+
+    plain = mixed_config()
+    same = mixed_config()
+    for channel in same["actuators"] + same["sensors"]:
+        channel["antialias"] = {"order": 4, "corner": 1500.0}
+    cfg, ref = config_from_dict(same), config_from_dict(plain)
+    assert config_from_dict(cfg.to_dict()).actuators == cfg.actuators
+    u = np.random.default_rng(2).standard_normal((1000, 2))
+    np.testing.assert_array_equal(simulate(fast_model(cfg), u).outputs, simulate(fast_model(ref), u).outputs)
+    assert n_filter_states(cfg) == 0                      # the standalone FMU carries no filter states either
+    lacking = mixed_config()
+    lacking["actuators"][0]["antialias"] = lacking["actuators"][1]["antialias"] = {"order": 4, "corner": 1500.0}
+    lacking["sensors"][1]["antialias"] = {"order": 4, "corner": 1500.0}
+    with pytest.raises(ConfigError) as err:
+        config_from_dict(lacking)
+    assert "sensors.d1.antialias" in str(err.value) and "sensors.a1.antialias" in str(err.value)
+    assert "sensors.v1" not in str(err.value)
+    differing = mixed_config()
+    differing["actuators"][0]["antialias"] = {"order": 4, "corner": 1500.0}
+    with pytest.raises(ConfigError, match="force channels' anti-alias filters differ"):
+        config_from_dict(differing)

@@ -35,7 +35,7 @@ from collections.abc import Mapping
 import numba
 import numpy as np
 
-from ebb_model.antialias import filtered_poles
+from ebb_model.antialias import effective_filters, filtered_poles
 from ebb_model.assemble import check_stable
 from ebb_model.config import BeamConfig
 from ebb_model.discretisation import discretise
@@ -151,7 +151,7 @@ def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None,
     # with the measured force (their poles appended, outside the modal load's coordinates Vq)
     m = cm.inputs.shape[1]
     poles, inputs, Cz, D_all, _ = filtered_poles(cm.poles, np.hstack([cm.inputs, Bg]), cm.C @ cm.V,
-                                                 np.hstack([cm.D, Dg]), [s.antialias for s in config.sensors])
+                                                 np.hstack([cm.D, Dg]), effective_filters(config))
     drive, Bg, D, Dg = inputs[:, :m], inputs[:, m:], D_all[:, :m].real, D_all[:, m:].real
     Vq = np.zeros((kp, poles.size), dtype=complex)
     Vq[:, :cm.poles.size] = cm.V[:kp]

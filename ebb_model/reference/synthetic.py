@@ -315,6 +315,9 @@ def _simulate(beam: HermiteBeam, config: BeamConfig, truth: Truth, U: np.ndarray
     numpy.ndarray
         ``(n_samples, n_sensors)``.
     """
+    if any(a.antialias is not None for a in config.actuators):
+        raise DataError("a filter on the force's channel: the truth takes the forces the beam felt, not a filtered "
+                        "record of them (declare the sensors' filters only)")
     if exact:
         y = exact_fe_response(beam, U, dt, [a.x for a in config.actuators],
                               [(s.x, s.kind) for s in config.sensors], interpolation=interpolation,

@@ -23,6 +23,7 @@ from xml.dom.minidom import parseString
 from xml.etree.ElementTree import Element, SubElement, tostring
 
 from ebb_model import PARAMETER_NAMES, BeamConfig
+from ebb_model.antialias import effective_filters
 from ebb_model.beam import PARAMETER_DESCRIPTIONS, PARAMETER_UNITS, SENSOR_KINDS, Sensor
 
 from ..model_description import UNIT_DEFINITIONS, FmuIdentity
@@ -64,7 +65,7 @@ def n_modes(config: BeamConfig) -> int:
 
 def n_filter_states(config: BeamConfig) -> int:
     """States of the sensors' anti-alias filters (:mod:`ebb_model.antialias`), after the modal ones."""
-    return sum(s.antialias.order for s in config.sensors if s.antialias is not None)
+    return sum(f.order for f in effective_filters(config) if f is not None)
 
 
 def fmu_variables(config: BeamConfig, field_sensors: Sequence[Sensor] = ()) -> list[Variable]:
@@ -102,6 +103,11 @@ def fmu_variables(config: BeamConfig, field_sensors: Sequence[Sensor] = ()) -> l
     const("time.input", str(t.input_hold), "force between samples: cubic, foh (straight line) or zoh (held)")
     for a in config.actuators:
         const(f"actuators.{a.name}.x", float(a.x), f"position of actuator {a.name}", "m")
+        if a.antialias is not None:
+            const(f"actuators.{a.name}.antialias.order", int(a.antialias.order),
+                  f"order of the anti-alias filter on force {a.name}'s record (cancels the sensors' own)")
+            const(f"actuators.{a.name}.antialias.corner", float(a.antialias.corner),
+                  f"-3 dB corner of the anti-alias filter on force {a.name}'s record", "Hz")
     for s in config.sensors:
         const(f"sensors.{s.name}.x", float(s.x), f"position of sensor {s.name}", "m")
         const(f"sensors.{s.name}.kind", str(s.kind), f"quantity measured by sensor {s.name}")
@@ -139,12 +145,12 @@ def fmu_variables(config: BeamConfig, field_sensors: Sequence[Sensor] = ()) -> l
             out.append(Variable(f"modes.qd[{i + 1}]", "Real", "state", k + i, 0.0, None,
                                 f"velocity of Richardson mode {i + 1}"))
         at = 2 * k
-        for s in config.sensors:             # the anti-alias filters' sections, in series after the sensor
-            for j in range(0 if s.antialias is None else s.antialias.order):
+        for s, filt in zip(config.sensors, effective_filters(config)):   # in series after the sensor
+            for j in range(0 if filt is None else filt.order):
                 out.append(Variable(f"filters.{s.name}[{j + 1}]", "Real", "state", at + j, 0.0, None,
                                     f"state {j + 1} of sensor {s.name}'s anti-alias filter (its sections' "
                                     "outputs and scaled rates)"))
-            at += 0 if s.antialias is None else s.antialias.order
+            at += 0 if filt is None else filt.order
     for v in [v for v in out if v.role == "state"]:
         out.append(Variable(f"der({v.name})", "Real", "derivative", v.index, None, None, f"derivative of {v.name}"))
     return out
@@ -294,9 +300,9 @@ def config_header(config: BeamConfig, variables: Sequence[Variable], identity: F
     text += _array("double", "EBB_ACT_X", [_c_double(a.x) for a in config.actuators])
     text += _array("double", "EBB_SENS_X", [_c_double(s.x) for s in sensors])
     text += _array("int", "EBB_SENS_KIND", [str(SENSOR_KINDS.index(s.kind)) for s in sensors])
-    text += _array("int", "EBB_SENS_AA_ORDER", [str(0 if s.antialias is None else s.antialias.order) for s in sensors])
-    text += _array("double", "EBB_SENS_AA_CORNER",
-                   [_c_double(0.0 if s.antialias is None else s.antialias.corner) for s in sensors])
+    filters = effective_filters(config) + [None] * len(field_sensors)
+    text += _array("int", "EBB_SENS_AA_ORDER", [str(0 if f is None else f.order) for f in filters])
+    text += _array("double", "EBB_SENS_AA_CORNER", [_c_double(0.0 if f is None else f.corner) for f in filters])
     text += _array("double", "EBB_MASS_X", [_c_double(m.x) for m in config.masses])
     text += _array("double", "EBB_MASS_M", [_c_double(m.mass) for m in config.masses])
     text += _array("double", "EBB_SPRING_X", [_c_double(sp.x) for sp in config.springs])
