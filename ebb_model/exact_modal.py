@@ -411,8 +411,9 @@ def exact_modal(config: BeamConfig, params: Mapping[str, float]) -> ModalStateSp
     with np.errstate(over="ignore", invalid="ignore"):   # an unstable candidate: caught by the stability check
         T, Gs, Cb = _real_blocks(E, V, [w[:, None] * inputs for w in W], C)
         freqs = _block_frequencies(E, poles) / (2 * math.pi)
+        is_filter = _block_poles(E) >= poles.size - added
         if added:                                         # the filters' blocks last (ModalStateSpace.filters)
-            order = np.argsort(_block_poles(E) >= poles.size - added, kind="stable")
+            order = np.argsort(is_filter, kind="stable")
             T, Gs, Cb, freqs = T[order], [g[order] for g in Gs], Cb[:, order], freqs[order]
         G = dict(zip(taps, Gs))
         hold = G.pop(1, None)                             # the lookahead u[k+1], made causal on ξ = z − Γ₁ u
@@ -422,9 +423,8 @@ def exact_modal(config: BeamConfig, params: Mapping[str, float]) -> ModalStateSp
             D = D + np.einsum("pbi,bim->pm", Cb, hold)
     delays = -min(taps)
     Gall = np.concatenate([G[-j] for j in range(delays + 1)], axis=2)
-    n_filter_blocks = int(np.count_nonzero(_block_poles(E) >= poles.size - added)) if added else 0
     return ModalStateSpace(T, Gall, Cb, D, T_s, config.input_names, config.output_names, None, hold, delays,
-                           freqs, n_filter_blocks)
+                           freqs, int(np.count_nonzero(is_filter)))
 
 
 def _block_poles(lam: np.ndarray) -> np.ndarray:
