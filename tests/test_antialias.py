@@ -135,10 +135,8 @@ def test_the_standalone_fmu_carries_the_filter_in_both_interfaces(tmp_path):
     """Co-simulation: the C model (the filters' states in series, integrated with the beam by one matrix
     exponential) equals the Python model to the two eigen-solvers' round-off.  Model exchange: the ODE the FMU
     gives a host is the beam's modal system with each filter in series on its sensor's continuous output."""
-    import ctypes
-
     import fmpy
-    from fmpy.fmi2 import FMU2Model
+    from test_fmu_standalone import _me_instance, _state_matrix
 
     from ebb_model.antialias import series_statespace
     from ebb_model.exact_modal import modal_matrices, modal_state_matrix
@@ -158,23 +156,8 @@ def test_the_standalone_fmu_carries_the_filter_in_both_interfaces(tmp_path):
     assert md.numberOfContinuousStates == 2 * k + nf
     names = [v.name for v in md.modelVariables]
     assert sum(n.startswith("filters.") for n in names) == sum(n.startswith("der(filters.") for n in names) == nf
-    f = FMU2Model(guid=md.guid, unzipDirectory=fmpy.extract(str(fmu)),
-                  modelIdentifier=md.modelExchange.modelIdentifier, instanceName="me")
-    f.instantiate()
-    f.setupExperiment(startTime=0.0)
-    f.enterInitializationMode()
-    f.exitInitializationMode()
-    f.enterContinuousTimeMode()
-    n = 2 * k + nf
-    A = np.zeros((n, n))
-    ptr = ctypes.POINTER(ctypes.c_double)
-    for j in range(n):
-        x, dx = np.zeros(n), np.zeros(n)
-        x[j] = 1.0
-        f.setContinuousStates(x.ctypes.data_as(ptr), n)
-        f.getDerivatives(dx.ctypes.data_as(ptr), n)
-        A[:, j] = dx
-    f.freeInstance()
+    me, _ = _me_instance(fmu)
+    A = _state_matrix(me, 2 * k + nf)
     ref, _, _, _ = series_statespace(modal_state_matrix(mm.frequencies2, mm.Cm),
                                      np.vstack([np.zeros_like(mm.Fm), mm.Fm]), mm.C, mm.D,
                                      [s.antialias for s in cfg.sensors])
