@@ -214,13 +214,13 @@ def _points(pr: Problems, data: Mapping[str, Any], key: str, length: float | Non
     return out
 
 
-def _antialias(pr: Problems, sensor: dict[str, Any], dt: float | None, scheme: str) -> AntiAlias | None:
+def _antialias(pr: Problems, channel: dict[str, Any], dt: float | None, scheme: str) -> AntiAlias | None:
     """A sensor's or actuator's ``antialias = {order, corner}`` (:mod:`ebb_model.antialias`), or ``None``; every
     problem added to ``pr``."""
-    raw = sensor["raw"].get("antialias")
+    raw = channel["raw"].get("antialias")
     if raw is None:
         return None
-    where = f"{sensor['where']}.antialias"
+    where = f"{channel['where']}.antialias"
     if not isinstance(raw, Mapping):
         pr.add(where, "must be a table {order = N, corner = Hz} (a Butterworth low-pass before the sampler)")
         return None

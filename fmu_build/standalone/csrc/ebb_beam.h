@@ -72,8 +72,8 @@ typedef struct {
  * unknowns, dense, and for model exchange the nodal (q, qdot) with Kd = M^-1 K, Cm = M^-1 C, Fm = M^-1 F):
  *   xi[k+1] = Phi xi[k] + sum_j Q_j u[k-j]   (j = 0 .. delays),   y[k] = Cy xi[k] + Dy u[k],
  * with xi = x - H u (x = (q, qdot) of the Richardson modes, then the sensors' anti-alias filter states, which
- * make the form dense: each filter in series after its sensor's continuous output, integrated with the beam).  mode-wise (proportional damping): 2x2 blocks
- * per mode acting on the modal force g = Fm u; dense otherwise.  The continuous-time modal system
+ * make the form dense: each filter in series after its sensor's continuous output, integrated with the beam).
+ * Mode-wise (proportional damping): 2x2 blocks per mode acting on the modal force g = Fm u; dense otherwise.  The continuous-time modal system
  * (model exchange) is kept too: qddot = -w2 q - Cm qdot + Fm u, y = Cc x + Dc u. */
 typedef struct {
     int k, m, p;              /* modes, inputs, outputs */

@@ -395,7 +395,7 @@ static void butterworth(int n, double fc, double *A, double *b, double *c)
     memset(A, 0, sizeof(double) * (size_t)n * n);
     memset(b, 0, sizeof(double) * (size_t)n);
     memset(c, 0, sizeof(double) * (size_t)n);
-    int at = 0, prev = -1, prev_len = 0;
+    int at = 0, prev = -1;
     for (int kk = 1; kk <= n / 2 + n % 2; kk++) {
         const int len = kk <= n / 2 ? 2 : 1;
         if (len == 2) {                          /* poles wc e^{+-i theta}, theta = pi (2kk + n - 1)/(2n) */
@@ -412,8 +412,7 @@ static void butterworth(int n, double fc, double *A, double *b, double *c)
             A[at * n + prev] += drive0;
             if (len == 2) A[(at + 1) * n + prev] += drive1;
         }
-        (void)prev_len;
-        prev = at; prev_len = len;
+        prev = at;
         at += len;
     }
     c[prev] = 1.0;
@@ -641,7 +640,7 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
             goto done;
         }
         /* scaled coordinates x' = (q, q'/sc, f): A' = [[0, Sc], [-w2/Sc, -Sc^-1 Cm Sc]], B' = [0; Sc^-1 Fm];
-         * the filter rows f' = Fx x + Fu u in the same coordinates (their own states unscaled) */
+         * the filter rows f' = Fx x + Fu u in the same coordinates, the filter states scaled by sf below */
         for (int i = 0; i < k; i++) { sx[i] = 1.0; sx[k + i] = scale[i]; }
         for (int i = 0; i < k; i++) {
             AT[i * nx + k + i] = scale[i] * T;
@@ -658,7 +657,8 @@ int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, cha
             if (n <= 0) continue;
             double big = 1.0;
             for (int f = at; f < at + n; f++)
-                for (int c = 0; c < 2 * k; c++) big = fmax(big, fabs(out->Fx[(size_t)(f - 2 * k) * nx + c] * sx[c] * T));
+                for (int c = 0; c < 2 * k; c++)
+                    big = fmax(big, fabs(out->Fx[(size_t)(f - 2 * k) * nx + c] * sx[c] * T));
             for (int f = at; f < at + n; f++) sx[f] = big;
             at += n;
         }
