@@ -92,9 +92,9 @@ typedef struct {
     double u[EBB_NACT];
     ebb_model mdl;
     int have_model, stale, at_start;
-    double xi[EBB_NSTATES];            /* co-simulation: causal state xi = x - H u */
+    double xi[EBB_NSTATES];               /* co-simulation: causal state xi = x - H u */
     double hist[2 * EBB_NACT + 1];        /* u[k-1], u[k-2] */
-    double x[EBB_NSTATES];             /* model exchange: (q, qdot) */
+    double x[EBB_NSTATES];                /* model exchange: (q, qdot, anti-alias filter states) */
     double g[3 * EBB_NMODES];             /* modal forces of u[k], u[k-1], u[k-2] (per-mode form) */
     double xn[EBB_NSTATES];
     double time;
