@@ -56,6 +56,7 @@ from .report.assemble import effect_rows, gap_report
 from .report.html import html_sections
 from .report.result import DiagnosisSettings, GapReport
 from .search.apart import SetupsApart, apart_parts, disagreement
+from .search.plausible import PlausibleReading, plausible_readings, readings_text
 from .search.modal_pattern import modal_source
 from .search.rank import Ranking, rank_effects
 from .search.sign import sign_with_refits
@@ -221,6 +222,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         say(f"verdict: {judgement.verdict.name}")
         # the records and the measured modes disagree more than one structure explains: try them as two set-ups
         apart = None
+        readings = [("one set-up", problem, ranking, judgement.weighed.implausible)]
         parts = apart_parts(catalogue)
         why = disagreement(problem, ranking, judgement.weighed) if setups is None and parts else None
         if why is not None:
@@ -231,14 +233,26 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                 judgement_two = judged(two, ranking_two)
             adopted = judgement_two.verdict.kind is Kind.EFFECT
             apart = SetupsApart(why, parts, judgement_two.verdict.name, adopted, judgement_two.verdict.text())
+            readings.append((f"set-ups apart: the measured modes without the {', '.join(sorted(parts))}", two,
+                             ranking_two, judgement_two.weighed.implausible))
             if adopted:
                 problem, ranking, judgement = two, ranking_two, judgement_two
                 setups = Setups.apart(parts)
             judgement = replace(judgement, verdict=judgement.verdict.said("set-ups", apart.text()))
             say(f"set-ups apart: {apart.verdict}{' (adopted)' if adopted else ' (one set-up kept)'}")
+        # no effect named and the closing refits implausible: each refitted inside the plausibility limits
+        allowed: list[PlausibleReading] = []
+        if judgement.verdict.kind is not Kind.EFFECT:
+            with clock.stage("plausible readings"):
+                allowed = plausible_readings(readings, catalogue, executor=executor)
+            for reading in allowed:
+                say("held within plausibility: " + reading.line())
+            if allowed:
+                verdict = judgement.verdict.said("plausible readings", readings_text(allowed))
+                judgement = replace(judgement, verdict=verdict)
         # when candidates remain tied or the gap is unexplained: the record that would separate them
         with clock.stage("next experiment"):
-            nxt = next_experiment(problem, ranking, judgement, (f_lo, f_hi), freqs)
+            nxt = next_experiment(problem, ranking, judgement, (f_lo, f_hi), freqs, allowed)
         if nxt is not None:
             say(nxt.line())
         # stage 5, the report
@@ -248,7 +262,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         ran_with = DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, settings)
         report = replace(gap_report(problem, ranking, judgement, (f_lo, f_hi), mf, adequacy, advice, locs, rows,
                                     ran_with, polarity), stage_seconds=dict(clock.seconds), setups=setups,
-                         next_experiment=nxt, setups_apart=apart,
+                         next_experiment=nxt, setups_apart=apart, plausible_readings=tuple(allowed),
                          events=executor.events() if isinstance(executor, DaskExecutor) else ())
         for event in report.events:
             say(f"note: {event}")

@@ -5,6 +5,8 @@ diagnosis asks which record the bench can make (:mod:`diagnosis.design.space`) w
 fewer than two refits are plausible but several close the records' gap, each needing implausible values (a real
 bench whose records no catalogued structure explains with the values its documents allow), the design separates
 those: which of the readings that fit — a mass, a chain gain, a softened section — is the one to question next.
+When those refits, held within the plausibility limits, leave two or more plausible readings
+(:mod:`diagnosis.search.plausible`), the design separates the readings instead, each at its held refit.
 
 For a design ``d`` and two candidates A and B (each at its refit), the expected log Bayes factor of A over B on a
 record of ``d`` when A is true is, for Gaussian noise, half the non-centrality of B's misfit to A's prediction
@@ -24,14 +26,15 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
 from ..effects import Effect
 from ..judgement.rules import Judgement
 from ..judgement.verdict import Kind
-from ..problem.fitting import GapProblem
+from ..problem.fitting import Fit, GapProblem
+from ..search.plausible import PlausibleReading
 from ..search.rank import Ranking
 from .space import Design, DesignBench, bench_designs
 
@@ -85,6 +88,8 @@ class NextExperiment:
     #: the candidates among them whose refits need implausible values (designed for when fewer than two are
     #: plausible but these close the records' gap)
     implausible: tuple[str, ...] = ()
+    #: whether the candidates are the plausible readings held within the limits (:mod:`diagnosis.search.plausible`)
+    held: bool = False
 
     @property
     def best(self) -> ScoredDesign | None:
@@ -103,6 +108,8 @@ class NextExperiment:
         which = ' / '.join(self.candidates)
         if self.implausible:
             which += f" (refits that close the gap; {', '.join(self.implausible)} need implausible values)"
+        if self.held:
+            which += " (the plausible readings, held within the limits)"
         return (f"next experiment to separate {which}: {b.design.describe()} — expected "
                 f"ln Bayes factor {b.rate * self.seconds:.3g} in {self.seconds:.3g} s (decisive {self.decisive:.3g}, "
                 f"{reach}){now}")
@@ -115,7 +122,7 @@ class NextExperiment:
                 "as_recorded": None if self.as_recorded is None else self.as_recorded.to_dict(self.seconds,
                                                                                                 self.decisive),
                 "designs": [d.to_dict(self.seconds, self.decisive) for d in self.designs],
-                "reason": self.reason, "implausible": list(self.implausible)}
+                "reason": self.reason, "implausible": list(self.implausible), "plausible_readings": self.held}
 
 
 def leading_candidates(judgement: Judgement, ranking: Ranking, most: int, closure: float) -> tuple[str, ...]:
@@ -150,24 +157,47 @@ def _divergence(ya: np.ndarray, yb: np.ndarray, jb: np.ndarray, cols: list[int])
 
 
 def next_experiment(problem: GapProblem, ranking: Ranking, judgement: Judgement, band: tuple[float, float],
-                    mode_hz: np.ndarray) -> NextExperiment | None:
+                    mode_hz: np.ndarray, readings: Sequence[PlausibleReading] = ()) -> NextExperiment | None:
     """The designs that would separate the leading candidates (module docstring), best first; ``None`` when the
-    verdict leaves nothing to separate."""
+    verdict leaves nothing to separate.  Given two or more plausible readings (:mod:`diagnosis.search.plausible`:
+    the refits that close the gap held within the plausibility limits), the design separates those, each at its
+    held refit."""
     s = problem.settings
+    held = {}
+    for r in readings:                       # most probable first; one per effect
+        held.setdefault(r.label, r)
+    if len(held) >= 2:
+        return _designed(problem, ranking, band, mode_hz, tuple(held)[:s.design_candidates],
+                         {lab: r.probability for lab, r in held.items()},
+                         {lab: r.refit.fit for lab, r in held.items()}, (), held=True)
     labels = leading_candidates(judgement, ranking, s.design_candidates, s.named_closure)
     implausible = tuple(lab for lab in labels if lab in judgement.weighed.implausible)
     v = judgement.verdict
     if not labels and v.kind not in (Kind.UNEXPLAINED, Kind.INDISTINGUISHABLE):
         return None
-    seconds = float(sum(r.fit_end for r in problem.records) * problem.config.time.dt)
-    decisive = math.log(s.decisive_odds)
     probs = {lab: float(judgement.weighed.evidence.get(lab, 0.0)) for lab in labels}
     if len(labels) < 2:
-        return NextExperiment(labels, probs, seconds, decisive,
+        return NextExperiment(labels, probs, _seconds(problem), math.log(s.decisive_odds),
                               reason="fewer than two candidates to separate (no other refit is plausible or closes "
                                      f"{s.named_closure:.0%} of the records' gap)", implausible=implausible)
+    return _designed(problem, ranking, band, mode_hz, labels, probs, {lab: ranking.refits[lab].fit for lab in labels},
+                     implausible)
+
+
+def _seconds(problem: GapProblem) -> float:
+    """The fit windows' total duration, s."""
+    return float(sum(r.fit_end for r in problem.records) * problem.config.time.dt)
+
+
+def _designed(problem: GapProblem, ranking: Ranking, band: tuple[float, float], mode_hz: np.ndarray,
+              labels: tuple[str, ...], probs: dict[str, float], fits: dict[str, Fit], implausible: tuple[str, ...],
+              *, held: bool = False) -> NextExperiment:
+    """The designs that separate ``labels``, each candidate at its fit in ``fits``."""
+    s = problem.settings
+    seconds = _seconds(problem)
+    decisive = math.log(s.decisive_odds)
     effects: dict[str, Effect] = {lab: ranking.effects[lab] for lab in labels}
-    z = {lab: np.concatenate([ranking.refits[lab].fit.beta, ranking.refits[lab].fit.s]) for lab in labels}
+    z = {lab: np.concatenate([fits[lab].beta, fits[lab].s]) for lab in labels}
     parts = sorted({m.rig_part for e in effects.values() for m in (e.members or (e,)) if m.rig_part is not None})
     setups = ("as recorded",) + tuple(f"without the {p}" for p in parts)
     designs = bench_designs(problem, band, mode_hz, setups, s.design_top_hz)
@@ -189,7 +219,7 @@ def next_experiment(problem: GapProblem, ranking: Ranking, judgement: Judgement,
                 scored.append(ScoredDesign(d, min(per.values()), per))
     if not scored:
         return NextExperiment(labels, probs, seconds, decisive, reason="no design could be simulated",
-                              implausible=implausible)
+                              implausible=implausible, held=held)
     recorded = next((d for d in scored if d.design.setup == "as recorded" and d.design.band_name == "the records' "
                      "band" and d.design.sensor is None), None)
     # the best of each kind of design (set-up, band, kind of added sensor), so that the list shows the choices
@@ -200,4 +230,4 @@ def next_experiment(problem: GapProblem, ranking: Ranking, judgement: Judgement,
             best[key] = d
     ranked = tuple(sorted(best.values(), key=lambda d: -d.rate)[:KEPT])
     return NextExperiment(labels, probs, seconds, decisive, ranked, recorded, weighed=len(scored),
-                          implausible=implausible)
+                          implausible=implausible, held=held)

@@ -45,6 +45,9 @@ def text_report(report: GapReport, *, top: int = 6) -> str:
     if unseen:
         lines.append("significant scores not refitted:")
         lines += unseen
+    if report.plausible_readings:
+        lines.append("held within plausibility (readings, not a verdict):")
+        lines += [f"  - {r.line()}" for r in report.plausible_readings]
     if report.next_experiment is not None:
         lines.append(report.next_experiment.line())
     return "\n".join(lines)

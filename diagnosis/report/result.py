@@ -22,6 +22,7 @@ from ..judgement.verdict import Verdict
 from ..settings import Thresholds
 from ..design import NextExperiment
 from ..search.apart import SetupsApart
+from ..search.plausible import PlausibleReading
 from ..setups import Setups
 
 __all__ = ["BandClosure", "RefitSummary", "PatternMatch", "EffectRow", "BaselineSummary", "DiagnosisSettings",
@@ -184,6 +185,9 @@ class GapReport:
     setups_apart
         When the records and the measured modes disagreed more than one structure explains: the reading as two
         set-ups and whether it was adopted (:mod:`diagnosis.search.apart`).
+    plausible_readings
+        When no effect is named: the closing refits held within the plausibility limits that still close the named
+        share of the gap, most probable first (:mod:`diagnosis.search.plausible`).
     next_experiment
         When candidates remain tied or the gap is unexplained, the record that would separate the leading
         candidates best (:mod:`diagnosis.design`).
@@ -212,6 +216,7 @@ class GapReport:
     setups: Setups | None = None
     next_experiment: NextExperiment | None = None
     setups_apart: SetupsApart | None = None
+    plausible_readings: tuple[PlausibleReading, ...] = ()
     events: tuple[str, ...] = ()
 
     @property
@@ -261,6 +266,8 @@ class GapReport:
             doc["setups"] = self.setups.to_dict()
         if self.setups_apart is not None:
             doc["setups_apart"] = self.setups_apart.to_dict()
+        if self.plausible_readings:
+            doc["plausible_readings"] = [r.to_dict() for r in self.plausible_readings]
         if self.next_experiment is not None:
             doc["next_experiment"] = self.next_experiment.to_dict()
         if self.priors:
