@@ -162,8 +162,8 @@ def test_arts_diagnosis_names_nothing_implausible_and_says_what_would_decide(tmp
     # held within plausibility (the priors, the impulse test's modes and the effects' ranges as limits), the refits
     # that close the gap leave plausible readings: each within what the two documented thicknesses (4.19 and
     # 5.14 mm) allow, its modes agreeing with the impulse test, predicting the held-out part within 10 % (measured:
-    # the chain's gain 0.34 — the load cell's or the accelerometer's, tied 0.51 / 0.49 — the strip 4.64 mm thick
-    # from EI and 4.73 mm from rhoA, 3.0 % held-out NRMSE, 98 % of the gap closed)
+    # the chain's gain 0.34 — the load cell's or the accelerometer's, tied 0.51 / 0.49 — the strip 4.65 mm thick
+    # from EI and 4.74 mm from rhoA, 3.0 % held-out NRMSE, 98 % of the gap closed)
     held = s["plausible_readings"]
     if s["verdict"] == "unexplained":
         assert held, "no plausible reading"
