@@ -167,9 +167,10 @@ def next_experiment(problem: GapProblem, ranking: Ranking, judgement: Judgement,
     for r in readings:                       # most probable first; one per effect
         held.setdefault(r.label, r)
     if len(held) >= 2:
-        return _designed(problem, ranking, band, mode_hz, tuple(held)[:s.design_candidates],
-                         {lab: r.probability for lab, r in held.items()},
-                         {lab: r.refit.fit for lab, r in held.items()}, (), held=True)
+        labels = tuple(held)[:s.design_candidates]
+        return _designed(problem, band, mode_hz, labels, {lab: held[lab].probability for lab in labels},
+                         {lab: held[lab].effect for lab in labels}, {lab: held[lab].refit.fit for lab in labels}, (),
+                         held=True)
     labels = leading_candidates(judgement, ranking, s.design_candidates, s.named_closure)
     implausible = tuple(lab for lab in labels if lab in judgement.weighed.implausible)
     v = judgement.verdict
@@ -180,8 +181,8 @@ def next_experiment(problem: GapProblem, ranking: Ranking, judgement: Judgement,
         return NextExperiment(labels, probs, _seconds(problem), math.log(s.decisive_odds),
                               reason="fewer than two candidates to separate (no other refit is plausible or closes "
                                      f"{s.named_closure:.0%} of the records' gap)", implausible=implausible)
-    return _designed(problem, ranking, band, mode_hz, labels, probs, {lab: ranking.refits[lab].fit for lab in labels},
-                     implausible)
+    return _designed(problem, band, mode_hz, labels, probs, {lab: ranking.effects[lab] for lab in labels},
+                     {lab: ranking.refits[lab].fit for lab in labels}, implausible)
 
 
 def _seconds(problem: GapProblem) -> float:
@@ -189,14 +190,13 @@ def _seconds(problem: GapProblem) -> float:
     return float(sum(r.fit_end for r in problem.records) * problem.config.time.dt)
 
 
-def _designed(problem: GapProblem, ranking: Ranking, band: tuple[float, float], mode_hz: np.ndarray,
-              labels: tuple[str, ...], probs: dict[str, float], fits: dict[str, Fit], implausible: tuple[str, ...],
-              *, held: bool = False) -> NextExperiment:
-    """The designs that separate ``labels``, each candidate at its fit in ``fits``."""
+def _designed(problem: GapProblem, band: tuple[float, float], mode_hz: np.ndarray, labels: tuple[str, ...],
+              probs: dict[str, float], effects: dict[str, Effect], fits: dict[str, Fit],
+              implausible: tuple[str, ...], *, held: bool = False) -> NextExperiment:
+    """The designs that separate ``labels``, each candidate (its effect in ``effects``) at its fit in ``fits``."""
     s = problem.settings
     seconds = _seconds(problem)
     decisive = math.log(s.decisive_odds)
-    effects: dict[str, Effect] = {lab: ranking.effects[lab] for lab in labels}
     z = {lab: np.concatenate([fits[lab].beta, fits[lab].s]) for lab in labels}
     parts = sorted({m.rig_part for e in effects.values() for m in (e.members or (e,)) if m.rig_part is not None})
     setups = ("as recorded",) + tuple(f"without the {p}" for p in parts)

@@ -20,7 +20,7 @@ alone do not decide between them and that the probabilities still weigh the misf
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from concurrent.futures import Executor
 from typing import Any
 
@@ -57,6 +57,7 @@ class PlausibleReading:
     gap, closure, parameters) and its posterior probability among the readings."""
 
     label: str
+    effect: Effect = field(repr=False, compare=False)
     reading: str                     # "one set-up" or the set-ups apart's description
     refit: EffectRefit
     nrmse: float                     # held-out NRMSE (residual RMS over the record's RMS), all sensors
@@ -197,7 +198,7 @@ def plausible_readings(readings: list[tuple[str, GapProblem, Ranking, dict[str, 
         if problem.modes is not None:
             m = problem.modes_model(fit.beta, effect, fit.s)
             chi2 = float(problem.modes.agreement(m.config, m.params)["chi2"])
-        kept.append((PlausibleReading(lab, name, refit, _nrmse(problem, refit), chi2, 0.0),
+        kept.append((PlausibleReading(lab, effect, name, refit, _nrmse(problem, refit), chi2, 0.0),
                      laplace_log_evidence(problem, fit)))
     if not kept:
         return []
