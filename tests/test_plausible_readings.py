@@ -22,7 +22,7 @@ from diagnosis.effects.chain import ActuatorGain, GAIN_RANGE, rescaled_start
 from diagnosis.judgement.plausibility import implausibilities
 from diagnosis.problem.fitting import GapProblem
 from diagnosis.problem.records import split_records
-from diagnosis.search.plausible import held_start, held_within
+from diagnosis.search.plausible import MARGIN, _excess, held_start, held_within
 from ebb_model.config import config_from_dict
 from ebb_model.reference.excitation import band_limited_input
 from ebb_model.reference.synthetic import synthesize
@@ -88,3 +88,22 @@ def test_the_held_refit_is_plausible_and_fits_at_least_as_well_as_the_truth(case
     assert np.all(after < 0.2 * before)
     # the load cell's sensitivity found: measured 0.526 (5 % off — the soft clamp, unmodelled, biases it)
     assert abs(held.s[0] / GAIN - 1.0) < 0.1
+
+
+def test_the_limits_are_zero_inside_and_grow_outside(case):
+    problem, gain, refit = case
+    ranged = replace(gain, plausible={"gain": (0.0, 2.0)})     # a range whose lower bound is at zero
+    p = problem.space.dim
+    inside = np.array([TRUTH["EI"], TRUTH["rhoA"], TRUTH["c"], 0.0])
+    r = problem.residuals(inside[:p], ranged, inside[p:])
+    assert np.all(_excess(problem, ranged, inside, r) == 0.0)      # zero down to the bound at zero
+    # EI 4 prior σ out: its own row is (4 − 3 MARGIN) σ, the joint row positive too
+    out = inside.copy()
+    out[0] += 4.0 * PRIOR_REL * TRUTH["EI"]
+    e = _excess(problem, ranged, out, problem.residuals(out[:p], ranged, out[p:]))
+    assert e.max() == pytest.approx(4.0 - 3.0 * MARGIN, rel=1e-9)
+    # the gain beyond its plausible top: (gain − 2 MARGIN) / 2
+    far = inside.copy()
+    far[p] = 2.5
+    e = _excess(problem, ranged, far, problem.residuals(far[:p], ranged, far[p:]))
+    assert e[-1] == pytest.approx((2.5 - 2.0 * MARGIN) / 2.0, rel=1e-12)

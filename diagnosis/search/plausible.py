@@ -103,9 +103,11 @@ def _excess(problem: GapProblem, effect: Effect, z: np.ndarray, r: np.ndarray) -
         out += [max(0.0, float(v) - MARGIN * CONFLICT_SIGMA) for v in zscore]
     values = effect.physical(z[p:])
     for name, (lo, hi) in effect.plausible.items():
+        # each limit moved inwards by the margin's share of itself (a bound at zero, an effect's "off", stays)
         width = max(hi - lo, 1e-300)
-        shrink = (1.0 - MARGIN) * width
-        out.append(max(0.0, (values[name] - (hi - shrink)) / width, ((lo + shrink) - values[name]) / width))
+        top = hi * MARGIN if hi > 0 else hi / MARGIN
+        bottom = lo / MARGIN if lo > 0 else lo * MARGIN
+        out.append(max(0.0, (values[name] - top) / width, (bottom - values[name]) / width))
     return np.nan_to_num(np.asarray(out, dtype=float), nan=1e6, posinf=1e6)
 
 
