@@ -174,6 +174,7 @@ def test_arts_diagnosis_names_nothing_implausible_and_says_what_would_decide(tmp
         assert "held within plausibility" in stdout
     if held:
         assert sum(r["probability"] for r in held) == pytest.approx(1.0)
+        assert "Held within plausibility" in (tmp_path / "gap" / "report.html").read_text()
     for r in s["refits"]:
         worse = r["modes"]["max_abs_error"] > s["baseline"]["modes"]["max_abs_error"] + 0.01
         assert (r["label"] in s["consistent_with_impulse_test"]) == (not worse and r["closed"] >= 0.5)

@@ -93,6 +93,15 @@ def html_sections(report: GapReport, out_dir: Path, *, top: int = 10) -> list[Se
     if report.summary:
         sections.append(Section("Where the gap lies", paragraphs=tuple(report.summary)))
     sections.append(effects)
+    if report.plausible_readings:
+        sections.append(Section("Held within plausibility", lead=(
+            "no effect is named; the refits that close the gap, held within the priors, the measured modes and the "
+            "effects' ranges — readings, not a verdict"), tables=(Table(
+                ("effect", "reading", "values", "held-out gap", "NRMSE", "probability"),
+                [(r.label, r.reading, ", ".join(f"{k} = {v:.4g}" for k, v in r.refit.physical.items()),
+                  f"{r.heldout_gap:.3g}", f"{r.nrmse:.1%}", f"{r.probability:.2g}")
+                 for r in report.plausible_readings],
+                "held-out gap in noise variances (1 = the noise floor); probabilities among the readings"),)))
     nxt = report.next_experiment
     if nxt is not None:
         sections.append(Section("The next experiment", lead=nxt.line(), tables=() if not nxt.designs else (Table(

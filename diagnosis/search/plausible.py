@@ -64,11 +64,16 @@ class PlausibleReading:
     modes_chi2: float | None
     probability: float
 
+    @property
+    def heldout_gap(self) -> float:
+        """The held-out gap ratio over every sensor (1 = the noise floor)."""
+        return float(np.mean(self.refit.heldout_after))
+
     def line(self) -> str:
         """One line: the reading, its values, its held-out prediction and probability."""
         values = ", ".join(f"{k}={v:.4g}" for k, v in self.refit.physical.items())
         modes = "" if self.modes_chi2 is None else f", modes chi2 {self.modes_chi2:.3g}"
-        return (f"{self.label} ({self.reading}): {values}; held-out gap {float(np.mean(self.refit.heldout_after)):.3g} "
+        return (f"{self.label} ({self.reading}): {values}; held-out gap {self.heldout_gap:.3g} "
                 f"noise variances (NRMSE {self.nrmse:.1%}, {self.refit.closed:.0%} closed){modes}; "
                 f"probability {self.probability:.2g}")
 
