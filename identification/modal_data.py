@@ -42,6 +42,13 @@ class ModalData:
         """Number of measured modes (of residuals :meth:`residuals` gives)."""
         return int(self.frequencies_hz.size)
 
+    @property
+    def chi2_limit(self) -> float:
+        """The 99.9 % point of χ² with :attr:`count` degrees of freedom: a model beyond it disagrees."""
+        from scipy import stats
+
+        return float(stats.chi2.ppf(0.999, self.count))
+
     def model_frequencies(self, config: BeamConfig, params: Mapping[str, float]) -> np.ndarray:
         """The model's lowest :attr:`count` natural frequencies [Hz] (damped, of the discrete model)."""
         from ebb_model.modal import discrete_frequencies
@@ -62,11 +69,9 @@ class ModalData:
     def agreement(self, config: BeamConfig, params: Mapping[str, float]) -> dict[str, Any]:
         """χ² of the model against the table, its degrees of freedom and whether it agrees (χ² below the 99.9 %
         point of its distribution), with the model's frequencies."""
-        from scipy import stats
-
         r = self.residuals(config, params)
         chi2 = float(r @ r)
-        limit = float(stats.chi2.ppf(0.999, self.count))
+        limit = self.chi2_limit
         return {"chi2": chi2, "modes": self.count, "agrees": bool(chi2 <= limit), "chi2_limit": limit,
                 "model_hz": [float(v) for v in self.model_frequencies(config, params)]
                 if chi2 < 1e11 else None, "measured_hz": [float(v) for v in self.frequencies_hz]}

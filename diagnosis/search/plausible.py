@@ -94,8 +94,8 @@ def _excess(problem: GapProblem, effect: Effect, z: np.ndarray, r: np.ndarray) -
     n_prior = 0 if problem.prior is None else problem.prior.count
     n_records = r.size - n_modes - n_prior
     out = []
-    if n_modes:
-        limit = math.sqrt(float(stats.chi2.ppf(0.999, n_modes)))
+    if problem.modes is not None:
+        limit = math.sqrt(problem.modes.chi2_limit)
         out.append(max(0.0, float(np.linalg.norm(r[n_records:n_records + n_modes])) - MARGIN * limit))
     if n_prior:
         prior = problem.prior
