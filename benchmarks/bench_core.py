@@ -38,7 +38,7 @@ import scipy.signal as ss
 from threadpoolctl import threadpool_limits
 
 import ebb_model as em
-from ebb_model.exact_modal import companion_config, lowest_modes
+from ebb_model.mode_family import companion_config, lowest_modes
 
 from figures import add_json_argument, write_figures  # benchmarks/figures.py
 from timing import median_time  # benchmarks/timing.py

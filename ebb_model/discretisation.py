@@ -73,10 +73,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 
+from .beam import End, PointMass, PointSpring, WeakSegment
 from .config import BeamConfig
 from .errors import ParameterError
 from .parameter_values import resolve_parameters
@@ -88,7 +89,8 @@ MAX_MASS_RATIO = 1e12
 #: stiffness matrix's condition (and with it the modes' round-off) within what a constrained node would give.
 MAX_SPRING_RATIO = 1e12
 
-__all__ = ["SemiDiscreteBeam", "discretise", "grid_nodes", "hat_weights", "rotary_mass", "cell_stiffness"]
+__all__ = ["SemiDiscreteBeam", "discretise", "grid_nodes", "hat_weights", "rotary_mass", "cell_stiffness",
+           "check_attachments", "load_rows", "control_lengths", "assemble_matrices"]
 
 
 @dataclass(frozen=True)
@@ -284,12 +286,68 @@ def discretise(config: BeamConfig, params: Mapping[str, float] | None = None) ->
         spring so stiff) that the mass (stiffness) matrix would be numerically singular.
     """
     p = resolve_parameters(config, params)
+    check_attachments(config, p)
+    g = config.beam
+    M, C, K, unknown = assemble_matrices(g.length, g.nodes, g.left, g.right, config.masses, config.springs,
+                                         config.weak_segments, p)
+    F, S = load_rows(config, g.nodes, unknown)
+    return SemiDiscreteBeam(
+        M=M, C=C, K=K, F=F, S=S,
+        sensor_kinds=tuple(s.kind for s in config.sensors),
+        x=grid_nodes(g.length, g.nodes), unknown=unknown,
+        input_names=config.input_names, output_names=config.output_names,
+    )
+
+
+def check_attachments(config: BeamConfig, p: Mapping[str, float], nodes: int | None = None) -> None:
+    """Raise :class:`ParameterError` for a point mass too heavy (a spring too stiff) for the grid of ``nodes``
+    interior points (default: the config's): the mass (stiffness) matrix would be numerically singular."""
+    h = config.beam.length / ((config.beam.nodes if nodes is None else nodes) + 1)
+    rhoA, EI = p["rhoA"], p["EI"]
+    for m in config.masses:
+        if m.mass > MAX_MASS_RATIO * rhoA * h:
+            raise ParameterError(f"masses.{m.name}: {m.mass:g} kg is more than {MAX_MASS_RATIO:g} times the "
+                                 f"beam's mass per grid cell ({rhoA * h:g} kg): the mass matrix would be "
+                                 f"numerically singular")
+    for sp in config.springs:
+        if sp.k > MAX_SPRING_RATIO * EI / h ** 3:
+            raise ParameterError(f"springs.{sp.name}: {sp.k:g} N/m is more than {MAX_SPRING_RATIO:g} times a grid "
+                                 f"cell's bending stiffness EI/h^3 = {EI / h ** 3:g} N/m: the stiffness matrix would "
+                                 f"be numerically singular (a rigid support is an end condition)")
+
+
+def load_rows(config: BeamConfig, nodes: int, unknown: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(F, S)``: the actuators' load columns and the sensors' position rows (hat weights) on the grid of
+    ``nodes`` interior points, restricted to the nodal ``unknown``."""
+    L, nu = config.beam.length, unknown.size
+    F = np.column_stack([hat_weights(a.x, L, nodes)[unknown] for a in config.actuators]) if config.actuators \
+        else np.zeros((nu, 0))
+    S = np.vstack([hat_weights(s.x, L, nodes)[unknown] for s in config.sensors]) if config.sensors \
+        else np.zeros((0, nu))
+    return F, S
+
+
+def control_lengths(n: int, h: float, left: End, right: End) -> np.ndarray:
+    """Each unknown's control length ``V_i``: ``h`` inside, ``h/2`` at a boundary node that is an unknown."""
+    first = 0 if left.translation_fixed else 1
+    last = 0 if right.translation_fixed else 1
+    V = np.full(n + first + last, h)
+    if first:
+        V[0] = h / 2.0
+    if last:
+        V[-1] = h / 2.0
+    return V
+
+
+def assemble_matrices(length: float, n: int, left: End, right: End, masses: Sequence[PointMass],
+                      springs: Sequence[PointSpring], segments: Sequence[WeakSegment], p: Mapping[str, float]
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(M, C, K, unknown)`` of the beam of ``length`` on ``n`` interior points with the values ``p`` (``EI``,
+    ``rhoA``, ``c``, ``eta``, ``N``, ``rhoI``, ``kf``; taken as they are, unchecked: :func:`discretise` checks
+    them) — the module docstring's matrices."""
     EI, rhoA, c, eta, N = p["EI"], p["rhoA"], p["c"], p["eta"], p["N"]
     rhoI, kf = p["rhoI"], p["kf"]
-    L, n = config.beam.length, config.beam.nodes
-    left, right = config.beam.left, config.beam.right
-    h = L / (n + 1)
-    x = grid_nodes(L, n)
+    h = length / (n + 1)
     first = 1 if left.translation_fixed else 0
     last = n if right.translation_fixed else n + 1
     unknown = np.arange(first, last + 1)
@@ -301,14 +359,10 @@ def discretise(config: BeamConfig, params: Mapping[str, float] | None = None) ->
     # D4 and D2 rows on the extended numbering, one row per unknown node
     D4 = _stencil_rows(rows, n + 6, _FOURTH) / h ** 4
     D2 = _stencil_rows(rows, n + 6, _SECOND) / h ** 2
-    V = np.full(nu, h)
-    if not left.translation_fixed:
-        V[0] = h / 2.0
-    if not right.translation_fixed:
-        V[-1] = h / 2.0
+    V = control_lengths(n, h, left, right)
 
-    if config.weak_segments:
-        B4 = V[:, None] * _bending(n, h, rows, E, cell_stiffness(L, n, config.weak_segments))
+    if segments:
+        B4 = V[:, None] * _bending(n, h, rows, E, cell_stiffness(length, n, segments))
     else:
         B4 = V[:, None] * _apply(D4, E, unknown, ghost)
     K = EI * B4 - N * (V[:, None] * _apply(D2, E, unknown, ghost))
@@ -318,31 +372,13 @@ def discretise(config: BeamConfig, params: Mapping[str, float] | None = None) ->
     M = np.diag(rhoA * V)
     if rhoI != 0.0:
         M += rhoI * rotary_mass(n, h, unknown)
-    for m in config.masses:
-        if m.mass > MAX_MASS_RATIO * rhoA * h:
-            raise ParameterError(f"masses.{m.name}: {m.mass:g} kg is more than {MAX_MASS_RATIO:g} times the "
-                                 f"beam's mass per grid cell ({rhoA * h:g} kg): the mass matrix would be "
-                                 f"numerically singular")
-        phi = hat_weights(m.x, L, n)[unknown]
+    for m in masses:
+        phi = hat_weights(m.x, length, n)[unknown]
         M += m.mass * np.outer(phi, phi)
-    for sp in config.springs:
-        if sp.k > MAX_SPRING_RATIO * EI / h ** 3:
-            raise ParameterError(f"springs.{sp.name}: {sp.k:g} N/m is more than {MAX_SPRING_RATIO:g} times a grid "
-                                 f"cell's bending stiffness EI/h^3 = {EI / h ** 3:g} N/m: the stiffness matrix would "
-                                 f"be numerically singular (a rigid support is an end condition)")
-        phi = hat_weights(sp.x, L, n)[unknown]
+    for sp in springs:
+        phi = hat_weights(sp.x, length, n)[unknown]
         K += sp.k * np.outer(phi, phi)
     # symmetrise away round-off (the exact matrices are symmetric)
     K = 0.5 * (K + K.T)
     C = 0.5 * (C + C.T)
-
-    F = np.column_stack([hat_weights(a.x, L, n)[unknown] for a in config.actuators]) if config.actuators \
-        else np.zeros((nu, 0))
-    S = np.vstack([hat_weights(s.x, L, n)[unknown] for s in config.sensors]) if config.sensors \
-        else np.zeros((0, nu))
-    return SemiDiscreteBeam(
-        M=M, C=C, K=K, F=F, S=S,
-        sensor_kinds=tuple(s.kind for s in config.sensors),
-        x=x, unknown=unknown,
-        input_names=config.input_names, output_names=config.output_names,
-    )
+    return M, C, K, unknown

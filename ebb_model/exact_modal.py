@@ -7,11 +7,13 @@ error (``ω τ``-dependent).  On lightly damped accelerometer records either is 
 seed's spatial discretisation (same grid, ghost nodes, matrices):
 
 1. **Space, Richardson over two grids.**  The FD beam is discretised on the config's grid (``h``) and on
-   a grid with half the spacing (:func:`companion_config`; twice the spacing for configs above 100 nodes,
-   whose refined grid would be too ill-conditioned).  The eigenvalues ``ω_i²`` of the undamped problems
-   converge as ``h²``, so ``(4 ω_i²(h/2) − ω_i²(h)) / 3`` is ``O(h⁴)``; the mode shapes (at the sensors and
-   actuators) and the modal damping come from the finer grid.  The model keeps as many modes as the config's
-   grid has unknowns (the state dimension of the seed's model).
+   a grid with half the spacing (:func:`~ebb_model.mode_family.companion_config`; twice the spacing for
+   configs above 100 nodes, whose refined grid would be too ill-conditioned).  The eigenvalues ``ω_i²`` of the
+   undamped problems converge as ``h²``, so ``(4 ω_i²(h/2) − ω_i²(h)) / 3`` is ``O(h⁴)``; the mode shapes (at
+   the sensors and actuators) and the modal damping come from the finer grid.  The model keeps as many modes
+   as the config's grid has unknowns (the state dimension of the seed's model).  The undamped modes depend on
+   the parameters through ratios only: one eigen-decomposition serves every parameter set with the same
+   ratios (:mod:`ebb_model.mode_family`).
 2. **Time, exact.**  The modal system ``q̈ + C_m q̇ + Λ q = Ψᵀ F u`` (``C_m = Ψᵀ C Ψ``: non-proportional
    damping is kept) is diagonalised in continuous time and each pole ``s`` is integrated exactly over a
    sample under the input of :attr:`~ebb_model.config.TimeSettings.input_hold`: the cubic through the
@@ -30,7 +32,7 @@ the θ-scheme's Bistritz analysis does not apply to it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
@@ -39,104 +41,14 @@ import scipy.linalg as sla
 from .antialias import effective_filters, filtered_poles, series_statespace
 from .config import BeamConfig
 from .coupled_modes import LowRankDamping, coupled_modes, low_rank_damping
-from .discretisation import SemiDiscreteBeam, discretise
-from .modal_form import MAX_BASIS_CONDITION, ModalStateSpace, basis_condition, is_proportional
+from .discretisation import SemiDiscreteBeam
+from .mode_family import FamilyModes, family_modes
+from .modal_form import MAX_BASIS_CONDITION, ModalStateSpace, basis_condition, is_diagonal
+from .parameter_values import resolve_parameters
 from .statespace import DiscreteStateSpace, with_input_delays
 
 __all__ = ["exact_model", "exact_modal", "exact_statespace", "continuous_modes", "ContinuousModes", "modal_matrices",
-           "pair_modal_matrices", "ModalMatrices", "richardson_modes", "extrapolated", "lowest_modes",
-           "modal_state_matrix", "refined_config", "companion_config", "pole_integrals"]
-
-#: Largest refined grid: the eigen-solver's round-off grows with the stiffness matrix's condition number
-#: (``∝ n⁴``: 4e7 at 199 nodes), and beyond this it shows as noise in the identification's difference
-#: Jacobians; larger configs pair their grid with a coarsened one instead.
-_MAX_REFINED_NODES = 201
-
-
-#: Smallest ``ω²`` relative to ``tr K / tr M`` (about the grid's largest ``ω²``) for which ``K`` counts as
-#: positive definite in :func:`lowest_modes` (the clamped 199-node grid's lowest mode: 3e-7).
-_SINGULAR_K = 1e-11
-
-
-def companion_config(config: BeamConfig) -> BeamConfig:
-    """The second grid of the Richardson pair: half the spacing (``2n + 1`` nodes) while that grid has at most
-    :data:`_MAX_REFINED_NODES` nodes, else twice the spacing (``(n − 1)//2`` nodes)."""
-    n = config.beam.nodes
-    nodes = 2 * n + 1 if 2 * n + 1 <= _MAX_REFINED_NODES else (n - 1) // 2
-    return replace(config, beam=replace(config.beam, nodes=nodes))
-
-
-def refined_config(config: BeamConfig) -> BeamConfig:
-    """The finer grid of the Richardson pair, which gives the mode shapes and the damping."""
-    other = companion_config(config)
-    return other if other.beam.nodes > config.beam.nodes else config
-
-
-def lowest_modes(beam: SemiDiscreteBeam, n_modes: int, *, vectors: bool = True):
-    """The ``n_modes`` lowest ``ω²`` (and mass-normalised modes) of ``K ψ = ω² M ψ``, to relative accuracy.
-
-    ``eigh(K, M)`` resolves ``ω²`` only to ``eps·‖K‖`` absolutely, i.e. ``eps·κ(K)`` relatively for the
-    lowest modes (``κ ≈ 6e8`` on a 399-node grid: jitter that spoils difference Jacobians).  When ``K`` is
-    positive definite the inverted problem ``M ψ = μ K ψ`` (``μ = 1/ω²``, largest first) resolves each
-    ``ω²`` to a few ``eps`` relatively; otherwise (compression, free ends) the direct problem is used.
-    LAPACK's Cholesky of a numerically singular ``K`` (a free–free beam's rigid-body modes) need not fail;
-    an inverted problem whose smallest ``ω²`` is below :data:`_SINGULAR_K` of the grid's scale
-    ``tr K / tr M`` is such a case (it put a 24-node free–free beam's mode 3 2e-4 off) and goes direct too.
-    """
-    size = beam.n_unknowns
-    try:   # all pairs by divide and conquer ("gvd"): twice as fast as a subset by "gvx" at these sizes
-        if vectors:
-            mu, psi = sla.eigh(beam.M, beam.K, driver="gvd")
-            mu, psi = mu[-n_modes:], psi[:, -n_modes:]
-        elif 4 * n_modes <= size:   # a few values by bisection (measured at 119: 0.60 ms, all by "gvd" 0.62 ms)
-            mu = sla.eigh(beam.M, beam.K, eigvals_only=True, subset_by_index=(size - n_modes, size - 1))
-        else:
-            mu = sla.eigh(beam.M, beam.K, eigvals_only=True, driver="gvd")[-n_modes:]
-    except np.linalg.LinAlgError:     # K not positive definite
-        mu = None
-    if mu is None or np.any(mu <= 0) or 1.0 / mu.max() < _SINGULAR_K * np.trace(beam.K) / np.trace(beam.M):
-        return sla.eigh(beam.K, beam.M, eigvals_only=not vectors, subset_by_index=(0, n_modes - 1))
-    w2 = 1.0 / mu[::-1]
-    if not vectors:
-        return w2
-    psi = psi[:, ::-1]
-    psi /= np.sqrt(np.einsum("ij,ij->j", psi, beam.M @ psi))[None, :]   # mass-normalised (eigh gave K-normalised)
-    return w2, psi
-
-
-def richardson_modes(coarse: SemiDiscreteBeam, fine: SemiDiscreteBeam, n_modes: int
-                     ) -> tuple[np.ndarray, np.ndarray]:
-    """Extrapolated eigenvalues ``ω²`` and fine-grid mass-normalised modes ``Ψ`` (n_fine × n_modes).
-
-    With spacings ``h_f < h_c`` and ``ω²(h) = ω² + a h² + O(h⁴)``:
-    ``ω²_R = ω²_f + (ω²_f − ω²_c) / ((h_c/h_f)² − 1)``.  The coarse grid has fewer modes; the upper half of
-    them is faded out of the extrapolation by mode index (continuous in the parameters), and modes beyond
-    keep the fine grid's values — they lie far above any band the grids resolve.
-
-    Parameters
-    ----------
-    coarse, fine
-        The FD beam on the two grids.
-    n_modes
-        How many of the lowest modes to return (at most the fine grid's unknowns).
-    """
-    w2_f, psi = lowest_modes(fine, n_modes)
-    m = min(coarse.n_unknowns, n_modes)
-    return extrapolated(w2_f, lowest_modes(coarse, m, vectors=False), coarse, fine, m), psi
-
-
-def extrapolated(w2_f: np.ndarray, w2_c: np.ndarray, coarse: SemiDiscreteBeam, fine: SemiDiscreteBeam, m: int
-                 ) -> np.ndarray:
-    """The Richardson values of :func:`richardson_modes` from the fine grid's lowest ``ω²`` (``w2_f``) and the
-    coarse grid's lowest ``w2_c`` (at most as many), ``m`` being how many the pair extrapolates (the fade's
-    scale): the lowest modes come out the same whether all or a few of them are computed."""
-    h_f, h_c = np.diff(fine.x[:2])[0], np.diff(coarse.x[:2])[0]
-    j = w2_c.size
-    weight = np.clip(2.0 * (1.0 - np.arange(j) / m), 0.0, 1.0)   # 1 for the lower half, fading to 0
-    w2 = w2_f.copy()
-    w2[:j] += weight * (w2_f[:j] - w2_c) / ((h_c / h_f) ** 2 - 1.0)
-    return w2
-
+           "modal_system", "ModalMatrices", "modal_state_matrix", "pole_integrals"]
 
 def polynomial_integrals(s: np.ndarray, T: float, degree: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """``e^{sT}`` and ``I_p = ∫₀ᵀ e^{s(T−τ)} (τ/T)^p dτ`` for ``p = 0 … degree``, each pole, to round-off.
@@ -321,23 +233,22 @@ class ModalMatrices:
 
 
 def modal_matrices(config: BeamConfig, params: Mapping[str, float]) -> ModalMatrices:
-    """Two-grid Richardson modes of the FD beam with their damping, forcing and sensor rows.
+    """Two-grid Richardson modes of the FD beam (:func:`ebb_model.mode_family.family_modes`: one
+    eigen-decomposition per family of parameter sets) with their damping, forcing and sensor rows.
 
     Raises
     ------
     ParameterError
-        Invalid parameter values (from the discretisation).
+        Invalid parameter values.
     """
-    return pair_modal_matrices(discretise(config, params), discretise(companion_config(config), params))
+    return modal_system(family_modes(config, resolve_parameters(config, params)))
 
 
-def pair_modal_matrices(own: SemiDiscreteBeam, companion: SemiDiscreteBeam) -> ModalMatrices:
-    """:func:`modal_matrices` of the beam discretised on the config's grid (``own``) and on its
-    :func:`companion_config` grid."""
-    coarse, fine = sorted((own, companion), key=lambda b: b.n_unknowns)
-    k = own.n_unknowns                                    # as many modes as the config's grid has unknowns
-    w2, psi = richardson_modes(coarse, fine, k)
-    proportional, d = is_proportional(psi, fine.C)
+def modal_system(modes: FamilyModes) -> ModalMatrices:
+    """:func:`modal_matrices` of the undamped ``modes``: the modal damping's structure (diagonal, low-rank or
+    full), the forcing and the sensor rows."""
+    fine, w2, psi = modes.beam, modes.frequencies2, modes.shapes
+    proportional, d = is_diagonal(modes.damping)
     low_rank = None if proportional else low_rank_damping(fine.M, fine.C, psi)
     if low_rank is not None and low_rank.rank == 0:
         # C = α M: decoupled, though the modes' orthogonality round-off made Ψᵀ C Ψ look coupled (near buckling)
@@ -347,8 +258,7 @@ def pair_modal_matrices(own: SemiDiscreteBeam, companion: SemiDiscreteBeam) -> M
     elif low_rank is not None:
         Cm = low_rank.matrix()
     else:
-        Cm = psi.T @ fine.C @ psi
-        Cm = 0.5 * (Cm + Cm.T)
+        Cm = 0.5 * (modes.damping + modes.damping.T)
     Fm = psi.T @ fine.F
     C, D = _output_rows(fine, psi, w2, Cm, Fm)
     return ModalMatrices(w2, psi, Cm, Fm, C, D, d if proportional else None, low_rank)

@@ -113,7 +113,12 @@ class ModalStateSpace:
 
 def is_proportional(Psi: np.ndarray, C: np.ndarray, *, rtol: float = 1e-10) -> tuple[bool, np.ndarray]:
     """Whether ``Ψᵀ C Ψ`` is diagonal (to ``rtol``); returns the flag and its diagonal."""
-    Cd = Psi.T @ C @ Psi
+    return is_diagonal(Psi.T @ C @ Psi, rtol=rtol)
+
+
+def is_diagonal(Cd: np.ndarray, *, rtol: float = 1e-10) -> tuple[bool, np.ndarray]:
+    """Whether the modal damping ``Cd`` (``Ψᵀ C Ψ``) is diagonal (to ``rtol`` of its largest diagonal entry);
+    returns the flag and its diagonal."""
     diag = np.diag(Cd).copy()
     off = Cd - np.diag(diag)
     scale = max(float(np.max(np.abs(diag))), 1e-300)

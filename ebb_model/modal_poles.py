@@ -24,8 +24,10 @@ import numpy as np
 
 from .config import BeamConfig
 from .coupled_modes import coupled_poles
-from .discretisation import SemiDiscreteBeam, discretise
-from .exact_modal import companion_config, extrapolated, lowest_modes, modal_state_matrix, pair_modal_matrices
+from .discretisation import SemiDiscreteBeam
+from .exact_modal import modal_matrices, modal_state_matrix
+from .mode_family import check_pair, extrapolated, family_key, lowest_modes, scaled_beam, unit_pair
+from .parameter_values import resolve_parameters
 
 __all__ = ["modal_poles"]
 
@@ -50,12 +52,13 @@ def modal_poles(config: BeamConfig, params: Mapping[str, float], lowest: int | N
     ParameterError
         Invalid parameter values (from the discretisation).
     """
-    own, companion = discretise(config, params), discretise(companion_config(config), params)
+    p = resolve_parameters(config, params)
     if lowest is not None:
-        s = _mass_proportional_poles(own, companion, lowest)
+        check_pair(config, p)
+        s = _mass_proportional_poles(config, p, lowest)
         if s is not None:
             return s
-    mm = pair_modal_matrices(own, companion)
+    mm = modal_matrices(config, p)
     if mm.damping is not None:
         root = np.sqrt((mm.damping ** 2 / 4 - mm.frequencies2).astype(complex))
         return np.concatenate([-mm.damping / 2 + root, -mm.damping / 2 - root])
@@ -80,24 +83,25 @@ def _mass_proportional_rate(beam: SemiDiscreteBeam) -> float | None:
     return alpha
 
 
-def _mass_proportional_poles(own: SemiDiscreteBeam, companion: SemiDiscreteBeam, n: int) -> np.ndarray | None:
+def _mass_proportional_poles(config: BeamConfig, p: Mapping[str, float], n: int) -> np.ndarray | None:
     """Both poles of each of the ``n`` lowest modes when the damping is mass-proportional and those modes are
-    underdamped (then so is every higher one, ``d`` being the same for all), else ``None``; ``own`` and
-    ``companion`` as :func:`~ebb_model.exact_modal.pair_modal_matrices`.
+    underdamped (then so is every higher one, ``d`` being the same for all), else ``None``; ``p`` resolved.
 
-    The values are :func:`~ebb_model.exact_modal.modal_matrices`' (the same two grids, the same extrapolation,
-    the fade scaled by the full count), computed for these modes alone.
+    The values are :func:`~ebb_model.exact_modal.modal_matrices`' (the same unit beams of the family
+    (:mod:`ebb_model.mode_family`), the same extrapolation, the fade scaled by the full count), computed for these
+    modes alone.
     """
+    own, companion = unit_pair(family_key(config, p))
     k = own.n_unknowns                            # the realisation's mode count (modal_matrices)
     if n >= k:
         return None
     coarse, fine = sorted((own, companion), key=lambda b: b.n_unknowns)
-    alpha = _mass_proportional_rate(fine)
+    alpha = _mass_proportional_rate(scaled_beam(fine, config, p))
     if alpha is None:
         return None
     m = min(coarse.n_unknowns, k)
     w2_f = lowest_modes(fine, n, vectors=False)
-    w2 = extrapolated(w2_f, lowest_modes(coarse, min(n, m), vectors=False), coarse, fine, m)
+    w2 = (p["EI"] / p["rhoA"]) * extrapolated(w2_f, lowest_modes(coarse, min(n, m), vectors=False), coarse, fine, m)
     if not (np.all(np.diff(w2) > 0) and w2[0] > 0 and alpha * alpha / 4 < w2[0]):
         return None
     s = -alpha / 2 + 1j * np.sqrt(w2 - alpha * alpha / 4)

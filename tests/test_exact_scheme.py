@@ -363,15 +363,6 @@ def test_lowest_poles_of_damping_coupled_modes_equal_the_full_eigenproblem(cfg_f
     np.testing.assert_allclose(z5, z_all[:5], rtol=1e-9)
 
 
-def _grids(cfg):
-    """The beam on the config's grid and on its Richardson companion."""
-    from ebb_model.discretisation import discretise
-    from ebb_model.exact_modal import companion_config
-
-    p = cfg.parameter_values()
-    return discretise(cfg, p), discretise(companion_config(cfg), p)
-
-
 @pytest.mark.parametrize("ends,extra", [(("clamped", "pinned"), {}), (("pinned", "pinned"), {"N": -40.0}),
                                         (("clamped", "free"), {"springs": [("k", 0.6, 400.0)]}),
                                         (("clamped", "clamped"), {"c": 0.0})])
@@ -382,7 +373,7 @@ def test_lowest_poles_of_mass_proportional_damping_need_no_mode_shapes(cfg_facto
 
     kw = {"c": 3.0, **extra}
     cfg = cfg_factory(*ends, nodes=60, scheme="exact", **kw)
-    assert _mass_proportional_poles(*_grids(cfg), 5) is not None     # the short route is taken
+    assert _mass_proportional_poles(cfg, cfg.parameter_values(), 5) is not None     # the short route is taken
     f_all, z_all = em.discrete_frequencies(cfg)
     f5, z5 = em.discrete_frequencies(cfg, None, 5)
     # measured: at most 4e-13 (frequencies) and 8e-13 (damping ratios; the compressed and the cantilever grids,
@@ -397,7 +388,7 @@ def test_damping_that_is_not_mass_proportional_takes_the_full_route(cfg_factory)
 
     for extra in ({"masses": [("m", 0.7, 0.1)]}, {"eta": 2e-4}):
         cfg = cfg_factory("clamped", "pinned", nodes=40, c=3.0, scheme="exact", **extra)
-        assert _mass_proportional_poles(*_grids(cfg), 5) is None
+        assert _mass_proportional_poles(cfg, cfg.parameter_values(), 5) is None
 
 
 @pytest.mark.parametrize("bad", [0, -3, 2.5, True, "5"])

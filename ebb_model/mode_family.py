@@ -1,0 +1,291 @@
+r"""The beam's undamped modes: a Richardson pair of grids, and every parameter set's modes as one family.
+
+**The Richardson pair.**  The FD beam's eigenvalues ``ω_i²`` converge as ``h²``; discretised on the config's grid
+and on a :func:`companion_config` grid (half the spacing, or twice it above :data:`_MAX_REFINED_NODES`), the
+extrapolation ``ω²_f + (ω²_f − ω²_c)/((h_c/h_f)² − 1)`` is ``O(h⁴)`` (:func:`richardson_modes`); the shapes come
+from the finer grid.
+
+**The family.**  The undamped problem ``K ψ = ω² M ψ`` depends on the parameters through ratios only
+(:mod:`ebb_model.discretisation`): ``K = EI K̃`` with ``K̃`` a function of ``U = N/EI`` (times ``L²``), the
+foundation's ``k_f/EI``, the springs' ``k/EI`` and the ends' ``k_t/EI``, ``k_r/EI``; ``M = ρA M̃`` with ``M̃`` a
+function of ``ρI/ρA`` and the point masses' ``m/ρA``.  Hence
+
+.. math::  ω² = \frac{EI}{ρA}\,\tilde ω²,\qquad ψ = \tilde ψ / \sqrt{ρA},
+
+``(ω̃², ψ̃)`` the modes of the *unit* beam (``EI = ρA = 1``, the same ratios).  The damping (``c``, ``η``) and the
+positions of sensors and actuators do not enter.  So every parameter set with the same ratios — the
+:class:`FamilyKey` — shares one eigen-decomposition of the Richardson pair: :func:`unit_modes`, a pure function
+of the key memoised per process (a bounded LRU cache, like numba's compiled kernels), so a result never depends
+on which evaluations came before (a resumed run, another worker, compute the same numbers).  An identification
+with ``N`` known and no attached mass needs one decomposition for all its evaluations (the difference Jacobians'
+steps in ``EI``, ``ρA``, ``c``, ``η`` and positions included); :func:`family_modes` scales it and builds the
+finer grid's damping, load and sensor rows for the parameter set at hand.
+"""
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, replace
+from typing import Mapping
+
+import numpy as np
+import scipy.linalg as sla
+
+from .beam import End, PointMass, PointSpring, WeakSegment
+from .config import BeamConfig
+from .discretisation import (SemiDiscreteBeam, assemble_matrices, check_attachments, control_lengths, grid_nodes,
+                             load_rows)
+
+__all__ = ["companion_nodes", "companion_config", "refined_config", "lowest_modes", "richardson_modes",
+           "extrapolated", "FamilyKey", "family_key", "UnitModes", "unit_pair", "unit_modes", "scaled_beam",
+           "check_pair", "FamilyModes", "family_modes"]
+
+#: Largest refined grid: the eigen-solver's round-off grows with the stiffness matrix's condition number
+#: (``∝ n⁴``: 4e7 at 199 nodes), and beyond this it shows as noise in the identification's difference
+#: Jacobians; larger configs pair their grid with a coarsened one instead.
+_MAX_REFINED_NODES = 201
+
+
+#: Smallest ``ω²`` relative to ``tr K / tr M`` (about the grid's largest ``ω²``) for which ``K`` counts as
+#: positive definite in :func:`lowest_modes` (the clamped 199-node grid's lowest mode: 3e-7).
+_SINGULAR_K = 1e-11
+
+
+def companion_nodes(n: int) -> int:
+    """Interior points of the second grid of the Richardson pair of a grid of ``n``: half the spacing
+    (``2n + 1``) while that grid has at most :data:`_MAX_REFINED_NODES` nodes, else twice the spacing
+    (``(n − 1)//2``)."""
+    return 2 * n + 1 if 2 * n + 1 <= _MAX_REFINED_NODES else (n - 1) // 2
+
+
+def companion_config(config: BeamConfig) -> BeamConfig:
+    """The config on the second grid of the Richardson pair (:func:`companion_nodes`)."""
+    return replace(config, beam=replace(config.beam, nodes=companion_nodes(config.beam.nodes)))
+
+
+def refined_config(config: BeamConfig) -> BeamConfig:
+    """The finer grid of the Richardson pair, which gives the mode shapes and the damping."""
+    other = companion_config(config)
+    return other if other.beam.nodes > config.beam.nodes else config
+
+
+def lowest_modes(beam: SemiDiscreteBeam, n_modes: int, *, vectors: bool = True):
+    """The ``n_modes`` lowest ``ω²`` (and mass-normalised modes) of ``K ψ = ω² M ψ``, to relative accuracy.
+
+    ``eigh(K, M)`` resolves ``ω²`` only to ``eps·‖K‖`` absolutely, i.e. ``eps·κ(K)`` relatively for the
+    lowest modes (``κ ≈ 6e8`` on a 399-node grid: jitter that spoils difference Jacobians).  When ``K`` is
+    positive definite the inverted problem ``M ψ = μ K ψ`` (``μ = 1/ω²``, largest first) resolves each
+    ``ω²`` to a few ``eps`` relatively; otherwise (compression, free ends) the direct problem is used.
+    LAPACK's Cholesky of a numerically singular ``K`` (a free–free beam's rigid-body modes) need not fail;
+    an inverted problem whose smallest ``ω²`` is below :data:`_SINGULAR_K` of the grid's scale
+    ``tr K / tr M`` is such a case (it put a 24-node free–free beam's mode 3 2e-4 off) and goes direct too.
+    """
+    size = beam.n_unknowns
+    try:   # all pairs by divide and conquer ("gvd"): twice as fast as a subset by "gvx" at these sizes
+        if vectors:
+            mu, psi = sla.eigh(beam.M, beam.K, driver="gvd")
+            mu, psi = mu[-n_modes:], psi[:, -n_modes:]
+        elif 4 * n_modes <= size:   # a few values by bisection (measured at 119: 0.60 ms, all by "gvd" 0.62 ms)
+            mu = sla.eigh(beam.M, beam.K, eigvals_only=True, subset_by_index=(size - n_modes, size - 1))
+        else:
+            mu = sla.eigh(beam.M, beam.K, eigvals_only=True, driver="gvd")[-n_modes:]
+    except np.linalg.LinAlgError:     # K not positive definite
+        mu = None
+    if mu is None or np.any(mu <= 0) or 1.0 / mu.max() < _SINGULAR_K * np.trace(beam.K) / np.trace(beam.M):
+        return sla.eigh(beam.K, beam.M, eigvals_only=not vectors, subset_by_index=(0, n_modes - 1))
+    w2 = 1.0 / mu[::-1]
+    if not vectors:
+        return w2
+    psi = psi[:, ::-1]
+    psi /= np.sqrt(np.einsum("ij,ij->j", psi, beam.M @ psi))[None, :]   # mass-normalised (eigh gave K-normalised)
+    return w2, psi
+
+
+def richardson_modes(coarse: SemiDiscreteBeam, fine: SemiDiscreteBeam, n_modes: int
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Extrapolated eigenvalues ``ω²`` and fine-grid mass-normalised modes ``Ψ`` (n_fine × n_modes).
+
+    With spacings ``h_f < h_c`` and ``ω²(h) = ω² + a h² + O(h⁴)``:
+    ``ω²_R = ω²_f + (ω²_f − ω²_c) / ((h_c/h_f)² − 1)``.  The coarse grid has fewer modes; the upper half of
+    them is faded out of the extrapolation by mode index (continuous in the parameters), and modes beyond
+    keep the fine grid's values — they lie far above any band the grids resolve.
+
+    Parameters
+    ----------
+    coarse, fine
+        The FD beam on the two grids.
+    n_modes
+        How many of the lowest modes to return (at most the fine grid's unknowns).
+    """
+    w2_f, psi = lowest_modes(fine, n_modes)
+    m = min(coarse.n_unknowns, n_modes)
+    return extrapolated(w2_f, lowest_modes(coarse, m, vectors=False), coarse, fine, m), psi
+
+
+def extrapolated(w2_f: np.ndarray, w2_c: np.ndarray, coarse: SemiDiscreteBeam, fine: SemiDiscreteBeam, m: int
+                 ) -> np.ndarray:
+    """The Richardson values of :func:`richardson_modes` from the fine grid's lowest ``ω²`` (``w2_f``) and the
+    coarse grid's lowest ``w2_c`` (at most as many), ``m`` being how many the pair extrapolates (the fade's
+    scale): the lowest modes come out the same whether all or a few of them are computed."""
+    h_f, h_c = np.diff(fine.x[:2])[0], np.diff(coarse.x[:2])[0]
+    j = w2_c.size
+    weight = np.clip(2.0 * (1.0 - np.arange(j) / m), 0.0, 1.0)   # 1 for the lower half, fading to 0
+    w2 = w2_f.copy()
+    w2[:j] += weight * (w2_f[:j] - w2_c) / ((h_c / h_f) ** 2 - 1.0)
+    return w2
+
+
+#: Unit decompositions kept per process (:func:`unit_modes`): a diagnosis alternates between a few keys (the
+#: baseline's, an effect's refit, its difference steps); an entry holds three matrices of each grid of the pair
+#: (about 0.4 MB at 50 interior points, 1.3 MB at 100).
+FAMILY_CACHE = 32
+
+
+@dataclass(frozen=True)
+class FamilyKey:
+    """What the undamped modes depend on besides ``EI`` and ``ρA`` (module docstring): the geometry, the ends
+    with their springs per ``EI``, ``N``, ``k_f`` per ``EI`` and ``ρI`` per ``ρA``, the point masses per ``ρA``,
+    the springs per ``EI`` (names dropped) and the weak segments."""
+
+    length: float
+    nodes: int
+    left: End
+    right: End
+    N: float
+    kf: float
+    rhoI: float
+    masses: tuple[PointMass, ...]
+    springs: tuple[PointSpring, ...]
+    segments: tuple[WeakSegment, ...]
+
+
+def family_key(config: BeamConfig, p: Mapping[str, float]) -> FamilyKey:
+    """The :class:`FamilyKey` of ``config`` with the (resolved) parameter values ``p``."""
+    EI, rhoA = p["EI"], p["rhoA"]
+    g = config.beam
+
+    def end(e: End) -> End:
+        return End(e.kind, e.kt / EI, e.kr / EI)
+
+    return FamilyKey(g.length, g.nodes, end(g.left), end(g.right), p["N"] / EI, p["kf"] / EI, p["rhoI"] / rhoA,
+                     tuple(PointMass("", m.x, m.mass / rhoA) for m in config.masses),
+                     tuple(PointSpring("", s.x, s.k / EI) for s in config.springs),
+                     tuple(replace(w, name="") for w in config.weak_segments))
+
+
+@dataclass(frozen=True, eq=False)
+class UnitModes:
+    """The Richardson modes of a family's unit beam (``EI = ρA = 1``): ``frequencies2`` (``ω̃²``, as many as the
+    config's grid has unknowns) and ``shapes`` (``ψ̃``, mass-normalised, on the ``fine`` unit beam of the pair).
+    Read-only arrays (shared by every caller)."""
+
+    frequencies2: np.ndarray
+    shapes: np.ndarray
+    fine: SemiDiscreteBeam
+    #: ``ψ̃ᵀ diag(V) ψ̃`` and ``ψ̃ᵀ C̃ ψ̃`` (``V`` the fine grid's control lengths): the modal damping of ``c`` and
+    #: of ``η EI`` per unit ``ρA``
+    viscous: np.ndarray
+    bending: np.ndarray
+
+
+def _affine_beam(key: FamilyKey, nodes: int) -> tuple[SemiDiscreteBeam, np.ndarray, np.ndarray]:
+    """The family's unit beam on ``nodes`` interior points at ``N = 0``, and the parts of ``K̃`` and ``C̃`` per unit
+    ``N/EI``: both are affine in it (the ghost relations are, and ``D₂`` reads no ghost that depends on it).
+    ``M̃``, ``K̃`` and, as ``C``, the Kelvin–Voigt damping per unit ``η EI`` (``c = 0``, ``η = 1``); no loads, no
+    sensors."""
+    values = {"EI": 1.0, "rhoA": 1.0, "c": 0.0, "eta": 1.0, "N": 0.0, "rhoI": key.rhoI, "kf": key.kf}
+    M, C, K, unknown = assemble_matrices(key.length, nodes, key.left, key.right, key.masses, key.springs,
+                                         key.segments, values)
+    _, C1, K1, _ = assemble_matrices(key.length, nodes, key.left, key.right, key.masses, key.springs,
+                                     key.segments, values | {"N": 1.0})
+    nu = unknown.size
+    beam = SemiDiscreteBeam(M, C, K, np.zeros((nu, 0)), np.zeros((0, nu)), (), grid_nodes(key.length, nodes),
+                            unknown, (), ())
+    arrays = (beam.M, beam.C, beam.K, beam.x, beam.unknown, K1 - K, C1 - C)
+    for a in arrays:
+        a.setflags(write=False)
+    return beam, arrays[-2], arrays[-1]
+
+
+@functools.lru_cache(maxsize=FAMILY_CACHE)
+def _affine_pair(key: FamilyKey) -> tuple[tuple[SemiDiscreteBeam, np.ndarray, np.ndarray], ...]:
+    """:func:`_affine_beam` on the config's grid and on its companion grid (``key`` with ``N = 0``; memoised per
+    process)."""
+    return _affine_beam(key, key.nodes), _affine_beam(key, companion_nodes(key.nodes))
+
+
+def unit_pair(key: FamilyKey) -> tuple[SemiDiscreteBeam, SemiDiscreteBeam]:
+    """The family ``key``'s unit beams on the config's grid and on its companion grid: ``K̃ = K̃₀ + (N/EI) K̃₁``
+    (and ``C̃`` alike) from the memoised parts of the family's ``N = 0`` member (:func:`_affine_beam`)."""
+    def at(beam: SemiDiscreteBeam, dK: np.ndarray, dC: np.ndarray) -> SemiDiscreteBeam:
+        if key.N == 0.0:
+            return beam
+        return replace(beam, K=beam.K + key.N * dK, C=beam.C + key.N * dC)
+
+    own, companion = _affine_pair(replace(key, N=0.0))
+    return at(*own), at(*companion)
+
+
+@functools.lru_cache(maxsize=FAMILY_CACHE)
+def unit_modes(key: FamilyKey) -> UnitModes:
+    """The Richardson modes of the family ``key``'s unit beam (memoised per process; module docstring)."""
+    own, companion = unit_pair(key)
+    coarse, fine = sorted((own, companion), key=lambda b: b.n_unknowns)
+    w2, psi = richardson_modes(coarse, fine, own.n_unknowns)
+    nodes = fine.x.size - 2
+    V = control_lengths(nodes, key.length / (nodes + 1), key.left, key.right)
+    viscous, bending = psi.T @ (V[:, None] * psi), psi.T @ fine.C @ psi
+    for a in (w2, psi, viscous, bending, fine.K, fine.C):
+        a.setflags(write=False)
+    return UnitModes(w2, psi, fine, viscous, bending)
+
+
+def scaled_beam(unit: SemiDiscreteBeam, config: BeamConfig, p: Mapping[str, float]) -> SemiDiscreteBeam:
+    """The beam of ``config`` with the resolved values ``p`` on the grid of its family's ``unit`` beam:
+    ``M = ρA M̃``, ``K = EI K̃``, ``C = c V + η EI C̃`` (``V`` the control lengths), the loads and sensor rows of
+    ``config``'s actuators and sensors on that grid."""
+    EI = p["EI"]
+    nodes = unit.x.size - 2
+    C = (p["eta"] * EI) * unit.C
+    V = control_lengths(nodes, config.beam.length / (nodes + 1), config.beam.left, config.beam.right)
+    C[np.diag_indices_from(C)] += p["c"] * V
+    F, S = load_rows(config, nodes, unit.unknown)
+    return SemiDiscreteBeam(M=p["rhoA"] * unit.M, C=C, K=EI * unit.K, F=F, S=S,
+                            sensor_kinds=tuple(s.kind for s in config.sensors), x=unit.x, unknown=unit.unknown,
+                            input_names=config.input_names, output_names=config.output_names)
+
+
+def check_pair(config: BeamConfig, p: Mapping[str, float]) -> None:
+    """Raise :class:`~ebb_model.errors.ParameterError` for a point mass too heavy or a spring too stiff for
+    either grid of the Richardson pair (:func:`~ebb_model.discretisation.check_attachments`)."""
+    for nodes in (config.beam.nodes, companion_nodes(config.beam.nodes)):
+        check_attachments(config, p, nodes)
+
+
+@dataclass(frozen=True, eq=False)
+class FamilyModes:
+    """The undamped modes of a parameter set (:func:`family_modes`): the finer grid's ``beam``, the extrapolated
+    ``frequencies2`` (``ω²``), the mass-normalised ``shapes`` ``Ψ`` (finer grid × as many modes as the config's
+    grid has unknowns) and the modal damping ``damping`` (``Ψᵀ C Ψ``, before any symmetrisation)."""
+
+    beam: SemiDiscreteBeam
+    frequencies2: np.ndarray
+    shapes: np.ndarray
+    damping: np.ndarray
+
+
+def family_modes(config: BeamConfig, p: Mapping[str, float]) -> FamilyModes:
+    """The undamped modes of ``config`` with the resolved values ``p``: the family's unit modes scaled (module
+    docstring).
+
+    Raises
+    ------
+    ParameterError
+        A point mass too heavy or a spring too stiff for either grid (:func:`check_pair`).
+    """
+    check_pair(config, p)
+    unit = unit_modes(family_key(config, p))
+    EI, rhoA = p["EI"], p["rhoA"]
+    damping = (p["c"] / rhoA) * unit.viscous + (p["eta"] * EI / rhoA) * unit.bending
+    return FamilyModes(scaled_beam(unit.fine, config, p), (EI / rhoA) * unit.frequencies2,
+                       unit.shapes / math.sqrt(rhoA), damping)
