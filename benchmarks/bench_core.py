@@ -18,6 +18,8 @@ Printed (medians over repeats, all measured in this one run):
   fastest LAPACK route measured, though it resolves the lowest ``ω²`` only to ``eps·‖K‖`` (its difference from
   the model's values is printed) —, and the ratio ``(floor + modes) / floor``: a lower bound of the evaluation's
   ratio for any realisation that takes its mode shapes from LAPACK;
+* within one family: the evaluation and its assembly, and the ratio to the floor; the same two evaluations and
+  the floor for 200 interior nodes and 3 sensors;
 * growth exponents when the number of samples doubles and when the number of nodes doubles:
   ``log2(t(2x) / t(x))``.
 
@@ -46,15 +48,40 @@ from timing import median_time  # benchmarks/timing.py
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def config(nodes: int) -> em.BeamConfig:
+def config(nodes: int, sensors: int = 2) -> em.BeamConfig:
     d = em.load_config(ROOT / "examples" / "seed_clamped.toml").to_dict()
     d["beam"]["nodes"] = nodes
+    if sensors == 3:
+        d["sensors"].append({"name": "y3", "x": 0.9, "kind": "displacement"})
     return em.config_from_dict(d)
 
 
 def evaluation(cfg: em.BeamConfig, u: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A new member of the modes' family each time (``N`` and ``EI`` move ``N/EI``): one eigen-decomposition."""
     p = {"EI": rng.uniform(8, 12), "rhoA": rng.uniform(0.9, 1.1), "N": rng.uniform(0, 100)}
     return em.simulate(em.fast_model(cfg, p), u).outputs
+
+
+def family_evaluation(cfg: em.BeamConfig, u: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Within one family of the modes (``N = 0`` known; ``EI``, ``ρA``, ``c`` move): the decomposition scaled."""
+    p = {"EI": rng.uniform(8, 12), "rhoA": rng.uniform(0.9, 1.1), "c": rng.uniform(0.1, 1.0), "N": 0.0}
+    return em.simulate(em.fast_model(cfg, p), u).outputs
+
+
+def against_floor(cfg: em.BeamConfig, u: np.ndarray, rng: np.random.Generator, repeats: int,
+                  workdir: Path) -> dict[str, float]:
+    """Median evaluation times [s] of ``cfg`` — a new member of the family, and within one family — with the
+    compiled floor of its recursion and the floor's relative difference from the fast path."""
+    evaluation(cfg, u, rng)
+    family_evaluation(cfg, u, rng)
+    out = {"member": median_time(lambda: evaluation(cfg, u, rng), repeats),
+           "family": median_time(lambda: family_evaluation(cfg, u, rng), repeats)}
+    fm = em.fast_model(cfg)
+    floor = compiled_floor(fm, u, workdir)
+    y = em.simulate(fm, u).outputs
+    out["floor_difference"] = float(np.linalg.norm(floor() - y) / np.linalg.norm(y))
+    out["floor"] = median_time(floor, repeats)
+    return out
 
 
 #: The modal recursion of :func:`ebb_model.simulate` written as plain C, compiled for the case's sizes (``NB``
@@ -174,6 +201,10 @@ def main() -> None:
             t_floor = median_time(floor, args.repeats)
 
         modes = mode_times(cfg, args.repeats)
+        t_fam_asm = median_time(lambda: em.fast_model(cfg, {"EI": rng.uniform(8, 12), "N": 0.0}), args.repeats)
+        with tempfile.TemporaryDirectory() as tmp:
+            r1 = against_floor(cfg, u, rng, args.repeats, Path(tmp))
+            big = against_floor(config(200, sensors=3), u, rng, max(5, args.repeats // 3), Path(tmp))
 
         u2 = rng.standard_normal((40_000, 1))
         t_fast_2s = median_time(lambda: evaluation(cfg, u2, rng), args.repeats)
@@ -191,6 +222,11 @@ def main() -> None:
     print(f"  compiled floor (the same recursion in C, {fm.nblocks} blocks = {2 * fm.nblocks} states): "
           f"{t_floor * 1e3:8.3f} ms  (its outputs vs the fast path's: {rel_floor:.1e})")
     print(f"  ratio fast evaluation / floor:         {t_fast / t_floor:8.2f} x   (target <= 1.5)")
+    print(f"  within one family of the modes (N = 0 known; EI, rhoA, c new): evaluation {r1['family'] * 1e3:8.3f} ms "
+          f"(assembly {t_fam_asm * 1e3:.3f} ms), {r1['family'] / r1['floor']:.2f} x its floor")
+    print(f"  200 nodes, 3 sensors: new member {big['member'] * 1e3:8.3f} ms, within a family "
+          f"{big['family'] * 1e3:8.3f} ms, floor {big['floor'] * 1e3:8.3f} ms -> "
+          f"{big['member'] / big['floor']:.2f} x and {big['family'] / big['floor']:.2f} x  (target <= 1.5)")
     print(f"  ratio simulation alone / floor:        {t_sim / t_floor:8.2f} x")
     t_modes = min(modes["modes_dense"], modes["modes_banded"])
     print(f"  the Richardson pair's eigenproblems for new parameters, as the model solves them: "
@@ -209,6 +245,11 @@ def main() -> None:
         "dlsim_ms": t_dlsim * 1e3, "dlsim_ratio": t_dlsim / t_fast, "dlsim_relative_difference": rel,
         "floor_ms": t_floor * 1e3, "floor_relative_difference": rel_floor,
         "floor_ratio": t_fast / t_floor, "simulation_floor_ratio": t_sim / t_floor,
+        "family_evaluation_ms": r1["family"] * 1e3, "family_assembly_ms": t_fam_asm * 1e3,
+        "family_floor_ratio": r1["family"] / r1["floor"],
+        "big_member_ms": big["member"] * 1e3, "big_family_ms": big["family"] * 1e3, "big_floor_ms": big["floor"] * 1e3,
+        "big_member_floor_ratio": big["member"] / big["floor"], "big_family_floor_ratio": big["family"] / big["floor"],
+        "big_floor_difference": big["floor_difference"],
         "modes_dense_ms": modes["modes_dense"] * 1e3, "modes_banded_ms": modes["modes_banded"] * 1e3,
         "modes_banded_deviation": modes["banded_deviation"],
         "modes_floor_ratio": (t_floor + t_modes) / t_floor,

@@ -54,9 +54,10 @@ def polynomial_integrals(s: np.ndarray, T: float, degree: int = 3) -> tuple[np.n
     """``e^{sT}`` and ``I_p = ∫₀ᵀ e^{s(T−τ)} (τ/T)^p dτ`` for ``p = 0 … degree``, each pole, to round-off.
 
     With ``z = sT``: ``I_0 = T (e^z − 1)/z`` and ``I_p = (p I_{p−1} − T)/z`` (integration by parts), stable for
-    ``|z| ≥ 1`` (the recurrence amplifies round-off by at most ``p!/|z|^p``); below, the series
-    ``T Σ_k z^k p!/(k + p + 1)!`` (24 terms: the last below ``1e-23``) avoids the cancellation.
-    Returns ``E`` (n,) and ``I`` (degree + 1, n).
+    ``|z| ≥ 1`` (the recurrence amplifies round-off by at most ``p!/|z|^p``); below, the highest degree by its
+    series ``T Σ_k z^k p!/(k + p + 1)!`` (:data:`_SERIES_TERMS` terms, Horner's rule) and the lower ones by the
+    recurrence run downwards, ``I_{p−1} = (z I_p + T)/p``, which damps round-off by ``|z|/p``.
+    ``degree`` at most 3 (the cubic's).  Returns ``E`` (n,) and ``I`` (degree + 1, n).
     """
     z = np.asarray(s, dtype=complex) * T
     small = np.abs(z) < 1.0
@@ -68,15 +69,22 @@ def polynomial_integrals(s: np.ndarray, T: float, degree: int = 3) -> tuple[np.n
         I[0, ~small] = np.expm1(zl) / zl
         for p in range(1, degree + 1):
             I[p, ~small] = (p * I[p - 1, ~small] - 1.0) / zl
-    if zs.size:   # every p at once: row p is the series T Σ_k z^k p!/(k + p + 1)!
-        p = np.arange(degree + 1)[:, None]
-        term = np.repeat((1.0 / (p + 1)).astype(complex), zs.size, axis=1)   # k = 0: p!/(p+1)!
-        acc = term.copy()
-        for k in range(1, 24):
-            term = term * zs / (k + p + 1)
-            acc += term
-        I[:, small] = acc
+    if zs.size:
+        coef = _SERIES[degree]
+        acc = np.full(zs.size, coef[-1], dtype=complex)
+        for c in coef[-2::-1]:
+            acc = acc * zs + c
+        I[degree, small] = acc
+        for p in range(degree, 0, -1):
+            acc = (zs * acc + 1.0) / p
+            I[p - 1, small] = acc
     return E, T * I
+
+
+#: Terms of the series of :func:`polynomial_integrals` (``|z| < 1``): the last is below ``1/24! ≈ 2e-24``.
+_SERIES_TERMS = 24
+#: The series' coefficients ``p!/(k + p + 1)!`` per degree ``p`` (constants, built once).
+_SERIES = {p: [math.factorial(p) / math.factorial(k + p + 1) for k in range(_SERIES_TERMS)] for p in range(4)}
 
 
 def pole_integrals(s: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
