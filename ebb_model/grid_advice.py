@@ -28,7 +28,7 @@ import numpy as np
 from .config import BeamConfig
 from .config_types import MAX_NODES
 from .discretisation import discretise
-from .mode_family import lowest_modes, companion_config, richardson_modes
+from .mode_family import extrapolated, family_modes, lowest_modes
 from .modal import discrete_frequencies
 from .parameter_values import resolve_parameters
 
@@ -89,19 +89,17 @@ def _reference_omega(config: BeamConfig, p: Mapping[str, float], k: int) -> np.n
     n = max(config.beam.nodes, REFERENCE_NODES)
     coarse = discretise(replace(config, beam=replace(config.beam, nodes=2 * n + 1)), p)
     fine = discretise(replace(config, beam=replace(config.beam, nodes=4 * n + 3)), p)
-    w2, _ = richardson_modes(coarse, fine, k)
+    # the values alone (no shapes: a few values by bisection on these large grids), the fade over the k modes
+    w2 = extrapolated(lowest_modes(fine, k, vectors=False), lowest_modes(coarse, k, vectors=False), coarse, fine, k)
     return np.sqrt(np.abs(w2))
 
 
 def _space_omega(config: BeamConfig, p: Mapping[str, float], k: int) -> np.ndarray:
     """Undamped ω of the model's first ``k`` modes on the config's grid (exact: Richardson; θ: plain FD)."""
-    beam = discretise(config, p)
-    if config.time.scheme == "exact":                 # exactly the model's modes (same fading of the weights)
-        w2, _ = richardson_modes(*sorted((beam, discretise(companion_config(config), p)),
-                                         key=lambda b: b.n_unknowns), beam.n_unknowns)
-        w2 = w2[:k]
+    if config.time.scheme == "exact":                 # exactly the model's modes (its family's, memoised)
+        w2 = family_modes(config, p).frequencies2[:k]
     else:
-        w2 = lowest_modes(beam, k, vectors=False)
+        w2 = lowest_modes(discretise(config, p), k, vectors=False)
     return np.sqrt(np.abs(w2))
 
 

@@ -15,8 +15,8 @@ function of ``ρI/ρA`` and the point masses' ``m/ρA``.  Hence
 ``(ω̃², ψ̃)`` the modes of the *unit* beam (``EI = ρA = 1``, the same ratios).  The damping (``c``, ``η``) and the
 positions of sensors and actuators do not enter.  So every parameter set with the same ratios — the
 :class:`FamilyKey` — shares one eigen-decomposition of the Richardson pair: :func:`unit_modes`, a pure function
-of the key memoised per process (a bounded LRU cache, like numba's compiled kernels), so a result never depends
-on which evaluations came before (a resumed run, another worker, compute the same numbers).  An identification
+of the key memoised per process (the least recently used dropped beyond a budget of bytes), so a result never
+depends on which evaluations came before (a resumed run, another worker, compute the same numbers).  An identification
 with ``N`` known and no attached mass needs one decomposition for all its evaluations (the difference Jacobians'
 steps in ``EI``, ``ρA``, ``c``, ``η`` and positions included); :func:`family_modes` scales it and builds the
 finer grid's damping, load and sensor rows for the parameter set at hand.
@@ -25,8 +25,10 @@ from __future__ import annotations
 
 import functools
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass, replace
-from typing import Mapping
+from typing import Any, Callable, Mapping, TypeVar
 
 import numpy as np
 import scipy.linalg as sla
@@ -35,6 +37,8 @@ from .beam import End, PointMass, PointSpring, WeakSegment
 from .config import BeamConfig
 from .discretisation import (SemiDiscreteBeam, assemble_matrices, check_attachments, control_lengths, grid_nodes,
                              load_rows)
+
+T = TypeVar("T")
 
 __all__ = ["companion_nodes", "companion_config", "refined_config", "lowest_modes", "richardson_modes",
            "extrapolated", "FamilyKey", "family_key", "UnitModes", "unit_pair", "unit_modes", "scaled_beam",
@@ -135,12 +139,6 @@ def extrapolated(w2_f: np.ndarray, w2_c: np.ndarray, coarse: SemiDiscreteBeam, f
     return w2
 
 
-#: Unit decompositions kept per process (:func:`unit_modes`): a diagnosis alternates between a few keys (the
-#: baseline's, an effect's refit, its difference steps); an entry holds three matrices of each grid of the pair
-#: (about 0.4 MB at 50 interior points, 1.3 MB at 100).
-FAMILY_CACHE = 32
-
-
 @dataclass(frozen=True)
 class FamilyKey:
     """What the undamped modes depend on besides ``EI`` and ``ρA`` (module docstring): the geometry, the ends
@@ -171,6 +169,69 @@ def family_key(config: BeamConfig, p: Mapping[str, float]) -> FamilyKey:
                      tuple(PointMass("", m.x, m.mass / rhoA) for m in config.masses),
                      tuple(PointSpring("", s.x, s.k / EI) for s in config.springs),
                      tuple(replace(w, name="") for w in config.weak_segments))
+
+
+#: Bytes of results each memo keeps per process (:func:`_memo`): a 50-node pair's entry is about 0.4 MB, a
+#: 1000-node one about 50 MB — hundreds of small families, or two of the largest grid.
+MEMO_BYTES = 128 * 2 ** 20
+
+
+@dataclass(frozen=True)
+class MemoInfo:
+    """What a memo did: ``hits``, ``misses``, the entries it keeps and their bytes."""
+
+    hits: int
+    misses: int
+    entries: int
+    nbytes: int
+
+
+def _nbytes(value: Any) -> int:
+    """The bytes of the arrays in ``value`` (an array, a dataclass or a tuple of them)."""
+    if isinstance(value, np.ndarray):
+        return value.nbytes
+    if isinstance(value, tuple):
+        return sum(_nbytes(v) for v in value)
+    if hasattr(value, "__dataclass_fields__"):
+        return sum(_nbytes(getattr(value, f)) for f in value.__dataclass_fields__)
+    return 0
+
+
+def _memo(fn: Callable[[FamilyKey], T]) -> Callable[[FamilyKey], T]:
+    """``fn`` memoised per process: the least recently used results dropped beyond :data:`MEMO_BYTES` (the
+    newest always kept); ``cache_clear()`` and ``cache_info()`` as :func:`functools.lru_cache`'s."""
+    entries: OrderedDict[FamilyKey, tuple[T, int]] = OrderedDict()
+    counts = {"hits": 0, "misses": 0}
+    lock = threading.Lock()
+
+    @functools.wraps(fn)
+    def memoised(key: FamilyKey) -> T:
+        with lock:
+            if key in entries:
+                entries.move_to_end(key)
+                counts["hits"] += 1
+                return entries[key][0]
+            counts["misses"] += 1
+        value = fn(key)                      # outside the lock: another thread may compute the same, harmlessly
+        with lock:
+            entries[key] = (value, _nbytes(value))
+            entries.move_to_end(key)
+            while len(entries) > 1 and sum(n for _, n in entries.values()) > MEMO_BYTES:
+                entries.popitem(last=False)
+        return value
+
+    def cache_clear() -> None:
+        with lock:
+            entries.clear()
+            counts.update(hits=0, misses=0)
+
+    def cache_info() -> MemoInfo:
+        with lock:
+            return MemoInfo(counts["hits"], counts["misses"], len(entries), sum(n for _, n in entries.values()))
+
+    memoised.cache_clear = cache_clear        # type: ignore[attr-defined]
+    memoised.cache_info = cache_info          # type: ignore[attr-defined]
+    return memoised
 
 
 @dataclass(frozen=True, eq=False)
@@ -207,7 +268,7 @@ def _affine_beam(key: FamilyKey, nodes: int) -> tuple[SemiDiscreteBeam, np.ndarr
     return beam, arrays[-2], arrays[-1]
 
 
-@functools.lru_cache(maxsize=FAMILY_CACHE)
+@_memo
 def _affine_pair(key: FamilyKey) -> tuple[tuple[SemiDiscreteBeam, np.ndarray, np.ndarray], ...]:
     """:func:`_affine_beam` on the config's grid and on its companion grid (``key`` with ``N = 0``; memoised per
     process)."""
@@ -226,7 +287,7 @@ def unit_pair(key: FamilyKey) -> tuple[SemiDiscreteBeam, SemiDiscreteBeam]:
     return at(*own), at(*companion)
 
 
-@functools.lru_cache(maxsize=FAMILY_CACHE)
+@_memo
 def unit_modes(key: FamilyKey) -> UnitModes:
     """The Richardson modes of the family ``key``'s unit beam (memoised per process; module docstring)."""
     own, companion = unit_pair(key)

@@ -173,3 +173,23 @@ def test_the_shared_decomposition_cannot_be_changed_by_a_caller():
     mm = modal_matrices(cfg, cfg.parameter_values())
     mm.shapes[0, 0] += 1.0                  # the caller's own arrays are writable copies
     assert not math.isclose(mm.shapes[0, 0], modal_matrices(cfg, cfg.parameter_values()).shapes[0, 0])
+
+
+def test_the_memo_keeps_within_its_budget_of_bytes(monkeypatch):
+    # the largest grid's family is about 50 MB: the memo drops the least recently used beyond its budget (the
+    # newest always kept), and a dropped family is computed again to the same numbers
+    import ebb_model.mode_family as mf
+
+    cfg = _bench("clamped, tension")
+    u = np.random.default_rng(5).standard_normal((300, 1))
+    unit_modes.cache_clear()
+    first = _response(cfg, {"EI": 9.0}, u)
+    one = unit_modes.cache_info().nbytes
+    assert one > 0
+    monkeypatch.setattr(mf, "MEMO_BYTES", int(1.5 * one))
+    for ei in (10.0, 11.0, 12.0):
+        _response(cfg, {"EI": ei}, u)
+        info = unit_modes.cache_info()
+        assert info.entries == 1 and info.nbytes <= 1.5 * one
+    assert np.array_equal(_response(cfg, {"EI": 9.0}, u), first)
+    assert unit_modes.cache_info().misses == 5
