@@ -27,7 +27,7 @@ import functools
 import math
 import threading
 from collections import OrderedDict
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Mapping, TypeVar
 
 import numpy as np
@@ -155,6 +155,15 @@ class FamilyKey:
     masses: tuple[PointMass, ...]
     springs: tuple[PointSpring, ...]
     segments: tuple[WeakSegment, ...]
+    #: the fields' hash, computed once (a memo looks a key up a few times per evaluation)
+    digest: int = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "digest", hash((self.length, self.nodes, self.left, self.right, self.N, self.kf,
+                                                 self.rhoI, self.masses, self.springs, self.segments)))
+
+    def __hash__(self) -> int:
+        return self.digest
 
 
 def family_key(config: BeamConfig, p: Mapping[str, float]) -> FamilyKey:
@@ -171,7 +180,7 @@ def family_key(config: BeamConfig, p: Mapping[str, float]) -> FamilyKey:
                      tuple(replace(w, name="") for w in config.weak_segments))
 
 
-#: Bytes of results each memo keeps per process (:func:`_memo`): a 50-node pair's entry is about 0.4 MB, a
+#: Bytes of results each memo keeps per process (:func:`_memo`): a 50-node family's entry is about 0.3 MB, a
 #: 1000-node one about 50 MB — hundreds of small families, or two of the largest grid.
 MEMO_BYTES = 128 * 2 ** 20
 
@@ -201,33 +210,36 @@ def _memo(fn: Callable[[FamilyKey], T]) -> Callable[[FamilyKey], T]:
     """``fn`` memoised per process: the least recently used results dropped beyond :data:`MEMO_BYTES` (the
     newest always kept); ``cache_clear()`` and ``cache_info()`` as :func:`functools.lru_cache`'s."""
     entries: OrderedDict[FamilyKey, tuple[T, int]] = OrderedDict()
-    counts = {"hits": 0, "misses": 0}
+    counts = {"hits": 0, "misses": 0, "nbytes": 0}
     lock = threading.Lock()
 
     @functools.wraps(fn)
     def memoised(key: FamilyKey) -> T:
         with lock:
-            if key in entries:
+            found = entries.get(key)
+            if found is not None:
                 entries.move_to_end(key)
                 counts["hits"] += 1
-                return entries[key][0]
+                return found[0]
             counts["misses"] += 1
         value = fn(key)                      # outside the lock: another thread may compute the same, harmlessly
+        size = _nbytes(value)
         with lock:
-            entries[key] = (value, _nbytes(value))
-            entries.move_to_end(key)
-            while len(entries) > 1 and sum(n for _, n in entries.values()) > MEMO_BYTES:
-                entries.popitem(last=False)
+            old = entries.pop(key, None)
+            counts["nbytes"] += size - (old[1] if old is not None else 0)
+            entries[key] = (value, size)
+            while len(entries) > 1 and counts["nbytes"] > MEMO_BYTES:
+                counts["nbytes"] -= entries.popitem(last=False)[1][1]
         return value
 
     def cache_clear() -> None:
         with lock:
             entries.clear()
-            counts.update(hits=0, misses=0)
+            counts.update(hits=0, misses=0, nbytes=0)
 
     def cache_info() -> MemoInfo:
         with lock:
-            return MemoInfo(counts["hits"], counts["misses"], len(entries), sum(n for _, n in entries.values()))
+            return MemoInfo(counts["hits"], counts["misses"], len(entries), counts["nbytes"])
 
     memoised.cache_clear = cache_clear        # type: ignore[attr-defined]
     memoised.cache_info = cache_info          # type: ignore[attr-defined]
@@ -249,42 +261,24 @@ class UnitModes:
     bending: np.ndarray
 
 
-def _affine_beam(key: FamilyKey, nodes: int) -> tuple[SemiDiscreteBeam, np.ndarray, np.ndarray]:
-    """The family's unit beam on ``nodes`` interior points at ``N = 0``, and the parts of ``K̃`` and ``C̃`` per unit
-    ``N/EI``: both are affine in it (the ghost relations are, and ``D₂`` reads no ghost that depends on it).
-    ``M̃``, ``K̃`` and, as ``C``, the Kelvin–Voigt damping per unit ``η EI`` (``c = 0``, ``η = 1``); no loads, no
-    sensors."""
-    values = {"EI": 1.0, "rhoA": 1.0, "c": 0.0, "eta": 1.0, "N": 0.0, "rhoI": key.rhoI, "kf": key.kf}
+def _unit_beam(key: FamilyKey, nodes: int) -> SemiDiscreteBeam:
+    """The family's unit beam on ``nodes`` interior points: ``M̃``, ``K̃`` and, as ``C``, the Kelvin–Voigt damping
+    per unit ``η EI`` (``c = 0``, ``η = 1``); no loads, no sensors.  Read-only arrays."""
+    values = {"EI": 1.0, "rhoA": 1.0, "c": 0.0, "eta": 1.0, "N": key.N, "rhoI": key.rhoI, "kf": key.kf}
     M, C, K, unknown = assemble_matrices(key.length, nodes, key.left, key.right, key.masses, key.springs,
                                          key.segments, values)
-    _, C1, K1, _ = assemble_matrices(key.length, nodes, key.left, key.right, key.masses, key.springs,
-                                     key.segments, values | {"N": 1.0})
     nu = unknown.size
     beam = SemiDiscreteBeam(M, C, K, np.zeros((nu, 0)), np.zeros((0, nu)), (), grid_nodes(key.length, nodes),
                             unknown, (), ())
-    arrays = (beam.M, beam.C, beam.K, beam.x, beam.unknown, K1 - K, C1 - C)
-    for a in arrays:
+    for a in (beam.M, beam.C, beam.K, beam.x, beam.unknown):
         a.setflags(write=False)
-    return beam, arrays[-2], arrays[-1]
+    return beam
 
 
 @_memo
-def _affine_pair(key: FamilyKey) -> tuple[tuple[SemiDiscreteBeam, np.ndarray, np.ndarray], ...]:
-    """:func:`_affine_beam` on the config's grid and on its companion grid (``key`` with ``N = 0``; memoised per
-    process)."""
-    return _affine_beam(key, key.nodes), _affine_beam(key, companion_nodes(key.nodes))
-
-
 def unit_pair(key: FamilyKey) -> tuple[SemiDiscreteBeam, SemiDiscreteBeam]:
-    """The family ``key``'s unit beams on the config's grid and on its companion grid: ``K̃ = K̃₀ + (N/EI) K̃₁``
-    (and ``C̃`` alike) from the memoised parts of the family's ``N = 0`` member (:func:`_affine_beam`)."""
-    def at(beam: SemiDiscreteBeam, dK: np.ndarray, dC: np.ndarray) -> SemiDiscreteBeam:
-        if key.N == 0.0:
-            return beam
-        return replace(beam, K=beam.K + key.N * dK, C=beam.C + key.N * dC)
-
-    own, companion = _affine_pair(replace(key, N=0.0))
-    return at(*own), at(*companion)
+    """The family ``key``'s unit beams on the config's grid and on its companion grid (memoised per process)."""
+    return _unit_beam(key, key.nodes), _unit_beam(key, companion_nodes(key.nodes))
 
 
 @_memo
@@ -296,7 +290,7 @@ def unit_modes(key: FamilyKey) -> UnitModes:
     nodes = fine.x.size - 2
     V = control_lengths(nodes, key.length / (nodes + 1), key.left, key.right)
     viscous, bending = psi.T @ (V[:, None] * psi), psi.T @ fine.C @ psi
-    for a in (w2, psi, viscous, bending, fine.K, fine.C):
+    for a in (w2, psi, viscous, bending):
         a.setflags(write=False)
     return UnitModes(w2, psi, fine, viscous, bending)
 

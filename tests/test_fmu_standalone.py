@@ -37,7 +37,12 @@ from fmu_build import build_fmu  # noqa: E402
 from fmu_build.standalone import build_standalone_fmu  # noqa: E402
 
 LOOPS = HOSTS / "fmu_loops.py"
-RTOL_CORE = 1e-10      # against the Python model (different eigen-solver: round-off only)
+#: against the Python model: round-off only — the C core solves the pencil assembled with the parameter set's own
+#: values (EI·B₄ − N·D₂ …) with its own eigen-solver, the Python core its family's unit pencil (ebb_model.mode_family)
+#: scaled.  Budget: the C route's own round-off, measured as the spread of the outputs when every stiffness and mass
+#: is scaled by a few ulps (the same physics), is 2.1e-10 on the seed; two such roundings differ by up to twice
+#: that — measured 3.8e-10 (the seed with set parameters) and 1.8e-10 (a diagnosed model)
+RTOL_CORE = 1e-9
 RTOL_SAME = 1e-12      # the same binary under different masters
 
 
