@@ -50,6 +50,12 @@ from .statespace import DiscreteStateSpace, with_input_delays
 __all__ = ["exact_model", "exact_modal", "exact_statespace", "continuous_modes", "ContinuousModes", "modal_matrices",
            "modal_system", "ModalMatrices", "modal_state_matrix", "pole_integrals"]
 
+#: Terms of the series of :func:`polynomial_integrals` (``|z| < 1``): the last is below ``1/24! ≈ 2e-24``.
+_SERIES_TERMS = 24
+#: The series' coefficients ``p!/(k + p + 1)!`` per degree ``p`` (constants, built once).
+_SERIES = {p: [math.factorial(p) / math.factorial(k + p + 1) for k in range(_SERIES_TERMS)] for p in range(4)}
+
+
 def polynomial_integrals(s: np.ndarray, T: float, degree: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """``e^{sT}`` and ``I_p = ∫₀ᵀ e^{s(T−τ)} (τ/T)^p dτ`` for ``p = 0 … degree``, each pole, to round-off.
 
@@ -79,12 +85,6 @@ def polynomial_integrals(s: np.ndarray, T: float, degree: int = 3) -> tuple[np.n
             acc = (zs * acc + 1.0) / p
             I[p - 1, small] = acc
     return E, T * I
-
-
-#: Terms of the series of :func:`polynomial_integrals` (``|z| < 1``): the last is below ``1/24! ≈ 2e-24``.
-_SERIES_TERMS = 24
-#: The series' coefficients ``p!/(k + p + 1)!`` per degree ``p`` (constants, built once).
-_SERIES = {p: [math.factorial(p) / math.factorial(k + p + 1) for k in range(_SERIES_TERMS)] for p in range(4)}
 
 
 def pole_integrals(s: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
