@@ -41,9 +41,8 @@ import scipy.linalg as sla
 from .antialias import effective_filters, filtered_poles, series_statespace
 from .config import BeamConfig
 from .coupled_modes import LowRankDamping, coupled_modes, low_rank_damping
-from .discretisation import SemiDiscreteBeam
 from .mode_family import FamilyModes, family_modes
-from .modal_form import MAX_BASIS_CONDITION, ModalStateSpace, basis_condition, is_diagonal
+from .modal_form import MAX_BASIS_CONDITION, ModalStateSpace, basis_condition
 from .parameter_values import resolve_parameters
 from .statespace import DiscreteStateSpace, with_input_delays
 
@@ -126,39 +125,30 @@ def _lagrange_coefficients(taps: tuple[int, ...]) -> np.ndarray:
 _LAGRANGE = {hold: _lagrange_coefficients(taps) for hold, taps in INPUT_TAPS.items()}
 
 
-def _mode_poles(w2: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Poles, eigenvectors and input weights of decoupled modes ``q̈ + d q̇ + ω² q = f`` (proportional damping).
+def _mode_poles(w2: np.ndarray, d: np.ndarray, Fm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Poles and input weights of decoupled modes ``q̈ + d q̇ + ω² q = F_m u`` (proportional damping).
 
     Mode ``i`` has poles ``s = −d/2 ± √(d²/4 − ω²)`` and eigenvectors ``(1, s)`` on ``(q_i, q̇_i)``; its unit
     input enters the pole coordinates as ``(−1, 1)/(s₂ − s₁)``.  Returned in the layout of the coupled route:
-    poles (2k,), ``V`` (2k, 2k) on the state ``(q, q̇)``, and the rows of ``V⁻¹ [0; I]`` (2k, k).
+    poles (2k,) — every ``s₁``, then every ``s₂`` — and the input weights ``V⁻¹ [0; F_m]`` (2k, m).
     """
-    k = w2.size
     root = np.sqrt((d * d / 4 - w2).astype(complex))
     s1, s2 = -d / 2 + root, -d / 2 - root
     if np.any(s1 == s2):
         raise np.linalg.LinAlgError("a critically damped mode has a double pole")
-    idx = np.arange(k)
-    lam = np.concatenate([s1, s2])
-    V = np.zeros((2 * k, 2 * k), dtype=complex)
-    V[idx, idx] = 1.0
-    V[idx, k + idx] = 1.0
-    V[k + idx, idx] = s1
-    V[k + idx, k + idx] = s2
-    W = np.zeros((2 * k, k), dtype=complex)
-    W[idx, idx] = -1.0 / (s2 - s1)
-    W[k + idx, idx] = 1.0 / (s2 - s1)
-    return lam, V, W
+    b = (-1.0 / (s2 - s1))[:, None] * Fm
+    return np.concatenate([s1, s2]), np.vstack([b, -b])
 
 
-def _output_rows(beam: SemiDiscreteBeam, psi: np.ndarray, w2: np.ndarray, Cm: np.ndarray, Fm: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """``(C, D)`` on the continuous modal state ``(q, q̇)``: exact displacement, velocity, acceleration."""
-    P = beam.S @ psi
+def _output_rows(S: np.ndarray, kinds: tuple[str, ...], psi: np.ndarray, w2: np.ndarray, Cm: np.ndarray,
+                 Fm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(C, D)`` on the continuous modal state ``(q, q̇)`` of the sensors' rows ``S`` on the shapes' grid:
+    exact displacement, velocity, acceleration."""
+    P = S @ psi
     k = psi.shape[1]
     C = np.zeros((P.shape[0], 2 * k))
     D = np.zeros((P.shape[0], Fm.shape[1]))
-    for i, kind in enumerate(beam.sensor_kinds):
+    for i, kind in enumerate(kinds):
         if kind == "displacement":
             C[i, :k] = P[i]
         elif kind == "velocity":
@@ -170,10 +160,10 @@ def _output_rows(beam: SemiDiscreteBeam, psi: np.ndarray, w2: np.ndarray, Cm: np
     return C, D
 
 
-def _real_blocks(lam: np.ndarray, V: np.ndarray, Bs: list[np.ndarray], C: np.ndarray
+def _real_blocks(lam: np.ndarray, Bs: list[np.ndarray], CV: np.ndarray
                  ) -> tuple[np.ndarray, list[np.ndarray], np.ndarray]:
     """Real 2×2 blocks ``(T, [Γ_j], C)`` of the complex-diagonal discrete system ``z⁺ = λ z + Σ_j B_j u_j``,
-    ``x = V z``.
+    ``y = C V z`` (``CV`` given).
 
     A conjugate pair ``(z, z̄)`` becomes ``(r, m) = (Re z, Im z)``: ``x = 2 Re(v z) = 2 Re v · r − 2 Im v · m``
     and ``[r; m]⁺ = [[Re λ, −Im λ], [Im λ, Re λ]] [r; m] + [Re b; Im b] u``.  Real poles go in pairs.
@@ -182,7 +172,6 @@ def _real_blocks(lam: np.ndarray, V: np.ndarray, Bs: list[np.ndarray], C: np.nda
     reals = np.flatnonzero(lam.imag == 0)
     if reals.size % 2:
         raise np.linalg.LinAlgError("odd number of real poles")
-    CV = C @ V
     nu, first, second = upper.size, reals[0::2], reals[1::2]
     T = np.zeros((nu + first.size, 2, 2))
     e = lam[upper]
@@ -195,7 +184,7 @@ def _real_blocks(lam: np.ndarray, V: np.ndarray, Bs: list[np.ndarray], C: np.nda
         G[:nu, 0], G[:nu, 1] = B[upper].real, B[upper].imag
         G[nu:, 0], G[nu:, 1] = B[first].real, B[second].real
         Gs.append(G)
-    Cb = np.empty((C.shape[0], T.shape[0], 2))
+    Cb = np.empty((CV.shape[0], T.shape[0], 2))
     Cb[:, :nu, 0], Cb[:, :nu, 1] = 2 * CV[:, upper].real, -2 * CV[:, upper].imag
     Cb[:, nu:, 0], Cb[:, nu:, 1] = CV[:, first].real, CV[:, second].real
     return T, Gs, Cb
@@ -208,16 +197,38 @@ class ContinuousModes:
     ``x = (q, q̇)`` in the (Richardson-corrected) undamped modal coordinates; ``inputs`` (2k, m) are the
     input weights in pole coordinates; ``C``, ``D`` give the sensors' outputs from ``x`` and ``u``;
     ``shapes`` (n_u of the refined grid × k) are the mass-normalised modes on the refined grid
-    (:func:`refined_config`) and ``frequencies2`` the extrapolated ``ω²``.
+    (:func:`refined_config`) and ``frequencies2`` the extrapolated ``ω²``.  ``basis`` is ``V`` when the damping
+    couples the modes, ``None`` for decoupled modes, whose ``V = [[I, I], [diag(s₁), diag(s₂)]]`` (poles
+    ``s₁`` then ``s₂``) is formed only when read.
     """
 
     poles: np.ndarray
-    V: np.ndarray
     inputs: np.ndarray
     C: np.ndarray
     D: np.ndarray
     shapes: np.ndarray
     frequencies2: np.ndarray
+    basis: np.ndarray | None
+
+    @property
+    def V(self) -> np.ndarray:
+        """The eigenvector basis ``V`` (2k, 2k) of the state ``(q, q̇)``."""
+        if self.basis is not None:
+            return self.basis
+        k = self.frequencies2.size
+        idx = np.arange(k)
+        V = np.zeros((2 * k, 2 * k), dtype=complex)
+        V[idx, idx] = V[idx, k + idx] = 1.0
+        V[k + idx, idx], V[k + idx, k + idx] = self.poles[:k], self.poles[k:]
+        return V
+
+    def output_rows(self) -> np.ndarray:
+        """``C V``: the outputs from the pole coordinates (``O(p k)`` for decoupled modes)."""
+        if self.basis is not None:
+            return self.C @ self.basis
+        k = self.frequencies2.size
+        Cq, Cv = self.C[:, :k], self.C[:, k:]
+        return np.hstack([Cq + Cv * self.poles[:k], Cq + Cv * self.poles[k:]])
 
 
 @dataclass(frozen=True, eq=False)
@@ -255,20 +266,25 @@ def modal_matrices(config: BeamConfig, params: Mapping[str, float]) -> ModalMatr
 def modal_system(modes: FamilyModes) -> ModalMatrices:
     """:func:`modal_matrices` of the undamped ``modes``: the modal damping's structure (diagonal, low-rank or
     full), the forcing and the sensor rows."""
-    fine, w2, psi = modes.beam, modes.frequencies2, modes.shapes
-    proportional, d = is_diagonal(modes.damping)
-    low_rank = None if proportional else low_rank_damping(fine.M, fine.C, psi)
-    if low_rank is not None and low_rank.rank == 0:
-        # C = α M: decoupled, though the modes' orthogonality round-off made Ψᵀ C Ψ look coupled (near buckling)
-        proportional, low_rank = True, None
-    if proportional:
+    w2, psi = modes.frequencies2, modes.shapes
+    d = modes.diagonal_damping()
+    low_rank = None
+    if d is None:
+        fine = modes.beam
+        low_rank = low_rank_damping(fine.M, fine.C, psi)
+        if low_rank is not None and low_rank.rank == 0:
+            # C = α M: decoupled, though the modes' orthogonality round-off made Ψᵀ C Ψ look coupled (near buckling)
+            d, low_rank = np.diag(modes.damping).copy(), None
+    proportional = d is not None
+    if d is not None:
         Cm = np.diag(d)
     elif low_rank is not None:
         Cm = low_rank.matrix()
     else:
         Cm = 0.5 * (modes.damping + modes.damping.T)
-    Fm = psi.T @ fine.F
-    C, D = _output_rows(fine, psi, w2, Cm, Fm)
+    F, S = modes.loads
+    Fm = psi.T @ F
+    C, D = _output_rows(S, tuple(s.kind for s in modes.config.sensors), psi, w2, Cm, Fm)
     return ModalMatrices(w2, psi, Cm, Fm, C, D, d if proportional else None, low_rank)
 
 
@@ -288,9 +304,9 @@ def continuous_modes(config: BeamConfig, params: Mapping[str, float]) -> Continu
     mm = modal_matrices(config, params)
     w2, Fm = mm.frequencies2, mm.Fm
     coupled = None if mm.low_rank is None else coupled_modes(w2, mm.low_rank, Fm)
+    V: np.ndarray | None = None
     if mm.damping is not None:                            # decoupled modes: poles in closed form
-        s, V, Win = _mode_poles(w2, mm.damping)
-        B_modal = Win @ Fm                                # (2k, m) pole coordinates
+        s, B_modal = _mode_poles(w2, mm.damping, Fm)      # (2k, m) pole coordinates
     elif coupled is not None:                             # coupled by a low-rank part: Newton, mode by mode
         s, V, B_modal = coupled
     else:                                                 # coupled by the damping: eigen-decomposition
@@ -298,7 +314,7 @@ def continuous_modes(config: BeamConfig, params: Mapping[str, float]) -> Continu
         if basis_condition(V) > MAX_BASIS_CONDITION:
             raise np.linalg.LinAlgError("the modes' eigenvector basis is ill-conditioned")
         B_modal = np.linalg.solve(V, np.vstack([np.zeros_like(Fm), Fm]))
-    return ContinuousModes(s, V, B_modal, mm.C, mm.D, mm.shapes, w2)
+    return ContinuousModes(s, B_modal, mm.C, mm.D, mm.shapes, w2, V)
 
 
 def modal_state_matrix(w2: np.ndarray, Cm: np.ndarray) -> np.ndarray:
@@ -321,13 +337,12 @@ def exact_modal(config: BeamConfig, params: Mapping[str, float]) -> ModalStateSp
     T_s = config.time.dt
     taps = INPUT_TAPS[config.time.input_hold]
     filters = effective_filters(config)
-    poles, V, inputs, C, D, added = cm.poles, cm.V, cm.inputs, cm.C, cm.D, 0
+    poles, inputs, CV, D, added = cm.poles, cm.inputs, cm.output_rows(), cm.D, 0
     if any(f is not None for f in filters):               # the acquisition's filters in series, still diagonal
-        poles, inputs, C, D, added = filtered_poles(poles, inputs, C @ V, D, filters)
-        V = np.eye(poles.size)
+        poles, inputs, CV, D, added = filtered_poles(poles, inputs, CV, D, filters)
     E, W = input_weights(poles, T_s, config.time.input_hold)
     with np.errstate(over="ignore", invalid="ignore"):   # an unstable candidate: caught by the stability check
-        T, Gs, Cb = _real_blocks(E, V, [w[:, None] * inputs for w in W], C)
+        T, Gs, Cb = _real_blocks(E, [w[:, None] * inputs for w in W], CV)
         freqs = _block_frequencies(E, poles) / (2 * math.pi)
         is_filter = _block_poles(E) >= poles.size - added
         if added:                                         # the filters' blocks last (ModalStateSpace.filters)

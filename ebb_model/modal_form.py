@@ -116,7 +116,12 @@ def is_proportional(Psi: np.ndarray, C: np.ndarray, *, rtol: float = 1e-10) -> t
     return is_diagonal(Psi.T @ C @ Psi, rtol=rtol)
 
 
-def is_diagonal(Cd: np.ndarray, *, rtol: float = 1e-10) -> tuple[bool, np.ndarray]:
+#: how far off its diagonal the modal damping may be, relative to its largest diagonal entry, to count as
+#: proportional (decoupled modes)
+DIAGONAL_RTOL = 1e-10
+
+
+def is_diagonal(Cd: np.ndarray, *, rtol: float = DIAGONAL_RTOL) -> tuple[bool, np.ndarray]:
     """Whether the modal damping ``Cd`` (``Ψᵀ C Ψ``) is diagonal (to ``rtol`` of its largest diagonal entry);
     returns the flag and its diagonal."""
     diag = np.diag(Cd).copy()

@@ -35,6 +35,7 @@ import scipy.linalg as sla
 
 from .beam import End, PointMass, PointSpring, WeakSegment
 from .config import BeamConfig
+from .modal_form import DIAGONAL_RTOL, is_diagonal
 from .discretisation import (SemiDiscreteBeam, assemble_matrices, check_attachments, control_lengths, grid_nodes,
                              load_rows)
 
@@ -259,6 +260,11 @@ class UnitModes:
     #: of ``η EI`` per unit ``ρA``
     viscous: np.ndarray
     bending: np.ndarray
+    #: the largest magnitude off the diagonal of ``viscous`` and of ``bending`` (bound the modal damping's)
+    viscous_off: float
+    bending_off: float
+    #: ``M̃ = diag(V)`` exactly (no point masses, no rotary inertia): viscous damping alone is mass-proportional
+    viscous_is_mass: bool
 
 
 def _unit_beam(key: FamilyKey, nodes: int) -> SemiDiscreteBeam:
@@ -292,19 +298,26 @@ def unit_modes(key: FamilyKey) -> UnitModes:
     viscous, bending = psi.T @ (V[:, None] * psi), psi.T @ fine.C @ psi
     for a in (w2, psi, viscous, bending):
         a.setflags(write=False)
-    return UnitModes(w2, psi, fine, viscous, bending)
+    return UnitModes(w2, psi, fine, viscous, bending, _off_diagonal(viscous), _off_diagonal(bending),
+                     bool(np.array_equal(fine.M, np.diag(V))))
 
 
-def scaled_beam(unit: SemiDiscreteBeam, config: BeamConfig, p: Mapping[str, float]) -> SemiDiscreteBeam:
+def _off_diagonal(a: np.ndarray) -> float:
+    """The largest magnitude of ``a`` off its diagonal."""
+    return float(np.max(np.abs(a - np.diag(np.diag(a))), initial=0.0))
+
+
+def scaled_beam(unit: SemiDiscreteBeam, config: BeamConfig, p: Mapping[str, float],
+                loads: tuple[np.ndarray, np.ndarray] | None = None) -> SemiDiscreteBeam:
     """The beam of ``config`` with the resolved values ``p`` on the grid of its family's ``unit`` beam:
     ``M = ρA M̃``, ``K = EI K̃``, ``C = c V + η EI C̃`` (``V`` the control lengths), the loads and sensor rows of
-    ``config``'s actuators and sensors on that grid."""
+    ``config``'s actuators and sensors on that grid (``loads = (F, S)`` when already built)."""
     EI = p["EI"]
     nodes = unit.x.size - 2
     C = (p["eta"] * EI) * unit.C
     V = control_lengths(nodes, config.beam.length / (nodes + 1), config.beam.left, config.beam.right)
     C[np.diag_indices_from(C)] += p["c"] * V
-    F, S = load_rows(config, nodes, unit.unknown)
+    F, S = load_rows(config, nodes, unit.unknown) if loads is None else loads
     return SemiDiscreteBeam(M=p["rhoA"] * unit.M, C=C, K=EI * unit.K, F=F, S=S,
                             sensor_kinds=tuple(s.kind for s in config.sensors), x=unit.x, unknown=unit.unknown,
                             input_names=config.input_names, output_names=config.output_names)
@@ -319,14 +332,58 @@ def check_pair(config: BeamConfig, p: Mapping[str, float]) -> None:
 
 @dataclass(frozen=True, eq=False)
 class FamilyModes:
-    """The undamped modes of a parameter set (:func:`family_modes`): the finer grid's ``beam``, the extrapolated
-    ``frequencies2`` (``ω²``), the mass-normalised ``shapes`` ``Ψ`` (finer grid × as many modes as the config's
-    grid has unknowns) and the modal damping ``damping`` (``Ψᵀ C Ψ``, before any symmetrisation)."""
+    """The undamped modes of a parameter set (:func:`family_modes`): the extrapolated ``frequencies2`` (``ω²``)
+    and the mass-normalised ``shapes`` ``Ψ`` (finer grid × as many modes as the config's grid has unknowns) of
+    the family's ``unit`` modes scaled for the resolved values ``p`` of ``config``.  What only some models need
+    is built when first read: the finer grid's dense ``beam`` and the modal damping matrix."""
 
-    beam: SemiDiscreteBeam
+    config: BeamConfig
+    p: Mapping[str, float]
+    unit: UnitModes
     frequencies2: np.ndarray
     shapes: np.ndarray
-    damping: np.ndarray
+
+    @functools.cached_property
+    def loads(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(F, S)``: the actuators' load columns and the sensors' rows on the finer grid."""
+        fine = self.unit.fine
+        return load_rows(self.config, fine.x.size - 2, fine.unknown)
+
+    @functools.cached_property
+    def beam(self) -> SemiDiscreteBeam:
+        """The finer grid's beam for these values (:func:`scaled_beam`)."""
+        return scaled_beam(self.unit.fine, self.config, self.p, self.loads)
+
+    def _damping_weights(self) -> tuple[float, float]:
+        """``ΨᵀCΨ = a ψ̃ᵀVψ̃ + b ψ̃ᵀC̃ψ̃``: ``(a, b) = (c/ρA, η EI/ρA)``."""
+        p = self.p
+        return p["c"] / p["rhoA"], p["eta"] * p["EI"] / p["rhoA"]
+
+    @functools.cached_property
+    def damping(self) -> np.ndarray:
+        """The modal damping ``Ψᵀ C Ψ`` (before any symmetrisation)."""
+        a, b = self._damping_weights()
+        return a * self.unit.viscous + b * self.unit.bending
+
+    def diagonal_damping(self, rtol: float = DIAGONAL_RTOL) -> np.ndarray | None:
+        """The modal damping's diagonal when it is diagonal to ``rtol`` of its largest diagonal entry
+        (:func:`~ebb_model.modal_form.is_diagonal`), else ``None``.  Decided from the unit matrices' largest
+        off-diagonal magnitudes where they bound it (no ``k × k`` matrix formed), else on the matrix.  Viscous
+        damping alone on a beam without point masses or rotary inertia is ``C = (c/ρA) M``: its diagonal is
+        returned whatever ``ΨᵀMΨ``'s round-off (9e-10 off the identity at 200 nodes), as
+        :func:`~ebb_model.coupled_modes.low_rank_damping` finds rank 0 for it."""
+        a, b = self._damping_weights()
+        unit = self.unit
+        diag = a * np.diagonal(unit.viscous) + b * np.diagonal(unit.bending)    # as the matrix's, bit for bit
+        if b == 0.0 and unit.viscous_is_mass:
+            return diag
+        scale = max(float(np.max(np.abs(diag), initial=0.0)), 1e-300)
+        # |fl(a v + b w)| <= (|a v| + |b w|)(1 + 2 eps): the bound's own rounding is covered by the factor
+        bound = (abs(a) * unit.viscous_off + abs(b) * unit.bending_off) * (1.0 + 4.0 * np.finfo(float).eps)
+        if bound <= rtol * scale:
+            return diag
+        diagonal, d = is_diagonal(self.damping, rtol=rtol)
+        return d if diagonal else None
 
 
 def family_modes(config: BeamConfig, p: Mapping[str, float]) -> FamilyModes:
@@ -341,6 +398,4 @@ def family_modes(config: BeamConfig, p: Mapping[str, float]) -> FamilyModes:
     check_pair(config, p)
     unit = unit_modes(family_key(config, p))
     EI, rhoA = p["EI"], p["rhoA"]
-    damping = (p["c"] / rhoA) * unit.viscous + (p["eta"] * EI / rhoA) * unit.bending
-    return FamilyModes(scaled_beam(unit.fine, config, p), (EI / rhoA) * unit.frequencies2,
-                       unit.shapes / math.sqrt(rhoA), damping)
+    return FamilyModes(config, p, unit, (EI / rhoA) * unit.frequencies2, unit.shapes / math.sqrt(rhoA))

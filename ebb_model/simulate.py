@@ -1,13 +1,14 @@
 """Simulation of discrete systems: a compiled recursion over arrays.
 
-Two kernels, both compiled with numba (cached on disk after the first call):
+Two kernels:
 
-* the **modal** kernel for :class:`~ebb_model.modal_form.ModalStateSpace`:
-  2×2 real blocks, ``O(n)`` work per sample — the fast path;
+* the **modal** recursion for :class:`~ebb_model.modal_form.ModalStateSpace`:
+  2×2 real blocks, ``O(n)`` work per sample — the fast path, compiled C specialised per model size
+  (:mod:`ebb_model.recursion`);
 * the **dense** kernel for a general :class:`~ebb_model.statespace.DiscreteStateSpace`
-  (``O(n²)`` per sample), used when no modal form is available.
+  (``O(n²)`` per sample, numba, cached on disk after the first call), used when no modal form is available.
 
-numba earns its place here: the recursion ``x[k+1] = A x[k] + B u[k]`` is
+A compiled loop earns its place here: the recursion ``x[k+1] = A x[k] + B u[k]`` is
 inherently sequential, so NumPy cannot vectorise it, and a Python loop over
 20,000 samples costs ~100 ms (``scipy.signal.dlsim``) against ~1 ms compiled.
 """
@@ -28,76 +29,14 @@ from .discretisation import discretise
 from .exact_modal import exact_model
 from .modal_form import ModalStateSpace, modal_from_beam, modal_from_theta
 from .parameter_values import resolve_parameters
+from .recursion import FASTMATH, run_modal_recursion
 from .statespace import DiscreteStateSpace
 from .theta_scheme import discretise_time
 
 __all__ = ["SimulationResult", "simulate", "fast_model", "simulate_config", "simulate_batch"]
 
 
-#: Re-association lets LLVM vectorise the sums over modes (outputs agree with the
-#: strict order to ~1e-15 relative); no-NaN/no-Inf assumptions are *not* made, so
-#: a diverging simulation still shows inf/nan instead of garbage.
-_FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
-
-
-@numba.njit(cache=True, nogil=True, fastmath=_FASTMATH)
-def _modal_kernel(t00, t01, t10, t11, g0, g1, c0, c1, D, u, delays, y, s0, s1):  # pragma: no cover - compiled
-    # input columns i = j m + l: input l at sample k − j (u[−j] = u[0]), j = 0 … delays, gathered per sample
-    nb = t00.shape[0]
-    ns, m = u.shape
-    ni = m * (delays + 1)
-    no = D.shape[0]
-    back = np.empty(ni, dtype=np.int64)
-    col = np.empty(ni, dtype=np.int64)
-    for i in range(ni):
-        back[i] = i // m
-        col[i] = i % m
-    z0 = s0.copy()
-    z1 = s1.copy()
-    a0 = np.empty(nb)
-    a1 = np.empty(nb)
-    uk = np.empty(ni)
-    for k in range(ns):
-        for i in range(ni):
-            uk[i] = u[max(k - back[i], 0), col[i]]
-        for o in range(no):
-            acc = 0.0
-            for b in range(nb):
-                acc += c0[o, b] * z0[b] + c1[o, b] * z1[b]
-            for i in range(ni):
-                acc += D[o, i] * uk[i]
-            y[k, o] = acc
-        if ni == 1:
-            ua = uk[0]
-            for b in range(nb):
-                v0 = t00[b] * z0[b] + t01[b] * z1[b] + g0[0, b] * ua
-                v1 = t10[b] * z0[b] + t11[b] * z1[b] + g1[0, b] * ua
-                z0[b] = v0
-                z1[b] = v1
-            continue
-        if ni == 3:     # one input with the cubic's taps u[k], u[k−1], u[k−2] (or three inputs)
-            ua, ub, uc = uk[0], uk[1], uk[2]
-            for b in range(nb):
-                v0 = t00[b] * z0[b] + t01[b] * z1[b] + g0[0, b] * ua + g0[1, b] * ub + g0[2, b] * uc
-                v1 = t10[b] * z0[b] + t11[b] * z1[b] + g1[0, b] * ua + g1[1, b] * ub + g1[2, b] * uc
-                z0[b] = v0
-                z1[b] = v1
-            continue
-        # several input columns (inputs, or the cubic's taps): the blocks innermost, so that the loops vectorise
-        for b in range(nb):
-            a0[b] = t00[b] * z0[b] + t01[b] * z1[b]
-            a1[b] = t10[b] * z0[b] + t11[b] * z1[b]
-        for i in range(ni):
-            ui = uk[i]
-            for b in range(nb):
-                a0[b] += g0[i, b] * ui
-                a1[b] += g1[i, b] * ui
-        for b in range(nb):
-            z0[b] = a0[b]
-            z1[b] = a1[b]
-
-
-@numba.njit(cache=True, nogil=True, fastmath=_FASTMATH)
+@numba.njit(cache=True, nogil=True, fastmath=FASTMATH)
 def _dense_kernel(A, B, C, D, x0, u, y):  # pragma: no cover - compiled
     n = A.shape[0]
     ns, ni = u.shape
@@ -180,21 +119,13 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
     """
     if isinstance(system, ModalStateSpace):
         u = as_matrix(u, "input", shape=(None, system.D.shape[1]))
-        y = np.empty((u.shape[0], system.D.shape[0]))
-        T, G, Cm = system.T, system.G, system.Cm
         if x0 is not None:
             z = np.asarray(x0, dtype=float).reshape(system.nblocks, 2)
         elif system.hold is not None and u.shape[0]:
             z = -np.einsum("bim,m->bi", system.hold, u[0])
         else:
             z = np.zeros((system.nblocks, 2))
-        D = np.hstack([system.D, np.zeros((system.D.shape[0], system.D.shape[1] * system.delays))])
-        _modal_kernel(np.ascontiguousarray(T[:, 0, 0]), np.ascontiguousarray(T[:, 0, 1]),
-                      np.ascontiguousarray(T[:, 1, 0]), np.ascontiguousarray(T[:, 1, 1]),
-                      np.ascontiguousarray(G[:, 0, :].T), np.ascontiguousarray(G[:, 1, :].T),
-                      np.ascontiguousarray(Cm[:, :, 0]), np.ascontiguousarray(Cm[:, :, 1]),
-                      np.ascontiguousarray(D), np.ascontiguousarray(u), system.delays, y,
-                      np.ascontiguousarray(z[:, 0]), np.ascontiguousarray(z[:, 1]))
+        y = run_modal_recursion(system.T, system.G, system.Cm, system.D, u, system.delays, z)
     else:
         u = as_matrix(u, "input", shape=(None, system.ninputs))
         y = np.empty((u.shape[0], system.noutputs))

@@ -152,7 +152,7 @@ def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None,
     # the modal load is one more input of the poles (Bg, Dg): the sensors' anti-alias filters in series take it
     # with the measured force (their poles appended, outside the modal load's coordinates Vq)
     m = cm.inputs.shape[1]
-    poles, inputs, Cz, D_all, _ = filtered_poles(cm.poles, np.hstack([cm.inputs, Bg]), cm.C @ cm.V,
+    poles, inputs, Cz, D_all, _ = filtered_poles(cm.poles, np.hstack([cm.inputs, Bg]), cm.output_rows(),
                                                  np.hstack([cm.D, Dg]), effective_filters(config))
     drive, Bg, D, Dg = inputs[:, :m], inputs[:, m:], D_all[:, :m].real, D_all[:, m:].real
     Vq = np.zeros((kp, poles.size), dtype=complex)
