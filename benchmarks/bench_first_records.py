@@ -6,8 +6,9 @@ of mixed kinds; random, chirp, multisine and hammer excitation; 1–5 % noise �
 truth (Hermite FE integrated exactly in time), each with the config a newcomer writes (nominal values 30–60 %
 off, bounds ×0.25…×4).  Each run is :func:`identification.run.identify` with its defaults (in the calling
 process, as ``ebb identify`` without ``--workers``), and again on ``--workers`` local processes (default 2: the
-same candidates, plus the workers' start and the chunks' transfer).  Printed per case: the wall time, EI's and ρA's errors, N's error over the Euler load scale
-``EI π²/L²``, the fit residual in noise variances, and the *floor*: what the truth's own parameters leave on the
+same candidates, plus the workers' start and the chunks' transfer).  Printed per case: the wall times, EI's and
+ρA's errors, N's error over the Euler load scale ``EI π²/L²``, the fit residual in noise variances, and the
+*floor*: what the truth's own parameters leave on the
 config's grid (the generator's spline force against the model's cubic hold, the grid's modes above the band) —
 the criterion of the test, ≤ 1.5 noise variances, is reachable where the floor is below it.  Targets: every case
 at the floor with EI and ρA within 1 % and N within 2 %; median time (defaults) ≤ 3 s.

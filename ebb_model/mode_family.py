@@ -102,7 +102,11 @@ def lowest_modes(beam: SemiDiscreteBeam, n_modes: int, *, vectors: bool = True):
     if not vectors:
         return w2
     psi = psi[:, ::-1]
-    psi /= np.sqrt(np.einsum("ij,ij->j", psi, beam.M @ psi))[None, :]   # mass-normalised (eigh gave K-normalised)
+    m = np.diagonal(beam.M)
+    # M ψ: by the diagonal where M is diagonal (the product's numbers and layout, without its n² k work)
+    Mpsi = np.ascontiguousarray(m[:, None] * psi) if np.count_nonzero(beam.M) == np.count_nonzero(m) \
+        else beam.M @ psi
+    psi /= np.sqrt(np.einsum("ij,ij->j", psi, Mpsi))[None, :]   # mass-normalised (eigh gave K-normalised)
     return w2, psi
 
 
@@ -201,7 +205,7 @@ def _nbytes(value: Any) -> int:
     if isinstance(value, np.ndarray):
         return value.nbytes
     if isinstance(value, tuple):
-        return sum(_nbytes(v) for v in value)
+        return sum(_nbytes(v) for v in value if not isinstance(v, str))
     if hasattr(value, "__dataclass_fields__"):
         return sum(_nbytes(getattr(value, f)) for f in value.__dataclass_fields__)
     return 0
