@@ -275,7 +275,6 @@ def modal_system(modes: FamilyModes) -> ModalMatrices:
         if low_rank is not None and low_rank.rank == 0:
             # C = α M: decoupled, though the modes' orthogonality round-off made Ψᵀ C Ψ look coupled (near buckling)
             d, low_rank = np.diag(modes.damping).copy(), None
-    proportional = d is not None
     if d is not None:
         Cm = np.diag(d)
     elif low_rank is not None:
@@ -285,7 +284,7 @@ def modal_system(modes: FamilyModes) -> ModalMatrices:
     F, S = modes.loads
     Fm = psi.T @ F
     C, D = _output_rows(S, tuple(s.kind for s in modes.config.sensors), psi, w2, Cm, Fm)
-    return ModalMatrices(w2, psi, Cm, Fm, C, D, d if proportional else None, low_rank)
+    return ModalMatrices(w2, psi, Cm, Fm, C, D, d, low_rank)
 
 
 def continuous_modes(config: BeamConfig, params: Mapping[str, float]) -> ContinuousModes:
