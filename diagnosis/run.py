@@ -197,10 +197,10 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         # the model's own discretisation error: a gap that refining the grid changes is not blamed on physics
         say("numerical adequacy of the model's grid")
         with clock.stage("numerical adequacy"):
+            advice = grid_advice(base_cfg, base_params, band_hz=f_hi)
             adequacy = numerical_adequacy(
                 base_cfg, base_params, [(r.inputs[:r.fit_end], r.outputs[:r.fit_end]) for r in records if r.has_fit],
-                sigma, band_hz=f_hi)
-            advice = grid_advice(base_cfg, base_params, band_hz=f_hi)
+                sigma, band_hz=f_hi, advice=advice)
         # where: localisation of the baseline residual per record
         with clock.stage("localisation"):
             base_all = cast(list[np.ndarray], problem.simulate(baseline.beta, until="all"))   # every record

@@ -12,7 +12,7 @@ refined (``[beam] nodes``).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import math
 
@@ -23,6 +23,9 @@ from scipy.signal import welch
 from .config import BeamConfig
 from .errors import DataError
 from .simulate import fast_model, simulate
+
+if TYPE_CHECKING:
+    from .grid_advice import GridAdvice
 
 __all__ = ["NOISE_FLOOR_EXCESS", "NumericalAdequacy", "adequacy_line", "excited_band", "numerical_adequacy",
            "refined_grid"]
@@ -111,12 +114,15 @@ def excited_band(inputs: Sequence[np.ndarray], dt: float, *, rel: float = 1e-3) 
     return (0.0 if not math.isfinite(lo) else lo), hi
 
 
-def adequacy_grid(config: BeamConfig, params: Mapping[str, float], band_hz: float) -> BeamConfig:
-    """The grid to compare with: :func:`refined_grid`, or finer where the grid advice asks for more."""
+def adequacy_grid(config: BeamConfig, params: Mapping[str, float], band_hz: float,
+                  advice: GridAdvice | None = None) -> BeamConfig:
+    """The grid to compare with: :func:`refined_grid`, or finer where the grid advice (``advice``, computed
+    when not given) asks for more."""
     from .grid_advice import grid_advice
 
     fine = refined_grid(config)
-    advice = grid_advice(config, params, band_hz=band_hz)
+    if advice is None:
+        advice = grid_advice(config, params, band_hz=band_hz)
     if advice.adequate or advice.nodes_needed is None:
         return fine
     time = replace(fine.time, substeps=max(fine.time.substeps, advice.substeps_needed))
@@ -125,7 +131,8 @@ def adequacy_grid(config: BeamConfig, params: Mapping[str, float], band_hz: floa
 
 def numerical_adequacy(config: BeamConfig, params: Mapping[str, float],
                        records: Sequence[tuple[np.ndarray, np.ndarray]],
-                       noise_std: ArrayLike, *, band_hz: float | None = None) -> NumericalAdequacy:
+                       noise_std: ArrayLike, *, band_hz: float | None = None,
+                       advice: GridAdvice | None = None) -> NumericalAdequacy:
     """Gap of the model at ``params`` with and without refinement, over ``records`` of ``(inputs, outputs)``.
 
     Parameters
@@ -138,10 +145,13 @@ def numerical_adequacy(config: BeamConfig, params: Mapping[str, float],
         Noise standard deviation per sensor.
     band_hz
         Top of the excited band [Hz] (default: from the inputs, :func:`excited_band`), for the grid advice.
+    advice
+        The grid advice at ``params`` for that band, when the caller has it
+        (:func:`~ebb_model.grid_advice.grid_advice`; computed otherwise — its reference grids are the costly part).
     """
     if band_hz is None:
         band_hz = excited_band([u for u, _ in records], config.time.dt)[1]
-    fine_cfg = adequacy_grid(config, params, band_hz)
+    fine_cfg = adequacy_grid(config, params, band_hz, advice)
     model, fine = fast_model(config, params), fast_model(fine_cfg, params)
     sigma2 = np.asarray(noise_std, dtype=float) ** 2
     sq = np.zeros((3, len(config.sensors)))

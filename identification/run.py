@@ -363,10 +363,10 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
                                    r.success, r.message) for i, x, f, n_ev, r in polished_raw)
     sigma = np.median(noise.std, axis=0)
     band_hz = excited_band([e.inputs for e in exps], cfg.time.dt)[1]
-    adequacy = numerical_adequacy(*space.apply(cfg, best_x), [(e.inputs, e.outputs) for e in exps], sigma,
-                                  band_hz=band_hz)
-    # the same advice `diagnose` gives at its baseline (one function, the same band)
+    # the same advice `diagnose` gives at its baseline (one function, the same band); the adequacy check reads it
     advice = grid_advice(*space.apply(cfg, best_x), band_hz=band_hz)
+    adequacy = numerical_adequacy(*space.apply(cfg, best_x), [(e.inputs, e.outputs) for e in exps], sigma,
+                                  band_hz=band_hz, advice=advice)
     grid = {**advice.to_dict(), "summary": advice.summary()}
     priors: tuple[PriorCheck, ...] = ()
     prior = Prior.of(cfg, space.names)
