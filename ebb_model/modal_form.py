@@ -125,9 +125,13 @@ def is_diagonal(Cd: np.ndarray, *, rtol: float = DIAGONAL_RTOL) -> tuple[bool, n
     """Whether the modal damping ``Cd`` (``Ψᵀ C Ψ``) is diagonal (to ``rtol`` of its largest diagonal entry);
     returns the flag and its diagonal."""
     diag = np.diag(Cd).copy()
-    off = Cd - np.diag(diag)
     scale = max(float(np.max(np.abs(diag))), 1e-300)
-    return bool(np.max(np.abs(off), initial=0.0) <= rtol * scale), diag
+    return bool(off_diagonal_magnitude(Cd) <= rtol * scale), diag
+
+
+def off_diagonal_magnitude(a: np.ndarray) -> float:
+    """The largest magnitude of the square matrix ``a`` off its diagonal (0 for a 1×1 or empty one)."""
+    return float(np.max(np.abs(a - np.diag(np.diag(a))), initial=0.0))
 
 
 def modal_from_beam(beam: SemiDiscreteBeam, dt: float, theta: float = 0.25,

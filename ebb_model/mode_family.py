@@ -35,7 +35,7 @@ import scipy.linalg as sla
 
 from .beam import End, PointMass, PointSpring, WeakSegment
 from .config import BeamConfig
-from .modal_form import DIAGONAL_RTOL, is_diagonal
+from .modal_form import DIAGONAL_RTOL, is_diagonal, off_diagonal_magnitude
 from .discretisation import (SemiDiscreteBeam, assemble_matrices, check_attachments, control_lengths, grid_nodes,
                              load_rows)
 
@@ -302,13 +302,9 @@ def unit_modes(key: FamilyKey) -> UnitModes:
     viscous, bending = psi.T @ (V[:, None] * psi), psi.T @ fine.C @ psi
     for a in (w2, psi, viscous, bending):
         a.setflags(write=False)
-    return UnitModes(w2, psi, fine, viscous, bending, _off_diagonal(viscous), _off_diagonal(bending),
+    return UnitModes(w2, psi, fine, viscous, bending, off_diagonal_magnitude(viscous), off_diagonal_magnitude(bending),
                      bool(np.array_equal(fine.M, np.diag(V))))
 
-
-def _off_diagonal(a: np.ndarray) -> float:
-    """The largest magnitude of ``a`` off its diagonal."""
-    return float(np.max(np.abs(a - np.diag(np.diag(a))), initial=0.0))
 
 
 def scaled_beam(unit: SemiDiscreteBeam, config: BeamConfig, p: Mapping[str, float],
