@@ -101,18 +101,13 @@ def kernel_floor(fm: em.ModalStateSpace, u: np.ndarray):
     fn = compiled_recursion(fm.nblocks, fm.D.shape[1], fm.delays + 1, fm.D.shape[0])
     if fn is None:
         raise SystemExit("the benchmark needs the compiled recursion (a C compiler)")
-    T, G, Cm, p, m = fm.T, fm.G, fm.Cm, fm.D.shape[0], fm.D.shape[1]
-    arrays = [np.ascontiguousarray(a) for a in (T[:, 0, 0], T[:, 0, 1], T[:, 1, 0], T[:, 1, 1], G[:, 0, :].T,
-                                                G[:, 1, :].T, Cm[:, :, 0], Cm[:, :, 1],
-                                                np.hstack([fm.D, np.zeros((p, m * fm.delays))]), u)]
-    z_start = np.zeros((fm.nblocks, 2)) if fm.hold is None else -np.einsum("bim,m->bi", fm.hold, u[0])
-    y = np.empty((u.shape[0], p))
-    z0, z1 = np.empty(fm.nblocks), np.empty(fm.nblocks)
-    args = [a.ctypes.data for a in (*arrays, y, z0, z1)]    # addresses: the arrays are kept alive below
+    arrays = [np.ascontiguousarray(a, dtype=float) for a in (fm.T, fm.G, fm.Cm, fm.D, u)]
+    z = np.zeros((fm.nblocks, 2)) if fm.hold is None else -np.einsum("bim,m->bi", fm.hold, u[0])
+    y = np.empty((u.shape[0], fm.D.shape[0]))
+    args = [a.ctypes.data for a in (*arrays, y, z)]    # addresses: the arrays are kept alive below
 
     def run() -> np.ndarray:
-        z0[:], z1[:] = z_start[:, 0], z_start[:, 1]
-        fn(*args, arrays[-1].shape[0])
+        fn(*args, u.shape[0])
         return y
 
     return run

@@ -32,7 +32,7 @@ The model takes it exactly in time (:func:`filtered_poles`): in series after the
 with ``R_i`` the beam's residues, ``r_j`` the filter's and ``G(p_j)`` the whole beam (every mode and the
 feedthrough) at the filter's pole.  So the filtered model stays diagonal: the beam's poles with their output
 weights scaled by ``H(s_i)``, and ``n`` more first-order poles per filtered sensor, driven by the inputs — the
-same exact input integrals (:func:`ebb_model.exact_modal.input_weights`) discretise them.
+same exact input integrals (:func:`ebb_model.sample_integrals.input_weights`) discretise them.
 """
 from __future__ import annotations
 

@@ -74,12 +74,10 @@ def as_matrix(value: object, name: str, *, shape: tuple[int | None, int | None] 
         raise error(f"{name} has shape {a.shape}, expected {exp}{want}")
     if a.shape[0] < min_rows:
         raise error(f"{name} must contain at least {min_rows} {row}s, got {a.shape[0]}")
-    if finite:
-        bad = np.argwhere(~np.isfinite(a))
-        if bad.size:
-            i, j = bad[0]
-            where = repr(columns[j]) if columns else str(j)
-            raise error(f"{name} contains a non-finite value at {row} {i}, {column} {where}")
+    if finite and not np.isfinite(a).all():   # (the check alone; locating the first bad entry costs 10x more)
+        i, j = np.argwhere(~np.isfinite(a))[0]
+        where = repr(columns[j]) if columns else str(j)
+        raise error(f"{name} contains a non-finite value at {row} {i}, {column} {where}")
     if readonly:
         a.setflags(write=False)
         return a

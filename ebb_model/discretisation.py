@@ -80,6 +80,7 @@ import numpy as np
 from .beam import End, PointMass, PointSpring, WeakSegment
 from .config import BeamConfig
 from .errors import ParameterError
+from .memo import memoised
 from .parameter_values import resolve_parameters
 
 #: The largest point mass, in units of the beam's mass per grid cell ``ρA h``, that keeps the mass matrix
@@ -339,6 +340,45 @@ def control_lengths(n: int, h: float, left: End, right: End) -> np.ndarray:
     return V
 
 
+@dataclass(frozen=True, eq=False)
+class _Operators:
+    """What :func:`assemble_matrices` needs of a grid besides the parameter values: the ``unknown`` nodes, their
+    control lengths ``V``, the bending operator ``B4 = diag(V) D_4 E`` (per unit ``EI``; :func:`_bending` with
+    weak segments) and the axial one ``A2 = diag(V) D_2 E``.  Read-only arrays."""
+
+    unknown: np.ndarray
+    V: np.ndarray
+    B4: np.ndarray
+    A2: np.ndarray
+
+
+@memoised
+def _operators(key: tuple) -> _Operators:
+    """The :class:`_Operators` of ``key = (length, n, left, right, segments, EI, N)`` (memoised per process:
+    every parameter set on a grid shares them; ``EI`` and ``N`` are ``None`` where the ghost relations do not
+    read them, so they are shared across those values too)."""
+    length, n, left, right, segments, EI, N = key
+    h = length / (n + 1)
+    first = 1 if left.translation_fixed else 0
+    last = n if right.translation_fixed else n + 1
+    unknown = np.arange(first, last + 1)
+    E = _extension(n, h, 1.0 if EI is None else EI, 0.0 if N is None else N, left, right, unknown)
+    rows = unknown + 2
+    ghost = np.array([0, 1, n + 4, n + 5])     # the ghost nodes -2, -1, n+2, n+3 on the extended numbering
+    # D4 and D2 rows on the extended numbering, one row per unknown node
+    D4 = _stencil_rows(rows, n + 6, _FOURTH) / h ** 4
+    D2 = _stencil_rows(rows, n + 6, _SECOND) / h ** 2
+    V = control_lengths(n, h, left, right)
+    if segments:
+        B4 = V[:, None] * _bending(n, h, rows, E, cell_stiffness(length, n, segments))
+    else:
+        B4 = V[:, None] * _apply(D4, E, unknown, ghost)
+    A2 = V[:, None] * _apply(D2, E, unknown, ghost)
+    for a in (unknown, V, B4, A2):
+        a.setflags(write=False)
+    return _Operators(unknown, V, B4, A2)
+
+
 def assemble_matrices(length: float, n: int, left: End, right: End, masses: Sequence[PointMass],
                       springs: Sequence[PointSpring], segments: Sequence[WeakSegment], p: Mapping[str, float]
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -348,24 +388,13 @@ def assemble_matrices(length: float, n: int, left: End, right: End, masses: Sequ
     EI, rhoA, c, eta, N = p["EI"], p["rhoA"], p["c"], p["eta"], p["N"]
     rhoI, kf = p["rhoI"], p["kf"]
     h = length / (n + 1)
-    first = 1 if left.translation_fixed else 0
-    last = n if right.translation_fixed else n + 1
-    unknown = np.arange(first, last + 1)
+    # the ghost relations read EI at an elastic or free end and N at a free end only
+    free = not (left.translation_fixed and right.translation_fixed)
+    elastic = free or any(not e.rotation_fixed and e.kr != 0.0 for e in (left, right))
+    ops = _operators((length, n, left, right, tuple(segments), EI if elastic else None, N if free else None))
+    unknown, V, B4 = ops.unknown.copy(), ops.V, ops.B4
     nu = unknown.size
-
-    E = _extension(n, h, EI, N, left, right, unknown)
-    rows = unknown + 2
-    ghost = np.array([0, 1, n + 4, n + 5])     # the ghost nodes -2, -1, n+2, n+3 on the extended numbering
-    # D4 and D2 rows on the extended numbering, one row per unknown node
-    D4 = _stencil_rows(rows, n + 6, _FOURTH) / h ** 4
-    D2 = _stencil_rows(rows, n + 6, _SECOND) / h ** 2
-    V = control_lengths(n, h, left, right)
-
-    if segments:
-        B4 = V[:, None] * _bending(n, h, rows, E, cell_stiffness(length, n, segments))
-    else:
-        B4 = V[:, None] * _apply(D4, E, unknown, ghost)
-    K = EI * B4 - N * (V[:, None] * _apply(D2, E, unknown, ghost))
+    K = EI * B4 - N * ops.A2
     C = eta * EI * B4
     K[np.diag_indices(nu)] += kf * V
     C[np.diag_indices(nu)] += c * V

@@ -20,7 +20,8 @@ seed's spatial discretisation (same grid, ghost nodes, matrices):
    samples ``k−2 … k+1`` (default; a band-limited force is smooth, and the straight line is 2 % off in
    amplitude at fs/13 — on a lightly damped record that alone is several noise variances), the straight line
    between samples, or the sample held: ``x⁺ = e^{sT} x + Σ_j W_j u_{k+j}`` with ``W_j`` in closed form
-   (:func:`polynomial_integrals`, series for small ``|sT|``; checked against the matrix exponential).
+   (:func:`~ebb_model.sample_integrals.polynomial_integrals`, series for small ``|sT|``; checked against the
+   matrix exponential).
    The lookahead ``u_{k+1}`` is made causal by the state shift ``ξ = x − W_1 u``, the past samples are
    extra input columns (delay states in the dense form).  Outputs are exact too: acceleration
    ``= Ψ(−Λ q − C_m q̇ + Ψᵀ F u)``.
@@ -44,86 +45,11 @@ from .coupled_modes import LowRankDamping, coupled_modes, low_rank_damping
 from .mode_family import FamilyModes, family_modes
 from .modal_form import MAX_BASIS_CONDITION, ModalStateSpace, basis_condition
 from .parameter_values import resolve_parameters
+from .sample_integrals import INPUT_TAPS, LAGRANGE, input_weights, real_blocks
 from .statespace import DiscreteStateSpace, with_input_delays
 
 __all__ = ["exact_model", "exact_modal", "exact_statespace", "continuous_modes", "ContinuousModes", "modal_matrices",
-           "modal_system", "ModalMatrices", "modal_state_matrix", "pole_integrals"]
-
-#: Terms of the series of :func:`polynomial_integrals` (``|z| < 1``): the last is below ``1/24! ≈ 2e-24``.
-_SERIES_TERMS = 24
-#: The series' coefficients ``p!/(k + p + 1)!`` per degree ``p`` (constants, built once).
-_SERIES = {p: [math.factorial(p) / math.factorial(k + p + 1) for k in range(_SERIES_TERMS)] for p in range(4)}
-
-
-def polynomial_integrals(s: np.ndarray, T: float, degree: int = 3) -> tuple[np.ndarray, np.ndarray]:
-    """``e^{sT}`` and ``I_p = ∫₀ᵀ e^{s(T−τ)} (τ/T)^p dτ`` for ``p = 0 … degree``, each pole, to round-off.
-
-    With ``z = sT``: ``I_0 = T (e^z − 1)/z`` and ``I_p = (p I_{p−1} − T)/z`` (integration by parts), stable for
-    ``|z| ≥ 1`` (the recurrence amplifies round-off by at most ``p!/|z|^p``); below, the highest degree by its
-    series ``T Σ_k z^k p!/(k + p + 1)!`` (:data:`_SERIES_TERMS` terms, Horner's rule) and the lower ones by the
-    recurrence run downwards, ``I_{p−1} = (z I_p + T)/p``, which damps round-off by ``|z|/p``.
-    ``degree`` at most 3 (the cubic's).  Returns ``E`` (n,) and ``I`` (degree + 1, n).
-    """
-    z = np.asarray(s, dtype=complex) * T
-    small = np.abs(z) < 1.0
-    zs, zl = z[small], z[~small]
-    E = np.empty_like(z)
-    I = np.empty((degree + 1, z.size), dtype=complex)
-    with np.errstate(over="ignore", invalid="ignore"):  # an unstable pole overflows: caught by the stability check
-        E[:] = np.exp(z)
-        I[0, ~small] = np.expm1(zl) / zl
-        for p in range(1, degree + 1):
-            I[p, ~small] = (p * I[p - 1, ~small] - 1.0) / zl
-    if zs.size:
-        coef = _SERIES[degree]
-        acc = np.full(zs.size, coef[-1], dtype=complex)
-        for c in coef[-2::-1]:
-            acc = acc * zs + c
-        I[degree, small] = acc
-        for p in range(degree, 0, -1):
-            acc = (zs * acc + 1.0) / p
-            I[p - 1, small] = acc
-    return E, T * I
-
-
-def pole_integrals(s: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``e^{sT}``, ``φ₀ = ∫₀ᵀ e^{s(T−τ)} dτ`` and ``φ₁ = ∫₀ᵀ e^{s(T−τ)} τ/T dτ`` for each pole, to round-off
-    (:func:`polynomial_integrals` of degree 1)."""
-    E, I = polynomial_integrals(s, T, 1)
-    return E, I[0], I[1]
-
-
-#: Sample offsets the input reconstruction between ``t_k`` and ``t_{k+1}`` reads, per ``[time] input``:
-#: held (``zoh``), the straight line (``foh``), and the cubic through four samples ``k−2 … k+1`` (``cubic``).
-INPUT_TAPS = {"zoh": (0,), "foh": (0, 1), "cubic": (-2, -1, 0, 1)}
-
-
-def input_weights(s: np.ndarray, T: float, hold: str) -> tuple[np.ndarray, np.ndarray]:
-    """``e^{sT}`` and the weights ``W`` (taps, n) of ``x⁺ = e^{sT} x + Σ_j W_j u[k + j]`` per pole.
-
-    The input between samples is the polynomial through the samples at the offsets :data:`INPUT_TAPS`
-    (Lagrange basis ``ℓ_j(σ)``, ``σ = (t − t_k)/T``), so ``W_j = Σ_p c_{jp} I_p`` with ``ℓ_j = Σ_p c_{jp} σ^p``.
-    The cubic reads one sample ahead, as the straight line does, and two behind: its error is ``O(T⁴)``
-    against ``O(T²)`` — at fs/13 the straight line's amplitude error is 2 %, the cubic's 0.2 %.
-    """
-    E, I = polynomial_integrals(s, T, len(INPUT_TAPS[hold]) - 1)
-    return E, _LAGRANGE[hold] @ I
-
-
-def _lagrange_coefficients(taps: tuple[int, ...]) -> np.ndarray:
-    """``c[j, p]``: the Lagrange basis polynomial of node ``taps[j]`` is ``ℓ_j(σ) = Σ_p c[j, p] σ^p``."""
-    t = np.asarray(taps, dtype=float)
-    coef = np.zeros((t.size, t.size))
-    for j in range(t.size):                               # ℓ_j(σ) = Π_{i≠j} (σ − t_i)/(t_j − t_i)
-        others = np.delete(t, j)
-        coef[j] = np.atleast_1d(np.poly(others))[::-1] / np.prod(t[j] - others)
-    return coef
-
-
-#: :func:`_lagrange_coefficients` of each input reconstruction's taps (constants: built once, read per model —
-#: building them was 8 % of an assembly).
-_LAGRANGE = {hold: _lagrange_coefficients(taps) for hold, taps in INPUT_TAPS.items()}
-
+           "modal_system", "ModalMatrices", "modal_state_matrix"]
 
 def _mode_poles(w2: np.ndarray, d: np.ndarray, Fm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Poles and input weights of decoupled modes ``q̈ + d q̇ + ω² q = F_m u`` (proportional damping).
@@ -158,36 +84,6 @@ def _output_rows(S: np.ndarray, kinds: tuple[str, ...], psi: np.ndarray, w2: np.
             C[i, k:] = -(P[i] @ Cm)
             D[i] = P[i] @ Fm
     return C, D
-
-
-def _real_blocks(lam: np.ndarray, Bs: list[np.ndarray], CV: np.ndarray
-                 ) -> tuple[np.ndarray, list[np.ndarray], np.ndarray]:
-    """Real 2×2 blocks ``(T, [Γ_j], C)`` of the complex-diagonal discrete system ``z⁺ = λ z + Σ_j B_j u_j``,
-    ``y = C V z`` (``CV`` given).
-
-    A conjugate pair ``(z, z̄)`` becomes ``(r, m) = (Re z, Im z)``: ``x = 2 Re(v z) = 2 Re v · r − 2 Im v · m``
-    and ``[r; m]⁺ = [[Re λ, −Im λ], [Im λ, Re λ]] [r; m] + [Re b; Im b] u``.  Real poles go in pairs.
-    """
-    upper = np.flatnonzero(lam.imag > 0)
-    reals = np.flatnonzero(lam.imag == 0)
-    if reals.size % 2:
-        raise np.linalg.LinAlgError("odd number of real poles")
-    nu, first, second = upper.size, reals[0::2], reals[1::2]
-    T = np.zeros((nu + first.size, 2, 2))
-    e = lam[upper]
-    T[:nu, 0, 0] = T[:nu, 1, 1] = e.real
-    T[:nu, 0, 1], T[:nu, 1, 0] = -e.imag, e.imag
-    T[nu:, 0, 0], T[nu:, 1, 1] = lam[first].real, lam[second].real
-    Gs = []
-    for B in Bs:
-        G = np.empty((T.shape[0], 2, B.shape[1]))
-        G[:nu, 0], G[:nu, 1] = B[upper].real, B[upper].imag
-        G[nu:, 0], G[nu:, 1] = B[first].real, B[second].real
-        Gs.append(G)
-    Cb = np.empty((CV.shape[0], T.shape[0], 2))
-    Cb[:, :nu, 0], Cb[:, :nu, 1] = 2 * CV[:, upper].real, -2 * CV[:, upper].imag
-    Cb[:, nu:, 0], Cb[:, nu:, 1] = CV[:, first].real, CV[:, second].real
-    return T, Gs, Cb
 
 
 @dataclass(frozen=True, eq=False)
@@ -341,9 +237,13 @@ def exact_modal(config: BeamConfig, params: Mapping[str, float]) -> ModalStateSp
         poles, inputs, CV, D, added = filtered_poles(poles, inputs, CV, D, filters)
     E, W = input_weights(poles, T_s, config.time.input_hold)
     with np.errstate(over="ignore", invalid="ignore"):   # an unstable candidate: caught by the stability check
-        T, Gs, Cb = _real_blocks(E, [w[:, None] * inputs for w in W], CV)
-        freqs = _block_frequencies(E, poles) / (2 * math.pi)
-        is_filter = _block_poles(E) >= poles.size - added
+        T, Gt, Cb, (upper, first, second) = real_blocks(E, W[:, :, None] * inputs[None], CV)
+        Gs = list(Gt)
+        # each block's continuous natural frequency |s| (a real pair's larger); the blocks are chosen by the
+        # discrete poles: a mode above the Nyquist frequency can have Im λ < 0 with Im s > 0
+        a = np.abs(poles)
+        freqs = np.concatenate([a[upper], np.maximum(a[first], a[second])]) / (2 * math.pi)
+        is_filter = np.concatenate([upper, first]) >= poles.size - added
         if added:                                         # the filters' blocks last (ModalStateSpace.filters)
             order = np.argsort(is_filter, kind="stable")
             T, Gs, Cb, freqs = T[order], [g[order] for g in Gs], Cb[:, order], freqs[order]
@@ -357,22 +257,6 @@ def exact_modal(config: BeamConfig, params: Mapping[str, float]) -> ModalStateSp
     Gall = np.concatenate([G[-j] for j in range(delays + 1)], axis=2)
     return ModalStateSpace(T, Gall, Cb, D, T_s, config.input_names, config.output_names, None, hold, delays,
                            freqs, int(np.count_nonzero(is_filter)))
-
-
-def _block_poles(lam: np.ndarray) -> np.ndarray:
-    """The index into ``lam`` of the pole each real block of :func:`_real_blocks` is made from (a real pair's
-    first)."""
-    reals = np.flatnonzero(lam.imag == 0)
-    return np.concatenate([np.flatnonzero(lam.imag > 0), reals[0::2]])
-
-
-def _block_frequencies(lam: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """The natural angular frequency ``|s|`` of the continuous pole of each real block that :func:`_real_blocks`
-    makes of the discrete poles ``lam = e^{sT}`` (the larger of a real pair's).  The blocks are chosen by the
-    discrete poles, as there: a mode above the Nyquist frequency can have ``Im λ < 0`` with ``Im s > 0``."""
-    upper = np.flatnonzero(lam.imag > 0)
-    reals = np.flatnonzero(lam.imag == 0)
-    return np.concatenate([np.abs(s[upper]), np.maximum(np.abs(s[reals[0::2]]), np.abs(s[reals[1::2]]))])
 
 
 def exact_statespace(config: BeamConfig, params: Mapping[str, float]) -> DiscreteStateSpace:
@@ -409,7 +293,7 @@ def exact_statespace(config: BeamConfig, params: Mapping[str, float]) -> Discret
         E = sla.expm(aug)
     Phi = E[:n, :n]
     Pq = [E[:n, n + q * m:n + (q + 1) * m] * math.factorial(q) for q in range(deg + 1)]
-    coef = _LAGRANGE[config.time.input_hold]
+    coef = LAGRANGE[config.time.input_hold]
     P = {t: sum(coef[j, q] * Pq[q] for q in range(deg + 1)) for j, t in enumerate(taps)}
     hold = P.pop(1, None)
     if hold is not None:                                  # the lookahead, causal on ξ = x − Γ₁ u

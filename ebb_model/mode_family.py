@@ -25,21 +25,18 @@ from __future__ import annotations
 
 import functools
 import math
-import threading
-from collections import OrderedDict
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Mapping, TypeVar
+from typing import Mapping
 
 import numpy as np
 import scipy.linalg as sla
 
 from .beam import End, PointMass, PointSpring, WeakSegment
 from .config import BeamConfig
+from .memo import memoised
 from .modal_form import DIAGONAL_RTOL, is_diagonal, off_diagonal_magnitude
 from .discretisation import (SemiDiscreteBeam, assemble_matrices, check_attachments, control_lengths, grid_nodes,
                              load_rows)
-
-T = TypeVar("T")
 
 __all__ = ["companion_nodes", "companion_config", "refined_config", "lowest_modes", "richardson_modes",
            "extrapolated", "FamilyKey", "family_key", "UnitModes", "unit_pair", "unit_modes", "scaled_beam",
@@ -185,72 +182,6 @@ def family_key(config: BeamConfig, p: Mapping[str, float]) -> FamilyKey:
                      tuple(replace(w, name="") for w in config.weak_segments))
 
 
-#: Bytes of results each memo keeps per process (:func:`_memo`): a 50-node family's entry is about 0.3 MB, a
-#: 1000-node one about 50 MB — hundreds of small families, or two of the largest grid.
-MEMO_BYTES = 128 * 2 ** 20
-
-
-@dataclass(frozen=True)
-class MemoInfo:
-    """What a memo did: ``hits``, ``misses``, the entries it keeps and their bytes."""
-
-    hits: int
-    misses: int
-    entries: int
-    nbytes: int
-
-
-def _nbytes(value: Any) -> int:
-    """The bytes of the arrays in ``value`` (an array, a dataclass or a tuple of them)."""
-    if isinstance(value, np.ndarray):
-        return value.nbytes
-    if isinstance(value, tuple):
-        return sum(_nbytes(v) for v in value if not isinstance(v, str))
-    if hasattr(value, "__dataclass_fields__"):
-        return sum(_nbytes(getattr(value, f)) for f in value.__dataclass_fields__)
-    return 0
-
-
-def _memo(fn: Callable[[FamilyKey], T]) -> Callable[[FamilyKey], T]:
-    """``fn`` memoised per process: the least recently used results dropped beyond :data:`MEMO_BYTES` (the
-    newest always kept); ``cache_clear()`` and ``cache_info()`` as :func:`functools.lru_cache`'s."""
-    entries: OrderedDict[FamilyKey, tuple[T, int]] = OrderedDict()
-    counts = {"hits": 0, "misses": 0, "nbytes": 0}
-    lock = threading.Lock()
-
-    @functools.wraps(fn)
-    def memoised(key: FamilyKey) -> T:
-        with lock:
-            found = entries.get(key)
-            if found is not None:
-                entries.move_to_end(key)
-                counts["hits"] += 1
-                return found[0]
-            counts["misses"] += 1
-        value = fn(key)                      # outside the lock: another thread may compute the same, harmlessly
-        size = _nbytes(value)
-        with lock:
-            old = entries.pop(key, None)
-            counts["nbytes"] += size - (old[1] if old is not None else 0)
-            entries[key] = (value, size)
-            while len(entries) > 1 and counts["nbytes"] > MEMO_BYTES:
-                counts["nbytes"] -= entries.popitem(last=False)[1][1]
-        return value
-
-    def cache_clear() -> None:
-        with lock:
-            entries.clear()
-            counts.update(hits=0, misses=0, nbytes=0)
-
-    def cache_info() -> MemoInfo:
-        with lock:
-            return MemoInfo(counts["hits"], counts["misses"], len(entries), counts["nbytes"])
-
-    memoised.cache_clear = cache_clear        # type: ignore[attr-defined]
-    memoised.cache_info = cache_info          # type: ignore[attr-defined]
-    return memoised
-
-
 @dataclass(frozen=True, eq=False)
 class UnitModes:
     """The Richardson modes of a family's unit beam (``EI = ρA = 1``): ``frequencies2`` (``ω̃²``, as many as the
@@ -285,13 +216,13 @@ def _unit_beam(key: FamilyKey, nodes: int) -> SemiDiscreteBeam:
     return beam
 
 
-@_memo
+@memoised
 def unit_pair(key: FamilyKey) -> tuple[SemiDiscreteBeam, SemiDiscreteBeam]:
     """The family ``key``'s unit beams on the config's grid and on its companion grid (memoised per process)."""
     return _unit_beam(key, key.nodes), _unit_beam(key, companion_nodes(key.nodes))
 
 
-@_memo
+@memoised
 def unit_modes(key: FamilyKey) -> UnitModes:
     """The Richardson modes of the family ``key``'s unit beam (memoised per process; module docstring)."""
     own, companion = unit_pair(key)

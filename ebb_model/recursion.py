@@ -99,8 +99,10 @@ def compiled_recursion(nblocks: int, inputs: int, taps: int, outputs: int) -> Ke
     Returns
     -------
     callable or None
-        ``f(t00, t01, t10, t11, g0, g1, c0, c1, D, u, y, z0, z1, ns)`` on the arrays' addresses, returning 0
-        (or -1 when its work space cannot be allocated).
+        ``f(T, G, C, D, u, y, z, ns)`` on the addresses of row-major float arrays — the blocks (nb, 2, 2), input
+        matrices (nb, 2, inputs·taps), output rows (outputs, nb, 2), feedthrough (outputs, inputs), the input
+        samples (ns, inputs), the outputs (ns, outputs, written) and the initial block state (nb, 2) —, returning
+        0 (or -1 when its work space cannot be allocated).
     """
     tools = _toolchain()
     if tools is None:
@@ -126,7 +128,7 @@ def compiled_recursion(nblocks: int, inputs: int, taps: int, outputs: int) -> Ke
                           "runs on its numba kernel", RuntimeWarning, stacklevel=2)
             return None
     fn = ctypes.CDLL(str(lib)).modal_recursion
-    fn.argtypes = [ctypes.c_void_p] * 13 + [ctypes.c_long]
+    fn.argtypes = [ctypes.c_void_p] * 7 + [ctypes.c_long]
     fn.restype = ctypes.c_int
     return fn
 
@@ -155,15 +157,17 @@ def run_modal_recursion(T: np.ndarray, G: np.ndarray, Cm: np.ndarray, D: np.ndar
         ``y`` (ns, p).
     """
     nb, m, p, taps = T.shape[0], D.shape[1], D.shape[0], delays + 1
-    arrays = [np.ascontiguousarray(a, dtype=float) for a in (
-        T[:, 0, 0], T[:, 0, 1], T[:, 1, 0], T[:, 1, 1], G[:, 0, :].T, G[:, 1, :].T, Cm[:, :, 0], Cm[:, :, 1],
-        np.hstack([D, np.zeros((p, m * delays))]), u)]
-    z0, z1 = np.array(z[:, 0], dtype=float), np.array(z[:, 1], dtype=float)
     y = np.empty((u.shape[0], p))
     fn = compiled_recursion(nb, m, taps, p) if compiled else None
     if fn is None:
-        _modal_kernel(*arrays, delays, y, z0, z1)
-    elif fn(*(a.ctypes.data for a in (*arrays, y, z0, z1)), u.shape[0]) != 0:
+        arrays = [np.ascontiguousarray(a, dtype=float) for a in (
+            T[:, 0, 0], T[:, 0, 1], T[:, 1, 0], T[:, 1, 1], G[:, 0, :].T, G[:, 1, :].T, Cm[:, :, 0], Cm[:, :, 1],
+            np.hstack([D, np.zeros((p, m * delays))]), u)]
+        _modal_kernel(*arrays, delays, y, np.array(z[:, 0], dtype=float), np.array(z[:, 1], dtype=float))
+        return y
+    # the compiled kernel reads the model's own (row-major) arrays and regroups them itself
+    arrays = [np.ascontiguousarray(a, dtype=float) for a in (T, G, Cm, D, u, z)]
+    if fn(*(a.ctypes.data for a in arrays[:5]), y.ctypes.data, arrays[5].ctypes.data, u.shape[0]) != 0:
         raise MemoryError("the modal recursion's work space could not be allocated")
     return y
 

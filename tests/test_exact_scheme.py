@@ -208,7 +208,7 @@ def test_pole_integrals_equal_the_matrix_exponential():
     """Closed form and Taylor branch (|sT| < 1/2) against scipy's expm of the augmented 3×3 matrix."""
     import scipy.linalg as sla
 
-    from ebb_model.exact_modal import pole_integrals
+    from ebb_model.sample_integrals import pole_integrals
 
     rng = np.random.default_rng(0)
     mag = 10.0 ** rng.uniform(-3, 5, 300)
@@ -327,7 +327,7 @@ def test_polynomial_integrals_equal_the_matrix_exponential():
     5×5 matrix augmented with the chain of derivatives of ``σ³``."""
     import scipy.linalg as sla
 
-    from ebb_model.exact_modal import polynomial_integrals
+    from ebb_model.sample_integrals import polynomial_integrals
 
     rng = np.random.default_rng(1)
     mag = 10.0 ** rng.uniform(-3, 5, 300)

@@ -178,7 +178,7 @@ def test_the_shared_decomposition_cannot_be_changed_by_a_caller():
 def test_the_memo_keeps_within_its_budget_of_bytes(monkeypatch):
     # the largest grid's family is about 50 MB: the memo drops the least recently used beyond its budget (the
     # newest always kept), and a dropped family is computed again to the same numbers
-    import ebb_model.mode_family as mf
+    import ebb_model.memo as memo
 
     cfg = _bench("clamped, tension")
     u = np.random.default_rng(5).standard_normal((300, 1))
@@ -186,7 +186,7 @@ def test_the_memo_keeps_within_its_budget_of_bytes(monkeypatch):
     first = _response(cfg, {"EI": 9.0}, u)
     one = unit_modes.cache_info().nbytes
     assert one > 0
-    monkeypatch.setattr(mf, "MEMO_BYTES", int(1.5 * one))
+    monkeypatch.setattr(memo, "MEMO_BYTES", int(1.5 * one))
     for ei in (10.0, 11.0, 12.0):
         _response(cfg, {"EI": ei}, u)
         info = unit_modes.cache_info()

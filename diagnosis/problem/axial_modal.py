@@ -41,7 +41,8 @@ from ebb_model.assemble import check_stable
 from ebb_model.config import BeamConfig
 from ebb_model.discretisation import discretise
 from ebb_model.errors import StabilityError
-from ebb_model.exact_modal import INPUT_TAPS, continuous_modes, input_weights, pole_integrals
+from ebb_model.exact_modal import continuous_modes
+from ebb_model.sample_integrals import INPUT_TAPS, input_weights, pole_integrals
 from ebb_model.mode_family import refined_config
 from ebb_model.parameter_values import resolve_parameters
 

@@ -1,0 +1,158 @@
+r"""The exact scheme's per-pole algebra: each continuous pole integrated over a sample, and the real 2×2 blocks.
+
+A pole ``s`` of the diagonalised modal system (:mod:`ebb_model.exact_modal`) advances over a sample ``T`` as
+``z⁺ = e^{sT} z + Σ_j W_j u[k + j]``, the weights ``W_j`` the integrals of ``e^{s(T−τ)}`` against the Lagrange
+basis of the input reconstruction (:data:`INPUT_TAPS`); conjugate pairs of discrete poles then become real 2×2
+blocks (:func:`real_blocks`).  Both run once per parameter set on a few hundred poles: compiled loops (numba),
+as the NumPy forms of the same formulas spent ~0.1 ms per evaluation in small array operations (a third of an
+R1 evaluation within one family of modes).
+"""
+from __future__ import annotations
+
+import cmath
+import math
+
+import numba
+import numpy as np
+
+__all__ = ["INPUT_TAPS", "polynomial_integrals", "pole_integrals", "input_weights", "real_blocks"]
+
+#: Terms of the series of :func:`polynomial_integrals` (``|z| < 1``): the last is below ``1/24! ≈ 2e-24``.
+_SERIES_TERMS = 24
+#: The series' coefficients ``p!/(k + p + 1)!`` per degree ``p`` (rows) and term ``k`` (columns).
+_SERIES = np.array([[math.factorial(p) / math.factorial(k + p + 1) for k in range(_SERIES_TERMS)]
+                    for p in range(4)])
+_SERIES.setflags(write=False)
+
+#: Sample offsets the input reconstruction between ``t_k`` and ``t_{k+1}`` reads, per ``[time] input``:
+#: held (``zoh``), the straight line (``foh``), and the cubic through four samples ``k−2 … k+1`` (``cubic``).
+INPUT_TAPS = {"zoh": (0,), "foh": (0, 1), "cubic": (-2, -1, 0, 1)}
+
+
+@numba.njit(cache=True, nogil=True)
+def _integrals(s, T, degree, series, E, I):  # pragma: no cover - compiled
+    terms = series.shape[1]
+    for n in range(s.size):
+        z = s[n] * T
+        E[n] = cmath.exp(z)
+        if abs(z) < 1.0:            # the highest degree by its series, the lower ones by the recurrence downwards
+            acc = complex(series[degree, terms - 1])
+            for k in range(terms - 2, -1, -1):
+                acc = acc * z + series[degree, k]
+            I[degree, n] = T * acc
+            for p in range(degree, 0, -1):
+                acc = (z * acc + 1.0) / p
+                I[p - 1, n] = T * acc
+        else:                       # I_0 = (e^z − 1)/z with e^z − 1 to full accuracy, then upwards
+            x, y = z.real, z.imag
+            h = math.sin(0.5 * y)
+            acc = complex(math.expm1(x) * math.cos(y) - 2.0 * h * h, math.exp(x) * math.sin(y)) / z
+            I[0, n] = T * acc
+            for p in range(1, degree + 1):
+                acc = (p * acc - 1.0) / z
+                I[p, n] = T * acc
+
+
+def polynomial_integrals(s: np.ndarray, T: float, degree: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """``e^{sT}`` and ``I_p = ∫₀ᵀ e^{s(T−τ)} (τ/T)^p dτ`` for ``p = 0 … degree``, each pole, to round-off.
+
+    With ``z = sT``: ``I_0 = T (e^z − 1)/z`` and ``I_p = (p I_{p−1} − T)/z`` (integration by parts), stable for
+    ``|z| ≥ 1`` (the recurrence amplifies round-off by at most ``p!/|z|^p``); below, the highest degree by its
+    series ``T Σ_k z^k p!/(k + p + 1)!`` (:data:`_SERIES_TERMS` terms, Horner's rule) and the lower ones by the
+    recurrence run downwards, ``I_{p−1} = (z I_p + T)/p``, which damps round-off by ``|z|/p``.
+    ``degree`` at most 3 (the cubic's).  An unstable pole's ``e^{sT}`` may overflow to ``inf`` (the stability
+    check catches it).  Returns ``E`` (n,) and ``I`` (degree + 1, n).
+    """
+    if not 0 <= degree < _SERIES.shape[0]:
+        raise ValueError(f"degree must lie in 0 … {_SERIES.shape[0] - 1}, got {degree}")
+    z = np.ascontiguousarray(s, dtype=complex).reshape(-1)
+    E = np.empty(z.size, dtype=complex)
+    I = np.empty((degree + 1, z.size), dtype=complex)
+    _integrals(z, float(T), degree, _SERIES, E, I)
+    return E, I
+
+
+def pole_integrals(s: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``e^{sT}``, ``φ₀ = ∫₀ᵀ e^{s(T−τ)} dτ`` and ``φ₁ = ∫₀ᵀ e^{s(T−τ)} τ/T dτ`` for each pole, to round-off
+    (:func:`polynomial_integrals` of degree 1)."""
+    E, I = polynomial_integrals(s, T, 1)
+    return E, I[0], I[1]
+
+
+def _lagrange_coefficients(taps: tuple[int, ...]) -> np.ndarray:
+    """``c[j, p]``: the Lagrange basis polynomial of node ``taps[j]`` is ``ℓ_j(σ) = Σ_p c[j, p] σ^p``."""
+    t = np.asarray(taps, dtype=float)
+    coef = np.zeros((t.size, t.size))
+    for j in range(t.size):                               # ℓ_j(σ) = Π_{i≠j} (σ − t_i)/(t_j − t_i)
+        others = np.delete(t, j)
+        coef[j] = np.atleast_1d(np.poly(others))[::-1] / np.prod(t[j] - others)
+    return coef
+
+
+#: :func:`_lagrange_coefficients` of each input reconstruction's taps (constants: built once, read per model).
+LAGRANGE = {hold: _lagrange_coefficients(taps) for hold, taps in INPUT_TAPS.items()}
+
+
+def input_weights(s: np.ndarray, T: float, hold: str) -> tuple[np.ndarray, np.ndarray]:
+    """``e^{sT}`` and the weights ``W`` (taps, n) of ``x⁺ = e^{sT} x + Σ_j W_j u[k + j]`` per pole.
+
+    The input between samples is the polynomial through the samples at the offsets :data:`INPUT_TAPS`
+    (Lagrange basis ``ℓ_j(σ)``, ``σ = (t − t_k)/T``), so ``W_j = Σ_p c_{jp} I_p`` with ``ℓ_j = Σ_p c_{jp} σ^p``.
+    The cubic reads one sample ahead, as the straight line does, and two behind: its error is ``O(T⁴)``
+    against ``O(T²)`` — at fs/13 the straight line's amplitude error is 2 %, the cubic's 0.2 %.
+    """
+    E, I = polynomial_integrals(s, T, len(INPUT_TAPS[hold]) - 1)
+    return E, LAGRANGE[hold] @ I
+
+
+@numba.njit(cache=True, nogil=True)
+def _blocks(lam, B, CV, upper, first, second, T, G, Cb):  # pragma: no cover - compiled
+    nu = upper.size
+    for b in range(nu):
+        i = upper[b]
+        T[b, 0, 0] = T[b, 1, 1] = lam[i].real
+        T[b, 0, 1], T[b, 1, 0] = -lam[i].imag, lam[i].imag
+        for j in range(B.shape[0]):
+            for m in range(B.shape[2]):
+                G[j, b, 0, m], G[j, b, 1, m] = B[j, i, m].real, B[j, i, m].imag
+        for o in range(CV.shape[0]):
+            Cb[o, b, 0], Cb[o, b, 1] = 2.0 * CV[o, i].real, -2.0 * CV[o, i].imag
+    for r in range(first.size):
+        b, a, c = nu + r, first[r], second[r]
+        T[b, 0, 0], T[b, 1, 1] = lam[a].real, lam[c].real
+        T[b, 0, 1] = T[b, 1, 0] = 0.0
+        for j in range(B.shape[0]):
+            for m in range(B.shape[2]):
+                G[j, b, 0, m], G[j, b, 1, m] = B[j, a, m].real, B[j, c, m].real
+        for o in range(CV.shape[0]):
+            Cb[o, b, 0], Cb[o, b, 1] = CV[o, a].real, CV[o, c].real
+
+
+def real_blocks(lam: np.ndarray, B: np.ndarray, CV: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Real 2×2 blocks ``(T, G, C)`` of the complex-diagonal discrete system ``z⁺ = λ z + Σ_j B_j u_j``,
+    ``y = C V z`` (``B`` (taps, n, m) and ``CV`` (p, n) given), and the poles each block is made of.
+
+    A conjugate pair ``(z, z̄)`` becomes ``(r, m) = (Re z, Im z)``: ``x = 2 Re(v z) = 2 Re v · r − 2 Im v · m``
+    and ``[r; m]⁺ = [[Re λ, −Im λ], [Im λ, Re λ]] [r; m] + [Re b; Im b] u``; the pairs' blocks come first, by
+    their pole with ``Im λ > 0``.  Real poles go in pairs, in their order, as diagonal blocks.  Returns ``T``
+    (nb, 2, 2), ``G`` (taps, nb, 2, m), ``C`` (p, nb, 2) and the indices into ``lam`` of the blocks' poles:
+    ``(upper, first, second)`` — each pair's pole with ``Im λ > 0``, then each real pair's two.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        An odd number of real poles.
+    """
+    upper = np.flatnonzero(lam.imag > 0)
+    reals = np.flatnonzero(lam.imag == 0)
+    if reals.size % 2:
+        raise np.linalg.LinAlgError("odd number of real poles")
+    first, second = np.ascontiguousarray(reals[0::2]), np.ascontiguousarray(reals[1::2])
+    nb = upper.size + first.size
+    T = np.empty((nb, 2, 2))
+    G = np.empty((B.shape[0], nb, 2, B.shape[2]))
+    Cb = np.empty((CV.shape[0], nb, 2))
+    _blocks(np.ascontiguousarray(lam, dtype=complex), np.ascontiguousarray(B, dtype=complex),
+            np.ascontiguousarray(CV, dtype=complex), upper, first, second, T, G, Cb)
+    return T, G, Cb, (upper, first, second)
