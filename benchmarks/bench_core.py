@@ -43,7 +43,7 @@ from threadpoolctl import threadpool_limits
 
 import ebb_model as em
 from ebb_model.mode_family import companion_config, lowest_modes
-from ebb_model.recursion import compiled_recursion
+from ebb_model.recursion import compiled_recursion, one_tap_form
 
 from figures import add_json_argument, write_figures  # benchmarks/figures.py
 from timing import median_time  # benchmarks/timing.py
@@ -97,19 +97,23 @@ def against_floor(cfg: em.BeamConfig, u: np.ndarray, rng: np.random.Generator, r
 
 
 def kernel_floor(fm: em.ModalStateSpace, u: np.ndarray):
-    """A callable running the library's compiled recursion for ``fm`` directly on arrays prepared once."""
-    fn = compiled_recursion(fm.nblocks, fm.D.shape[1], fm.delays + 1, fm.D.shape[0])
+    """A callable running the library's compiled recursion for ``fm`` directly on arrays prepared once (the
+    model's arrays in the one-tap form the library gives them, :func:`ebb_model.recursion.one_tap_form`)."""
+    fn = compiled_recursion(fm.D.shape[1], fm.delays + 1, fm.D.shape[0])
     if fn is None:
         raise SystemExit("the benchmark needs the compiled recursion (a C compiler)")
-    arrays = [np.ascontiguousarray(a, dtype=float) for a in (fm.T, fm.G, fm.Cm, fm.D, u)]
     z = np.zeros((fm.nblocks, 2)) if fm.hold is None else -np.einsum("bim,m->bi", fm.hold, u[0])
+    T, G, C, D, z, nb1 = one_tap_form(*(np.ascontiguousarray(a, dtype=float) for a in (fm.T, fm.G, fm.Cm, fm.D, z)),
+                                      np.ascontiguousarray(u[0], dtype=float), fm.delays)
     y = np.empty((u.shape[0], fm.D.shape[0]))
-    args = [a.ctypes.data for a in (*arrays, y, z)]    # addresses: the arrays are kept alive below
+    arrays = (T, G, C, D, np.ascontiguousarray(u, dtype=float), y, z)
+    args = [a.ctypes.data for a in arrays]    # addresses: the arrays are kept alive below
 
     def run() -> np.ndarray:
-        fn(*args, u.shape[0])
+        fn(*args, u.shape[0], nb1, fm.nblocks)
         return y
 
+    run.arrays = arrays                       # type: ignore[attr-defined]
     return run
 
 

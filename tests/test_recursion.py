@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ebb_model.recursion import compiled_recursion, run_modal_recursion
+from ebb_model.recursion import ONE_TAP_RADIUS, compiled_recursion, one_tap_form, run_modal_recursion
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -22,10 +22,11 @@ ROOT = Path(__file__).resolve().parents[1]
 RTOL = 1e-12
 
 
-def system(nb: int, m: int, taps: int, p: int, seed: int = 0):
-    """Random lightly damped blocks (radius 0.95-0.999), input taps, outputs and a non-zero initial state."""
+def system(nb: int, m: int, taps: int, p: int, seed: int = 0, radii: tuple[float, float] = (0.95, 0.999)):
+    """Random blocks (by default lightly damped: radius 0.95-0.999), input taps, outputs and a non-zero initial
+    state."""
     rng = np.random.default_rng(seed)
-    r, th = rng.uniform(0.95, 0.999, nb), rng.uniform(0.0, np.pi, nb)
+    r, th = rng.uniform(*radii, nb), rng.uniform(0.0, np.pi, nb)
     T = np.empty((nb, 2, 2))
     T[:, 0, 0] = T[:, 1, 1] = r * np.cos(th)
     T[:, 0, 1], T[:, 1, 0] = -r * np.sin(th), r * np.sin(th)
@@ -52,7 +53,7 @@ def strict(T, G, Cm, D, u, delays, z):
     (1, 1, 1, 1, 300), (7, 1, 3, 2, 300), (8, 2, 2, 1, 300), (9, 1, 3, 3, 300), (50, 3, 1, 2, 300),
     (17, 1, 3, 2, 1), (17, 1, 3, 2, 2), (17, 1, 3, 2, 0)])
 def test_compiled_equals_strict_order_and_numba(nb, m, taps, p, ns):
-    if compiled_recursion(nb, m, taps, p) is None:
+    if compiled_recursion(m, taps, p) is None:
         pytest.fail("no compiled recursion on a machine with gcc (the suite's own requirement)")
     T, G, Cm, D, z = system(nb, m, taps, p)
     u = np.random.default_rng(1).standard_normal((ns, m))
@@ -64,6 +65,20 @@ def test_compiled_equals_strict_order_and_numba(nb, m, taps, p, ns):
         scale = np.max(np.abs(y_s))
         assert np.max(np.abs(y_c - y_s)) <= RTOL * scale
         assert np.max(np.abs(y_n - y_s)) <= RTOL * scale
+
+
+@pytest.mark.parametrize("radii", [(0.05, 0.999), (0.0, 0.3), (0.49, 0.51)])
+def test_blocks_near_the_origin_keep_their_taps(radii):
+    # the one-tap form moves a block's past samples to the outputs through T⁻¹ only for |λ| >= ONE_TAP_RADIUS;
+    # blocks nearer the origin (a heavily damped mode, a filter, λ = 0) keep their taps, in the same kernel
+    T, G, Cm, D, z = system(37, 2, 3, 2, seed=3, radii=radii)
+    u = np.random.default_rng(4).standard_normal((400, 2))
+    _, _, _, _, _, nb1 = one_tap_form(T, G, Cm, D, z, u[0], 2)
+    radius = np.hypot(T[:, 0, 0], T[:, 1, 0])
+    assert nb1 == np.count_nonzero(radius >= ONE_TAP_RADIUS)
+    y_c = run_modal_recursion(T, G, Cm, D, u, 2, z)
+    y_s = strict(T, G, Cm, D, u, 2, z)
+    assert np.max(np.abs(y_c - y_s)) <= RTOL * np.max(np.abs(y_s))
 
 
 def test_divergence_shows_as_inf_not_garbage():
