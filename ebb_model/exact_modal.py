@@ -45,7 +45,7 @@ from .coupled_modes import LowRankDamping, coupled_modes, low_rank_damping
 from .mode_family import FamilyModes, family_modes
 from .modal_form import MAX_BASIS_CONDITION, ModalStateSpace, basis_condition
 from .parameter_values import resolve_parameters
-from .sample_integrals import INPUT_TAPS, LAGRANGE, input_weights, real_blocks
+from .sample_integrals import INPUT_TAPS, LAGRANGE, input_weights, modal_blocks
 from .statespace import DiscreteStateSpace, with_input_delays
 
 __all__ = ["exact_model", "exact_modal", "exact_statespace", "continuous_modes", "ContinuousModes", "modal_matrices",
@@ -237,26 +237,10 @@ def exact_modal(config: BeamConfig, params: Mapping[str, float]) -> ModalStateSp
         poles, inputs, CV, D, added = filtered_poles(poles, inputs, CV, D, filters)
     E, W = input_weights(poles, T_s, config.time.input_hold)
     with np.errstate(over="ignore", invalid="ignore"):   # an unstable candidate: caught by the stability check
-        T, Gt, Cb, (upper, first, second) = real_blocks(E, W[:, :, None] * inputs[None], CV)
-        Gs = list(Gt)
-        # each block's continuous natural frequency |s| (a real pair's larger); the blocks are chosen by the
-        # discrete poles: a mode above the Nyquist frequency can have Im λ < 0 with Im s > 0
-        a = np.abs(poles)
-        freqs = np.concatenate([a[upper], np.maximum(a[first], a[second])]) / (2 * math.pi)
-        is_filter = np.concatenate([upper, first]) >= poles.size - added
-        if added:                                         # the filters' blocks last (ModalStateSpace.filters)
-            order = np.argsort(is_filter, kind="stable")
-            T, Gs, Cb, freqs = T[order], [g[order] for g in Gs], Cb[:, order], freqs[order]
-        G = dict(zip(taps, Gs))
-        hold = G.pop(1, None)                             # the lookahead u[k+1], made causal on ξ = z − Γ₁ u
-        D = np.array(D.real, dtype=float)
-        if hold is not None:
-            G[0] = G[0] + np.matmul(T, hold)
-            D = D + np.einsum("pbi,bim->pm", Cb, hold)
-    delays = -min(taps)
-    Gall = np.concatenate([G[-j] for j in range(delays + 1)], axis=2)
-    return ModalStateSpace(T, Gall, Cb, D, T_s, config.input_names, config.output_names, None, hold, delays,
-                           freqs, int(np.count_nonzero(is_filter)))
+        bl = modal_blocks(E, poles, W, inputs, CV, taps, poles.size - added if added else None)
+    D = np.array(D.real, dtype=float) + bl.D_hold
+    return ModalStateSpace(bl.T, bl.G, bl.C, D, T_s, config.input_names, config.output_names, None, bl.hold,
+                           -min(taps), bl.frequencies / (2 * math.pi), bl.filters)
 
 
 def exact_statespace(config: BeamConfig, params: Mapping[str, float]) -> DiscreteStateSpace:

@@ -3,7 +3,7 @@ r"""The exact scheme's per-pole algebra: each continuous pole integrated over a 
 A pole ``s`` of the diagonalised modal system (:mod:`ebb_model.exact_modal`) advances over a sample ``T`` as
 ``z⁺ = e^{sT} z + Σ_j W_j u[k + j]``, the weights ``W_j`` the integrals of ``e^{s(T−τ)}`` against the Lagrange
 basis of the input reconstruction (:data:`INPUT_TAPS`); conjugate pairs of discrete poles then become real 2×2
-blocks (:func:`real_blocks`).  Both run once per parameter set on a few hundred poles: compiled loops (numba),
+blocks (:func:`modal_blocks`).  Both run once per parameter set on a few hundred poles: compiled loops (numba),
 as the NumPy forms of the same formulas spent ~0.1 ms per evaluation in small array operations (a third of an
 R1 evaluation within one family of modes).
 """
@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import cmath
 import math
+from dataclasses import dataclass
 
 import numba
 import numpy as np
 
-__all__ = ["INPUT_TAPS", "polynomial_integrals", "pole_integrals", "input_weights", "real_blocks"]
+__all__ = ["INPUT_TAPS", "polynomial_integrals", "pole_integrals", "input_weights", "Blocks", "modal_blocks"]
 
 #: Terms of the series of :func:`polynomial_integrals` (``|z| < 1``): the last is below ``1/24! ≈ 2e-24``.
 _SERIES_TERMS = 24
@@ -106,38 +107,70 @@ def input_weights(s: np.ndarray, T: float, hold: str) -> tuple[np.ndarray, np.nd
 
 
 @numba.njit(cache=True, nogil=True)
-def _blocks(lam, B, CV, upper, first, second, T, G, Cb):  # pragma: no cover - compiled
-    nu = upper.size
-    for b in range(nu):
-        i = upper[b]
-        T[b, 0, 0] = T[b, 1, 1] = lam[i].real
-        T[b, 0, 1], T[b, 1, 0] = -lam[i].imag, lam[i].imag
-        for j in range(B.shape[0]):
-            for m in range(B.shape[2]):
-                G[j, b, 0, m], G[j, b, 1, m] = B[j, i, m].real, B[j, i, m].imag
+def _blocks(lam, W, inputs, CV, A, B, column, T, G, H, Cb, Dh):  # pragma: no cover - compiled
+    m = inputs.shape[1]
+    for b in range(A.size):
+        a, c = A[b], B[b]
+        if c < 0:                                   # a conjugate pair, by its pole with Im λ > 0
+            T[b, 0, 0] = T[b, 1, 1] = lam[a].real
+            T[b, 0, 1], T[b, 1, 0] = -lam[a].imag, lam[a].imag
+            for o in range(CV.shape[0]):
+                Cb[o, b, 0], Cb[o, b, 1] = 2.0 * CV[o, a].real, -2.0 * CV[o, a].imag
+        else:                                       # two real poles
+            T[b, 0, 0], T[b, 1, 1] = lam[a].real, lam[c].real
+            T[b, 0, 1] = T[b, 1, 0] = 0.0
+            for o in range(CV.shape[0]):
+                Cb[o, b, 0], Cb[o, b, 1] = CV[o, a].real, CV[o, c].real
+        for q in range(W.shape[0]):                 # tap q: into column block column[q], or the lookahead (-1)
+            for l in range(m):
+                ba = W[q, a] * inputs[a, l]
+                g0 = ba.real
+                g1 = ba.imag if c < 0 else (W[q, c] * inputs[c, l]).real
+                if column[q] < 0:
+                    H[b, 0, l], H[b, 1, l] = g0, g1
+                else:
+                    G[b, 0, column[q] * m + l], G[b, 1, column[q] * m + l] = g0, g1
+    if H.shape[0]:                                  # the lookahead made causal: ξ = z − Γ₁ u
+        for b in range(A.size):
+            for l in range(m):
+                G[b, 0, l] += T[b, 0, 0] * H[b, 0, l] + T[b, 0, 1] * H[b, 1, l]
+                G[b, 1, l] += T[b, 1, 0] * H[b, 0, l] + T[b, 1, 1] * H[b, 1, l]
         for o in range(CV.shape[0]):
-            Cb[o, b, 0], Cb[o, b, 1] = 2.0 * CV[o, i].real, -2.0 * CV[o, i].imag
-    for r in range(first.size):
-        b, a, c = nu + r, first[r], second[r]
-        T[b, 0, 0], T[b, 1, 1] = lam[a].real, lam[c].real
-        T[b, 0, 1] = T[b, 1, 0] = 0.0
-        for j in range(B.shape[0]):
-            for m in range(B.shape[2]):
-                G[j, b, 0, m], G[j, b, 1, m] = B[j, a, m].real, B[j, c, m].real
-        for o in range(CV.shape[0]):
-            Cb[o, b, 0], Cb[o, b, 1] = CV[o, a].real, CV[o, c].real
+            for l in range(m):
+                acc = 0.0
+                for b in range(A.size):
+                    acc += Cb[o, b, 0] * H[b, 0, l] + Cb[o, b, 1] * H[b, 1, l]
+                Dh[o, l] = acc
 
 
-def real_blocks(lam: np.ndarray, B: np.ndarray, CV: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Real 2×2 blocks ``(T, G, C)`` of the complex-diagonal discrete system ``z⁺ = λ z + Σ_j B_j u_j``,
-    ``y = C V z`` (``B`` (taps, n, m) and ``CV`` (p, n) given), and the poles each block is made of.
+@dataclass(frozen=True)
+class Blocks:
+    """The real block form of :func:`modal_blocks`: ``T`` (nb, 2, 2); ``G`` (nb, 2, m·(delays + 1)), column
+    ``j m + l`` input ``l`` at sample ``k − j``, the lookahead folded in; ``hold`` (nb, 2, m) the lookahead ``Γ₁``
+    (``None`` without one); ``C`` (p, nb, 2); ``D_hold`` (p, m) the feedthrough the fold adds (``C Γ₁``);
+    ``frequencies`` (nb,) each block's continuous natural frequency ``|s|`` [rad/s]; ``filters`` how many of the
+    last blocks are the filters'."""
+
+    T: np.ndarray
+    G: np.ndarray
+    hold: np.ndarray | None
+    C: np.ndarray
+    D_hold: np.ndarray
+    frequencies: np.ndarray
+    filters: int
+
+
+def modal_blocks(lam: np.ndarray, s: np.ndarray, W: np.ndarray, inputs: np.ndarray, CV: np.ndarray,
+                 taps: tuple[int, ...], filters_from: int | None = None) -> Blocks:
+    """Real 2×2 blocks of the complex-diagonal discrete system ``z⁺ = λ z + Σ_q W_q inputs u[k + taps_q]``,
+    ``y = CV z`` — ``lam = e^{sT}`` (n,), ``W`` (taps, n) (:func:`input_weights`), ``inputs`` (n, m), ``CV`` (p, n)
+    —, its lookahead ``u[k+1]`` made causal (:class:`Blocks`).
 
     A conjugate pair ``(z, z̄)`` becomes ``(r, m) = (Re z, Im z)``: ``x = 2 Re(v z) = 2 Re v · r − 2 Im v · m``
     and ``[r; m]⁺ = [[Re λ, −Im λ], [Im λ, Re λ]] [r; m] + [Re b; Im b] u``; the pairs' blocks come first, by
-    their pole with ``Im λ > 0``.  Real poles go in pairs, in their order, as diagonal blocks.  Returns ``T``
-    (nb, 2, 2), ``G`` (taps, nb, 2, m), ``C`` (p, nb, 2) and the indices into ``lam`` of the blocks' poles:
-    ``(upper, first, second)`` — each pair's pole with ``Im λ > 0``, then each real pair's two.
+    their pole with ``Im λ > 0``, then real poles in pairs, in their order, as diagonal blocks.  The blocks are
+    chosen by the discrete poles: a mode above the Nyquist frequency can have ``Im λ < 0`` with ``Im s > 0``.
+    Poles from index ``filters_from`` on are the anti-alias filters': their blocks go last.
 
     Raises
     ------
@@ -148,11 +181,26 @@ def real_blocks(lam: np.ndarray, B: np.ndarray, CV: np.ndarray
     reals = np.flatnonzero(lam.imag == 0)
     if reals.size % 2:
         raise np.linalg.LinAlgError("odd number of real poles")
-    first, second = np.ascontiguousarray(reals[0::2]), np.ascontiguousarray(reals[1::2])
-    nb = upper.size + first.size
+    A = np.concatenate([upper, reals[0::2]])
+    B = np.concatenate([np.full(upper.size, -1), reals[1::2]])
+    a = np.abs(s)
+    freqs = np.concatenate([a[upper], np.maximum(a[reals[0::2]], a[reals[1::2]])])
+    filters = 0
+    if filters_from is not None:
+        is_filter = A >= filters_from
+        filters = int(np.count_nonzero(is_filter))
+        if filters:
+            order = np.argsort(is_filter, kind="stable")
+            A, B, freqs = A[order], B[order], freqs[order]
+    nb, m, p = A.size, inputs.shape[1], CV.shape[0]
+    delays = -min(taps)
+    column = np.array([-1 if t == 1 else -t for t in taps])
     T = np.empty((nb, 2, 2))
-    G = np.empty((B.shape[0], nb, 2, B.shape[2]))
-    Cb = np.empty((CV.shape[0], nb, 2))
-    _blocks(np.ascontiguousarray(lam, dtype=complex), np.ascontiguousarray(B, dtype=complex),
-            np.ascontiguousarray(CV, dtype=complex), upper, first, second, T, G, Cb)
-    return T, G, Cb, (upper, first, second)
+    G = np.zeros((nb, 2, m * (delays + 1)))
+    H = np.empty((nb if 1 in taps else 0, 2, m))
+    Cb = np.empty((p, nb, 2))
+    Dh = np.zeros((p, m))
+    _blocks(np.ascontiguousarray(lam, dtype=complex), np.ascontiguousarray(W, dtype=complex),
+            np.ascontiguousarray(inputs, dtype=complex), np.ascontiguousarray(CV, dtype=complex),
+            np.ascontiguousarray(A), np.ascontiguousarray(B), column, T, G, H, Cb, Dh)
+    return Blocks(T, G, H if 1 in taps else None, Cb, Dh, freqs, filters)
