@@ -273,16 +273,17 @@ def exact_statespace(config: BeamConfig, params: Mapping[str, float]) -> Discret
     aug[:n, n:n + m] = B * T_s
     for q in range(deg):                                  # d/dσ of the q-th derivative is the next one
         aug[n + q * m:n + (q + 1) * m, n + (q + 1) * m:n + (q + 2) * m] = np.eye(m)
-    with np.errstate(over="ignore", invalid="ignore"):   # an unstable candidate: caught by the stability check
+    # an unstable candidate overflows (inf/nan in Φ and what is made of it): caught by the stability check
+    with np.errstate(over="ignore", invalid="ignore"):
         E = sla.expm(aug)
-    Phi = E[:n, :n]
-    Pq = [E[:n, n + q * m:n + (q + 1) * m] * math.factorial(q) for q in range(deg + 1)]
-    coef = LAGRANGE[config.time.input_hold]
-    P = {t: sum(coef[j, q] * Pq[q] for q in range(deg + 1)) for j, t in enumerate(taps)}
-    hold = P.pop(1, None)
-    if hold is not None:                                  # the lookahead, causal on ξ = x − Γ₁ u
-        P[0] = P[0] + Phi @ hold
-        D = D + C @ hold
+        Phi = E[:n, :n]
+        Pq = [E[:n, n + q * m:n + (q + 1) * m] * math.factorial(q) for q in range(deg + 1)]
+        coef = LAGRANGE[config.time.input_hold]
+        P = {t: sum(coef[j, q] * Pq[q] for q in range(deg + 1)) for j, t in enumerate(taps)}
+        hold = P.pop(1, None)
+        if hold is not None:                              # the lookahead, causal on ξ = x − Γ₁ u
+            P[0] = P[0] + Phi @ hold
+            D = D + C @ hold
     k = mm.frequencies2.size
     names = (tuple(f"q{i}" for i in range(k)) + tuple(f"dq{i}" for i in range(k))
              + tuple(f"filter{i}" for i in range(n - 2 * k)))
