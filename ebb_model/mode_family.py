@@ -186,20 +186,49 @@ def family_key(config: BeamConfig, p: Mapping[str, float]) -> FamilyKey:
 class UnitModes:
     """The Richardson modes of a family's unit beam (``EI = ρA = 1``): ``frequencies2`` (``ω̃²``, as many as the
     config's grid has unknowns) and ``shapes`` (``ψ̃``, mass-normalised, on the ``fine`` unit beam of the pair).
-    Read-only arrays (shared by every caller)."""
+    Read-only arrays (shared by every caller).  The modal damping's unit matrices are formed when first read (a
+    beam without Kelvin–Voigt damping and with ``M̃ = diag(V)`` needs the diagonal of the viscous one only); the
+    memo's budget counts the fields, not these."""
 
     frequencies2: np.ndarray
     shapes: np.ndarray
     fine: SemiDiscreteBeam
-    #: ``ψ̃ᵀ diag(V) ψ̃`` and ``ψ̃ᵀ C̃ ψ̃`` (``V`` the fine grid's control lengths): the modal damping of ``c`` and
-    #: of ``η EI`` per unit ``ρA``
-    viscous: np.ndarray
-    bending: np.ndarray
-    #: the largest magnitude off the diagonal of ``viscous`` and of ``bending`` (bound the modal damping's)
-    viscous_off: float
-    bending_off: float
+    #: ``V`` the fine grid's control lengths
+    lengths: np.ndarray
     #: ``M̃ = diag(V)`` exactly (no point masses, no rotary inertia): viscous damping alone is mass-proportional
     viscous_is_mass: bool
+
+    @functools.cached_property
+    def viscous(self) -> np.ndarray:
+        """``ψ̃ᵀ diag(V) ψ̃``: the modal damping of ``c`` per unit ``ρA``."""
+        psi = self.shapes
+        return _read_only(psi.T @ (self.lengths[:, None] * psi))
+
+    @functools.cached_property
+    def viscous_diagonal(self) -> np.ndarray:
+        """The diagonal of :attr:`viscous`, ``O(n k)``."""
+        psi = self.shapes
+        return _read_only(np.einsum("ij,ij->j", psi, self.lengths[:, None] * psi))
+
+    @functools.cached_property
+    def bending(self) -> np.ndarray:
+        """``ψ̃ᵀ C̃ ψ̃``: the modal damping of ``η EI`` per unit ``ρA``."""
+        return _read_only(self.shapes.T @ self.fine.C @ self.shapes)
+
+    @functools.cached_property
+    def viscous_off(self) -> float:
+        """The largest magnitude off the diagonal of :attr:`viscous` (bounds the modal damping's)."""
+        return off_diagonal_magnitude(self.viscous)
+
+    @functools.cached_property
+    def bending_off(self) -> float:
+        """The largest magnitude off the diagonal of :attr:`bending`."""
+        return off_diagonal_magnitude(self.bending)
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
 
 
 def _unit_beam(key: FamilyKey, nodes: int) -> SemiDiscreteBeam:
@@ -229,12 +258,8 @@ def unit_modes(key: FamilyKey) -> UnitModes:
     coarse, fine = sorted((own, companion), key=lambda b: b.n_unknowns)
     w2, psi = richardson_modes(coarse, fine, own.n_unknowns)
     nodes = fine.x.size - 2
-    V = control_lengths(nodes, key.length / (nodes + 1), key.left, key.right)
-    viscous, bending = psi.T @ (V[:, None] * psi), psi.T @ fine.C @ psi
-    for a in (w2, psi, viscous, bending):
-        a.setflags(write=False)
-    return UnitModes(w2, psi, fine, viscous, bending, off_diagonal_magnitude(viscous), off_diagonal_magnitude(bending),
-                     bool(np.array_equal(fine.M, np.diag(V))))
+    V = _read_only(control_lengths(nodes, key.length / (nodes + 1), key.left, key.right))
+    return UnitModes(_read_only(w2), _read_only(psi), fine, V, not key.masses and key.rhoI == 0.0)
 
 
 
@@ -305,9 +330,9 @@ class FamilyModes:
         :func:`~ebb_model.coupled_modes.low_rank_damping` finds rank 0 for it."""
         a, b = self._damping_weights()
         unit = self.unit
-        diag = a * np.diagonal(unit.viscous) + b * np.diagonal(unit.bending)    # as the matrix's, bit for bit
         if b == 0.0 and unit.viscous_is_mass:
-            return diag
+            return a * unit.viscous_diagonal
+        diag = a * np.diagonal(unit.viscous) + b * np.diagonal(unit.bending)    # as the matrix's, bit for bit
         scale = max(float(np.max(np.abs(diag), initial=0.0)), 1e-300)
         # |fl(a v + b w)| <= (|a v| + |b w|)(1 + 2 eps): the bound's own rounding is covered by the factor
         bound = (abs(a) * unit.viscous_off + abs(b) * unit.bending_off) * (1.0 + 4.0 * np.finfo(float).eps)
