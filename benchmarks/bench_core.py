@@ -12,8 +12,8 @@ Printed (medians over repeats, all measured in this one run):
 * the *compiled floor*: the same modal recursion (the fast model's own blocks, input taps and outputs) on arrays
   prepared beforehand, the faster of two plain-C versions — a textbook two-pass loop compiled with
   ``gcc -O3 -march=native`` (the re-association the kernels are allowed, no more) in this run, and the library's
-  own size-specialised kernel called directly —, each checked equal to the fast path, and the evaluation's and
-  the simulation's ratios to it;
+  own compiled kernel called directly (on the one-tap form it gives the arrays) —, each checked equal to the fast
+  path, and the evaluation's and the simulation's ratios to it;
 * the part of an evaluation no faster recursion removes: the Richardson pair's eigenproblems for new parameters
   (the fine grid's values and mode shapes, the coarse grid's values) as the model solves them (LAPACK's dense
   ``eigh`` of the inverted pencil), and by LAPACK's banded solver on the same pencil (``M`` is diagonal) — the
@@ -82,7 +82,7 @@ def against_floor(cfg: em.BeamConfig, u: np.ndarray, rng: np.random.Generator, r
     fm = em.fast_model(cfg)
     y = em.simulate(fm, u).outputs
     # the floor: the faster of two plain-C recursions on arrays prepared beforehand, each checked equal to the
-    # fast path — the textbook two-pass loop below, and the library's own size-specialised kernel called directly
+    # fast path — the textbook two-pass loop below, and the library's own compiled kernel called directly
     floors = {"two_pass": compiled_floor(fm, u, workdir), "kernel": kernel_floor(fm, u)}
     times = {}
     for name, run in floors.items():

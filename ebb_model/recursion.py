@@ -17,12 +17,12 @@ taps.
 **Compiled.**  The C source (``csrc/modal_recursion.c``) is compiled with the input, tap and output counts as
 compile-time constants (``gcc -O3 -march=native``, re-association allowed as for numba's fastmath, no finite-math
 assumption) into a per-user cache directory, on first use of the counts, and loaded with :mod:`ctypes`.  Its
-blocks are regrouped in tiles of SIMD lanes, 4 or 8: which is faster depends on the processor (an AMD EPYC ran
-50 blocks 11 % faster on 4; an Intel processor with two 512-bit units reached 15 multiply-adds per cycle on 8), so
-both are built and timed once (:func:`compiled_recursion`) and the faster is kept — once per machine and counts,
-every process then loads it.  Measured on the benchmark's cases (AMD EPYC, 20,000 samples): 50 blocks and two
-sensors 0.69 → 0.51 ms, 200 blocks and three sensors 2.75 → 2.14 ms against the previous kernel (per-size
-compiled, 8 lanes, every tap in every block).
+blocks are regrouped in tiles of SIMD lanes, 4 or 8: which is faster depends on the processor (on an AMD EPYC,
+which runs AVX-512 on 256-bit units, 4 lanes took 50 blocks 11 % faster; the previous benchmark machine ran 8 lanes
+at 0.27 ns per block and sample), so both are built and timed once (:func:`compiled_recursion`) and the faster is
+kept — once per machine and counts; every process then loads it.  Measured on the benchmark's cases (AMD EPYC,
+20,000 samples) against the previous kernel (compiled per block count, 8 lanes, every tap in every block): 50
+blocks and two sensors 0.69 → 0.51 ms, 200 blocks and three sensors 2.75 → 2.14 ms.
 
 Where no compiler is found or compiling fails (a warning says why), the numba kernel below runs the recursion in
 its original form (outputs equal to ~1e-15 relative; tested).

@@ -3,8 +3,8 @@
 Two kernels:
 
 * the **modal** recursion for :class:`~ebb_model.modal_form.ModalStateSpace`:
-  2×2 real blocks, ``O(n)`` work per sample — the fast path, compiled C specialised per model size
-  (:mod:`ebb_model.recursion`);
+  2×2 real blocks, ``O(n)`` work per sample — the fast path, compiled C specialised for the model's input,
+  tap and output counts (:mod:`ebb_model.recursion`);
 * the **dense** kernel for a general :class:`~ebb_model.statespace.DiscreteStateSpace`
   (``O(n²)`` per sample, numba, cached on disk after the first call), used when no modal form is available.
 

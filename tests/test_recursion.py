@@ -1,5 +1,5 @@
-"""The modal recursion compiled per size (ebb_model.recursion) against a strict-order NumPy loop and against its
-numba kernel; its cache and its fallback where no compiler can be used."""
+"""The modal recursion compiled for its input, tap and output counts (ebb_model.recursion) against a strict-order
+NumPy loop and against its numba kernel, its one-tap form, its cache and its fallback where no compiler can be used."""
 from __future__ import annotations
 
 import os
