@@ -46,7 +46,7 @@ from ebb_model.mode_family import companion_config, lowest_modes
 from ebb_model.recursion import compiled_recursion, one_tap_form
 
 from figures import add_json_argument, write_figures  # benchmarks/figures.py
-from timing import median_time  # benchmarks/timing.py
+from timing import interleaved_medians, median_time  # benchmarks/timing.py
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -77,20 +77,21 @@ def against_floor(cfg: em.BeamConfig, u: np.ndarray, rng: np.random.Generator, r
     compiled floor of its recursion and the floor's relative difference from the fast path."""
     evaluation(cfg, u, rng)
     family_evaluation(cfg, u, rng)
-    out = {"member": median_time(lambda: evaluation(cfg, u, rng), repeats),
-           "family": median_time(lambda: family_evaluation(cfg, u, rng), repeats)}
     fm = em.fast_model(cfg)
     y = em.simulate(fm, u).outputs
     # the floor: the faster of two plain-C recursions on arrays prepared beforehand, each checked equal to the
     # fast path — the textbook two-pass loop below, and the library's own compiled kernel called directly
     floors = {"two_pass": compiled_floor(fm, u, workdir), "kernel": kernel_floor(fm, u)}
-    times = {}
+    out: dict[str, float] = {}
     for name, run in floors.items():
         difference = float(np.linalg.norm(run() - y) / np.linalg.norm(y))
         if not difference < 1e-9:
             raise SystemExit(f"the compiled floor ({name}) differs from the fast path by {difference:.1e}")
         out["floor_difference"] = max(out.get("floor_difference", 0.0), difference)
-        times[name] = median_time(run, repeats)
+    # one call of each per round, so that a drift of the machine's speed moves the evaluations and the floor alike
+    times = interleaved_medians({"member": lambda: evaluation(cfg, u, rng),
+                                 "family": lambda: family_evaluation(cfg, u, rng), **floors}, repeats)
+    out["member"], out["family"] = times.pop("member"), times.pop("family")
     out["floor"] = min(times.values())
     out["floor_two_pass"] = times["two_pass"]
     return out
