@@ -227,6 +227,7 @@ class UnitModes:
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:
+    """``a``, made read-only (shared by every caller of a memoised result)."""
     a.setflags(write=False)
     return a
 

@@ -204,8 +204,7 @@ def compiled_recursion(inputs: int, taps: int, outputs: int) -> Kernel | None:
 @numba.njit(cache=True, nogil=True)
 def _one_tap(T, G, Cm, D, z, u0, m, delays, radius, T1, G1, C1, D1, z1):  # pragma: no cover - compiled
     nb, p = T.shape[0], Cm.shape[0]
-    D1[:, :] = 0.0
-    D1[:, :m] = D
+    D1[:, :m] = D                           # D1 comes zeroed (one_tap_form)
     ok = np.empty(nb, dtype=np.bool_)
     for b in range(nb):
         a, bb, c, d = T[b, 0, 0], T[b, 0, 1], T[b, 1, 0], T[b, 1, 1]
@@ -266,7 +265,7 @@ def one_tap_form(T: np.ndarray, G: np.ndarray, Cm: np.ndarray, D: np.ndarray, z:
     (their past samples' columns of ``G`` zero), ``D`` (p, m·(delays + 1)) reading the past samples too and ``z``
     the start ``ξ`` for ``u[−j] = u[0]`` (``u0``).  Contiguous float arrays in and out."""
     m, p, nb = D.shape[1], D.shape[0], T.shape[0]
-    D1 = np.zeros((p, m * (delays + 1)))
+    D1 = np.zeros((p, m * (delays + 1)))      # the past samples' columns start at zero
     if nb == 0 or delays == 0:
         D1[:, :m] = D
         return T, G, Cm, D1, z, nb
