@@ -1,12 +1,16 @@
 r"""Poles and eigenvectors of modes coupled by a low-rank part of the damping, without a dense eigensolver.
 
 When a point mass (a transducer, a shaker's armature, a lumped attachment) sits on a beam with viscous damping
-per unit length, the damping is proportional to the beam's distributed mass but not to the attached mass:
-``C = α M + ΔC`` with ``ΔC`` non-zero only on the few unknowns the masses are spread over (the hat functions'
-two nodes each).  In the mass-normalised undamped modes ``Ψ`` the modal damping is then the identity times ``α``
-plus a matrix of small rank ``r``:
+per unit length, the damping is proportional to the beam's distributed mass but not to the attached mass; when a
+spring (to ground, at an elastic end) holds a beam with Kelvin–Voigt damping, the damping is proportional to the
+beam's bending stiffness but not to the spring's.  Without axial load, foundation or rotary inertia
+(:meth:`ebb_model.mode_family.FamilyModes.low_rank_damping`) ``C = α M + β K + ΔC`` with ``ΔC`` non-zero only on
+the few unknowns the attachments are spread over (the hat functions' two nodes each).  In the mass-normalised
+undamped modes ``Ψ`` (``ΨᵀKΨ = Λ_f``, the grid's own eigenvalues) the modal damping is then diagonal plus a
+matrix of small rank ``r``:
 
-.. math::  C_m = Ψᵀ C Ψ = α I + G E Gᵀ,\qquad G = Ψ_Jᵀ\ (k × r),\quad E = ΔC_{JJ}\ (r × r),
+.. math::  C_m = Ψᵀ C Ψ = \mathrm{diag}(d^0) + G E Gᵀ,\qquad d^0 = α + β Λ_f,\quad G = Ψ_Jᵀ\ (k × r),\quad
+           E = ΔC_{JJ}\ (r × r),
 
 ``J`` the unknowns where ``ΔC`` is not zero.  The modal system ``q̈ + C_m q̇ + Λ q = F_m u`` couples every mode
 with every other, and its poles and eigenvectors came from the dense eigenproblem of the ``2k × 2k`` state
@@ -18,7 +22,7 @@ function, found by Newton's iteration from its decoupled value, ``O(k r²)`` per
 * the pole of mode ``i`` is the root of ``f_i(s) = s² + s d_i + ω_i² − s² e_iᵀ Q_rr(s)⁻¹ e_i`` near
   ``−d_i/2 + i√(ω_i² − d_i²/4)`` (``Q(s) = s² I + s C_m + Λ``, ``r`` the other modes, ``e_i = C_m[r, i]``,
   ``d_i = C_m[i, i]``): ``det Q = det Q_rr · f_i``;
-* with ``D_j(s) = s² + α s + ω_j²`` and ``P = Σ_{j≠i} g_j g_jᵀ / D_j`` (``g_j`` the rows of ``G``),
+* with ``D_j(s) = s² + d⁰_j s + ω_j²`` and ``P = Σ_{j≠i} g_j g_jᵀ / D_j`` (``g_j`` the rows of ``G``),
   ``Q_rr⁻¹ e_i = D_r⁻¹ G_r y`` with ``y = (I + s E P)⁻¹ E g_i`` (Woodbury), so ``f_i`` and its derivative
   ``f_i' = 2s + d_i − 2s e_iᵀx + s² xᵀ(2s I + C_rr)x`` (``x = Q_rr⁻¹ e_i``; ``Q`` is symmetric) need only
   ``r × r`` algebra per mode;
@@ -36,11 +40,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-__all__ = ["LowRankDamping", "low_rank_damping", "coupled_poles", "coupled_modes", "MAX_RANK"]
-
-#: Relative size (to the largest entry of ``C``) below which an entry of ``C − α M`` counts as zero: the two are
-#: assembled from the same lumped lengths, equal up to one rounding per entry.
-_ZERO_RTOL = 1e-12
+__all__ = ["LowRankDamping", "coupled_poles", "coupled_modes", "MAX_RANK"]
 
 #: Largest rank ``r`` taken as low (a point mass spreads over two unknowns; a few masses stay far below ``k``).
 MAX_RANK = 8
@@ -56,85 +56,86 @@ CRITICAL_MARGIN = 1e-5
 
 @dataclass(frozen=True, eq=False)
 class LowRankDamping:
-    """``C_m = α I + G E Gᵀ`` (module docstring): ``alpha``, ``G`` (k × r), ``E`` (r × r, symmetric)."""
+    """``C_m = diag(d⁰) + G E Gᵀ`` (module docstring): ``diagonal`` (``d⁰``, k), ``G`` (k × r), ``E`` (r × r,
+    symmetric)."""
 
-    alpha: float
+    diagonal: np.ndarray
     G: np.ndarray
     E: np.ndarray
 
     @property
     def rank(self) -> int:
-        """``r``: 0 when ``C = α M`` exactly (mass-proportional damping)."""
+        """``r``: 0 when ``C = α M + β K`` exactly (the modes decoupled)."""
         return int(self.G.shape[1])
 
     def matrix(self) -> np.ndarray:
         """The modal damping ``C_m`` (k × k, symmetric)."""
         Cm = self.G @ self.E @ self.G.T
         Cm = 0.5 * (Cm + Cm.T)
-        Cm[np.diag_indices_from(Cm)] += self.alpha
+        Cm[np.diag_indices_from(Cm)] += self.diagonal
         return Cm
 
 
-def low_rank_damping(M: np.ndarray, C: np.ndarray, psi: np.ndarray) -> LowRankDamping | None:
-    """The structure ``C_m = α I + G E Gᵀ`` of ``Ψᵀ C Ψ`` for mass-normalised modes ``psi`` (columns), or ``None``
-    when ``C − α M`` is not zero outside at most :data:`MAX_RANK` unknowns for the ``α`` of most unknowns.
-    Rank 0 is mass-proportional damping: ``C_m = α I`` exactly, however far the computed modes' ``Ψᵀ M Ψ`` is
-    from the identity (2.5e-10 on the rig family's bench half-way to buckling)."""
-    dM, dC = np.diag(M), np.diag(C)
-    if not np.all(dM > 0):
-        return None
-    alpha = float(np.median(dC / dM))
-    delta = C - alpha * M
-    scale = max(float(np.max(np.abs(C), initial=0.0)), float(np.finfo(float).tiny))
-    J = np.flatnonzero(np.max(np.abs(delta), axis=1) > _ZERO_RTOL * scale)
-    if J.size > MAX_RANK:
-        return None
-    return LowRankDamping(alpha, psi[J].T.copy(), delta[np.ix_(J, J)])
-
-
-def _others(s: np.ndarray, alpha: float, w2: np.ndarray) -> np.ndarray:
-    """``1/D_j(s_i)`` for the other modes ``j ≠ i`` of each pole ``s_i`` (``i < s.size``), zero for ``j = i`` (whose
-    ``D_i`` vanishes at a decoupled root)."""
-    den = s[:, None] ** 2 + alpha * s[:, None] + w2[None, :]
-    idx = np.arange(s.size)
-    den[idx, idx] = 1.0
+def _others(s: np.ndarray, mode: np.ndarray, d0: np.ndarray, w2: np.ndarray) -> np.ndarray:
+    """``1/D_j(s_p)`` for every mode ``j`` other than the pole's own ``mode[p]``, zero for it (whose ``D_j``
+    vanishes at a decoupled root)."""
+    den = s[:, None] ** 2 + d0[None, :] * s[:, None] + w2[None, :]
+    rows = np.arange(s.size)
+    den[rows, mode] = 1.0
     inv = 1.0 / den
-    inv[idx, idx] = 0.0
+    inv[rows, mode] = 0.0
     return inv
-
-
-def _start(w2: np.ndarray, d: np.ndarray) -> np.ndarray | None:
-    if np.any(w2 <= 0) or np.any(d * d / 4 >= w2):
-        return None
-    return -d / 2 + 1j * np.sqrt(w2 - d * d / 4)
 
 
 def coupled_poles(w2: np.ndarray, damping: LowRankDamping, n: int | None = None
                   ) -> tuple[np.ndarray, np.ndarray] | None:
-    """The upper poles of the ``n`` lowest modes (all with ``None``) to round-off and, for each, the vector
-    ``y`` of the module docstring at the root, or ``None`` (module docstring)."""
+    """Both poles of each of the ``n`` lowest modes (all with ``None``) to round-off — every ``s₁``, then every
+    ``s₂``, as the decoupled modes' ``−d/2 ± √(d²/4 − ω²)`` they start from (an underdamped mode's ``s₂`` is its
+    ``s₁``'s conjugate) — and, for each, the vector ``y`` of the module docstring at the root; or ``None``
+    (module docstring).
+
+    An underdamped root must stay within half the gap in ``ω`` to the neighbouring modes and away from the real
+    axis (:data:`CRITICAL_MARGIN`); an overdamped mode's two real roots (a stiff mode under Kelvin–Voigt damping)
+    each within half the distance from its start to the nearest other decoupled pole, and apart by the same
+    margin."""
     k = w2.size
     n = k if n is None else n
-    if n > k or not np.all(np.diff(w2[:min(n + 1, k)]) > 0):
+    if n > k or not np.all(np.diff(w2[:min(n + 1, k)]) > 0) or np.any(w2[:n] <= 0):
         return None
-    G, E, a = damping.G, damping.E, damping.alpha
-    d = a + np.einsum("ia,ab,ib->i", G, E, G)                 # diag C_m
-    s0 = _start(w2[:min(n + 1, k)], d[:min(n + 1, k)])
-    if s0 is None:
-        return None
-    w = np.sqrt(w2[:min(n + 1, k)])
-    gaps = np.diff(w)
-    below = np.concatenate([[w[0]], gaps])[:n]
-    above = np.concatenate([gaps, [np.inf]])[:n]
-    half_gap = 0.5 * np.minimum(below, above)
+    G, E, d0 = damping.G, damping.E, damping.diagonal
+    d = d0 + np.einsum("ia,ab,ib->i", G, E, G)                # diag C_m
+    over = d * d / 4 >= w2                                    # overdamped (or critical): two real poles
+    first = np.where(over, -d / 2 + np.sqrt(np.abs(d * d / 4 - w2)), -d / 2 + 1j * np.sqrt(np.abs(w2 - d * d / 4)))
+    second = np.where(over, -d / 2 - np.sqrt(np.abs(d * d / 4 - w2)), first.conj())
+    twice = np.flatnonzero(over[:n])
+    starts = np.concatenate([first[:n], second[twice]])
+    mode = np.concatenate([np.arange(n), twice])
     u = G[:n] @ E                                               # E g_i (E symmetric), (n, r)
-    s, y, converged = _newton(w2, np.ascontiguousarray(G, dtype=float), np.ascontiguousarray(E, dtype=float), a,
-                              d[:n].copy(), s0[:n].copy(), np.ascontiguousarray(u, dtype=float), NEWTON_STEPS)
+    s, y, converged = _newton(w2, np.ascontiguousarray(G, dtype=float), np.ascontiguousarray(E, dtype=float),
+                              np.ascontiguousarray(d0, dtype=float), d[:n].copy(), starts.astype(complex), mode,
+                              np.ascontiguousarray(u, dtype=float), NEWTON_STEPS)
     if not converged:
         return None
-    if not (np.all(np.abs(s - s0[:n]) < half_gap) and np.all(s.imag > CRITICAL_MARGIN * np.abs(s))):
+    # how far each root may move: the ω gap to the neighbours (underdamped), half the distance to the nearest
+    # other decoupled pole of any mode (overdamped)
+    w = np.sqrt(np.abs(w2[:min(n + 1, k)]))
+    gaps = np.diff(w)
+    half_gap = 0.5 * np.minimum(np.concatenate([[w[0]], gaps])[:n], np.concatenate([gaps, [np.inf]])[:n])
+    every = np.concatenate([first, second])
+    if twice.size:
+        distance = np.abs(starts[:, None] - every[None, :])
+        distance[np.arange(starts.size), np.concatenate([mode[:n], k + twice])] = np.inf     # itself
+        half_gap = np.where(np.concatenate([over[:n], np.ones(twice.size, bool)]),
+                            0.5 * distance.min(axis=1), np.concatenate([half_gap, np.zeros(twice.size)]))
+    if not np.all(np.abs(s - starts) < half_gap):
         return None
-    return s, y
+    s1, s2 = s[:n], s[:n].conj()
+    y1, y2 = y[:n], y[:n].conj()
+    s2[twice], y2[twice] = s[n:], y[n:]
+    if not (np.all(s1.imag[~over[:n]] > CRITICAL_MARGIN * np.abs(s1[~over[:n]]))
+            and np.all(np.abs(s1 - s2)[over[:n]] > 2 * CRITICAL_MARGIN * np.abs(s1[over[:n]]))):
+        return None
+    return np.concatenate([s1, s2]), np.concatenate([y1, y2])
 
 
 @numba.njit(cache=True, nogil=True)
@@ -166,22 +167,25 @@ def _solve_small(A, b, x):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _newton_terms(s, i, w2, G, E, a, u_i, y, with_derivative):  # pragma: no cover - compiled
+def _newton_terms(s, i, w2, G, E, d0, u_i, y, with_derivative):  # pragma: no cover - compiled
     """At the pole ``s`` of mode ``i``: ``y = (I + s E P)⁻¹ E g_i`` into ``y`` and, with ``with_derivative``,
     ``(e_iᵀx, xᵀx, xᵀC_rr x)`` (module docstring)."""
     k, r = G.shape
     P = np.zeros((r, r), dtype=np.complex128)
     S2 = np.zeros((r, r), dtype=np.complex128)
-    for j in range(k):                          # P = Σ_{j≠i} g_j g_jᵀ / D_j(s), S2 the same over D_j²
+    S3 = np.zeros((r, r), dtype=np.complex128)
+    for j in range(k):       # P = Σ_{j≠i} g_j g_jᵀ / D_j(s), S2 the same over D_j², S3 over D_j² / d⁰_j
         if j == i:
             continue
-        inv = 1.0 / (s * s + a * s + w2[j])
+        inv = 1.0 / (s * s + d0[j] * s + w2[j])
         inv2 = inv * inv
+        inv3 = d0[j] * inv2
         for p in range(r):
             gp = G[j, p]
             for q in range(r):
                 P[p, q] += inv * gp * G[j, q]
                 S2[p, q] += inv2 * gp * G[j, q]
+                S3[p, q] += inv3 * gp * G[j, q]
     A = np.eye(r, dtype=np.complex128)
     for p in range(r):                          # I + s E P
         for q in range(r):
@@ -193,62 +197,73 @@ def _newton_terms(s, i, w2, G, E, a, u_i, y, with_derivative):  # pragma: no cov
     if not with_derivative:
         return 0j, 0j, 0j
     Py = P @ y
-    ex, xx, ePy = 0j, 0j, 0j
+    ex, xx, xdx, ePy = 0j, 0j, 0j, 0j
     for p in range(r):
         ex += u_i[p] * Py[p]
         for q in range(r):
             xx += y[p] * S2[p, q] * y[q]
+            xdx += y[p] * S3[p, q] * y[q]
             ePy += Py[p] * E[p, q] * Py[q]
-    return ex, xx, a * xx + ePy
+    return ex, xx, xdx + ePy
 
 
 @numba.njit(cache=True, nogil=True)
-def _newton(w2, G, E, a, d, s, u, steps):  # pragma: no cover - compiled
-    """Newton's iteration on ``f_i`` for each pole, until its step is below 1e-14 of it; the poles, the ``y`` at
-    them and whether every pole converged within ``steps``."""
+def _newton(w2, G, E, d0, d, s, mode, u, steps):  # pragma: no cover - compiled
+    """Newton's iteration on ``f_i`` (``i = mode[p]``) from each start ``s[p]``, until its step is below 1e-14 of
+    it; the roots, the ``y`` at them and whether every root converged within ``steps``."""
     n, r = s.size, G.shape[1]
     y = np.zeros((n, r), dtype=np.complex128)
     yi = np.zeros(r, dtype=np.complex128)
-    for i in range(n):
+    for p in range(n):
+        i = mode[p]
         converged = False
         for _ in range(steps):
-            ex, xx, xCx = _newton_terms(s[i], i, w2, G, E, a, u[i], yi, True)
-            si = s[i]
+            ex, xx, xCx = _newton_terms(s[p], i, w2, G, E, d0, u[i], yi, True)
+            si = s[p]
             f = si * si + si * d[i] + w2[i] - si * si * ex
             df = 2.0 * si + d[i] - 2.0 * si * ex + si * si * (2.0 * si * xx + xCx)
             step = f / df
-            s[i] = si - step
-            if abs(step) <= 1e-14 * abs(s[i]):
+            s[p] = si - step
+            if abs(step) <= 1e-14 * abs(s[p]):
                 converged = True
                 break
         if not converged:
             return s, y, False
-        _newton_terms(s[i], i, w2, G, E, a, u[i], yi, False)     # y at the converged pole
-        y[i] = yi
+        _newton_terms(s[p], i, w2, G, E, d0, u[i], yi, False)    # y at the converged root
+        y[p] = yi
     return s, y, True
 
 
 def coupled_modes(w2: np.ndarray, damping: LowRankDamping, Fm: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Every pole, the eigenvectors ``V`` (2k × 2k, on the state ``(q, q̇)``) and the input weights in pole
-    coordinates (2k × m) of the modal system, in the layout of the dense route (upper poles first, then their
-    conjugates), or ``None`` (module docstring)."""
+    coordinates (2k × m) of the modal system, in the layout of the decoupled route (every ``s₁``, then every
+    ``s₂``: an underdamped mode's conjugate), or ``None`` (module docstring)."""
     k = w2.size
     found = coupled_poles(w2, damping, None)
     if found is None:
         return None
-    s, y = found
-    G, E, a = damping.G, damping.E, damping.alpha
-    inv = _others(s, a, w2)                                           # (pole i, mode j)
-    idx = np.arange(k)
-    X = -(s[:, None] * inv) * (y @ G.T)                               # row i: v_i over the modes j
-    X[idx, idx] = 1.0
-    # vᵀ Q'(s) v = 2s vᵀv + vᵀ C_m v, C_m v = α v + G E Gᵀ v
-    Gv = X @ G
-    norm = 2.0 * s * np.einsum("ij,ij->i", X, X) + a * np.einsum("ij,ij->i", X, X) \
-        + np.einsum("ia,ab,ib->i", Gv, E, Gv)
-    Bu = (X @ Fm) / norm[:, None]
-    lam = np.concatenate([s, s.conj()])
-    Vq = np.concatenate([X.T, X.T.conj()], axis=1)                   # columns v_i, then conj
+    lam, y = found
+    X, Bu = _vectors(lam[:k], np.arange(k), y[:k], damping, w2, Fm)
+    X2, Bu2 = X.conj(), Bu.conj()
+    twice = np.flatnonzero(lam[k:] != lam[:k].conj())         # overdamped: the second real root's own
+    if twice.size:
+        X2[twice], Bu2[twice] = _vectors(lam[k:][twice], twice, y[k:][twice], damping, w2, Fm)
+    Vq = np.concatenate([X.T, X2.T], axis=1)                  # columns v_p
     V = np.vstack([Vq, Vq * lam[None, :]])
-    return lam, V, np.vstack([Bu, Bu.conj()])
+    return lam, V, np.vstack([Bu, Bu2])
+
+
+def _vectors(s: np.ndarray, mode: np.ndarray, y: np.ndarray, damping: LowRankDamping, w2: np.ndarray,
+             Fm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The right eigenvectors (rows, over the modes) of the roots ``s`` of the modes ``mode`` with their ``y``,
+    and their input weights (module docstring)."""
+    G, E, d0 = damping.G, damping.E, damping.diagonal
+    rows = np.arange(s.size)
+    X = -(s[:, None] * _others(s, mode, d0, w2)) * (y @ G.T)     # row p: v_p over the modes j
+    X[rows, mode] = 1.0
+    # vᵀ Q'(s) v = 2s vᵀv + vᵀ C_m v, C_m v = d⁰ ∘ v + G E Gᵀ v
+    Gv = X @ G
+    norm = 2.0 * s * np.einsum("ij,ij->i", X, X) + np.einsum("ij,j,ij->i", X, d0, X) \
+        + np.einsum("ia,ab,ib->i", Gv, E, Gv)
+    return X, (X @ Fm) / norm[:, None]

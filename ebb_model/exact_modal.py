@@ -41,7 +41,7 @@ import scipy.linalg as sla
 
 from .antialias import effective_filters, filtered_poles, series_statespace
 from .config import BeamConfig
-from .coupled_modes import LowRankDamping, coupled_modes, low_rank_damping
+from .coupled_modes import LowRankDamping, coupled_modes
 from .mode_family import FamilyModes, family_modes
 from .modal_form import MAX_BASIS_CONDITION, ModalStateSpace, basis_condition
 from .parameter_values import resolve_parameters
@@ -163,14 +163,14 @@ def modal_system(modes: FamilyModes) -> ModalMatrices:
     """:func:`modal_matrices` of the undamped ``modes``: the modal damping's structure (diagonal, low-rank or
     full), the forcing and the sensor rows."""
     w2, psi = modes.frequencies2, modes.shapes
-    d = modes.diagonal_damping()
-    low_rank = None
-    if d is None:
-        fine = modes.beam
-        low_rank = low_rank_damping(fine.M, fine.C, psi)
-        if low_rank is not None and low_rank.rank == 0:
-            # C = α M: decoupled, though the modes' orthogonality round-off made Ψᵀ C Ψ look coupled (near buckling)
-            d, low_rank = np.diag(modes.damping).copy(), None
+    low_rank = modes.low_rank_damping()
+    if low_rank is None:
+        d = modes.diagonal_damping()
+    elif low_rank.rank == 0:
+        # C = α M + β K: decoupled, whatever the modes' orthogonality round-off in Ψᵀ C Ψ (near buckling)
+        d, low_rank = low_rank.diagonal, None
+    else:
+        d = None
     if d is not None:
         Cm = np.diag(d)
     elif low_rank is not None:

@@ -66,7 +66,7 @@ def modal_poles(config: BeamConfig, params: Mapping[str, float], lowest: int | N
         k = mm.frequencies2.size
         found = coupled_poles(mm.frequencies2, mm.low_rank, None if lowest is None else min(lowest, k))
         if found is not None:
-            return np.concatenate([found[0], found[0].conj()])
+            return found[0]
     if lowest is not None:
         s = _coupled_poles(mm.frequencies2, mm.Cm, lowest)
         if s is not None:

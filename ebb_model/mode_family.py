@@ -33,6 +33,7 @@ import scipy.linalg as sla
 
 from .beam import End, PointMass, PointSpring, WeakSegment
 from .config import BeamConfig
+from .coupled_modes import MAX_RANK, LowRankDamping
 from .memo import memoised
 from .modal_form import DIAGONAL_RTOL, is_diagonal, off_diagonal_magnitude
 from .discretisation import (SemiDiscreteBeam, assemble_matrices, check_attachments, control_lengths, grid_nodes,
@@ -123,9 +124,16 @@ def richardson_modes(coarse: SemiDiscreteBeam, fine: SemiDiscreteBeam, n_modes: 
     n_modes
         How many of the lowest modes to return (at most the fine grid's unknowns).
     """
+    w2, _, psi = _richardson(coarse, fine, n_modes)
+    return w2, psi
+
+
+def _richardson(coarse: SemiDiscreteBeam, fine: SemiDiscreteBeam, n_modes: int
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`richardson_modes` with the fine grid's own ``ω²`` between them: ``(ω²_R, ω²_f, Ψ)``."""
     w2_f, psi = lowest_modes(fine, n_modes)
     m = min(coarse.n_unknowns, n_modes)
-    return extrapolated(w2_f, lowest_modes(coarse, m, vectors=False), coarse, fine, m), psi
+    return extrapolated(w2_f, lowest_modes(coarse, m, vectors=False), coarse, fine, m), w2_f, psi
 
 
 def extrapolated(w2_f: np.ndarray, w2_c: np.ndarray, coarse: SemiDiscreteBeam, fine: SemiDiscreteBeam, m: int
@@ -192,6 +200,8 @@ class UnitModes:
 
     frequencies2: np.ndarray
     shapes: np.ndarray
+    #: the ``ω̃²`` of the ``fine`` grid itself, as many (``ψ̃ᵀ K̃ ψ̃``)
+    fine_frequencies2: np.ndarray
     fine: SemiDiscreteBeam
     #: ``V`` the fine grid's control lengths
     lengths: np.ndarray
@@ -216,6 +226,19 @@ class UnitModes:
         return _read_only(self.shapes.T @ self.fine.C @ self.shapes)
 
     @functools.cached_property
+    def mass_excess(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(J, R_J)``: the unknowns ``J`` where ``M̃`` differs from ``diag(V)`` (the point masses) and ``M̃ − diag(V)``
+        on them, or ``None`` when more than :data:`~ebb_model.coupled_modes.MAX_RANK` do (rotary inertia)."""
+        return _excess(self.fine.M, self.fine.M - np.diag(self.lengths))
+
+    @functools.cached_property
+    def stiffness_excess(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(J, R_J)``: the unknowns ``J`` where ``K̃`` differs from the Kelvin–Voigt ``C̃`` (springs, elastic ends)
+        and ``K̃ − C̃`` on them, or ``None`` when more than :data:`~ebb_model.coupled_modes.MAX_RANK` do (axial load,
+        a foundation)."""
+        return _excess(self.fine.K, self.fine.K - self.fine.C)
+
+    @functools.cached_property
     def viscous_off(self) -> float:
         """The largest magnitude off the diagonal of :attr:`viscous` (bounds the modal damping's)."""
         return off_diagonal_magnitude(self.viscous)
@@ -224,6 +247,21 @@ class UnitModes:
     def bending_off(self) -> float:
         """The largest magnitude off the diagonal of :attr:`bending`."""
         return off_diagonal_magnitude(self.bending)
+
+
+#: Relative size (to the largest entry of the matrix) below which an entry of ``M̃ − diag(V)`` or ``K̃ − C̃`` counts as
+#: zero: both sides are assembled from the same lengths and stiffnesses, equal up to one rounding per entry.
+_EXCESS_RTOL = 1e-12
+
+
+def _excess(A: np.ndarray, delta: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(J, delta_JJ)`` for the rows ``J`` of ``delta`` with an entry above :data:`_EXCESS_RTOL` of ``A``'s
+    largest, or ``None`` beyond :data:`~ebb_model.coupled_modes.MAX_RANK` rows."""
+    scale = max(float(np.max(np.abs(A), initial=0.0)), float(np.finfo(float).tiny))
+    J = np.flatnonzero(np.max(np.abs(delta), axis=1, initial=0.0) > _EXCESS_RTOL * scale)
+    if J.size > MAX_RANK:
+        return None
+    return _read_only(J), _read_only(delta[np.ix_(J, J)])
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:
@@ -257,10 +295,10 @@ def unit_modes(key: FamilyKey) -> UnitModes:
     """The Richardson modes of the family ``key``'s unit beam (memoised per process; module docstring)."""
     own, companion = unit_pair(key)
     coarse, fine = sorted((own, companion), key=lambda b: b.n_unknowns)
-    w2, psi = richardson_modes(coarse, fine, own.n_unknowns)
+    w2, w2_f, psi = _richardson(coarse, fine, own.n_unknowns)
     nodes = fine.x.size - 2
     V = _read_only(control_lengths(nodes, key.length / (nodes + 1), key.left, key.right))
-    return UnitModes(_read_only(w2), _read_only(psi), fine, V, not key.masses and key.rhoI == 0.0)
+    return UnitModes(_read_only(w2), _read_only(psi), _read_only(w2_f), fine, V, not key.masses and key.rhoI == 0.0)
 
 
 
@@ -328,7 +366,7 @@ class FamilyModes:
         off-diagonal magnitudes where they bound it (no ``k × k`` matrix formed), else on the matrix.  Viscous
         damping alone on a beam without point masses or rotary inertia is ``C = (c/ρA) M``: its diagonal is
         returned whatever ``ΨᵀMΨ``'s round-off (9e-10 off the identity at 200 nodes), as
-        :func:`~ebb_model.coupled_modes.low_rank_damping` finds rank 0 for it."""
+        :meth:`low_rank_damping` finds rank 0 for it."""
         a, b = self._damping_weights()
         unit = self.unit
         if b == 0.0 and unit.viscous_is_mass:
@@ -341,6 +379,34 @@ class FamilyModes:
             return diag
         diagonal, d = is_diagonal(self.damping, rtol=rtol)
         return d if diagonal else None
+
+
+    def low_rank_damping(self) -> LowRankDamping | None:
+        """The modal damping as ``diag(d⁰) + G E Gᵀ`` (:mod:`ebb_model.coupled_modes`), or ``None``.
+
+        ``V = M̃ − R_M`` and ``C̃ = K̃ − R_K`` with ``R_M``, ``R_K`` on a few unknowns ``J``
+        (:attr:`UnitModes.mass_excess`, :attr:`UnitModes.stiffness_excess`) give, with ``ψ̃ᵀM̃ψ̃ = I`` and
+        ``ψ̃ᵀK̃ψ̃ = diag(ω̃²_f)``, ``ΨᵀCΨ = a ψ̃ᵀVψ̃ + b ψ̃ᵀC̃ψ̃ = diag(a + b ω̃²_f) − ψ̃_Jᵀ (a R_M + b R_K)_JJ ψ̃_J``
+        (the modes' orthogonality taken as exact).  ``None`` when a term with a non-zero weight differs on more
+        than :data:`~ebb_model.coupled_modes.MAX_RANK` unknowns (rotary inertia with viscous damping; axial load or
+        a foundation with Kelvin–Voigt damping): the caller decides on the matrix."""
+        a, b = self._damping_weights()
+        unit = self.unit
+        parts = []
+        for w, excess in ((a, "mass_excess"), (b, "stiffness_excess")):
+            if w != 0.0:
+                found = getattr(unit, excess)
+                if found is None:
+                    return None
+                parts.append((w, found))
+        rows = np.unique(np.concatenate([J for _, (J, _) in parts] + [np.zeros(0, dtype=np.intp)]))
+        if rows.size > MAX_RANK:
+            return None
+        E = np.zeros((rows.size, rows.size))
+        for w, (J, R) in parts:
+            at = np.searchsorted(rows, J)
+            E[np.ix_(at, at)] -= w * R
+        return LowRankDamping(a + b * unit.fine_frequencies2, unit.shapes[rows].T.copy(), E)
 
 
 def family_modes(config: BeamConfig, p: Mapping[str, float]) -> FamilyModes:

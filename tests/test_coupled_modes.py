@@ -16,12 +16,14 @@ from ebb_model.reference.excitation import band_limited_input
 
 
 def beam(masses: list[tuple[float, float]], *, eta: float = 0.0, rhoI: float = 0.0, c: float = 3.0,
-         nodes: int = 40) -> em.BeamConfig:
+         nodes: int = 40, N: float = 20.0, springs: list[tuple[float, float]] | None = None,
+         left: str = "clamped", left_springs: tuple[float, float] | None = None) -> em.BeamConfig:
     """A clamped–pinned beam under tension with viscous damping (ζ 0.3–3 % over its first modes) and point
     masses ``(x, mass)`` — one on a node and others between nodes, so each spreads over one or two unknowns."""
-    cfg = make_config("clamped", "pinned", nodes=nodes, dt=5e-4, c=c, eta=eta, N=20.0, actuators=[("F1", 0.55)],
+    cfg = make_config(left, "pinned", nodes=nodes, dt=5e-4, c=c, eta=eta, N=N, actuators=[("F1", 0.55)],
                       sensors=[("a1", 0.35, "acceleration"), ("v1", 0.62, "velocity"), ("d1", 0.8, "displacement")],
-                      masses=[(f"m{i}", x, m) for i, (x, m) in enumerate(masses)])
+                      masses=[(f"m{i}", x, m) for i, (x, m) in enumerate(masses)],
+                      springs=[(f"k{i}", x, k) for i, (x, k) in enumerate(springs or [])], left_springs=left_springs)
     if rhoI == 0.0:
         return cfg
     d = cfg.to_dict()
@@ -66,6 +68,68 @@ def test_low_rank_route_equals_the_dense_eigenproblem(name):
         H = V[:k] @ (B / (z - lam)[:, None])
         H_dense = V_dense[:k] @ (B_dense / (z - s_dense)[:, None])
         assert np.abs(H - H_dense).max() <= tol * np.abs(H_dense).max(), (f, np.abs(H - H_dense).max())
+
+
+#: Kelvin–Voigt damping (ζ 0.2–2 % over the first modes) with viscous damping or alone, without axial load: the
+#: springs' stiffness and the masses' inertia are what ``C = α M + β K`` leaves out, on 1–4 unknowns (an elastic
+#: end's springs are not: they enter ``K`` and the Kelvin–Voigt term through the same ghost rows)
+KELVIN_VOIGT = {
+    "a mass": dict(masses=[(0.3, 0.08)]),
+    "a spring, no viscous damping": dict(masses=[], springs=[(0.45, 300.0)], c=0.0),
+    "a spring to ground": dict(masses=[], springs=[(0.45, 300.0)]),
+    "a shaker's mass and spring": dict(masses=[(0.77, 0.1)], springs=[(0.77, 400.0)]),
+}
+
+
+@pytest.mark.parametrize("name", sorted(KELVIN_VOIGT))
+def test_kelvin_voigt_damping_with_attachments_is_low_rank(name):
+    """Without axial load ``ψ̃ᵀC̃ψ̃`` is the grid's own ``ω̃²`` less the springs' part: a Kelvin–Voigt term with masses
+    and springs takes the structured route, and its modal damping, poles and transfer function are the dense
+    ones (budgets of :func:`test_low_rank_route_equals_the_dense_eigenproblem`)."""
+    cfg = beam(**({"N": 0.0, "eta": 1e-4} | KELVIN_VOIGT[name]))
+    mm = modal_matrices(cfg, cfg.parameter_values())
+    assert mm.damping is None and mm.low_rank is not None and 1 <= mm.low_rank.rank <= 4
+    dense_Cm = mm.shapes.T @ discretised_C(cfg) @ mm.shapes
+    np.testing.assert_allclose(mm.Cm, 0.5 * (dense_Cm + dense_Cm.T), rtol=0, atol=1e-10 * np.abs(mm.Cm).max())
+    lam, V, B = cmod.coupled_modes(mm.frequencies2, mm.low_rank, mm.Fm)
+    assert np.count_nonzero(lam.imag == 0) >= 2        # the stiffest modes overdamped: both real roots found
+    s_dense, V_dense = np.linalg.eig(modal_state_matrix(mm.frequencies2, mm.Cm))
+    B_dense = np.linalg.solve(V_dense, np.vstack([np.zeros_like(mm.Fm), mm.Fm]))
+    tol = 100 * np.finfo(float).eps * basis_condition(V_dense)
+    np.testing.assert_allclose(_sorted(lam), _sorted(s_dense), rtol=tol)
+    k = mm.frequencies2.size
+    for f in (1.0, 7.0, 40.0, 300.0):
+        z = 2j * np.pi * f
+        H = V[:k] @ (B / (z - lam)[:, None])
+        H_dense = V_dense[:k] @ (B_dense / (z - s_dense)[:, None])
+        assert np.abs(H - H_dense).max() <= tol * np.abs(H_dense).max(), (f, np.abs(H - H_dense).max())
+    # and the realisation simulates the Van Loan exponential's outputs (budget of the simulation test below)
+    u = band_limited_input(1500, 5e-4, 2.0, 150.0, seed=9)
+    p = cfg.parameter_values()
+    y_modal = em.simulate(exact_modal(cfg, p), u).outputs
+    y_dense = em.simulate(exact_statespace(cfg, p), u).outputs
+    err = np.abs(y_dense - y_modal).max(axis=0) / np.abs(y_modal).max(axis=0)
+    assert np.all(err < max(10 * np.finfo(float).eps * basis_condition(V), 1e-12)), err
+
+
+@pytest.mark.parametrize("what", ["a weak segment", "a mass without viscous damping", "an elastic end"])
+def test_kelvin_voigt_damping_without_what_it_leaves_out_is_decoupled(what):
+    """A weak segment lowers ``EI`` and the Kelvin–Voigt term alike (``C̃ = K̃``), so do an elastic end's springs
+    (the same ghost rows); a point mass is not in a damping without a viscous term (``C = η K``): the modes stay
+    decoupled, each with ``d_i = c/ρA + η ω_i²`` on the grid's own ``ω²`` — the dense ``ΨᵀCΨ``'s diagonal to its
+    round-off, its off-diagonal round-off only."""
+    if what == "a weak segment":
+        cfg = em.config_from_dict(beam([], N=0.0, eta=1e-4).to_dict() | {
+            "weak_segments": [{"name": "w", "x": 0.4, "length": 0.1, "factor": 0.6}]})
+    elif what == "an elastic end":
+        cfg = beam([], N=0.0, eta=1e-4, left="elastic", left_springs=(1e4, 50.0))
+    else:
+        cfg = beam([(0.3, 0.08)], N=0.0, eta=1e-4, c=0.0)
+    mm = modal_matrices(cfg, cfg.parameter_values())
+    assert mm.damping is not None and mm.low_rank is None
+    dense_Cm = mm.shapes.T @ discretised_C(cfg) @ mm.shapes
+    np.testing.assert_allclose(mm.damping, np.diag(dense_Cm), rtol=1e-10)
+    assert np.abs(dense_Cm - np.diag(np.diag(dense_Cm))).max() <= 1e-10 * np.abs(dense_Cm).max()
 
 
 def discretised_C(cfg: em.BeamConfig) -> np.ndarray:
