@@ -56,6 +56,7 @@ from .report.assemble import effect_rows, gap_report
 from .report.html import html_sections
 from .report.result import DiagnosisSettings, GapReport
 from .search.apart import SetupsApart, apart_parts, disagreement
+from .search.reuse import RefitMemo
 from .search.plausible import PlausibleReading, plausible_readings, readings_text
 from .search.modal_pattern import modal_source
 from .search.rank import Ranking, rank_effects
@@ -177,9 +178,10 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     clock = StageClock()
     executor = refit_pool(workers, dask)
     try:
+        memo = RefitMemo()      # the local refits, for the rankings that would repeat them
         search = partial(_search, beta0=beta0, fit_noise=given is None, setups=setups, executor=executor,
                          parallel=executor.workers if isinstance(executor, DaskExecutor) else workers, clock=clock,
-                         say=say)
+                         say=say, memo=memo)
         found = search(problem)
         # the force's sign weighed with the mechanisms, when no refit reaches the noise floor with the sign taken
         with clock.stage("the force's sign with the refits"):
@@ -229,7 +231,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
             say(why + f"; ranking again with the measured modes taken without the {', '.join(sorted(parts))}")
             with clock.stage("set-ups apart"):
                 two = replace(problem, modes_lack=parts)
-                ranking_two = _rank(two, ranking.baseline, catalogue, found.modes, executor, clock, say)
+                ranking_two = _rank(two, ranking.baseline, catalogue, found.modes, executor, clock, say, memo)
                 judgement_two = judged(two, ranking_two)
             adopted = judgement_two.verdict.kind is Kind.EFFECT
             apart = SetupsApart(why, parts, judgement_two.verdict.name, adopted, judgement_two.verdict.text())
@@ -307,7 +309,7 @@ class _Found:
 
 
 def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: Setups | None,
-            executor: Any, parallel: int, clock: StageClock, say: Callable[[str], None],
+            executor: Any, parallel: int, clock: StageClock, say: Callable[[str], None], memo: RefitMemo,
             take: bool | None = None) -> _Found:
     """Stages 1 to 3: the baseline with the force's sign weighed (``take``: that sign, as the refits decided),
     the noise model, the candidates and the search."""
@@ -343,16 +345,16 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
         p for p in RIG_PARTS if setups is not None and not setups.records_have(p)))
     modes = _Modes(band, freqs, zetas, in_band, f_top, parallel)
     with clock.stage("ranking (the rest)"):
-        ranking = _rank(problem, baseline, catalogue, modes, executor, clock, say)
+        ranking = _rank(problem, baseline, catalogue, modes, executor, clock, say, memo)
     return _Found(problem, baseline, polarity, catalogue, modes, ranking)
 
 
 def _rank(problem: GapProblem, baseline: Fit, catalogue: Catalogue, modes: _Modes, executor: Any,
-          clock: StageClock, say: Callable[[str], None]) -> Ranking:
+          clock: StageClock, say: Callable[[str], None], memo: RefitMemo) -> Ranking:
     """The search (:func:`diagnosis.search.rank.rank_effects`) on ``problem`` from ``baseline``, with the
-    baseline's ``modes``."""
+    baseline's ``modes`` and the diagnosis' local refits so far (``memo``)."""
     return rank_effects(problem, baseline, catalogue=catalogue, shortlist=problem.settings.shortlist,
-                        progress=say, executor=executor, parallel=modes.parallel, rounds=2, clock=clock,
+                        progress=say, executor=executor, parallel=modes.parallel, rounds=2, clock=clock, memo=memo,
                         modal=modal_source(problem, modes.freqs[modes.in_band], modes.zetas[modes.in_band],
                                            modes.freqs[~modes.in_band][:1], modes.band[1]))
 

@@ -60,6 +60,7 @@ from .pairs import Early, early_pair, pair_explains, pair_with, same_fit
 from .refits import EffectRefit, better_baseline, explains, refit_from_match
 from ..candidates.score import EffectScore, score_effect
 from .state import Refits, Search
+from .reuse import RefitMemo
 from ..stages import StageClock
 from ..settings import Thresholds
 from ..judgement.plausibility import implausibilities
@@ -321,7 +322,7 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
                  max_evaluations: int = 300, progress: Any = None, executor: Executor | None = None,
                  parallel: int = 1, rebaseline: bool = True, rounds: int = 2,
                  modal: Callable[[np.ndarray], ModalEvidence] | None = None,
-                 clock: StageClock | None = None) -> Ranking:
+                 clock: StageClock | None = None, memo: RefitMemo | None = None) -> Ranking:
     """Score every effect, refit the ``shortlist`` best, rank and decide — again from a better baseline basin
     when the refits reveal one (the one re-baselining loop).
 
@@ -358,6 +359,9 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
         refit explains the gap): then the modal-pattern stage runs first (module docstring).
     clock
         Where the stages' wall time is counted (:class:`diagnosis.stages.StageClock`); a new one when omitted.
+    memo
+        The local refits another ranking of the same diagnosis made (:class:`diagnosis.search.reuse.RefitMemo`),
+        taken instead of repeated and added to; a new one when omitted.
 
     Returns
     -------
@@ -368,9 +372,10 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
     clock = clock if clock is not None else StageClock()
     early_rebaseline, left = rebaseline, rounds
     matches: dict[str, PatternFit] = {}     # the modal matches, polished again by a later ranking
+    memo = memo if memo is not None else RefitMemo()
     while True:
         outcome = _rank_once(problem, baseline, catalogue, shortlist, max_evaluations, say, executor, parallel,
-                             early_rebaseline, modal, clock, matches)
+                             early_rebaseline, modal, clock, matches, memo)
         if isinstance(outcome, Fit):
             # a local refit's baseline unknowns lie in a better basin: rank from there, before the costly stages
             say(f"baseline re-fit from a local refit's optimum: RSS {baseline.rss:.4g} -> {outcome.rss:.4g}; "
@@ -426,7 +431,7 @@ def _shortlist(problem: GapProblem, effects: dict[str, Effect], scores: dict[str
 def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortlist: int, max_evaluations: int,
                say: Callable[[str], None], executor: Executor | None, parallel: int, rebaseline: bool,
                modal: Callable[[np.ndarray], ModalEvidence] | None, clock: StageClock,
-               matches: dict[str, PatternFit]) -> Ranking | Fit:
+               matches: dict[str, PatternFit], memo: RefitMemo) -> Ranking | Fit:
     """One ranking from ``baseline`` (the stages of the module docstring), or — with ``rebaseline``, before the
     continuation refits — the better baseline a local refit revealed (:func:`rank_effects` ranks from it)."""
     effects = {e.label: e for e in catalogue.effects()}
@@ -437,7 +442,7 @@ def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortli
             scores[lab] = score_effect(problem, baseline, e)
             say(f"score {lab}: {scores[lab].lm:.4g}")
     run = Search(problem, baseline, catalogue, effects, before, scores, max_evaluations, executor, say, clock,
-                 matches)
+                 matches, memo)
     by_score = sorted(effects, key=lambda lab: -scores[lab].lm)
     labels = _shortlist(problem, effects, scores, by_score, shortlist)
     # with the modal pattern at hand, the other basins wait until it has been tried (it is cheaper)

@@ -12,6 +12,7 @@ from ..effects import Catalogue, Effect
 from ..problem.fitting import Fit, GapProblem
 from .modal_pattern import PatternFit, time_invariant
 from .refits import EffectRefit, explains, map_refits, summarise
+from .reuse import RefitMemo
 from ..candidates.score import EffectScore
 from ..stages import StageClock
 from .workers import side_by_side
@@ -40,12 +41,25 @@ class Search:
     #: the effects' modal matches so far, shared by the rankings of one diagnosis (the modal stage adds its own
     #: and polishes a later ranking's from them: :func:`diagnosis.search.modal_pattern.pattern_fits`)
     matches: dict[str, PatternFit]
+    #: the local refits made so far by the rankings of one diagnosis (:mod:`diagnosis.search.reuse`)
+    memo: RefitMemo
 
     def refit(self, labels: list[str], previous: dict[str, tuple[Fit, list]] | None = None, *, stage: str
               ) -> dict[str, tuple[Fit, list]]:
-        """The refits of ``labels`` at ``stage`` (:func:`diagnosis.search.refits.map_refits`)."""
-        return map_refits(self.executor, self.problem, self.catalogue, labels, self.baseline, self.scores,
-                          self.max_evaluations, previous, stage=stage)
+        """The refits of ``labels`` at ``stage`` (:func:`diagnosis.search.refits.map_refits`); a local refit
+        another ranking of the diagnosis made already is taken from :attr:`memo`."""
+        if previous is not None:
+            return map_refits(self.executor, self.problem, self.catalogue, labels, self.baseline, self.scores,
+                              self.max_evaluations, previous, stage=stage)
+        keys = {lab: self.memo.key(self.problem, self.baseline, self.effects[lab], self.scores[lab], stage,
+                                   self.max_evaluations) for lab in labels}
+        known = {lab: self.memo.get(keys[lab]) for lab in labels}
+        todo = [lab for lab in labels if known[lab] is None]
+        made = map_refits(self.executor, self.problem, self.catalogue, todo, self.baseline, self.scores,
+                          self.max_evaluations, stage=stage) if todo else {}
+        for lab, refit in made.items():
+            self.memo.put(keys[lab], self.problem, refit)
+        return {lab: made[lab] if known[lab] is None else known[lab] for lab in labels}
 
     def explained(self, local: dict[str, tuple[Fit, list]]) -> bool:
         """Whether one of the refits explains the gap."""
