@@ -24,16 +24,11 @@ import numpy as np
 
 from .config import BeamConfig
 from .coupled_modes import coupled_poles
-from .discretisation import SemiDiscreteBeam
 from .exact_modal import modal_matrices, modal_state_matrix
-from .mode_family import check_pair, extrapolated, family_key, lowest_modes, scaled_beam, unit_pair
+from .mode_family import check_pair, extrapolated, family_key, lowest_modes, unit_pair
 from .parameter_values import resolve_parameters
 
 __all__ = ["modal_poles"]
-
-#: Relative size of ``C − α M`` below which the damping counts as mass-proportional (the two matrices are built
-#: from the same lumped lengths: exactly proportional up to one rounding per entry).
-_PROPORTIONAL_RTOL = 1e-12
 
 #: Newton iterations allowed per pole (quadratic from the decoupled value, off by the coupling squared).
 _NEWTON_STEPS = 8
@@ -74,13 +69,19 @@ def modal_poles(config: BeamConfig, params: Mapping[str, float], lowest: int | N
     return np.linalg.eigvals(modal_state_matrix(mm.frequencies2, mm.Cm))
 
 
-def _mass_proportional_rate(beam: SemiDiscreteBeam) -> float | None:
-    """``α`` when ``C = α M`` to round-off (then ``Ψᵀ C Ψ = α I`` for mass-normalised modes), else ``None``."""
-    alpha = float(np.trace(beam.C) / np.trace(beam.M))
-    scale = max(float(np.max(np.abs(beam.C), initial=0.0)), float(np.finfo(float).tiny))
-    if float(np.max(np.abs(beam.C - alpha * beam.M), initial=0.0)) > _PROPORTIONAL_RTOL * scale:
+def _mass_proportional_rate(config: BeamConfig, p: Mapping[str, float]) -> float | None:
+    """``α`` when ``C = α M`` (then ``Ψᵀ C Ψ = α I`` for mass-normalised modes), else ``None``; ``p`` resolved.
+
+    Read from the structure (:func:`~ebb_model.mode_family.scaled_beam`: ``C = c V + η EI C̃``, ``M = ρA M̃``):
+    no Kelvin–Voigt term, and the viscous damping where the mass is, ``M̃ = diag(V)`` — no point mass with a
+    mass, no rotary inertia — or no damping at all."""
+    if p["eta"] * p["EI"] != 0.0:
         return None
-    return alpha
+    if p["c"] == 0.0:
+        return 0.0
+    if p["rhoI"] != 0.0 or any(m.mass != 0.0 for m in config.masses):
+        return None
+    return p["c"] / p["rhoA"]
 
 
 def _mass_proportional_poles(config: BeamConfig, p: Mapping[str, float], n: int) -> np.ndarray | None:
@@ -91,14 +92,14 @@ def _mass_proportional_poles(config: BeamConfig, p: Mapping[str, float], n: int)
     (:mod:`ebb_model.mode_family`), the same extrapolation, the fade scaled by the full count), computed for these
     modes alone.
     """
+    alpha = _mass_proportional_rate(config, p)
+    if alpha is None:
+        return None
     own, companion = unit_pair(family_key(config, p))
     k = own.n_unknowns                            # the realisation's mode count (modal_matrices)
     if n >= k:
         return None
     coarse, fine = sorted((own, companion), key=lambda b: b.n_unknowns)
-    alpha = _mass_proportional_rate(scaled_beam(fine, config, p))
-    if alpha is None:
-        return None
     m = min(coarse.n_unknowns, k)
     w2_f = lowest_modes(fine, n, vectors=False)
     w2 = (p["EI"] / p["rhoA"]) * extrapolated(w2_f, lowest_modes(coarse, min(n, m), vectors=False), coarse, fine, m)
