@@ -239,9 +239,9 @@ class UnitModes:
 
     @functools.cached_property
     def stiffness_excess(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """``(J, R_J)``: the unknowns ``J`` where ``K̃`` differs from the Kelvin–Voigt ``C̃`` (springs, elastic ends)
-        and ``K̃ − C̃`` on them, or ``None`` when more than :data:`~ebb_model.coupled_modes.MAX_RANK` do (axial load,
-        a foundation)."""
+        """``(J, R_J)``: the unknowns ``J`` where ``K̃`` differs from the Kelvin–Voigt ``C̃`` (springs to ground; an
+        elastic end's springs enter both through the same ghost rows) and ``K̃ − C̃`` on them, or ``None`` when more
+        than :data:`~ebb_model.coupled_modes.MAX_RANK` do (axial load, a foundation)."""
         return _excess(self.fine.K, self.fine.K - self.fine.C)
 
     @functools.cached_property
@@ -386,7 +386,6 @@ class FamilyModes:
         diagonal, d = is_diagonal(self.damping, rtol=rtol)
         return d if diagonal else None
 
-
     def low_rank_damping(self) -> LowRankDamping | None:
         """The modal damping as ``diag(d⁰) + G E Gᵀ`` (:mod:`ebb_model.coupled_modes`), or ``None``.
 
@@ -398,18 +397,16 @@ class FamilyModes:
         a foundation with Kelvin–Voigt damping): the caller decides on the matrix."""
         a, b = self._damping_weights()
         unit = self.unit
-        parts = []
-        for w, excess in ((a, "mass_excess"), (b, "stiffness_excess")):
-            if w != 0.0:
-                found = getattr(unit, excess)
-                if found is None:
-                    return None
-                parts.append((w, found))
-        rows = np.unique(np.concatenate([J for _, (J, _) in parts] + [np.zeros(0, dtype=np.intp)]))
+        nothing = (np.zeros(0, dtype=np.intp), np.zeros((0, 0)))      # a term with no weight leaves nothing out
+        masses = unit.mass_excess if a != 0.0 else nothing
+        springs = unit.stiffness_excess if b != 0.0 else nothing
+        if masses is None or springs is None:
+            return None
+        rows = np.union1d(masses[0], springs[0])
         if rows.size > MAX_RANK:
             return None
         E = np.zeros((rows.size, rows.size))
-        for w, (J, R) in parts:
+        for w, (J, R) in ((a, masses), (b, springs)):
             at = np.searchsorted(rows, J)
             E[np.ix_(at, at)] -= w * R
         return LowRankDamping(a + b * unit.fine_frequencies2, unit.shapes[rows].T.copy(), E)
