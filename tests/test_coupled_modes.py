@@ -52,6 +52,12 @@ def test_low_rank_route_equals_the_dense_eigenproblem(name):
     mm = modal_matrices(cfg, cfg.parameter_values())
     assert mm.damping is None and mm.low_rank is not None        # coupled, and the structure was recognised
     assert mm.low_rank.G.shape[1] == sum(1 if abs(x * 41 - round(x * 41)) < 1e-9 else 2 for x, _ in MASSES[name])
+    _equals_the_dense_route(cfg, mm)
+
+
+def _equals_the_dense_route(cfg: em.BeamConfig, mm) -> np.ndarray:
+    """The structured ``C_m``, poles and transfer function against ``ΨᵀCΨ`` and ``eig`` of the dense state matrix
+    (budgets of :func:`test_low_rank_route_equals_the_dense_eigenproblem`); the structured route's poles."""
     dense_Cm = mm.shapes.T @ discretised_C(cfg) @ mm.shapes
     # the structured C_m is Ψᵀ C Ψ with Ψᵀ M Ψ = I taken as exact: equal to the modes' orthogonality round-off
     np.testing.assert_allclose(mm.Cm, 0.5 * (dense_Cm + dense_Cm.T), rtol=0, atol=1e-10 * np.abs(mm.Cm).max())
@@ -68,6 +74,7 @@ def test_low_rank_route_equals_the_dense_eigenproblem(name):
         H = V[:k] @ (B / (z - lam)[:, None])
         H_dense = V_dense[:k] @ (B_dense / (z - s_dense)[:, None])
         assert np.abs(H - H_dense).max() <= tol * np.abs(H_dense).max(), (f, np.abs(H - H_dense).max())
+    return lam
 
 
 #: Kelvin–Voigt damping (ζ 0.2–2 % over the first modes) with viscous damping or alone, without axial load: the
@@ -89,26 +96,15 @@ def test_kelvin_voigt_damping_with_attachments_is_low_rank(name):
     cfg = beam(**({"N": 0.0, "eta": 1e-4} | KELVIN_VOIGT[name]))
     mm = modal_matrices(cfg, cfg.parameter_values())
     assert mm.damping is None and mm.low_rank is not None and 1 <= mm.low_rank.rank <= 4
-    dense_Cm = mm.shapes.T @ discretised_C(cfg) @ mm.shapes
-    np.testing.assert_allclose(mm.Cm, 0.5 * (dense_Cm + dense_Cm.T), rtol=0, atol=1e-10 * np.abs(mm.Cm).max())
-    lam, V, B = cmod.coupled_modes(mm.frequencies2, mm.low_rank, mm.Fm)
+    lam = _equals_the_dense_route(cfg, mm)
     assert np.count_nonzero(lam.imag == 0) >= 2        # the stiffest modes overdamped: both real roots found
-    s_dense, V_dense = np.linalg.eig(modal_state_matrix(mm.frequencies2, mm.Cm))
-    B_dense = np.linalg.solve(V_dense, np.vstack([np.zeros_like(mm.Fm), mm.Fm]))
-    tol = 100 * np.finfo(float).eps * basis_condition(V_dense)
-    np.testing.assert_allclose(_sorted(lam), _sorted(s_dense), rtol=tol)
-    k = mm.frequencies2.size
-    for f in (1.0, 7.0, 40.0, 300.0):
-        z = 2j * np.pi * f
-        H = V[:k] @ (B / (z - lam)[:, None])
-        H_dense = V_dense[:k] @ (B_dense / (z - s_dense)[:, None])
-        assert np.abs(H - H_dense).max() <= tol * np.abs(H_dense).max(), (f, np.abs(H - H_dense).max())
     # and the realisation simulates the Van Loan exponential's outputs (budget of the simulation test below)
     u = band_limited_input(1500, 5e-4, 2.0, 150.0, seed=9)
     p = cfg.parameter_values()
     y_modal = em.simulate(exact_modal(cfg, p), u).outputs
     y_dense = em.simulate(exact_statespace(cfg, p), u).outputs
     err = np.abs(y_dense - y_modal).max(axis=0) / np.abs(y_modal).max(axis=0)
+    V = cmod.coupled_modes(mm.frequencies2, mm.low_rank, mm.Fm)[1]
     assert np.all(err < max(10 * np.finfo(float).eps * basis_condition(V), 1e-12)), err
 
 
