@@ -91,7 +91,7 @@ MAX_MASS_RATIO = 1e12
 MAX_SPRING_RATIO = 1e12
 
 __all__ = ["SemiDiscreteBeam", "discretise", "grid_nodes", "hat_weights", "rotary_mass", "cell_stiffness",
-           "check_attachments", "load_rows", "control_lengths", "assemble_matrices"]
+           "check_attachments", "load_rows", "control_lengths", "unknown_nodes", "assemble_matrices"]
 
 
 @dataclass(frozen=True)
@@ -340,6 +340,12 @@ def control_lengths(n: int, h: float, left: End, right: End) -> np.ndarray:
     return V
 
 
+def unknown_nodes(n: int, left: End, right: End) -> np.ndarray:
+    """The unknown nodes of a grid of ``n`` interior points (``0 … n + 1``): the interior ones, and an end node
+    whose translation is not fixed."""
+    return np.arange(1 if left.translation_fixed else 0, (n if right.translation_fixed else n + 1) + 1)
+
+
 @dataclass(frozen=True, eq=False)
 class _Operators:
     """What :func:`assemble_matrices` needs of a grid besides the parameter values: the ``unknown`` nodes, their
@@ -359,9 +365,7 @@ def _operators(key: tuple) -> _Operators:
     read them, so they are shared across those values too)."""
     length, n, left, right, segments, EI, N = key
     h = length / (n + 1)
-    first = 1 if left.translation_fixed else 0
-    last = n if right.translation_fixed else n + 1
-    unknown = np.arange(first, last + 1)
+    unknown = unknown_nodes(n, left, right)
     E = _extension(n, h, 1.0 if EI is None else EI, 0.0 if N is None else N, left, right, unknown)
     rows = unknown + 2
     ghost = np.array([0, 1, n + 4, n + 5])     # the ghost nodes -2, -1, n+2, n+3 on the extended numbering

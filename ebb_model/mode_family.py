@@ -36,13 +36,14 @@ from .config import BeamConfig
 from .coupled_modes import MAX_RANK, LowRankDamping
 from .few_modes import inverse_eigenvalues
 from .memo import memoised
+from .mode_continuation import PANEL_DEGREE, Panel, chebyshev_panel, panel_index
 from .modal_form import DIAGONAL_RTOL, is_diagonal, off_diagonal_magnitude
 from .discretisation import (SemiDiscreteBeam, assemble_matrices, check_attachments, control_lengths, grid_nodes,
-                             load_rows)
+                             load_rows, unknown_nodes)
 
 __all__ = ["companion_nodes", "companion_config", "refined_config", "lowest_modes", "richardson_modes",
            "extrapolated", "FamilyKey", "family_key", "UnitModes", "unit_pair", "unit_modes", "scaled_beam",
-           "check_pair", "FamilyModes", "family_modes"]
+           "check_pair", "FamilyModes", "family_modes", "continuation_stem", "continuation_panel"]
 
 #: Largest refined grid: the eigen-solver's round-off grows with the stiffness matrix's condition number
 #: (``∝ n⁴``: 4e7 at 199 nodes), and beyond this it shows as noise in the identification's difference
@@ -208,11 +209,29 @@ class UnitModes:
     shapes: np.ndarray
     #: the ``ω̃²`` of the ``fine`` grid itself, as many (``ψ̃ᵀ K̃ ψ̃``)
     fine_frequencies2: np.ndarray
-    fine: SemiDiscreteBeam
+    #: the family
+    key: FamilyKey
     #: ``V`` the fine grid's control lengths
     lengths: np.ndarray
     #: ``M̃ = diag(V)`` exactly (no point masses, no rotary inertia): viscous damping alone is mass-proportional
     viscous_is_mass: bool
+    #: the ``fine`` unit beam when the decomposition built it, else ``None`` (built when first read)
+    built: SemiDiscreteBeam | None = field(default=None, repr=False)
+
+    @functools.cached_property
+    def fine(self) -> SemiDiscreteBeam:
+        """The finer grid's unit beam (:func:`_unit_beam`)."""
+        return self.built if self.built is not None else _unit_beam(self.key, _fine_nodes(self.key))
+
+    @functools.cached_property
+    def x(self) -> np.ndarray:
+        """The finer grid's nodes, ends included."""
+        return _read_only(grid_nodes(self.key.length, _fine_nodes(self.key)))
+
+    @functools.cached_property
+    def unknown(self) -> np.ndarray:
+        """The finer grid's unknown nodes (:func:`~ebb_model.discretisation.unknown_nodes`)."""
+        return _read_only(unknown_nodes(_fine_nodes(self.key), self.key.left, self.key.right))
 
     @functools.cached_property
     def viscous(self) -> np.ndarray:
@@ -234,7 +253,10 @@ class UnitModes:
     @functools.cached_property
     def mass_excess(self) -> tuple[np.ndarray, np.ndarray] | None:
         """``(J, R_J)``: the unknowns ``J`` where ``M̃`` differs from ``diag(V)`` (the point masses) and ``M̃ − diag(V)``
-        on them, or ``None`` when more than :data:`~ebb_model.coupled_modes.MAX_RANK` do (rotary inertia)."""
+        on them, or ``None`` when more than :data:`~ebb_model.coupled_modes.MAX_RANK` do (rotary inertia).  Nothing
+        when :attr:`viscous_is_mass` (``M̃`` is assembled as ``diag(V)`` then)."""
+        if self.viscous_is_mass:
+            return _read_only(np.zeros(0, dtype=np.intp)), _read_only(np.zeros((0, 0)))
         return _excess(self.fine.M, self.fine.M - np.diag(self.lengths))
 
     @functools.cached_property
@@ -296,16 +318,87 @@ def unit_pair(key: FamilyKey) -> tuple[SemiDiscreteBeam, SemiDiscreteBeam]:
     return _unit_beam(key, key.nodes), _unit_beam(key, companion_nodes(key.nodes))
 
 
+def _direct_modes(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(ω²_R, ω²_f, Ψ)`` of the family ``key`` by the Richardson pair's eigen-decompositions (not memoised)."""
+    own, companion = _unit_beam(key, key.nodes), _unit_beam(key, companion_nodes(key.nodes))
+    coarse, fine = sorted((own, companion), key=lambda b: b.n_unknowns)
+    return _richardson(coarse, fine, own.n_unknowns)
+
+
+def _fine_nodes(key: FamilyKey) -> int:
+    """Interior nodes of the finer grid of ``key``'s Richardson pair."""
+    return max(key.nodes, companion_nodes(key.nodes))
+
+
+def _lengths(key: FamilyKey, nodes: int) -> np.ndarray:
+    """The control lengths ``V`` of ``key``'s beam on ``nodes`` interior points (read-only)."""
+    return _read_only(control_lengths(nodes, key.length / (nodes + 1), key.left, key.right))
+
+
+#: Largest panel (:mod:`ebb_model.mode_continuation`) in bytes: beyond it (a finer grid of about 400 unknowns) a
+#: family is solved directly at every ``U``.
+_MAX_PANEL_BYTES = 16 * 2 ** 20
+
+
+def continuation_stem(key: FamilyKey) -> FamilyKey | None:
+    """``key`` without its axial load and foundation (``N = k_f = 0``) when its modes are continued in ``U``
+    (:mod:`ebb_model.mode_continuation`: no point masses or springs, no weak segments, no rotary inertia, each
+    end's springs zero or rigid, a panel within :data:`_MAX_PANEL_BYTES`), else ``None``."""
+    if key.masses or key.springs or key.segments or key.rhoI != 0.0:
+        return None
+    if any(k not in (0.0, math.inf) for e in (key.left, key.right) for k in (e.kt, e.kr)):
+        return None
+    fine = _fine_nodes(key)
+    if 8 * (PANEL_DEGREE + 1) * (fine + 2) * key.nodes > _MAX_PANEL_BYTES:
+        return None
+    return replace(key, N=0.0, kf=0.0)
+
+
+@memoised
+def continuation_panel(where: tuple[FamilyKey, int]) -> Panel | None:
+    """The Chebyshev panel (:func:`~ebb_model.mode_continuation.chebyshev_panel`) of the stem
+    (:func:`continuation_stem`) and panel index ``where``, or ``None`` when it is refused (memoised per process)."""
+    stem, index = where
+    L2 = stem.length ** 2
+    return chebyshev_panel(lambda U: _direct_modes(replace(stem, N=U / L2)), index,
+                           _lengths(stem, _fine_nodes(stem)))
+
+
+def _continued(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``(ω²_R, ω²_f, Ψ)`` of ``key`` from its stem's panel (at ``U = 0``, a panel point, the stem's own modes),
+    shifted by the foundation's ``k_f/EI``; ``None`` when ``key`` is solved directly (not continued, a refused
+    panel, or the stem itself)."""
+    stem = continuation_stem(key)
+    if stem is None:
+        return None
+    U = key.N * key.length ** 2
+    if U == 0.0:
+        if key.kf == 0.0:
+            return None
+        base = unit_modes(stem)
+        w2, w2_f, psi = base.frequencies2, base.fine_frequencies2, base.shapes
+    else:
+        panel = continuation_panel((stem, panel_index(U)))
+        if panel is None:
+            return None
+        w2, w2_f, psi = panel.at(U)
+    return w2 + key.kf, w2_f + key.kf, psi
+
+
 @memoised
 def unit_modes(key: FamilyKey) -> UnitModes:
-    """The Richardson modes of the family ``key``'s unit beam (memoised per process; module docstring)."""
-    own, companion = unit_pair(key)
-    coarse, fine = sorted((own, companion), key=lambda b: b.n_unknowns)
-    w2, w2_f, psi = _richardson(coarse, fine, own.n_unknowns)
-    nodes = fine.x.size - 2
-    V = _read_only(control_lengths(nodes, key.length / (nodes + 1), key.left, key.right))
-    return UnitModes(_read_only(w2), _read_only(psi), _read_only(w2_f), fine, V, not key.masses and key.rhoI == 0.0)
-
+    """The Richardson modes of the family ``key``'s unit beam (memoised per process; module docstring), continued
+    from a panel in ``U`` where :func:`continuation_stem` allows (:mod:`ebb_model.mode_continuation`)."""
+    continued = _continued(key)
+    if continued is None:
+        own, companion = unit_pair(key)
+        coarse, fine = sorted((own, companion), key=lambda b: b.n_unknowns)
+        w2, w2_f, psi = _richardson(coarse, fine, own.n_unknowns)
+    else:
+        w2, w2_f, psi = continued
+        fine = None
+    return UnitModes(_read_only(w2), _read_only(psi), _read_only(w2_f), key, _lengths(key, _fine_nodes(key)),
+                     not key.masses and key.rhoI == 0.0, fine)
 
 
 def scaled_beam(unit: SemiDiscreteBeam, config: BeamConfig, p: Mapping[str, float],
@@ -347,8 +440,8 @@ class FamilyModes:
     @functools.cached_property
     def loads(self) -> tuple[np.ndarray, np.ndarray]:
         """``(F, S)``: the actuators' load columns and the sensors' rows on the finer grid."""
-        fine = self.unit.fine
-        return load_rows(self.config, fine.x.size - 2, fine.unknown)
+        unit = self.unit
+        return load_rows(self.config, unit.x.size - 2, unit.unknown)
 
     @functools.cached_property
     def beam(self) -> SemiDiscreteBeam:

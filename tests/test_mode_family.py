@@ -17,8 +17,9 @@ import ebb_model as em
 from ebb_model.config_validation import config_from_dict
 from ebb_model.discretisation import discretise
 from ebb_model.exact_modal import exact_modal, modal_matrices
-from ebb_model.mode_family import (companion_config, family_key, family_modes, richardson_modes,
-                                   unit_modes, unit_pair)
+from ebb_model.mode_continuation import PANEL_DEGREE, chebyshev_points, panel_index
+from ebb_model.mode_family import (companion_config, continuation_panel, continuation_stem, family_key, family_modes,
+                                   richardson_modes, unit_modes, unit_pair)
 from ebb_model.parameter_values import resolve_parameters
 
 from conftest import make_config
@@ -55,6 +56,8 @@ def _bench(kind: str):
 
 BENCHES = ("clamped, tension", "cantilever", "pinned, compression", "point mass", "spring", "elastic end",
            "120 nodes", "weak segment", "rotary inertia")
+#: the benches whose modes are continued in U (no attachments, N ≠ 0: :func:`ebb_model.mode_family.continuation_stem`)
+CONTINUED = ("clamped, tension", "pinned, compression", "120 nodes")
 
 
 def _rescaled(cfg, f: float):
@@ -96,6 +99,15 @@ def _deviation(a, b):
     return float(np.max(np.abs(w_a / w_b - 1))), float(np.max(np.abs(r_a - r_b) / scale))
 
 
+def _lebesgue_constant() -> float:
+    """``Λ = max Σ|ℓ_j|`` of a continuation panel's Chebyshev points (:mod:`ebb_model.mode_continuation`)."""
+    nodes, w = chebyshev_points(0.0, 1.0, PANEL_DEGREE)
+    x = np.linspace(0.0, 1.0, 4001)
+    x = x[np.min(np.abs(x[:, None] - nodes[None, :]), axis=1) > 1e-9]
+    c = w[None, :] / (x[:, None] - nodes[None, :])
+    return float(np.max(np.sum(np.abs(c), axis=1) / np.abs(np.sum(c, axis=1))))
+
+
 @pytest.mark.parametrize("kind", BENCHES)
 def test_the_family_is_the_direct_decomposition_to_its_own_round_off(kind):
     cfg = _bench(kind)
@@ -103,11 +115,20 @@ def test_the_family_is_the_direct_decomposition_to_its_own_round_off(kind):
     spread = np.max([_deviation((w, r * f), direct)
                      for f in NULL_FACTORS for w, r in [_direct(_rescaled(cfg, f))]], axis=0)
     unit_modes.cache_clear()
+    continuation_panel.cache_clear()
+    key = family_key(cfg, resolve_parameters(cfg))
+    continued = continuation_stem(key) is not None and key.N != 0.0 and \
+        continuation_panel((continuation_stem(key), panel_index(key.N * key.length ** 2))) is not None
     family = _deviation(_family(cfg), direct)
     # budget: the family is one more rounding of the same problem (its unit matrices, then the scaling); measured
-    # at most 1.03x the spread (cantilever residues 7.9e-8 against 7.7e-8), most cases 0.1–0.9x
-    assert family[0] <= 2.0 * spread[0], (kind, family, spread)
-    assert family[1] <= 2.0 * spread[1], (kind, family, spread)
+    # at most 1.03x the spread (cantilever residues 7.9e-8 against 7.7e-8), most cases 0.1–0.9x.  Continued in U,
+    # it is a combination Σ ℓ_j(U) of direct solves at the panel's points, each off by the direct route's round-off
+    # ε: |continued − direct| ≤ (Λ + 1) ε, Λ = max Σ|ℓ_j| = 2.42 (measured: 2.2x the spread on the clamped beam in
+    # tension, whose residues' spread is the direct solve's noise as well)
+    factor = 2.0 * (_lebesgue_constant() + 1.0) if continued else 2.0
+    assert (kind in CONTINUED) == continued
+    assert family[0] <= factor * spread[0], (kind, family, spread)
+    assert family[1] <= factor * spread[1], (kind, family, spread)
 
 
 def _response(cfg, params, u):
@@ -160,6 +181,7 @@ def test_results_do_not_depend_on_what_came_before():
     after = _response(cfg, b, u)
     unit_modes.cache_clear()
     unit_pair.cache_clear()
+    continuation_panel.cache_clear()
     alone = _response(cfg, b, u)
     assert np.array_equal(after, alone)
 
