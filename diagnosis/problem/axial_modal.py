@@ -77,8 +77,23 @@ def _modal_load(z, vq_ptr, vq_idx, vq_val, Kg, Gm, dN0, ea_coef, eta, out):  # p
 
 
 @numba.njit(cache=True, nogil=True)
-def _kernel(E, a0, a1, Fu, bg_ptr, bg_idx, bg_val, vq_ptr, vq_idx, vq_val, Kg, Gm, Cz, D, Dg, u, dt, offset,
-            rate, ea_coef, y):  # pragma: no cover - compiled
+def _force_drive(k, drive, W, taps, u, c):  # pragma: no cover - compiled
+    """The measured force's drive of pole ``c`` over sample ``k``: ``Σ_j W_j (drive u[k + j])`` (``u`` constant
+    beyond the record), in the order of the taps."""
+    ns, ni = u.shape
+    acc = 0.0j
+    for t in range(taps.size):
+        kk = min(max(k + taps[t], 0), ns - 1)
+        f = 0.0j
+        for i in range(ni):
+            f += drive[c, i] * u[kk, i]
+        acc += W[t, c] * f
+    return acc
+
+
+@numba.njit(cache=True, nogil=True)
+def _kernel(E, a0, a1, drive, W, taps, bg_ptr, bg_idx, bg_val, vq_ptr, vq_idx, vq_val, Kg, Gm, Cz, D, Dg, u, dt,
+            offset, rate, ea_coef, y):  # pragma: no cover - compiled
     npole = E.shape[0]
     ns, ni = u.shape
     kp = Kg.shape[0]
@@ -106,7 +121,7 @@ def _kernel(E, a0, a1, Fu, bg_ptr, bg_idx, bg_val, vq_ptr, vq_idx, vq_val, Kg, G
             fg = 0.0j
             for p in range(bg_ptr[c], bg_ptr[c + 1]):
                 fg += bg_val[p] * g[bg_idx[p]]
-            base[c] = E[c] * z[c] + a0[c] * fg + Fu[k, c]
+            base[c] = E[c] * z[c] + a0[c] * fg + _force_drive(k, drive, W, taps, u, c)
             zn[c] = base[c] + a1[c] * fg            # predictor: g at the end of the sample = g at its start
         _modal_load(zn, vq_ptr, vq_idx, vq_val, Kg, Gm, offset + rate * ((k + 1) * dt), ea_coef, eta, g1)
         for c in range(npole):                       # corrector
@@ -162,18 +177,16 @@ def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None,
     if check_stability:
         check_stable(config, p, float(np.max(np.abs(E))) if E.size else 0.0)
     a0, a1 = phi0 - phi1, phi1                            # the modal load: straight line between samples
-    # the measured force's drive of every pole over each sample, with the config's input reconstruction
+    # the measured force's drive of every pole over each sample, with the config's input reconstruction (formed
+    # per sample in the kernel)
     _, W = input_weights(poles, dt, config.time.input_hold)
-    f = u @ drive.T                                       # (n, poles): the force in pole coordinates
-    n = f.shape[0]
-    Fu = np.zeros((max(n - 1, 0), f.shape[1]), dtype=complex)
-    for w, j in zip(W, INPUT_TAPS[config.time.input_hold]):   # u[k + j], constant beyond the record
-        Fu += w[None, :] * f[np.clip(np.arange(n - 1) + j, 0, n - 1)]
+    taps = np.array(INPUT_TAPS[config.time.input_hold], dtype=np.int64)
     Kg = psi.T @ geometric_stiffness(fine, p) @ psi
     Gm = psi.T @ stretch_matrix(fine) @ psi
     y = np.empty((u.shape[0], len(config.sensors)))
     _kernel(E.astype(np.complex128), a0.astype(np.complex128), a1.astype(np.complex128),
-            np.ascontiguousarray(Fu, dtype=np.complex128), *_rows(Bg), *_rows(Vq),
+            np.ascontiguousarray(drive, dtype=np.complex128), np.ascontiguousarray(W, dtype=np.complex128), taps,
+            *_rows(Bg), *_rows(Vq),
             np.ascontiguousarray(Kg), np.ascontiguousarray(Gm),
             np.ascontiguousarray(Cz, dtype=np.complex128), np.ascontiguousarray(D), np.ascontiguousarray(Dg),
             np.ascontiguousarray(u, dtype=float), float(dt), float(offset), float(rate),
