@@ -20,6 +20,12 @@ depends on which evaluations came before (a resumed run, another worker, compute
 with ``N`` known and no attached mass needs one decomposition for all its evaluations (the difference Jacobians'
 steps in ``EI``, ``ρA``, ``c``, ``η`` and positions included); :func:`family_modes` scales it and builds the
 finer grid's damping, load and sensor rows for the parameter set at hand.
+
+**The continuation.**  With ``N`` unknown every evaluation is a new member.  On a beam without attachments
+(:func:`continuation_stem`) the members differ only in ``U = N L²/EI`` and ``k_f/EI``: their modes are taken
+from a Chebyshev panel in ``U`` of the family without load (:func:`continuation_panel`,
+:mod:`ebb_model.mode_continuation`), shifted by ``k_f/EI``; a refused panel, ``U = 0`` and every other family are
+decomposed directly.
 """
 from __future__ import annotations
 

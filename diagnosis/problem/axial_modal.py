@@ -19,7 +19,7 @@ perturbation: ``O(dt²)`` in ``δN``'s effect, which is itself small; the linear
 exact).  Only the poles the modal load drives or reads run in that loop, with and without it; what it adds to
 the outputs is added to the time-invariant model's (:func:`ebb_model.simulate.fast_model`, the compiled
 recursion), so with ``δN ≡ 0`` the outputs are exactly the model's (outputs within 5e-15 of the loop over every
-pole; a third of its time on the blind bench).
+pole, in less than half its time on the blind bench).
 
 The perturbation acts on the modes below the Nyquist frequency (the ones a record at this ``dt``
 resolves); higher modes respond to the forces only.  A sensor's anti-alias filter (:mod:`ebb_model.antialias`)
