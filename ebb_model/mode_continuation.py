@@ -33,7 +33,7 @@ from typing import Callable
 import numpy as np
 
 __all__ = ["PANEL_WIDTH", "PANEL_DEGREE", "CHECK_FREQUENCIES", "CHECK_SHAPES", "SMALLEST_FREQUENCY", "Panel",
-           "panel_index", "chebyshev_points", "chebyshev_panel"]
+           "panel_index", "chebyshev_points", "lebesgue_constant", "chebyshev_panel"]
 
 #: Width of a panel in ``U = N L²/EI`` (the pinned–pinned beam's first mode moves by ``U/π²`` of itself).
 PANEL_WIDTH = 8.0
@@ -95,6 +95,16 @@ def chebyshev_points(a: float, b: float, degree: int) -> tuple[np.ndarray, np.nd
     weights = (-1.0) ** j
     weights[[0, -1]] *= 0.5
     return nodes, weights
+
+
+def lebesgue_constant(degree: int = PANEL_DEGREE) -> float:
+    """``Λ = max Σ|ℓ_j|`` over a panel of the Chebyshev points' Lagrange basis (:func:`chebyshev_points`): how
+    much the interpolant can magnify its points' round-off (2.42 for :data:`PANEL_DEGREE`)."""
+    nodes, w = chebyshev_points(0.0, 1.0, degree)
+    x = np.linspace(0.0, 1.0, 4001)
+    x = x[np.min(np.abs(x[:, None] - nodes[None, :]), axis=1) > 1e-9]
+    c = w[None, :] / (x[:, None] - nodes[None, :])
+    return float(np.max(np.sum(np.abs(c), axis=1) / np.abs(np.sum(c, axis=1))))
 
 
 def _aligned(psi: np.ndarray, reference: np.ndarray, lengths: np.ndarray) -> np.ndarray:

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 import ebb_model as em
-from ebb_model.mode_continuation import PANEL_DEGREE, PANEL_WIDTH, Panel, chebyshev_points, panel_index
+from ebb_model.mode_continuation import (PANEL_DEGREE, PANEL_WIDTH, Panel, chebyshev_points, lebesgue_constant,
+                                         panel_index)
 from ebb_model.mode_family import _direct_modes, continuation_panel, continuation_stem, family_key, unit_modes
 from ebb_model.parameter_values import resolve_parameters
 
@@ -46,14 +47,6 @@ def _errors(w2_f: np.ndarray, psi: np.ndarray, U: float, nodes: int) -> tuple[fl
             float(np.max(np.abs(psi - shapes) / np.max(np.abs(shapes), axis=0))))
 
 
-def _lebesgue_constant() -> float:
-    nodes, w = chebyshev_points(0.0, 1.0, PANEL_DEGREE)
-    x = np.linspace(0.0, 1.0, 4001)
-    x = x[np.min(np.abs(x[:, None] - nodes[None, :]), axis=1) > 1e-9]
-    c = w[None, :] / (x[:, None] - nodes[None, :])
-    return float(np.max(np.sum(np.abs(c), axis=1) / np.abs(np.sum(c, axis=1))))
-
-
 def test_the_interpolation_itself_is_exact_to_round_off():
     # the panel's interpolant built from the closed form (no eigen-solver): what the width and the degree leave,
     # far below the direct solve's round-off (1.7e-10 relative on this grid) that the test below allows
@@ -76,7 +69,7 @@ def test_continued_modes_are_as_close_to_the_closed_form_as_direct_ones(nodes):
     # at most Λ times the points' largest (Λ the Lebesgue constant, 2.42; measured up to 1.11x), and the
     # interpolation's own error is far below (test above)
     cfg = _pinned(nodes)
-    lam = _lebesgue_constant()
+    lam = lebesgue_constant()
     fine = 2 * nodes + 1
     for U in np.random.default_rng(nodes).uniform(-8.0, 40.0, 8):
         key = _key(cfg, N=float(U))

@@ -17,7 +17,7 @@ import ebb_model as em
 from ebb_model.config_validation import config_from_dict
 from ebb_model.discretisation import discretise
 from ebb_model.exact_modal import exact_modal, modal_matrices
-from ebb_model.mode_continuation import PANEL_DEGREE, chebyshev_points, panel_index
+from ebb_model.mode_continuation import lebesgue_constant, panel_index
 from ebb_model.mode_family import (companion_config, continuation_panel, continuation_stem, family_key, family_modes,
                                    richardson_modes, unit_modes, unit_pair)
 from ebb_model.parameter_values import resolve_parameters
@@ -99,15 +99,6 @@ def _deviation(a, b):
     return float(np.max(np.abs(w_a / w_b - 1))), float(np.max(np.abs(r_a - r_b) / scale))
 
 
-def _lebesgue_constant() -> float:
-    """``Λ = max Σ|ℓ_j|`` of a continuation panel's Chebyshev points (:mod:`ebb_model.mode_continuation`)."""
-    nodes, w = chebyshev_points(0.0, 1.0, PANEL_DEGREE)
-    x = np.linspace(0.0, 1.0, 4001)
-    x = x[np.min(np.abs(x[:, None] - nodes[None, :]), axis=1) > 1e-9]
-    c = w[None, :] / (x[:, None] - nodes[None, :])
-    return float(np.max(np.sum(np.abs(c), axis=1) / np.abs(np.sum(c, axis=1))))
-
-
 @pytest.mark.parametrize("kind", BENCHES)
 def test_the_family_is_the_direct_decomposition_to_its_own_round_off(kind):
     cfg = _bench(kind)
@@ -125,7 +116,7 @@ def test_the_family_is_the_direct_decomposition_to_its_own_round_off(kind):
     # it is a combination Σ ℓ_j(U) of direct solves at the panel's points, each off by the direct route's round-off
     # ε: |continued − direct| ≤ (Λ + 1) ε, Λ = max Σ|ℓ_j| = 2.42 (measured: 2.2x the spread on the clamped beam in
     # tension, whose residues' spread is the direct solve's noise as well)
-    factor = 2.0 * (_lebesgue_constant() + 1.0) if continued else 2.0
+    factor = 2.0 * (lebesgue_constant() + 1.0) if continued else 2.0
     assert (kind in CONTINUED) == continued
     assert family[0] <= factor * spread[0], (kind, family, spread)
     assert family[1] <= factor * spread[1], (kind, family, spread)
