@@ -324,11 +324,16 @@ def unit_pair(key: FamilyKey) -> tuple[SemiDiscreteBeam, SemiDiscreteBeam]:
     return _unit_beam(key, key.nodes), _unit_beam(key, companion_nodes(key.nodes))
 
 
+def _solve_pair(own: SemiDiscreteBeam, companion: SemiDiscreteBeam
+                ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], SemiDiscreteBeam]:
+    """``((ω²_R, ω²_f, Ψ), fine)``: the Richardson pair's eigen-decompositions and its finer beam."""
+    coarse, fine = sorted((own, companion), key=lambda b: b.n_unknowns)
+    return _richardson(coarse, fine, own.n_unknowns), fine
+
+
 def _direct_modes(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(ω²_R, ω²_f, Ψ)`` of the family ``key`` by the Richardson pair's eigen-decompositions (not memoised)."""
-    own, companion = _unit_beam(key, key.nodes), _unit_beam(key, companion_nodes(key.nodes))
-    coarse, fine = sorted((own, companion), key=lambda b: b.n_unknowns)
-    return _richardson(coarse, fine, own.n_unknowns)
+    return _solve_pair(_unit_beam(key, key.nodes), _unit_beam(key, companion_nodes(key.nodes)))[0]
 
 
 def _fine_nodes(key: FamilyKey) -> int:
@@ -397,9 +402,7 @@ def unit_modes(key: FamilyKey) -> UnitModes:
     from a panel in ``U`` where :func:`continuation_stem` allows (:mod:`ebb_model.mode_continuation`)."""
     continued = _continued(key)
     if continued is None:
-        own, companion = unit_pair(key)
-        coarse, fine = sorted((own, companion), key=lambda b: b.n_unknowns)
-        w2, w2_f, psi = _richardson(coarse, fine, own.n_unknowns)
+        (w2, w2_f, psi), fine = _solve_pair(*unit_pair(key))
     else:
         w2, w2_f, psi = continued
         fine = None
