@@ -42,7 +42,7 @@ import scipy.signal as ss
 from threadpoolctl import threadpool_limits
 
 import ebb_model as em
-from ebb_model.mode_family import companion_config, lowest_modes
+from ebb_model.richardson_pair import companion_config, lowest_modes
 from ebb_model.recursion import compiled_recursion, one_tap_form
 
 from figures import add_json_argument, write_figures  # benchmarks/figures.py

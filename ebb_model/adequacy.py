@@ -39,7 +39,7 @@ def refined_grid(config: BeamConfig) -> BeamConfig:
     """``config`` on a finer grid: θ-scheme twice the intervals (``2n + 1`` nodes) and twice the sub-steps;
     exact scheme four times (``4n + 3`` nodes), so that its Richardson pair of grids is a finer pair too
     (``2n + 1`` alone would pair with the config's own grid again, see
-    :func:`ebb_model.mode_family.companion_config`)."""
+    :func:`ebb_model.richardson_pair.companion_config`)."""
     n = config.beam.nodes
     if config.time.scheme == "theta":
         return replace(config, beam=replace(config.beam, nodes=2 * n + 1),

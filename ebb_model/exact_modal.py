@@ -7,7 +7,7 @@ error (``ω τ``-dependent).  On lightly damped accelerometer records either is 
 seed's spatial discretisation (same grid, ghost nodes, matrices):
 
 1. **Space, Richardson over two grids.**  The FD beam is discretised on the config's grid (``h``) and on
-   a grid with half the spacing (:func:`~ebb_model.mode_family.companion_config`; twice the spacing for
+   a grid with half the spacing (:func:`~ebb_model.richardson_pair.companion_config`; twice the spacing for
    configs above 100 nodes, whose refined grid would be too ill-conditioned).  The eigenvalues ``ω_i²`` of the
    undamped problems converge as ``h²``, so ``(4 ω_i²(h/2) − ω_i²(h)) / 3`` is ``O(h⁴)``; the mode shapes (at
    the sensors and actuators) and the modal damping come from the finer grid.  The model keeps as many modes

@@ -6,7 +6,7 @@ yardstick of a grid is not the relative frequency error but the error in bandwid
 it is below :data:`BANDWIDTH_FRACTION`.
 
 Errors are measured against a reference of the same model family that is far more accurate: the
-Richardson-extrapolated undamped modes (:func:`ebb_model.mode_family.richardson_modes`) on grids of ``2R + 1``
+Richardson-extrapolated undamped modes (:func:`ebb_model.richardson_pair.richardson_modes`) on grids of ``2R + 1``
 and ``4R + 3`` nodes, ``R = max(n, 250)`` (fourth order in ``h``: far below any θ-scheme grid's error, and
 below the exact scheme's up to about ``R`` nodes).  The model's own frequencies are
 
@@ -28,7 +28,8 @@ import numpy as np
 from .config import BeamConfig
 from .config_types import MAX_NODES
 from .discretisation import discretise
-from .mode_family import extrapolated, family_modes, lowest_modes
+from .mode_family import family_modes
+from .richardson_pair import extrapolated, lowest_modes
 from .modal import discrete_frequencies
 from .parameter_values import resolve_parameters
 

@@ -25,7 +25,8 @@ import numpy as np
 from .config import BeamConfig
 from .coupled_modes import coupled_poles
 from .exact_modal import modal_matrices, modal_state_matrix
-from .mode_family import check_pair, extrapolated, family_key, lowest_modes, unit_pair
+from .mode_family import check_pair, family_key, unit_pair
+from .richardson_pair import extrapolated, lowest_modes
 from .parameter_values import resolve_parameters
 
 __all__ = ["modal_poles"]

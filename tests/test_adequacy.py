@@ -49,7 +49,7 @@ def test_the_exact_scheme_gap_is_not_numerical(noisy_record):
 
 def test_refinement_is_a_genuinely_finer_pair_of_grids():
     """For the exact scheme the refined config's Richardson pair must not be the original pair again."""
-    from ebb_model.mode_family import companion_config
+    from ebb_model.richardson_pair import companion_config
 
     case = CASES["cantilever-mixed"]
     for nodes in (20, 60, 120):

@@ -131,7 +131,7 @@ def test_kelvin_voigt_damping_without_what_it_leaves_out_is_decoupled(what):
 def discretised_C(cfg: em.BeamConfig) -> np.ndarray:
     """The damping matrix on the grid the modes' shapes live on (the refined one of the Richardson pair)."""
     from ebb_model.discretisation import discretise
-    from ebb_model.mode_family import refined_config
+    from ebb_model.richardson_pair import refined_config
     return discretise(refined_config(cfg), cfg.parameter_values()).C
 
 
@@ -203,7 +203,7 @@ def test_mass_proportional_damping_near_buckling_is_decoupled():
     eigenvectors of the nearly singular ``K``), which sent every evaluation of the rig family's compressed bench
     through the dense eigenproblem.  Decoupled, it simulates the outputs of the matrix exponential."""
     from ebb_model.discretisation import discretise
-    from ebb_model.mode_family import refined_config
+    from ebb_model.richardson_pair import refined_config
     from ebb_model.modal_form import is_proportional
 
     cfg = make_config("pinned", "pinned", nodes=60, dt=5e-4, EI=11.2, rhoA=0.9, c=2.3, N=-43.0,

@@ -10,7 +10,8 @@ import scipy.linalg as sla
 
 from conftest import make_config
 from ebb_model.few_modes import MAX_BANDWIDTH, _bandwidth, _cholesky, inverse_eigenvalues
-from ebb_model.mode_family import family_key, lowest_modes, unit_pair
+from ebb_model.mode_family import family_key, unit_pair
+from ebb_model.richardson_pair import lowest_modes
 from ebb_model.parameter_values import resolve_parameters
 
 

@@ -2,7 +2,7 @@
 
 Independent truth here is the direct route the family replaces: the Richardson pair's eigen-decomposition of the
 beam discretised with the parameter set's own values (:func:`ebb_model.discretisation.discretise`,
-:func:`ebb_model.mode_family.richardson_modes`).  The two are different roundings of the same problem, so their
+:func:`ebb_model.richardson_pair.richardson_modes`).  The two are different roundings of the same problem, so their
 difference is held to the direct route's own round-off, measured in each test by re-solving it with every
 stiffness and mass scaled by a factor a few ulps from one (the same physics: the same ``ω²``, ``Ψ/√f``).
 """
@@ -18,8 +18,9 @@ from ebb_model.config_validation import config_from_dict
 from ebb_model.discretisation import discretise
 from ebb_model.exact_modal import exact_modal, modal_matrices
 from ebb_model.mode_continuation import lebesgue_constant, panel_index
-from ebb_model.mode_family import (companion_config, continuation_panel, continuation_stem, family_key, family_modes,
-                                   richardson_modes, unit_modes, unit_pair)
+from ebb_model.mode_family import (continuation_panel, continuation_stem, family_key, family_modes, unit_modes,
+                                   unit_pair)
+from ebb_model.richardson_pair import companion_config, richardson_modes
 from ebb_model.parameter_values import resolve_parameters
 
 from conftest import make_config

@@ -46,7 +46,7 @@ from ebb_model.discretisation import discretise
 from ebb_model.errors import StabilityError
 from ebb_model.exact_modal import continuous_modes
 from ebb_model.sample_integrals import INPUT_TAPS, input_weights, pole_integrals
-from ebb_model.mode_family import refined_config
+from ebb_model.richardson_pair import refined_config
 from ebb_model.parameter_values import resolve_parameters
 from ebb_model.simulate import fast_model, simulate
 
