@@ -178,43 +178,38 @@ MAX_BASIS_CONDITION = 1e10
 def _real_eigenbasis(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Real 2×2 blocks (nb, 2, 2) and basis ``W`` with ``A W = W blockdiag(T)``, from ``eig(A)``.
 
+    LAPACK's ``geev`` returns each complex pair as two adjacent, exactly conjugate eigenvalues: each gives a
+    rotation block ``[[a, b], [−b, a]]`` (``a + ib`` the one with positive imaginary part) on the real and imaginary
+    parts of its eigenvector, in the order found; then the real eigenvalues (``|Im| ≤ 1e-13`` of the largest
+    modulus), two by two in a diagonal block each.
+
     Raises
     ------
     numpy.linalg.LinAlgError
-        If the eigenvalues cannot be paired into real blocks.
+        If the eigenvalues cannot be paired into real blocks (a complex one without its conjugate beside it, or an
+        odd number of real ones).
     """
     lam, V = np.linalg.eig(A)
     n = lam.size
-    used = np.zeros(n, dtype=bool)
-    cols: list[np.ndarray] = []
-    blocks: list[np.ndarray] = []
-    reals: list[int] = []
     tol = 1e-13 * max(1.0, float(np.max(np.abs(lam), initial=0.0)))
-    for i in range(n):
-        if used[i]:
-            continue
-        if abs(lam[i].imag) <= tol:
-            reals.append(i)
-            used[i] = True
-            continue
-        # find its conjugate partner
-        cand = np.where(~used & (np.abs(lam - np.conj(lam[i])) <= 1e3 * tol))[0]
-        cand = cand[cand != i]
-        if cand.size == 0:
-            raise np.linalg.LinAlgError("complex eigenvalue without conjugate partner")
-        j = cand[0]
-        used[i] = used[j] = True
-        lr = lam[i] if lam[i].imag > 0 else lam[j]
-        v = V[:, i] if lam[i].imag > 0 else V[:, j]
-        cols += [v.real, v.imag]
-        blocks.append(np.array([[lr.real, lr.imag], [-lr.imag, lr.real]]))
-    if len(reals) % 2:
+    real = np.abs(lam.imag) <= tol
+    pairs, reals = np.flatnonzero(~real), np.flatnonzero(real)
+    first, second = pairs[0::2], pairs[1::2]
+    if first.size != second.size or np.any(second != first + 1) or np.any(lam[second] != np.conj(lam[first])):
+        raise np.linalg.LinAlgError("complex eigenvalue without conjugate partner")
+    if reals.size % 2:
         raise np.linalg.LinAlgError("odd number of real eigenvalues in an even-dimensional system")
-    for a, b in zip(reals[0::2], reals[1::2]):
-        cols += [V[:, a].real, V[:, b].real]
-        blocks.append(np.diag([lam[a].real, lam[b].real]))
-    W = np.column_stack(cols) if cols else np.zeros((n, 0))
-    return np.array(blocks).reshape(len(blocks), 2, 2), W
+    upper = np.where(lam[first].imag > 0, first, second)
+    a, b = reals[0::2], reals[1::2]
+    nc, nb = upper.size, upper.size + a.size
+    W = np.empty((n, 2 * nb))
+    W[:, 0:2 * nc:2], W[:, 1:2 * nc:2] = V[:, upper].real, V[:, upper].imag
+    W[:, 2 * nc::2], W[:, 2 * nc + 1::2] = V[:, a].real, V[:, b].real
+    T = np.zeros((nb, 2, 2))
+    lr = lam[upper]
+    T[:nc, 0, 0], T[:nc, 0, 1], T[:nc, 1, 0], T[:nc, 1, 1] = lr.real, lr.imag, -lr.imag, lr.real
+    T[nc:, 0, 0], T[nc:, 1, 1] = lam[a].real, lam[b].real
+    return T, W
 
 
 def basis_condition(W: np.ndarray) -> float:
