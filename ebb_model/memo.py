@@ -36,15 +36,27 @@ class MemoInfo:
     nbytes: int
 
 
+#: Types that hold no array (skipped at once by :func:`_nbytes`).
+_SCALARS = (int, float, str, bool, type(None))
+
+
 def _nbytes(value: Any) -> int:
-    """The bytes of the arrays in ``value`` (an array, a dataclass or a tuple of them)."""
-    if isinstance(value, np.ndarray):
-        return value.nbytes
-    if isinstance(value, tuple):
-        return sum(_nbytes(v) for v in value if not isinstance(v, str))
-    if hasattr(value, "__dataclass_fields__"):
-        return sum(_nbytes(getattr(value, f)) for f in value.__dataclass_fields__)
-    return 0
+    """The bytes of the arrays in ``value`` (an array, a dataclass or a tuple of them, nested; the fields of a
+    dataclass, not its cached properties)."""
+    total = 0
+    stack = [value]
+    while stack:
+        v = stack.pop()
+        kind = type(v)
+        if kind in _SCALARS:
+            continue
+        if isinstance(v, np.ndarray):
+            total += v.nbytes
+        elif isinstance(v, tuple):
+            stack.extend(v)
+        elif hasattr(kind, "__dataclass_fields__"):
+            stack.extend(getattr(v, f) for f in kind.__dataclass_fields__)
+    return total
 
 
 def memoised(fn: Callable[[K], T]) -> Callable[[K], T]:

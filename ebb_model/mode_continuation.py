@@ -85,7 +85,8 @@ class Panel:
             return self.frequencies2[i].copy(), self.fine_frequencies2[i].copy(), self.shapes[i].copy()
         c = self.weights / diff
         c /= c.sum()
-        return c @ self.frequencies2, c @ self.fine_frequencies2, np.tensordot(c, self.shapes, axes=1)
+        shapes = np.dot(c[None, :], self.shapes.reshape(c.size, -1)).reshape(self.shapes.shape[1:])  # tensordot's
+        return c @ self.frequencies2, c @ self.fine_frequencies2, shapes
 
 
 def chebyshev_points(a: float, b: float, degree: int) -> tuple[np.ndarray, np.ndarray]:

@@ -389,6 +389,9 @@ class FamilyModes:
         springs = unit.stiffness_excess if b != 0.0 else nothing
         if masses is None or springs is None:
             return None
+        if masses[0].size == 0 and springs[0].size == 0:      # C = α M + β K exactly: rank 0
+            return LowRankDamping(a + b * unit.fine_frequencies2, np.zeros((unit.shapes.shape[1], 0)),
+                                  np.zeros((0, 0)))
         rows = np.union1d(masses[0], springs[0])
         if rows.size > MAX_RANK:
             return None
