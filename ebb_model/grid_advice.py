@@ -91,7 +91,7 @@ def _reference_omega(config: BeamConfig, p: Mapping[str, float], k: int) -> np.n
     coarse = discretise(replace(config, beam=replace(config.beam, nodes=2 * n + 1)), p)
     fine = discretise(replace(config, beam=replace(config.beam, nodes=4 * n + 3)), p)
     # the values alone (no shapes: a few values by bisection on these large grids), the fade over the k modes
-    w2 = extrapolated(lowest_modes(fine, k, vectors=False), lowest_modes(coarse, k, vectors=False), coarse, fine, k)
+    w2 = extrapolated(lowest_modes(fine, k, vectors=False), lowest_modes(coarse, k, vectors=False), coarse.x, fine.x, k)
     return np.sqrt(np.abs(w2))
 
 

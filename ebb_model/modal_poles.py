@@ -103,7 +103,7 @@ def _mass_proportional_poles(config: BeamConfig, p: Mapping[str, float], n: int)
     coarse, fine = sorted((own, companion), key=lambda b: b.n_unknowns)
     m = min(coarse.n_unknowns, k)
     w2_f = lowest_modes(fine, n, vectors=False)
-    w2 = (p["EI"] / p["rhoA"]) * extrapolated(w2_f, lowest_modes(coarse, min(n, m), vectors=False), coarse, fine, m)
+    w2 = (p["EI"] / p["rhoA"]) * extrapolated(w2_f, lowest_modes(coarse, min(n, m), vectors=False), coarse.x, fine.x, m)
     if not (np.all(np.diff(w2) > 0) and w2[0] > 0 and alpha * alpha / 4 < w2[0]):
         return None
     s = -alpha / 2 + 1j * np.sqrt(w2 - alpha * alpha / 4)

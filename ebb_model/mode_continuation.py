@@ -33,7 +33,7 @@ from typing import Callable
 import numpy as np
 
 __all__ = ["PANEL_WIDTH", "PANEL_DEGREE", "CHECK_FREQUENCIES", "CHECK_SHAPES", "SMALLEST_FREQUENCY", "Panel",
-           "panel_index", "chebyshev_points", "lebesgue_constant", "chebyshev_panel"]
+           "panel_index", "chebyshev_points", "lebesgue_constant", "chebyshev_panel", "aligned", "positive"]
 
 #: Width of a panel in ``U = N L²/EI`` (the pinned–pinned beam's first mode moves by ``U/π²`` of itself).
 PANEL_WIDTH = 8.0
@@ -108,7 +108,7 @@ def lebesgue_constant(degree: int = PANEL_DEGREE) -> float:
     return float(np.max(np.sum(np.abs(c), axis=1) / np.abs(np.sum(c, axis=1))))
 
 
-def _aligned(psi: np.ndarray, reference: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+def aligned(psi: np.ndarray, reference: np.ndarray, lengths: np.ndarray) -> np.ndarray:
     """``psi`` with each column's sign that of ``reference``'s (by their ``diag(V)`` product)."""
     sign = np.where(np.einsum("ij,i,ij->j", reference, lengths, psi) < 0.0, -1.0, 1.0)
     return psi * sign
@@ -121,11 +121,11 @@ def _agree(interpolated: Modes, direct: Modes, lengths: np.ndarray) -> bool:
     for w_i, w_d in zip(interpolated[:2], direct[:2]):
         if np.max(np.abs(w_i / w_d - 1.0)) > CHECK_FREQUENCIES * scale:
             return False
-    psi_i, psi_d = interpolated[2], _aligned(direct[2], interpolated[2], lengths)
+    psi_i, psi_d = interpolated[2], aligned(direct[2], interpolated[2], lengths)
     return bool(np.max(np.abs(psi_i - psi_d) / np.max(np.abs(psi_d), axis=0)) <= CHECK_SHAPES * scale)
 
 
-def _positive(w2_f: np.ndarray) -> bool:
+def positive(w2_f: np.ndarray) -> bool:
     """Whether every ``ω²`` exceeds :data:`SMALLEST_FREQUENCY` of the largest."""
     return bool(np.min(w2_f) > SMALLEST_FREQUENCY * np.max(w2_f))
 
@@ -142,17 +142,17 @@ def chebyshev_panel(solve: Callable[[float], Modes], panel: int, lengths: np.nda
     w2, w2_f, psi = [], [], []
     for U in nodes:
         r, f, s = solve(float(U))
-        if not _positive(f):
+        if not positive(f):
             return None
         w2.append(r)
         w2_f.append(f)
-        psi.append(s if not psi else _aligned(s, psi[-1], lengths))
+        psi.append(s if not psi else aligned(s, psi[-1], lengths))
     out = Panel(nodes, weights, np.array(w2), np.array(w2_f), np.array(psi))
     for arr in (out.nodes, out.weights, out.frequencies2, out.fine_frequencies2, out.shapes):
         arr.setflags(write=False)
     middle = PANEL_DEGREE // 2
     for U in (0.5 * (nodes[0] + nodes[1]), 0.5 * (nodes[middle] + nodes[middle + 1])):
         direct = solve(float(U))
-        if not _positive(direct[1]) or not _agree(out.at(float(U)), direct, lengths):
+        if not positive(direct[1]) or not _agree(out.at(float(U)), direct, lengths):
             return None
     return out

@@ -35,16 +35,18 @@ import numpy as np
 
 from .beam import End, PointMass, PointSpring, WeakSegment
 from .config import BeamConfig
+from .attached_modes import Basis, BasisPanel, basis_panel, rank_one_modes
 from .coupled_modes import MAX_RANK, LowRankDamping
 from .memo import memoised
 from .mode_continuation import PANEL_DEGREE, Panel, chebyshev_panel, panel_index
 from .modal_form import DIAGONAL_RTOL, is_diagonal, off_diagonal_magnitude
-from .richardson_pair import companion_nodes, richardson_with_fine
+from .richardson_pair import companion_nodes, extrapolated, lowest_modes, richardson_with_fine
 from .discretisation import (SemiDiscreteBeam, assemble_matrices, check_attachments, control_lengths, grid_nodes,
-                             load_rows, unknown_nodes)
+                             hat_weights, load_rows, unknown_nodes)
 
 __all__ = ["FamilyKey", "family_key", "UnitModes", "unit_pair", "unit_modes", "scaled_beam",
-           "check_pair", "FamilyModes", "family_modes", "continuation_stem", "continuation_panel"]
+           "check_pair", "FamilyModes", "family_modes", "continuation_stem", "continuation_panel", "attachment",
+           "attached_panel"]
 
 
 @dataclass(frozen=True)
@@ -281,11 +283,79 @@ def _continued(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray] | No
     return w2 + key.kf, w2_f + key.kf, psi
 
 
+def attachment(key: FamilyKey) -> tuple[FamilyKey, str, float, float] | None:
+    """``(stem, kind, x, size)`` when ``key`` is a continued beam (:func:`continuation_stem`, the stem) with exactly
+    one point mass (``kind = "mass"``) or one spring (``"spring"``) of positive ``size`` at ``x`` added, whose modes
+    are then a rank-one update of the stem's (:mod:`ebb_model.attached_modes`); else ``None``."""
+    if len(key.masses) + len(key.springs) != 1:
+        return None
+    kind, x, size = ("mass", key.masses[0].x, key.masses[0].mass) if key.masses else \
+        ("spring", key.springs[0].x, key.springs[0].k)
+    if not size > 0.0:
+        return None
+    stem = continuation_stem(replace(key, masses=(), springs=()))
+    if stem is None or 8 * (PANEL_DEGREE + 1) * _fine_nodes(stem) ** 2 * 2 > _MAX_PANEL_BYTES:
+        return None
+    return stem, kind, x, size
+
+
+def _full_bases(key: FamilyKey) -> tuple[Basis, Basis]:
+    """Every mode of ``key``'s unit beam on the finer and on the coarser grid of its Richardson pair (direct)."""
+    own, companion = unit_pair(key)
+    coarse, fine = sorted((own, companion), key=lambda b: b.n_unknowns)
+    return Basis(*lowest_modes(fine, fine.n_unknowns)), Basis(*lowest_modes(coarse, coarse.n_unknowns))
+
+
+@memoised
+def attached_panel(where: tuple[FamilyKey, int]) -> BasisPanel | None:
+    """The full bases' Chebyshev panel (:func:`~ebb_model.attached_modes.basis_panel`) of the stem and panel index
+    ``where``, or ``None`` when it is refused (memoised per process)."""
+    stem, index = where
+    L2 = stem.length ** 2
+    grids = sorted((stem.nodes, companion_nodes(stem.nodes)), reverse=True)
+    return basis_panel(lambda U: _full_bases(replace(stem, N=U / L2)), index,
+                       (_lengths(stem, grids[0]), _lengths(stem, grids[1])),
+                       unknown_nodes(stem.nodes, stem.left, stem.right).size)
+
+
+def _attached(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``(ω²_R, ω²_f, Ψ)`` of ``key`` by the rank-one update of its stem's full bases (:func:`attachment`,
+    :mod:`ebb_model.attached_modes`), shifted by the foundation's ``k_f/EI``; ``None`` when ``key`` is decomposed
+    directly (no single attachment on a continued beam, a refused panel, coinciding poles)."""
+    found = attachment(key)
+    if found is None:
+        return None
+    stem, kind, x, size = found
+    U = key.N * key.length ** 2
+    panel = attached_panel((stem, panel_index(U)))
+    if panel is None:
+        return None
+    bases = panel.at(U)
+    (fine_nodes, coarse_nodes) = sorted((key.nodes, companion_nodes(key.nodes)), reverse=True)
+    n_modes = unknown_nodes(key.nodes, key.left, key.right).size
+    solved = []
+    for basis, nodes in zip(bases, (fine_nodes, coarse_nodes)):
+        unknown = unknown_nodes(nodes, key.left, key.right)
+        wanted = n_modes if nodes == fine_nodes else min(unknown.size, n_modes)
+        shifted = Basis(basis.frequencies2 + key.kf, basis.shapes)
+        solved.append(rank_one_modes(shifted, hat_weights(x, key.length, nodes)[unknown], kind, size, wanted,
+                                     nodes == fine_nodes))
+    fine, coarse = solved
+    if fine is None or fine[1] is None or coarse is None:
+        return None
+    w2 = extrapolated(fine[0], coarse[0], grid_nodes(key.length, coarse_nodes), grid_nodes(key.length, fine_nodes),
+                      coarse[0].size)
+    return w2, fine[0], fine[1]
+
+
 @memoised
 def unit_modes(key: FamilyKey) -> UnitModes:
     """The Richardson modes of the family ``key``'s unit beam (memoised per process; module docstring), continued
-    from a panel in ``U`` where :func:`continuation_stem` allows (:mod:`ebb_model.mode_continuation`)."""
+    from a panel in ``U`` where :func:`continuation_stem` allows (:mod:`ebb_model.mode_continuation`), updated from
+    a continued beam's full bases where :func:`attachment` allows (:mod:`ebb_model.attached_modes`)."""
     continued = _continued(key)
+    if continued is None:
+        continued = _attached(key)
     if continued is None:
         (w2, w2_f, psi), fine = _solve_pair(*unit_pair(key))
     else:

@@ -116,15 +116,16 @@ def richardson_with_fine(coarse: SemiDiscreteBeam, fine: SemiDiscreteBeam, n_mod
     """:func:`richardson_modes` with the fine grid's own ``ω²`` between them: ``(ω²_R, ω²_f, Ψ)``."""
     w2_f, psi = lowest_modes(fine, n_modes)
     m = min(coarse.n_unknowns, n_modes)
-    return extrapolated(w2_f, lowest_modes(coarse, m, vectors=False), coarse, fine, m), w2_f, psi
+    return extrapolated(w2_f, lowest_modes(coarse, m, vectors=False), coarse.x, fine.x, m), w2_f, psi
 
 
-def extrapolated(w2_f: np.ndarray, w2_c: np.ndarray, coarse: SemiDiscreteBeam, fine: SemiDiscreteBeam, m: int
+def extrapolated(w2_f: np.ndarray, w2_c: np.ndarray, coarse_x: np.ndarray, fine_x: np.ndarray, m: int
                  ) -> np.ndarray:
     """The Richardson values of :func:`richardson_modes` from the fine grid's lowest ``ω²`` (``w2_f``) and the
-    coarse grid's lowest ``w2_c`` (at most as many), ``m`` being how many the pair extrapolates (the fade's
-    scale): the lowest modes come out the same whether all or a few of them are computed."""
-    h_f, h_c = np.diff(fine.x[:2])[0], np.diff(coarse.x[:2])[0]
+    coarse grid's lowest ``w2_c`` (at most as many) on the grids of nodes ``coarse_x`` and ``fine_x``, ``m``
+    being how many the pair extrapolates (the fade's scale): the lowest modes come out the same whether all or a
+    few of them are computed."""
+    h_f, h_c = np.diff(fine_x[:2])[0], np.diff(coarse_x[:2])[0]
     j = w2_c.size
     weight = np.clip(2.0 * (1.0 - np.arange(j) / m), 0.0, 1.0)   # 1 for the lower half, fading to 0
     w2 = w2_f.copy()
