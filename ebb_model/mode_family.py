@@ -35,7 +35,7 @@ import numpy as np
 
 from .beam import End, PointMass, PointSpring, WeakSegment
 from .config import BeamConfig
-from .attached_modes import Basis, BasisPanel, basis_panel, rank_one_modes
+from .attached_modes import MAX_ATTACHMENTS, Basis, BasisPanel, basis_panel, updated_modes
 from .coupled_modes import MAX_RANK, LowRankDamping
 from .memo import memoised
 from .mode_continuation import PANEL_DEGREE, Panel, chebyshev_panel, panel_index
@@ -283,20 +283,18 @@ def _continued(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray] | No
     return w2 + key.kf, w2_f + key.kf, psi
 
 
-def attachment(key: FamilyKey) -> tuple[FamilyKey, str, float, float] | None:
-    """``(stem, kind, x, size)`` when ``key`` is a continued beam (:func:`continuation_stem`, the stem) with exactly
-    one point mass (``kind = "mass"``) or one spring (``"spring"``) of positive ``size`` at ``x`` added, whose modes
-    are then a rank-one update of the stem's (:mod:`ebb_model.attached_modes`); else ``None``."""
-    if len(key.masses) + len(key.springs) != 1:
-        return None
-    kind, x, size = ("mass", key.masses[0].x, key.masses[0].mass) if key.masses else \
-        ("spring", key.springs[0].x, key.springs[0].k)
-    if not size > 0.0:
+def attachment(key: FamilyKey) -> tuple[FamilyKey, tuple[tuple[str, float, float], ...]] | None:
+    """``(stem, changes)`` when ``key`` is a continued beam (:func:`continuation_stem`, the stem) with one or
+    :data:`~ebb_model.attached_modes.MAX_ATTACHMENTS` point masses or springs of positive size added — ``changes``
+    their ``(kind, x, size)``, ``kind`` ``"mass"`` or ``"spring"``, masses first —, whose modes are then rank-one
+    updates of the stem's (:mod:`ebb_model.attached_modes`); else ``None``."""
+    changes = tuple(("mass", m.x, m.mass) for m in key.masses) + tuple(("spring", k.x, k.k) for k in key.springs)
+    if not 1 <= len(changes) <= MAX_ATTACHMENTS or not all(size > 0.0 for _, _, size in changes):
         return None
     stem = continuation_stem(replace(key, masses=(), springs=()))
     if stem is None or 8 * (PANEL_DEGREE + 1) * _fine_nodes(stem) ** 2 * 2 > _MAX_PANEL_BYTES:
         return None
-    return stem, kind, x, size
+    return stem, changes
 
 
 def _full_bases(key: FamilyKey) -> tuple[Basis, Basis]:
@@ -319,13 +317,13 @@ def attached_panel(where: tuple[FamilyKey, int]) -> BasisPanel | None:
 
 
 def _attached(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """``(ω²_R, ω²_f, Ψ)`` of ``key`` by the rank-one update of its stem's full bases (:func:`attachment`,
+    """``(ω²_R, ω²_f, Ψ)`` of ``key`` by rank-one updates of its stem's full bases (:func:`attachment`,
     :mod:`ebb_model.attached_modes`), shifted by the foundation's ``k_f/EI``; ``None`` when ``key`` is decomposed
-    directly (no single attachment on a continued beam, a refused panel, coinciding poles)."""
+    directly (not one or two attachments on a continued beam, a refused panel, coinciding poles)."""
     found = attachment(key)
     if found is None:
         return None
-    stem, kind, x, size = found
+    stem, changes = found
     U = key.N * key.length ** 2
     panel = attached_panel((stem, panel_index(U)))
     if panel is None:
@@ -338,8 +336,8 @@ def _attached(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray] | Non
         unknown = unknown_nodes(nodes, key.left, key.right)
         wanted = n_modes if nodes == fine_nodes else min(unknown.size, n_modes)
         shifted = Basis(basis.frequencies2 + key.kf, basis.shapes)
-        solved.append(rank_one_modes(shifted, hat_weights(x, key.length, nodes)[unknown], kind, size, wanted,
-                                     nodes == fine_nodes))
+        solved.append(updated_modes(shifted, [(kind, size, hat_weights(x, key.length, nodes)[unknown])
+                                              for kind, x, size in changes], wanted, nodes == fine_nodes))
     fine, coarse = solved
     if fine is None or fine[1] is None or coarse is None:
         return None
