@@ -1,10 +1,10 @@
-r"""A beam with one point mass or one spring: its modes from the beam without it, by a rank-one update.
+r"""A beam with one or two point masses or springs: its modes from the beam without them, by rank-one updates.
 
 A point mass ``m`` or a spring to ground ``k`` at ``x`` adds ``m v vᵀ`` to ``M̃`` or ``k v vᵀ`` to ``K̃``
 (:mod:`ebb_model.discretisation`: ``v`` the hat weights of ``x`` over the unknowns).  With *every* mode of the
 beam without it (``K̃₀ Φ = M̃₀ Φ Λ``, ``ΦᵀM̃₀Φ = I``) and ``z = Φᵀ v``, the inverted problem ``M̃ ψ = μ K̃ ψ``
-(``μ = 1/ω²``, the form that resolves the lowest ``ω²`` to relative accuracy, :func:`~ebb_model.richardson_pair.
-lowest_modes`) becomes a diagonal matrix plus a rank-one term:
+(``μ = 1/ω²``, the form that resolves the lowest ``ω²`` to relative accuracy,
+:func:`~ebb_model.richardson_pair.lowest_modes`) becomes a diagonal matrix plus a rank-one term:
 
 * a spring: ``(Λ + k z zᵀ)⁻¹ = Λ⁻¹ − τ w wᵀ`` with ``w = Λ⁻¹ z``, ``τ = k/(1 + k zᵀΛ⁻¹z)`` (Sherman–Morrison); its
   unit eigenvectors ``y`` give ``ψ = Φ y``;

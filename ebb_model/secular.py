@@ -6,10 +6,11 @@ The eigenvalues ``λ`` of ``diag(d) + ρ w wᵀ`` (``d`` ascending) are the root
 
 one in each interval ``(d_i, d_{i+1})`` and the last in ``(d_n, d_n + ρ‖w‖²)``; the eigenvector of ``λ`` is
 ``(diag(d) − λ)⁻¹ w``, normalised.  Computed as in LAPACK's divide and conquer (``dlaed2``–``dlaed4``, Bunch,
-Nielsen and Sorensen 1978; Gu and Eisenstat 1995), written here for this module's one use (a point mass or a
-spring added to a beam whose modes are known, :mod:`ebb_model.attached_modes`):
+Nielsen and Sorensen 1978; Gu and Eisenstat 1995), written here for its one use (a point mass or a spring added to
+a beam whose modes are known, :mod:`ebb_model.attached_modes`):
 
-* **deflation**: a component with ``ρ |w_j| ≤ 8 eps · max(|d|, ρ‖w‖²)`` leaves ``(d_j, e_j)`` an eigenpair as it is;
+* **deflation**: a component with ``ρ‖w‖ |w_j| ≤ 8 eps · max(|d|, ρ‖w‖²)`` leaves ``(d_j, e_j)`` an eigenpair as it
+  is;
 * **roots** from the nearer pole as origin (``λ = d_K + τ``, the differences ``d_j − λ = (d_j − d_K) − τ`` formed
   without cancellation), by the "middle way" rational model of ``f`` (two poles, one either side, matched in value
   and slope), bisection when a step leaves the bracket, until ``|f|`` is below its rounding bound;
@@ -127,6 +128,7 @@ def _root(d, u2, r, i):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def _solve(d, w, rho, first, stop, lam, Y):  # pragma: no cover - compiled
+    """:func:`rank_one_eigen` into ``lam`` and ``Y`` (zeros on entry); ``False`` for coinciding poles."""
     n = d.size
     eps = np.finfo(np.float64).eps
     norm2 = 0.0
