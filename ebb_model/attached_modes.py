@@ -30,8 +30,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .mode_continuation import (CHECK_FREQUENCIES, PANEL_DEGREE, PANEL_WIDTH, aligned, chebyshev_points,
-                                positive)
+from .mode_continuation import (CHECK_FREQUENCIES, PANEL_DEGREE, PANEL_WIDTH, aligned, barycentric, check_points,
+                                chebyshev_points, combined, positive)
 from .secular import rank_one_eigen
 
 __all__ = ["Basis", "BasisPanel", "basis_panel", "rank_one_modes", "updated_modes", "CHECK_BASIS_SHAPES",
@@ -72,16 +72,12 @@ class BasisPanel:
 
     def at(self, U: float) -> tuple[Basis, Basis]:
         """The interpolated bases ``(fine, coarse)`` at ``U`` (inside the panel; at a point, its own)."""
-        diff = U - self.nodes
-        hit = np.flatnonzero(diff == 0.0)
-        if hit.size:
-            i = int(hit[0])
-            return (Basis(self.fine_frequencies2[i], self.fine_shapes[i]),
-                    Basis(self.coarse_frequencies2[i], self.coarse_shapes[i]))
-        c = self.weights / diff
-        c /= c.sum()
-        return (Basis(c @ self.fine_frequencies2, np.tensordot(c, self.fine_shapes, axes=1)),
-                Basis(c @ self.coarse_frequencies2, np.tensordot(c, self.coarse_shapes, axes=1)))
+        c = barycentric(U, self.nodes, self.weights)
+        if isinstance(c, int):
+            return (Basis(self.fine_frequencies2[c], self.fine_shapes[c]),
+                    Basis(self.coarse_frequencies2[c], self.coarse_shapes[c]))
+        return (Basis(c @ self.fine_frequencies2, combined(c, self.fine_shapes)),
+                Basis(c @ self.coarse_frequencies2, combined(c, self.coarse_shapes)))
 
 
 def _agree(interpolated: tuple[Basis, Basis], direct: tuple[Basis, Basis],
@@ -121,10 +117,9 @@ def basis_panel(solve: Callable[[float], tuple[Basis, Basis]], panel: int,
     for arr in (out.nodes, out.weights, out.fine_frequencies2, out.fine_shapes, out.coarse_frequencies2,
                 out.coarse_shapes):
         arr.setflags(write=False)
-    middle = PANEL_DEGREE // 2
-    for U in (0.5 * (nodes[0] + nodes[1]), 0.5 * (nodes[middle] + nodes[middle + 1])):
-        direct = solve(float(U))
-        if not positive(direct[0].frequencies2[:modes]) or not _agree(out.at(float(U)), direct, lengths):
+    for U in check_points(nodes):
+        direct = solve(U)
+        if not positive(direct[0].frequencies2[:modes]) or not _agree(out.at(U), direct, lengths):
             return None
     return out
 

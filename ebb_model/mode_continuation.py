@@ -33,7 +33,8 @@ from typing import Callable
 import numpy as np
 
 __all__ = ["PANEL_WIDTH", "PANEL_DEGREE", "CHECK_FREQUENCIES", "CHECK_SHAPES", "SMALLEST_FREQUENCY", "Panel",
-           "panel_index", "chebyshev_points", "lebesgue_constant", "chebyshev_panel", "aligned", "positive"]
+           "panel_index", "chebyshev_points", "lebesgue_constant", "chebyshev_panel", "aligned", "positive",
+           "barycentric", "combined", "check_points"]
 
 #: Width of a panel in ``U = N L²/EI`` (the pinned–pinned beam's first mode moves by ``U/π²`` of itself).
 PANEL_WIDTH = 8.0
@@ -78,15 +79,34 @@ class Panel:
 
     def at(self, U: float) -> Modes:
         """The interpolated modes at ``U`` (inside the panel; at a point, its own values)."""
-        diff = U - self.nodes
-        hit = np.flatnonzero(diff == 0.0)
-        if hit.size:
-            i = int(hit[0])
-            return self.frequencies2[i].copy(), self.fine_frequencies2[i].copy(), self.shapes[i].copy()
-        c = self.weights / diff
-        c /= c.sum()
-        shapes = np.dot(c[None, :], self.shapes.reshape(c.size, -1)).reshape(self.shapes.shape[1:])  # tensordot's
-        return c @ self.frequencies2, c @ self.fine_frequencies2, shapes
+        c = barycentric(U, self.nodes, self.weights)
+        if isinstance(c, int):
+            return self.frequencies2[c].copy(), self.fine_frequencies2[c].copy(), self.shapes[c].copy()
+        return c @ self.frequencies2, c @ self.fine_frequencies2, combined(c, self.shapes)
+
+
+def barycentric(U: float, nodes: np.ndarray, weights: np.ndarray) -> int | np.ndarray:
+    """The panel point that ``U`` is (its index), else the weights of the points' values in the barycentric
+    interpolant at ``U``."""
+    diff = U - nodes
+    hit = np.flatnonzero(diff == 0.0)
+    if hit.size:
+        return int(hit[0])
+    c = weights / diff
+    c /= c.sum()
+    return c
+
+
+def combined(c: np.ndarray, stack: np.ndarray) -> np.ndarray:
+    """``Σ_j c_j stack[j]`` for a stack of matrices (the product ``np.tensordot(c, stack, axes=1)`` forms)."""
+    return np.dot(c[None, :], stack.reshape(c.size, -1)).reshape(stack.shape[1:])
+
+
+def check_points(nodes: np.ndarray) -> tuple[float, float]:
+    """Where a panel is checked against direct solves: the midpoints of its outermost and of its central
+    interval between points."""
+    middle = PANEL_DEGREE // 2
+    return float(0.5 * (nodes[0] + nodes[1])), float(0.5 * (nodes[middle] + nodes[middle + 1]))
 
 
 def chebyshev_points(a: float, b: float, degree: int) -> tuple[np.ndarray, np.ndarray]:
@@ -150,9 +170,8 @@ def chebyshev_panel(solve: Callable[[float], Modes], panel: int, lengths: np.nda
     out = Panel(nodes, weights, np.array(w2), np.array(w2_f), np.array(psi))
     for arr in (out.nodes, out.weights, out.frequencies2, out.fine_frequencies2, out.shapes):
         arr.setflags(write=False)
-    middle = PANEL_DEGREE // 2
-    for U in (0.5 * (nodes[0] + nodes[1]), 0.5 * (nodes[middle] + nodes[middle + 1])):
-        direct = solve(float(U))
-        if not positive(direct[1]) or not _agree(out.at(float(U)), direct, lengths):
+    for U in check_points(nodes):
+        direct = solve(U)
+        if not positive(direct[1]) or not _agree(out.at(U), direct, lengths):
             return None
     return out
