@@ -91,7 +91,7 @@ MAX_MASS_RATIO = 1e12
 MAX_SPRING_RATIO = 1e12
 
 __all__ = ["SemiDiscreteBeam", "discretise", "grid_nodes", "hat_weights", "rotary_mass", "cell_stiffness",
-           "check_attachments", "load_rows", "control_lengths", "unknown_nodes", "assemble_matrices"]
+           "check_attachments", "load_rows", "control_lengths", "unknown_nodes", "Grid", "grid", "assemble_matrices"]
 
 
 @dataclass(frozen=True)
@@ -291,7 +291,7 @@ def discretise(config: BeamConfig, params: Mapping[str, float] | None = None) ->
     g = config.beam
     M, C, K, unknown = assemble_matrices(g.length, g.nodes, g.left, g.right, config.masses, config.springs,
                                          config.weak_segments, p)
-    F, S = load_rows(config, g.nodes, unknown)
+    F, S = load_rows(config, g.nodes)
     return SemiDiscreteBeam(
         M=M, C=C, K=K, F=F, S=S,
         sensor_kinds=tuple(s.kind for s in config.sensors),
@@ -317,14 +317,28 @@ def check_attachments(config: BeamConfig, p: Mapping[str, float], nodes: int | N
                                  f"be numerically singular (a rigid support is an end condition)")
 
 
-def load_rows(config: BeamConfig, nodes: int, unknown: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def load_rows(config: BeamConfig, nodes: int) -> tuple[np.ndarray, np.ndarray]:
     """``(F, S)``: the actuators' load columns and the sensors' position rows (hat weights) on the grid of
-    ``nodes`` interior points, restricted to the nodal ``unknown``."""
-    L, nu = config.beam.length, unknown.size
-    F = np.column_stack([hat_weights(a.x, L, nodes)[unknown] for a in config.actuators]) if config.actuators \
+    ``nodes`` interior points, restricted to its unknown nodes (memoised per process on the positions:
+    read-only arrays)."""
+    g = config.beam
+    return _load_rows((g.length, nodes, g.left.translation_fixed, g.right.translation_fixed,
+                       tuple(a.x for a in config.actuators), tuple(s.x for s in config.sensors)))
+
+
+@memoised
+def _load_rows(key: tuple[float, int, bool, bool, tuple[float, ...], tuple[float, ...]]
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`load_rows` of ``key = (length, nodes, left end fixes translation, right end fixes translation,
+    actuator positions, sensor positions)``."""
+    length, nodes, left_fixed, right_fixed, actuators, sensors = key
+    unknown = _grid((length, nodes, left_fixed, right_fixed)).unknown
+    nu = unknown.size
+    F = np.column_stack([hat_weights(x, length, nodes)[unknown] for x in actuators]) if actuators \
         else np.zeros((nu, 0))
-    S = np.vstack([hat_weights(s.x, L, nodes)[unknown] for s in config.sensors]) if config.sensors \
-        else np.zeros((0, nu))
+    S = np.vstack([hat_weights(x, length, nodes)[unknown] for x in sensors]) if sensors else np.zeros((0, nu))
+    for a in (F, S):
+        a.setflags(write=False)
     return F, S
 
 
@@ -344,6 +358,33 @@ def unknown_nodes(n: int, left: End, right: End) -> np.ndarray:
     """The unknown nodes of a grid of ``n`` interior points (``0 … n + 1``): the interior ones, and an end node
     whose translation is not fixed."""
     return np.arange(1 if left.translation_fixed else 0, (n if right.translation_fixed else n + 1) + 1)
+
+
+@dataclass(frozen=True, eq=False)
+class Grid:
+    """A grid of ``n`` interior points: its nodes ``x`` (ends included), the ``unknown`` nodes
+    (:func:`unknown_nodes`) and their control lengths ``V`` (:func:`control_lengths`).  Read-only arrays."""
+
+    x: np.ndarray
+    unknown: np.ndarray
+    V: np.ndarray
+
+
+def grid(length: float, n: int, left: End, right: End) -> Grid:
+    """The :class:`Grid` of a beam of ``length`` on ``n`` interior points with these ends (memoised per process:
+    it depends on whether each end fixes the translation only)."""
+    return _grid((length, n, left.translation_fixed, right.translation_fixed))
+
+
+@memoised
+def _grid(key: tuple[float, int, bool, bool]) -> Grid:
+    """The :class:`Grid` of ``key = (length, n, left end fixes translation, right end fixes translation)``."""
+    length, n, *fixed = key
+    left, right = (End.of("pinned") if f else End.of("free") for f in fixed)
+    out = Grid(grid_nodes(length, n), unknown_nodes(n, left, right), control_lengths(n, length / (n + 1), left, right))
+    for a in (out.x, out.unknown, out.V):
+        a.setflags(write=False)
+    return out
 
 
 @dataclass(frozen=True, eq=False)

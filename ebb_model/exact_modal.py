@@ -32,10 +32,12 @@ the θ-scheme's Bistritz analysis does not apply to it.
 """
 from __future__ import annotations
 
+import cmath
 import math
 from dataclasses import dataclass
 from typing import Mapping
 
+import numba
 import numpy as np
 import scipy.linalg as sla
 
@@ -45,7 +47,7 @@ from .coupled_modes import LowRankDamping, coupled_modes
 from .mode_family import FamilyModes, family_modes
 from .modal_form import MAX_BASIS_CONDITION, ModalStateSpace, basis_condition
 from .parameter_values import resolve_parameters
-from .sample_integrals import INPUT_TAPS, LAGRANGE, input_weights, modal_blocks
+from .sample_integrals import INPUT_TAPS, LAGRANGE, modal_blocks
 from .statespace import DiscreteStateSpace, with_input_delays
 
 __all__ = ["exact_model", "exact_modal", "exact_statespace", "continuous_modes", "ContinuousModes", "modal_matrices",
@@ -58,12 +60,30 @@ def _mode_poles(w2: np.ndarray, d: np.ndarray, Fm: np.ndarray) -> tuple[np.ndarr
     input enters the pole coordinates as ``(−1, 1)/(s₂ − s₁)``.  Returned in the layout of the coupled route:
     poles (2k,) — every ``s₁``, then every ``s₂`` — and the input weights ``V⁻¹ [0; F_m]`` (2k, m).
     """
-    root = np.sqrt((d * d / 4 - w2).astype(complex))
-    s1, s2 = -d / 2 + root, -d / 2 - root
-    if np.any(s1 == s2):
+    k, m = w2.size, Fm.shape[1]
+    s = np.empty(2 * k, dtype=complex)
+    B = np.empty((2 * k, m), dtype=complex)
+    if _decoupled_poles(np.ascontiguousarray(w2, dtype=float), np.ascontiguousarray(d, dtype=float),
+                        np.ascontiguousarray(Fm, dtype=float), s, B):
         raise np.linalg.LinAlgError("a critically damped mode has a double pole")
-    b = (-1.0 / (s2 - s1))[:, None] * Fm
-    return np.concatenate([s1, s2]), np.vstack([b, -b])
+    return s, B
+
+
+@numba.njit(cache=True, nogil=True)
+def _decoupled_poles(w2, d, Fm, s, B):  # pragma: no cover - compiled
+    # :func:`_mode_poles` in one pass (its NumPy form spent most of its time in small array operations)
+    k = w2.size
+    for i in range(k):
+        root = cmath.sqrt(complex(d[i] * d[i] / 4 - w2[i]))
+        s1, s2 = -d[i] / 2 + root, -d[i] / 2 - root
+        if s1 == s2:
+            return True
+        s[i], s[k + i] = s1, s2
+        g = -1.0 / (s2 - s1)
+        for l in range(Fm.shape[1]):
+            B[i, l] = g * Fm[i, l]
+            B[k + i, l] = -B[i, l]
+    return False
 
 
 def _output_rows(S: np.ndarray, kinds: tuple[str, ...], psi: np.ndarray, w2: np.ndarray, Cm: np.ndarray,
@@ -235,9 +255,7 @@ def exact_modal(config: BeamConfig, params: Mapping[str, float]) -> ModalStateSp
     poles, inputs, CV, D, added = cm.poles, cm.inputs, cm.output_rows(), cm.D, 0
     if any(f is not None for f in filters):               # the acquisition's filters in series, still diagonal
         poles, inputs, CV, D, added = filtered_poles(poles, inputs, CV, D, filters)
-    E, W = input_weights(poles, T_s, config.time.input_hold)
-    with np.errstate(over="ignore", invalid="ignore"):   # an unstable candidate: caught by the stability check
-        bl = modal_blocks(E, poles, W, inputs, CV, taps, poles.size - added if added else None)
+    bl = modal_blocks(poles, T_s, config.time.input_hold, inputs, CV, poles.size - added if added else None)
     D = np.array(D.real, dtype=float) + bl.D_hold
     return ModalStateSpace(bl.T, bl.G, bl.C, D, T_s, config.input_names, config.output_names, None, bl.hold,
                            -min(taps), bl.frequencies / (2 * math.pi), bl.filters)

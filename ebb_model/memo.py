@@ -14,7 +14,6 @@ from collections.abc import Hashable
 from dataclasses import dataclass
 from typing import Any, Callable, TypeVar
 
-import numpy as np
 
 __all__ = ["MEMO_BYTES", "MemoInfo", "memoised"]
 
@@ -42,7 +41,7 @@ _SCALARS = (int, float, str, bool, type(None))
 
 def _nbytes(value: Any) -> int:
     """The bytes of the arrays in ``value`` (an array, a dataclass or a tuple of them, nested; the fields of a
-    dataclass, not its cached properties)."""
+    dataclass, not its cached properties), or what an object says with an integer ``nbytes``."""
     total = 0
     stack = [value]
     while stack:
@@ -50,8 +49,9 @@ def _nbytes(value: Any) -> int:
         kind = type(v)
         if kind in _SCALARS:
             continue
-        if isinstance(v, np.ndarray):
-            total += v.nbytes
+        size = getattr(v, "nbytes", None)    # an array, or a result that counts its own
+        if isinstance(size, int):
+            total += size
         elif isinstance(v, tuple):
             stack.extend(v)
         elif hasattr(kind, "__dataclass_fields__"):

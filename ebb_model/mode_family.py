@@ -41,8 +41,8 @@ from .memo import memoised
 from .mode_continuation import PANEL_DEGREE, Panel, chebyshev_panel, panel_index
 from .modal_form import DIAGONAL_RTOL, is_diagonal, off_diagonal_magnitude
 from .richardson_pair import companion_nodes, extrapolated, lowest_modes, richardson_with_fine
-from .discretisation import (SemiDiscreteBeam, assemble_matrices, check_attachments, control_lengths, grid_nodes,
-                             hat_weights, load_rows, unknown_nodes)
+from .discretisation import (Grid, SemiDiscreteBeam, assemble_matrices, check_attachments, control_lengths, grid,
+                             grid_nodes, hat_weights, load_rows, unknown_nodes)
 
 __all__ = ["FamilyKey", "family_key", "UnitModes", "unit_pair", "unit_modes", "scaled_beam",
            "check_pair", "FamilyModes", "family_modes", "continuation_stem", "continuation_panel", "attachment",
@@ -116,15 +116,20 @@ class UnitModes:
         """The finer grid's unit beam (:func:`_unit_beam`)."""
         return self.built if self.built is not None else _unit_beam(self.key, _fine_nodes(self.key))
 
-    @functools.cached_property
+    @property
     def x(self) -> np.ndarray:
         """The finer grid's nodes, ends included."""
-        return _read_only(grid_nodes(self.key.length, _fine_nodes(self.key)))
+        return _fine_grid(self.key).x
 
-    @functools.cached_property
+    @property
     def unknown(self) -> np.ndarray:
         """The finer grid's unknown nodes (:func:`~ebb_model.discretisation.unknown_nodes`)."""
-        return _read_only(unknown_nodes(_fine_nodes(self.key), self.key.left, self.key.right))
+        return _fine_grid(self.key).unknown
+
+    @property
+    def nbytes(self) -> int:
+        """The bytes of the arrays it holds (what a memo counts; the grid's are the grid memo's)."""
+        return self.frequencies2.nbytes + self.shapes.nbytes + self.fine_frequencies2.nbytes
 
     @functools.cached_property
     def viscous(self) -> np.ndarray:
@@ -230,7 +235,12 @@ def _fine_nodes(key: FamilyKey) -> int:
 
 def _lengths(key: FamilyKey, nodes: int) -> np.ndarray:
     """The control lengths ``V`` of ``key``'s beam on ``nodes`` interior points (read-only)."""
-    return _read_only(control_lengths(nodes, key.length / (nodes + 1), key.left, key.right))
+    return grid(key.length, nodes, key.left, key.right).V
+
+
+def _fine_grid(key: FamilyKey) -> Grid:
+    """The finer grid of ``key``'s Richardson pair."""
+    return grid(key.length, _fine_nodes(key), key.left, key.right)
 
 
 #: Largest panel (:mod:`ebb_model.mode_continuation`) in bytes: beyond it (a finer grid of about 400 unknowns) a
@@ -373,7 +383,7 @@ def scaled_beam(unit: SemiDiscreteBeam, config: BeamConfig, p: Mapping[str, floa
     C = (p["eta"] * EI) * unit.C
     V = control_lengths(nodes, config.beam.length / (nodes + 1), config.beam.left, config.beam.right)
     C[np.diag_indices_from(C)] += p["c"] * V
-    F, S = load_rows(config, nodes, unit.unknown) if loads is None else loads
+    F, S = load_rows(config, nodes) if loads is None else loads
     return SemiDiscreteBeam(M=p["rhoA"] * unit.M, C=C, K=EI * unit.K, F=F, S=S,
                             sensor_kinds=tuple(s.kind for s in config.sensors), x=unit.x, unknown=unit.unknown,
                             input_names=config.input_names, output_names=config.output_names)
@@ -403,7 +413,7 @@ class FamilyModes:
     def loads(self) -> tuple[np.ndarray, np.ndarray]:
         """``(F, S)``: the actuators' load columns and the sensors' rows on the finer grid."""
         unit = self.unit
-        return load_rows(self.config, unit.x.size - 2, unit.unknown)
+        return load_rows(self.config, unit.x.size - 2)
 
     @functools.cached_property
     def beam(self) -> SemiDiscreteBeam:

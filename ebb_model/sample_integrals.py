@@ -143,6 +143,58 @@ def _blocks(lam, W, inputs, CV, A, B, column, T, G, H, Cb, Dh):  # pragma: no co
                 Dh[o, l] = acc
 
 
+@numba.njit(cache=True, nogil=True)
+def _pole_blocks(s, T, degree, series, lagrange, inputs, CV, column, filters_from, lookahead):  # pragma: no cover
+    # the poles' integrals and input weights (input_weights), then the blocks chosen by the discrete poles
+    n, m, p = s.size, inputs.shape[1], CV.shape[0]
+    E = np.empty(n, dtype=np.complex128)
+    I = np.empty((degree + 1, n), dtype=np.complex128)
+    _integrals(s, T, degree, series, E, I)
+    W = np.zeros((lagrange.shape[0], n), dtype=np.complex128)
+    for q in range(lagrange.shape[0]):
+        for d in range(degree + 1):
+            for j in range(n):
+                W[q, j] += lagrange[q, d] * I[d, j]
+    upper, real = 0, 0
+    for j in range(n):
+        if E[j].imag > 0:
+            upper += 1
+        elif E[j].imag == 0:
+            real += 1
+    nb = upper + real // 2
+    A = np.empty(nb, dtype=np.int64)
+    B = np.empty(nb, dtype=np.int64)
+    freqs = np.empty(nb)
+    filter_block = np.zeros(nb, dtype=np.bool_)
+    b, first = 0, -1
+    for j in range(n):                              # the pairs, by their pole with Im λ > 0, in order
+        if E[j].imag > 0:
+            A[b], B[b], freqs[b] = j, -1, abs(s[j])
+            b += 1
+    for j in range(n):                              # then the real poles two by two, in order
+        if E[j].imag == 0:
+            if first < 0:
+                first = j
+            else:
+                A[b], B[b], freqs[b] = first, j, max(abs(s[first]), abs(s[j]))
+                b, first = b + 1, -1
+    filters = 0
+    if filters_from >= 0:                           # the filters' blocks last, each part in its order
+        for b in range(nb):
+            filter_block[b] = A[b] >= filters_from
+            filters += filter_block[b]
+        order = np.concatenate((np.flatnonzero(~filter_block), np.flatnonzero(filter_block)))
+        A, B, freqs = A[order], B[order], freqs[order]
+    Tb = np.empty((nb, 2, 2))
+    G = np.zeros((nb, 2, m * (column.size - 1 if lookahead else column.size)))
+    H = np.empty((nb if lookahead else 0, 2, m))
+    Cb = np.empty((p, nb, 2))
+    Dh = np.zeros((p, m))
+    if real % 2 == 0:
+        _blocks(E, W, inputs, CV, A, B, column, Tb, G, H, Cb, Dh)
+    return Tb, G, H, Cb, Dh, freqs, filters, real % 2
+
+
 @dataclass(frozen=True)
 class Blocks:
     """The real block form of :func:`modal_blocks`: ``T`` (nb, 2, 2); ``G`` (nb, 2, m·(delays + 1)), column
@@ -160,11 +212,13 @@ class Blocks:
     filters: int
 
 
-def modal_blocks(lam: np.ndarray, s: np.ndarray, W: np.ndarray, inputs: np.ndarray, CV: np.ndarray,
-                 taps: tuple[int, ...], filters_from: int | None = None) -> Blocks:
-    """Real 2×2 blocks of the complex-diagonal discrete system ``z⁺ = λ z + Σ_q W_q inputs u[k + taps_q]``,
-    ``y = CV z`` — ``lam = e^{sT}`` (n,), ``W`` (taps, n) (:func:`input_weights`), ``inputs`` (n, m), ``CV`` (p, n)
-    —, its lookahead ``u[k+1]`` made causal (:class:`Blocks`).
+def modal_blocks(s: np.ndarray, T: float, hold: str, inputs: np.ndarray, CV: np.ndarray,
+                 filters_from: int | None = None) -> Blocks:
+    """Real 2×2 blocks of the diagonal continuous system ``ż = diag(s) z + inputs u``, ``y = CV z`` — ``s`` (n,),
+    ``inputs`` (n, m), ``CV`` (p, n) — integrated exactly over the sample ``T`` under the input reconstruction
+    ``hold`` (:func:`input_weights`: ``z⁺ = λ z + Σ_q W_q inputs u[k + taps_q]``, ``λ = e^{sT}``), its lookahead
+    ``u[k+1]`` made causal (:class:`Blocks`).  One compiled pass (the NumPy form of the same steps spent more time
+    in small array operations than in the arithmetic).
 
     A conjugate pair ``(z, z̄)`` becomes ``(r, m) = (Re z, Im z)``: ``x = 2 Re(v z) = 2 Re v · r − 2 Im v · m``
     and ``[r; m]⁺ = [[Re λ, −Im λ], [Im λ, Re λ]] [r; m] + [Re b; Im b] u``; the pairs' blocks come first, by
@@ -177,30 +231,12 @@ def modal_blocks(lam: np.ndarray, s: np.ndarray, W: np.ndarray, inputs: np.ndarr
     numpy.linalg.LinAlgError
         An odd number of real poles.
     """
-    upper = np.flatnonzero(lam.imag > 0)
-    reals = np.flatnonzero(lam.imag == 0)
-    if reals.size % 2:
-        raise np.linalg.LinAlgError("odd number of real poles")
-    A = np.concatenate([upper, reals[0::2]])
-    B = np.concatenate([np.full(upper.size, -1), reals[1::2]])
-    a = np.abs(s)
-    freqs = np.concatenate([a[upper], np.maximum(a[reals[0::2]], a[reals[1::2]])])
-    filters = 0
-    if filters_from is not None:
-        is_filter = A >= filters_from
-        filters = int(np.count_nonzero(is_filter))
-        if filters:
-            order = np.argsort(is_filter, kind="stable")
-            A, B, freqs = A[order], B[order], freqs[order]
-    nb, m, p = A.size, inputs.shape[1], CV.shape[0]
-    delays = -min(taps)
+    taps = INPUT_TAPS[hold]
     column = np.array([-1 if t == 1 else -t for t in taps])
-    T = np.empty((nb, 2, 2))
-    G = np.zeros((nb, 2, m * (delays + 1)))
-    H = np.empty((nb if 1 in taps else 0, 2, m))
-    Cb = np.empty((p, nb, 2))
-    Dh = np.zeros((p, m))
-    _blocks(np.ascontiguousarray(lam, dtype=complex), np.ascontiguousarray(W, dtype=complex),
-            np.ascontiguousarray(inputs, dtype=complex), np.ascontiguousarray(CV, dtype=complex),
-            np.ascontiguousarray(A), np.ascontiguousarray(B), column, T, G, H, Cb, Dh)
-    return Blocks(T, G, H if 1 in taps else None, Cb, Dh, freqs, filters)
+    Tb, G, H, Cb, Dh, freqs, filters, odd = _pole_blocks(
+        np.ascontiguousarray(s, dtype=complex).reshape(-1), float(T), len(taps) - 1, _SERIES, LAGRANGE[hold],
+        np.ascontiguousarray(inputs, dtype=complex), np.ascontiguousarray(CV, dtype=complex), column,
+        -1 if filters_from is None else int(filters_from), 1 in taps)
+    if odd:
+        raise np.linalg.LinAlgError("odd number of real poles")
+    return Blocks(Tb, G, H if 1 in taps else None, Cb, Dh, freqs, int(filters))

@@ -121,7 +121,7 @@ def simulate_files(config_path: str | Path, input_csv: str | Path, out_csv: str 
     from .assemble import check_stable
     from .config import load_config
     from .parameter_values import resolve_parameters
-    from .simulate import SimulationResult, fast_model, simulate
+    from .simulate import fast_model, simulate
 
     from .output import check_output_file
 
@@ -132,5 +132,5 @@ def simulate_files(config_path: str | Path, input_csv: str | Path, out_csv: str 
     model = fast_model(cfg, p)
     check_stable(cfg, p, model.spectral_radius())
     res = simulate(model, u)
-    SimulationResult(t, res.outputs, res.output_names).to_csv(out)
+    res.to_csv(out, time=t)
     return out

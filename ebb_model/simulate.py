@@ -15,6 +15,7 @@ inherently sequential, so NumPy cannot vectorise it, and a Python loop over
 from __future__ import annotations
 
 import csv
+import functools
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -67,17 +68,25 @@ class SimulationResult:
 
     Attributes
     ----------
-    time
-        Sample times ``k dt`` [s], shape (n_samples,).
     outputs
         Outputs, shape (n_samples, n_outputs).
     output_names
         Names of the output columns.
+    dt
+        Sample time [s].
+    time
+        Sample times ``k dt`` [s], shape (n_samples,): formed when first read (an identification simulates
+        thousands of candidates and reads none).
     """
 
-    time: np.ndarray
     outputs: np.ndarray
     output_names: tuple[str, ...]
+    dt: float
+
+    @functools.cached_property
+    def time(self) -> np.ndarray:
+        """Sample times ``k dt`` [s]."""
+        return np.arange(self.outputs.shape[0]) * self.dt
 
     def __iter__(self):
         """Unpack as ``t, y = result``."""
@@ -87,12 +96,14 @@ class SimulationResult:
         """Columns by name, ``time`` first."""
         return {"time": self.time} | {n: self.outputs[:, i] for i, n in enumerate(self.output_names)}
 
-    def to_csv(self, path: str | Path) -> None:
-        """Write ``time`` and one column per output (written atomically)."""
+    def to_csv(self, path: str | Path, time: np.ndarray | None = None) -> None:
+        """Write ``time`` (default :attr:`time`; e.g. the input file's own column) and one column per output
+        (written atomically)."""
+        times = self.time if time is None else time
         with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["time", *self.output_names])
-            for t, row in zip(self.time, self.outputs):
+            for t, row in zip(times, self.outputs):
                 w.writerow([repr(float(t)), *(repr(float(v)) for v in row)])
 
 
@@ -122,7 +133,7 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
         if x0 is not None:
             z = np.asarray(x0, dtype=float).reshape(system.nblocks, 2)
         elif system.hold is not None and u.shape[0]:
-            z = -np.einsum("bim,m->bi", system.hold, u[0])
+            z = -(system.hold @ u[0])
         else:
             z = np.zeros((system.nblocks, 2))
         y = run_modal_recursion(system.T, system.G, system.Cm, system.D, u, system.delays, z)
@@ -137,8 +148,7 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
             x = np.zeros(system.nstates)
         _dense_kernel(np.ascontiguousarray(system.A), np.ascontiguousarray(system.B),
                       np.ascontiguousarray(system.C), np.ascontiguousarray(system.D), x, u, y)
-    t = np.arange(u.shape[0]) * system.dt
-    return SimulationResult(t, y, tuple(system.output_names))
+    return SimulationResult(y, tuple(system.output_names), system.dt)
 
 
 def fast_model(config: BeamConfig, params: Mapping[str, float] | None = None
