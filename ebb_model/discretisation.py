@@ -291,7 +291,7 @@ def discretise(config: BeamConfig, params: Mapping[str, float] | None = None) ->
     g = config.beam
     M, C, K, unknown = assemble_matrices(g.length, g.nodes, g.left, g.right, config.masses, config.springs,
                                          config.weak_segments, p)
-    F, S = load_rows(config, g.nodes)
+    F, S, _ = load_rows(config, g.nodes)
     return SemiDiscreteBeam(
         M=M, C=C, K=K, F=F, S=S,
         sensor_kinds=tuple(s.kind for s in config.sensors),
@@ -317,10 +317,10 @@ def check_attachments(config: BeamConfig, p: Mapping[str, float], nodes: int | N
                                  f"be numerically singular (a rigid support is an end condition)")
 
 
-def load_rows(config: BeamConfig, nodes: int) -> tuple[np.ndarray, np.ndarray]:
-    """``(F, S)``: the actuators' load columns and the sensors' position rows (hat weights) on the grid of
-    ``nodes`` interior points, restricted to its unknown nodes (memoised per process on the positions:
-    read-only arrays)."""
+def load_rows(config: BeamConfig, nodes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(F, S, J)``: the actuators' load columns and the sensors' position rows (hat weights) on the grid of
+    ``nodes`` interior points, restricted to its unknown nodes, and the unknowns ``J`` where either has an entry
+    (memoised per process on the positions: read-only arrays)."""
     g = config.beam
     return _load_rows((g.length, nodes, g.left.translation_fixed, g.right.translation_fixed,
                        tuple(a.x for a in config.actuators), tuple(s.x for s in config.sensors)))
@@ -328,7 +328,7 @@ def load_rows(config: BeamConfig, nodes: int) -> tuple[np.ndarray, np.ndarray]:
 
 @memoised
 def _load_rows(key: tuple[float, int, bool, bool, tuple[float, ...], tuple[float, ...]]
-               ) -> tuple[np.ndarray, np.ndarray]:
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`load_rows` of ``key = (length, nodes, left end fixes translation, right end fixes translation,
     actuator positions, sensor positions)``."""
     length, nodes, left_fixed, right_fixed, actuators, sensors = key
@@ -337,9 +337,10 @@ def _load_rows(key: tuple[float, int, bool, bool, tuple[float, ...], tuple[float
     F = np.column_stack([hat_weights(x, length, nodes)[unknown] for x in actuators]) if actuators \
         else np.zeros((nu, 0))
     S = np.vstack([hat_weights(x, length, nodes)[unknown] for x in sensors]) if sensors else np.zeros((0, nu))
-    for a in (F, S):
+    J = np.flatnonzero(np.any(F != 0.0, axis=1) | np.any(S != 0.0, axis=0))
+    for a in (F, S, J):
         a.setflags(write=False)
-    return F, S
+    return F, S, J
 
 
 def control_lengths(n: int, h: float, left: End, right: End) -> np.ndarray:

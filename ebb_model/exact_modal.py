@@ -53,25 +53,28 @@ from .statespace import DiscreteStateSpace, with_input_delays
 __all__ = ["exact_model", "exact_modal", "exact_statespace", "continuous_modes", "ContinuousModes", "modal_matrices",
            "modal_system", "ModalMatrices", "modal_state_matrix"]
 
-def _mode_poles(w2: np.ndarray, d: np.ndarray, Fm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Poles and input weights of decoupled modes ``q̈ + d q̇ + ω² q = F_m u`` (proportional damping).
+def _mode_poles(w2: np.ndarray, d: np.ndarray, Fm: np.ndarray, C: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Poles, input weights and output rows of decoupled modes ``q̈ + d q̇ + ω² q = F_m u``, ``y = C (q, q̇)``
+    (proportional damping).
 
     Mode ``i`` has poles ``s = −d/2 ± √(d²/4 − ω²)`` and eigenvectors ``(1, s)`` on ``(q_i, q̇_i)``; its unit
     input enters the pole coordinates as ``(−1, 1)/(s₂ − s₁)``.  Returned in the layout of the coupled route:
-    poles (2k,) — every ``s₁``, then every ``s₂`` — and the input weights ``V⁻¹ [0; F_m]`` (2k, m).
+    poles (2k,) — every ``s₁``, then every ``s₂`` —, the input weights ``V⁻¹ [0; F_m]`` (2k, m) and the output
+    rows ``C V`` (p, 2k).  One compiled pass (its NumPy form spent most of its time in small array operations).
     """
     k, m = w2.size, Fm.shape[1]
     s = np.empty(2 * k, dtype=complex)
     B = np.empty((2 * k, m), dtype=complex)
+    CV = np.empty((C.shape[0], 2 * k), dtype=complex)
     if _decoupled_poles(np.ascontiguousarray(w2, dtype=float), np.ascontiguousarray(d, dtype=float),
-                        np.ascontiguousarray(Fm, dtype=float), s, B):
+                        np.ascontiguousarray(Fm, dtype=float), np.ascontiguousarray(C, dtype=float), s, B, CV):
         raise np.linalg.LinAlgError("a critically damped mode has a double pole")
-    return s, B
+    return s, B, CV
 
 
 @numba.njit(cache=True, nogil=True)
-def _decoupled_poles(w2, d, Fm, s, B):  # pragma: no cover - compiled
-    # :func:`_mode_poles` in one pass (its NumPy form spent most of its time in small array operations)
+def _decoupled_poles(w2, d, Fm, C, s, B, CV):  # pragma: no cover - compiled
     k = w2.size
     for i in range(k):
         root = cmath.sqrt(complex(d[i] * d[i] / 4 - w2[i]))
@@ -83,15 +86,17 @@ def _decoupled_poles(w2, d, Fm, s, B):  # pragma: no cover - compiled
         for l in range(Fm.shape[1]):
             B[i, l] = g * Fm[i, l]
             B[k + i, l] = -B[i, l]
+        for o in range(C.shape[0]):             # V's columns (1, s₁) and (1, s₂) on (q_i, q̇_i)
+            CV[o, i] = C[o, i] + C[o, k + i] * s1
+            CV[o, k + i] = C[o, i] + C[o, k + i] * s2
     return False
 
 
-def _output_rows(S: np.ndarray, kinds: tuple[str, ...], psi: np.ndarray, w2: np.ndarray, Cm: np.ndarray,
-                 Fm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(C, D)`` on the continuous modal state ``(q, q̇)`` of the sensors' rows ``S`` on the shapes' grid:
+def _output_rows(P: np.ndarray, kinds: tuple[str, ...], w2: np.ndarray, Cm: np.ndarray, Fm: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """``(C, D)`` on the continuous modal state ``(q, q̇)`` of the sensors whose modal rows are ``P = S Ψ``:
     exact displacement, velocity, acceleration."""
-    P = S @ psi
-    k = psi.shape[1]
+    k = P.shape[1]
     C = np.zeros((P.shape[0], 2 * k))
     D = np.zeros((P.shape[0], Fm.shape[1]))
     for i, kind in enumerate(kinds):
@@ -112,8 +117,7 @@ class ContinuousModes:
 
     ``x = (q, q̇)`` in the (Richardson-corrected) undamped modal coordinates; ``inputs`` (2k, m) are the
     input weights in pole coordinates; ``C``, ``D`` give the sensors' outputs from ``x`` and ``u``;
-    ``shapes`` (n_u of the refined grid × k) are the mass-normalised modes on the refined grid
-    (:func:`refined_config`) and ``frequencies2`` the extrapolated ``ω²``.  ``basis`` is ``V`` when the damping
+    ``frequencies2`` are the extrapolated ``ω²`` of the undamped ``modes``.  ``basis`` is ``V`` when the damping
     couples the modes, ``None`` for decoupled modes, whose ``V = [[I, I], [diag(s₁), diag(s₂)]]`` (poles
     ``s₁`` then ``s₂``) is formed only when read.
     """
@@ -122,9 +126,16 @@ class ContinuousModes:
     inputs: np.ndarray
     C: np.ndarray
     D: np.ndarray
-    shapes: np.ndarray
+    modes: FamilyModes
     frequencies2: np.ndarray
     basis: np.ndarray | None
+    #: ``C V`` when formed with the poles (decoupled modes), else ``None`` (:meth:`output_rows` forms it)
+    rows: np.ndarray | None = None
+
+    @property
+    def shapes(self) -> np.ndarray:
+        """The mass-normalised modes on the finer grid of the Richardson pair (n_u × k)."""
+        return self.modes.shapes
 
     @property
     def V(self) -> np.ndarray:
@@ -140,6 +151,8 @@ class ContinuousModes:
 
     def output_rows(self) -> np.ndarray:
         """``C V``: the outputs from the pole coordinates (``O(p k)`` for decoupled modes)."""
+        if self.rows is not None:
+            return self.rows
         if self.basis is not None:
             return self.C @ self.basis
         k = self.frequencies2.size
@@ -158,13 +171,18 @@ class ModalMatrices:
     """
 
     frequencies2: np.ndarray
-    shapes: np.ndarray
+    modes: FamilyModes
     Cm: np.ndarray
     Fm: np.ndarray
     C: np.ndarray
     D: np.ndarray
     damping: np.ndarray | None
     low_rank: LowRankDamping | None = None
+
+    @property
+    def shapes(self) -> np.ndarray:
+        """The mass-normalised modes ``Ψ`` on the finer grid of the Richardson pair (n_u × k)."""
+        return self.modes.shapes
 
 
 def modal_matrices(config: BeamConfig, params: Mapping[str, float]) -> ModalMatrices:
@@ -182,7 +200,7 @@ def modal_matrices(config: BeamConfig, params: Mapping[str, float]) -> ModalMatr
 def modal_system(modes: FamilyModes) -> ModalMatrices:
     """:func:`modal_matrices` of the undamped ``modes``: the modal damping's structure (diagonal, low-rank or
     full), the forcing and the sensor rows."""
-    w2, psi = modes.frequencies2, modes.shapes
+    w2 = modes.frequencies2
     low_rank = modes.low_rank_damping()
     if low_rank is None:
         d = modes.diagonal_damping()
@@ -197,10 +215,11 @@ def modal_system(modes: FamilyModes) -> ModalMatrices:
         Cm = low_rank.matrix()
     else:
         Cm = 0.5 * (modes.damping + modes.damping.T)
-    F, S = modes.loads
-    Fm = psi.T @ F
-    C, D = _output_rows(S, tuple(s.kind for s in modes.config.sensors), psi, w2, Cm, Fm)
-    return ModalMatrices(w2, psi, Cm, Fm, C, D, d, low_rank)
+    F, S, J = modes.loads
+    psi = modes.shape_rows(J)          # the shapes where the loads and sensors are: all the outputs read
+    Fm = psi.T @ F[J]
+    C, D = _output_rows(S[:, J] @ psi, tuple(s.kind for s in modes.config.sensors), w2, Cm, Fm)
+    return ModalMatrices(w2, modes, Cm, Fm, C, D, d, low_rank)
 
 
 def continuous_modes(config: BeamConfig, params: Mapping[str, float]) -> ContinuousModes:
@@ -220,8 +239,9 @@ def continuous_modes(config: BeamConfig, params: Mapping[str, float]) -> Continu
     w2, Fm = mm.frequencies2, mm.Fm
     coupled = None if mm.low_rank is None else coupled_modes(w2, mm.low_rank, Fm)
     V: np.ndarray | None = None
+    rows: np.ndarray | None = None
     if mm.damping is not None:                            # decoupled modes: poles in closed form
-        s, B_modal = _mode_poles(w2, mm.damping, Fm)      # (2k, m) pole coordinates
+        s, B_modal, rows = _mode_poles(w2, mm.damping, Fm, mm.C)      # (2k, m) pole coordinates
     elif coupled is not None:                             # coupled by a low-rank part: Newton, mode by mode
         s, V, B_modal = coupled
     else:                                                 # coupled by the damping: eigen-decomposition
@@ -229,7 +249,7 @@ def continuous_modes(config: BeamConfig, params: Mapping[str, float]) -> Continu
         if basis_condition(V) > MAX_BASIS_CONDITION:
             raise np.linalg.LinAlgError("the modes' eigenvector basis is ill-conditioned")
         B_modal = np.linalg.solve(V, np.vstack([np.zeros_like(Fm), Fm]))
-    return ContinuousModes(s, B_modal, mm.C, mm.D, mm.shapes, w2, V)
+    return ContinuousModes(s, B_modal, mm.C, mm.D, mm.modes, w2, V, rows)
 
 
 def modal_state_matrix(w2: np.ndarray, Cm: np.ndarray) -> np.ndarray:

@@ -33,8 +33,8 @@ from typing import Callable
 import numpy as np
 
 __all__ = ["PANEL_WIDTH", "PANEL_DEGREE", "CHECK_FREQUENCIES", "CHECK_SHAPES", "SMALLEST_FREQUENCY", "Panel",
-           "panel_index", "chebyshev_points", "lebesgue_constant", "chebyshev_panel", "aligned", "positive",
-           "barycentric", "combined", "check_points"]
+           "Combination", "panel_index", "chebyshev_points", "lebesgue_constant", "chebyshev_panel", "aligned",
+           "positive", "barycentric", "combined", "check_points"]
 
 #: Width of a panel in ``U = N L²/EI`` (the pinned–pinned beam's first mode moves by ``U/π²`` of itself).
 PANEL_WIDTH = 8.0
@@ -79,19 +79,47 @@ class Panel:
 
     def at(self, U: float) -> Modes:
         """The interpolated modes at ``U`` (inside the panel; at a point, its own values)."""
+        w2, w2_f, shapes = self.interpolant(U)
+        return w2, w2_f, shapes.full()
+
+    def interpolant(self, U: float) -> tuple[np.ndarray, np.ndarray, Combination]:
+        """:meth:`at` with the shapes left as their :class:`Combination` (formed whole or by rows when read)."""
         c = barycentric(U, self.nodes, self.weights)
         if isinstance(c, int):
-            return self.frequencies2[c].copy(), self.fine_frequencies2[c].copy(), self.shapes[c].copy()
-        return c @ self.frequencies2, c @ self.fine_frequencies2, combined(c, self.shapes)
+            return self.frequencies2[c].copy(), self.fine_frequencies2[c].copy(), Combination(None, self.shapes[c])
+        return c @ self.frequencies2, c @ self.fine_frequencies2, Combination(c, self.shapes)
+
+
+@dataclass(frozen=True, eq=False)
+class Combination:
+    """``Σ_j c_j stack[j]`` of a panel's shapes at one ``U`` (``c`` ``None``: ``stack`` is the point's own
+    shapes), formed whole (:meth:`full`) or on a few rows (:meth:`rows`: a model reads the shapes where its loads
+    and sensors are, ``O(rows · modes)`` of the ``O(unknowns · modes)``).  Either way the same numbers for a
+    row, whatever was formed before."""
+
+    c: np.ndarray | None
+    stack: np.ndarray
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(unknowns, modes)`` of the shapes."""
+        return self.stack.shape[-2], self.stack.shape[-1]
+
+    def full(self) -> np.ndarray:
+        """The shapes (unknowns × modes), a new array."""
+        return self.stack.copy() if self.c is None else combined(self.c, self.stack)
+
+    def rows(self, J: np.ndarray) -> np.ndarray:
+        """The shapes' rows ``J`` (len(J) × modes), a new array."""
+        return self.stack[J] if self.c is None else combined(self.c, self.stack[:, J])
 
 
 def barycentric(U: float, nodes: np.ndarray, weights: np.ndarray) -> int | np.ndarray:
     """The panel point that ``U`` is (its index), else the weights of the points' values in the barycentric
     interpolant at ``U``."""
     diff = U - nodes
-    hit = np.flatnonzero(diff == 0.0)
-    if hit.size:
-        return int(hit[0])
+    if not diff.all():
+        return int(np.flatnonzero(diff == 0.0)[0])
     c = weights / diff
     c /= c.sum()
     return c

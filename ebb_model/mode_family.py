@@ -38,7 +38,7 @@ from .config import BeamConfig
 from .attached_modes import MAX_ATTACHMENTS, Basis, BasisPanel, basis_panel, updated_modes
 from .coupled_modes import MAX_RANK, LowRankDamping
 from .memo import memoised
-from .mode_continuation import PANEL_DEGREE, Panel, chebyshev_panel, panel_index
+from .mode_continuation import PANEL_DEGREE, Combination, Panel, chebyshev_panel, panel_index
 from .modal_form import DIAGONAL_RTOL, is_diagonal, off_diagonal_magnitude
 from .richardson_pair import companion_nodes, extrapolated, lowest_modes, richardson_with_fine
 from .discretisation import (Grid, SemiDiscreteBeam, assemble_matrices, check_attachments, control_lengths, grid,
@@ -93,13 +93,16 @@ def family_key(config: BeamConfig, p: Mapping[str, float]) -> FamilyKey:
 @dataclass(frozen=True, eq=False)
 class UnitModes:
     """The Richardson modes of a family's unit beam (``EI = ρA = 1``): ``frequencies2`` (``ω̃²``, as many as the
-    config's grid has unknowns) and ``shapes`` (``ψ̃``, mass-normalised, on the ``fine`` unit beam of the pair).
-    Read-only arrays (shared by every caller).  The modal damping's unit matrices are formed when first read (a
-    beam without Kelvin–Voigt damping and with ``M̃ = diag(V)`` needs the diagonal of the viscous one only); the
-    memo's budget counts the fields, not these."""
+    config's grid has unknowns) and ``shapes`` (``ψ̃``, mass-normalised, on the ``fine`` unit beam of the pair;
+    continued modes keep them as their panel's :class:`~ebb_model.mode_continuation.Combination`, formed whole
+    when first read, by rows in :meth:`shape_rows`).  Read-only arrays (shared by every caller).  The modal
+    damping's unit matrices are formed when first read (a beam without Kelvin–Voigt damping and with
+    ``M̃ = diag(V)`` needs the diagonal of the viscous one only); the memo's budget counts the fields and the
+    shapes, not these."""
 
     frequencies2: np.ndarray
-    shapes: np.ndarray
+    #: the shapes, or the combination of a panel's that forms them
+    source: np.ndarray | Combination
     #: the ``ω̃²`` of the ``fine`` grid itself, as many (``ψ̃ᵀ K̃ ψ̃``)
     fine_frequencies2: np.ndarray
     #: the family
@@ -128,8 +131,19 @@ class UnitModes:
 
     @property
     def nbytes(self) -> int:
-        """The bytes of the arrays it holds (what a memo counts; the grid's are the grid memo's)."""
-        return self.frequencies2.nbytes + self.shapes.nbytes + self.fine_frequencies2.nbytes
+        """The bytes of the arrays it holds, the shapes counted whole whether formed yet or not (what a memo
+        counts; the grid's are the grid memo's, a panel's the panel memo's)."""
+        return self.frequencies2.nbytes + 8 * math.prod(self.source.shape) + self.fine_frequencies2.nbytes
+
+    @functools.cached_property
+    def shapes(self) -> np.ndarray:
+        """``ψ̃`` (unknowns of the finer grid × modes)."""
+        return self.source if isinstance(self.source, np.ndarray) else _read_only(self.source.full())
+
+    def shape_rows(self, J: np.ndarray) -> np.ndarray:
+        """``ψ̃[J]`` — from the panel's combination for continued modes (the same numbers whether
+        :attr:`shapes` was formed or not)."""
+        return self.source[J] if isinstance(self.source, np.ndarray) else self.source.rows(J)
 
     @functools.cached_property
     def viscous(self) -> np.ndarray:
@@ -259,7 +273,8 @@ def continuation_stem(key: FamilyKey) -> FamilyKey | None:
     fine = _fine_nodes(key)
     if 8 * (PANEL_DEGREE + 1) * (fine + 2) * key.nodes > _MAX_PANEL_BYTES:
         return None
-    return replace(key, N=0.0, kf=0.0)
+    return FamilyKey(key.length, key.nodes, key.left, key.right, 0.0, 0.0, key.rhoI, key.masses, key.springs,
+                     key.segments)
 
 
 @memoised
@@ -272,7 +287,7 @@ def continuation_panel(where: tuple[FamilyKey, int]) -> Panel | None:
                            _lengths(stem, _fine_nodes(stem)))
 
 
-def _continued(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+def _continued(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray | Combination] | None:
     """``(ω²_R, ω²_f, Ψ)`` of ``key`` from its stem's panel (at ``U = 0``, a panel point, the stem's own modes),
     shifted by the foundation's ``k_f/EI``; ``None`` when ``key`` is solved directly (not continued, a refused
     panel, or the stem itself)."""
@@ -289,7 +304,7 @@ def _continued(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray] | No
         panel = continuation_panel((stem, panel_index(U)))
         if panel is None:
             return None
-        w2, w2_f, psi = panel.at(U)
+        w2, w2_f, psi = panel.interpolant(U)
     return w2 + key.kf, w2_f + key.kf, psi
 
 
@@ -369,21 +384,22 @@ def unit_modes(key: FamilyKey) -> UnitModes:
     else:
         w2, w2_f, psi = continued
         fine = None
-    return UnitModes(_read_only(w2), _read_only(psi), _read_only(w2_f), key, _lengths(key, _fine_nodes(key)),
-                     not key.masses and key.rhoI == 0.0, fine)
+    return UnitModes(_read_only(w2), psi if isinstance(psi, Combination) else _read_only(psi), _read_only(w2_f),
+                     key, _lengths(key, _fine_nodes(key)), not key.masses and key.rhoI == 0.0, fine)
 
 
 def scaled_beam(unit: SemiDiscreteBeam, config: BeamConfig, p: Mapping[str, float],
-                loads: tuple[np.ndarray, np.ndarray] | None = None) -> SemiDiscreteBeam:
+                loads: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> SemiDiscreteBeam:
     """The beam of ``config`` with the resolved values ``p`` on the grid of its family's ``unit`` beam:
     ``M = ρA M̃``, ``K = EI K̃``, ``C = c V + η EI C̃`` (``V`` the control lengths), the loads and sensor rows of
-    ``config``'s actuators and sensors on that grid (``loads = (F, S)`` when already built)."""
+    ``config``'s actuators and sensors on that grid (``loads`` when already built:
+    :func:`~ebb_model.discretisation.load_rows`)."""
     EI = p["EI"]
     nodes = unit.x.size - 2
     C = (p["eta"] * EI) * unit.C
     V = control_lengths(nodes, config.beam.length / (nodes + 1), config.beam.left, config.beam.right)
     C[np.diag_indices_from(C)] += p["c"] * V
-    F, S = load_rows(config, nodes) if loads is None else loads
+    F, S, _ = load_rows(config, nodes) if loads is None else loads
     return SemiDiscreteBeam(M=p["rhoA"] * unit.M, C=C, K=EI * unit.K, F=F, S=S,
                             sensor_kinds=tuple(s.kind for s in config.sensors), x=unit.x, unknown=unit.unknown,
                             input_names=config.input_names, output_names=config.output_names)
@@ -401,17 +417,27 @@ class FamilyModes:
     """The undamped modes of a parameter set (:func:`family_modes`): the extrapolated ``frequencies2`` (``ω²``)
     and the mass-normalised ``shapes`` ``Ψ`` (finer grid × as many modes as the config's grid has unknowns) of
     the family's ``unit`` modes scaled for the resolved values ``p`` of ``config``.  What only some models need
-    is built when first read: the finer grid's dense ``beam`` and the modal damping matrix."""
+    is built when first read: the shapes whole (a model reads their rows at its loads and sensors,
+    :meth:`shape_rows`), the finer grid's dense ``beam`` and the modal damping matrix."""
 
     config: BeamConfig
     p: Mapping[str, float]
     unit: UnitModes
     frequencies2: np.ndarray
-    shapes: np.ndarray
 
     @functools.cached_property
-    def loads(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(F, S)``: the actuators' load columns and the sensors' rows on the finer grid."""
+    def shapes(self) -> np.ndarray:
+        """``Ψ = ψ̃/√ρA`` (unknowns of the finer grid × modes), formed when first read."""
+        return self.unit.shapes / math.sqrt(self.p["rhoA"])
+
+    def shape_rows(self, J: np.ndarray) -> np.ndarray:
+        """``Ψ[J]`` (:meth:`UnitModes.shape_rows`)."""
+        return self.unit.shape_rows(J) / math.sqrt(self.p["rhoA"])
+
+    @functools.cached_property
+    def loads(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(F, S, J)``: the actuators' load columns and the sensors' rows on the finer grid, and the unknowns
+        where either has an entry (:func:`~ebb_model.discretisation.load_rows`)."""
         unit = self.unit
         return load_rows(self.config, unit.x.size - 2)
 
@@ -468,7 +494,7 @@ class FamilyModes:
         if masses is None or springs is None:
             return None
         if masses[0].size == 0 and springs[0].size == 0:      # C = α M + β K exactly: rank 0
-            return LowRankDamping(a + b * unit.fine_frequencies2, np.zeros((unit.shapes.shape[1], 0)),
+            return LowRankDamping(a + b * unit.fine_frequencies2, np.zeros((unit.frequencies2.size, 0)),
                                   np.zeros((0, 0)))
         rows = np.union1d(masses[0], springs[0])
         if rows.size > MAX_RANK:
@@ -477,7 +503,7 @@ class FamilyModes:
         for w, (J, R) in ((a, masses), (b, springs)):
             at = np.searchsorted(rows, J)
             E[np.ix_(at, at)] -= w * R
-        return LowRankDamping(a + b * unit.fine_frequencies2, unit.shapes[rows].T.copy(), E)
+        return LowRankDamping(a + b * unit.fine_frequencies2, unit.shape_rows(rows).T.copy(), E)
 
 
 def family_modes(config: BeamConfig, p: Mapping[str, float]) -> FamilyModes:
@@ -492,4 +518,4 @@ def family_modes(config: BeamConfig, p: Mapping[str, float]) -> FamilyModes:
     check_pair(config, p)
     unit = unit_modes(family_key(config, p))
     EI, rhoA = p["EI"], p["rhoA"]
-    return FamilyModes(config, p, unit, (EI / rhoA) * unit.frequencies2, unit.shapes / math.sqrt(rhoA))
+    return FamilyModes(config, p, unit, (EI / rhoA) * unit.frequencies2)

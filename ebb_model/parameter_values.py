@@ -7,6 +7,7 @@ without a second check.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator, Mapping
 from typing import Any, Protocol
 
@@ -68,9 +69,11 @@ def check_parameter_values(values: Mapping[str, Any], *, where: str = "parameter
         if k not in values:
             pr.add(f"{where}.{k}", "missing")
             continue
-        v = pr.number(f"{where}.{k}", values[k])
-        if v is None:
-            continue
+        v = values[k]
+        if type(v) is not float or not math.isfinite(v):      # (the common case without building the name)
+            v = pr.number(f"{where}.{k}", v)
+            if v is None:
+                continue
         problem = range_problem(k, v)
         if problem is not None:
             pr.add(f"{where}.{k}", problem)

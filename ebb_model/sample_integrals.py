@@ -92,6 +92,9 @@ def _lagrange_coefficients(taps: tuple[int, ...]) -> np.ndarray:
 
 #: :func:`_lagrange_coefficients` of each input reconstruction's taps (constants: built once, read per model).
 LAGRANGE = {hold: _lagrange_coefficients(taps) for hold, taps in INPUT_TAPS.items()}
+#: Where each tap of :data:`INPUT_TAPS` goes in :func:`modal_blocks`: the column block of sample ``k − j`` (``j``),
+#: or ``−1`` for the lookahead.
+_COLUMNS = {hold: np.array([-1 if t == 1 else -t for t in taps]) for hold, taps in INPUT_TAPS.items()}
 
 
 def input_weights(s: np.ndarray, T: float, hold: str) -> tuple[np.ndarray, np.ndarray]:
@@ -232,10 +235,9 @@ def modal_blocks(s: np.ndarray, T: float, hold: str, inputs: np.ndarray, CV: np.
         An odd number of real poles.
     """
     taps = INPUT_TAPS[hold]
-    column = np.array([-1 if t == 1 else -t for t in taps])
     Tb, G, H, Cb, Dh, freqs, filters, odd = _pole_blocks(
         np.ascontiguousarray(s, dtype=complex).reshape(-1), float(T), len(taps) - 1, _SERIES, LAGRANGE[hold],
-        np.ascontiguousarray(inputs, dtype=complex), np.ascontiguousarray(CV, dtype=complex), column,
+        np.ascontiguousarray(inputs, dtype=complex), np.ascontiguousarray(CV, dtype=complex), _COLUMNS[hold],
         -1 if filters_from is None else int(filters_from), 1 in taps)
     if odd:
         raise np.linalg.LinAlgError("odd number of real poles")
