@@ -18,12 +18,39 @@ import numpy as np
 
 __all__ = ["INPUT_TAPS", "polynomial_integrals", "pole_integrals", "input_weights", "Blocks", "modal_blocks"]
 
-#: Terms of the series of :func:`polynomial_integrals` (``|z| < 1``): the last is below ``1/24! ≈ 2e-24``.
+#: Most terms of the series of :func:`polynomial_integrals` (``|z| < 1``): the last is below ``1/24! ≈ 2e-24``.
 _SERIES_TERMS = 24
 #: The series' coefficients ``p!/(k + p + 1)!`` per degree ``p`` (rows) and term ``k`` (columns).
 _SERIES = np.array([[math.factorial(p) / math.factorial(k + p + 1) for k in range(_SERIES_TERMS)]
                     for p in range(4)])
 _SERIES.setflags(write=False)
+#: What the terms left out may add, relative to the series' first term ``1/(p + 1)``: a sixteenth of an ulp.
+_SERIES_TOLERANCE = 2.0 ** -56
+
+
+def _series_radii() -> np.ndarray:
+    """``r[p, K]``: the largest ``|z| ≤ 1`` for which the first ``K`` terms of degree ``p``'s series suffice —
+    the rest, ``Σ_{k ≥ K} |z|^k p!/(k + p + 1)! ≤ |z|^K p!/(K + p + 1)! / (1 − |z|/(K + p + 2))`` (each term at
+    most ``|z|/(k + p + 2)`` of the one before), at most :data:`_SERIES_TOLERANCE` of ``1/(p + 1)``; 0 where no
+    ``|z|`` does; 1 for all :data:`_SERIES_TERMS`."""
+    r = np.zeros((4, _SERIES_TERMS + 1))
+    for p in range(4):
+        lead = 1.0 / (p + 1)
+        for K in range(1, _SERIES_TERMS):
+            def rest(x: float) -> float:
+                return x ** K * _SERIES[p, K - 1] / (K + p + 1) / (1.0 - x / (K + p + 2))
+            lo, hi = 0.0, 1.0
+            for _ in range(60):                        # bisection: rest() grows with x
+                mid = 0.5 * (lo + hi)
+                lo, hi = (mid, hi) if rest(mid) <= _SERIES_TOLERANCE * lead else (lo, mid)
+            r[p, K] = lo
+        r[p, _SERIES_TERMS] = 1.0
+    r.setflags(write=False)
+    return r
+
+
+#: :func:`_series_radii`, once.
+_SERIES_RADII = _series_radii()
 
 #: Sample offsets the input reconstruction between ``t_k`` and ``t_{k+1}`` reads, per ``[time] input``:
 #: held (``zoh``), the straight line (``foh``), and the cubic through four samples ``k−2 … k+1`` (``cubic``).
@@ -31,12 +58,15 @@ INPUT_TAPS = {"zoh": (0,), "foh": (0, 1), "cubic": (-2, -1, 0, 1)}
 
 
 @numba.njit(cache=True, nogil=True)
-def _integrals(s, T, degree, series, E, I):  # pragma: no cover - compiled
-    terms = series.shape[1]
+def _integrals(s, T, degree, series, radii, E, I):  # pragma: no cover - compiled
     for n in range(s.size):
         z = s[n] * T
         E[n] = cmath.exp(z)
-        if abs(z) < 1.0:            # the highest degree by its series, the lower ones by the recurrence downwards
+        size = abs(z)
+        if size < 1.0:              # the highest degree by its series, the lower ones by the recurrence downwards
+            terms = 1
+            while radii[degree, terms] < size:         # as many terms as |z| needs (_series_radii)
+                terms += 1
             acc = complex(series[degree, terms - 1])
             for k in range(terms - 2, -1, -1):
                 acc = acc * z + series[degree, k]
@@ -59,8 +89,9 @@ def polynomial_integrals(s: np.ndarray, T: float, degree: int = 3) -> tuple[np.n
 
     With ``z = sT``: ``I_0 = T (e^z − 1)/z`` and ``I_p = (p I_{p−1} − T)/z`` (integration by parts), stable for
     ``|z| ≥ 1`` (the recurrence amplifies round-off by at most ``p!/|z|^p``); below, the highest degree by its
-    series ``T Σ_k z^k p!/(k + p + 1)!`` (:data:`_SERIES_TERMS` terms, Horner's rule) and the lower ones by the
-    recurrence run downwards, ``I_{p−1} = (z I_p + T)/p``, which damps round-off by ``|z|/p``.
+    series ``T Σ_k z^k p!/(k + p + 1)!`` (Horner's rule, as many terms as ``|z|`` needs for what is left out to
+    stay below a sixteenth of an ulp of the first, :func:`_series_radii`; at most :data:`_SERIES_TERMS`) and
+    the lower ones by the recurrence run downwards, ``I_{p−1} = (z I_p + T)/p``, which damps round-off by ``|z|/p``.
     ``degree`` at most 3 (the cubic's).  An unstable pole's ``e^{sT}`` may overflow to ``inf`` (the stability
     check catches it).  Returns ``E`` (n,) and ``I`` (degree + 1, n).
     """
@@ -69,7 +100,7 @@ def polynomial_integrals(s: np.ndarray, T: float, degree: int = 3) -> tuple[np.n
     z = np.ascontiguousarray(s, dtype=complex).reshape(-1)
     E = np.empty(z.size, dtype=complex)
     I = np.empty((degree + 1, z.size), dtype=complex)
-    _integrals(z, float(T), degree, _SERIES, E, I)
+    _integrals(z, float(T), degree, _SERIES, _SERIES_RADII, E, I)
     return E, I
 
 
@@ -147,12 +178,13 @@ def _blocks(lam, W, inputs, CV, A, B, column, T, G, H, Cb, Dh):  # pragma: no co
 
 
 @numba.njit(cache=True, nogil=True)
-def _pole_blocks(s, T, degree, series, lagrange, inputs, CV, column, filters_from, lookahead):  # pragma: no cover
+def _pole_blocks(s, T, degree, series, radii, lagrange, inputs, CV, column, filters_from,
+                 lookahead):  # pragma: no cover - compiled
     # the poles' integrals and input weights (input_weights), then the blocks chosen by the discrete poles
     n, m, p = s.size, inputs.shape[1], CV.shape[0]
     E = np.empty(n, dtype=np.complex128)
     I = np.empty((degree + 1, n), dtype=np.complex128)
-    _integrals(s, T, degree, series, E, I)
+    _integrals(s, T, degree, series, radii, E, I)
     W = np.zeros((lagrange.shape[0], n), dtype=np.complex128)
     for q in range(lagrange.shape[0]):
         for d in range(degree + 1):
@@ -236,7 +268,8 @@ def modal_blocks(s: np.ndarray, T: float, hold: str, inputs: np.ndarray, CV: np.
     """
     taps = INPUT_TAPS[hold]
     Tb, G, H, Cb, Dh, freqs, filters, odd = _pole_blocks(
-        np.ascontiguousarray(s, dtype=complex).reshape(-1), float(T), len(taps) - 1, _SERIES, LAGRANGE[hold],
+        np.ascontiguousarray(s, dtype=complex).reshape(-1), float(T), len(taps) - 1, _SERIES, _SERIES_RADII,
+        LAGRANGE[hold],
         np.ascontiguousarray(inputs, dtype=complex), np.ascontiguousarray(CV, dtype=complex), _COLUMNS[hold],
         -1 if filters_from is None else int(filters_from), 1 in taps)
     if odd:
