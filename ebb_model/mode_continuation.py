@@ -86,7 +86,8 @@ class Panel:
         """:meth:`at` with the shapes left as their :class:`Combination` (formed whole or by rows when read)."""
         c = barycentric(U, self.nodes, self.weights)
         if isinstance(c, int):
-            return self.frequencies2[c].copy(), self.fine_frequencies2[c].copy(), Combination(None, self.shapes[c])
+            own = Combination(None, self.shapes[c].copy())    # (a view would keep the whole stack alive)
+            return self.frequencies2[c].copy(), self.fine_frequencies2[c].copy(), own
         return c @ self.frequencies2, c @ self.fine_frequencies2, Combination(c, self.shapes)
 
 

@@ -131,9 +131,12 @@ class UnitModes:
 
     @property
     def nbytes(self) -> int:
-        """The bytes of the arrays it holds, the shapes counted whole whether formed yet or not (what a memo
-        counts; the grid's are the grid memo's, a panel's the panel memo's)."""
-        return self.frequencies2.nbytes + 8 * math.prod(self.source.shape) + self.fine_frequencies2.nbytes
+        """The bytes of the arrays it holds (what a memo counts; the grid's are the grid memo's): the shapes
+        counted whole, formed or not, and a combination's panel stack too — it stays alive with the member even
+        when the panel memo has dropped it, so the memo's budget bounds what it keeps."""
+        source = self.source if isinstance(self.source, np.ndarray) else self.source.stack
+        return self.frequencies2.nbytes + max(source.nbytes, 8 * math.prod(self.source.shape)) \
+            + self.fine_frequencies2.nbytes
 
     @functools.cached_property
     def shapes(self) -> np.ndarray:

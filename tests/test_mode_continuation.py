@@ -155,3 +155,23 @@ def test_a_panel_is_a_pure_function_of_its_stem_and_index():
     unit_modes.cache_clear()
     again = continuation_panel(where)
     assert again is not first and np.array_equal(again.shapes, first.shapes)
+
+
+def test_a_model_reads_a_continued_members_shapes_only_where_its_loads_and_sensors_are():
+    # the model combines the panel's shapes on the rows of its loads and sensors; the whole shapes are formed
+    # only when something asks (here: never, for a decoupled model) — and a row's numbers do not depend on
+    # whether they were
+    cfg = _pinned(40, N=13.0)
+    p = resolve_parameters(cfg)
+    unit_modes.cache_clear()
+    em.fast_model(cfg, p)
+    unit = unit_modes(family_key(cfg, p))
+    assert unit.built is None and "shapes" not in vars(unit)
+    J = np.array([3, 4, 20, 31])
+    before = unit.shape_rows(J)
+    whole = unit.shapes
+    assert np.array_equal(unit.shape_rows(J), before)
+    # the rows and the whole are two roundings of one combination: budget a few ulps of each mode's largest
+    # entry (measured: 1 ulp)
+    scale = np.max(np.abs(whole), axis=0)
+    assert np.max(np.abs(whole[J] - before) / scale) <= 4 * np.finfo(float).eps
