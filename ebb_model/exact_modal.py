@@ -44,7 +44,7 @@ import scipy.linalg as sla
 from .antialias import effective_filters, filtered_poles, series_statespace
 from .config import BeamConfig
 from .coupled_modes import LowRankDamping, coupled_modes
-from .mode_family import FamilyModes, family_modes
+from .parameter_modes import FamilyModes, family_modes
 from .modal_form import MAX_BASIS_CONDITION, ModalStateSpace, basis_condition
 from .parameter_values import resolve_parameters
 from .sample_integrals import INPUT_TAPS, LAGRANGE, modal_blocks
@@ -186,7 +186,7 @@ class ModalMatrices:
 
 
 def modal_matrices(config: BeamConfig, params: Mapping[str, float]) -> ModalMatrices:
-    """Two-grid Richardson modes of the FD beam (:func:`ebb_model.mode_family.family_modes`: one
+    """Two-grid Richardson modes of the FD beam (:func:`ebb_model.parameter_modes.family_modes`: one
     eigen-decomposition per family of parameter sets) with their damping, forcing and sensor rows.
 
     Raises

@@ -28,7 +28,7 @@ import numpy as np
 from .config import BeamConfig
 from .config_types import MAX_NODES
 from .discretisation import discretise
-from .mode_family import family_modes
+from .parameter_modes import family_modes
 from .richardson_pair import extrapolated, lowest_modes
 from .modal import discrete_frequencies
 from .parameter_values import resolve_parameters

@@ -25,7 +25,8 @@ import numpy as np
 from .config import BeamConfig
 from .coupled_modes import coupled_poles
 from .exact_modal import modal_matrices, modal_state_matrix
-from .mode_family import check_pair, family_key, unit_pair
+from .mode_family import family_key, unit_pair
+from .parameter_modes import check_pair
 from .richardson_pair import extrapolated, lowest_modes
 from .parameter_values import resolve_parameters
 
@@ -73,7 +74,7 @@ def modal_poles(config: BeamConfig, params: Mapping[str, float], lowest: int | N
 def _mass_proportional_rate(config: BeamConfig, p: Mapping[str, float]) -> float | None:
     """``α`` when ``C = α M`` (then ``Ψᵀ C Ψ = α I`` for mass-normalised modes), else ``None``; ``p`` resolved.
 
-    Read from the structure (:func:`~ebb_model.mode_family.scaled_beam`: ``C = c V + η EI C̃``, ``M = ρA M̃``):
+    Read from the structure (:func:`~ebb_model.parameter_modes.scaled_beam`: ``C = c V + η EI C̃``, ``M = ρA M̃``):
     no Kelvin–Voigt term, and the viscous damping where the mass is, ``M̃ = diag(V)`` — no point mass with a
     mass, no rotary inertia — or no damping at all."""
     if p["eta"] * p["EI"] != 0.0:

@@ -95,8 +95,8 @@ class Panel:
 class Combination:
     """``Σ_j c_j stack[j]`` of a panel's shapes at one ``U`` (``c`` ``None``: ``stack`` is the point's own
     shapes), formed whole (:meth:`full`) or on a few rows (:meth:`rows`: a model reads the shapes where its loads
-    and sensors are, ``O(rows · modes)`` of the ``O(unknowns · modes)``).  Either way the same numbers for a
-    row, whatever was formed before."""
+    and sensors are, ``O(rows · modes)`` of the ``O(unknowns · modes)``).  Two roundings of one combination (they
+    may differ in the last bit); each a pure function of its arguments, whatever was formed before."""
 
     c: np.ndarray | None
     stack: np.ndarray

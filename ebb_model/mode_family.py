@@ -15,8 +15,8 @@ positions of sensors and actuators do not enter.  So every parameter set with th
 of the key memoised per process (the least recently used dropped beyond a budget of bytes), so a result never
 depends on which evaluations came before (a resumed run, another worker, compute the same numbers).  An identification
 with ``N`` known and no attached mass needs one decomposition for all its evaluations (the difference Jacobians'
-steps in ``EI``, ``ρA``, ``c``, ``η`` and positions included); :func:`family_modes` scales it and builds the
-finer grid's damping, load and sensor rows for the parameter set at hand.
+steps in ``EI``, ``ρA``, ``c``, ``η`` and positions included); :func:`~ebb_model.parameter_modes.family_modes`
+scales it and builds the finer grid's damping, load and sensor rows for the parameter set at hand.
 
 **The continuation.**  With ``N`` unknown every evaluation is a new member.  On a beam without attachments
 (:func:`continuation_stem`) the members differ only in ``U = N L²/EI`` and ``k_f/EI``: their modes are taken
@@ -36,17 +36,15 @@ import numpy as np
 from .beam import End, PointMass, PointSpring, WeakSegment
 from .config import BeamConfig
 from .attached_modes import MAX_ATTACHMENTS, Basis, BasisPanel, basis_panel, updated_modes
-from .coupled_modes import MAX_RANK, LowRankDamping
+from .coupled_modes import MAX_RANK
 from .memo import memoised
 from .mode_continuation import PANEL_DEGREE, Combination, Panel, chebyshev_panel, panel_index
-from .modal_form import DIAGONAL_RTOL, is_diagonal, off_diagonal_magnitude
+from .modal_form import off_diagonal_magnitude
 from .richardson_pair import companion_nodes, extrapolated, lowest_modes, richardson_with_fine
-from .discretisation import (Grid, SemiDiscreteBeam, assemble_matrices, check_attachments, control_lengths, grid,
-                             grid_nodes, hat_weights, load_rows, unknown_nodes)
+from .discretisation import Grid, SemiDiscreteBeam, assemble_matrices, grid, grid_nodes, hat_weights, unknown_nodes
 
-__all__ = ["FamilyKey", "family_key", "UnitModes", "unit_pair", "unit_modes", "scaled_beam",
-           "check_pair", "FamilyModes", "family_modes", "continuation_stem", "continuation_panel", "attachment",
-           "attached_panel"]
+__all__ = ["FamilyKey", "family_key", "UnitModes", "unit_pair", "unit_modes", "continuation_stem",
+           "continuation_panel", "attachment", "attached_panel"]
 
 
 @dataclass(frozen=True)
@@ -389,136 +387,3 @@ def unit_modes(key: FamilyKey) -> UnitModes:
         fine = None
     return UnitModes(_read_only(w2), psi if isinstance(psi, Combination) else _read_only(psi), _read_only(w2_f),
                      key, _lengths(key, _fine_nodes(key)), not key.masses and key.rhoI == 0.0, fine)
-
-
-def scaled_beam(unit: SemiDiscreteBeam, config: BeamConfig, p: Mapping[str, float],
-                loads: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> SemiDiscreteBeam:
-    """The beam of ``config`` with the resolved values ``p`` on the grid of its family's ``unit`` beam:
-    ``M = ρA M̃``, ``K = EI K̃``, ``C = c V + η EI C̃`` (``V`` the control lengths), the loads and sensor rows of
-    ``config``'s actuators and sensors on that grid (``loads`` when already built:
-    :func:`~ebb_model.discretisation.load_rows`)."""
-    EI = p["EI"]
-    nodes = unit.x.size - 2
-    C = (p["eta"] * EI) * unit.C
-    V = control_lengths(nodes, config.beam.length / (nodes + 1), config.beam.left, config.beam.right)
-    C[np.diag_indices_from(C)] += p["c"] * V
-    F, S, _ = load_rows(config, nodes) if loads is None else loads
-    return SemiDiscreteBeam(M=p["rhoA"] * unit.M, C=C, K=EI * unit.K, F=F, S=S,
-                            sensor_kinds=tuple(s.kind for s in config.sensors), x=unit.x, unknown=unit.unknown,
-                            input_names=config.input_names, output_names=config.output_names)
-
-
-def check_pair(config: BeamConfig, p: Mapping[str, float]) -> None:
-    """Raise :class:`~ebb_model.errors.ParameterError` for a point mass too heavy or a spring too stiff for
-    either grid of the Richardson pair (:func:`~ebb_model.discretisation.check_attachments`)."""
-    for nodes in (config.beam.nodes, companion_nodes(config.beam.nodes)):
-        check_attachments(config, p, nodes)
-
-
-@dataclass(frozen=True, eq=False)
-class FamilyModes:
-    """The undamped modes of a parameter set (:func:`family_modes`): the extrapolated ``frequencies2`` (``ω²``)
-    and the mass-normalised ``shapes`` ``Ψ`` (finer grid × as many modes as the config's grid has unknowns) of
-    the family's ``unit`` modes scaled for the resolved values ``p`` of ``config``.  What only some models need
-    is built when first read: the shapes whole (a model reads their rows at its loads and sensors,
-    :meth:`shape_rows`), the finer grid's dense ``beam`` and the modal damping matrix."""
-
-    config: BeamConfig
-    p: Mapping[str, float]
-    unit: UnitModes
-    frequencies2: np.ndarray
-
-    @functools.cached_property
-    def shapes(self) -> np.ndarray:
-        """``Ψ = ψ̃/√ρA`` (unknowns of the finer grid × modes), formed when first read."""
-        return self.unit.shapes / math.sqrt(self.p["rhoA"])
-
-    def shape_rows(self, J: np.ndarray) -> np.ndarray:
-        """``Ψ[J]`` (:meth:`UnitModes.shape_rows`)."""
-        return self.unit.shape_rows(J) / math.sqrt(self.p["rhoA"])
-
-    @functools.cached_property
-    def loads(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(F, S, J)``: the actuators' load columns and the sensors' rows on the finer grid, and the unknowns
-        where either has an entry (:func:`~ebb_model.discretisation.load_rows`)."""
-        unit = self.unit
-        return load_rows(self.config, unit.x.size - 2)
-
-    @functools.cached_property
-    def beam(self) -> SemiDiscreteBeam:
-        """The finer grid's beam for these values (:func:`scaled_beam`)."""
-        return scaled_beam(self.unit.fine, self.config, self.p, self.loads)
-
-    def _damping_weights(self) -> tuple[float, float]:
-        """``ΨᵀCΨ = a ψ̃ᵀVψ̃ + b ψ̃ᵀC̃ψ̃``: ``(a, b) = (c/ρA, η EI/ρA)``."""
-        p = self.p
-        return p["c"] / p["rhoA"], p["eta"] * p["EI"] / p["rhoA"]
-
-    @functools.cached_property
-    def damping(self) -> np.ndarray:
-        """The modal damping ``Ψᵀ C Ψ`` (before any symmetrisation)."""
-        a, b = self._damping_weights()
-        return a * self.unit.viscous + b * self.unit.bending
-
-    def diagonal_damping(self, rtol: float = DIAGONAL_RTOL) -> np.ndarray | None:
-        """The modal damping's diagonal when it is diagonal to ``rtol`` of its largest diagonal entry
-        (:func:`~ebb_model.modal_form.is_diagonal`), else ``None``.  Decided from the unit matrices' largest
-        off-diagonal magnitudes where they bound it (no ``k × k`` matrix formed), else on the matrix.  Viscous
-        damping alone on a beam without point masses or rotary inertia is ``C = (c/ρA) M``: its diagonal is
-        returned whatever ``ΨᵀMΨ``'s round-off (9e-10 off the identity at 200 nodes), as
-        :meth:`low_rank_damping` finds rank 0 for it."""
-        a, b = self._damping_weights()
-        unit = self.unit
-        if b == 0.0 and unit.viscous_is_mass:
-            return a * unit.viscous_diagonal
-        diag = a * np.diagonal(unit.viscous) + b * np.diagonal(unit.bending)    # as the matrix's, bit for bit
-        scale = max(float(np.max(np.abs(diag), initial=0.0)), 1e-300)
-        # |fl(a v + b w)| <= (|a v| + |b w|)(1 + 2 eps): the bound's own rounding is covered by the factor
-        bound = (abs(a) * unit.viscous_off + abs(b) * unit.bending_off) * (1.0 + 4.0 * np.finfo(float).eps)
-        if bound <= rtol * scale:
-            return diag
-        diagonal, d = is_diagonal(self.damping, rtol=rtol)
-        return d if diagonal else None
-
-    def low_rank_damping(self) -> LowRankDamping | None:
-        """The modal damping as ``diag(d⁰) + G E Gᵀ`` (:mod:`ebb_model.coupled_modes`), or ``None``.
-
-        ``V = M̃ − R_M`` and ``C̃ = K̃ − R_K`` with ``R_M``, ``R_K`` on a few unknowns ``J``
-        (:attr:`UnitModes.mass_excess`, :attr:`UnitModes.stiffness_excess`) give, with ``ψ̃ᵀM̃ψ̃ = I`` and
-        ``ψ̃ᵀK̃ψ̃ = diag(ω̃²_f)``, ``ΨᵀCΨ = a ψ̃ᵀVψ̃ + b ψ̃ᵀC̃ψ̃ = diag(a + b ω̃²_f) − ψ̃_Jᵀ (a R_M + b R_K)_JJ ψ̃_J``
-        (the modes' orthogonality taken as exact).  ``None`` when a term with a non-zero weight differs on more
-        than :data:`~ebb_model.coupled_modes.MAX_RANK` unknowns (rotary inertia with viscous damping; axial load or
-        a foundation with Kelvin–Voigt damping): the caller decides on the matrix."""
-        a, b = self._damping_weights()
-        unit = self.unit
-        nothing = (np.zeros(0, dtype=np.intp), np.zeros((0, 0)))      # a term with no weight leaves nothing out
-        masses = unit.mass_excess if a != 0.0 else nothing
-        springs = unit.stiffness_excess if b != 0.0 else nothing
-        if masses is None or springs is None:
-            return None
-        if masses[0].size == 0 and springs[0].size == 0:      # C = α M + β K exactly: rank 0
-            return LowRankDamping(a + b * unit.fine_frequencies2, np.zeros((unit.frequencies2.size, 0)),
-                                  np.zeros((0, 0)))
-        rows = np.union1d(masses[0], springs[0])
-        if rows.size > MAX_RANK:
-            return None
-        E = np.zeros((rows.size, rows.size))
-        for w, (J, R) in ((a, masses), (b, springs)):
-            at = np.searchsorted(rows, J)
-            E[np.ix_(at, at)] -= w * R
-        return LowRankDamping(a + b * unit.fine_frequencies2, unit.shape_rows(rows).T.copy(), E)
-
-
-def family_modes(config: BeamConfig, p: Mapping[str, float]) -> FamilyModes:
-    """The undamped modes of ``config`` with the resolved values ``p``: the family's unit modes scaled (module
-    docstring).
-
-    Raises
-    ------
-    ParameterError
-        A point mass too heavy or a spring too stiff for either grid (:func:`check_pair`).
-    """
-    check_pair(config, p)
-    unit = unit_modes(family_key(config, p))
-    EI, rhoA = p["EI"], p["rhoA"]
-    return FamilyModes(config, p, unit, (EI / rhoA) * unit.frequencies2)

@@ -272,8 +272,12 @@ def fit_spectrum(f: np.ndarray, S: np.ndarray, nu: float, dt: float, quiet: np.n
         return NoiseSpectrum(math.sqrt(variance), np.array([1.0]), variance, rel_err)
     variance = float(np.trapezoid(shape, grid))
     judged = grid >= 4.0 * f_min           # the lowest few bins of a 1/f shape matter little and cost many orders
+    misfit = math.inf
     for p in range(1, max_order + 1):
-        a, _ = _yule_walker(shape, p)
+        try:
+            a, _ = _yule_walker(shape, p)
+        except np.linalg.LinAlgError:      # the shape's autocovariance numerically singular at this order: so is
+            break                          # every higher order's (it holds this one as its leading block)
         sp = NoiseSpectrum(1.0, a, 0.0, 0.0)
         g = sp.psd(grid[judged], dt)
         level = float(np.exp(np.mean(np.log(shape[judged] / g))))

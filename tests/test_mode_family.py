@@ -19,7 +19,8 @@ from ebb_model.discretisation import discretise
 from ebb_model.exact_modal import exact_modal, modal_matrices
 from ebb_model.mode_continuation import lebesgue_constant, panel_index
 from ebb_model.mode_family import (attached_panel, attachment, continuation_panel, continuation_stem, family_key,
-                                   family_modes, unit_modes, unit_pair)
+                                   unit_modes, unit_pair)
+from ebb_model.parameter_modes import family_modes
 from ebb_model.richardson_pair import companion_config, richardson_modes
 from ebb_model.parameter_values import resolve_parameters
 

@@ -339,3 +339,16 @@ def test_identification_reports_the_noise_floor_under_pink_noise(tmp_path):
     assert all(abs(v - 1.0) < 0.15 for v in gap.values()), gap
     assert "AR(" in res.noise_model[0]
     assert IdentificationResult.read(tmp_path / "out").identified["fit_gap_ratio"] == gap
+
+
+def test_a_shape_whose_autocovariance_is_singular_is_refused_not_a_crash():
+    # a fuzzed record's residual PSD (tests/fixtures/README.md): the AR fit's Toeplitz system turns singular at
+    # some order, so no whitening filter realises the shape — ShapeError, which the noise model answers with
+    # white noise at the Welch floor; before, LinAlgError left the identification with a traceback
+    from pathlib import Path
+
+    from identification.noise_model import ShapeError, fit_spectrum
+
+    d = np.load(Path(__file__).parent / "fixtures" / "noise_singular_autocovariance.npz")
+    with pytest.raises(ShapeError, match="no whitening filter"):
+        fit_spectrum(d["f"], d["S"], float(d["nu"]), float(d["dt"]), d["quiet"], max_order=48)
