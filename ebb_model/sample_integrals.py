@@ -178,14 +178,13 @@ def _blocks(lam, W, inputs, CV, A, B, column, T, G, H, Cb, Dh):  # pragma: no co
 
 
 @numba.njit(cache=True, nogil=True)
-def _pole_blocks(s, T, degree, series, radii, lagrange, inputs, CV, column, filters_from,
-                 lookahead):  # pragma: no cover - compiled
-    # the poles' integrals and input weights (input_weights), then the blocks chosen by the discrete poles
-    n, m, p = s.size, inputs.shape[1], CV.shape[0]
-    E = np.empty(n, dtype=np.complex128)
-    I = np.empty((degree + 1, n), dtype=np.complex128)
+def _pole_blocks(s, T, degree, series, radii, lagrange, inputs, CV, column,
+                 E, I, W, A, B, freqs, Tb, G, H, Cb, Dh):  # pragma: no cover - compiled
+    # the poles' integrals and input weights (input_weights), then the blocks chosen by the discrete poles, into
+    # the arrays given (allocated by the caller: a fresh FMU process compiles this once, and every array type
+    # made here would lengthen that); 0, or 1 for an odd number of real poles, 2 for poles not in pairs
+    n, nb = s.size, A.size
     _integrals(s, T, degree, series, radii, E, I)
-    W = np.zeros((lagrange.shape[0], n), dtype=np.complex128)
     for q in range(lagrange.shape[0]):
         for d in range(degree + 1):
             for j in range(n):
@@ -196,11 +195,10 @@ def _pole_blocks(s, T, degree, series, radii, lagrange, inputs, CV, column, filt
             upper += 1
         elif E[j].imag == 0:
             real += 1
-    nb = upper + real // 2
-    A = np.empty(nb, dtype=np.int64)
-    B = np.empty(nb, dtype=np.int64)
-    freqs = np.empty(nb)
-    filter_block = np.zeros(nb, dtype=np.bool_)
+    if real % 2:
+        return 1
+    if upper + real // 2 != nb:
+        return 2
     b, first = 0, -1
     for j in range(n):                              # the pairs, by their pole with Im λ > 0, in order
         if E[j].imag > 0:
@@ -213,21 +211,8 @@ def _pole_blocks(s, T, degree, series, radii, lagrange, inputs, CV, column, filt
             else:
                 A[b], B[b], freqs[b] = first, j, max(abs(s[first]), abs(s[j]))
                 b, first = b + 1, -1
-    filters = 0
-    if filters_from >= 0:                           # the filters' blocks last, each part in its order
-        for b in range(nb):
-            filter_block[b] = A[b] >= filters_from
-            filters += filter_block[b]
-        order = np.concatenate((np.flatnonzero(~filter_block), np.flatnonzero(filter_block)))
-        A, B, freqs = A[order], B[order], freqs[order]
-    Tb = np.empty((nb, 2, 2))
-    G = np.zeros((nb, 2, m * (column.size - 1 if lookahead else column.size)))
-    H = np.empty((nb if lookahead else 0, 2, m))
-    Cb = np.empty((p, nb, 2))
-    Dh = np.zeros((p, m))
-    if real % 2 == 0:
-        _blocks(E, W, inputs, CV, A, B, column, Tb, G, H, Cb, Dh)
-    return Tb, G, H, Cb, Dh, freqs, filters, real % 2
+    _blocks(E, W, inputs, CV, A, B, column, Tb, G, H, Cb, Dh)
+    return 0
 
 
 @dataclass(frozen=True)
@@ -264,14 +249,32 @@ def modal_blocks(s: np.ndarray, T: float, hold: str, inputs: np.ndarray, CV: np.
     Raises
     ------
     numpy.linalg.LinAlgError
-        An odd number of real poles.
+        An odd number of real poles, or poles not in conjugate pairs.
     """
     taps = INPUT_TAPS[hold]
-    Tb, G, H, Cb, Dh, freqs, filters, odd = _pole_blocks(
-        np.ascontiguousarray(s, dtype=complex).reshape(-1), float(T), len(taps) - 1, _SERIES, _SERIES_RADII,
-        LAGRANGE[hold],
-        np.ascontiguousarray(inputs, dtype=complex), np.ascontiguousarray(CV, dtype=complex), _COLUMNS[hold],
-        -1 if filters_from is None else int(filters_from), 1 in taps)
-    if odd:
+    s = np.ascontiguousarray(s, dtype=complex).reshape(-1)
+    inputs = np.ascontiguousarray(inputs, dtype=complex)
+    n, m, p, nb, degree = s.size, inputs.shape[1], CV.shape[0], s.size // 2, len(taps) - 1
+    lookahead = 1 in taps
+    A, B = np.empty(nb, dtype=np.int64), np.empty(nb, dtype=np.int64)
+    freqs = np.empty(nb)
+    Tb, Cb = np.empty((nb, 2, 2)), np.empty((p, nb, 2))
+    G = np.zeros((nb, 2, m * (len(taps) - 1 if lookahead else len(taps))))
+    H = np.empty((nb if lookahead else 0, 2, m))
+    Dh = np.zeros((p, m))
+    status = _pole_blocks(s, float(T), degree, _SERIES, _SERIES_RADII, LAGRANGE[hold], inputs,
+                          np.ascontiguousarray(CV, dtype=complex), _COLUMNS[hold], np.empty(n, dtype=complex),
+                          np.empty((degree + 1, n), dtype=complex), np.zeros((len(taps), n), dtype=complex), A, B,
+                          freqs, Tb, G, H, Cb, Dh)
+    if status == 1:
         raise np.linalg.LinAlgError("odd number of real poles")
+    if status == 2:
+        raise np.linalg.LinAlgError("the poles are not in conjugate pairs")
+    filters = 0
+    if filters_from is not None:                    # the filters' blocks last, each part in its order
+        is_filter = A >= filters_from
+        filters = int(np.count_nonzero(is_filter))
+        if filters:
+            order = np.argsort(is_filter, kind="stable")
+            Tb, G, H, Cb, freqs = Tb[order], G[order], H[order] if H.shape[0] else H, Cb[:, order], freqs[order]
     return Blocks(Tb, G, H if 1 in taps else None, Cb, Dh, freqs, int(filters))
