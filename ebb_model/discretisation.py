@@ -407,14 +407,14 @@ def _operators(key: tuple) -> _Operators:
     read them, so they are shared across those values too)."""
     length, n, left, right, segments, EI, N = key
     h = length / (n + 1)
-    unknown = unknown_nodes(n, left, right)
+    g = grid(length, n, left, right)
+    unknown, V = g.unknown, g.V
     E = _extension(n, h, 1.0 if EI is None else EI, 0.0 if N is None else N, left, right, unknown)
     rows = unknown + 2
     ghost = np.array([0, 1, n + 4, n + 5])     # the ghost nodes -2, -1, n+2, n+3 on the extended numbering
     # D4 and D2 rows on the extended numbering, one row per unknown node
     D4 = _stencil_rows(rows, n + 6, _FOURTH) / h ** 4
     D2 = _stencil_rows(rows, n + 6, _SECOND) / h ** 2
-    V = control_lengths(n, h, left, right)
     if segments:
         B4 = V[:, None] * _bending(n, h, rows, E, cell_stiffness(length, n, segments))
     else:

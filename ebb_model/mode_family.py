@@ -356,10 +356,10 @@ def _attached(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray] | Non
         return None
     bases = panel.at(U)
     (fine_nodes, coarse_nodes) = sorted((key.nodes, companion_nodes(key.nodes)), reverse=True)
-    n_modes = unknown_nodes(key.nodes, key.left, key.right).size
+    n_modes = grid(key.length, key.nodes, key.left, key.right).unknown.size
     solved = []
     for basis, nodes in zip(bases, (fine_nodes, coarse_nodes)):
-        unknown = unknown_nodes(nodes, key.left, key.right)
+        unknown = grid(key.length, nodes, key.left, key.right).unknown
         wanted = n_modes if nodes == fine_nodes else min(unknown.size, n_modes)
         shifted = Basis(basis.frequencies2 + key.kf, basis.shapes)
         solved.append(updated_modes(shifted, [(kind, size, hat_weights(x, key.length, nodes)[unknown])
@@ -367,8 +367,8 @@ def _attached(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray] | Non
     fine, coarse = solved
     if fine is None or fine[1] is None or coarse is None:
         return None
-    w2 = extrapolated(fine[0], coarse[0], grid_nodes(key.length, coarse_nodes), grid_nodes(key.length, fine_nodes),
-                      coarse[0].size)
+    w2 = extrapolated(fine[0], coarse[0], grid(key.length, coarse_nodes, key.left, key.right).x,
+                      grid(key.length, fine_nodes, key.left, key.right).x, coarse[0].size)
     return w2, fine[0], fine[1]
 
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from .config import BeamConfig
 from .coupled_modes import MAX_RANK, LowRankDamping
-from .discretisation import SemiDiscreteBeam, check_attachments, control_lengths, load_rows
+from .discretisation import SemiDiscreteBeam, check_attachments, grid, load_rows
 from .modal_form import DIAGONAL_RTOL, is_diagonal
 from .mode_family import UnitModes, family_key, unit_modes
 from .richardson_pair import companion_nodes
@@ -33,7 +33,7 @@ def scaled_beam(unit: SemiDiscreteBeam, config: BeamConfig, p: Mapping[str, floa
     EI = p["EI"]
     nodes = unit.x.size - 2
     C = (p["eta"] * EI) * unit.C
-    V = control_lengths(nodes, config.beam.length / (nodes + 1), config.beam.left, config.beam.right)
+    V = grid(config.beam.length, nodes, config.beam.left, config.beam.right).V
     C[np.diag_indices_from(C)] += p["c"] * V
     F, S, _ = load_rows(config, nodes) if loads is None else loads
     return SemiDiscreteBeam(M=p["rhoA"] * unit.M, C=C, K=EI * unit.K, F=F, S=S,
