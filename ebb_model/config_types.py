@@ -46,8 +46,9 @@ class BeamGeometry:
 MAX_NODES = 1000
 #: Time-stepping schemes: the seed's FD + θ-scheme, and the accurate realisation of :mod:`ebb_model.exact_modal`.
 SCHEMES = ("theta", "exact")
-#: Reconstructions of the input between samples (``[time] input``); ``cubic`` is the exact scheme's only.
-INPUT_HOLDS = ("cubic", "foh", "zoh")
+#: Reconstructions of the input between samples (``[time] input``); ``cubic`` and ``bandlimited`` (the samples'
+#: band-limited interpolant up to 0.4 fs, :mod:`ebb_model.bandlimited`) are the exact scheme's only.
+INPUT_HOLDS = ("cubic", "foh", "zoh", "bandlimited")
 #: Default ``[time] input`` per scheme: the cubic through four samples for the exact scheme (a band-limited
 #: force is smooth; the straight line is 2 % off in amplitude at fs/13), the seed's straight line for θ.
 DEFAULT_INPUT = {"exact": "cubic", "theta": "foh"}

@@ -343,10 +343,11 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
         scheme = TimeSettings.scheme
     input_hold = time_t.get("input", DEFAULT_INPUT.get(scheme, "foh"))
     if input_hold not in INPUT_HOLDS:
-        pr.add("time.input", "must be \"cubic\" (cubic through the samples, exact scheme), \"foh\" (straight "
+        pr.add("time.input", "must be \"cubic\" (cubic through the samples, exact scheme), \"bandlimited\" "
+                             "(the samples' band-limited interpolant up to 0.4 fs, exact scheme), \"foh\" (straight "
                              f"line between samples) or \"zoh\" (sample held), got {input_hold!r}")
-    elif input_hold == "cubic" and scheme == "theta":
-        pr.add("time.input", "\"cubic\" needs scheme = \"exact\"; the theta-scheme takes \"foh\" or \"zoh\"")
+    elif input_hold in ("cubic", "bandlimited") and scheme == "theta":
+        pr.add("time.input", f"\"{input_hold}\" needs scheme = \"exact\"; the theta-scheme takes \"foh\" or \"zoh\"")
     dt = None
     if "dt" not in time_t:
         pr.add("time.dt", "missing (sample time, s)")

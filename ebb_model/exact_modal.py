@@ -47,7 +47,8 @@ from .coupled_modes import LowRankDamping, coupled_modes
 from .parameter_modes import FamilyModes, family_modes
 from .modal_form import MAX_BASIS_CONDITION, ModalStateSpace, basis_condition
 from .parameter_values import resolve_parameters
-from .sample_integrals import INPUT_TAPS, LAGRANGE, modal_blocks
+from .bandlimited import dense_weights
+from .sample_integrals import ADVANCE, INPUT_TAPS, LAGRANGE, modal_blocks
 from .statespace import DiscreteStateSpace, with_input_delays
 
 __all__ = ["exact_model", "exact_modal", "exact_statespace", "continuous_modes", "ContinuousModes", "modal_matrices",
@@ -276,9 +277,15 @@ def exact_modal(config: BeamConfig, params: Mapping[str, float]) -> ModalStateSp
     if any(f is not None for f in filters):               # the acquisition's filters in series, still diagonal
         poles, inputs, CV, D, added = filtered_poles(poles, inputs, CV, D, filters)
     bl = modal_blocks(poles, T_s, config.time.input_hold, inputs, CV, poles.size - added if added else None)
-    D = np.array(D.real, dtype=float) + bl.D_hold
+    D = np.array(D.real, dtype=float)
+    advance = ADVANCE[config.time.input_hold]
+    if advance:                                           # the record's own sample read at tap `advance`
+        D_record: np.ndarray | None = D if np.any(D) else None
+        D = bl.D_hold
+    else:
+        D_record, D = None, D + bl.D_hold
     return ModalStateSpace(bl.T, bl.G, bl.C, D, T_s, config.input_names, config.output_names, None, bl.hold,
-                           -min(taps), bl.frequencies / (2 * math.pi), bl.filters)
+                           -min(taps), bl.frequencies / (2 * math.pi), bl.filters, advance, D_record)
 
 
 def exact_statespace(config: BeamConfig, params: Mapping[str, float]) -> DiscreteStateSpace:
@@ -305,6 +312,20 @@ def exact_statespace(config: BeamConfig, params: Mapping[str, float]) -> Discret
     n, m = B.shape
     T_s = config.time.dt
     taps = INPUT_TAPS[config.time.input_hold]
+    k = mm.frequencies2.size
+    names = (tuple(f"q{i}" for i in range(k)) + tuple(f"dq{i}" for i in range(k))
+             + tuple(f"filter{i}" for i in range(n - 2 * k)))
+    advance = ADVANCE[config.time.input_hold]
+    if advance:                                           # the band-limited force: by quadrature, not Van Loan
+        Phi, Pm = dense_weights(A, B, T_s)
+        P = dict(zip(taps, Pm))
+        hold = P.pop(1)
+        P[0] = P[0] + Phi @ hold
+        D_taps = np.zeros((D.shape[0], m * -min(taps)))
+        D_taps[:, (advance - 1) * m:advance * m] = D      # the record's own sample, `advance` taps behind
+        return with_input_delays(Phi, [P[-j] for j in range(-min(taps) + 1)], C, C @ hold, T_s,
+                                 config.input_names, config.output_names, names, hold, D_taps=D_taps,
+                                 advance=advance)
     deg = len(taps) - 1
     aug = np.zeros((n + (deg + 1) * m, n + (deg + 1) * m))
     aug[:n, :n] = A * T_s
@@ -322,9 +343,6 @@ def exact_statespace(config: BeamConfig, params: Mapping[str, float]) -> Discret
         if hold is not None:                              # the lookahead, causal on ξ = x − Γ₁ u
             P[0] = P[0] + Phi @ hold
             D = D + C @ hold
-    k = mm.frequencies2.size
-    names = (tuple(f"q{i}" for i in range(k)) + tuple(f"dq{i}" for i in range(k))
-             + tuple(f"filter{i}" for i in range(n - 2 * k)))
     return with_input_delays(Phi, [P[-j] for j in range(-min(taps) + 1)], C, D, T_s, config.input_names,
                              config.output_names, names, hold)
 

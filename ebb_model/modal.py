@@ -158,6 +158,8 @@ def frequency_response(system: DiscreteStateSpace | ModalStateSpace, f_hz) -> Fr
             x0 = ((zi - d)[:, None] * G[:, 0, :] + b[:, None] * G[:, 1, :]) / det[:, None]
             x1 = (c[:, None] * G[:, 0, :] + (zi - a)[:, None] * G[:, 1, :]) / det[:, None]
             H[i] = np.einsum("pb,bm->pm", Cm[:, :, 0], x0) + np.einsum("pb,bm->pm", Cm[:, :, 1], x1) + system.D
+            if system.D_record is not None:                 # read at tap `advance`: z^{-advance} there
+                H[i] += system.D_record * zi ** (-system.advance)
     else:
         # Laub's method: A = Q Hs Qᵀ once (Hs upper Hessenberg), then each (zI − Hs) X = Qᵀ B by Gaussian
         # elimination with partial pivoting in O(n²) instead of a dense O(n³) solve per frequency (400 states,
@@ -169,6 +171,8 @@ def frequency_response(system: DiscreteStateSpace | ModalStateSpace, f_hz) -> Fr
                                  np.asarray(system.D, dtype=float), z, H)
         except ZeroDivisionError:    # a zero pivot after row exchanges: zI − A is singular
             raise np.linalg.LinAlgError("Singular matrix: a frequency of f_hz is a pole of the system") from None
+    if system.advance:                                      # the input read `advance` samples ahead of the record
+        H *= (z ** system.advance)[:, None, None]
     return FrequencyResponse(f, H, tuple(system.input_names), tuple(system.output_names))
 
 

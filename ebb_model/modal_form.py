@@ -54,7 +54,11 @@ class ModalStateSpace:
     :class:`DiscreteStateSpace`).  ``frequencies_hz`` (nb,), when known, is the continuous natural frequency of
     each block's mode (:func:`ebb_model.truncation.in_band` keeps the modes in a band by it; the dense form then
     names the states by mode).  The last ``filters`` blocks, when any, are the sensors' anti-alias filters
-    (:mod:`ebb_model.antialias`); their ``frequencies_hz`` are the filter poles' moduli.
+    (:mod:`ebb_model.antialias`); their ``frequencies_hz`` are the filter poles' moduli.  ``advance`` > 0: the
+    recursion's input ``u[k]`` is the record's ``u[k + advance]`` (a reconstruction that reads samples ahead,
+    :mod:`ebb_model.bandlimited`; :func:`ebb_model.simulate` feeds it so), ``D`` the feedthrough of that input
+    (the lookahead's fold) and ``D_record`` (p, m) the feedthrough of the record's own sample ``u[k]`` (an
+    accelerometer's share of the force), at tap ``advance`` of the recursion.
     """
 
     T: np.ndarray
@@ -70,9 +74,12 @@ class ModalStateSpace:
     frequencies_hz: np.ndarray | None = None
     #: how many of the last blocks are the acquisition's anti-alias filters (:mod:`ebb_model.antialias`), not modes
     filters: int = 0
+    advance: int = 0
+    D_record: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        optional = tuple(k for k in ("to_nodal", "hold", "frequencies_hz") if getattr(self, k) is not None)
+        optional = tuple(k for k in ("to_nodal", "hold", "frequencies_hz", "D_record")
+                         if getattr(self, k) is not None)
         for name in ("T", "G", "Cm", "D") + optional:
             a = np.ascontiguousarray(getattr(self, name), dtype=float)
             a.setflags(write=False)
@@ -94,7 +101,20 @@ class ModalStateSpace:
                  + tuple(f"filter{b + 1}_{j}" for b in range(self.filters) for j in range(2))
                  if self.frequencies_hz is not None else tuple(f"z{b}_{j}" for b in range(nb) for j in range(2)))
         hold = self.hold.reshape(2 * nb, -1) if self.hold is not None else None
-        return with_input_delays(A, G, C, self.D, self.dt, self.input_names, self.output_names, names, hold)
+        D_taps = self.feedthrough_taps()
+        return with_input_delays(A, G, C, self.D, self.dt, self.input_names, self.output_names, names, hold,
+                                 D_taps=None if D_taps is None else D_taps[:, m:], advance=self.advance)
+
+    def feedthrough_taps(self) -> np.ndarray | None:
+        """``D`` on every tap (p, m·(delays + 1)), column ``j m + l`` input ``l`` at sample ``k − j`` of the
+        recursion's input: ``D`` at tap 0, ``D_record`` at tap ``advance``; ``None`` without ``D_record``."""
+        if self.D_record is None:
+            return None
+        p, m = self.D.shape
+        taps = np.zeros((p, m * (self.delays + 1)))
+        taps[:, :m] = self.D
+        taps[:, self.advance * m:(self.advance + 1) * m] += self.D_record
+        return taps
 
     def input_matrix(self, z: complex) -> np.ndarray:
         """``Σ_j G_j z^{−j}`` (nb, 2, m): the input matrix of the transfer function at ``z``."""

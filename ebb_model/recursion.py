@@ -275,7 +275,8 @@ def one_tap_form(T: np.ndarray, G: np.ndarray, Cm: np.ndarray, D: np.ndarray, z:
 
 
 def run_modal_recursion(T: np.ndarray, G: np.ndarray, Cm: np.ndarray, D: np.ndarray, u: np.ndarray,
-                        delays: int, z: np.ndarray, *, compiled: bool = True) -> np.ndarray:
+                        delays: int, z: np.ndarray, *, compiled: bool = True,
+                        D_taps: np.ndarray | None = None) -> np.ndarray:
     """Outputs of the modal recursion from the block state ``z`` for the input samples ``u``.
 
     Parameters
@@ -291,6 +292,9 @@ def run_modal_recursion(T: np.ndarray, G: np.ndarray, Cm: np.ndarray, D: np.ndar
         Initial block state (nb, 2).
     compiled
         ``False`` runs the numba kernel even where the compiled one is available (for comparison).
+    D_taps
+        The feedthrough on every tap (p, m·(delays + 1)), ``D`` its first ``m`` columns (a reconstruction that
+        reads ahead: :meth:`~ebb_model.modal_form.ModalStateSpace.feedthrough_taps`); ``None``: ``D`` alone.
 
     Returns
     -------
@@ -303,13 +307,17 @@ def run_modal_recursion(T: np.ndarray, G: np.ndarray, Cm: np.ndarray, D: np.ndar
     if fn is None:
         arrays = [np.ascontiguousarray(a, dtype=float) for a in (
             T[:, 0, 0], T[:, 0, 1], T[:, 1, 0], T[:, 1, 1], G[:, 0, :].T, G[:, 1, :].T, Cm[:, :, 0], Cm[:, :, 1],
-            np.hstack([D, np.zeros((p, m * delays))]), u)]
+            np.hstack([D, np.zeros((p, m * delays))]) if D_taps is None else D_taps, u)]
         _modal_kernel(*arrays, delays, y, np.array(z[:, 0], dtype=float), np.array(z[:, 1], dtype=float))
         return y
     T, G, Cm, D, z = (np.ascontiguousarray(a, dtype=float) for a in (T, G, Cm, D, z))
     u = np.ascontiguousarray(u, dtype=float)
     u0 = np.ascontiguousarray(u[0] if u.shape[0] else np.zeros(m))
-    T, G, Cm, D, z, nb1 = one_tap_form(T, G, Cm, D, z, u0, delays)
+    # a block's past samples move to the outputs when T⁻¹ amplifies rounding by at most 4 over all of them
+    radius = ONE_TAP_RADIUS if delays <= 2 else ONE_TAP_RADIUS ** (2.0 / delays)
+    T, G, Cm, D, z, nb1 = one_tap_form(T, G, Cm, D, z, u0, delays, radius)
+    if D_taps is not None:
+        D[:, m:] += D_taps[:, m:]
     if fn(*(a.ctypes.data for a in (T, G, Cm, D, u, y, z)), u.shape[0], nb1, nb) != 0:
         raise MemoryError("the modal recursion's work space could not be allocated")
     return y

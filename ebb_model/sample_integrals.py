@@ -16,7 +16,10 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-__all__ = ["INPUT_TAPS", "polynomial_integrals", "pole_integrals", "input_weights", "Blocks", "modal_blocks"]
+from . import bandlimited
+
+__all__ = ["INPUT_TAPS", "POLYNOMIAL_HOLDS", "ADVANCE", "polynomial_integrals", "pole_integrals", "input_weights",
+           "Blocks", "modal_blocks"]
 
 #: Most terms of the series of :func:`polynomial_integrals` (``|z| < 1``): the last is below ``1/24! ≈ 2e-24``.
 _SERIES_TERMS = 24
@@ -53,8 +56,14 @@ def _series_radii() -> np.ndarray:
 _SERIES_RADII = _series_radii()
 
 #: Sample offsets the input reconstruction between ``t_k`` and ``t_{k+1}`` reads, per ``[time] input``:
-#: held (``zoh``), the straight line (``foh``), and the cubic through four samples ``k−2 … k+1`` (``cubic``).
-INPUT_TAPS = {"zoh": (0,), "foh": (0, 1), "cubic": (-2, -1, 0, 1)}
+#: held (``zoh``), the straight line (``foh``), the cubic through four samples ``k−2 … k+1`` (``cubic``), and the
+#: band-limited reconstruction (``bandlimited``, :mod:`ebb_model.bandlimited`), whose offsets are relative to the
+#: record read :data:`~ebb_model.bandlimited.ADVANCE` samples ahead.
+INPUT_TAPS = {"zoh": (0,), "foh": (0, 1), "cubic": (-2, -1, 0, 1), "bandlimited": bandlimited.TAPS}
+#: The holds that are polynomials through their taps (:data:`LAGRANGE`); the rest are computed per pole.
+POLYNOMIAL_HOLDS = ("zoh", "foh", "cubic")
+#: How many samples ahead of the record each hold reads the input (the lookahead ``u[k+1]`` aside).
+ADVANCE = {hold: bandlimited.ADVANCE if hold == "bandlimited" else 0 for hold in INPUT_TAPS}
 
 
 @numba.njit(cache=True, nogil=True)
@@ -122,7 +131,7 @@ def _lagrange_coefficients(taps: tuple[int, ...]) -> np.ndarray:
 
 
 #: :func:`_lagrange_coefficients` of each input reconstruction's taps (constants: built once, read per model).
-LAGRANGE = {hold: _lagrange_coefficients(taps) for hold, taps in INPUT_TAPS.items()}
+LAGRANGE = {hold: _lagrange_coefficients(INPUT_TAPS[hold]) for hold in POLYNOMIAL_HOLDS}
 #: Where each tap of :data:`INPUT_TAPS` goes in :func:`modal_blocks`: the column block of sample ``k − j`` (``j``),
 #: or ``−1`` for the lookahead.
 _COLUMNS = {hold: np.array([-1 if t == 1 else -t for t in taps]) for hold, taps in INPUT_TAPS.items()}
@@ -134,8 +143,11 @@ def input_weights(s: np.ndarray, T: float, hold: str) -> tuple[np.ndarray, np.nd
     The input between samples is the polynomial through the samples at the offsets :data:`INPUT_TAPS`
     (Lagrange basis ``ℓ_j(σ)``, ``σ = (t − t_k)/T``), so ``W_j = Σ_p c_{jp} I_p`` with ``ℓ_j = Σ_p c_{jp} σ^p``.
     The cubic reads one sample ahead, as the straight line does, and two behind: its error is ``O(T⁴)``
-    against ``O(T²)`` — at fs/13 the straight line's amplitude error is 2 %, the cubic's 0.2 %.
+    against ``O(T²)`` — at fs/13 the straight line's amplitude error is 2 %, the cubic's 0.2 %.  The band-limited
+    reconstruction's weights are not a polynomial's (:func:`ebb_model.bandlimited.pole_weights`).
     """
+    if hold not in POLYNOMIAL_HOLDS:
+        return bandlimited.pole_weights(s, T)
     E, I = polynomial_integrals(s, T, len(INPUT_TAPS[hold]) - 1)
     return E, LAGRANGE[hold] @ I
 
@@ -183,12 +195,19 @@ def _pole_blocks(s, T, degree, series, radii, lagrange, inputs, CV, column,
     # the poles' integrals and input weights (input_weights), then the blocks chosen by the discrete poles, into
     # the arrays given (allocated by the caller: a fresh FMU process compiles this once, and every array type
     # made here would lengthen that); 0, or 1 for an odd number of real poles, 2 for poles not in pairs
-    n, nb = s.size, A.size
+    n = s.size
     _integrals(s, T, degree, series, radii, E, I)
     for q in range(lagrange.shape[0]):
         for d in range(degree + 1):
             for j in range(n):
                 W[q, j] += lagrange[q, d] * I[d, j]
+    return _select_blocks(s, E, W, inputs, CV, column, A, B, freqs, Tb, G, H, Cb, Dh)
+
+
+@numba.njit(cache=True, nogil=True)
+def _select_blocks(s, E, W, inputs, CV, column, A, B, freqs, Tb, G, H, Cb, Dh):  # pragma: no cover - compiled
+    # the blocks chosen by the discrete poles E (module docstring of modal_blocks), from the weights W
+    n, nb = s.size, A.size
     upper, real = 0, 0
     for j in range(n):
         if E[j].imag > 0:
@@ -244,7 +263,9 @@ def modal_blocks(s: np.ndarray, T: float, hold: str, inputs: np.ndarray, CV: np.
     and ``[r; m]⁺ = [[Re λ, −Im λ], [Im λ, Re λ]] [r; m] + [Re b; Im b] u``; the pairs' blocks come first, by
     their pole with ``Im λ > 0``, then real poles in pairs, in their order, as diagonal blocks.  The blocks are
     chosen by the discrete poles: a mode above the Nyquist frequency can have ``Im λ < 0`` with ``Im s > 0``.
-    Poles from index ``filters_from`` on are the anti-alias filters': their blocks go last.
+    Poles from index ``filters_from`` on are the anti-alias filters': their blocks go last.  The band-limited
+    reconstruction's weights come from :func:`ebb_model.bandlimited.pole_weights` (its taps relative to the record
+    read :data:`ADVANCE` samples ahead), the rest as above.
 
     Raises
     ------
@@ -262,10 +283,14 @@ def modal_blocks(s: np.ndarray, T: float, hold: str, inputs: np.ndarray, CV: np.
     G = np.zeros((nb, 2, m * (len(taps) - 1 if lookahead else len(taps))))
     H = np.empty((nb if lookahead else 0, 2, m))
     Dh = np.zeros((p, m))
-    status = _pole_blocks(s, float(T), degree, _SERIES, _SERIES_RADII, LAGRANGE[hold], inputs,
-                          np.ascontiguousarray(CV, dtype=complex), _COLUMNS[hold], np.empty(n, dtype=complex),
-                          np.empty((degree + 1, n), dtype=complex), np.zeros((len(taps), n), dtype=complex), A, B,
-                          freqs, Tb, G, H, Cb, Dh)
+    CV = np.ascontiguousarray(CV, dtype=complex)
+    if hold in POLYNOMIAL_HOLDS:
+        status = _pole_blocks(s, float(T), degree, _SERIES, _SERIES_RADII, LAGRANGE[hold], inputs, CV,
+                              _COLUMNS[hold], np.empty(n, dtype=complex), np.empty((degree + 1, n), dtype=complex),
+                              np.zeros((len(taps), n), dtype=complex), A, B, freqs, Tb, G, H, Cb, Dh)
+    else:
+        E, W = bandlimited.pole_weights(s, float(T))
+        status = _select_blocks(s, E, W, inputs, CV, _COLUMNS[hold], A, B, freqs, Tb, G, H, Cb, Dh)
     if status == 1:
         raise np.linalg.LinAlgError("odd number of real poles")
     if status == 2:

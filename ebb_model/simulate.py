@@ -24,6 +24,7 @@ import numba
 import numpy as np
 
 from .arrays import as_matrix
+from .bandlimited import advance_input
 from .output import atomic_path
 from .config import BeamConfig
 from .discretisation import discretise
@@ -129,16 +130,17 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
         ``y[k] = C x[k] + D u[k]`` at ``t_k = k dt``.
     """
     if isinstance(system, ModalStateSpace):
-        u = as_matrix(u, "input", shape=(None, system.D.shape[1]))
+        u = advance_input(as_matrix(u, "input", shape=(None, system.D.shape[1])), system.advance)
         if x0 is not None:
             z = np.asarray(x0, dtype=float).reshape(system.nblocks, 2)
         elif system.hold is not None and u.shape[0]:
             z = -(system.hold @ u[0])
         else:
             z = np.zeros((system.nblocks, 2))
-        y = run_modal_recursion(system.T, system.G, system.Cm, system.D, u, system.delays, z)
+        y = run_modal_recursion(system.T, system.G, system.Cm, system.D, u, system.delays, z,
+                                D_taps=system.feedthrough_taps())
     else:
-        u = as_matrix(u, "input", shape=(None, system.ninputs))
+        u = advance_input(as_matrix(u, "input", shape=(None, system.ninputs)), system.advance)
         y = np.empty((u.shape[0], system.noutputs))
         if x0 is not None:
             x = np.asarray(x0, dtype=float).reshape(system.nstates)

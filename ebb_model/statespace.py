@@ -67,6 +67,10 @@ class DiscreteStateSpace:
         (:mod:`ebb_model.theta_scheme`): the state is ``ξ = x − Γ₁ u``, so
         a start at rest is ``ξ[0] = −Γ₁ u[0]`` (what :func:`ebb_model.simulate`
         uses by default).  ``None``: a start at rest is ``ξ[0] = 0``.
+    advance
+        How many samples ahead of the record the input is read (0: none): the system's input ``u[k]`` is the
+        record's ``u[k + advance]`` (:mod:`ebb_model.bandlimited`: a reconstruction that reads samples ahead),
+        as :func:`ebb_model.simulate` feeds it.
     """
 
     A: np.ndarray
@@ -78,6 +82,7 @@ class DiscreteStateSpace:
     output_names: tuple[str, ...] = field(default=())
     state_names: tuple[str, ...] = field(default=())
     hold: np.ndarray | None = None
+    advance: int = 0
 
     def __post_init__(self) -> None:
         A = _matrix("A", self.A, (None, None))
@@ -90,6 +95,8 @@ class DiscreteStateSpace:
         if self.hold is not None:
             object.__setattr__(self, "hold", _matrix("hold", self.hold, (n, B.shape[1])))
         dt = finite_scalar("dt", self.dt, minimum=0.0, strict=True, error=ConfigError)
+        if isinstance(self.advance, bool) or not isinstance(self.advance, (int, np.integer)) or self.advance < 0:
+            raise ConfigError(f"advance must be a whole number of samples >= 0, got {self.advance!r}")
         object.__setattr__(self, "A", A)
         object.__setattr__(self, "B", B)
         object.__setattr__(self, "C", C)
@@ -126,12 +133,24 @@ class DiscreteStateSpace:
         """The same system in coordinates ``x = T z`` (a new object)."""
         Ti = np.linalg.inv(T)
         return DiscreteStateSpace(Ti @ self.A @ T, Ti @ self.B, self.C @ T, self.D, self.dt,
-                                  self.input_names, self.output_names, tuple(state_names or ()))
+                                  self.input_names, self.output_names, tuple(state_names or ()),
+                                  advance=self.advance)
 
     def to_control(self):
-        """Convert to a :class:`control.StateSpace` (discrete, named signals)."""
+        """Convert to a :class:`control.StateSpace` (discrete, named signals).
+
+        Raises
+        ------
+        ConfigError
+            The system reads its input ahead of the record (``advance`` > 0), which a StateSpace cannot say:
+            realise it from :func:`ebb_model.bandlimited.causal_config` (the design models do).
+        """
         import control
 
+        if self.advance:
+            raise ConfigError(f"this system reads its input {self.advance} samples ahead of the record (a band-limited "
+                              "force between samples), which a StateSpace cannot carry: build it from "
+                              "ebb_model.bandlimited.causal_config(config)")
         return control.ss(self.A, self.B, self.C, self.D, self.dt,
                           inputs=list(self.input_names), outputs=list(self.output_names),
                           states=list(self.state_names))
@@ -143,17 +162,20 @@ class DiscreteStateSpace:
 
 def with_input_delays(A: np.ndarray, G: Sequence[np.ndarray], C: np.ndarray, D: np.ndarray, dt: float,
                       input_names: Sequence[str], output_names: Sequence[str], state_names: Sequence[str],
-                      hold: np.ndarray | None = None) -> DiscreteStateSpace:
+                      hold: np.ndarray | None = None, *, D_taps: np.ndarray | None = None,
+                      advance: int = 0) -> DiscreteStateSpace:
     """``x[k+1] = A x[k] + Σ_j G[j] u[k − j]`` (``j = 0 … d``) as one system, past inputs as delay states.
 
     State ``(x, u[k−1], …, u[k−d])``; a start at rest has ``x[0] = −hold·u[0]`` and the delay line at ``u[0]``
-    (the input constant before the record), encoded in the returned system's ``hold``.
+    (the input constant before the record), encoded in the returned system's ``hold``.  ``D_taps`` (p, m·d), when
+    given, is the feedthrough of the past samples (column ``(j − 1) m + l``: input ``l`` at sample ``k − j``),
+    read from the delay states; ``advance`` is passed on (:class:`DiscreteStateSpace`).
     """
     d = len(G) - 1
     nx, m = np.shape(G[0])
     if d == 0:
         return DiscreteStateSpace(A, G[0], C, D, dt, tuple(input_names), tuple(output_names), tuple(state_names),
-                                  hold)
+                                  hold, advance)
     n = nx + d * m
     Af = np.zeros((n, n))
     Af[:nx, :nx] = A
@@ -162,7 +184,7 @@ def with_input_delays(A: np.ndarray, G: Sequence[np.ndarray], C: np.ndarray, D: 
         if j < d:                                         # u[k−j−1]⁺ = u[k−j]
             Af[nx + j * m:nx + (j + 1) * m, nx + (j - 1) * m:nx + j * m] = np.eye(m)
     B = np.vstack([G[0], np.eye(m), np.zeros(((d - 1) * m, m))])
-    Cf = np.hstack([C, np.zeros((np.shape(C)[0], d * m))])
+    Cf = np.hstack([C, np.zeros((np.shape(C)[0], d * m)) if D_taps is None else D_taps])
     h = np.vstack([hold if hold is not None else np.zeros((nx, m)), -np.tile(np.eye(m), (d, 1))])
     names = tuple(state_names) + tuple(f"{u}[k-{j}]" for j in range(1, d + 1) for u in input_names)
-    return DiscreteStateSpace(Af, B, Cf, D, dt, tuple(input_names), tuple(output_names), names, h)
+    return DiscreteStateSpace(Af, B, Cf, D, dt, tuple(input_names), tuple(output_names), names, h, advance)

@@ -182,9 +182,11 @@ def design_modal_model(config: BeamConfig, params: Mapping[str, float] | None = 
         As :func:`design_model`.
     """
     from .assemble import assemble, check_stable
+    from .bandlimited import causal_config
     from .exact_modal import exact_model
     from .parameter_values import resolve_parameters
 
+    config = causal_config(config)                # a design model is driven sample by sample
     if f_max is not None and not f_max > 0:
         raise ConfigError(f"the cut-off frequency must be > 0 Hz, got {f_max!r}")
     cut = 0.5 / config.time.dt if f_max is None else f_max

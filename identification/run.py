@@ -178,6 +178,10 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                                         "algorithm": algorithm})
     pop, generations, seed, algorithm = ga["pop"], ga["generations"], ga["seed"], ga["algorithm"]
     _check_options(backend, pop, generations, algorithm, fmu, workers, dask, polish, polish_evaluations)
+    if backend == "fmu" and cfg.time.input_hold == "bandlimited":
+        raise ConfigError("`backend` fmu: an FMU takes the force sample by sample and cannot read the samples ahead "
+                          "that [time] input = \"bandlimited\" needs; use the native backend (the FMU takes "
+                          "\"cubic\")")
     per = per or ident.per or "sensor"
     if per not in ("sensor", "experiment"):
         raise ConfigError(f"`per`: unknown {per!r}; allowed: sensor, experiment")

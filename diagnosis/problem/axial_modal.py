@@ -45,7 +45,8 @@ from ebb_model.config import BeamConfig
 from ebb_model.discretisation import discretise
 from ebb_model.errors import StabilityError
 from ebb_model.exact_modal import continuous_modes
-from ebb_model.sample_integrals import INPUT_TAPS, input_weights, pole_integrals
+from ebb_model.bandlimited import advance_input
+from ebb_model.sample_integrals import ADVANCE, INPUT_TAPS, input_weights, pole_integrals
 from ebb_model.richardson_pair import refined_config
 from ebb_model.parameter_values import resolve_parameters
 from ebb_model.simulate import fast_model, simulate
@@ -198,7 +199,8 @@ def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None,
             np.ascontiguousarray(drive[P], dtype=np.complex128), np.ascontiguousarray(W[:, P], dtype=np.complex128),
             taps, *_rows(Bg[P]), *_rows(Vq[:, P]), np.ascontiguousarray(Kg), np.ascontiguousarray(Gm),
             np.ascontiguousarray(Cz[:, P], dtype=np.complex128), np.ascontiguousarray(Dg),
-            np.ascontiguousarray(u, dtype=float), float(dt), float(offset), float(rate),
+            np.ascontiguousarray(advance_input(u, ADVANCE[config.time.input_hold]), dtype=float), float(dt),
+            float(offset), float(rate),
             float(EA) / (2.0 * config.beam.length), y)
     y += simulate(fast_model(config, p), u).outputs
     if check_stability and not np.all(np.isfinite(y)):

@@ -29,6 +29,7 @@ from pathlib import Path
 
 from ebb_model import BeamConfig, DiscreteStateSpace, assemble, load_config
 from ebb_model.assemble import field_config
+from ebb_model.bandlimited import causal_config
 from ebb_model.config_types import MAX_NODES
 from ebb_model.output import atomic_path
 from ebb_model.errors import ConfigError, FmuError, OutputError
@@ -133,6 +134,7 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
         cfg, base = config, "beam"
     else:
         cfg, base = load_config(config), Path(config).stem
+    cfg = causal_config(cfg)            # a host feeds the force sample by sample: no band-limited reconstruction
     out = Path(out)
     _check_output(out)
     _check_names(cfg)
