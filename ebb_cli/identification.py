@@ -37,9 +37,9 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         print(f"  {m}")
     ds = res.data_start
     if ds:
-        peaks = ds["peaks_hz"]
-        seen = (f"{len(peaks)} resonance peak(s), {peaks[0]:.4g}–{peaks[-1]:.4g} Hz" if peaks
-                else "no resonance peak")
+        modes = ds["modes_hz"]
+        seen = (f"{len(modes)} stable mode(s), {modes[0]:.4g}–{modes[-1]:.4g} Hz" if modes
+                else "no stable mode")
         print(f"the records: {seen}; start " + json.dumps({k: float(f"{v:.6g}") for k, v in ds["parameters"].items()})
               + f" ({ds['n_evaluations']} evaluations)")
     p = res.pareto

@@ -6,13 +6,14 @@ common scale of EI, ρA, c and N leaves every frequency where it is and scales t
 a config's nominal values and a local polish find the first but crawl along the second, and stop far from the
 answer.  The records themselves fix both, before any search:
 
-1. **Frequencies.**  The records' resonance peaks (:mod:`identification.record_peaks`) are matched to the model's
-   modes.  For a uniform beam the modes depend on the parameters only through the frequency scale
+1. **Frequencies.**  The records' modes (:mod:`identification.record_poles`: averaged FRFs, a stabilised pole
+   estimator and its stability chart — not the peaks of a noisy spectrum) are matched to the model's modes.
+   For a uniform beam the modes depend on the parameters only through the frequency scale
    ``k = √((EI/ρA)/(EI₀/ρA₀))`` and ``U = N L²/EI``: the model's frequencies at the nominal point (one
-   eigen-analysis per value of N tried) times ``k`` are its frequencies anywhere.  Every pairing of a peak with a
-   mode proposes a ``k``; each is scored by how many peaks it places within :data:`MATCH_TOLERANCE` of a mode
-   (weighted by their prominence, capped: peaks no mode explains — aliases, noise — cost the same for every
-   ``k``), and the best few distinct ones are kept.
+   eigen-analysis per value of N tried) times ``k`` are its frequencies anywhere.  Every pairing of a record's
+   mode with a model mode proposes a ``k``; each is scored by how many of the records' modes it places within
+   :data:`MATCH_TOLERANCE` of a model mode (weighted by their support in the stability chart), and the best few
+   distinct ones are kept.
 2. **Refinement in time.**  Around each, the output error is scanned along the frequency scale (and N, when it
    is unknown) with the damping lowered stage by stage (:data:`STAGES`: each stage's window is the previous
    one's resolution; a heavily damped model's cost is smooth where a lightly damped one's is a comb), and the
@@ -37,7 +38,7 @@ import numpy as np
 from ebb_model.errors import EbbError
 
 from .polish import residual_scale
-from .record_peaks import resonance_peaks
+from .record_poles import record_modes
 from .runners import Runner, SerialRunner
 
 __all__ = ["DataStart", "MATCH_TOLERANCE", "STAGES", "data_start"]
@@ -64,8 +65,8 @@ class DataStart:
     ----------
     x
         The start (physical units, order of the unknowns), inside the bounds.
-    peaks_hz
-        The records' resonance peaks [Hz].
+    modes_hz
+        The records' modes [Hz] (:func:`identification.record_poles.record_modes`).
     level
         The records' level against the model at the frequency scale found (1: the model's own level; the
         outputs are ``level ×`` the model's at unit scale), NaN when the level is not free (EI or ρA known).
@@ -76,7 +77,7 @@ class DataStart:
     """
 
     x: np.ndarray
-    peaks_hz: np.ndarray
+    modes_hz: np.ndarray
     level: float
     notes: tuple[str, ...] = field(default=())
     n_evaluations: int = 0
@@ -84,7 +85,7 @@ class DataStart:
     def to_dict(self, names: Sequence[str]) -> dict[str, Any]:
         """JSON-ready values."""
         return {"parameters": {n: float(v) for n, v in zip(names, self.x)},
-                "peaks_hz": [float(v) for v in self.peaks_hz],
+                "modes_hz": [float(v) for v in self.modes_hz],
                 "level": None if math.isnan(self.level) else float(self.level), "notes": list(self.notes),
                 "n_evaluations": int(self.n_evaluations)}
 
@@ -274,12 +275,12 @@ def data_start(evaluator: Any, runner: Runner | None = None) -> DataStart | None
         return None
     exps = evaluator.experiments
     dt = float(cfg.time.dt)
-    peaks, prom = resonance_peaks([e.inputs for e in exps], [e.outputs for e in exps], dt)
+    seen = record_modes([e.inputs for e in exps], [e.outputs for e in exps], dt)
+    peaks = seen.frequencies_hz
     k_lo, k_hi = d0.k_range()
     nyquist = 0.5 / dt
     if peaks.size:
-        weights = np.minimum(prom / 20.0, 1.0)
-        starts = _alignments(peaks, weights, family, k_lo, k_hi, nyquist)
+        starts = _alignments(peaks, seen.support, family, k_lo, k_hi, nyquist)
     else:
         starts = []
     nominal_n = family[len(family) // 2][0]

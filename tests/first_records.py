@@ -45,7 +45,9 @@ class FirstRecord:
         ``(name, x, kind)`` per sensor.
     excitation
         ``random`` (filtered white noise), ``chirp``, ``multisine`` (band 1 Hz to a tenth of the sampling rate: a
-        lab samples well above its band) or ``hammer`` (a 10 ms sin² blow).
+        lab samples well above its band), ``hammer`` (a 10 ms sin² blow), and what a modal test feeds a shaker:
+        ``broadband`` (white noise through an 8th-order low-pass at fs/2.56) or ``white`` (to the Nyquist
+        frequency).
     noise
         Noise std relative to each sensor's clean RMS.
     dt, duration
@@ -111,10 +113,12 @@ class FirstRecord:
             inside = (t >= 0) & (t <= width)
             u[inside] = 50.0 * np.sin(np.pi * t[inside] / width) ** 2     # smooth: a blow has no kinks
             return u
-        if self.excitation == "random":
+        if self.excitation in ("random", "broadband", "white"):
             rng = np.random.default_rng(7)
-            b, a = signal.butter(8, 0.1 * fs, fs=fs)
-            u = signal.lfilter(b, a, rng.standard_normal(n))
+            u = rng.standard_normal(n)
+            if self.excitation != "white":      # white: to the Nyquist frequency; broadband: to fs/2.56
+                b, a = signal.butter(8, (0.1 if self.excitation == "random" else 1 / 2.56) * fs, fs=fs)
+                u = signal.lfilter(b, a, u)
             ramp = np.minimum(1.0, np.arange(n) / (0.05 * n))
             return u * ramp / np.std(u)
         return band_limited_input(n, self.dt, 1.0, 0.1 * fs, kind=self.excitation, seed=3)[:, 0]
@@ -166,4 +170,17 @@ CASES = (
     FirstRecord("cantilever-mixed-chirp", "clamped", "free", 0.75, {"EI": 5.0, "rhoA": 0.7, "c": 0.5},
                 _g(1.6, 0.6, 1.3), 0.65, (("d1", 0.4, "displacement"), ("a1", 0.75, "acceleration")), "chirp",
                 0.04),
+)
+
+
+#: What labs record most: a shaker fed broadband random noise, one or two sensors (the broadband issue's benches):
+#: the demo's clamped–pinned beam with two displacement sensors and a white force, 10 s at 2 kHz; a steel strip
+#: clamped–free with one tip accelerometer (its first mode 40 dB below its fifth there), random to fs/2.56.
+BROADBAND = (
+    FirstRecord("demo-beam-white-displacement", "clamped", "pinned", 1.0,
+                {"EI": 10.0, "rhoA": 1.0, "c": 2.0, "N": 20.0}, _g(1.2, 1.2, 0.5, 1.5), 0.55,
+                (("y1", 0.35, "displacement"), ("y2", 0.8, "displacement")), "white", 0.01, dt=5e-4, duration=10.0),
+    FirstRecord("strip-cantilever-tip-accelerometer", "clamped", "free", 0.6,
+                {"EI": 210e9 * 0.04 * 0.004 ** 3 / 12, "rhoA": 7850 * 0.04 * 0.004, "c": 0.5}, _g(0.6, 1.4, 1.5), 0.5,
+                (("a1", 0.6, "acceleration"),), "broadband", 0.01, dt=5e-4, duration=3.0),
 )

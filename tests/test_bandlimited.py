@@ -20,6 +20,8 @@ from ebb_model.errors import ConfigError
 from ebb_model.exact_modal import continuous_modes, exact_statespace
 from ebb_model.modal import frequency_response
 from ebb_model.recursion import run_modal_recursion
+from ebb_model.reference.exact_fe import periodic_fe_response
+from ebb_model.reference.excitation import band_limited_input
 from ebb_model.reference.hermite_fe import hermite_beam
 
 INF = math.inf
@@ -44,28 +46,15 @@ def config(nodes: int, hold: str, case: dict = CASE) -> em.BeamConfig:
 
 
 def multisine(top: float, seed: int = 4) -> np.ndarray:
-    """A random-phase multisine on the record's DFT grid from 2 Hz to ``top`` × fs, unit RMS: band-limited and
-    periodic over the record."""
-    f = np.fft.rfftfreq(SAMPLES, CASE["dt"])
-    band = (f >= 2.0) & (f <= top / CASE["dt"])
-    U = np.zeros(f.size, dtype=complex)
-    U[band] = np.exp(2j * np.pi * np.random.default_rng(seed).random(int(band.sum())))
-    u = np.fft.irfft(U, SAMPLES)
-    return u / u.std()
+    """A random-phase multisine on the record's DFT grid from 2 Hz to ``top`` × fs, unit RMS, no fade: exactly
+    band-limited and periodic over the record."""
+    return band_limited_input(SAMPLES, CASE["dt"], 2.0, top / CASE["dt"], seed=seed, fade=0.0)[:, 0]
 
 
 def fe_steady_state(u: np.ndarray, elements: int) -> np.ndarray:
     """The finite-element beam's periodic response to the periodic force ``u``, bin by bin."""
     b = hermite_beam(CASE["length"], elements, left=ENDS[CASE["left"]], right=ENDS[CASE["right"]], **CASE["params"])
-    U = np.fft.rfft(u)
-    w = 2 * np.pi * np.fft.rfftfreq(u.size, CASE["dt"])
-    F = b.load_vector(CASE["actuator"])
-    rows = np.array([b.displacement_row(x) for x, _ in CASE["sensors"]])
-    Y = np.zeros((w.size, rows.shape[0]), dtype=complex)
-    for i in np.flatnonzero(np.abs(U) > 0):
-        q = np.linalg.solve(-w[i] ** 2 * b.M + 1j * w[i] * b.C + b.K, F) * U[i]
-        Y[i] = -w[i] ** 2 * (rows @ q)                   # both sensors are accelerometers
-    return np.fft.irfft(Y, u.size, axis=0)
+    return periodic_fe_response(b, u, CASE["dt"], CASE["actuator"], CASE["sensors"])
 
 
 def last_periods(model, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -75,7 +75,7 @@ def test_issue_case_lands_on_the_truth(tmp_path):
         assert abs(ident["parameters"][k] - v) <= 4 * ident["cramer_rao_std"][k], (k, ident)
     assert ident["fit_gap_ratio"]["a1"] <= 1.1
     doc = json.loads((tmp_path / "run" / "pareto.json").read_text())
-    assert doc["data_start"]["peaks_hz"] and doc["data_start"]["parameters"]
+    assert doc["data_start"]["modes_hz"] and doc["data_start"]["parameters"]
 
 
 def test_a_record_in_mm_gets_the_scale_hint(tmp_path):

@@ -33,7 +33,7 @@ from ..arrays import as_matrix
 from ..errors import DataError
 from .hermite_fe import SENSOR_KINDS, HermiteBeam
 
-__all__ = ["exact_fe_response", "force_polynomials"]
+__all__ = ["exact_fe_response", "force_polynomials", "periodic_fe_response"]
 
 
 def force_polynomials(inputs: np.ndarray, interpolation: str = "cubic") -> np.ndarray:
@@ -150,6 +150,32 @@ def exact_fe_response(beam: HermiteBeam, inputs: np.ndarray, dt: float, actuator
         Ba = np.vstack([Bb, Bf @ Dj[None, :]])
         y[:, j] = (Cf @ _integrate_exact(Aa, Ba, d, dt)[nb:]).ravel()
     return y
+
+
+def periodic_fe_response(beam: HermiteBeam, inputs: np.ndarray, dt: float, actuator: float,
+                         sensors: Sequence[tuple[float, str]]) -> np.ndarray:
+    """The periodic steady state (n, n_sensors) of ``beam`` under a force periodic over the record, bin by bin.
+
+    ``inputs`` (n,) are the samples of one period of a force band-limited below the Nyquist frequency (a
+    random-phase multisine on the record's DFT grid, :func:`~ebb_model.reference.excitation.band_limited_input`
+    with ``fade = 0``): it is then that one continuous signal, and each DFT bin's response is the finite-element
+    beam's frequency response there, ``(K + iωC − ω²M) q = F U`` — no time stepping, so no time-step error and
+    no assumption about the force between samples (the truth for :mod:`ebb_model.bandlimited`).
+    """
+    u = np.asarray(inputs, dtype=float).reshape(-1)
+    U = np.fft.rfft(u)
+    w = 2.0 * np.pi * np.fft.rfftfreq(u.size, dt)
+    F = beam.load_vector(actuator)
+    rows = np.array([beam.displacement_row(x) for x, _ in sensors])
+    factor = {"displacement": lambda wi: 1.0, "velocity": lambda wi: 1j * wi, "acceleration": lambda wi: -wi * wi}
+    for _, kind in sensors:
+        if kind not in SENSOR_KINDS:
+            raise DataError(f"unknown sensor kind {kind!r}; allowed: {', '.join(SENSOR_KINDS)}")
+    Y = np.zeros((w.size, rows.shape[0]), dtype=complex)
+    for i in np.flatnonzero(np.abs(U) > 0):
+        q = np.linalg.solve(beam.K + 1j * w[i] * beam.C - w[i] ** 2 * beam.M, F) * U[i]
+        Y[i] = np.array([factor[kind](w[i]) for _, kind in sensors]) * (rows @ q)
+    return np.fft.irfft(Y, u.size, axis=0)
 
 
 def _butterworth(order: int, corner: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
