@@ -115,7 +115,7 @@ def main() -> None:
         print("Broadband records (the light beam, a random force to 0.2 fs and to 0.4 fs, periodic; truth: the "
               "finite elements' steady state bin by bin, 128 elements), residual at the true parameters:")
         for top in (0.2, 0.4):
-            record = f"broadband {top:g} fs"
+            record = f"broadband{round(100 * top)}"     # percent of fs (no dot: the figures' paths split on it)
             ub = band_limited_input(LIGHT["samples"], LIGHT["dt"], 2.0, top / LIGHT["dt"], seed=4, fade=0.0)
             yb = periodic_truth(ub, 128)
             nvb = (0.01 * yb.std(axis=0)) ** 2

@@ -47,6 +47,8 @@ __all__ = ["DataStart", "MATCH_TOLERANCE", "STAGES", "data_start"]
 MATCH_TOLERANCE = 0.04
 #: (relative half-window of the frequency scale, damping ratio at the lowest matched mode) per stage.
 STAGES = ((0.06, 0.05), (0.015, 0.015), (0.004, 0.004), (0.001, 0.001))
+#: Factors of the last stage's damping ratio tried at the end (the level's accuracy is the damping's).
+DAMPING_FACTORS = 2.0 ** np.linspace(-1.5, 1.5, 13)
 #: Trials per stage along the frequency scale.
 TRIALS = 13
 #: Candidate frequency scales refined in time.
@@ -328,6 +330,14 @@ def data_start(evaluator: Any, runner: Runner | None = None) -> DataStart | None
                 if res[j, 0] < cost:
                     nv = trials[j][2]
                     cost, level = float(res[j, 0]), float(res[j, 1])
+        if d.has("c") or d.has("eta"):
+            # the damping on a finer grid at the end: the level projected out depends on it (a peak's height is
+            # ∝ 1/ζ), and the stages' values are a factor of 4 apart
+            trials = [(k, float(z), nv) for z in zeta * DAMPING_FACTORS]
+            res = trial_costs(trials, d)
+            j = int(np.argmin(res[:, 0]))
+            if res[j, 0] < cost:
+                zeta, cost, level = trials[j][1], float(res[j, 0]), float(res[j, 1])
         if best is None or cost < best[0]:
             best = (cost, k, zeta, nv, level, d)
     assert best is not None
