@@ -443,12 +443,21 @@ def _polish_front(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, bud
     and the ``prior`` and measured ``modes`` added (the posterior's mode): ``(from_index, x, F, evaluations,
     result)``.
 
-    With ``k >= 1`` and the records' ``start``, the start is polished too (``from_index`` :data:`FROM_START`)
-    and whichever of it and the polished knee reaches the lower χ² comes first: the identified model is the
-    better of two local fits from different basins, never a silent local optimum of one."""
+    With ``k >= 1`` the records' ``start`` is polished too (``from_index`` :data:`FROM_START`), and so is the
+    front's point that fits the records best (by the polish's own χ²) when it is not among the ``k``: whichever
+    polished point reaches the lowest χ² comes first.  The identified model is the best of local fits from
+    different basins, never a silent local optimum of one — and what a longer search finds is polished, so more
+    effort cannot give a worse answer than the default's stages do."""
     out: list[tuple[int, np.ndarray, np.ndarray, int, Any]] = []
     n_done = pareto.n_evaluations
     todo = [(int(i), pareto.X[i]) for i in knee_order(pareto.F, pareto.objective_names)[:k]]
+    if k >= 1 and pareto.X.shape[0] > 1:
+        r = np.asarray(runner(ResidualEvaluator(evaluator, noise, prior, modes), pareto.X), dtype=float)
+        chi2 = np.where(np.all(np.isfinite(r), axis=1), np.sum(r * r, axis=1), np.inf)
+        n_done += pareto.X.shape[0]
+        best = int(np.argmin(chi2))
+        if np.isfinite(chi2[best]) and best not in [i for i, _ in todo]:
+            todo.append((best, pareto.X[best]))
     if k >= 1 and start is not None:
         todo.insert(1, (FROM_START, start.x))
     for step, (i, x0) in enumerate(todo):
@@ -460,8 +469,9 @@ def _polish_front(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, bud
         out.append((i, r.x, f, n_ev, r))
         if on_progress is not None:
             on_progress(Progress("polish", step, n_done, r.x[None, :], f[None, :], 0))
-    if len(out) >= 2 and out[1][0] == FROM_START and out[1][4].cost < out[0][4].cost:
-        out[0], out[1] = out[1], out[0]
+    if len(out) >= 2:
+        first = int(np.argmin([o[4].cost for o in out]))
+        out.insert(0, out.pop(first))
     return out
 
 
