@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ebb_model import max_growth_factor
+from ebb_model.bandlimited import hold_for_records
 from ebb_model.adequacy import excited_band, numerical_adequacy
 from ebb_model.grid_advice import grid_advice
 from ebb_model.output import atomic_path
@@ -192,6 +193,9 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     targets = check_targets(targets, cfg)
     out = _check_out_dir(Path(out_dir), resume)
     exps = read_data(cfg, data)
+    hold_note = None
+    if backend != "fmu":                   # an FMU takes the force sample by sample (the cubic)
+        cfg, hold_note = hold_for_records(cfg, [e.inputs for e in exps])
     run_record = RunRecord.of(cfg, exps, ga)
     if stored is not None:
         stored.check(run_record, out)
@@ -241,7 +245,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                 shutil.rmtree(tmp_fmu_dir, ignore_errors=True)
         res = _result(evaluator, pareto, polished_raw, fisher0, noise_std is not None, out,
                       Path(config).stem if not isinstance(config, BeamConfig) else "beam", start)
-        res = replace(res, events=events)
+        res = replace(res, events=events, hints=res.hints if hold_note is None else (hold_note, *res.hints))
         _write_uncertainty(res, evaluator)
         _write_results(res, evaluator)
         if export:

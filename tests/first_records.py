@@ -68,6 +68,12 @@ class FirstRecord:
     duration: float = 4.0
 
     @property
+    def interpolation(self) -> str:
+        """The truth's force between samples: band-limited for what a shaker is fed through a DAQ (broadband,
+        white), the spline otherwise."""
+        return "bandlimited" if self.excitation in ("broadband", "white") else "cubic"
+
+    @property
     def unknowns(self) -> tuple[str, ...]:
         """What the config identifies: EI, ρA and c, and N on an axially loaded beam."""
         return ("EI", "rhoA", "c", "N") if self.truth.get("N", 0.0) != 0.0 else ("EI", "rhoA", "c")
@@ -113,14 +119,23 @@ class FirstRecord:
             inside = (t >= 0) & (t <= width)
             u[inside] = 50.0 * np.sin(np.pi * t[inside] / width) ** 2     # smooth: a blow has no kinks
             return u
-        if self.excitation in ("random", "broadband", "white"):
+        if self.excitation == "random":
             rng = np.random.default_rng(7)
-            u = rng.standard_normal(n)
-            if self.excitation != "white":      # white: to the Nyquist frequency; broadband: to fs/2.56
-                b, a = signal.butter(8, (0.1 if self.excitation == "random" else 1 / 2.56) * fs, fs=fs)
-                u = signal.lfilter(b, a, u)
+            b, a = signal.butter(8, 0.1 * fs, fs=fs)
+            u = signal.lfilter(b, a, rng.standard_normal(n))
             ramp = np.minimum(1.0, np.arange(n) / (0.05 * n))
             return u * ramp / np.std(u)
+        if self.excitation in ("broadband", "white"):
+            # white to the Nyquist frequency, or to fs/2.56 through an 8th-order low-pass; faded in and out (raised
+            # cosine over 5 %): the shaker recorded from before it starts to after it stops, a band-limited force
+            u = np.random.default_rng(7).standard_normal(n)
+            if self.excitation == "broadband":
+                u = signal.sosfiltfilt(signal.butter(8, fs / 2.56, fs=fs, output="sos"), u)
+            k = max(2, n // 20)
+            fade = 0.5 - 0.5 * np.cos(np.pi * np.arange(k) / k)
+            u[:k] *= fade
+            u[-k:] *= fade[::-1]
+            return u / np.std(u)
         return band_limited_input(n, self.dt, 1.0, 0.1 * fs, kind=self.excitation, seed=3)[:, 0]
 
 
@@ -130,7 +145,7 @@ def write_case(case: FirstRecord, folder: Path) -> tuple[Path, Path]:
     cfg_path = folder / "config.toml"
     cfg_path.write_text(dumps_toml(case.config_dict()), encoding="utf-8")
     u = case.force()
-    rec = synthesize(case.truth_config(), u[:, None], noise=case.noise, seed=11)
+    rec = synthesize(case.truth_config(), u[:, None], noise=case.noise, seed=11, interpolation=case.interpolation)
     data = np.column_stack([rec.time, rec.inputs, rec.outputs])
     header = ",".join(["time", *rec.input_names, *rec.output_names])
     rec_path = folder / "record.csv"

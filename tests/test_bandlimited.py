@@ -204,3 +204,31 @@ def test_a_causal_model_takes_the_cubic():
     d["time"]["scheme"] = "theta"
     with pytest.raises(ConfigError, match="needs scheme"):
         em.config_from_dict(d)
+
+
+def test_the_records_choose_the_force_between_samples_when_the_config_does_not():
+    """A force reaching 0.2 fs or more (a shaker fed broadband noise through a DAQ: here to fs/2.56) makes the
+    band-limited reconstruction the default, with one sentence saying so and how far off the cubic is there; a
+    force to 0.1 fs (the first-records family's), a config that names `[time] input`, or the θ-scheme keep
+    theirs; the declaration survives a round trip."""
+    from scipy import signal
+
+    rng = np.random.default_rng(3)
+    fs = 1.0 / CASE["dt"]
+    broadband = signal.sosfiltfilt(signal.butter(8, fs / 2.56, fs=fs, output="sos"), rng.standard_normal(6000))
+    narrow = signal.sosfiltfilt(signal.butter(8, 0.1 * fs, fs=fs, output="sos"), rng.standard_normal(6000))
+    cfg = config(30, "cubic").to_dict()
+    del cfg["time"]["input"]
+    plain = em.config_from_dict(cfg)
+    assert not plain.time.input_declared and plain.time.input_hold == "cubic"
+    chosen, note = bl.hold_for_records(plain, [broadband[:, None]])
+    assert chosen.time.input_hold == "bandlimited" and note is not None
+    assert "band-limited" in note and "87 % off" in note
+    assert bl.hold_for_records(plain, [narrow[:, None]]) == (plain, None)
+    declared = config(30, "cubic")
+    assert declared.time.input_declared
+    assert bl.hold_for_records(declared, [broadband[:, None]]) == (declared, None)
+    assert em.config_from_dict(declared.to_dict()).time.input_declared
+    cfg["time"].update(scheme="theta")
+    theta = em.config_from_dict(cfg)
+    assert bl.hold_for_records(theta, [broadband[:, None]]) == (theta, None)

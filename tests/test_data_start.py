@@ -69,7 +69,8 @@ def _above_noise(case, f: np.ndarray, ratio: float) -> np.ndarray:
 
     from ebb_model.reference.synthetic import synthesize
 
-    rec = synthesize(case.truth_config(), case.force()[:, None], noise=case.noise, seed=11)
+    rec = synthesize(case.truth_config(), case.force()[:, None], noise=case.noise, seed=11,
+                     interpolation=case.interpolation)
     fw, p = signal.welch(rec.outputs_clean, fs=1 / case.dt, nperseg=rec.outputs_clean.shape[0] // 4, axis=0)
     floor = rec.noise_std ** 2 / (0.5 / case.dt)                  # one-sided PSD of the white noise
     out = np.zeros(f.size, dtype=bool)

@@ -153,7 +153,11 @@ DEFAULT_N_ELEMENTS = 64
 #: Default Newmark steps per sample interval.
 DEFAULT_SUBSTEPS = 8
 #: Reconstructions of the force between samples.
-INTERPOLATIONS: tuple[str, ...] = ("cubic", "linear")
+INTERPOLATIONS: tuple[str, ...] = ("cubic", "linear", "bandlimited")
+#: ``interpolation="bandlimited"``: the force resampled this many times finer by its Fourier series (the record
+#: taken as one period), then the spline through the fine samples (at 0.4 fs its error is that of the spline at
+#: 0.05 of the fine rate: ~1e-6).
+BANDLIMITED_OVERSAMPLING = 8
 #: Time integrators of the generator ("auto": exact for time-invariant truths, else Newmark).
 INTEGRATORS: tuple[str, ...] = ("auto", "exact", "newmark")
 
@@ -420,7 +424,12 @@ def synthesize(
         Newmark steps per sample interval (>= 1; not used by the exact integrator).
     interpolation
         Reconstruction of the force between samples: ``"cubic"`` (spline,
-        default) or ``"linear"``.
+        default), ``"linear"``, or ``"bandlimited"`` — the record's
+        trigonometric interpolant (its Fourier series, the record one period:
+        a force faded in and out, band-limited below the Nyquist frequency),
+        by :data:`BANDLIMITED_OVERSAMPLING`-fold resampling and the spline
+        through the fine samples; independent of the model's kernel
+        (:mod:`ebb_model.bandlimited`).
     richardson
         Newmark only: combine runs with ``substeps`` and ``2 * substeps`` to
         cancel the :math:`O(h^2)` Newmark error (default ``True``).
@@ -466,8 +475,15 @@ def synthesize(
     operators = _newmark_operators(beam, config)
     exact = uses_exact(integrator, truth)
     m = int(substeps)
-    y = _simulate(beam, config, truth, U, dt, operators, exact=exact, substeps=m, interpolation=interpolation,
-                  richardson=richardson)
+    if interpolation == "bandlimited":
+        from scipy.signal import resample
+
+        R = BANDLIMITED_OVERSAMPLING
+        y = _simulate(beam, config, truth, resample(U, U.shape[0] * R, axis=0), dt / R, operators, exact=exact,
+                      substeps=m, interpolation="cubic", richardson=richardson)[::R]
+    else:
+        y = _simulate(beam, config, truth, U, dt, operators, exact=exact, substeps=m, interpolation=interpolation,
+                      richardson=richardson)
     noisy, std = _add_noise(y, noise, seed)
     return _pack_record(config, U, y, noisy, std, dt, p=p, effects=effects, n_elements=n_elements, substeps=m,
                         richardson=richardson, interpolation=interpolation, exact=exact)
