@@ -27,7 +27,7 @@ from ebb_model.errors import ConfigError
 from ebb_model.grid_advice import grid_advice
 from ebb_model.htmlio import PAGE, write_page
 from ebb_model.jsonio import write_json
-from ebb_model.bandlimited import hold_for_records
+from ebb_model.bandlimited import hold_hint
 from ebb_model.modal import discrete_frequencies
 from ebb_model.output import check_new_output_dir, staged_dir
 from ebb_model.threads import one_blas_thread
@@ -163,9 +163,9 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         check_new_output_dir(out)
     exps = read_data(cfg, data)
     held = read_data(cfg, holdout) if holdout else ()
-    cfg, hold_note = hold_for_records(cfg, [e.inputs for e in exps])
+    hold_note = hold_hint(cfg, [e.inputs for e in exps])
     if hold_note is not None:
-        say(hold_note)
+        say("hint: " + hold_note)
     records = split_records([ordered_record(cfg, e) for e in exps], [ordered_record(cfg, e) for e in held],
                             holdout_fraction=holdout_fraction)
     space = parameter_space(cfg)

@@ -43,7 +43,7 @@ if TYPE_CHECKING:
     from .config import BeamConfig
 
 __all__ = ["HALF_WIDTH", "BETA", "BAND", "ADVANCE", "TAPS", "kernel", "kernel_derivative", "pole_weights",
-           "dense_weights", "advance_input", "causal_config", "hold_for_records", "BROADBAND_EDGE",
+           "dense_weights", "advance_input", "causal_config", "hold_hint", "BROADBAND_EDGE",
            "reconstruction_error", "RECONSTRUCTION_ERROR"]
 
 #: Half-width ``M`` of the kernel in samples.
@@ -201,35 +201,35 @@ def causal_config(config: "BeamConfig") -> "BeamConfig":
     return replace(config, time=replace(config.time, input_hold="cubic"))
 
 
-#: The records' force reaching this share of the sampling rate (within 20 dB of its peak, Welch) makes the
-#: band-limited reconstruction the default: there the cubic through four samples is 9 % off between samples
-#: (measured by the same tone test as :func:`reconstruction_error`: 0.6 % at 0.1 fs, 8.9 % at 0.2 fs, 87 % at
-#: 0.4 fs), several to hundreds of noise variances on an accelerometer record (``docs/model.md``).
+#: The records' force reaching this share of the sampling rate (within 20 dB of its peak, Welch) with the cubic
+#: between samples gets a hint: there the cubic through four samples is 9 % off between samples (the tone test
+#: of :func:`reconstruction_error`: 0.6 % at 0.1 fs, 8.9 % at 0.2 fs, 87 % at 0.4 fs), several to hundreds of
+#: noise variances on an accelerometer record (``docs/model.md``).
 BROADBAND_EDGE = 0.2
 
 
-def hold_for_records(config: "BeamConfig", inputs: Sequence[np.ndarray]) -> tuple["BeamConfig", str | None]:
-    """``config`` with the force between samples the records call for, and a sentence saying so (``None`` when
-    nothing changed): ``[time] input`` not named, the exact scheme, and the measured forces reaching
-    :data:`BROADBAND_EDGE` of the sampling rate (a shaker fed broadband noise through a DAQ) → ``"bandlimited"``.
-    """
-    from dataclasses import replace
+def hold_hint(config: "BeamConfig", inputs: Sequence[np.ndarray]) -> str | None:
+    """A sentence when the records' force reaches :data:`BROADBAND_EDGE` of the sampling rate and the config takes
+    the cubic between samples (the exact scheme's default), ``None`` otherwise.
 
+    Not a switch: whether a force is band-limited is the acquisition's to say (an anti-alias filter on the force's
+    channel: a DAQ), not the samples' — a record made by a model with the cubic, or a force commanded through a
+    hold, is not; the hint says which setting models a DAQ's record and how far off the cubic is there.
+    """
     from .adequacy import excited_band
 
     t = config.time
-    if t.input_declared or t.scheme != "exact" or t.input_hold == "bandlimited" or not len(inputs):
-        return config, None
+    if t.scheme != "exact" or t.input_hold != "cubic" or not len(inputs):
+        return None
     try:
         top = excited_band(inputs, t.dt, rel=1e-2)[1]
     except ValueError:                                    # no power: nothing to say
-        return config, None
+        return None
     if top < BROADBAND_EDGE / t.dt:
-        return config, None
-    note = (f"the records' force reaches {top * t.dt:.2f} of the sampling rate ({top:.4g} Hz): the force between "
-            "samples is taken band-limited ([time] input = \"bandlimited\"; the cubic through four samples is "
-            f"{100 * _cubic_error(top * t.dt):.0f} % off there) — name [time] input to choose otherwise")
-    return replace(config, time=replace(t, input_hold="bandlimited")), note
+        return None
+    return (f"the records' force reaches {top * t.dt:.2f} of the sampling rate ({top:.4g} Hz), where the cubic "
+            f"between samples is {100 * _cubic_error(top * t.dt):.0f} % off: a force recorded through an "
+            "anti-alias filter (a DAQ) is band-limited — [time] input = \"bandlimited\" models it")
 
 
 def _cubic_error(nu: float) -> float:

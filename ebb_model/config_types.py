@@ -69,9 +69,6 @@ class TimeSettings:
     substeps: int = 1
     input_hold: str = "cubic"
     scheme: str = "exact"
-    #: whether the config names ``[time] input`` (otherwise the records may choose it:
-    #: :func:`ebb_model.bandlimited.hold_for_records`)
-    input_declared: bool = False
 
 
 @dataclass(frozen=True)
@@ -156,7 +153,7 @@ class BeamConfig:
             params[k] = d
         time = {"dt": self.time.dt, "theta": self.time.theta, "substeps": self.time.substeps,
                 "scheme": self.time.scheme}
-        if self.time.input_declared or self.time.input_hold != DEFAULT_INPUT[self.time.scheme]:
+        if self.time.input_hold != DEFAULT_INPUT[self.time.scheme]:   # the default follows the scheme
             time["input"] = self.time.input_hold
         out: dict[str, Any] = {
             "beam": beam,

@@ -407,7 +407,7 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
     _warn_fixed_actuators(actuators, length, left, right)
     return BeamConfig(
         beam=BeamGeometry(length, nodes, left, right),
-        time=TimeSettings(dt, theta, substeps, input_hold, scheme, "input" in time_t),
+        time=TimeSettings(dt, theta, substeps, input_hold, scheme),
         parameters=MappingProxyType(params),
         actuators=tuple(actuators),
         sensors=tuple(sensors),

@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ebb_model import max_growth_factor
-from ebb_model.bandlimited import hold_for_records
+from ebb_model.bandlimited import hold_hint
 from ebb_model.adequacy import excited_band, numerical_adequacy
 from ebb_model.grid_advice import grid_advice
 from ebb_model.output import atomic_path
@@ -193,9 +193,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     targets = check_targets(targets, cfg)
     out = _check_out_dir(Path(out_dir), resume)
     exps = read_data(cfg, data)
-    hold_note = None
-    if backend != "fmu":                   # an FMU takes the force sample by sample (the cubic)
-        cfg, hold_note = hold_for_records(cfg, [e.inputs for e in exps])
+    hold_note = hold_hint(cfg, [e.inputs for e in exps])
     run_record = RunRecord.of(cfg, exps, ga)
     if stored is not None:
         stored.check(run_record, out)
@@ -456,8 +454,8 @@ def _polish_front(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, bud
     n_done = pareto.n_evaluations
     todo = [(int(i), pareto.X[i]) for i in knee_order(pareto.F, pareto.objective_names)[:k]]
     if k >= 1 and pareto.X.shape[0] > 1:
-        r = np.asarray(runner(ResidualEvaluator(evaluator, noise, prior, modes), pareto.X), dtype=float)
-        chi2 = np.where(np.all(np.isfinite(r), axis=1), np.sum(r * r, axis=1), np.inf)
+        rv = np.asarray(runner(ResidualEvaluator(evaluator, noise, prior, modes), pareto.X), dtype=float)
+        chi2 = np.where(np.all(np.isfinite(rv), axis=1), np.sum(rv * rv, axis=1), np.inf)
         n_done += pareto.X.shape[0]
         best = int(np.argmin(chi2))
         if np.isfinite(chi2[best]) and best not in [i for i, _ in todo]:

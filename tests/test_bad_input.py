@@ -245,9 +245,10 @@ def test_export_polished_without_indices_exports_every_polished_point(finished_r
     _, out = finished_run
     assert main(["export", str(out), "--polished", "--target", "statespace"]) == 0
     written = sorted(p.name for p in (out / "export").iterdir())
-    # --polish 1: the knee's polish and the records' start's (identification.run._polish_front)
+    # --polish 1: the knee's polish, the records' start's and the front's best fit's when it is not the knee
+    # (identification.run._polish_front)
     n = len(json.loads((out / "pareto.json").read_text())["polished"])
-    assert n == 2 and written == [f"polished_{j}.npz" for j in range(n)], written
+    assert n in (2, 3) and written == [f"polished_{j}.npz" for j in range(n)], written
     capsys.readouterr()
 
 

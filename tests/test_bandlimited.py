@@ -206,29 +206,23 @@ def test_a_causal_model_takes_the_cubic():
         em.config_from_dict(d)
 
 
-def test_the_records_choose_the_force_between_samples_when_the_config_does_not():
-    """A force reaching 0.2 fs or more (a shaker fed broadband noise through a DAQ: here to fs/2.56) makes the
-    band-limited reconstruction the default, with one sentence saying so and how far off the cubic is there; a
-    force to 0.1 fs (the first-records family's), a config that names `[time] input`, or the θ-scheme keep
-    theirs; the declaration survives a round trip."""
+def test_a_broadband_force_with_the_cubic_gets_a_hint_and_nothing_else_does():
+    """A force reaching 0.2 fs or more (here white noise through a low-pass at fs/2.56) with the cubic between
+    samples: one sentence naming the band edge, how far off the cubic is there and the setting that models a DAQ's
+    record; a force to 0.1 fs (the first-records family's), the band-limited config or the θ-scheme: none."""
     from scipy import signal
 
     rng = np.random.default_rng(3)
     fs = 1.0 / CASE["dt"]
     broadband = signal.sosfiltfilt(signal.butter(8, fs / 2.56, fs=fs, output="sos"), rng.standard_normal(6000))
     narrow = signal.sosfiltfilt(signal.butter(8, 0.1 * fs, fs=fs, output="sos"), rng.standard_normal(6000))
-    cfg = config(30, "cubic").to_dict()
-    del cfg["time"]["input"]
-    plain = em.config_from_dict(cfg)
-    assert not plain.time.input_declared and plain.time.input_hold == "cubic"
-    chosen, note = bl.hold_for_records(plain, [broadband[:, None]])
-    assert chosen.time.input_hold == "bandlimited" and note is not None
-    assert "band-limited" in note and "87 % off" in note
-    assert bl.hold_for_records(plain, [narrow[:, None]]) == (plain, None)
-    declared = config(30, "cubic")
-    assert declared.time.input_declared
-    assert bl.hold_for_records(declared, [broadband[:, None]]) == (declared, None)
-    assert em.config_from_dict(declared.to_dict()).time.input_declared
-    cfg["time"].update(scheme="theta")
-    theta = em.config_from_dict(cfg)
-    assert bl.hold_for_records(theta, [broadband[:, None]]) == (theta, None)
+    cubic = config(30, "cubic")
+    note = bl.hold_hint(cubic, [broadband[:, None]])
+    assert note is not None and "% off" in note and 'input = "bandlimited"' in note
+    edge = float(note.split("reaches ")[1].split(" of")[0])
+    assert 0.2 <= edge <= 0.5 and f"{100 * bl._cubic_error(edge):.0f} % off" in note
+    assert bl.hold_hint(cubic, [narrow[:, None]]) is None
+    assert bl.hold_hint(config(30, "bandlimited"), [broadband[:, None]]) is None
+    d = cubic.to_dict()
+    d["time"].update(scheme="theta", input="foh")
+    assert bl.hold_hint(em.config_from_dict(d), [broadband[:, None]]) is None
