@@ -277,12 +277,12 @@ def data_start(evaluator: Any, runner: Runner | None = None) -> DataStart | None
         return None
     exps = evaluator.experiments
     dt = float(cfg.time.dt)
-    seen = record_modes([e.inputs for e in exps], [e.outputs for e in exps], dt)
-    peaks = seen.frequencies_hz
+    recorded = record_modes([e.inputs for e in exps], [e.outputs for e in exps], dt)
+    peaks = recorded.frequencies_hz
     k_lo, k_hi = d0.k_range()
     nyquist = 0.5 / dt
     if peaks.size:
-        starts = _alignments(peaks, seen.support, family, k_lo, k_hi, nyquist)
+        starts = _alignments(peaks, recorded.support, family, k_lo, k_hi, nyquist)
     else:
         starts = []
     nominal_n = family[len(family) // 2][0]
