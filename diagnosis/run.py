@@ -21,7 +21,7 @@ from typing import Any, Callable, Sequence, cast
 
 import numpy as np
 
-from ebb_model.adequacy import excited_band, numerical_adequacy
+from ebb_model.adequacy import excited_band, grid_line, numerical_adequacy
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
 from ebb_model.grid_advice import grid_advice
@@ -220,7 +220,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
             weighed = weigh(problem, ranking)
             for lab, lines in weighed.implausible.items():
                 say(f"{lab} needs implausible values: " + "; ".join(lines))
-            return judge(Case(problem, ranking, weighed, float(np.max(adequacy.numerical_share)), advice.summary(),
+            return judge(Case(problem, ranking, weighed, float(np.max(adequacy.numerical_share)),
+                              grid_line(advice, adequacy),
                               polarity, where))
 
         with clock.stage("plausibility and evidence"):

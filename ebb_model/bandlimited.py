@@ -42,7 +42,7 @@ import numpy as np
 if TYPE_CHECKING:
     from .config import BeamConfig
 
-__all__ = ["HALF_WIDTH", "BETA", "BAND", "ADVANCE", "TAPS", "kernel", "kernel_derivative", "pole_weights",
+__all__ = ["HALF_WIDTH", "BETA", "BAND", "ADVANCE", "TAPS", "kernel", "pole_weights",
            "dense_weights", "advance_input", "causal_config", "hold_hint", "BROADBAND_EDGE",
            "reconstruction_error", "RECONSTRUCTION_ERROR"]
 
@@ -65,8 +65,16 @@ TAPS = tuple(range(-(2 * HALF_WIDTH - 2), 2))
 #: Gauss–Legendre nodes per panel; a panel spans at most :data:`_PANEL_PHASE` of ``|sT|``.
 _NODES = 20
 _PANEL_PHASE = 4.0
-#: Most panels per interval (dyadic levels up to 2¹²); a pole beyond them takes the asymptotic series.
-_MAX_LEVEL = 12
+#: Most panels per interval for a pole (dyadic levels up to 2⁶); a pole beyond them (``|sT| > 256``) takes the
+#: series in ``1/(sT)``.  The dense route has no series and takes up to 2¹² panels.
+_MAX_LEVEL = 6
+_DENSE_MAX_LEVEL = 12
+#: Terms of the series in ``1/(sT)``: the remainder is below ``max|φ⁽ᴷ⁾| / |sT|ᴷ`` of ``|sT|⁻¹``, about 1e-13 of
+#: the first term at ``|sT| = 256``.
+_SERIES_TERMS = 8
+#: Degree of the Chebyshev interpolant of ``φ`` on each unit interval the endpoint derivatives are read from (40:
+#: the series at ``|sT| = 257`` within 3e-13 of 2¹³ panels; 60 amplifies round-off in the 7th derivative to 2e-9).
+_CHEBYSHEV_DEGREE = 40
 
 
 def kernel(t: np.ndarray | float) -> np.ndarray:
@@ -78,10 +86,38 @@ def kernel(t: np.ndarray | float) -> np.ndarray:
     return np.sinc(t) * w
 
 
-def kernel_derivative(t: np.ndarray | float, h: float = 1e-4) -> np.ndarray:
-    """``φ'(t)`` by a fourth-order central difference (the asymptotic weights' second term only)."""
-    t = np.asarray(t, dtype=float)
-    return (8.0 * (kernel(t + h) - kernel(t - h)) - (kernel(t + 2 * h) - kernel(t - 2 * h))) / (12.0 * h)
+@functools.lru_cache(maxsize=None)
+def _endpoint_derivatives() -> tuple[np.ndarray, np.ndarray]:
+    """``φ⁽ᵏ⁾(σ − m)`` at ``σ = 0`` and ``σ = 1`` from inside ``[0, 1]`` (:data:`_SERIES_TERMS` × taps each),
+    ``m = −M+1 … M``: from a Chebyshev interpolant of degree :data:`_CHEBYSHEV_DEGREE` on each unit interval
+    (``φ`` is analytic there — ``I₀(β√x)`` is entire in ``x`` — so one-sided at ``±M`` too)."""
+    from numpy.polynomial import Chebyshev
+
+    m = np.arange(-HALF_WIDTH + 1, HALF_WIDTH + 1)
+    d0 = np.zeros((_SERIES_TERMS, m.size))
+    d1 = np.zeros((_SERIES_TERMS, m.size))
+    for j, mj in enumerate(m):
+        p = Chebyshev.interpolate(lambda x, mj=mj: kernel(np.clip(x, 0.0, 1.0) - mj), _CHEBYSHEV_DEGREE,
+                                  domain=[0.0, 1.0])
+        for k in range(_SERIES_TERMS):
+            d0[k, j], d1[k, j] = p(0.0), p(1.0)
+            p = p.deriv()
+    for a in (d0, d1):
+        a.setflags(write=False)
+    return d0, d1
+
+
+def _series(a: np.ndarray, E: np.ndarray) -> np.ndarray:
+    """``∫₀¹ e^{a(1−σ)} φ(σ − m) dσ`` (taps × poles) by the series ``Σₖ (e^a φ⁽ᵏ⁾(−m) − φ⁽ᵏ⁾(1−m)) / a^{k+1}``
+    (integration by parts, :data:`_SERIES_TERMS` terms)."""
+    d0, d1 = _endpoint_derivatives()
+    out = np.zeros((d0.shape[1], a.size), dtype=complex)
+    inv = 1.0 / a
+    power = inv.copy()
+    for k in range(_SERIES_TERMS):
+        out += (np.outer(d0[k], E) - d1[k][:, None]) * power
+        power = power * inv
+    return out
 
 
 @functools.lru_cache(maxsize=None)
@@ -107,8 +143,8 @@ def pole_weights(s: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
 
     Each pole on ``2^ℓ`` panels of :data:`_NODES` Gauss–Legendre nodes, ``2^ℓ ≥ |sT|/4`` (the exponential on a
     panel then turns by at most 4 radians: the rule is exact to round-off for it and for the kernel, which is
-    smooth on each unit interval); beyond ``2^12`` panels (``|sT| > 16384``) two terms of the series in
-    ``1/(sT)`` (integration by parts: the third is below ``|sT|^{−2}`` of the first).
+    smooth on each unit interval); beyond ``2^6`` panels (``|sT| > 256``) :data:`_SERIES_TERMS` terms of the series
+    in ``1/(sT)`` (integration by parts; against 2¹³ panels within 1e-12, ``tests/test_bandlimited.py``).
     """
     s = np.asarray(s, dtype=complex).reshape(-1)
     a = s * T
@@ -120,11 +156,8 @@ def pole_weights(s: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
     level[big] = np.ceil(np.log2(size[big] / _PANEL_PHASE)).astype(np.int64)
     for lv in np.unique(level):
         idx = np.flatnonzero(level == lv)
-        if lv > _MAX_LEVEL:                     # J(f) = (e^a f(0) − f(1))/a + (e^a f'(0) − f'(1))/a² + …
-            m = np.arange(-HALF_WIDTH + 1, HALF_WIDTH + 1)[:, None]
-            aa, ea = a[idx][None, :], E[idx][None, :]
-            W[:, idx] = T * ((ea * kernel(-m) - kernel(1.0 - m)) / aa
-                             + (ea * kernel_derivative(-m) - kernel_derivative(1.0 - m)) / aa ** 2)
+        if lv > _MAX_LEVEL:
+            W[:, idx] = T * _series(a[idx], E[idx])
             continue
         sigma, weights, table = _panel_table(int(lv))
         with np.errstate(over="ignore", invalid="ignore"):      # an unstable candidate: caught downstream
@@ -166,7 +199,7 @@ def dense_weights(A: np.ndarray, B: np.ndarray, T: float) -> tuple[np.ndarray, n
     A = np.asarray(A, dtype=float)
     B = np.asarray(B, dtype=float)
     size = float(np.linalg.norm(A, 1)) * T
-    level = 0 if size <= _PANEL_PHASE else min(int(math.ceil(math.log2(size / _PANEL_PHASE))), _MAX_LEVEL)
+    level = 0 if size <= _PANEL_PHASE else min(int(math.ceil(math.log2(size / _PANEL_PHASE))), _DENSE_MAX_LEVEL)
     panels = 2 ** level
     h = 1.0 / panels
     x, w = np.polynomial.legendre.leggauss(_NODES)

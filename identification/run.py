@@ -32,7 +32,7 @@ from numpy.typing import ArrayLike
 
 from ebb_model import max_growth_factor
 from ebb_model.bandlimited import hold_hint
-from ebb_model.adequacy import excited_band, numerical_adequacy
+from ebb_model.adequacy import excited_band, grid_line, numerical_adequacy
 from ebb_model.grid_advice import grid_advice
 from ebb_model.output import atomic_path
 from ebb_model.config import BeamConfig
@@ -47,6 +47,7 @@ from .data_start import DataStart, data_start
 from .export_targets import DEFAULT_TARGETS, check_targets
 from .fisher import fisher_information
 from .fit_hints import fit_hints
+from .numerics import numerics_for_records
 from .noise_model import NoiseModel, estimate_noise_model
 from .modal_data import ModalData, modal_data
 from .prior import Prior, PriorCheck
@@ -209,6 +210,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     tmp_fmu_dir = None
     if backend == "fmu":
         search_evaluator, tmp_fmu_dir = _fmu_evaluator(evaluator, fmu, fmu_parameters, fmu_inputs, fmu_outputs)
+    on_fmu = search_evaluator is not evaluator
     created = not out.exists()
     make_dir(out, exist_ok=True)
     try:
@@ -233,9 +235,14 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                 polished_raw = _polish_front(pareto, search_evaluator, runner, int(polish), int(polish_evaluations),
                                              on_progress, polish_noise, Prior.of(cfg, space.names), modal_data(cfg),
                                              start)
+                if not on_fmu and polished_raw:
+                    # the numerics the records ask for (identification.numerics); the hint is then theirs to give
+                    evaluator, polished_raw, hold_note = _refine_numerics(
+                        evaluator, polished_raw, runner, int(polish_evaluations), polish_noise,
+                        lambda c: NativeEvaluator(c, space, _arrays(c, exps), per=per, stabilising=bool(stabilising)))
                 events = runner.events()
         finally:
-            if search_evaluator is not evaluator:
+            if on_fmu:
                 search_evaluator.close()
             if tmp_fmu_dir is not None:
                 import shutil
@@ -267,6 +274,24 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         _remove_partial(out, created)
         raise OutputError(f"{exc}; nothing was kept", path=exc.path, errno=exc.errno) from None
     return res
+
+
+def _refine_numerics(evaluator: NativeEvaluator, polished_raw: list[tuple[int, np.ndarray, np.ndarray, int, Any]],
+                     runner: Runner, budget: int, noise: NoiseModel | None,
+                     evaluator_for: Callable[[BeamConfig], NativeEvaluator]
+                     ) -> tuple[NativeEvaluator, list[tuple[int, np.ndarray, np.ndarray, int, Any]], str | None]:
+    """The evaluator on the numerics the records ask for (:func:`identification.numerics.numerics_for_records`),
+    the identified point polished on them in place of the first polished point, and the line saying so."""
+    cfg = evaluator.config
+    band_hz = excited_band([e.inputs for e in evaluator.experiments], cfg.time.dt)[1]
+    choice = numerics_for_records(evaluator, [p[1] for p in polished_raw], runner, budget=budget, band_hz=band_hz,
+                                  noise=noise, prior=Prior.of(cfg, evaluator.space.names), modes=modal_data(cfg),
+                                  evaluator_for=evaluator_for)
+    if choice.polished is None:
+        return evaluator, polished_raw, None
+    r = choice.polished
+    f = np.asarray(runner(choice.evaluator, r.x[None, :]))[0]
+    return choice.evaluator, [(polished_raw[0][0], r.x, f, r.n_evaluations + 1, r), *polished_raw[1:]], choice.note
 
 
 def _write_uncertainty(res: IdentificationResult, evaluator: NativeEvaluator) -> None:
@@ -373,7 +398,7 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
     advice = grid_advice(*space.apply(cfg, best_x), band_hz=band_hz)
     adequacy = numerical_adequacy(*space.apply(cfg, best_x), [(e.inputs, e.outputs) for e in exps], sigma,
                                   band_hz=band_hz, advice=advice)
-    grid = {**advice.to_dict(), "summary": advice.summary()}
+    grid = {**advice.to_dict(), "summary": grid_line(advice, adequacy)}
     priors: tuple[PriorCheck, ...] = ()
     prior = Prior.of(cfg, space.names)
     if prior.count and best.stable:

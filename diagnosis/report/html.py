@@ -26,7 +26,7 @@ def text_report(report: GapReport, *, top: int = 6) -> str:
     for lab, why in report.implausible.items():
         lines.append(f"not named, implausible: {lab}: " + "; ".join(why))
     lines.append(f"baseline's {base.numerical_adequacy.summary()}")
-    lines.append(base.grid_advice.summary())
+    lines.append(base.grid_summary)
     if report.summary:
         lines.append("where:")
         lines += [f"  - {s}" for s in report.summary]
@@ -76,7 +76,7 @@ def html_sections(report: GapReport, out_dir: Path, *, top: int = 10) -> list[Se
         ("sensor", "held-out gap ratio (1 = noise floor)"),
         [(k, f"{v:.4g}") for k, v in base.heldout_gap_ratio.items()]),),
         paragraphs=(*(c.line() for c in report.priors), f"baseline's {base.numerical_adequacy.summary()}",
-                    base.grid_advice.summary(),
+                    base.grid_summary,
                     *(f"not named, implausible: {lab}: " + "; ".join(why) for lab, why in report.implausible.items())))
     rows = []
     for row in report.effects[:top]:

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-from ebb_model.adequacy import NumericalAdequacy
+from ebb_model.adequacy import NumericalAdequacy, grid_line
 from ebb_model.grid_advice import GridAdvice
 from ebb_model.jsonio import jsonable
 from identification.prior import PriorCheck
@@ -123,7 +123,12 @@ class BaselineSummary:
                 "heldout_gap_ratio": jsonable(self.heldout_gap_ratio), "bic": jsonable(self.bic),
                 "n_evaluations": self.n_evaluations, "model_modes_hz": jsonable(self.model_modes_hz),
                 "numerical_adequacy": self.numerical_adequacy.to_dict(),
-                "grid_advice": self.grid_advice.to_dict() | {"summary": self.grid_advice.summary()}}
+                "grid_advice": self.grid_advice.to_dict() | {"summary": self.grid_summary}}
+
+    @property
+    def grid_summary(self) -> str:
+        """The one grid advice from the records (:func:`ebb_model.adequacy.grid_line`)."""
+        return grid_line(self.grid_advice, self.numerical_adequacy)
 
 
 @dataclass(frozen=True)
