@@ -27,7 +27,6 @@ from ebb_model.errors import ConfigError
 from ebb_model.grid_advice import grid_advice
 from ebb_model.htmlio import PAGE, write_page
 from ebb_model.jsonio import write_json
-from ebb_model.bandlimited import hold_hint
 from ebb_model.modal import discrete_frequencies
 from ebb_model.output import check_new_output_dir, staged_dir
 from ebb_model.threads import one_blas_thread
@@ -43,6 +42,7 @@ from identification.result import IdentificationResult
 from identification.run import load_identification_config, read_data
 
 from .baseline.fit import baseline_fit, floor_from_the_records, start_from_result
+from .baseline.numerics import numerics_from_the_records
 from .baseline.polarity import PolarityCheck, check_polarity
 from .candidates.catalogue import catalogue_of
 from .effects import Catalogue
@@ -163,9 +163,6 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         check_new_output_dir(out)
     exps = read_data(cfg, data)
     held = read_data(cfg, holdout) if holdout else ()
-    hold_note = hold_hint(cfg, [e.inputs for e in exps])
-    if hold_note is not None:
-        say("hint: " + hold_note)
     records = split_records([ordered_record(cfg, e) for e in exps], [ordered_record(cfg, e) for e in held],
                             holdout_fraction=holdout_fraction)
     space = parameter_space(cfg)
@@ -197,7 +194,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
             found = replace(found, polarity=replace(found.polarity, with_refits=resign))
         problem, ranking, catalogue, polarity = found.problem, found.ranking, found.catalogue, found.polarity
         records, sigma, baseline = problem.records, problem.noise_std, ranking.baseline
-        base_cfg, base_params = space.apply(cfg, found.baseline.beta)
+        base_cfg, base_params = space.apply(problem.config, found.baseline.beta)
         (f_lo, f_hi), freqs, in_band = found.modes.band, found.modes.freqs, found.modes.in_band
         mf, mz, f_top = freqs[in_band], found.modes.zetas[in_band], found.modes.f_top
         # the model's own discretisation error: a gap that refining the grid changes is not blamed on physics
@@ -327,17 +324,17 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
     records, dt, cfg = problem.records, problem.config.time.dt, problem.config
     say(polarity.line())
     if fit_noise:
-        # the noise as it is in each record (level and colour), from the baseline's residual, and the
-        # baseline fitted again under it
-        with clock.stage("noise model"):
-            problem = problem.with_noise(estimate_noise_model([r.inputs for r in records], [
-                r.outputs - y for r, y in zip(records, problem.simulate(baseline.beta, until="all"))], dt))
-            baseline = problem.fit(baseline.beta)
-        say("noise model: " + "; ".join(problem.noise_model.describe(cfg.output_names, [r.name for r in records])))
+        problem, baseline = _noise_model(problem, baseline, clock, say)
     with clock.stage("baseline from the records' start"):
-        baseline = floor_from_the_records(problem, baseline, say)
-    base_cfg, base_params = problem.space.apply(cfg, baseline.beta)
+        found = floor_from_the_records(problem, baseline, say)
     band = excited_band([r.inputs for r in records], dt)
+    with clock.stage("numerics the records ask for"):
+        problem, found = numerics_from_the_records(problem, found, band[1], say)
+    if fit_noise and found is not baseline:
+        # the noise model again, from the residual of the baseline taken (the first one's held its misfit)
+        problem, found = _noise_model(problem, found, clock, say, along_the_level=True)
+    baseline, cfg = found, problem.config
+    base_cfg, base_params = problem.space.apply(cfg, baseline.beta)
     freqs, zetas = discrete_frequencies(base_cfg, base_params)
     # the modes up to a fifth above the excited band, below Nyquist (an impact excites up to it)
     f_top = min(1.2 * band[1], 0.98 * 0.5 / dt)
@@ -352,6 +349,19 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
     with clock.stage("ranking (the rest)"):
         ranking = _rank(problem, baseline, catalogue, modes, executor, clock, say, memo)
     return _Found(problem, baseline, polarity, catalogue, modes, ranking)
+
+
+def _noise_model(problem: GapProblem, baseline: Fit, clock: StageClock, say: Callable[[str], None], *,
+                 along_the_level: bool = False) -> tuple[GapProblem, Fit]:
+    """The noise as it is in each record (level and colour), from the baseline's residual, and the baseline fitted
+    again under it (``along_the_level``: :meth:`GapProblem.fit_along_the_level`)."""
+    records, dt, cfg = problem.records, problem.config.time.dt, problem.config
+    with clock.stage("noise model"):
+        problem = problem.with_noise(estimate_noise_model([r.inputs for r in records], [
+            r.outputs - y for r, y in zip(records, problem.simulate(baseline.beta, until="all"))], dt))
+        baseline = (problem.fit_along_the_level if along_the_level else problem.fit)(baseline.beta)
+    say("noise model: " + "; ".join(problem.noise_model.describe(cfg.output_names, [r.name for r in records])))
+    return problem, baseline
 
 
 def _rank(problem: GapProblem, baseline: Fit, catalogue: Catalogue, modes: _Modes, executor: Any,

@@ -23,7 +23,7 @@ run leaves nothing behind.
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -46,21 +46,22 @@ from .data import Experiment, load_experiments
 from .data_start import DataStart, data_start
 from .export_targets import DEFAULT_TARGETS, check_targets
 from .fisher import fisher_information
+from .basins import better_of, noise_at, polish_basins
 from .fit_hints import fit_hints
-from .numerics import numerics_for_records
+from .progress import Progress
+from .numerics import refine_numerics
 from .noise_model import NoiseModel, estimate_noise_model
-from .modal_data import ModalData, modal_data
+from .modal_data import modal_data
 from .prior import Prior, PriorCheck
 from .report import html_sections
 from .native import ExperimentArrays, NativeEvaluator
 from .objectives import objective_names
-from .optimise import CHECKPOINT, ParetoSet, check_settings, knee_index, knee_order, optimise
+from .optimise import CHECKPOINT, ParetoSet, check_settings, knee_index, optimise
 from .parameters import ParameterSpace, parameter_space
-from .polish import ResidualEvaluator, polish as polish_point
 from .problem import IdentificationProblem
 from .resume import RunRecord
 from .result import RESULT_FILE, IdentificationResult, PolishedPoint
-from .runners import Runner, make_runner
+from .runners import make_runner
 from .noise import given_noise_std
 from .config_file import load_identification_config
 from .settings import identification_settings
@@ -79,25 +80,6 @@ def read_data(config: BeamConfig, paths: Sequence[str | Path]) -> tuple[Experime
     for e in exps:
         e.check_against(config)
     return exps
-
-
-@dataclass(frozen=True)
-class Progress:
-    """What :func:`identify` reports to ``on_progress`` during the search.
-
-    ``stage`` is ``"generation"`` (after every GA generation: ``X``, ``F`` the
-    current non-dominated set, ``knee`` its knee) or ``"polish"`` (after every
-    polished point: ``X``, ``F`` of that one point, ``knee = 0``).
-    ``n_evaluations`` counts the search's model evaluations so far (GA plus
-    polish).
-    """
-
-    stage: str
-    step: int
-    n_evaluations: int
-    X: np.ndarray
-    F: np.ndarray
-    knee: int
 
 
 def _arrays(config: BeamConfig, exps: Sequence[Experiment]) -> tuple[ExperimentArrays, ...]:
@@ -231,13 +213,13 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                                   out_dir=out, resume=resume, runner=runner, progress=progress,
                                   callback=generation_done, initial=None if start is None else start.x[None, :])
                 polish_noise = (NoiseModel.white(noise_std, len(exps)) if noise_std is not None
-                                else _noise_at(evaluator, _better(evaluator, pareto.X[pareto.knee], start)))
-                polished_raw = _polish_front(pareto, search_evaluator, runner, int(polish), int(polish_evaluations),
+                                else noise_at(evaluator, better_of(evaluator, pareto.X[pareto.knee], start)))
+                polished_raw = polish_basins(pareto, search_evaluator, runner, int(polish), int(polish_evaluations),
                                              on_progress, polish_noise, Prior.of(cfg, space.names), modal_data(cfg),
                                              start)
                 if not on_fmu and polished_raw:
                     # the numerics the records ask for (identification.numerics); the hint is then theirs to give
-                    evaluator, polished_raw, hold_note = _refine_numerics(
+                    evaluator, polished_raw, hold_note = refine_numerics(
                         evaluator, polished_raw, runner, int(polish_evaluations), polish_noise,
                         lambda c: NativeEvaluator(c, space, _arrays(c, exps), per=per, stabilising=bool(stabilising)))
                 events = runner.events()
@@ -274,24 +256,6 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         _remove_partial(out, created)
         raise OutputError(f"{exc}; nothing was kept", path=exc.path, errno=exc.errno) from None
     return res
-
-
-def _refine_numerics(evaluator: NativeEvaluator, polished_raw: list[tuple[int, np.ndarray, np.ndarray, int, Any]],
-                     runner: Runner, budget: int, noise: NoiseModel | None,
-                     evaluator_for: Callable[[BeamConfig], NativeEvaluator]
-                     ) -> tuple[NativeEvaluator, list[tuple[int, np.ndarray, np.ndarray, int, Any]], str | None]:
-    """The evaluator on the numerics the records ask for (:func:`identification.numerics.numerics_for_records`),
-    the identified point polished on them in place of the first polished point, and the line saying so."""
-    cfg = evaluator.config
-    band_hz = excited_band([e.inputs for e in evaluator.experiments], cfg.time.dt)[1]
-    choice = numerics_for_records(evaluator, [p[1] for p in polished_raw], runner, budget=budget, band_hz=band_hz,
-                                  noise=noise, prior=Prior.of(cfg, evaluator.space.names), modes=modal_data(cfg),
-                                  evaluator_for=evaluator_for)
-    if choice.polished is None:
-        return evaluator, polished_raw, None
-    r = choice.polished
-    f = np.asarray(runner(choice.evaluator, r.x[None, :]))[0]
-    return choice.evaluator, [(polished_raw[0][0], r.x, f, r.n_evaluations + 1, r), *polished_raw[1:]], choice.note
 
 
 def _write_uncertainty(res: IdentificationResult, evaluator: NativeEvaluator) -> None:
@@ -435,71 +399,6 @@ def _cramer_rao_note(evaluator: NativeEvaluator, x: np.ndarray, noise: NoiseMode
         return (f"not computable: the Fisher information is singular at the identified point (rank {fi.rank} of "
                 f"{len(crb)}): " + "; ".join(fi.messages))
     return "not computable: the Fisher information could not be inverted at the identified point"
-
-
-def _noise_at(evaluator: NativeEvaluator, x: np.ndarray) -> NoiseModel | None:
-    """The noise model of every experiment from the residual of candidate ``x`` (the GA's knee: its residual's
-    part coherent with the inputs, where a model error lies, does not enter the estimate), ``None`` when the
-    candidate is unstable."""
-    exps = evaluator.experiments
-    sim = evaluator.simulate(x)
-    if not sim.stable:
-        return None
-    return estimate_noise_model([e.inputs for e in exps], [e.outputs - y for e, y in zip(exps, sim.outputs)],
-                                evaluator.config.time.dt)
-
-
-def _better(evaluator: NativeEvaluator, x: np.ndarray, start: DataStart | None) -> np.ndarray:
-    """``x`` or the records' start, whichever fits the records better (the polish's sum of squared output errors,
-    each sensor normalised by its spread, whatever the objectives are)."""
-    if start is None:
-        return x
-    r = ResidualEvaluator(evaluator).evaluate(np.vstack([x, start.x]))
-    return start.x if float(r[1] @ r[1]) < float(r[0] @ r[0]) else x
-
-
-#: ``from_index`` of the polished point that started from the records' start (not a Pareto point).
-FROM_START = -1
-
-
-def _polish_front(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, budget: int,
-                  on_progress: Callable[[Progress], None] | None, noise: NoiseModel | None = None,
-                  prior: Prior | None = None, modes: ModalData | None = None, start: DataStart | None = None
-                  ) -> list[tuple[int, np.ndarray, np.ndarray, int, Any]]:
-    """Polish the ``k`` points nearest the knee (knee first), their residuals whitened by ``noise`` when given
-    and the ``prior`` and measured ``modes`` added (the posterior's mode): ``(from_index, x, F, evaluations,
-    result)``.
-
-    With ``k >= 1`` the records' ``start`` is polished too (``from_index`` :data:`FROM_START`), and so is the
-    front's point that fits the records best (by the polish's own χ²) when it is not among the ``k``: whichever
-    polished point reaches the lowest χ² comes first.  The identified model is the best of local fits from
-    different basins, never a silent local optimum of one — and what a longer search finds is polished, so more
-    effort cannot give a worse answer than the default's stages do."""
-    out: list[tuple[int, np.ndarray, np.ndarray, int, Any]] = []
-    n_done = pareto.n_evaluations
-    todo = [(int(i), pareto.X[i]) for i in knee_order(pareto.F, pareto.objective_names)[:k]]
-    if k >= 1 and pareto.X.shape[0] > 1:
-        rv = np.asarray(runner(ResidualEvaluator(evaluator, noise, prior, modes), pareto.X), dtype=float)
-        chi2 = np.where(np.all(np.isfinite(rv), axis=1), np.sum(rv * rv, axis=1), np.inf)
-        n_done += pareto.X.shape[0]
-        best = int(np.argmin(chi2))
-        if np.isfinite(chi2[best]) and best not in [i for i, _ in todo]:
-            todo.append((best, pareto.X[best]))
-    if k >= 1 and start is not None:
-        todo.insert(1, (FROM_START, start.x))
-    for step, (i, x0) in enumerate(todo):
-        r = polish_point(evaluator, x0, runner=runner, max_evaluations=budget, noise=noise, prior=prior,
-                         modes=modes)
-        f = np.asarray(runner(evaluator, r.x[None, :]))[0]
-        n_ev = r.n_evaluations + 1
-        n_done += n_ev
-        out.append((i, r.x, f, n_ev, r))
-        if on_progress is not None:
-            on_progress(Progress("polish", step, n_done, r.x[None, :], f[None, :], 0))
-    if len(out) >= 2:
-        first = int(np.argmin([o[4].cost for o in out]))
-        out.insert(0, out.pop(first))
-    return out
 
 
 def _point_properties(cfg: BeamConfig, space: ParameterSpace, evaluator: NativeEvaluator, x: np.ndarray,

@@ -246,7 +246,7 @@ def test_export_polished_without_indices_exports_every_polished_point(finished_r
     assert main(["export", str(out), "--polished", "--target", "statespace"]) == 0
     written = sorted(p.name for p in (out / "export").iterdir())
     # --polish 1: the knee's polish, the records' start's and the front's best fit's when it is not the knee
-    # (identification.run._polish_front)
+    # (identification.basins.polish_basins)
     n = len(json.loads((out / "pareto.json").read_text())["polished"])
     assert n in (2, 3) and written == [f"polished_{j}.npz" for j in range(n)], written
     capsys.readouterr()

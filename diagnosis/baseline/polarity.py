@@ -7,8 +7,9 @@ a gain passing from +1 to −1 goes through a reading of zero —, and with tran
 reversed force can even be half absorbed: moving a sensor across a node of the excited mode also reverses its
 reading.  So the diagnosis fits its baseline both ways.  The sign whose baseline has the greater evidence (the
 Laplace evidence of :mod:`diagnosis.judgement.evidence`: fit, priors and measured modes together) is taken when its odds
-reach the decisive odds (:attr:`~diagnosis.settings.Thresholds.decisive_odds`); otherwise the records are taken as
-read and the report says that they cannot decide the sign.  Reversing every sensor instead is the same hypothesis
+reach the decisive odds (:attr:`~diagnosis.settings.Thresholds.decisive_odds`) and the fits' likelihood ratio
+does too, the same way (the Occam factors alone do not decide a sign); otherwise the records are taken as read and
+the report says that they cannot decide the sign.  Reversing every sensor instead is the same hypothesis
 (the outputs change sign with the force); one sensor reversed among several is not tested here.
 
 The baseline's evidence decides the sign only as far as the baseline describes the records.  When no refit brings
@@ -109,7 +110,11 @@ def check_polarity(problem: GapProblem, fit_baseline: Callable[[GapProblem], tup
             "reversed": laplace_log_evidence(flipped, flipped_fit)}
     gap = {"as_read": float(baseline.rss / baseline.n), "reversed": float(flipped_fit.rss / flipped_fit.n)}
     log_odds = logz["reversed"] - logz["as_read"]
-    decided = abs(log_odds) >= math.log(problem.settings.decisive_odds)
+    # the fits themselves must carry the decision: the likelihood ratio as decisive as the evidence, the same way
+    # (the evidence's Occam factors alone once called a force REVERSED at 1.31 noise variances both ways)
+    log_ratio = 0.5 * (baseline.rss - flipped_fit.rss)
+    decisive = math.log(problem.settings.decisive_odds)
+    decided = abs(log_odds) >= decisive and abs(log_ratio) >= decisive and (log_odds > 0) == (log_ratio > 0)
     rev = decided and log_odds > 0 if take is None else take
     check = PolarityCheck(logz, gap, rev, decided or take is not None, problem.settings.decisive_odds,
                           other_beta=baseline.beta if rev else flipped_fit.beta)

@@ -246,6 +246,20 @@ class GapProblem:
         return Fit(fit.x[:p], fit.x[p:], fit.rss, int(fit.residuals.size), fit.jac, fit.residuals,
                    fit.n_evaluations)
 
+    def fit_along_the_level(self, beta0: np.ndarray, *, max_evaluations: int = 300) -> Fit:
+        """The baseline fit in the beam's own coordinates (:mod:`identification.coordinates`: the level — EI, ρA,
+        c and N scaled together — one of them), finished by :meth:`fit`: a lightly damped record's level valley is
+        followed where a fit in the config's coordinates stops in it (the strip under a broadband force, refitted on
+        finer numerics: 1.49 noise variances and ρA 1.3 % high in the config's coordinates, the floor in these)."""
+        from identification.coordinates import BeamCoordinates
+
+        sp = self.space
+        coords = BeamCoordinates.of(sp.names, np.asarray(sp.lower, float), np.asarray(sp.upper, float))
+        t0 = coords.to_internal(np.clip(np.asarray(beta0, dtype=float), sp.lower, sp.upper))
+        first = fit_least_squares(lambda T: np.array([self.residuals(b) for b in coords.to_physical(T)]), t0,
+                                  coords.box(), max_evaluations=max_evaluations)
+        return self.fit(coords.to_physical(first.x), max_evaluations=max_evaluations)
+
     def baseline_basins(self, beta0: np.ndarray, *, n_basins: int = 3, seed: int = 0, maxiter: int = 20,
                         popsize: int = 8) -> list[np.ndarray]:
         """Starts of the baseline unknowns in distinct basins, best first (differential evolution on the fit RSS).
