@@ -42,7 +42,6 @@ from identification.result import IdentificationResult
 from identification.run import load_identification_config, read_data
 
 from .baseline.fit import baseline_fit, floor_from_the_records, start_from_result
-from .baseline.numerics import numerics_from_the_records
 from .baseline.polarity import PolarityCheck, check_polarity
 from .candidates.catalogue import catalogue_of
 from .effects import Catalogue
@@ -295,6 +294,23 @@ class _Modes:
     in_band: np.ndarray
     f_top: float
     parallel: int
+    #: where the measured modes' scan starts (:func:`_scan_start`): frequencies and damping ratios up to ``f_top``,
+    #: and the first mode above
+    scan: tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def _scan_start(problem: GapProblem, base_cfg: BeamConfig, base_params: dict[str, float], f_top: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The modes the measured modes' scan starts from (:func:`diagnosis.search.modal_pattern.modal_source`): the
+    baseline's, or those of the fit from the records' own start when that fits better
+    (:attr:`GapProblem.rival`; measured: a compensating baseline on a broadband record put eight modes where the
+    records have six, and the scan around them found two that are not there)."""
+    if problem.rival is not None:
+        base_cfg, base_params = problem.space.apply(problem.config, problem.rival.beta)
+    freqs, zetas = discrete_frequencies(base_cfg, base_params)
+    inside = freqs <= f_top
+    inside[0] = True
+    return freqs[inside], zetas[inside], freqs[~inside][:1]
 
 
 @dataclass(frozen=True, eq=False)
@@ -325,11 +341,9 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
     say(polarity.line())
     if fit_noise:
         problem, baseline = _noise_model(problem, baseline, clock, say)
-    with clock.stage("baseline from the records' start"):
-        found = floor_from_the_records(problem, baseline, say)
     band = excited_band([r.inputs for r in records], dt)
-    with clock.stage("numerics the records ask for"):
-        problem, found = numerics_from_the_records(problem, found, band[1], say)
+    with clock.stage("baseline from the records' start, on the numerics they ask for"):
+        problem, found = floor_from_the_records(problem, baseline, band[1], say)
     if fit_noise and found is not baseline:
         # the noise model again, from the residual of the baseline taken (the first one's held its misfit)
         problem, found = _noise_model(problem, found, clock, say, along_the_level=True)
@@ -345,7 +359,7 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
         say("set-ups: " + setups.describe())
     catalogue = catalogue_of(problem, base_cfg, base_params, freqs[in_band], band[1], absent=frozenset(
         p for p in RIG_PARTS if setups is not None and not setups.records_have(p)))
-    modes = _Modes(band, freqs, zetas, in_band, f_top, parallel)
+    modes = _Modes(band, freqs, zetas, in_band, f_top, parallel, _scan_start(problem, base_cfg, base_params, f_top))
     with clock.stage("ranking (the rest)"):
         ranking = _rank(problem, baseline, catalogue, modes, executor, clock, say, memo)
     return _Found(problem, baseline, polarity, catalogue, modes, ranking)
@@ -370,8 +384,7 @@ def _rank(problem: GapProblem, baseline: Fit, catalogue: Catalogue, modes: _Mode
     baseline's ``modes`` and the diagnosis' local refits so far (``memo``)."""
     return rank_effects(problem, baseline, catalogue=catalogue, shortlist=problem.settings.shortlist,
                         progress=say, executor=executor, parallel=modes.parallel, rounds=2, clock=clock, memo=memo,
-                        modal=modal_source(problem, modes.freqs[modes.in_band], modes.zetas[modes.in_band],
-                                           modes.freqs[~modes.in_band][:1], modes.band[1]))
+                        modal=modal_source(problem, *modes.scan, modes.band[1]))
 
 
 def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, locs: Sequence[Localisation], *,

@@ -88,7 +88,7 @@ class PolarityCheck:
 
 def reversed_force(problem: GapProblem) -> GapProblem:
     """``problem`` with every record's force reversed (no other basins: they belong to the other sign)."""
-    return replace(problem, records=tuple(replace(r, inputs=-r.inputs) for r in problem.records), other_starts=())
+    return replace(problem, records=tuple(replace(r, inputs=-r.inputs) for r in problem.records), other_starts=(), rival=None)
 
 
 def check_polarity(problem: GapProblem, fit_baseline: Callable[[GapProblem], tuple[GapProblem, Fit]],
@@ -106,18 +106,26 @@ def check_polarity(problem: GapProblem, fit_baseline: Callable[[GapProblem], tup
     pending = executor.submit(fit_baseline, flipped) if executor is not None else None
     problem, baseline = fit_baseline(problem)
     flipped, flipped_fit = pending.result() if pending is not None else fit_baseline(flipped)
-    logz = {"as_read": laplace_log_evidence(problem, baseline),
-            "reversed": laplace_log_evidence(flipped, flipped_fit)}
-    gap = {"as_read": float(baseline.rss / baseline.n), "reversed": float(flipped_fit.rss / flipped_fit.n)}
+    # each sign by its better fit, from the start given or from the records' own (measured: a withheld tip mass
+    # called the force REVERSED from the start given, where the records' start fitted the force as read best)
+    best, best_flipped = _best(problem, baseline), _best(flipped, flipped_fit)
+    logz = {"as_read": laplace_log_evidence(problem, best), "reversed": laplace_log_evidence(flipped, best_flipped)}
+    gap = {"as_read": float(best.rss / best.n), "reversed": float(best_flipped.rss / best_flipped.n)}
     log_odds = logz["reversed"] - logz["as_read"]
     # the fits themselves must carry the decision: the likelihood ratio as decisive as the evidence, the same way
     # (the evidence's Occam factors alone once called a force REVERSED at 1.31 noise variances both ways)
-    log_ratio = 0.5 * (baseline.rss - flipped_fit.rss)
+    log_ratio = 0.5 * (best.rss - best_flipped.rss)
     decisive = math.log(problem.settings.decisive_odds)
     decided = abs(log_odds) >= decisive and abs(log_ratio) >= decisive and (log_odds > 0) == (log_ratio > 0)
     rev = decided and log_odds > 0 if take is None else take
     check = PolarityCheck(logz, gap, rev, decided or take is not None, problem.settings.decisive_odds,
-                          other_beta=baseline.beta if rev else flipped_fit.beta)
+                          other_beta=best.beta if rev else best_flipped.beta)
     if rev:
         return flipped, flipped_fit, check
     return problem, baseline, check
+
+
+def _best(problem: GapProblem, fit: Fit) -> Fit:
+    """``fit`` or the problem's fit from the records' own start (:attr:`GapProblem.rival`), the better."""
+    rival = problem.rival
+    return rival if rival is not None and rival.rss < fit.rss else fit

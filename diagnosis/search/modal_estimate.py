@@ -9,7 +9,8 @@ excited mode is a single-degree-of-freedom oscillator of its own frequency
 
 .. math::  \ddot x_{ik} + 2\zeta_i\omega_i\dot x_{ik} + \omega_i^2 x_{ik} = u_k(t),
 
-driven by every input :math:`u_k` (linear between samples, integrated exactly).
+driven by every input :math:`u_k` (linear between samples, or band-limited when the model takes the force so —
+:mod:`ebb_model.bandlimited`, the same reconstruction — integrated exactly).
 Every output is a linear combination of the :math:`x_{ik}`, :math:`\dot x_{ik}`
 (a residue and its phase: mode shapes, sensor and actuator lags), of the
 inputs and their first two derivatives (the quasi-static share of the modes
@@ -98,14 +99,41 @@ def _oscillator(omega: float, zeta: float, dt: float) -> tuple[np.ndarray, np.nd
     return nums[0], nums[1], den
 
 
-def _mode_columns(inputs: Sequence[np.ndarray], omega: float, zeta: float, dt: float) -> np.ndarray:
-    """Displacement and velocity responses of one oscillator to every input of every record, stacked."""
+def _mode_columns(inputs: Sequence[np.ndarray], omega: float, zeta: float, dt: float,
+                  bandlimited: bool = False) -> np.ndarray:
+    """Displacement and velocity responses of one oscillator to every input of every record, stacked (an input
+    linear between samples); ``bandlimited``: the real and imaginary parts of its modal coordinate under the
+    band-limited input between samples (:mod:`ebb_model.bandlimited`; the same span, the residues are free)."""
+    if bandlimited:
+        return _bandlimited_columns(inputs, omega, zeta, dt)
     bx, bv, a = _oscillator(omega, zeta, dt)
     blocks = []
     for u in inputs:
         cols = []
         for k in range(u.shape[1]):
             cols += [signal.lfilter(bx, a, u[:, k]), signal.lfilter(bv, a, u[:, k])]
+        blocks.append(np.column_stack(cols))
+    return np.concatenate(blocks)
+
+
+def _bandlimited_columns(inputs: Sequence[np.ndarray], omega: float, zeta: float, dt: float) -> np.ndarray:
+    """The oscillator's pole ``s`` under the band-limited input: ``q⁺ = e^{sT} q + Σ_m W_m u_{k+m}``
+    (:func:`ebb_model.bandlimited.pole_weights`, the record held at its first and last sample beyond its ends);
+    columns ``Re q`` and ``Im q`` per input."""
+    from ebb_model.bandlimited import HALF_WIDTH, pole_weights
+
+    s = complex(-zeta * omega, omega * np.sqrt(max(1.0 - zeta * zeta, 0.0)))
+    E, W = pole_weights(np.array([s]), dt)
+    taps = W[::-1, 0]
+    blocks = []
+    for u in inputs:
+        cols = []
+        for k in range(u.shape[1]):
+            padded = np.concatenate([np.full(HALF_WIDTH - 1, u[0, k]), u[:, k], np.full(HALF_WIDTH, u[-1, k])])
+            v = np.convolve(padded, taps, mode="valid")             # v_n = Σ_m W_m u_{n+m}
+            with np.errstate(over="ignore", invalid="ignore"):
+                q = signal.lfilter([0.0, 1.0], [1.0, -E[0]], v)      # q_{n+1} = e^{sT} q_n + v_n
+            cols += [q.real, q.imag]
         blocks.append(np.column_stack(cols))
     return np.concatenate(blocks)
 
@@ -140,11 +168,11 @@ class _Problem:
     """
 
     def __init__(self, inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], sigma: np.ndarray, dt: float,
-                 fixed: Sequence[tuple[float, float]], n_modes: int):
-        self.inputs, self.dt = list(inputs), dt
+                 fixed: Sequence[tuple[float, float]], n_modes: int, bandlimited: bool = False):
+        self.inputs, self.dt, self.bandlimited = list(inputs), dt, bandlimited
         self.y = np.concatenate(outputs) / sigma
         self.static = np.column_stack([_input_columns(self.inputs, dt)]
-                                      + [_mode_columns(self.inputs, w, z, dt) for w, z in fixed])
+                                      + [_mode_columns(self.inputs, w, z, dt, bandlimited) for w, z in fixed])
         self.scale = 1.0 / np.maximum(np.linalg.norm(self.static, axis=0), 1e-300)
         self.scaled = self.static * self.scale
         n_cols = self.scaled.shape[1] + 2 * n_modes * self.inputs[0].shape[1]    # every column of the model
@@ -153,7 +181,7 @@ class _Problem:
 
     def columns(self, omega: float, zeta: float) -> np.ndarray:
         """One mode's response columns, each scaled to unit norm (once: a scan re-uses the other modes')."""
-        b = _mode_columns(self.inputs, omega, zeta, self.dt)
+        b = _mode_columns(self.inputs, omega, zeta, self.dt, self.bandlimited)
         with np.errstate(over="ignore", invalid="ignore"):
             return b / np.maximum(np.sqrt(np.einsum("ij,ij->j", b, b)), 1e-300)
 
@@ -182,7 +210,7 @@ class _Problem:
 
 def estimate_modes(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], noise_std: np.ndarray, dt: float,
                    freq_hz: ArrayLike, damping: ArrayLike, *, above_hz: ArrayLike = (),
-                   search: float = SEARCH) -> MeasuredModes:
+                   search: float = SEARCH, bandlimited: bool = False) -> MeasuredModes:
     """Fit the frequency and damping of every mode in ``freq_hz`` to the records (module docstring).
 
     Parameters
@@ -199,6 +227,8 @@ def estimate_modes(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], 
         Frequencies of the first modes above the band (held; their responses are regressors).
     search
         Relative half-width of the scan around each model frequency.
+    bandlimited
+        The inputs band-limited between samples (the model's ``[time] input = "bandlimited"``), not linear.
 
     Returns
     -------
@@ -208,7 +238,8 @@ def estimate_modes(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], 
     f = np.asarray(freq_hz, dtype=float).copy()
     z = np.clip(np.asarray(damping, dtype=float), 1e-4, 0.5).copy()
     m = f.size
-    prob = _Problem(inputs, outputs, sigma, dt, [(2 * np.pi * fa, float(z[-1])) for fa in above_hz], m)
+    prob = _Problem(inputs, outputs, sigma, dt, [(2 * np.pi * fa, float(z[-1])) for fa in above_hz], m,
+                    bandlimited)
     blocks = [prob.columns(2 * np.pi * f[i], z[i]) for i in range(m)]
     duration = sum(u.shape[0] for u in inputs) * dt / len(inputs)
     # scan each mode in turn with the others held (the cost of one mode is smooth only within its bandwidth)

@@ -121,8 +121,9 @@ def _pattern_stage(run: Search, evidence: ModalEvidence, local: Refits) -> tuple
     """Match the measured modes by every structural effect and refit the ``pattern_candidates`` best
     matches from their match (module docstring): the pattern fits, and the refits with theirs."""
     if not _linear(evidence, run.problem.settings.gap_threshold):
-        run.say(f"measured modes: their fit leaves {evidence.measured.gap_ratio:.3g} noise variances — the records "
-                f"are not those of a linear time-invariant system, no modal pattern to compare")
+        run.say(f"measured modes: their oscillators, scanned from the model's modes, leave "
+                f"{evidence.measured.gap_ratio:.3g} noise variances — a mode lies outside the scan or the records are "
+                f"not those of a linear time-invariant system: no modal pattern to compare")
         return {}, local
     with run.clock.stage("modal pattern fits"):
         patterns = pattern_fits(run.problem, evidence, run.baseline.beta, run.catalogue, run.executor,
@@ -200,7 +201,8 @@ def _continuation_stage(run: Search, labels: list[str], local: Refits, early: Ea
         lti = [lab for lab in pending if run.time_invariant(lab)]
         if lti:
             run.say(f"continuation refits of {', '.join(lti)} skipped: the measured modes' own fit leaves "
-                    f"{evidence.measured.gap_ratio:.3g} noise variances, beyond any linear time-invariant effect")
+                    f"{evidence.measured.gap_ratio:.3g} noise variances, more than a linear time-invariant effect near the "
+                    f"model's modes would")
         pending = [lab for lab in pending if lab not in lti]
     if patterns:
         # a structural effect's basin is where its modal pattern put it (or the pattern showed that no effect
