@@ -308,7 +308,7 @@ def _room(problem: GapProblem, beta: np.ndarray, free: np.ndarray, lo: np.ndarra
     as it is: the modes see only the ratio, and a baseline that compensated
     an effect can hold ρA where the ratio the records ask for puts EI beyond its bound (measured: a withheld tip
     mass on a broadband strip record, EI on its bound ×4 the nominal, every match stuck at χ² 3.6e10; at the
-    centre the transducer's mass matched at 1.5).  The scale is set afterwards from the amplitudes."""
+    centre the transducer's mass matched at 1.6).  The scale is set afterwards from the amplitudes."""
     names = list(problem.space.names)
     if np.all(free) or "EI" not in names:
         return beta
