@@ -17,7 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
-from typing import Any, Callable, Sequence, cast
+from typing import Any, Callable, Mapping, Sequence, cast
 
 import numpy as np
 
@@ -299,7 +299,7 @@ class _Modes:
     scan: tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
-def _scan_start(problem: GapProblem, base_cfg: BeamConfig, base_params: dict[str, float], f_top: float
+def _scan_start(problem: GapProblem, base_cfg: BeamConfig, base_params: Mapping[str, float], f_top: float
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The modes the measured modes' scan starts from (:func:`diagnosis.search.modal_pattern.modal_source`): the
     baseline's, or those of the fit from the records' own start when that fits better

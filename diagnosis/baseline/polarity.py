@@ -87,8 +87,9 @@ class PolarityCheck:
 
 
 def reversed_force(problem: GapProblem) -> GapProblem:
-    """``problem`` with every record's force reversed (no other basins: they belong to the other sign)."""
-    return replace(problem, records=tuple(replace(r, inputs=-r.inputs) for r in problem.records), other_starts=(), rival=None)
+    """``problem`` with every record's force reversed (no other basins, no rival: they belong to the other sign)."""
+    return replace(problem, records=tuple(replace(r, inputs=-r.inputs) for r in problem.records), other_starts=(),
+                   rival=None)
 
 
 def check_polarity(problem: GapProblem, fit_baseline: Callable[[GapProblem], tuple[GapProblem, Fit]],

@@ -201,8 +201,8 @@ def _continuation_stage(run: Search, labels: list[str], local: Refits, early: Ea
         lti = [lab for lab in pending if run.time_invariant(lab)]
         if lti:
             run.say(f"continuation refits of {', '.join(lti)} skipped: the measured modes' own fit leaves "
-                    f"{evidence.measured.gap_ratio:.3g} noise variances, more than a linear time-invariant effect near the "
-                    f"model's modes would")
+                    f"{evidence.measured.gap_ratio:.3g} noise variances, more than a linear time-invariant effect "
+                    f"near the model's modes would")
         pending = [lab for lab in pending if lab not in lti]
     if patterns:
         # a structural effect's basin is where its modal pattern put it (or the pattern showed that no effect
