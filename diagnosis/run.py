@@ -17,7 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence, cast
+from typing import Any, Callable, Sequence, cast
 
 import numpy as np
 
@@ -299,15 +299,14 @@ class _Modes:
     scan: tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
-def _scan_start(problem: GapProblem, base_cfg: BeamConfig, base_params: Mapping[str, float], f_top: float
+def _scan_start(problem: GapProblem, freqs: np.ndarray, zetas: np.ndarray, f_top: float
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The modes the measured modes' scan starts from (:func:`diagnosis.search.modal_pattern.modal_source`): the
-    baseline's, or those of the fit from the records' own start when that fits better
+    baseline's ``freqs`` and ``zetas``, or those of the fit from the records' own start when that fits better
     (:attr:`GapProblem.rival`; measured: a compensating baseline on a broadband record put eight modes where the
     records have six, and the scan around them found two that are not there)."""
     if problem.rival is not None:
-        base_cfg, base_params = problem.space.apply(problem.config, problem.rival.beta)
-    freqs, zetas = discrete_frequencies(base_cfg, base_params)
+        freqs, zetas = discrete_frequencies(*problem.space.apply(problem.config, problem.rival.beta))
     inside = freqs <= f_top
     inside[0] = True
     return freqs[inside], zetas[inside], freqs[~inside][:1]
@@ -359,7 +358,7 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
         say("set-ups: " + setups.describe())
     catalogue = catalogue_of(problem, base_cfg, base_params, freqs[in_band], band[1], absent=frozenset(
         p for p in RIG_PARTS if setups is not None and not setups.records_have(p)))
-    modes = _Modes(band, freqs, zetas, in_band, f_top, parallel, _scan_start(problem, base_cfg, base_params, f_top))
+    modes = _Modes(band, freqs, zetas, in_band, f_top, parallel, _scan_start(problem, freqs, zetas, f_top))
     with clock.stage("ranking (the rest)"):
         ranking = _rank(problem, baseline, catalogue, modes, executor, clock, say, memo)
     return _Found(problem, baseline, polarity, catalogue, modes, ranking)
