@@ -29,7 +29,7 @@ import shutil
 import stat
 import tempfile
 import uuid
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Final
@@ -80,6 +80,14 @@ def _written_through(path: Path, st: os.stat_result | None, label: str) -> bool:
     raise OutputError(f"{label}: is a {_kind(st.st_mode)}, expected {what}", path=path)
 
 
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether ``a`` and ``b`` are one file (device and inode: links and case folded by the file system)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:                       # one of them absent or unreadable: not the same existing file
+        return False
+
+
 def _check_place(d: Path, label: str) -> None:
     """``d`` exists, a probe file can be created and removed in it, ``os.access`` agrees, enough space is free."""
     if not d.is_dir():
@@ -98,7 +106,8 @@ def _check_place(d: Path, label: str) -> None:
                           "needed)", path=d)
 
 
-def check_output_file(target: str | Path, *, name: str | None = "out") -> Path:
+def check_output_file(target: str | Path, *, name: str | None = "out",
+                      inputs: Sequence[str | os.PathLike[str]] = ()) -> Path:
     """Check, before any work, that ``target`` can be written as one file.
 
     Parameters
@@ -108,6 +117,9 @@ def check_output_file(target: str | Path, *, name: str | None = "out") -> Path:
         character device or a FIFO (written through).
     name : str, optional
         The caller's keyword for it, named in messages.
+    inputs : sequence of paths, optional
+        The files the same call reads: ``target`` must be none of them, by any path (a link, another spelling
+        of the same directory, a case-insensitive file system's other case) — writing it would destroy the input.
 
     Returns
     -------
@@ -118,11 +130,17 @@ def check_output_file(target: str | Path, *, name: str | None = "out") -> Path:
     ------
     OutputError
         ``target`` is a directory or another special file, its directory does not exist, is read-only or not
-        writable, or has less than :data:`MIN_FREE_BYTES` free; a device or FIFO that is not writable.
+        writable, or has less than :data:`MIN_FREE_BYTES` free; a device or FIFO that is not writable; one of
+        ``inputs``.
     """
     p = Path(target)
     label = _label(name, p)
     st = _stat(p)
+    if st is not None and stat.S_ISREG(st.st_mode):
+        for source in inputs:
+            if _same_file(p, Path(source)):
+                raise OutputError(f"{label}: is the input {source}; writing it would destroy that input — give "
+                                  "another output path", path=p)
     if _written_through(p, st, label):
         if not os.access(p, os.W_OK):
             raise OutputError(f"{label}: is not writable", path=p)

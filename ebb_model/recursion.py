@@ -213,10 +213,10 @@ def _one_tap(T, G, Cm, D, z, u0, m, delays, radius, T1, G1, C1, D1, z1):  # prag
         disc = half * half - det
         if disc < 0.0:                          # a complex pair: |λ|² = det
             rmin = math.sqrt(det)
-        else:
-            r = math.sqrt(disc)
-            rmin = min(abs(half + r), abs(half - r))
-        ok[b] = rmin >= radius                  # NaN (a diverged candidate) keeps its taps
+        else:                                   # real: the smaller modulus is det over the larger (no cancellation;
+            big = abs(half) + math.sqrt(disc)   # an overflowing disc gives 0, not a finite det's inverse of 0)
+            rmin = abs(det) / big if big > 0.0 else 0.0
+        ok[b] = rmin >= radius and det != 0.0   # NaN (a diverged candidate) keeps its taps
     n1 = 0
     for b in range(nb):
         if ok[b]:

@@ -125,7 +125,7 @@ def simulate_files(config_path: str | Path, input_csv: str | Path, out_csv: str 
 
     from .output import check_output_file
 
-    out = check_output_file(out_csv, name="out_csv")
+    out = check_output_file(out_csv, name="out_csv", inputs=(config_path, input_csv))
     cfg = load_config(config_path)
     t, u = read_signal_csv(input_csv, cfg.input_names, dt=cfg.time.dt)
     p = resolve_parameters(cfg, params)

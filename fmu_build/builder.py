@@ -24,6 +24,7 @@ import tempfile
 import uuid
 import zipfile
 from pathlib import Path
+from typing import Sequence
 
 import pythonfmu
 
@@ -90,13 +91,14 @@ def _description(config: BeamConfig, runtime_python: str, version: str, field: b
     return text
 
 
-def _check_output(out: Path) -> Path:
+def _check_output(out: Path, inputs: Sequence[str | os.PathLike[str]] = ()) -> Path:
+    """Refuse an output the builders cannot write (not a .fmu name, a directory, an unusable place, an input)."""
     if out.suffix.lower() != ".fmu":
         raise FmuError(f"{out}: the output file name must end in .fmu", function="build_fmu")
     if out.is_dir():
         raise FmuError(f"{out}: is a directory; give the path of the .fmu file to write", function="build_fmu")
     try:
-        check_output_file(out)   # directory present, writable (a real probe), room left
+        check_output_file(out, inputs=inputs)   # directory present, writable (a real probe), room left; no input
     except OutputError as exc:   # the builders' one error type for an unusable output
         raise FmuError(str(exc), function="build_fmu") from None
     return out.parent
@@ -147,7 +149,7 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
         cfg, base = load_config(config), Path(config).stem
     cfg = causal_config(cfg)            # a host feeds the force sample by sample: no band-limited reconstruction
     out = Path(out)
-    _check_output(out)
+    _check_output(out, () if isinstance(config, BeamConfig) else (config,))
     _check_names(cfg)
     if system is None:
         system = assemble(cfg)  # nominal parameters must give a valid, stable model

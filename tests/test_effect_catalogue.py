@@ -302,3 +302,33 @@ def test_a_part_whose_statespace_form_is_wrong_gives_none(tmp_path):
     export_corrected(model, tmp_path / "c", {"effect": "forgetful"})
     doc = json.loads((tmp_path / "c" / "corrected.json").read_text())
     assert "corrected.npz" not in doc["files"] and "does not reproduce" in doc["files"]["note"]
+
+
+def test_no_effect_at_its_bounds_raises_what_the_search_does_not_catch():
+    """Every candidate on a bench with both ends constrained and sensors of two kinds, at every corner of its
+    bounds (each variable at its lower or upper bound: a zero lag, a zero stiffness, a mass at its largest), under
+    the baseline at its nominal values and with the axial load at ±60 % of it: the simulation returns, or raises
+    one of the errors the search catches and scores as a rejected candidate (:class:`~ebb_model.errors.EbbError`,
+    ``ValueError``, ``LinAlgError``) — never another exception (a ``ZeroDivisionError`` from the recursion's
+    one-tap form ended a user's diagnosis)."""
+    import itertools
+
+    from ebb_model.errors import EbbError
+
+    cfg = bench("clamped", "clamped")
+    u = band_limited_input(400, cfg.time.dt, 2.0, 150.0, seed=9)
+    tried = 0
+    for effect in candidate_effects(cfg, SCALES):
+        k = len(effect.variables)
+        corners = itertools.product(*zip(effect.lower, effect.upper)) if k <= 4 else \
+            (effect.lower, effect.upper)
+        for corner in corners:
+            for n_scale in (0.4, 1.6):
+                params = dict(cfg.parameter_values(), N=cfg.parameter_values()["N"] * n_scale)
+                try:
+                    model = effect.apply(cfg, params, np.array(corner, dtype=float))
+                    simulate_effects(model.config, model.params, u, model.signals)
+                except (EbbError, ValueError, np.linalg.LinAlgError):
+                    pass
+                tried += 1
+    assert tried >= 2 * len(candidate_effects(cfg, SCALES))

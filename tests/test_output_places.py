@@ -165,6 +165,30 @@ def test_a_symlink_is_followed_and_kept(small, tmp_path):
     no_parts(tmp_path)
 
 
+def test_an_output_that_is_an_input_is_refused_by_any_path(small, tmp_path, capsys):
+    """``--out`` naming the input (itself, through a symbolic or a hard link, another spelling of its directory)
+    or the config: exit 2, one line naming it, the file untouched; a new name beside it is written."""
+    cfg, inp = small
+    before = inp.read_bytes(), cfg.read_bytes()
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "via.csv").symlink_to(inp)
+    os.link(inp, tmp_path / "hard.csv")
+    for out in (inp, tmp_path / "via.csv", tmp_path / "hard.csv", tmp_path / "sub" / ".." / "in.csv", cfg):
+        assert simulate(cfg, inp, out) == 2, out
+        line = one_line_error(capsys, "simulate")
+        assert "is the input" in line and "destroy" in line, line
+        assert (inp.read_bytes(), cfg.read_bytes()) == before
+    assert main(["build-fmu", str(cfg), "--out", str(cfg)]) == 2        # (refused for its name first)
+    one_line_error(capsys, "build-fmu")
+    fmu_named = tmp_path / "cfg.fmu"
+    fmu_named.write_text(SMALL_CFG)
+    assert main(["build-fmu", str(fmu_named), "--out", str(fmu_named)]) == 2
+    assert "is the input" in one_line_error(capsys, "build-fmu")
+    assert fmu_named.read_text() == SMALL_CFG
+    assert simulate(cfg, inp, tmp_path / "y.csv") == 0
+    csv_ok((tmp_path / "y.csv").read_text())
+
+
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory):
     """A finished ``ebb identify`` run (no exports) and its config and data."""

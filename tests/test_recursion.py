@@ -89,6 +89,34 @@ def test_divergence_shows_as_inf_not_garbage():
     assert np.all(np.isfinite(y[:100]))               # finite until it overflows, then inf/nan
 
 
+#: Blocks a search can reach at its bounds: a pole at the origin, a zero lag (a block with one eigenvalue 0),
+#: coincident poles (a Jordan block), a huge real pole beside a zero one (the discriminant overflows: this one
+#: raised ZeroDivisionError from the one-tap form), a block of one repeated eigenvalue at the test's radius,
+#: denormals, and the non-finite blocks of a diverged candidate.
+EDGE_BLOCKS = [np.zeros((2, 2)), np.diag([0.9, 0.0]), np.array([[0.9, 1.0], [0.0, 0.9]]), np.diag([1e200, 0.0]),
+               np.diag([1e160, 1e-170]), np.eye(2) * ONE_TAP_RADIUS, np.diag([5e-324, 5e-324]),
+               np.array([[np.inf, 0.0], [0.0, 0.0]]), np.array([[np.nan, 1.0], [1.0, 0.5]]),
+               np.array([[0.0, 1e300], [1e-300, 0.0]]), np.array([[0.5, 1.0], [-0.25, 0.5]])]
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_no_block_a_search_can_reach_raises(compiled):
+    """Every edge block, alone and among ordinary ones, with every tap count: the recursion returns (non-finite
+    numbers where the block diverges), never raises; where the blocks are finite and not huge it equals the strict
+    loop."""
+    rng = np.random.default_rng(7)
+    for taps in (1, 2, 3, 32):
+        for edge in EDGE_BLOCKS:
+            T, G, Cm, D, z = system(4, 1, taps, 2, seed=taps)
+            T[1] = edge
+            u = rng.standard_normal((60, 1))
+            y = run_modal_recursion(T, G, Cm, D, u, taps - 1, z, compiled=compiled)
+            assert y.shape == (60, 2)
+            if np.all(np.isfinite(edge)) and np.max(np.abs(edge)) <= 1.0:
+                y_s = strict(T, G, Cm, D, u, taps - 1, z)
+                assert np.max(np.abs(y - y_s)) <= RTOL * np.max(np.abs(y_s)), (taps, edge)
+
+
 def _run(code: str, env: dict[str, str]) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], cwd=ROOT, env=env, capture_output=True,
                           text=True, timeout=600)

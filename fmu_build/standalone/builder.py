@@ -136,7 +136,7 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
         cfg, base = load_config(config), Path(config).stem
     cfg = causal_config(cfg)            # a host feeds the force sample by sample: no band-limited reconstruction
     out = Path(out)
-    _check_output(out)
+    _check_output(out, () if isinstance(config, BeamConfig) else (config,))
     _check_names(cfg)
     taken = {a.name for a in cfg.actuators} | {x.name for x in cfg.sensors}
     clashes = sorted(taken & {"modes", "nodes"})
