@@ -70,7 +70,7 @@ def test_ties_close_nearly_as_much_and_leave_no_more():
               "point_mass": refit("point_mass", 3.0)}
     verdict, ties, reason = verdict_rule(BEFORE, refits, ["actuator_lag", "sensor_lag[y1]", "point_mass"])
     # the sensor lag leaves 0.05 more (below the threshold): a tie; the point mass leaves 2 more: decided
-    assert verdict == "actuator_lag" and ties == ["sensor_lag[y1]"] and "cannot distinguish" in reason
+    assert verdict == "actuator_lag" and ties == ["sensor_lag[y1]"] and "do not tell it from sensor_lag[y1]" in reason
 
 
 def test_a_pair_is_not_tied_with_its_own_parts():
@@ -125,6 +125,20 @@ def test_the_evidence_decides_between_ties_or_says_it_cannot():
     assert v.reasons[0].rule == "evidence and ties" and v.reasons[1].rule == "naming"
     # the boundary itself: odds of exactly 20 decide
     assert by_evidence(tied("b"), {"a": 20.0 / 21.0, "b": 1.0 / 21.0}, DECISIVE_ODDS).name == "a"
+
+
+def test_no_probability_is_quoted_where_every_candidate_misses_the_records():
+    """When the best candidate leaves a gap (161 noise variances on a broadband record), the Laplace evidence ranks
+    fits of models that all miss something: the same decision, said as a ranking of fits, no "posterior
+    probability 1" and no "odds inf" (an underflowed ratio is printed as a bound)."""
+    v = by_evidence(named("a", ("b",)), {"a": 1.0, "b": 0.0}, DECISIVE_ODDS, remains=161.0)
+    text = v.reasons[-1].text
+    assert v.name == "a" and "not a posterior probability" in text and "161x" in text
+    assert "posterior probability 1" not in text and "inf" not in text and "above 1e+300" in text
+    v = by_evidence(named("a", ("b",)), {"a": 0.6, "b": 0.4}, DECISIVE_ODDS, remains=161.0)
+    assert v.kind is Kind.INDISTINGUISHABLE and "posterior" not in v.reasons[0].text
+    v = by_evidence(named("a", ("b",)), {"a": 1.0, "b": 0.0}, DECISIVE_ODDS)          # at the floor: a probability
+    assert "posterior probability 1" in v.reasons[-1].text and "odds above 1e+300" in v.reasons[-1].text
 
 
 def test_a_threshold_moves_the_verdict():

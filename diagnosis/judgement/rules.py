@@ -157,16 +157,28 @@ def evidence(verdict: Verdict, case: Case) -> Verdict:
     ``indistinguishable`` (:func:`~diagnosis.judgement.verdict.by_evidence`)."""
     if verdict.kind is not Kind.EFFECT or verdict.label not in case.ranking.refits or not verdict.ties:
         return verdict
-    return by_evidence(verdict, case.weighed.evidence, case.problem.settings.decisive_odds)
+    return by_evidence(verdict, case.weighed.evidence, case.problem.settings.decisive_odds,
+                       remains=_remains(verdict, case))
+
+
+def _remains(verdict: Verdict, case: Case) -> float | None:
+    """The held-out gap ratio the named effect leaves when it is above the noise floor (beyond ``gap_threshold``),
+    ``None`` when it reaches the floor or the verdict names no refit (``none`` is at the floor by its rule)."""
+    refit = case.ranking.refits.get(verdict.label) if verdict.label is not None else None
+    if refit is None:
+        return None
+    left = float(np.mean(refit.heldout_after))
+    return left if left - 1.0 > case.problem.settings.gap_threshold else None
 
 
 def notes(verdict: Verdict, case: Case) -> Verdict:
-    """What else the evidence says of the verdict: its posterior probability, a degeneracy with the baseline
+    """What else the evidence says of the verdict: its posterior probability (when it reaches the noise floor:
+    :func:`~diagnosis.judgement.verdict.by_evidence`), a degeneracy with the baseline
     unknowns, for ``none`` the measurement chain's gains the data cannot tell from the beam's scale (listed as
     ties), its agreement with the measured modes, the force's sign when reversed or undecided, and for
     ``unexplained`` where the gap lies."""
     w, name = case.weighed, verdict.name
-    if name in w.evidence:
+    if name in w.evidence and _remains(verdict, case) is None:    # a probability only among models that fit
         others = [f"{lab} {p:.2g}" for lab, p in w.evidence.items() if lab != name][:2]
         verdict = verdict.said("notes", f"posterior probability {w.evidence[name]:.3g} (Laplace evidence; next: "
                                         f"{', '.join(others)})")

@@ -164,12 +164,13 @@ def name_cause(before: np.ndarray, refits: Mapping[str, EffectRefit], paying: Se
         reasons.append(Reason(rule, f"it explains the dominant part only: {left:.3g}x the noise variance remains, "
                                     f"which no candidate of the catalogue explains"))
     if ties:
-        reasons.append(Reason(rule, "the data cannot distinguish it from " + ", ".join(ties)))
+        reasons.append(Reason(rule, "the held-out records alone do not tell it from " + ", ".join(ties)
+                              + " (each closes nearly as much and leaves no measurably more)"))
     return named(paying[0], ties, reasons)
 
 
 def by_evidence(verdict: Verdict, probabilities: Mapping[str, float], decisive_odds: float,
-                *, rule: str = "evidence and ties") -> Verdict:
+                *, remains: float | None = None, rule: str = "evidence and ties") -> Verdict:
     """Between a named ``verdict`` and its ties (candidates whose refits explain the records as well), the
     evidence decides.
 
@@ -179,17 +180,35 @@ def by_evidence(verdict: Verdict, probabilities: Mapping[str, float], decisive_o
     :attr:`Kind.INDISTINGUISHABLE` with the candidates, the most probable first, as its ties and the sentence
     before its reasons (an actuator's lag and a sensor's lag on a record with one force and one sensor: the two
     commute, and no record of that pair can tell them apart).
+
+    ``remains``: the held-out gap ratio the named candidate leaves when it is above the noise floor (``None`` at
+    the floor).  The Laplace evidence is a posterior probability only among candidates one of which describes the
+    records; when the best leaves a gap, every candidate misses part of them and the same numbers only rank their
+    fits — the sentence then says so and quotes no probability (measured: "posterior probability 1, odds inf" was
+    printed beside 161 noise variances left).
     """
     candidates = sorted([verdict.name, *verdict.ties], key=lambda lab: -probabilities.get(lab, 0.0))
     p = [probabilities.get(lab, 0.0) for lab in candidates]
     odds = p[0] / p[1] if p[1] > 0.0 else float("inf")
+    ratio = f"{odds:.3g}" if odds < _LARGEST_RATIO else f"above {_LARGEST_RATIO:.0e}"
     if odds >= decisive_odds:
+        if remains is not None:
+            return named(candidates[0], (), verdict.reasons).said(rule, (
+                f"their fits decide between them: {candidates[0]} over {candidates[1]} (evidence ratio {ratio}; "
+                f"not a posterior probability: the best leaves {remains:.3g}x the noise variance, so each "
+                "candidate misses part of the records)"))
         return named(candidates[0], (), verdict.reasons).said(rule, (
             f"the evidence decides between them: {candidates[0]} (posterior probability {p[0]:.3g}) over "
-            f"{candidates[1]} ({p[1]:.2g}), odds {odds:.3g}"))
-    listed = ", ".join(f"{lab} {v:.2g}" for lab, v in zip(candidates, p))
+            f"{candidates[1]} ({p[1]:.2g}), odds {ratio}"))
+    listed = ("" if remains is not None else
+              "posterior probabilities " + ", ".join(f"{lab} {v:.2g}" for lab, v in zip(candidates, p)) + "; ")
     sentence = Reason(rule, (
         f"{' and '.join(candidates)} explain the records equally well and the evidence cannot separate them "
-        f"(posterior probabilities {listed}; odds {odds:.3g} < {decisive_odds:g}): records that see their "
-        f"difference (another sensor or drive point) or a prior on one of them would; none is exported"))
+        f"({listed}{'evidence ratio' if remains is not None else 'odds'} {ratio} < {decisive_odds:g}): records "
+        "that see their difference (another sensor or drive point) or a prior on one of them would; none is "
+        "exported"))
     return Verdict(Kind.INDISTINGUISHABLE, None, tuple(candidates), (sentence, *verdict.reasons))
+
+
+#: Evidence ratios from here up are printed as a bound (the probabilities behind them underflow to 0).
+_LARGEST_RATIO = 1e300
