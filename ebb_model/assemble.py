@@ -13,6 +13,7 @@ from typing import Mapping
 
 import numpy as np
 
+from .channel_delay import with_channel_delays
 from .config import BeamConfig
 from .discretisation import discretise
 from .errors import StabilityError
@@ -112,7 +113,8 @@ def assemble(config: BeamConfig, params: Mapping[str, float] | None = None, *,
         model = exact_model(config, p)
         sys = model if isinstance(model, DiscreteStateSpace) else model.to_statespace()
     else:
-        sys = discretise_time(discretise(config, p), ts.dt, ts.theta, ts.substeps, ts.input_hold)
+        sys = with_channel_delays(discretise_time(discretise(config, p), ts.dt, ts.theta, ts.substeps,
+                                                  ts.input_hold), config)
     if check_stability:
         check_stable(config, p, sys.spectral_radius())
     return sys

@@ -139,6 +139,8 @@ class Actuator:
     #: the anti-alias filter the force's record passed (:mod:`ebb_model.antialias`; it cancels against the
     #: sensors' identical filters), or ``None``
     antialias: AntiAlias | None = None
+    #: the channel's converter delay [s] (:mod:`ebb_model.channel_delay`; the sensors' are taken after it)
+    delay: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -150,6 +152,8 @@ class Sensor:
     kind: str = "displacement"
     #: the acquisition's analog anti-alias filter on this channel (:mod:`ebb_model.antialias`), or ``None``
     antialias: AntiAlias | None = None
+    #: the channel's converter delay [s]: the record is the quantity ``delay`` late (:mod:`ebb_model.channel_delay`)
+    delay: float = 0.0
 
     @property
     def unit(self) -> str:

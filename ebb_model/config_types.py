@@ -160,10 +160,12 @@ class BeamConfig:
             "time": time,
             "parameters": params,
             "actuators": [{"name": a.name, "x": a.x,
-                           **({} if a.antialias is None else {"antialias": a.antialias.to_dict()})}
+                           **({} if a.antialias is None else {"antialias": a.antialias.to_dict()}),
+                           **({"delay": a.delay} if a.delay else {})}
                           for a in self.actuators],
             "sensors": [{"name": s.name, "x": s.x, "kind": s.kind,
-                         **({} if s.antialias is None else {"antialias": s.antialias.to_dict()})}
+                         **({} if s.antialias is None else {"antialias": s.antialias.to_dict()}),
+                         **({"delay": s.delay} if s.delay else {})}
                         for s in self.sensors],
         }
         if self.masses:

@@ -13,6 +13,7 @@ from types import MappingProxyType
 from typing import Any, Mapping
 
 from .antialias import MAX_ORDER, AntiAlias, channel_problems
+from .channel_delay import channel_problems as delay_problems
 from .beam import END_KINDS, PARAMETER_NAMES, SENSOR_KINDS, Actuator, End, PointMass, PointSpring, Sensor, WeakSegment
 from .config_types import (DEFAULT_INPUT, INPUT_HOLDS, MAX_NODES, SCHEMES, BeamConfig, BeamGeometry, ParameterSpec,
                            TimeSettings)
@@ -247,6 +248,19 @@ def _antialias(pr: Problems, channel: dict[str, Any], dt: float | None, scheme: 
     return AntiAlias(order, corner) if order is not None and corner is not None else None
 
 
+def _delay(pr: Problems, channel: dict[str, Any]) -> float:
+    """A channel's ``delay`` [s] (:mod:`ebb_model.channel_delay`): finite and ``>= 0``, 0 when absent; every
+    problem added to ``pr``."""
+    if "delay" not in channel["raw"]:
+        return 0.0
+    where = f"{channel['where']}.delay"
+    d = pr.number(where, channel["raw"]["delay"])
+    if d is not None and not d >= 0.0:
+        pr.add(where, f"must be >= 0 s (a converter reports a signal late, never early), got {d:g}")
+        return 0.0
+    return 0.0 if d is None else float(d)
+
+
 def _attached(pr: Problems, points: list[dict[str, Any]], key: str, unit: str) -> list[tuple[dict[str, Any], float]]:
     """The valid point attachments of ``points`` (``[[masses]]``, ``[[springs]]``) with their value ``key``
     (finite, >= 0, in ``unit``); every problem added to ``pr``."""
@@ -367,8 +381,8 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
 
     params = _parameters(pr, _table(pr, data, "parameters"))
 
-    acts = _points(pr, data, "actuators", length, ("name", "x", "antialias"), required=True)
-    sens = _points(pr, data, "sensors", length, ("name", "x", "kind", "antialias"), required=True)
+    acts = _points(pr, data, "actuators", length, ("name", "x", "antialias", "delay"), required=True)
+    sens = _points(pr, data, "sensors", length, ("name", "x", "kind", "antialias", "delay"), required=True)
     mass = _points(pr, data, "masses", length, ("name", "x", "mass"), required=False)
     spring = _points(pr, data, "springs", length, ("name", "x", "k"), required=False)
     sensors: list[Sensor] = []
@@ -377,14 +391,16 @@ def config_from_dict(data: Mapping[str, Any], *, extra_sections: tuple[str, ...]
         if kind not in SENSOR_KINDS:
             pr.add(f"{s['where']}.kind", f"unknown sensor kind {kind!r}; allowed: {', '.join(SENSOR_KINDS)}")
         elif s["name"] is not None and s["x"] is not None:
-            sensors.append(Sensor(s["name"], s["x"], kind, _antialias(pr, s, dt, scheme)))
+            sensors.append(Sensor(s["name"], s["x"], kind, _antialias(pr, s, dt, scheme), _delay(pr, s)))
     masses = [PointMass(m["name"], m["x"], v) for m, v in _attached(pr, mass, "mass", "kg")]
     springs = [PointSpring(k["name"], k["x"], v) for k, v in _attached(pr, spring, "k", "N/m")]
     weak = _points(pr, data, "weak_segments", length, ("name", "x", "length", "factor"), required=False)
     weak_segments = _weak_segments(pr, weak, length)
-    actuators = [Actuator(a["name"], a["x"], _antialias(pr, a, dt, scheme)) for a in acts
+    actuators = [Actuator(a["name"], a["x"], _antialias(pr, a, dt, scheme), _delay(pr, a)) for a in acts
                  if a["name"] is not None and a["x"] is not None]
     for problem in channel_problems(actuators, sensors):
+        pr.add(*problem)
+    for problem in delay_problems(actuators, sensors, dt, input_hold, scheme):
         pr.add(*problem)
 
     names = [a["name"] for a in acts] + [s["name"] for s in sens] + [m["name"] for m in mass + spring + weak]

@@ -42,6 +42,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from .antialias import effective_filters, filtered_poles, series_statespace
+from .channel_delay import effective_delays
 from .config import BeamConfig
 from .coupled_modes import LowRankDamping, coupled_modes
 from .parameter_modes import FamilyModes, family_modes
@@ -285,7 +286,8 @@ def exact_modal(config: BeamConfig, params: Mapping[str, float]) -> ModalStateSp
     else:
         D_record, D = None, D + bl.D_hold
     return ModalStateSpace(bl.T, bl.G, bl.C, D, T_s, config.input_names, config.output_names, None, bl.hold,
-                           -min(taps), bl.frequencies / (2 * math.pi), bl.filters, advance, D_record)
+                           -min(taps), bl.frequencies / (2 * math.pi), bl.filters, advance, D_record,
+                           effective_delays(config))
 
 
 def exact_statespace(config: BeamConfig, params: Mapping[str, float]) -> DiscreteStateSpace:
@@ -325,7 +327,7 @@ def exact_statespace(config: BeamConfig, params: Mapping[str, float]) -> Discret
         D_taps[:, (advance - 1) * m:advance * m] = D      # the record's own sample, `advance` taps behind
         return with_input_delays(Phi, [P[-j] for j in range(-min(taps) + 1)], C, C @ hold, T_s,
                                  config.input_names, config.output_names, names, hold, D_taps=D_taps,
-                                 advance=advance)
+                                 advance=advance, output_delays=effective_delays(config))
     deg = len(taps) - 1
     aug = np.zeros((n + (deg + 1) * m, n + (deg + 1) * m))
     aug[:n, :n] = A * T_s
@@ -344,7 +346,7 @@ def exact_statespace(config: BeamConfig, params: Mapping[str, float]) -> Discret
             P[0] = P[0] + Phi @ hold
             D = D + C @ hold
     return with_input_delays(Phi, [P[-j] for j in range(-min(taps) + 1)], C, D, T_s, config.input_names,
-                             config.output_names, names, hold)
+                             config.output_names, names, hold, output_delays=effective_delays(config))
 
 
 def exact_model(config: BeamConfig, params: Mapping[str, float]) -> ModalStateSpace | DiscreteStateSpace:

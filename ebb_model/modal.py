@@ -18,6 +18,7 @@ import numba
 import numpy as np
 import scipy.linalg as sla
 
+from .channel_delay import delay_response
 from .config import BeamConfig
 from .discretisation import discretise
 from .errors import ConfigError
@@ -173,6 +174,7 @@ def frequency_response(system: DiscreteStateSpace | ModalStateSpace, f_hz) -> Fr
             raise np.linalg.LinAlgError("Singular matrix: a frequency of f_hz is a pole of the system") from None
     if system.advance:                                      # the input read `advance` samples ahead of the record
         H *= (z ** system.advance)[:, None, None]
+    H = delay_response(H, f, system.dt, system.output_delays)   # the channels' converter delays
     return FrequencyResponse(f, H, tuple(system.input_names), tuple(system.output_names))
 
 

@@ -76,6 +76,8 @@ class ModalStateSpace:
     filters: int = 0
     advance: int = 0
     D_record: np.ndarray | None = None
+    #: each output's channel delay in samples (:mod:`ebb_model.channel_delay`), ``()``: none
+    output_delays: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         optional = tuple(k for k in ("to_nodal", "hold", "frequencies_hz", "D_record")
@@ -103,7 +105,8 @@ class ModalStateSpace:
         hold = self.hold.reshape(2 * nb, -1) if self.hold is not None else None
         D_taps = self.feedthrough_taps()
         return with_input_delays(A, G, C, self.D, self.dt, self.input_names, self.output_names, names, hold,
-                                 D_taps=None if D_taps is None else D_taps[:, m:], advance=self.advance)
+                                 D_taps=None if D_taps is None else D_taps[:, m:], advance=self.advance,
+                                 output_delays=self.output_delays)
 
     def feedthrough_taps(self) -> np.ndarray | None:
         """``D`` on every tap (p, m·(delays + 1)), column ``j m + l`` input ``l`` at sample ``k − j`` of the

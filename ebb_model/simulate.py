@@ -25,6 +25,7 @@ import numpy as np
 
 from .arrays import as_matrix
 from .bandlimited import advance_input
+from .channel_delay import delay_outputs, with_channel_delays
 from .output import atomic_path
 from .config import BeamConfig
 from .discretisation import discretise
@@ -139,6 +140,7 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
             z = np.zeros((system.nblocks, 2))
         y = run_modal_recursion(system.T, system.G, system.Cm, system.D, u, system.delays, z,
                                 D_taps=system.feedthrough_taps())
+        y = delay_outputs(y, system.output_delays)
     else:
         u = advance_input(as_matrix(u, "input", shape=(None, system.ninputs)), system.advance)
         y = np.empty((u.shape[0], system.noutputs))
@@ -150,6 +152,7 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
             x = np.zeros(system.nstates)
         _dense_kernel(np.ascontiguousarray(system.A), np.ascontiguousarray(system.B),
                       np.ascontiguousarray(system.C), np.ascontiguousarray(system.D), x, u, y)
+        y = delay_outputs(y, system.output_delays)
     return SimulationResult(y, tuple(system.output_names), system.dt)
 
 
@@ -172,8 +175,8 @@ def fast_model(config: BeamConfig, params: Mapping[str, float] | None = None
     if modal is None:
         modal = modal_from_theta(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold)
     if modal is None:
-        return discretise_time(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold)
-    return modal
+        return with_channel_delays(discretise_time(beam, ts.dt, ts.theta, ts.substeps, ts.input_hold), config)
+    return with_channel_delays(modal, config)
 
 
 def simulate_config(config: BeamConfig, u: np.ndarray,

@@ -11,6 +11,7 @@ the start (actuator and sensor names of the config).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -71,6 +72,9 @@ class DiscreteStateSpace:
         How many samples ahead of the record the input is read (0: none): the system's input ``u[k]`` is the
         record's ``u[k + advance]`` (:mod:`ebb_model.bandlimited`: a reconstruction that reads samples ahead),
         as :func:`ebb_model.simulate` feeds it.
+    output_delays
+        Each output's channel delay in samples (:mod:`ebb_model.channel_delay`), applied to the simulated
+        outputs and the frequency response; ``()``: none.
     """
 
     A: np.ndarray
@@ -83,6 +87,7 @@ class DiscreteStateSpace:
     state_names: tuple[str, ...] = field(default=())
     hold: np.ndarray | None = None
     advance: int = 0
+    output_delays: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         A = _matrix("A", self.A, (None, None))
@@ -97,6 +102,10 @@ class DiscreteStateSpace:
         dt = finite_scalar("dt", self.dt, minimum=0.0, strict=True, error=ConfigError)
         if isinstance(self.advance, bool) or not isinstance(self.advance, (int, np.integer)) or self.advance < 0:
             raise ConfigError(f"advance must be a whole number of samples >= 0, got {self.advance!r}")
+        delays = tuple(float(d) for d in self.output_delays)
+        if delays and (len(delays) != C.shape[0] or not all(math.isfinite(d) for d in delays)):
+            raise ConfigError(f"output_delays: one finite delay per output ({C.shape[0]}), got {delays!r}")
+        object.__setattr__(self, "output_delays", delays if any(delays) else ())
         object.__setattr__(self, "A", A)
         object.__setattr__(self, "B", B)
         object.__setattr__(self, "C", C)
@@ -134,7 +143,7 @@ class DiscreteStateSpace:
         Ti = np.linalg.inv(T)
         return DiscreteStateSpace(Ti @ self.A @ T, Ti @ self.B, self.C @ T, self.D, self.dt,
                                   self.input_names, self.output_names, tuple(state_names or ()),
-                                  advance=self.advance)
+                                  advance=self.advance, output_delays=self.output_delays)
 
     def to_control(self):
         """Convert to a :class:`control.StateSpace` (discrete, named signals).
@@ -151,6 +160,10 @@ class DiscreteStateSpace:
             raise ConfigError(f"this system reads its input {self.advance} samples ahead of the record (a band-limited "
                               "force between samples), which a StateSpace cannot carry: build it from "
                               "ebb_model.bandlimited.causal_config(config)")
+        if self.output_delays:
+            raise ConfigError("this system delays its outputs by the channels' converter delays "
+                              f"({', '.join(f'{d:g}' for d in self.output_delays)} samples), which a StateSpace does "
+                              "not carry yet: build it from a config without them")
         return control.ss(self.A, self.B, self.C, self.D, self.dt,
                           inputs=list(self.input_names), outputs=list(self.output_names),
                           states=list(self.state_names))
@@ -163,19 +176,19 @@ class DiscreteStateSpace:
 def with_input_delays(A: np.ndarray, G: Sequence[np.ndarray], C: np.ndarray, D: np.ndarray, dt: float,
                       input_names: Sequence[str], output_names: Sequence[str], state_names: Sequence[str],
                       hold: np.ndarray | None = None, *, D_taps: np.ndarray | None = None,
-                      advance: int = 0) -> DiscreteStateSpace:
+                      advance: int = 0, output_delays: tuple[float, ...] = ()) -> DiscreteStateSpace:
     """``x[k+1] = A x[k] + Σ_j G[j] u[k − j]`` (``j = 0 … d``) as one system, past inputs as delay states.
 
     State ``(x, u[k−1], …, u[k−d])``; a start at rest has ``x[0] = −hold·u[0]`` and the delay line at ``u[0]``
     (the input constant before the record), encoded in the returned system's ``hold``.  ``D_taps`` (p, m·d), when
     given, is the feedthrough of the past samples (column ``(j − 1) m + l``: input ``l`` at sample ``k − j``),
-    read from the delay states; ``advance`` is passed on (:class:`DiscreteStateSpace`).
+    read from the delay states; ``advance`` and ``output_delays`` are passed on (:class:`DiscreteStateSpace`).
     """
     d = len(G) - 1
     nx, m = np.shape(G[0])
     if d == 0:
         return DiscreteStateSpace(A, G[0], C, D, dt, tuple(input_names), tuple(output_names), tuple(state_names),
-                                  hold, advance)
+                                  hold, advance, output_delays)
     n = nx + d * m
     Af = np.zeros((n, n))
     Af[:nx, :nx] = A
@@ -187,4 +200,5 @@ def with_input_delays(A: np.ndarray, G: Sequence[np.ndarray], C: np.ndarray, D: 
     Cf = np.hstack([C, np.zeros((np.shape(C)[0], d * m)) if D_taps is None else D_taps])
     h = np.vstack([hold if hold is not None else np.zeros((nx, m)), -np.tile(np.eye(m), (d, 1))])
     names = tuple(state_names) + tuple(f"{u}[k-{j}]" for j in range(1, d + 1) for u in input_names)
-    return DiscreteStateSpace(Af, B, Cf, D, dt, tuple(input_names), tuple(output_names), names, h, advance)
+    return DiscreteStateSpace(Af, B, Cf, D, dt, tuple(input_names), tuple(output_names), names, h, advance,
+                              output_delays)

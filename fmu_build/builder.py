@@ -31,6 +31,7 @@ import pythonfmu
 from ebb_model import PARAMETER_NAMES, BeamConfig, DiscreteStateSpace, assemble, load_config
 from ebb_model.assemble import assemble_modal
 from ebb_model.bandlimited import causal_config
+from ebb_model.channel_delay import refuse_in
 from ebb_model.output import atomic_path, check_output_file
 from ebb_model.errors import FmuError, OutputError
 
@@ -147,6 +148,7 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
         cfg, base = config, "beam"
     else:
         cfg, base = load_config(config), Path(config).stem
+    refuse_in(cfg, "an FMU")            # a converter's delay is the records', not the beam's (channel_delay)
     cfg = causal_config(cfg)            # a host feeds the force sample by sample: no band-limited reconstruction
     out = Path(out)
     _check_output(out, () if isinstance(config, BeamConfig) else (config,))

@@ -35,6 +35,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ebb_model.channel_delay import effective_delays
 from ebb_model.errors import EbbError
 
 from .polish import residual_scale
@@ -75,7 +76,10 @@ class DataStart:
         The records' level against the model at the frequency scale found (1: the model's own level; the
         outputs are ``level ×`` the model's at unit scale), NaN when the level is not free (EI or ρA known).
     notes
-        What the user should know (a reversed sign, a level outside the bounds), one sentence each.
+        What the records' start suggests (a reversed sign, a level outside the bounds), one sentence each: claims
+        made at the start, which the run prints only where its final fit bears them out (``claims``).
+    claims
+        Each note's kind, ``"sign"`` or ``"level"``.
     n_evaluations
         Model evaluations used.
     """
@@ -85,6 +89,7 @@ class DataStart:
     level: float
     notes: tuple[str, ...] = field(default=())
     n_evaluations: int = 0
+    claims: tuple[str, ...] = field(default=())
 
     def to_dict(self, names: Sequence[str]) -> dict[str, Any]:
         """JSON-ready values."""
@@ -279,7 +284,7 @@ def data_start(evaluator: Any, runner: Runner | None = None) -> DataStart | None
         return None
     exps = evaluator.experiments
     dt = float(cfg.time.dt)
-    recorded = record_modes([e.inputs for e in exps], [e.outputs for e in exps], dt)
+    recorded = record_modes([e.inputs for e in exps], [e.outputs for e in exps], dt, effective_delays(cfg))
     peaks = recorded.frequencies_hz
     k_lo, k_hi = d0.k_range()
     nyquist = 0.5 / dt
@@ -345,8 +350,10 @@ def data_start(evaluator: Any, runner: Runner | None = None) -> DataStart | None
     assert best is not None
     cost, k, zeta, nv, level, d = best
     notes: list[str] = []
+    claims: list[str] = []
     if d.level_free and math.isfinite(level):
         if level < 0:
+            claims.append("sign")
             notes.append(f"the records' response is opposite in sign to the model's (level {level:.3g}): check "
                          "the sign of the force or of a sensor ([identification.data] gains)")
         scale = 1.0 / abs(level) if level != 0 else 1.0
@@ -358,6 +365,7 @@ def data_start(evaluator: Any, runner: Runner | None = None) -> DataStart | None
         reach = min(max(scale, lo), hi) if lo <= hi else scale
         x = d.candidate(k, zeta, nv, reach)
         if reach != scale:
+            claims.append("level")
             notes.append(f"the records' level asks for EI {raw[i] * scale:.4g} and rhoA {raw[j] * scale:.4g}, "
                          f"outside their bounds ({d.lower[i]:.4g}–{d.upper[i]:.4g}, {d.lower[j]:.4g}–"
                          f"{d.upper[j]:.4g}): the records are {reach / scale:.3g} times what the bounds allow — "
@@ -365,4 +373,4 @@ def data_start(evaluator: Any, runner: Runner | None = None) -> DataStart | None
     else:
         x = d.candidate(k, zeta, nv)
         level = math.nan
-    return DataStart(x, peaks, level, tuple(notes), count)
+    return DataStart(x, peaks, level, tuple(notes), count, tuple(claims))

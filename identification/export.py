@@ -16,12 +16,14 @@ corrected model choose them by name.
 """
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from types import MappingProxyType
 from typing import Sequence
 
 from ebb_model import assemble
-from ebb_model.errors import ConfigError, StabilityError
+from ebb_model.channel_delay import DELAYS_LEFT_OUT, without_delays
+from ebb_model.errors import ConfigError, ConfigWarning, StabilityError
 from ebb_model.truncation import design_model, design_resolution
 from ebb_model.output import check_writable_dir, make_dir
 
@@ -107,7 +109,10 @@ def export_points(result: IdentificationResult, points: Sequence[int] | str | No
     d = result.out_dir
     check_writable_dir(d / "export" if (d / "export").is_dir() else d)   # before any work
     models = []
+    if without_delays(result.config) is not result.config:
+        warnings.warn(DELAYS_LEFT_OUT, ConfigWarning, stacklevel=2)
     for stem, c, params in result.models(*chosen(result, points, polished)):
+        c = without_delays(c)                     # the beam, not its records' acquisition (ebb_model.channel_delay)
         try:
             beam = assemble(c, params)
             resolution = design_resolution(c, params, f_max=modes_up_to)

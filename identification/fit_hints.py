@@ -39,7 +39,7 @@ def bound_flags(names: Sequence[str], lower: np.ndarray, upper: np.ndarray, x: n
 
 
 def fit_hints(sensor_names: Sequence[str], measured: Sequence[np.ndarray], simulated: Sequence[np.ndarray],
-              gap: Mapping[str, float], level_free: bool) -> list[str]:
+              gap: Mapping[str, float], level_free: bool, start: Any = None) -> list[str]:
     """The simple transformations that would bring a fit far above the floor down (module docstring).
 
     Parameters
@@ -53,6 +53,12 @@ def fit_hints(sensor_names: Sequence[str], measured: Sequence[np.ndarray], simul
     level_free
         Whether EI and ρA are both unknowns (a common scale of the model is then a change of the unknowns,
         named as such when all sensors want the same gain).
+    start
+        The records' start (:class:`~identification.data_start.DataStart`) or ``None``: its note of a level beyond
+        the bounds comes first when this fit bears it out (some sensor wants a gain that removes half of its misfit
+        above the floor); its note of a reversed sign never — these gains say it where it holds.  Measured: an
+        undeclared converter delay of 10 samples made the start say "opposite in sign" and "the records' level asks
+        for EI 49" of records whose sign and level were right (only their channel lagged).
     """
     gaps = np.array([float(gap.get(s, np.nan)) for s in sensor_names])
     if not np.any(gaps > EXAMINED_ABOVE):
@@ -76,6 +82,8 @@ def fit_hints(sensor_names: Sequence[str], measured: Sequence[np.ndarray], simul
             hints.append(f"the records' level suggests a gain of {gains[j]:.4g} on {s}: it would leave "
                          f"{max(left, 0.0):.3g} noise variances instead of {gaps[j]:.3g} — {what} of that channel "
                          "([identification.data] units or gains), or the search")
+    if wants and start is not None:
+        hints[:0] = [n for kind, n in zip(start.claims, start.notes) if kind == "level"]
     if level_free and len(wants) == len(sensor_names) and len(sensor_names) > 0:
         g = gains[wants]
         if np.all(g > 0) and np.max(g) / np.min(g) < 1.1:
@@ -84,3 +92,4 @@ def fit_hints(sensor_names: Sequence[str], measured: Sequence[np.ndarray], simul
                          "rhoA, c and N gives it without changing a frequency — widen their bounds if the scale is "
                          "physical, else check the records' units")
     return hints
+

@@ -371,12 +371,12 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
     modes = modal_data(cfg)
     agreement = modes.agreement(*space.apply(cfg, best_x)) if modes is not None else None
     fit_gap = None
-    hints = list(start.notes) if start is not None else []
+    hints: list[str] = []
     if best.stable:
         whitened = np.concatenate([noise.whiten(i, y - e.outputs) for i, (e, y) in enumerate(zip(exps, best.outputs))])
         fit_gap = dict(zip(cfg.output_names, map(float, np.mean(whitened ** 2, axis=0))))
         hints += fit_hints(cfg.output_names, [e.outputs for e in exps], best.outputs, fit_gap,
-                           "EI" in space.names and "rhoA" in space.names)
+                           "EI" in space.names and "rhoA" in space.names, start)
     best_crb = polished[0].cramer_rao_std if polished else props[pareto.knee][0]
     return IdentificationResult(cfg, space, pareto, np.array([p[0] for p in props]),
                                 np.array([p[1] for p in props]), np.array([p[2] for p in props]), out,

@@ -23,13 +23,14 @@ What each file carries is the export target's own words (``carries`` of its modu
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from ebb_model import DiscreteStateSpace, assemble, simulate
+from ebb_model.channel_delay import DELAYS_LEFT_OUT, without_delays
 from ebb_model.output import atomic_path, make_dir
 from ebb_model.jsonio import write_json
 from ebb_model.truncation import design_model, design_resolution
@@ -167,9 +168,12 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
     from identification.export_targets import ExportItem, check_targets, export_target, target_carries
 
     targets = check_targets(targets, model.config)
+    config = model.config
+    delays_left_out = without_delays(config) is not config
+    model = replace(model, config=without_delays(config))    # the beam, not its records' acquisition
     out = Path(out_dir)
     make_dir(out, exist_ok=True, parents=True)
-    cfg = model.config.with_parameters(**model.params)
+    cfg = config.with_parameters(**model.params)     # the config, its channel delays kept
     written = [out / "corrected.toml"]
     with atomic_path(written[0]) as tmp:
         tmp.write_text(toml_dumps(cfg.to_dict()))
@@ -195,6 +199,8 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
         extra["output_offsets"] = {k: {"value": v, "unit": units.get(k, "")} for k, v in form.output_offsets.items()}
         carries["note"] = ("a sensor reads the model's output plus a constant (output_offsets, in neither the "
                            "StateSpace nor the FMU): the model is time-invariant and affine")
+    if delays_left_out:
+        carries["channel delays"] = DELAYS_LEFT_OUT
     if form.system is None and "statespace" in targets:
         carries["note"] = f"no StateSpace: {form.reason}; the FMU carries the refitted beam without it"
     written.append(write_json(out / "corrected.json", dict(summary) | extra | {"files": carries}))

@@ -59,7 +59,7 @@ class SensorGain(Signal):
         C[i] *= self.gain
         D[i] *= self.gain
         return DiscreteStateSpace(sys.A, sys.B, C, D, sys.dt, sys.input_names, sys.output_names,
-                                  sys.state_names, sys.hold)
+                                  sys.state_names, sys.hold, sys.advance, sys.output_delays)
 
 
 @dataclass(frozen=True)
@@ -78,7 +78,7 @@ class ActuatorGain(Signal):
     def in_series(self, sys: DiscreteStateSpace) -> DiscreteStateSpace:
         hold = None if sys.hold is None else sys.hold * self.gain     # at rest under the scaled force
         return DiscreteStateSpace(sys.A, sys.B * self.gain, sys.C, sys.D * self.gain, sys.dt, sys.input_names,
-                                  sys.output_names, sys.state_names, hold)
+                                  sys.output_names, sys.state_names, hold, sys.advance, sys.output_delays)
 
 
 #: The beam's unknowns whose common scale ``k`` scales every receptance by ``1/k`` (η, a time constant, and the

@@ -117,7 +117,8 @@ def _actuator_lag(sys: DiscreteStateSpace, tau: float) -> DiscreteStateSpace:
     gamma1 = sys.hold if sys.hold is not None else np.zeros((n, m))
     hold = np.vstack([-(1.0 - b0) * eye, gamma1])        # at rest: steady lag (f[0] = u[0]), beam as before
     states = tuple(f"lag({u})" for u in sys.input_names) + tuple(sys.state_names)
-    return DiscreteStateSpace(A, B, C, D, sys.dt, sys.input_names, sys.output_names, states, hold)
+    return DiscreteStateSpace(A, B, C, D, sys.dt, sys.input_names, sys.output_names, states, hold, sys.advance,
+                              sys.output_delays)
 
 
 def _sensor_lag(sys: DiscreteStateSpace, sensor: str, tau: float) -> DiscreteStateSpace:
@@ -136,7 +137,7 @@ def _sensor_lag(sys: DiscreteStateSpace, sensor: str, tau: float) -> DiscreteSta
     # at rest: the lag starts steady at the sensor's first sample, y[0] = C_i ξ0 + D_i u0 with ξ0 = −Γ1 u0
     hold = np.vstack([gamma1, ((1.0 - b0) * (ci @ gamma1 - di))[None, :]])
     return DiscreteStateSpace(A, B, C, D, sys.dt, sys.input_names, sys.output_names,
-                              tuple(sys.state_names) + (f"lag({sensor})",), hold)
+                              tuple(sys.state_names) + (f"lag({sensor})",), hold, sys.advance, sys.output_delays)
 
 
 @dataclass(frozen=True)

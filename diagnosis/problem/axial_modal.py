@@ -40,6 +40,7 @@ import numba
 import numpy as np
 
 from ebb_model.antialias import effective_filters, filtered_poles
+from ebb_model.channel_delay import delay_outputs, effective_delays
 from ebb_model.assemble import check_stable
 from ebb_model.config import BeamConfig
 from ebb_model.discretisation import discretise
@@ -202,6 +203,7 @@ def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None,
             np.ascontiguousarray(advance_input(u, ADVANCE[config.time.input_hold]), dtype=float), float(dt),
             float(offset), float(rate),
             float(EA) / (2.0 * config.beam.length), y)
+    y = delay_outputs(y, effective_delays(config))       # the channels' converter delays, as the model's below
     y += simulate(fast_model(config, p), u).outputs
     if check_stability and not np.all(np.isfinite(y)):
         raise StabilityError("the simulation with axial drift/stretching diverged (non-finite outputs): "

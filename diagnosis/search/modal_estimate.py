@@ -36,6 +36,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy import linalg, optimize, signal
 
+from ebb_model.channel_delay import delay_outputs
+
 __all__ = ["MeasuredModes", "estimate_modes"]
 
 #: Half-width of the frequency scan around the model's value (relative).
@@ -210,7 +212,7 @@ class _Problem:
 
 def estimate_modes(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], noise_std: np.ndarray, dt: float,
                    freq_hz: ArrayLike, damping: ArrayLike, *, above_hz: ArrayLike = (),
-                   search: float = SEARCH, bandlimited: bool = False) -> MeasuredModes:
+                   search: float = SEARCH, bandlimited: bool = False, delays: Sequence[float] = ()) -> MeasuredModes:
     """Fit the frequency and damping of every mode in ``freq_hz`` to the records (module docstring).
 
     Parameters
@@ -229,11 +231,16 @@ def estimate_modes(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], 
         Relative half-width of the scan around each model frequency.
     bandlimited
         The inputs band-limited between samples (the model's ``[time] input = "bandlimited"``), not linear.
+    delays
+        Each output channel's delay after the force's in samples (:func:`ebb_model.channel_delay.effective_delays`),
+        taken out of the records first (the oscillators are the beam's, shared by every output).
 
     Returns
     -------
     MeasuredModes
     """
+    if any(delays):
+        outputs = [delay_outputs(y, [-d for d in delays]) for y in outputs]
     sigma = np.asarray(noise_std, dtype=float)
     f = np.asarray(freq_hz, dtype=float).copy()
     z = np.clip(np.asarray(damping, dtype=float), 1e-4, 0.5).copy()

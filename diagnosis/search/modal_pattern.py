@@ -46,6 +46,7 @@ import numpy as np
 from scipy import optimize
 
 from ebb_model.adequacy import refined_grid
+from ebb_model.channel_delay import effective_delays
 from ebb_model.errors import EbbError
 from ebb_model.modal import discrete_frequencies
 
@@ -405,7 +406,8 @@ def modal_source(problem: GapProblem, freq_hz: np.ndarray, damping: np.ndarray, 
             fit = [r for r in problem.records if r.has_fit]
             modes = estimate_modes([r.inputs[:r.fit_end] for r in fit], [r.outputs[:r.fit_end] for r in fit],
                                    problem.noise_std, problem.config.time.dt, freq_hz, damping, above_hz=above_hz,
-                                   bandlimited=problem.config.time.input_hold == "bandlimited")
+                                   bandlimited=problem.config.time.input_hold == "bandlimited",
+                                   delays=effective_delays(problem.config))
             keep = (modes.freq_hz <= band_hz) & (freq_hz <= band_hz)
             keep[0] = True
             measured.append(modes.select(keep))

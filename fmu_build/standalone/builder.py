@@ -30,6 +30,7 @@ from pathlib import Path
 from ebb_model import BeamConfig, DiscreteStateSpace, assemble, load_config
 from ebb_model.assemble import field_config
 from ebb_model.bandlimited import causal_config
+from ebb_model.channel_delay import refuse_in
 from ebb_model.config_types import MAX_NODES
 from ebb_model.output import atomic_path
 from ebb_model.errors import ConfigError, FmuError, OutputError
@@ -134,6 +135,7 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
         cfg, base = config, "beam"
     else:
         cfg, base = load_config(config), Path(config).stem
+    refuse_in(cfg, "an FMU")            # a converter's delay is the records', not the beam's (channel_delay)
     cfg = causal_config(cfg)            # a host feeds the force sample by sample: no band-limited reconstruction
     out = Path(out)
     _check_output(out, () if isinstance(config, BeamConfig) else (config,))
