@@ -31,6 +31,7 @@ from typing import Sequence
 import numpy as np
 from scipy import signal
 
+from ebb_model.adequacy import is_transient
 from ebb_model.channel_delay import delay_outputs
 
 __all__ = ["RecordModes", "record_modes", "frequency_response_estimate", "EDGE"]
@@ -41,8 +42,6 @@ EDGE = 0.08
 EXCITED = 1e-2
 #: Time constant of the exponential window of a transient record, as a share of its length.
 EXP_WINDOW = 0.2
-#: An input whose energy lies for this share within a tenth of the record is a transient (a hammer blow).
-TRANSIENT_SHARE = 0.9
 #: Ratio of a sub-band's upper to its lower edge, and of one band's lower edge to the next one's.
 BAND_RATIO = 6.0
 BAND_STEP = 3.0
@@ -74,16 +73,6 @@ class RecordModes:
     band_hz: tuple[float, float]
 
 
-def _is_transient(u: np.ndarray) -> bool:
-    """Whether most of the input's energy lies in a tenth of the record (a blow, not a persistent excitation)."""
-    e = np.sum(u * u, axis=1)
-    total = float(e.sum())
-    if total <= 0.0:
-        return False
-    w = max(1, e.size // 10)
-    run = np.convolve(e, np.ones(w), mode="valid")
-    return float(run.max()) >= TRANSIENT_SHARE * total
-
 
 def frequency_response_estimate(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], dt: float,
                                 whole: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -100,7 +89,7 @@ def frequency_response_estimate(inputs: Sequence[np.ndarray], outputs: Sequence[
         input's auto-spectrum within :data:`EXCITED` of its largest value).
     """
     n_min = min(u.shape[0] for u in inputs)
-    transient = True if whole else any(_is_transient(u) for u in inputs)
+    transient = True if whole else any(is_transient(u) for u in inputs)
     nper = n_min if transient else max(16, n_min // 4)
     window = "boxcar" if transient else "hann"
     n_in, n_out = inputs[0].shape[1], outputs[0].shape[1]
@@ -119,7 +108,7 @@ def frequency_response_estimate(inputs: Sequence[np.ndarray], outputs: Sequence[
                 Suu[:, a, b] += csd(u[:, a], u[:, b])
             for o in range(n_out):
                 Suy[:, a, o] += csd(u[:, a], y[:, o])     # conj(U) Y: the FRF's own phase
-    if whole and not any(_is_transient(u) for u in inputs):
+    if whole and not any(is_transient(u) for u in inputs):
         # where a persistent excitation carries power: from its averaged spectrum, not one periodogram's scatter
         fw, pw = signal.welch(np.vstack(inputs), fs=1 / dt, nperseg=max(16, n_min // 4), axis=0, detrend=False)
         power = np.column_stack([np.interp(f, fw, pw[:, a]) for a in range(n_in)])
@@ -180,7 +169,7 @@ def record_modes(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], dt
     bands: list[tuple[float, float, int]] = []                  # each band's inner range [Hz] and orders
     band_hz = (0.0, 0.0)
     grid = 0.0
-    transient = any(_is_transient(u) for u in inputs)
+    transient = any(is_transient(u) for u in inputs)
     for whole in ((False,) if transient else (False, True)):   # a blow's two estimates are one
         found, band_hz_est, df = _stable_poles(inputs, outputs, dt, whole, bands)
         stable += found

@@ -38,7 +38,7 @@ from typing import Any, Sequence
 import numpy as np
 from scipy import signal
 
-from ebb_model.adequacy import excited_band
+from ebb_model.adequacy import excited_band, is_transient
 from ebb_model.errors import DataError, StabilityError
 from ebb_model.jsonio import write_json
 from ebb_model.modal import frequency_response
@@ -179,8 +179,14 @@ def _responses(evaluator: NativeEvaluator, xs: Sequence[np.ndarray], f_hz: np.nd
 
 
 def residual_response(inputs: Sequence[np.ndarray], residuals: Sequence[np.ndarray], dt: float,
-                      nperseg: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The residuals' part coherent with the inputs and its standard error (module docstring).
+                      nperseg: int, window: str = "hann", noise_psd: Sequence[np.ndarray] | None = None
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The residuals' part coherent with the inputs and its standard error (module docstring); ``window`` of the
+    Welch segments (``"boxcar"`` for a blow read as one segment: a Hann window would all but hide it).
+
+    ``noise_psd``: per record the noise's one-sided PSD ``(nf, n_out)`` on the Welch grid, taken as the residual's
+    incoherent power instead of what the averages leave — for records read as one segment each (a blow), where
+    the coherence of a single segment is 1 by construction and the averages leave nothing to estimate it from.
 
     Returns
     -------
@@ -191,27 +197,27 @@ def residual_response(inputs: Sequence[np.ndarray], residuals: Sequence[np.ndarr
     fs = 1.0 / dt
 
     def cs(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return signal.csd(a, b, fs=fs, nperseg=nperseg)[1]
+        return signal.csd(a, b, fs=fs, nperseg=nperseg, window=window)[1]
 
     parts, weights, n_d = [], [], 0.0
-    for u, r in zip(inputs, residuals):
+    for k, (u, r) in enumerate(zip(inputs, residuals)):
         uu = np.stack([np.stack([cs(u[:, i], u[:, j]) for j in range(n_in)], -1) for i in range(n_in)], 1)
         ur = np.stack([np.stack([cs(u[:, i], r[:, s]) for s in range(n_out)], -1) for i in range(n_in)], 1)
         rr = np.stack([cs(r[:, s], r[:, s]).real for s in range(n_out)], -1)
-        parts.append((uu, ur, rr))
+        parts.append((uu, ur, rr, np.zeros_like(rr) if noise_psd is None else np.asarray(noise_psd[k], float)))
         dof = welch_dof(u.shape[0], nperseg)
         weights.append(dof)
         n_d += dof / 2.0                    # complex averages: two degrees of freedom each
     w = np.array(weights) / sum(weights)    # records averaged by their equivalent degrees of freedom
-    Suu, Sur, Srr = (sum(wi * p[k] for wi, p in zip(w, parts)) for k in range(3))
-    f = signal.welch(inputs[0][:, 0], fs=fs, nperseg=nperseg)[0]
+    Suu, Sur, Srr, Snn = (sum(wi * p[k] for wi, p in zip(w, parts)) for k in range(4))
+    f = signal.welch(inputs[0][:, 0], fs=fs, nperseg=nperseg, window=window)[0]
     # Suu[f, i, j] = E[U_i* U_j], Sur[f, i, s] = E[U_i* R_s]; R_s = Σ_j E_sj U_j  ⇒  Sur = Suu Eᵀ
     # the pseudo-inverse: inputs driven by one signal (or a bin without power) leave S_uu singular
     Suu_inv = np.linalg.pinv(Suu, rcond=1e-12, hermitian=True)
     Et = Suu_inv @ Sur                                                  # (nf, n_in, n_out)
     E = Et.transpose(0, 2, 1)
     coherent = np.einsum("fis,fij,fjs->fs", Et.conj(), Suu, Et).real    # the residual's power the inputs explain
-    incoherent = np.maximum(Srr - coherent, 0.0)
+    incoherent = np.maximum(Srr - coherent, 0.0) if noise_psd is None else Snn
     inv_diag = np.real(np.diagonal(Suu_inv, axis1=1, axis2=2))          # [S_uu⁻¹]_kk
     sigma = np.sqrt(incoherent[:, :, None] * inv_diag[:, None, :] / n_d)
     return f, E, sigma
@@ -237,9 +243,14 @@ def uncertainty_model(evaluator: NativeEvaluator, x: np.ndarray, noise: NoiseMod
     sim = evaluator.simulate(x)
     if not sim.stable:
         raise StabilityError("uncertainty: the identified model is unstable")
-    nperseg = min(welch_nperseg(e.inputs.shape[0]) for e in exps)
+    # a blow is read as one segment, the whole record (2 degrees of freedom per record), as the records' start does
+    transient = any(is_transient(e.inputs) for e in exps)
+    nperseg = min(e.inputs.shape[0] if transient else welch_nperseg(e.inputs.shape[0]) for e in exps)
+    # (its residual's incoherent power is the noise model's: one segment's coherence is 1 by construction)
+    grid = np.fft.rfftfreq(nperseg, dt)
+    noise_psd = [np.stack([sp.psd(grid, dt) for sp in row], axis=-1) for row in noise.spectra] if transient else None
     f, E, sigma = residual_response([e.inputs for e in exps], [e.outputs - y for e, y in zip(exps, sim.outputs)],
-                                    dt, nperseg)
+                                    dt, nperseg, "boxcar" if transient else "hann", noise_psd)
     lo, hi = excited_band([e.inputs for e in exps], dt)
     measured = (f >= lo) & (f <= hi) & (f > 0)
     # the export's design model: the modes the grid resolves at the identified point, kept in every draw too
