@@ -15,7 +15,13 @@ from ebb_model.beam import PARAMETER_UNITS
 from ebb_model.output import atomic_path
 
 __all__ = ["plot_results", "fit_figure", "spread_figure", "front_figure", "zoom_window", "dominant_hz",
-           "plain_ticks"]
+           "plain_ticks", "trace", "LINE_SAMPLES"]
+
+#: A panel draws a signal of at most this many samples as a line; a longer one as its envelope (:func:`trace`):
+#: a broadband record of 20,000 samples drawn as a line is a solid block.
+LINE_SAMPLES = 4000
+#: Stretches of an envelope across a panel: the smallest and largest value in each.
+ENVELOPE_BINS = 800
 
 
 def _pyplot() -> Any:
@@ -54,6 +60,22 @@ def plain_ticks(ax: Any) -> None:
             fmt.set_useOffset(False)
 
 
+def trace(ax: Any, t: np.ndarray, y: np.ndarray, *, color: str, label: str, lw: float = 0.6, alpha: float = 1.0,
+          zorder: float | None = None) -> Any:
+    """``y(t)`` on ``ax``: a line up to :data:`LINE_SAMPLES` samples, else its envelope — the smallest and largest
+    value in each of :data:`ENVELOPE_BINS` stretches, filled, labelled ``"<label> (envelope)"``."""
+    t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
+    if t.size <= LINE_SAMPLES:
+        return ax.plot(t, y, lw=lw, color=color, alpha=alpha, label=label, zorder=zorder)
+    k = -(-t.size // ENVELOPE_BINS)
+    m = t.size // k * k
+    tb = np.append(t[:m:k], t[m - 1])
+    lo = np.append(y[:m].reshape(-1, k).min(axis=1), y[m - k:].min())
+    hi = np.append(y[:m].reshape(-1, k).max(axis=1), y[m - k:].max())
+    return ax.fill_between(tb, lo, hi, step="post", color=color, alpha=alpha, lw=0, label=f"{label} (envelope)",
+                           zorder=zorder)
+
+
 def dominant_hz(y: np.ndarray, dt: float) -> float:
     """The frequency [Hz] of the largest spectral line of ``y`` (mean removed)."""
     spectrum = np.abs(np.fft.rfft(y - np.mean(y)))
@@ -77,7 +99,9 @@ def fit_figure(t: np.ndarray, measured: np.ndarray, models: Mapping[str, np.ndar
     """Measured against simulated outputs, one row per sensor: the whole record (left) and a zoom (right).
 
     The models are drawn first and the measurement on top (black, thin), so the data stay visible where the
-    model fits them.
+    model fits them.  A record longer than :data:`LINE_SAMPLES` is drawn whole as envelopes (:func:`trace`): the
+    measurement's (grey) and each model's residual, measured − model (coloured) — where the misfit lies along the
+    record; the zoom shows the cycles.
     """
     plt = _pyplot()
     n_out = measured.shape[1]
@@ -86,9 +110,15 @@ def fit_figure(t: np.ndarray, measured: np.ndarray, models: Mapping[str, np.ndar
                              gridspec_kw={"width_ratios": [2, 1]})
     for j in range(n_out):
         for ax, sl in ((axes[j, 0], slice(None)), (axes[j, 1], zoom)):
-            for k, (label, y) in enumerate(models.items()):
-                ax.plot(t[sl], y[sl, j], lw=1.4, color=f"C{k}", alpha=0.8, label=label)
-            ax.plot(t[sl], measured[sl, j], lw=0.6, color="k", label="measured", zorder=5)
+            if t[sl].size > LINE_SAMPLES:
+                trace(ax, t[sl], measured[sl, j], color="0.75", label="measured")
+                for k, (label, y) in enumerate(models.items()):
+                    trace(ax, t[sl], measured[sl, j] - y[sl, j], color=f"C{k}", alpha=0.8,
+                          label=f"measured − {label}")
+            else:
+                for k, (label, y) in enumerate(models.items()):
+                    ax.plot(t[sl], y[sl, j], lw=1.4, color=f"C{k}", alpha=0.8, label=label)
+                ax.plot(t[sl], measured[sl, j], lw=0.6, color="k", label="measured", zorder=5)
             plain_ticks(ax)
         axes[j, 0].set_ylabel(f"{names[j]} [{units[j]}]")
         axes[j, 1].set_title(f"{names[j]}: zoom {t[zoom][0]:.4g}–{t[zoom][-1]:.4g} s", fontsize=8)
@@ -96,6 +126,9 @@ def fit_figure(t: np.ndarray, measured: np.ndarray, models: Mapping[str, np.ndar
         ax.set_xlabel("time [s]")
     axes[0, 0].axvspan(t[zoom][0], t[zoom][-1], color="0.85", zorder=0, label="zoomed (right)")
     handles, labels = axes[0, 0].get_legend_handles_labels()
+    if t.size > LINE_SAMPLES:                       # the zoom's lines are named too
+        more = axes[0, 1].get_legend_handles_labels()
+        handles, labels = handles + more[0], labels + more[1]
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, bbox_to_anchor=(0.5, -0.01))
     fig.tight_layout(rect=(0, 0.05, 1, 1))
     return fig

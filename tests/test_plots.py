@@ -14,7 +14,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from diagnosis.localise import localise  # noqa: E402
 from diagnosis.report.plots import localisation_figures  # noqa: E402
-from identification.plots import dominant_hz, fit_figure, front_figure, spread_figure, zoom_window  # noqa: E402
+from identification.plots import (ENVELOPE_BINS, dominant_hz, fit_figure, front_figure, spread_figure,  # noqa: E402
+                                 zoom_window)
 
 from test_localise import DT, FREQS, RES, ZETAS, _input, _modal, _noisy  # noqa: E402
 
@@ -95,7 +96,7 @@ def test_no_offset_tick_labels_and_legends_outside_the_data(localisation_plots):
                 assert box.x0 >= ax.get_window_extent().x1 - 1.0
 
 
-def test_fit_figure_has_a_zoom_and_the_data_on_top():
+def test_fit_figure_has_a_zoom_and_the_data_on_top_and_a_long_record_as_envelopes():
     dt = 2.5e-4
     t = np.arange(80000) * dt                       # 20 s of a 120 Hz tone: a solid band if drawn whole
     y = np.column_stack([np.sin(2 * np.pi * 120 * t), 0.5 * np.sin(2 * np.pi * 120 * t + 1)])
@@ -108,12 +109,25 @@ def test_fit_figure_has_a_zoom_and_the_data_on_top():
         assert all(ax.get_xlabel() == "time [s]" for ax in fig.axes[-2:])
         left, right = fig.axes[0], fig.axes[1]
         assert right.get_xlim()[1] - right.get_xlim()[0] < 0.1 < left.get_xlim()[1] - left.get_xlim()[0]
-        for ax in fig.axes:
+        for ax in fig.axes[1::2]:                   # the zooms: cycles as lines, the data on top
             z = {line.get_label(): line.get_zorder() for line in ax.get_lines()}
             assert z["measured"] > z["model"]
-        # the grey band on the whole record marks the zoom: named in the figure's legend
+        # the whole record (80,000 samples) as envelopes, not lines (a solid block): the measurement's and the
+        # residual's, each at most ENVELOPE_BINS steps across
+        for ax in fig.axes[0::2]:
+            assert not ax.get_lines()
+            bands = {c.get_label(): c for c in ax.collections}
+            assert {"measured (envelope)", "measured − model (envelope)"} <= set(bands), bands
+            for c in bands.values():
+                assert len(c.get_paths()[0].vertices) <= 4 * ENVELOPE_BINS + 10
+        # the envelope of the residual (2 % of the signal) spans 2 %, the measurement's the signal's range
+        res = fig.axes[0].collections
+        spans = {c.get_label(): np.ptp(c.get_paths()[0].vertices[:, 1]) for c in res}
+        assert spans["measured (envelope)"] == pytest.approx(2.0, rel=1e-3)
+        assert spans["measured − model (envelope)"] == pytest.approx(0.04, rel=1e-2)
+        # the grey band on the whole record marks the zoom: named in the figure's legend, with the zoom's lines
         labels = [t.get_text() for legend in fig.legends for t in legend.get_texts()]
-        assert "zoomed (right)" in labels, labels
+        assert {"zoomed (right)", "measured", "model"} <= set(labels), labels
     finally:
         plt.close(fig)
 

@@ -7,6 +7,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ebb_model.output import atomic_path, make_dir
+from identification.plots import trace
 
 from .result import GapReport
 
@@ -60,9 +61,9 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, localisations:
     t = np.arange(rb.shape[0]) * problem.config.time.dt
     for j, name in enumerate(problem.config.output_names):
         ax = axes[j, 0]
-        ax.plot(t, rb[:, j], lw=0.6, label="baseline")
+        trace(ax, t, rb[:, j], color="C0", label="baseline")            # an envelope on a long record
         if after is not None:
-            ax.plot(t, after[0][:, j], lw=0.6, label=f"with {named}")
+            trace(ax, t, after[0][:, j], color="C1", alpha=0.8, label=f"with {named}")
         ax.set_ylabel(f"{name} residual / σ [-]")
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0.0)
     axes[-1, 0].set_xlabel("time in the held-out window [s]")

@@ -15,7 +15,7 @@ import numpy as np
 from ebb_model.arrays import as_matrix
 from ebb_model.errors import DataError
 from ebb_model.output import atomic_path, make_dir
-from identification.plots import plain_ticks
+from identification.plots import plain_ticks, trace
 
 from ..localise import Localisation, estimate_frf
 
@@ -128,7 +128,7 @@ def _residuals_figure(plt: Any, loc: Localisation, t: np.ndarray, y2: np.ndarray
     fig, axes = plt.subplots(n_out, 1, figsize=(8, 2.2 * n_out), squeeze=False, sharex=True)
     for o, ax in enumerate(axes[:, 0]):
         s = loc.sensors[o]
-        ax.plot(t, y2[:, o] - yh2[:, o], lw=0.5, color="C3", label="residual y - ŷ")
+        trace(ax, t, y2[:, o] - yh2[:, o], lw=0.5, color="C3", label="residual y - ŷ")   # envelope when long
         ax.axhline(2 * s.noise_std, color="k", ls=":", lw=0.8, label="±2σ noise")
         ax.axhline(-2 * s.noise_std, color="k", ls=":", lw=0.8)
         ax.set_ylabel(f"{names[o]} residual{unit.of(names[o])}")
