@@ -5,7 +5,7 @@ other benches, excitations and sensors).
 Each case's record is generated first (not timed: the independent FE truth is the test's, not the diagnosis'
 cost), then :func:`diagnosis.run.diagnose` runs blind with its defaults (two worker processes) and its wall time
 is printed with the verdict and the posterior probability the diagnosis gives the right answer (Laplace evidence
-over the baseline and the refitted candidates, :mod:`diagnosis.judgement.evidence`; "-" when the right effect was not
+over the baseline and the refitted candidates, :mod:`diagnosis.problem.evidence`; "-" when the right effect was not
 refitted); the JSON (``--json``) also gives, for a named effect, the share of the held-out gap its refit closes
 and its largest size error against the withheld values, and the family's time per stage of the diagnosis
 (``stage_seconds`` of ``gap.json``, :mod:`diagnosis.stages`) with its share.  The median and the largest time

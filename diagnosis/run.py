@@ -47,7 +47,7 @@ from .candidates.catalogue import catalogue_of
 from .effects import Catalogue
 from .design import next_experiment
 from .judgement.rules import Case, Judgement, judge
-from .judgement.verdict import Kind
+from .judgement.verdict import Kind, settled
 from .judgement.weigh import weigh
 from .localise import Localisation, localise
 from .problem.fitting import Fit, GapProblem
@@ -55,7 +55,7 @@ from .problem.records import ordered_record, split_records
 from .report.assemble import effect_rows, gap_report
 from .report.html import html_sections
 from .report.result import DiagnosisSettings, GapReport
-from .search.apart import SetupsApart, apart_parts, disagreement
+from .judgement.apart import SetupsApart, apart_parts, disagreement
 from .search.reuse import RefitMemo
 from .search.plausible import PlausibleReading, plausible_readings, readings_text
 from .search.modal_pattern import modal_source
@@ -383,7 +383,8 @@ def _rank(problem: GapProblem, baseline: Fit, catalogue: Catalogue, modes: _Mode
     baseline's ``modes`` and the diagnosis' local refits so far (``memo``)."""
     return rank_effects(problem, baseline, catalogue=catalogue, shortlist=problem.settings.shortlist,
                         progress=say, executor=executor, parallel=modes.parallel, rounds=2, clock=clock, memo=memo,
-                        modal=modal_source(problem, *modes.scan, modes.band[1]))
+                        modal=modal_source(problem, *modes.scan, modes.band[1]),
+                        settled=partial(settled, settings=problem.settings))
 
 
 def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, locs: Sequence[Localisation], *,

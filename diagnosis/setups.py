@@ -44,7 +44,7 @@ class Setups:
 
     names: dict[str, str]                  # evidence kind -> set-up name
     parts: dict[str, frozenset[str]]       # evidence kind -> rig parts present
-    #: inferred by the diagnosis (:mod:`diagnosis.search.apart`), not declared
+    #: inferred by the diagnosis (:mod:`diagnosis.judgement.apart`), not declared
     inferred: bool = False
 
     @classmethod

@@ -1,6 +1,6 @@
 """The layout promised in docs/architecture.md, checked: no import cycle between the project's modules (imports at
 module level; an import inside a function is a deliberate late binding and is not counted), and the diagnosis'
-folders are its stages."""
+folders are its stages, each importing only the stages before it."""
 from __future__ import annotations
 
 import ast
@@ -68,3 +68,30 @@ def test_the_diagnosis_folders_are_its_stages():
                        "report", "corrected"}
     loose = sorted(p.stem for p in (ROOT / "diagnosis").glob("*.py"))
     assert loose == ["__init__", "batch", "demo", "run", "settings", "setups", "stages"], loose
+
+
+#: The diagnosis' stages in the order they run; the problem they share and the effects first.
+STAGES = ("effects", "problem", "baseline", "candidates", "search", "localise", "judgement", "design", "report",
+          "corrected")
+
+
+def test_the_diagnosis_stages_point_one_way():
+    """Every import of one stage's module from another's — at module level, under ``TYPE_CHECKING`` or inside a
+    function — names an earlier stage: types several stages share live below them (the evidence and the
+    plausibility checks in ``problem``, the sign weighed with the refits in ``baseline``), and what a stage must
+    ask of a later one is handed to it (the search's ``settled``: the judgement's naming rule, bound by the
+    orchestrator)."""
+    late: list[str] = []
+    for path in (ROOT / "diagnosis").rglob("*.py"):
+        rel = path.relative_to(ROOT / "diagnosis").parts
+        if len(rel) < 2:
+            continue                                  # the orchestrator and the settings sit above the stages
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            mod = node.module or ""
+            target = (mod.split(".")[0] if node.level == 2 else
+                      mod.split(".")[1] if node.level == 0 and mod.startswith("diagnosis.") else None)
+            if target in STAGES and target != rel[0] and STAGES.index(target) > STAGES.index(rel[0]):
+                late.append(f"{'/'.join(rel)} imports the later stage {target}")
+    assert not late, late

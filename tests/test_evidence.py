@@ -1,4 +1,4 @@
-"""The Laplace evidence of the diagnosis' models (:mod:`diagnosis.judgement.evidence`) against a sampler.
+"""The Laplace evidence of the diagnosis' models (:mod:`diagnosis.problem.evidence`) against a sampler.
 
 A small case where sampling is affordable: a 12-node beam, 600 samples of a random force, two sensors at 5 %
 noise; unknowns EI (with a Gaussian prior) and N, plus an actuator lag for the augmented model.  The evidence
@@ -15,7 +15,7 @@ from scipy import special, stats
 
 from diagnosis.effects import signal_effect
 from diagnosis.effects.lag import ActuatorLag
-from diagnosis.judgement.evidence import laplace_log_evidence, posterior_probabilities
+from diagnosis.problem.evidence import laplace_log_evidence, posterior_probabilities
 from diagnosis.problem.fitting import GapProblem
 from diagnosis.problem.records import split_records
 from ebb_model.config import config_from_dict
@@ -63,7 +63,7 @@ def _importance_log_evidence(problem: GapProblem, fit, effect) -> tuple[float, f
     log_q = (stats.multivariate_t(loc=u_hat, shape=L @ L.T, df=nu).logpdf(U)).reshape(DRAWS)
     inside = np.all((U >= 0.0) & (U <= 1.0), axis=1)
     log_t = np.full(DRAWS, -np.inf)
-    from diagnosis.judgement.evidence import prior_log_normaliser
+    from diagnosis.problem.evidence import prior_log_normaliser
 
     for i in np.flatnonzero(inside):
         x = box.from_unit(U[i])

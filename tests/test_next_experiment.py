@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from diagnosis.design.space import DesignBench
-from diagnosis.judgement.evidence import laplace_log_evidence
+from diagnosis.problem.evidence import laplace_log_evidence
 from diagnosis.judgement.verdict import Kind
 from diagnosis.problem.fitting import GapProblem
 from diagnosis.problem.records import Record

@@ -19,7 +19,7 @@ import pytest
 
 from diagnosis.effects import signal_effect
 from diagnosis.effects.chain import ActuatorGain, GAIN_RANGE, rescaled_start
-from diagnosis.judgement.plausibility import implausibilities
+from diagnosis.problem.plausibility import implausibilities
 from diagnosis.problem.fitting import GapProblem
 from diagnosis.problem.records import split_records
 from diagnosis.search.plausible import MARGIN, _excess, held_start, held_within

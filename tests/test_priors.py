@@ -1,6 +1,6 @@
 """What the user knows before the data (:mod:`identification.prior`): priors in the config, the posterior fit,
 what moved each parameter, a wrong prior reported as a conflict — and refits that need implausible values never
-named (:mod:`diagnosis.judgement.plausibility`)."""
+named (:mod:`diagnosis.problem.plausibility`)."""
 from __future__ import annotations
 
 import json

@@ -6,7 +6,7 @@ A load cell mounted the other way round, a channel wired with its poles swapped,
 a gain passing from +1 to −1 goes through a reading of zero —, and with transducer positions among the unknowns a
 reversed force can even be half absorbed: moving a sensor across a node of the excited mode also reverses its
 reading.  So the diagnosis fits its baseline both ways.  The sign whose baseline has the greater evidence (the
-Laplace evidence of :mod:`diagnosis.judgement.evidence`: fit, priors and measured modes together) is taken when its odds
+Laplace evidence of :mod:`diagnosis.problem.evidence`: fit, priors and measured modes together) is taken when its odds
 reach the decisive odds (:attr:`~diagnosis.settings.Thresholds.decisive_odds`) and the fits' likelihood ratio
 does too, the same way (the Occam factors alone do not decide a sign); otherwise the records are taken as read and
 the report says that they cannot decide the sign.  Reversing every sensor instead is the same hypothesis
@@ -24,17 +24,59 @@ from __future__ import annotations
 import math
 from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, Callable
+from typing import Any, Callable
 
 import numpy as np
 
-from ..judgement.evidence import laplace_log_evidence
+from ..problem.evidence import laplace_log_evidence
 from ..problem.fitting import Fit, GapProblem
 
-if TYPE_CHECKING:
-    from ..search.sign import SignWithRefits
 
-__all__ = ["PolarityCheck", "check_polarity", "reversed_force"]
+__all__ = ["PolarityCheck", "SignWithRefits", "check_polarity", "reversed_force"]
+
+
+@dataclass(frozen=True)
+class SignWithRefits:
+    """The sign weighed with the refits: per model (``"none"``: the baseline) its log evidence with the sign taken
+    and with the other (``None`` where it was refitted with one sign only); ``overturned`` when a model with the
+    other sign is decisively the best."""
+
+    taken_reversed: bool
+    log_evidence: dict[str, tuple[float | None, float | None]]      # model -> (sign taken, other sign)
+    decisive_odds: float
+
+    def _best(self, k: int) -> tuple[str, float]:
+        vals = {lab: v[k] for lab, v in self.log_evidence.items() if v[k] is not None}
+        lab = max(vals, key=lambda m: float(vals[m]))      # type: ignore[arg-type]
+        return lab, float(vals[lab])                       # type: ignore[arg-type]
+
+    @property
+    def log_odds(self) -> float:
+        """ln odds of the best model with the other sign against the best with the sign taken."""
+        return self._best(1)[1] - self._best(0)[1]
+
+    @property
+    def overturned(self) -> bool:
+        """Whether the other sign is decisively better once the mechanisms are weighed with it."""
+        return self.log_odds >= math.log(self.decisive_odds)
+
+    def line(self) -> str:
+        """One sentence."""
+        taken = "reversed" if self.taken_reversed else "as read"
+        other = "as read" if self.taken_reversed else "reversed"
+        if self.overturned:
+            return (f"the measured force's sign is OVERTURNED by the mechanisms: the baseline alone preferred the "
+                    f"force {taken}, but {self._best(1)[0]} with the force {other} has ln odds {self.log_odds:+.3g} "
+                    f"over every model with it {taken} (decisive from {math.log(self.decisive_odds):.2g}); the "
+                    f"diagnosis uses the force {other}")
+        return (f"the force's sign weighed with the refits ({len(self.log_evidence) - 1} refitted with the force "
+                f"{other}): {taken} stays (best with the force {other}: {self._best(1)[0]}, ln odds "
+                f"{self.log_odds:+.3g})")
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON values (``gap.json``'s ``force_sign.with_refits``)."""
+        return {"log_evidence": {k: {"sign_taken": t, "other_sign": o} for k, (t, o) in self.log_evidence.items()},
+                "log_odds_other_sign": self.log_odds, "overturned": self.overturned}
 
 
 @dataclass(frozen=True)
@@ -50,7 +92,7 @@ class PolarityCheck:
     #: the other sign's baseline unknowns (where its refits start), not written
     other_beta: np.ndarray | None = field(default=None, repr=False, compare=False)
     #: the sign weighed with the refits (:func:`diagnosis.search.sign.sign_with_refits`), when it was
-    with_refits: "SignWithRefits | None" = None
+    with_refits: SignWithRefits | None = None
 
     @property
     def overturned(self) -> bool:

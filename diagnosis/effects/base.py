@@ -184,7 +184,7 @@ class Effect:
     plausible
         The physically plausible range ``(lo, hi)`` of some physical parameters (catalogue units), narrower
         than the search bounds: a refit outside it explains the data with a value no rig has (a point mass
-        heavier than a quarter of the beam), and is not named as the cause (:mod:`diagnosis.judgement.plausibility`).
+        heavier than a quarter of the beam), and is not named as the cause (:mod:`diagnosis.problem.plausibility`).
     """
 
     name: str

@@ -9,7 +9,7 @@
 Common in real labs, and degenerate with the beam: scaling EI, ρA, c and N by ``k`` scales every receptance by
 ``1/k`` — exactly an actuator gain ``1/k``, or the same gain on every sensor.  When those are baseline unknowns,
 only a prior on them (the strip's documented size and material) separates a chain error from a beam of another
-size; the diagnosis says so (:func:`diagnosis.judgement.plausibility.confounded`).  A sign error (``gain < 0``) is not a
+size; the diagnosis says so (:func:`diagnosis.problem.plausibility.confounded`).  A sign error (``gain < 0``) is not a
 candidate here: no continuous refit passes from +1 to −1 through a reading of zero — the force's sign is weighed
 before, by fitting the baseline both ways (:mod:`diagnosis.baseline.polarity`).
 """

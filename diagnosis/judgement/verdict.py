@@ -18,7 +18,7 @@ from ..effects import PAIR_SEPARATOR
 from ..search.refits import EffectRefit
 from ..settings import Thresholds
 
-__all__ = ["Kind", "Reason", "Verdict", "by_evidence", "name_cause", "paying_refits"]
+__all__ = ["Kind", "Reason", "Verdict", "by_evidence", "name_cause", "settled"]
 
 
 class Kind(Enum):
@@ -79,14 +79,6 @@ class Verdict:
 def named(label: str, ties: Sequence[str] = (), reasons: Sequence[Reason] = ()) -> Verdict:
     """A verdict naming ``label`` (an effect or a pair of effects)."""
     return Verdict(Kind.EFFECT, label, tuple(ties), tuple(reasons))
-
-
-def paying_refits(refits: Mapping[str, EffectRefit], before: np.ndarray, settings: Thresholds) -> list[str]:
-    """The effects whose refit pays for its parameters (BIC by ``settings.bic_margin``) and lowers the held-out
-    error, the lowest held-out error first."""
-    paying = [lab for lab, rf in refits.items()
-              if rf.delta_bic < -settings.bic_margin and np.mean(rf.heldout_after) < np.mean(before)]
-    return sorted(paying, key=lambda lab: float(np.mean(refits[lab].heldout_after)))
 
 
 def _insignificant_part(label: str, refits: Mapping[str, EffectRefit], bic_margin: float) -> bool:
@@ -174,7 +166,7 @@ def by_evidence(verdict: Verdict, probabilities: Mapping[str, float], decisive_o
     """Between a named ``verdict`` and its ties (candidates whose refits explain the records as well), the
     evidence decides.
 
-    The most probable of them (posterior ``probabilities``, :mod:`diagnosis.judgement.evidence`) is named, with
+    The most probable of them (posterior ``probabilities``, :mod:`diagnosis.problem.evidence`) is named, with
     the sentence after the verdict's reasons, when its odds against the next reach ``decisive_odds``
     (:attr:`~diagnosis.settings.Thresholds.decisive_odds`); otherwise the verdict is
     :attr:`Kind.INDISTINGUISHABLE` with the candidates, the most probable first, as its ties and the sentence
@@ -212,3 +204,16 @@ def by_evidence(verdict: Verdict, probabilities: Mapping[str, float], decisive_o
 
 #: Evidence ratios from here up are printed as a bound (the probabilities behind them underflow to 0).
 _LARGEST_RATIO = 1e300
+
+
+def settled(ranking: Any, settings: Thresholds) -> bool:
+    """Whether the effect the naming rule names (:func:`name_cause`) for ``ranking`` (a
+    :class:`~diagnosis.search.rank.Ranking`) has a refit that leaves at most the gap threshold above the noise
+    floor on the fit windows: then a better baseline basin cannot change the verdict (another effect could at most
+    tie), and the ranking is final.  The search asks it through the callable it is given
+    (:func:`~diagnosis.search.rank.rank_effects`' ``settled``): the stages point one way."""
+    verdict = name_cause(ranking.heldout_before, ranking.refits, ranking.paying, settings)
+    if verdict.kind is not Kind.EFFECT or verdict.label not in ranking.refits:
+        return False
+    fit = ranking.refits[verdict.label].fit
+    return fit.rss / fit.n - 1.0 <= settings.gap_threshold

@@ -11,8 +11,8 @@ from identification.prior import PriorCheck
 
 from ..problem.fitting import GapProblem
 from ..search.rank import Ranking
-from .evidence import posterior_probabilities
-from .plausibility import confounded, implausibilities, prior_checks
+from ..problem.evidence import posterior_probabilities
+from ..problem.plausibility import confounded, implausibilities, prior_checks
 
 __all__ = ["Weighed", "weigh", "chain_degeneracies"]
 
@@ -29,7 +29,7 @@ class Weighed:
         The baseline's unknowns against the user's priors (:class:`identification.prior.PriorCheck`, empty without
         priors); :attr:`conflicts` are those in conflict.
     evidence
-        Posterior probabilities of the baseline (``"none"``) and the refits (:mod:`diagnosis.judgement.evidence`).
+        Posterior probabilities of the baseline (``"none"``) and the refits (:mod:`diagnosis.problem.evidence`).
     confounded
         Per refit degenerate with the baseline unknowns, the line saying with which combination.
     modal_data

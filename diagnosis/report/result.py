@@ -21,7 +21,7 @@ from ..baseline.polarity import PolarityCheck
 from ..judgement.verdict import Verdict
 from ..settings import Thresholds
 from ..design import NextExperiment
-from ..search.apart import SetupsApart
+from ..judgement.apart import SetupsApart
 from ..search.plausible import PlausibleReading
 from ..setups import Setups
 
@@ -170,12 +170,12 @@ class GapReport:
     corrected_files
         The corrected model's files (in ``corrected/`` beside ``gap.json``), when it was exported.
     implausible
-        The refits that need implausible values (:mod:`diagnosis.judgement.plausibility`), with what is implausible:
+        The refits that need implausible values (:mod:`diagnosis.problem.plausibility`), with what is implausible:
         never the verdict, never exported.
     priors
         The baseline's unknowns against the user's priors (:class:`identification.prior.PriorCheck`).
     evidence
-        Posterior probability of the baseline (``"none"``) and of each refit (:mod:`diagnosis.judgement.evidence`).
+        Posterior probability of the baseline (``"none"``) and of each refit (:mod:`diagnosis.problem.evidence`).
     confounded
         The refits degenerate with the baseline unknowns, and with which (only a prior separates them).
     modal_data
@@ -189,7 +189,7 @@ class GapReport:
         Which set-up each kind of evidence was measured in, with its rig parts (:mod:`diagnosis.setups`).
     setups_apart
         When the records and the measured modes disagreed more than one structure explains: the reading as two
-        set-ups and whether it was adopted (:mod:`diagnosis.search.apart`).
+        set-ups and whether it was adopted (:mod:`diagnosis.judgement.apart`).
     plausible_readings
         When no effect is named: the closing refits held within the plausibility limits that still close the named
         share of the gap, most probable first (:mod:`diagnosis.search.plausible`).

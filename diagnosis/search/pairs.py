@@ -21,10 +21,9 @@ import numpy as np
 
 from ..effects import PAIR_SEPARATOR, on_top_of
 from ..problem.fitting import Fit
-from .refits import EffectRefit, explains, pair_refit
+from .refits import EffectRefit, explains, pair_refit, paying_refits
 from ..candidates.score import score_effect
 from .state import Refits, Search
-from ..judgement.verdict import paying_refits
 
 __all__ = ["Early", "best_pair", "early_pair", "pair_explains", "pair_with", "same_fit"]
 

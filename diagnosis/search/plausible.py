@@ -8,13 +8,13 @@ frequencies for a small gain on the records (a chain gain of 0.15 with the beam'
 0.32 with the documented beam predicts the held-out part about as well).  Once no candidate explains the records
 as noise, the question a physicist asks is another one: *which candidates predict the records with values I would
 sign, and how well?*  So each refit that closes the named share of the gap but is implausible is refitted inside
-the limits the plausibility checks (:mod:`diagnosis.judgement.plausibility`) apply — each prior within
+the limits the plausibility checks (:mod:`diagnosis.problem.plausibility`) apply — each prior within
 :data:`~identification.prior.CONFLICT_SIGMA` σ, the priors jointly at the same tail probability, the measured
 modes' χ² below its 99.9 % point, the effect's parameters inside their plausible ranges — each limit a hinge row
 that is zero inside it and steep outside (at :data:`MARGIN` of the limit, so that the fit lands inside).  A reading
 is kept when the refit so held passes every plausibility check and still closes the named share of the held-out
 gap; the readings are listed with their held-out prediction and their posterior probabilities (Laplace evidence
-among them, :mod:`diagnosis.judgement.evidence`).  They are readings, not a verdict: the report says the records
+among them, :mod:`diagnosis.problem.evidence`).  They are readings, not a verdict: the report says the records
 alone do not decide between them and that the probabilities still weigh the misfit as noise.
 """
 from __future__ import annotations
@@ -31,8 +31,8 @@ from identification.least_squares import fit_least_squares
 from identification.prior import CONFLICT_SIGMA
 
 from ..effects import Catalogue, Effect
-from ..judgement.evidence import laplace_log_evidence
-from ..judgement.plausibility import implausibilities
+from ..problem.evidence import laplace_log_evidence
+from ..problem.plausibility import implausibilities
 from ..problem.fitting import Fit, GapProblem
 from .rank import Ranking
 from .refits import EffectRefit, summarise

@@ -15,7 +15,7 @@ more by continuation in the record length (:mod:`diagnosis.search.refits`), the 
 promising first, until one explains it.  Effects are ranked by held-out error
 among those whose BIC improves by more than the BIC margin (an extra
 parameter must pay for itself); the naming rule
-(:func:`diagnosis.judgement.verdict.name_cause`) tells when a ranking is settled,
+(:func:`diagnosis.judgement.verdict.settled`, passed in as ``settled``) tells when a ranking is settled,
 and the judgement (:mod:`diagnosis.judgement.rules`) makes the verdict from the
 ranking.  Effects
 whose held-out improvement is within 5 % of the best and whose held-out error
@@ -57,16 +57,15 @@ from .modal_pattern import ModalEvidence, PatternFit, moves_modes, pattern_fits
 from .exclusions import not_refitted
 from .nested import landing_refits
 from .pairs import Early, early_pair, pair_explains, pair_with, same_fit
-from .refits import EffectRefit, better_baseline, explains, refit_from_match
+from .refits import EffectRefit, better_baseline, explains, paying_refits, refit_from_match
 from ..candidates.score import EffectScore, score_effect
 from .state import Refits, Search
 from .reuse import RefitMemo
 from ..stages import StageClock
 from ..settings import Thresholds
-from ..judgement.plausibility import implausibilities
-from ..judgement.verdict import Kind, name_cause, paying_refits
+from ..problem.plausibility import implausibilities
 
-__all__ = ["Ranking", "Refits", "settled", "rank_effects"]
+__all__ = ["Ranking", "Refits", "rank_effects"]
 
 
 
@@ -285,7 +284,7 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
 
 def _plausible(run: Search, label: str, refit: EffectRefit) -> bool:
     """Whether a single effect's refit is one a rig can have: nothing implausible about it — its values, the
-    priors, the measured modes (:func:`diagnosis.judgement.plausibility.implausibilities`)."""
+    priors, the measured modes (:func:`diagnosis.problem.plausibility.implausibilities`)."""
     effect = run.effects.get(label)
     return effect is not None and not implausibilities(run.problem, effect, refit.fit)
 
@@ -309,22 +308,12 @@ def _order(refits: dict[str, EffectRefit], before: np.ndarray, by_score: list[st
     return paying, paying + others + [lab for lab in by_score if lab not in refits]
 
 
-def settled(ranking: Ranking, settings: Thresholds) -> bool:
-    """Whether the effect the naming rule names (:func:`diagnosis.judgement.verdict.name_cause`) has a refit that
-    leaves at most the gap threshold above the noise floor on the fit windows: then a better baseline basin
-    cannot change the verdict (another effect could at most tie), and the ranking is final."""
-    verdict = name_cause(ranking.heldout_before, ranking.refits, ranking.paying, settings)
-    if verdict.kind is not Kind.EFFECT or verdict.label not in ranking.refits:
-        return False
-    fit = ranking.refits[verdict.label].fit
-    return fit.rss / fit.n - 1.0 <= settings.gap_threshold
-
-
 def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, shortlist: int = 4,
                  max_evaluations: int = 300, progress: Any = None, executor: Executor | None = None,
                  parallel: int = 1, rebaseline: bool = True, rounds: int = 2,
                  modal: Callable[[np.ndarray], ModalEvidence] | None = None,
-                 clock: StageClock | None = None, memo: RefitMemo | None = None) -> Ranking:
+                 clock: StageClock | None = None, memo: RefitMemo | None = None,
+                 settled: Callable[[Ranking], bool] = lambda ranking: False) -> Ranking:
     """Score every effect, refit the ``shortlist`` best, rank and decide — again from a better baseline basin
     when the refits reveal one (the one re-baselining loop).
 
@@ -354,7 +343,7 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
         unknowns (:func:`better_baseline`); if that is better, rank again from it before paying for the
         continuation refits — which would otherwise run twice, from the worse baseline and again.
     rounds
-        After a complete ranking whose verdict is not :func:`settled`, up to ``rounds`` times: the baseline
+        After a complete ranking that is not ``settled``, up to ``rounds`` times: the baseline
         from the effects' optima (:func:`better_baseline`); when it is better, the ranking starts again from it.
     modal
         The measured modes with their uncertainties for baseline unknowns ``beta`` (called only when no local
@@ -364,6 +353,10 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
     memo
         The local refits another ranking of the same diagnosis made (:class:`diagnosis.search.reuse.RefitMemo`),
         taken instead of repeated and added to; a new one when omitted.
+    settled
+        Whether a ranking is final — the judgement's naming rule names an effect whose refit reaches the floor
+        (:func:`diagnosis.judgement.verdict.settled`, which the caller binds to its settings: the search does not
+        import the judgement that follows it); by default never, every round is taken.
 
     Returns
     -------
@@ -385,7 +378,7 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
             baseline, early_rebaseline = outcome, False
             continue
         ranking = outcome
-        if left == 0 or settled(ranking, problem.settings):
+        if left == 0 or settled(ranking):
             return ranking
         left -= 1
         # an effect's refit may have moved the baseline unknowns into a better basin (refits.better_baseline)

@@ -30,18 +30,20 @@ from __future__ import annotations
 
 from concurrent.futures import Executor
 from dataclasses import dataclass, replace
+from typing import Mapping
 
 import numpy as np
 
 
 from ..effects import Catalogue, Effect
 from ..problem.fitting import Fit, GapProblem
+from ..settings import Thresholds
 from .modal_pattern import PatternFit
 from ..candidates.score import EffectScore, trial_values
 from .workers import side_by_side
 
 __all__ = ["EffectRefit", "explains", "summarise", "map_refits", "refit_from_match", "pair_refit",
-           "better_baseline", "CONTINUATION"]
+           "better_baseline", "paying_refits", "CONTINUATION"]
 
 #: Fractions of the fit windows of the continuation refit (the first one searched globally).
 CONTINUATION = (0.1, 0.3, 1.0)
@@ -237,3 +239,11 @@ def better_baseline(problem: GapProblem, baseline: Fit, fits: list[Fit], executo
         if cand.rss < baseline.rss * (1.0 - 1e-3) and (better is None or cand.rss < better.rss):
             better = cand
     return better
+
+
+def paying_refits(refits: Mapping[str, EffectRefit], before: np.ndarray, settings: Thresholds) -> list[str]:
+    """The effects whose refit pays for its parameters (BIC by ``settings.bic_margin``) and lowers the held-out
+    error, the lowest held-out error first."""
+    paying = [lab for lab, rf in refits.items()
+              if rf.delta_bic < -settings.bic_margin and np.mean(rf.heldout_after) < np.mean(before)]
+    return sorted(paying, key=lambda lab: float(np.mean(refits[lab].heldout_after)))

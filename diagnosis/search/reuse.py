@@ -1,7 +1,7 @@
 """The local refits one diagnosis would repeat, made once (:class:`RefitMemo`).
 
 When the records and the measured modes disagree more than one structure explains, the diagnosis ranks again with
-the modes taken without the records' rig parts (:mod:`diagnosis.search.apart`).  That problem differs from the
+the modes taken without the records' rig parts (:mod:`diagnosis.judgement.apart`).  That problem differs from the
 first only in :attr:`~diagnosis.problem.fitting.GapProblem.modes_lack`, which changes the residuals of an effect
 that models one of those parts and of no other: an effect that models none of them has the same residuals, the
 same score and, from the same baseline, the same local refit — each refit is deterministic.  On the real bench

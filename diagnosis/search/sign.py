@@ -12,71 +12,24 @@ the sign is overturned and the diagnosis ranks again with it; either way the com
 """
 from __future__ import annotations
 
-import math
 from concurrent.futures import Executor
-from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
-from ..baseline.polarity import PolarityCheck, reversed_force
+from ..baseline.polarity import PolarityCheck, SignWithRefits, reversed_force
 from ..candidates.score import score_effect
 from ..effects import Catalogue
-from ..judgement.evidence import laplace_log_evidence
+from ..problem.evidence import laplace_log_evidence
 from ..problem.fitting import GapProblem
 from .rank import Ranking
 from .refits import map_refits
 
-__all__ = ["SignWithRefits", "sign_with_refits"]
+__all__ = ["sign_with_refits"]
 
 #: Leading refits of the sign taken (the lowest held-out error first) refitted with the other sign too.
 LEADING = 3
 #: Budget of each refit with the other sign (a local refit's).
 MAX_EVALUATIONS = 300
-
-
-@dataclass(frozen=True)
-class SignWithRefits:
-    """The sign weighed with the refits: per model (``"none"``: the baseline) its log evidence with the sign taken
-    and with the other (``None`` where it was refitted with one sign only); ``overturned`` when a model with the
-    other sign is decisively the best."""
-
-    taken_reversed: bool
-    log_evidence: dict[str, tuple[float | None, float | None]]      # model -> (sign taken, other sign)
-    decisive_odds: float
-
-    def _best(self, k: int) -> tuple[str, float]:
-        vals = {lab: v[k] for lab, v in self.log_evidence.items() if v[k] is not None}
-        lab = max(vals, key=lambda m: float(vals[m]))      # type: ignore[arg-type]
-        return lab, float(vals[lab])                       # type: ignore[arg-type]
-
-    @property
-    def log_odds(self) -> float:
-        """ln odds of the best model with the other sign against the best with the sign taken."""
-        return self._best(1)[1] - self._best(0)[1]
-
-    @property
-    def overturned(self) -> bool:
-        """Whether the other sign is decisively better once the mechanisms are weighed with it."""
-        return self.log_odds >= math.log(self.decisive_odds)
-
-    def line(self) -> str:
-        """One sentence."""
-        taken = "reversed" if self.taken_reversed else "as read"
-        other = "as read" if self.taken_reversed else "reversed"
-        if self.overturned:
-            return (f"the measured force's sign is OVERTURNED by the mechanisms: the baseline alone preferred the "
-                    f"force {taken}, but {self._best(1)[0]} with the force {other} has ln odds {self.log_odds:+.3g} "
-                    f"over every model with it {taken} (decisive from {math.log(self.decisive_odds):.2g}); the "
-                    f"diagnosis uses the force {other}")
-        return (f"the force's sign weighed with the refits ({len(self.log_evidence) - 1} refitted with the force "
-                f"{other}): {taken} stays (best with the force {other}: {self._best(1)[0]}, ln odds "
-                f"{self.log_odds:+.3g})")
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON values (``gap.json``'s ``force_sign.with_refits``)."""
-        return {"log_evidence": {k: {"sign_taken": t, "other_sign": o} for k, (t, o) in self.log_evidence.items()},
-                "log_odds_other_sign": self.log_odds, "overturned": self.overturned}
 
 
 def sign_with_refits(problem: GapProblem, ranking: Ranking, catalogue: Catalogue, check: PolarityCheck,

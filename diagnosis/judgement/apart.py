@@ -14,9 +14,10 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..effects import Catalogue
-from ..judgement.weigh import Weighed
+from ..search.rank import Ranking
+from .weigh import Weighed
 from ..problem.fitting import GapProblem
-from .rank import Ranking
+
 
 __all__ = ["SetupsApart", "disagreement", "apart_parts"]
 

@@ -18,7 +18,7 @@ import numpy as np
 from identification.prior import PriorCheck
 
 from ..effects import Effect
-from ..problem.fitting import Fit, GapProblem
+from .fitting import Fit, GapProblem
 
 __all__ = ["confounded", "implausibilities", "posterior_std", "prior_checks"]
 

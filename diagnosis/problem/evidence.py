@@ -32,7 +32,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..problem.fitting import Fit, GapProblem
+from .fitting import Fit, GapProblem
 
 __all__ = ["FLAT_EIGENVALUE", "laplace_log_evidence", "posterior_probabilities", "prior_log_normaliser"]
 
