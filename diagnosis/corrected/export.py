@@ -183,16 +183,16 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
     # a static correction
     resolution = design_resolution(model.config, model.params)
     form = statespace_form(model, design_model(model.config, model.params, resolution=resolution), full=beam)
-    item = ExportItem("corrected", "corrected", cfg, model.params,
-                      form.system if form.system is not None else beam, beam_system=beam, parts=_parts(model, beam),
-                      modes=None if resolution is None else resolution.to_dict())
+    item = ExportItem("corrected", "corrected", cfg, model.params, form.system, beam_system=beam,
+                      parts=_parts(model, beam), modes=None if resolution is None else resolution.to_dict(),
+                      no_system=form.reason or "")
     for name in targets:
-        if name == "statespace" and form.system is None:
-            continue
         files = export_target(name)(item, out)
         written.extend(files)
         for f in files:
             carries[f.name] = target_carries(name, item)
+        if not files:                                 # a target that cannot carry this model says why
+            carries[f"{name} (nothing written)"] = target_carries(name, item)
     extra: dict[str, Any] = {}
     if form.output_offsets:
         units = {s.name: s.unit for s in model.config.sensors}
@@ -201,7 +201,5 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
                            "StateSpace nor the FMU): the model is time-invariant and affine")
     if delays_left_out:
         carries["channel delays"] = DELAYS_LEFT_OUT
-    if form.system is None and "statespace" in targets:
-        carries["note"] = f"no StateSpace: {form.reason}; the FMU carries the refitted beam without it"
     written.append(write_json(out / "corrected.json", dict(summary) | extra | {"files": carries}))
     return written

@@ -90,7 +90,9 @@ class ExportItem:
     system
         The model for control design (what a StateSpace export writes): the beam at ``params`` with its modes in
         the band (:func:`ebb_model.truncation.design_model`), with a corrected model's signal-level parts in
-        series when it has them.
+        series when it has them; ``None`` when the model has no such form (a corrected model whose effect is not
+        time-invariant, or a constant force: ``no_system`` says why) — a target that writes ``system`` then writes
+        nothing and says so, never the beam without the effect.
     options
         Target options (``reduce_order`` for ``statespace``).
     beam_system
@@ -101,19 +103,28 @@ class ExportItem:
     modes
         Which modes ``system`` keeps, each with its frequency error estimate against a converged grid
         (:meth:`ebb_model.truncation.ModeResolution.to_dict`); ``None`` when it did not choose them so.
+    no_system
+        Why ``system`` is ``None`` ("" when it is not).
     """
 
     stem: str
     title: str
     config: BeamConfig
     params: Mapping[str, float]
-    system: DiscreteStateSpace
+    system: DiscreteStateSpace | None
     options: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     beam_system: DiscreteStateSpace | None = None
     parts: str = ""
     modes: Mapping[str, Any] | None = None
+    no_system: str = ""
+
+    def __post_init__(self) -> None:
+        if self.system is None and self.beam_system is None:
+            raise ValueError("an export item needs the model's system or the beam's")
 
     @property
     def beam(self) -> DiscreteStateSpace:
         """The beam's own system at ``params`` (what the FMU targets build from)."""
-        return self.system if self.beam_system is None else self.beam_system
+        beam = self.system if self.beam_system is None else self.beam_system
+        assert beam is not None                  # __post_init__
+        return beam

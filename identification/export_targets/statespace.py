@@ -17,12 +17,17 @@ __all__ = ["carries", "write"]
 
 
 def carries(item: ExportItem) -> str:
-    """What the files carry."""
+    """What the files carry (or why there are none)."""
+    if item.system is None:
+        return f"no StateSpace: {item.no_system}"
     return "StateSpace of the model" + (f" ({item.parts} as states in series)" if item.parts else "")
 
 
 def write(item: ExportItem, out_dir: Path) -> list[Path]:
-    """Write ``<stem>.npz`` (and the reduced model on request) into ``out_dir``; return the files."""
+    """Write ``<stem>.npz`` (and the reduced model on request) into ``out_dir``; return the files — none when the
+    model has no StateSpace form (``item.system`` is ``None``: :func:`carries` says why)."""
+    if item.system is None:
+        return []
     config = item.config.to_dict()
     written = [save_statespace(item.system, out_dir / f"{item.stem}.npz", name=item.title,
                                parameters=item.params, config=config, modes=item.modes)]
