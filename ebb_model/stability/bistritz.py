@@ -10,9 +10,9 @@ the test counts the zeros of :math:`D` inside, on and outside the unit circle
 without computing them.  It only uses additions, multiplications and about
 ``n`` divisions, so with :class:`fractions.Fraction` coefficients it runs in exact
 rational arithmetic and gives exact verdicts, including the *singular* cases
-(zeros on the unit circle, reciprocal zero pairs :math:`r, 1/r`).  (Its
-length, just over 500 lines, is one algorithm: 150 of them are its statement
-below, which the code follows step by step.)
+(zeros on the unit circle, reciprocal zero pairs :math:`r, 1/r`).  (The
+input handling and the polynomial operations it uses are in
+:mod:`ebb_model.stability.polynomials`.)
 
 The algorithm
 -------------
@@ -139,21 +139,17 @@ References
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any, Sequence, Union
+from typing import Any, Sequence
 
 import numpy as np
 
-from ..checks import finite_scalar
+from .polynomials import (Number, check_tol, div_z_minus_1, norm, parse, sign_changes,
+                          symmetrise, total)
 
 __all__ = ["ZeroLocation", "bistritz", "bistritz_sequence"]
 
-#: Default relative tolerance of the floating-point zero tests.
-DEFAULT_TOL: float = 1000.0 * float(np.finfo(float).eps)
-
-_Number = Union[float, Fraction]
 
 
 @dataclass(frozen=True)
@@ -198,111 +194,6 @@ class ZeroLocation:
 
 
 # --------------------------------------------------------------------------
-# input handling
-# --------------------------------------------------------------------------
-
-def _parse(coefficients: Any) -> tuple[list[_Number], bool]:
-    """Validate the coefficients (highest power first).
-
-    Returns the coefficients *lowest power first* and whether the arithmetic
-    is exact (all coefficients rational: ``int``, ``Fraction``, NumPy
-    integers) or floating point (anything else real).
-    """
-    if isinstance(coefficients, (str, bytes)):
-        raise ValueError("bistritz: coefficients must be a 1-D sequence of real numbers, got a string")
-    try:
-        arr = np.asarray(coefficients, dtype=object)
-    except Exception as exc:  # ragged nested sequences etc.
-        raise ValueError(f"bistritz: coefficients must be a 1-D sequence of real numbers ({exc})") from None
-    if arr.ndim != 1:
-        raise ValueError(
-            f"bistritz: coefficients must be a 1-D sequence (highest power first), "
-            f"got an array of shape {arr.shape}"
-        )
-    if arr.size == 0:
-        raise ValueError("bistritz: no coefficients given (empty input)")
-    values: list[Any] = []
-    for i, c in enumerate(arr.tolist()):
-        if isinstance(c, numbers.Complex) and not isinstance(c, numbers.Real):
-            if c.imag != 0:
-                raise ValueError(
-                    f"bistritz: coefficients must be real, coefficient {i} is {c!r}"
-                )
-            c = c.real
-        if not isinstance(c, numbers.Real):
-            raise ValueError(
-                f"bistritz: coefficient {i} is not a real number: {c!r}"
-            )
-        values.append(c)
-    exact = all(isinstance(c, numbers.Rational) for c in values)
-    out: list[_Number]
-    if exact:
-        out = [Fraction(int(c)) if isinstance(c, numbers.Integral) else Fraction(c) for c in values]
-    else:
-        out = []
-        for i, c in enumerate(values):
-            x = float(c)
-            if not math.isfinite(x):
-                raise ValueError(
-                    f"bistritz: coefficient {i} is not finite: {c!r}"
-                )
-            out.append(x)
-    return out[::-1], exact
-
-
-def _check_tol(tol: float | None) -> float:
-    if tol is None:
-        return DEFAULT_TOL
-    return finite_scalar("bistritz: tol", tol, minimum=0.0, error=ValueError)
-
-
-# --------------------------------------------------------------------------
-# polynomial helpers (coefficient lists, lowest power first)
-# --------------------------------------------------------------------------
-
-def _norm(p: Sequence[_Number]) -> _Number:
-    return max(abs(x) for x in p)
-
-
-def _total(p: Sequence[_Number], exact: bool) -> _Number:
-    """``p(1)``: exact sum, or a correctly rounded float sum."""
-    return sum(p) if exact else math.fsum(p)
-
-
-def _div_z_minus_1(p: Sequence[_Number], zero: _Number) -> list[_Number]:
-    """Quotient of ``p(z) / (z - 1)``, the remainder ``p(1)`` being dropped.
-
-    From ``p = (z - 1) q``: ``q_j = -(p_0 + ... + p_j)``.
-    """
-    q: list[_Number] = []
-    acc = zero
-    for x in p[:-1]:
-        acc = acc - x
-        q.append(acc)
-    return q
-
-
-def _symmetrise(p: list[_Number], exact: bool) -> list[_Number]:
-    """Enforce the exact symmetry of a float ``T_k`` (no-op when exact)."""
-    if exact:
-        return p
-    return [(a + b) * 0.5 for a, b in zip(p, reversed(p))]
-
-
-def _sign_changes(values: Sequence[_Number]) -> int:
-    changes = 0
-    previous = 0
-    for v in values:
-        if v == 0:
-            continue
-        sign = 1 if v > 0 else -1
-        if previous and sign != previous:
-            changes += 1
-        previous = sign
-    return changes
-
-
-# --------------------------------------------------------------------------
 # the test
 # --------------------------------------------------------------------------
 
@@ -314,27 +205,27 @@ class _Run:
     at_zero: int                 # zeros at z = 0 removed
     at_one: int                  # zeros at z = 1 removed
     degree: int                  # n, degree of the reduced polynomial
-    sequence: list[list[_Number]]  # T_n, ..., T_0 (lowest power first)
+    sequence: list[list[Number]]  # T_n, ..., T_0 (lowest power first)
     s: int | None                # degree of T_s at the first essential singularity
     s_index: int | None          # its position in ``sequence``
 
 
 def _run(coefficients: Any, tol: float | None, *, normalise: bool) -> _Run:
-    d, exact = _parse(coefficients)
-    eps_rel: _Number = Fraction(0) if exact else _check_tol(tol)
+    d, exact = parse(coefficients)
+    eps_rel: Number = Fraction(0) if exact else check_tol(tol)
     if exact and tol is not None:
-        _check_tol(tol)  # validated, then ignored: exact zero tests
-    zero: _Number = Fraction(0) if exact else 0.0
+        check_tol(tol)  # validated, then ignored: exact zero tests
+    zero: Number = Fraction(0) if exact else 0.0
 
-    def shift(p: list[_Number], always: bool = False) -> int:
+    def shift(p: list[Number], always: bool = False) -> int:
         # Exact power-of-two rescaling against overflow/underflow in float
         # arithmetic: it changes no rounding, no sign and no relative test.
         if exact or not (normalise or always):
             return 0
-        big = _norm(p)
+        big = norm(p)
         return 0 if big == 0 else -math.frexp(big)[1]
 
-    def rescaled(p: list[_Number], e: int) -> list[_Number]:
+    def rescaled(p: list[Number], e: int) -> list[Number]:
         return p if e == 0 else [math.ldexp(x, e) for x in p]
 
     # -- step 0: reduction ---------------------------------------------------
@@ -349,8 +240,8 @@ def _run(coefficients: Any, tol: float | None, *, normalise: bool) -> _Run:
     e0 = shift(d, always=True)     # the sums below must not overflow
     d = rescaled(d, e0)
     at_one = 0
-    while len(d) > 1 and abs(_total(d, exact)) <= eps_rel * sum(abs(x) for x in d):
-        d = _div_z_minus_1(d, zero)
+    while len(d) > 1 and abs(total(d, exact)) <= eps_rel * sum(abs(x) for x in d):
+        d = div_z_minus_1(d, zero)
         at_one += 1
     n = len(d) - 1
     if not normalise:
@@ -358,20 +249,20 @@ def _run(coefficients: Any, tol: float | None, *, normalise: bool) -> _Run:
 
     # -- step 1: initial pair ------------------------------------------------
     d_rev = d[::-1]
-    t_n = _symmetrise([a + b for a, b in zip(d, d_rev)], exact)
-    sequence: list[list[_Number]] = [rescaled(t_n, shift(t_n))]
+    t_n = symmetrise([a + b for a, b in zip(d, d_rev)], exact)
+    sequence: list[list[Number]] = [rescaled(t_n, shift(t_n))]
     s: int | None = None
     s_index: int | None = None
     if n == 0:
         return _Run(exact, at_zero, at_one, 0, sequence, None, None)
-    candidate = _div_z_minus_1([a - b for a, b in zip(d, d_rev)], zero)
-    scale = _norm(d)
+    candidate = div_z_minus_1([a - b for a, b in zip(d, d_rev)], zero)
+    scale = norm(d)
 
     # -- step 2: recursion -----------------------------------------------
     while True:
-        candidate = _symmetrise(candidate, exact)
+        candidate = symmetrise(candidate, exact)
         threshold = eps_rel * scale
-        if _norm(candidate) <= threshold:
+        if norm(candidate) <= threshold:
             # essential singularity: restart from T_top = sequence[-1]
             top = sequence[-1]
             deg_top = len(top) - 1
@@ -380,12 +271,12 @@ def _run(coefficients: Any, tol: float | None, *, normalise: bool) -> _Run:
             # p = z T' - deg_top T, nominal degree deg_top - 1
             p = [(i - deg_top) * top[i] for i in range(deg_top)]
             p_rev = p[::-1]
-            t_new = _symmetrise([a + b for a, b in zip(p, p_rev)], exact)
+            t_new = symmetrise([a + b for a, b in zip(p, p_rev)], exact)
             sequence.append(rescaled(t_new, shift(t_new)))
             if deg_top == 1:
                 break                              # that was T_0
-            candidate = _div_z_minus_1([a - b for a, b in zip(p, p_rev)], zero)
-            scale = _norm(p)
+            candidate = div_z_minus_1([a - b for a, b in zip(p, p_rev)], zero)
+            scale = norm(p)
             continue
 
         e = shift(candidate)
@@ -411,7 +302,7 @@ def _run(coefficients: Any, tol: float | None, *, normalise: bool) -> _Run:
         num = [delta * x for x in b]
         # the z^0 and z^(k+1) terms of the numerator cancel; divide by z
         candidate = [num[j + 1] - t_k1[j + 1] for j in range(k)]
-        scale = max(_norm(num), _norm(t_k1))
+        scale = max(norm(num), norm(t_k1))
 
     return _Run(exact, at_zero, at_one, n, sequence, s, s_index)
 
@@ -462,13 +353,13 @@ def bistritz(coefficients: Sequence[Any] | np.ndarray, *, tol: float | None = No
     (True, False)
     """
     run = _run(coefficients, tol, normalise=True)
-    values = [_total(t, run.exact) for t in run.sequence]
-    nu_n = _sign_changes(values)
+    values = [total(t, run.exact) for t in run.sequence]
+    nu_n = sign_changes(values)
     inside = run.degree - nu_n
     if run.s is None:
         on = 0
     else:
-        nu_s = _sign_changes(values[run.s_index:])
+        nu_s = sign_changes(values[run.s_index:])
         # exact arithmetic guarantees s/2 <= nu_s <= s; clamp float noise
         on = min(max(2 * nu_s - run.s, 0), nu_n)
     outside = run.degree - inside - on
