@@ -94,7 +94,7 @@ class PolishedPoint:
     message: str
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, kw_only=True)
 class IdentificationResult:
     """Outcome of :func:`identification.run.identify`, or of a finished run read back (:meth:`read`).
 
@@ -137,7 +137,7 @@ class IdentificationResult:
         start, the resonance peaks, the records' level and any notes), ``None`` when nothing was read.
     hints
         What a simple transformation would supply to a fit far above the floor (:mod:`identification.fit_hints`),
-        and the records' notes before the search.
+        and the records' notes before the search that the fit bears out.
     cramer_rao_note
         Why the identified model's Cramér–Rao standard deviations cannot be computed, when they cannot.
     grid_advice
@@ -333,12 +333,14 @@ class IdentificationResult:
                           bool(q.get("stable", True)), int(q.get("n_evaluations", 0)), float(q.get("cost", np.nan)),
                           bool(q.get("success", True)), str(q.get("message", "")))
             for q in doc.get("polished") or ())
-        return cls(cfg, space, pareto, np.array([vec(q, "cramer_rao_std", names) for q in pts]),
-                   np.array([float(q.get("growth_factor", np.nan)) for q in pts]),
-                   np.array([bool(q.get("stable", True)) for q in pts]), out_dir,
-                   str(doc.get("config_name") or out_dir.name), polished, _adequacy(doc.get("numerical_adequacy")),
-                   None, (doc.get("identified") or {}).get("fit_gap_ratio"), tuple(doc.get("noise_model") or ()),
-                   data_start=doc.get("data_start"),
+        return cls(config=cfg, space=space, pareto=pareto,
+                   cramer_rao_std=np.array([vec(q, "cramer_rao_std", names) for q in pts]),
+                   growth_factors=np.array([float(q.get("growth_factor", np.nan)) for q in pts]),
+                   stable=np.array([bool(q.get("stable", True)) for q in pts]), out_dir=out_dir,
+                   config_name=str(doc.get("config_name") or out_dir.name), polished=polished,
+                   adequacy=_adequacy(doc.get("numerical_adequacy")), fisher_nominal=None,
+                   fit_gap_ratio=(doc.get("identified") or {}).get("fit_gap_ratio"),
+                   noise_model=tuple(doc.get("noise_model") or ()), data_start=doc.get("data_start"),
                    hints=tuple((doc.get("identified") or {}).get("hints") or ()),
                    cramer_rao_note=(doc.get("identified") or {}).get("cramer_rao_note"),
                    grid_advice=doc.get("grid_advice"), events=tuple(doc.get("events") or ()))

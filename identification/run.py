@@ -378,12 +378,13 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
         hints += fit_hints(cfg.output_names, [e.outputs for e in exps], best.outputs, fit_gap,
                            "EI" in space.names and "rhoA" in space.names, start)
     best_crb = polished[0].cramer_rao_std if polished else props[pareto.knee][0]
-    return IdentificationResult(cfg, space, pareto, np.array([p[0] for p in props]),
-                                np.array([p[1] for p in props]), np.array([p[2] for p in props]), out,
-                                config_name, polished, adequacy, fisher0, fit_gap,
-                                tuple(noise.describe(cfg.output_names, [e.name for e in exps])), noise, priors,
-                                agreement, None if start is None else start.to_dict(space.names), tuple(hints),
-                                _cramer_rao_note(evaluator, best_x, noise, best_crb), grid)
+    return IdentificationResult(
+        config=cfg, space=space, pareto=pareto, cramer_rao_std=np.array([p[0] for p in props]),
+        growth_factors=np.array([p[1] for p in props]), stable=np.array([p[2] for p in props]), out_dir=out,
+        config_name=config_name, polished=polished, adequacy=adequacy, fisher_nominal=fisher0, fit_gap_ratio=fit_gap,
+        noise_model=tuple(noise.describe(cfg.output_names, [e.name for e in exps])), noise=noise, priors=priors,
+        modal_agreement=agreement, data_start=None if start is None else start.to_dict(space.names),
+        hints=tuple(hints), cramer_rao_note=_cramer_rao_note(evaluator, best_x, noise, best_crb), grid_advice=grid)
 
 
 def _cramer_rao_note(evaluator: NativeEvaluator, x: np.ndarray, noise: NoiseModel, crb: np.ndarray) -> str | None:

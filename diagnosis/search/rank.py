@@ -366,11 +366,11 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
     say = progress or (lambda _m: None)
     clock = clock if clock is not None else StageClock()
     early_rebaseline, left = rebaseline, rounds
-    matches: dict[str, PatternFit] = {}     # the modal matches, polished again by a later ranking
-    memo = memo if memo is not None else RefitMemo()
+    # the modal matches, polished again by a later ranking, and the local refits, taken instead of repeated
+    plan = _Plan(catalogue, shortlist, max_evaluations, say, executor, parallel, modal, clock, {},
+                 memo if memo is not None else RefitMemo())
     while True:
-        outcome = _rank_once(problem, baseline, catalogue, shortlist, max_evaluations, say, executor, parallel,
-                             early_rebaseline, modal, clock, matches, memo)
+        outcome = _rank_once(problem, baseline, plan, early_rebaseline)
         if isinstance(outcome, Fit):
             # a local refit's baseline unknowns lie in a better basin: rank from there, before the costly stages
             say(f"baseline re-fit from a local refit's optimum: RSS {baseline.rss:.4g} -> {outcome.rss:.4g}; "
@@ -423,12 +423,27 @@ def _shortlist(problem: GapProblem, effects: dict[str, Effect], scores: dict[str
     return labels + extra
 
 
-def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortlist: int, max_evaluations: int,
-               say: Callable[[str], None], executor: Executor | None, parallel: int, rebaseline: bool,
-               modal: Callable[[np.ndarray], ModalEvidence] | None, clock: StageClock,
-               matches: dict[str, PatternFit], memo: RefitMemo) -> Ranking | Fit:
+@dataclass(frozen=True, eq=False)
+class _Plan:
+    """What every ranking of one :func:`rank_effects` call shares (its arguments, and the modal matches and local
+    refits the rankings pass on to each other)."""
+
+    catalogue: Catalogue
+    shortlist: int
+    max_evaluations: int
+    say: Callable[[str], None]
+    executor: Executor | None
+    parallel: int
+    modal: Callable[[np.ndarray], ModalEvidence] | None
+    clock: StageClock
+    matches: dict[str, PatternFit]
+    memo: RefitMemo
+
+
+def _rank_once(problem: GapProblem, baseline: Fit, plan: _Plan, rebaseline: bool) -> Ranking | Fit:
     """One ranking from ``baseline`` (the stages of the module docstring), or — with ``rebaseline``, before the
     continuation refits — the better baseline a local refit revealed (:func:`rank_effects` ranks from it)."""
+    catalogue, say, executor, modal, clock = plan.catalogue, plan.say, plan.executor, plan.modal, plan.clock
     effects = {e.label: e for e in catalogue.effects()}
     before, _ = problem.heldout(baseline.beta)
     scores = {}
@@ -436,10 +451,10 @@ def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortli
         for lab, e in effects.items():
             scores[lab] = score_effect(problem, baseline, e)
             say(f"score {lab}: {scores[lab].lm:.4g}")
-    run = Search(problem, baseline, catalogue, effects, before, scores, max_evaluations, executor, say, clock,
-                 matches, memo)
+    run = Search(problem, baseline, catalogue, effects, before, scores, plan.max_evaluations, executor, say, clock,
+                 plan.matches, plan.memo)
     by_score = sorted(effects, key=lambda lab: -scores[lab].lm)
-    labels = _shortlist(problem, effects, scores, by_score, shortlist)
+    labels = _shortlist(problem, effects, scores, by_score, plan.shortlist)
     # with the modal pattern at hand, the other basins wait until it has been tried (it is cheaper)
     with clock.stage("local refits"):
         local = run.refit(labels, stage="local" if modal is None else "first")
@@ -464,5 +479,5 @@ def _rank_once(problem: GapProblem, baseline: Fit, catalogue: Catalogue, shortli
         if evidence is None:     # (the modal stage, when it ran, has tried the pair already)
             with clock.stage("pairs"):
                 early, local = early_pair(run, labels, local)
-        local = _continuation_stage(run, labels, local, early, evidence, patterns, parallel)
+        local = _continuation_stage(run, labels, local, early, evidence, patterns, plan.parallel)
     return _decide(run, by_score, labels, local, early, patterns, evidence)
