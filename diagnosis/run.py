@@ -48,7 +48,7 @@ from .effects import Catalogue
 from .design import next_experiment
 from .judgement.rules import Case, Judgement, judge
 from .judgement.verdict import Kind, settled
-from .judgement.weigh import weigh
+from .judgement.weigh import Weighed, weigh
 from .localise import Localisation, localise
 from .problem.fitting import Fit, GapProblem
 from .problem.records import ordered_record, split_records
@@ -57,7 +57,7 @@ from .report.html import html_sections
 from .report.result import DiagnosisSettings, GapReport
 from .judgement.apart import SetupsApart, apart_parts, disagreement
 from .search.reuse import RefitMemo
-from .search.plausible import PlausibleReading, plausible_readings, readings_text
+from .search.plausible import plausible_readings
 from .search.modal_pattern import modal_source
 from .search.rank import Ranking, rank_effects
 from .search.sign import sign_with_refits
@@ -182,96 +182,27 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         search = partial(_search, beta0=beta0, fit_noise=given is None, setups=setups, executor=executor,
                          parallel=executor.workers if isinstance(executor, DaskExecutor) else workers, clock=clock,
                          say=say, memo=memo)
-        found = search(problem)
-        # the force's sign weighed with the mechanisms, when no refit reaches the noise floor with the sign taken
-        with clock.stage("the force's sign with the refits"):
-            resign = sign_with_refits(found.problem, found.ranking, found.catalogue, found.polarity, executor)
-        if resign is not None:
-            say(resign.line())
-            if resign.overturned:
-                found = search(problem, take=not found.polarity.reversed)
-            found = replace(found, polarity=replace(found.polarity, with_refits=resign))
-        problem, ranking, catalogue, polarity = found.problem, found.ranking, found.catalogue, found.polarity
-        records, sigma, baseline = problem.records, problem.noise_std, ranking.baseline
-        base_cfg, base_params = space.apply(problem.config, found.baseline.beta)
-        (f_lo, f_hi), freqs, in_band = found.modes.band, found.modes.freqs, found.modes.in_band
-        mf, mz, f_top = freqs[in_band], found.modes.zetas[in_band], found.modes.f_top
-        # the model's own discretisation error: a gap that refining the grid changes is not blamed on physics
-        say("numerical adequacy of the model's grid")
-        with clock.stage("numerical adequacy"):
-            advice = grid_advice(base_cfg, base_params, band_hz=f_hi)
-            adequacy = numerical_adequacy(
-                base_cfg, base_params, [(r.inputs[:r.fit_end], r.outputs[:r.fit_end]) for r in records if r.has_fit],
-                sigma, band_hz=f_hi, advice=advice)
-        # where: localisation of the baseline residual per record
-        with clock.stage("localisation"):
-            base_all = cast(list[np.ndarray], problem.simulate(baseline.beta, until="all"))   # every record
-            locs = [localise(dt, r.inputs, r.outputs, y, cfg.output_names, mf, mz, noise_std=sigma,
-                             input_names=cfg.input_names)
-                    for r, y in zip(records, base_all)]
-        # stage 4, the judgement: the evidence measured once, then the verdict through its rules
-        where = tuple(f"{r.name}: {s}" for r, loc in zip(records, locs) for s in loc.summary[:2])
-
-        def judged(problem: GapProblem, ranking: Ranking) -> Judgement:
-            weighed = weigh(problem, ranking)
-            for lab, lines in weighed.implausible.items():
-                say(f"{lab} needs implausible values: " + "; ".join(lines))
-            return judge(Case(problem, ranking, weighed, float(np.max(adequacy.numerical_share)),
-                              grid_line(advice, adequacy),
-                              polarity, where))
-
-        with clock.stage("plausibility and evidence"):
-            judgement = judged(problem, ranking)
+        found = _signed(problem, search, executor, clock, say)
+        case = _case(found, clock, say)
+        judgement = judge(case)
         say(f"verdict: {judgement.verdict.name}")
-        # the records and the measured modes disagree more than one structure explains: try them as two set-ups
-        apart = None
-        readings = [("one set-up", problem, ranking, judgement.weighed.implausible)]
-        parts = apart_parts(catalogue)
-        why = disagreement(problem, ranking, judgement.weighed) if setups is None and parts else None
-        if why is not None:
-            say(why + f"; ranking again with the measured modes taken without the {', '.join(sorted(parts))}")
-            with clock.stage("set-ups apart"):
-                two = replace(problem, modes_lack=parts)
-                ranking_two = _rank(two, ranking.baseline, catalogue, found.modes, executor, clock, say, memo)
-                judgement_two = judged(two, ranking_two)
-            adopted = judgement_two.verdict.kind is Kind.EFFECT
-            apart = SetupsApart(why, parts, judgement_two.verdict.name, adopted, judgement_two.verdict.text())
-            readings.append((f"set-ups apart: the measured modes without the {', '.join(sorted(parts))}", two,
-                             ranking_two, judgement_two.weighed.implausible))
-            if adopted:
-                problem, ranking, judgement = two, ranking_two, judgement_two
-                setups = Setups.apart(parts)
-            judgement = replace(judgement, verdict=judgement.verdict.said("set-ups", apart.text()))
-            say(f"set-ups apart: {apart.verdict}{' (adopted)' if adopted else ' (one set-up kept)'}")
-        # no effect named and the closing refits implausible: each refitted inside the plausibility limits
-        allowed: list[PlausibleReading] = []
-        if judgement.verdict.kind is not Kind.EFFECT:
-            with clock.stage("plausible readings"):
-                allowed = plausible_readings(readings, catalogue, executor=executor)
-            for reading in allowed:
-                say("held within plausibility: " + reading.line())
-            if allowed:
-                verdict = judgement.verdict.said("plausible readings", readings_text(allowed))
-                judgement = replace(judgement, verdict=verdict)
+        case, setups, tried = _apart(case, judgement, found, setups, executor, clock, say, memo)
+        case = _readings(case, tried, found, executor, clock, say)
+        judgement = judge(case)                 # every change of the verdict goes through the rules
+        problem, ranking = case.problem, case.ranking
         # when candidates remain tied or the gap is unexplained: the record that would separate them
         with clock.stage("next experiment"):
-            nxt = next_experiment(problem, ranking, judgement, (f_lo, f_hi), freqs, allowed)
+            nxt = next_experiment(problem, ranking, judgement, found.modes.band, found.modes.freqs, case.readings)
         if nxt is not None:
             say(nxt.line())
-        # stage 5, the report
-        edges = np.concatenate([[0.0], 0.5 * (mf[1:] + mf[:-1]), [f_top], [0.5 / dt]])
-        with clock.stage("held-out closure per band"):
-            rows = effect_rows(problem, ranking, edges, len(mf) + 1)
-        ran_with = DiagnosisSettings(tuple(str(h) for h in holdout), None if holdout else holdout_fraction, settings)
-        report = replace(gap_report(problem, ranking, judgement, (f_lo, f_hi), mf, adequacy, advice, locs, rows,
-                                    ran_with, polarity), stage_seconds=dict(clock.seconds), setups=setups,
-                         next_experiment=nxt, setups_apart=apart, plausible_readings=tuple(allowed),
-                         events=executor.events() if isinstance(executor, DaskExecutor) else ())
+        report = _report(case, judgement, found, DiagnosisSettings(
+            tuple(str(h) for h in holdout), None if holdout else holdout_fraction, settings), clock, executor)
+        report = replace(report, setups=setups, next_experiment=nxt)
         for event in report.events:
             say(f"note: {event}")
         if out is None:
             return Diagnosis(problem, ranking, report, None)
-        report = _write(out, problem, ranking, report, locs, plots=plots, export=export, targets=targets)
+        report = _write(out, problem, ranking, report, case.locs, plots=plots, export=export, targets=targets)
         return Diagnosis(problem, ranking, report, out)
     except BaseException:
         if executor is not None:
@@ -281,6 +212,121 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     finally:
         if executor is not None:
             close_refit_pool(executor, now=False)
+
+
+def _signed(problem: GapProblem, search: Callable[..., _Found], executor: Any, clock: StageClock,
+            say: Callable[[str], None]) -> _Found:
+    """The search, and again with the other sign when the force's sign weighed with the mechanisms overturns the
+    baseline's (:func:`~diagnosis.search.sign.sign_with_refits`: when no refit reaches the noise floor with the sign
+    taken)."""
+    found = search(problem)
+    with clock.stage("the force's sign with the refits"):
+        resign = sign_with_refits(found.problem, found.ranking, found.catalogue, found.polarity, executor)
+    if resign is None:
+        return found
+    say(resign.line())
+    if resign.overturned:
+        found = search(problem, take=not found.polarity.reversed)
+    return replace(found, polarity=replace(found.polarity, with_refits=resign))
+
+
+def _case(found: _Found, clock: StageClock, say: Callable[[str], None]) -> Case:
+    """What the rules judge: the grid's share of the gap (a gap that refining the grid changes is not blamed on
+    physics), where the baseline's residual lies, and the evidence measured once."""
+    problem, ranking = found.problem, found.ranking
+    records, sigma, cfg = problem.records, problem.noise_std, problem.config
+    base_cfg, base_params = problem.space.apply(cfg, found.baseline.beta)
+    f_hi = found.modes.band[1]
+    say("numerical adequacy of the model's grid")
+    with clock.stage("numerical adequacy"):
+        advice = grid_advice(base_cfg, base_params, band_hz=f_hi)
+        adequacy = numerical_adequacy(
+            base_cfg, base_params, [(r.inputs[:r.fit_end], r.outputs[:r.fit_end]) for r in records if r.has_fit],
+            sigma, band_hz=f_hi, advice=advice)
+    mf, mz = found.modes.freqs[found.modes.in_band], found.modes.zetas[found.modes.in_band]
+    with clock.stage("localisation"):
+        base_all = cast(list[np.ndarray], problem.simulate(ranking.baseline.beta, until="all"))   # every record
+        locs = tuple(localise(cfg.time.dt, r.inputs, r.outputs, y, cfg.output_names, mf, mz, noise_std=sigma,
+                              input_names=cfg.input_names) for r, y in zip(records, base_all))
+    where = tuple(f"{r.name}: {s}" for r, loc in zip(records, locs) for s in loc.summary[:2])
+    with clock.stage("plausibility and evidence"):
+        weighed = _weighed(problem, ranking, say)
+    return Case(problem, ranking, weighed, float(np.max(adequacy.numerical_share)), grid_line(advice, adequacy),
+                found.polarity, where, adequacy=adequacy, advice=advice, locs=locs)
+
+
+def _weighed(problem: GapProblem, ranking: Ranking, say: Callable[[str], None]) -> Weighed:
+    """The evidence on ``ranking`` (:func:`~diagnosis.judgement.weigh.weigh`), what is implausible said."""
+    weighed = weigh(problem, ranking)
+    for lab, lines in weighed.implausible.items():
+        say(f"{lab} needs implausible values: " + "; ".join(lines))
+    return weighed
+
+
+Reading = tuple[str, GapProblem, Ranking, dict[str, list[str]]]
+
+
+def _apart(case: Case, judgement: Judgement, found: _Found, setups: Setups | None, executor: Any,
+           clock: StageClock, say: Callable[[str], None], memo: RefitMemo
+           ) -> tuple[Case, Setups | None, list[Reading]]:
+    """When the records and the measured modes disagree more than one structure explains (and no set-ups were
+    declared): ranked again with the measured modes taken without the rig parts; the two-set-up case is the one
+    judged when it names an effect (adopted), else the one-set-up case, either way with what was tried
+    (:class:`~diagnosis.judgement.apart.SetupsApart`, said by the rules).  Also every reading tried, for
+    :func:`_readings`."""
+    problem, ranking = case.problem, case.ranking
+    readings: list[Reading] = [("one set-up", problem, ranking, judgement.weighed.implausible)]
+    parts = apart_parts(found.catalogue)
+    why = disagreement(problem, ranking, judgement.weighed) if setups is None and parts else None
+    if why is None:
+        return case, setups, readings
+    say(why + f"; ranking again with the measured modes taken without the {', '.join(sorted(parts))}")
+    with clock.stage("set-ups apart"):
+        two = replace(problem, modes_lack=parts)
+        ranking_two = _rank(two, ranking.baseline, found.catalogue, found.modes, executor, clock, say, memo)
+        case_two = replace(case, problem=two, ranking=ranking_two, weighed=_weighed(two, ranking_two, say),
+                           _chain={})
+        verdict_two = judge(case_two).verdict
+    adopted = verdict_two.kind is Kind.EFFECT
+    apart = SetupsApart(why, parts, verdict_two.name, adopted, verdict_two.text())
+    say(f"set-ups apart: {apart.verdict}{' (adopted)' if adopted else ' (one set-up kept)'}")
+    readings.append((f"set-ups apart: the measured modes without the {', '.join(sorted(parts))}", two,
+                     ranking_two, case_two.weighed.implausible))
+    if adopted:
+        return replace(case_two, apart=apart), Setups.apart(parts), readings
+    return replace(case, apart=apart), setups, readings
+
+
+def _readings(case: Case, tried: list[Reading], found: _Found, executor: Any, clock: StageClock,
+              say: Callable[[str], None]) -> Case:
+    """When no effect is named and the closing refits are implausible: each refitted inside the plausibility limits
+    for every reading ``tried`` (:func:`~diagnosis.search.plausible.plausible_readings`); the case with them (said
+    by the rules)."""
+    if judge(case).verdict.kind is Kind.EFFECT:
+        return case
+    with clock.stage("plausible readings"):
+        allowed = plausible_readings(tried, found.catalogue, executor=executor)
+    for reading in allowed:
+        say("held within plausibility: " + reading.line())
+    return replace(case, readings=tuple(allowed))
+
+
+def _report(case: Case, judgement: Judgement, found: _Found, ran_with: DiagnosisSettings, clock: StageClock,
+            executor: Any) -> GapReport:
+    """The report (:func:`~diagnosis.report.assemble.gap_report`): the held-out closure per band between the
+    modes, the stages' times and what was tried."""
+    problem, ranking = case.problem, case.ranking
+    modes = found.modes
+    mf, f_top, dt = modes.freqs[modes.in_band], modes.f_top, problem.config.time.dt
+    edges = np.concatenate([[0.0], 0.5 * (mf[1:] + mf[:-1]), [f_top], [0.5 / dt]])
+    with clock.stage("held-out closure per band"):
+        rows = effect_rows(problem, ranking, edges, len(mf) + 1)
+    assert case.adequacy is not None and case.advice is not None
+    report = gap_report(problem, ranking, judgement, modes.band, mf, case.adequacy, case.advice, case.locs, rows,
+                        ran_with, found.polarity)
+    return replace(report, stage_seconds=dict(clock.seconds), setups_apart=case.apart,
+                   plausible_readings=case.readings,
+                   events=executor.events() if isinstance(executor, DaskExecutor) else ())
 
 
 @dataclass(frozen=True, eq=False)

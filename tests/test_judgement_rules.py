@@ -52,7 +52,26 @@ def case(refits: dict[str, EffectRefit], *, effects: dict | None = None, share: 
 
 def test_the_rules_run_in_the_documented_order():
     assert [name for name, _ in RULES] == ["naming", "numerical adequacy", "plausibility", "nested cases",
-                                           "evidence and ties", "notes"]
+                                           "evidence and ties", "notes", "set-ups", "plausible readings"]
+
+
+def test_the_set_ups_apart_and_the_plausible_readings_are_said_by_the_rules():
+    """What the orchestrator tried after a first judgement changes the verdict only through the rules: the set-ups
+    told apart are said last but one, the readings held within plausibility last — and only when no effect is
+    named (a named effect needs none)."""
+    from diagnosis.judgement.apart import SetupsApart
+    from diagnosis.search.plausible import PlausibleReading
+
+    apart = SetupsApart("the modes disagree", frozenset({"shaker"}), "unexplained", False, "")
+    rf = refit("point_mass", 2.0)
+    reading = PlausibleReading("point_mass", None, "one set-up", rf, 0.05, None, 1.0)
+    c = replace(case({"foundation": refit("foundation", 30.0)}), apart=apart, readings=(reading,))
+    v = judge(c).verdict
+    assert v.kind is Kind.UNEXPLAINED
+    assert [r.rule for r in v.reasons][-2:] == ["set-ups", "plausible readings"], v.reasons
+    assert v.reasons[-2].text == apart.text() and "point_mass" in v.reasons[-1].text
+    named = judge(replace(case({"foundation": refit("foundation", 1.1)}), apart=apart, readings=(reading,))).verdict
+    assert named.kind is Kind.EFFECT and [r.rule for r in named.reasons][-1] == "set-ups"
 
 
 def test_a_named_effect_carries_its_reasons_and_their_rules():

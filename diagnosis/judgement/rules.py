@@ -12,7 +12,9 @@ the next (:class:`~diagnosis.judgement.verdict.Verdict`), run by :func:`judge`.
 5. **evidence and ties** — between tied candidates the posterior odds decide, or the verdict is
    ``indistinguishable``;
 6. **notes** — posterior probability, degeneracies, the measurement chain's scale, the measured modes, the force's
-   sign, where an unexplained gap lies.
+   sign, where an unexplained gap lies;
+7. **set-ups** — the set-ups told apart, when tried; **plausible readings** — what the records allow with every
+   closing refit held within plausibility, when no effect is named.
 
 Every rule reads its thresholds from the one settings object (:attr:`GapProblem.settings
 <diagnosis.problem.fitting.GapProblem.settings>`); the verdict's text is rendered once, from its reasons.
@@ -24,10 +26,16 @@ from typing import Callable
 
 import numpy as np
 
+from ebb_model.adequacy import NumericalAdequacy
+from ebb_model.grid_advice import GridAdvice
+
 from ..baseline.polarity import PolarityCheck
 from ..effects import PAIR_SEPARATOR
+from ..localise import Localisation
 from ..problem.fitting import GapProblem
+from ..search.plausible import PlausibleReading, readings_text
 from ..search.rank import Ranking
+from .apart import SetupsApart
 from .verdict import Kind, Reason, Verdict, by_evidence, name_cause, named
 from .weigh import Weighed, chain_degeneracies
 
@@ -46,6 +54,15 @@ class Case:
     grid_advice: str
     polarity: PolarityCheck
     where: tuple[str, ...] = ()
+    #: the set-ups told apart when they were tried (:mod:`diagnosis.judgement.apart`), said by the rules
+    apart: SetupsApart | None = None
+    #: what the records allow once the closing refits are held within plausibility (said when no effect is named)
+    readings: tuple[PlausibleReading, ...] = ()
+    #: the grid's adequacy and advice behind ``grid_share`` and ``grid_advice`` (for the report)
+    adequacy: NumericalAdequacy | None = None
+    advice: GridAdvice | None = None
+    #: the localisation of the baseline's residual per record behind ``where`` (for the report)
+    locs: tuple[Localisation, ...] = ()
     #: the measurement chain's degeneracies, measured when a rule first asks (:func:`chain_degeneracies`)
     _chain: dict[str, dict[str, str]] = field(default_factory=dict, repr=False)
 
@@ -202,10 +219,23 @@ def notes(verdict: Verdict, case: Case) -> Verdict:
     return verdict
 
 
+def setups(verdict: Verdict, case: Case) -> Verdict:
+    """The set-ups told apart, when they were tried: why, how, and whether that reading was adopted."""
+    return verdict if case.apart is None else verdict.said("set-ups", case.apart.text())
+
+
+def readings(verdict: Verdict, case: Case) -> Verdict:
+    """When no effect is named: what the records allow with every closing refit held within plausibility."""
+    if verdict.kind is Kind.EFFECT or not case.readings:
+        return verdict
+    return verdict.said("plausible readings", readings_text(list(case.readings)))
+
+
 #: The rules in the order they apply, each with its name.
 RULES: tuple[tuple[str, Rule], ...] = (
     ("naming", naming), ("numerical adequacy", numerical), ("plausibility", plausibility),
-    ("nested cases", nested), ("evidence and ties", evidence), ("notes", notes))
+    ("nested cases", nested), ("evidence and ties", evidence), ("notes", notes), ("set-ups", setups),
+    ("plausible readings", readings))
 
 
 @dataclass(frozen=True)
