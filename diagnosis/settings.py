@@ -37,6 +37,11 @@ class Thresholds:
     gap_threshold: float = field(default=NOISE_FLOOR_EXCESS, metadata=_reason(
         "relative excess of the held-out residual variance over the noise floor below which there is no gap "
         "(ebb_model.adequacy.NOISE_FLOOR_EXCESS: a gap ratio up to 1.25 is the noise)", 0.0, 1e9))
+    explained_share: float = field(default=0.1, metadata=_reason(
+        "a refit that leaves at most this share of the baseline's excess over the noise floor on the fit windows "
+        "explains the gap: the search stops widening (other basins, continuation refits); what is left is the "
+        "noise estimate's and the model's own few per cent (an excess of 0.7 closed to 0.09 is explained)",
+        0.0, 1.0))
     bic_margin: float = field(default=10.0, metadata=_reason(
         "BIC improvement an effect must reach to pay for its parameters: 'very strong' on Kass & Raftery's "
         "scale (a Bayes factor of about 150)", 0.0, 1e3))

@@ -41,6 +41,10 @@ from ..problem.fitting import Fit, GapProblem
 
 __all__ = ["EffectScore", "MASS_GRID", "score_effect", "trial_values"]
 
+#: A second start of a placed effect's refit (the best-scoring position well apart from the best) lies at least
+#: this share of the position's range from the first: a start, not a decision (the refit moves from it freely).
+ALTERNATIVE_APART = 0.2
+
 #: Positions tried for the point mass score (fractions of the search interval).
 MASS_GRID = 13
 
@@ -125,7 +129,7 @@ def score_effect(problem: GapProblem, baseline: Fit, effect: Effect) -> EffectSc
         start[0] = off[0] + np.clip(step, -0.5, 0.5) * span[0]
         # the best position well apart from the first as an alternative start of the refit
         for lm_j, step_j, s_j in grid[1:]:
-            if abs(s_j[1] - s_best[1]) > 0.2 * span[1] and lm_j > 0:
+            if abs(s_j[1] - s_best[1]) > ALTERNATIVE_APART * span[1] and lm_j > 0:
                 alt = s_j.copy()
                 alt[0] = off[0] + np.clip(step_j, -0.5, 0.5) * span[0]
                 starts.append(np.clip(alt, lo, hi))

@@ -95,7 +95,7 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
              mode_freqs_hz: ArrayLike, mode_damping: ArrayLike | None = None, *,
              noise_std: ArrayLike | None = None, windows: int = 8, amplitude_bins: int = 4,
              input_names: Sequence[str] | None = None, max_lag: int = 25, alpha: float = 1e-3,
-             gap_threshold: float = 1.5, nperseg: int | None = None) -> Localisation:
+             gap_ratio_limit: float = 1.5, nperseg: int | None = None) -> Localisation:
     """Locate the gap between measured outputs and model outputs.
 
     Parameters
@@ -129,7 +129,7 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
         Lags of the auto- and cross-correlation (MATLAB ``resid`` default 25).
     alpha
         Family-wise significance level for naming drift, nonlinearity and mode deviations.
-    gap_threshold
+    gap_ratio_limit
         Gap ratio ``var(r)/σ²`` from which a sensor counts as having a model error.
     nperseg
         Welch segment length (default :func:`choose_nperseg`).
@@ -148,7 +148,7 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
     dt = _check_dt(dt)
     u2, y2, yh2, snames, inames, mf, md, mode_no = _checked(dt, u, y, y_hat, sensor_names, input_names,
                                                             mode_freqs_hz, mode_damping, windows, amplitude_bins,
-                                                            max_lag, alpha, gap_threshold, nperseg)
+                                                            max_lag, alpha, gap_ratio_limit, nperseg)
     n = y2.shape[0]
 
     # ---- spectra -----------------------------------------------------------------------------
@@ -160,7 +160,7 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
     sig, nmeth = _noise(noise_std, u2, y2, dt, nperseg, f, mf)
     r = y2 - yh2
     white_list, xc_list = correlation_tests(r, u2, max_lag, snames, inames)
-    sensors = sensor_gaps(y2, r, sig, nmeth, snames, xc_list, gap_threshold)
+    sensors = sensor_gaps(y2, r, sig, nmeth, snames, xc_list, gap_ratio_limit)
     bands, edges, excess_by_mode = band_gaps(r, dt, nperseg, f, mf, mode_no, sig, snames)
     modes = mode_gaps(frfs, u2, mf, md, mode_no, edges, excess_by_mode, snames, inames, alpha)
     wins, amps = window_and_amplitude_gaps(dt, u2, y2, yh2, frfs.fp_m, sig, snames, windows, amplitude_bins, alpha)
@@ -174,7 +174,7 @@ def localise(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
 
 def _checked(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_names: Sequence[str],
              input_names: Sequence[str] | None, mode_freqs_hz: ArrayLike, mode_damping: ArrayLike | None,
-             windows: int, amplitude_bins: int, max_lag: int, alpha: float, gap_threshold: float,
+             windows: int, amplitude_bins: int, max_lag: int, alpha: float, gap_ratio_limit: float,
              nperseg: int | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...], tuple[str, ...],
                                            np.ndarray, np.ndarray | None, list[int]]:
     """:func:`localise`'s arguments checked (every problem of the settings reported at once): the signals as
@@ -206,8 +206,8 @@ def _checked(dt: float, u: np.ndarray, y: np.ndarray, y_hat: np.ndarray, sensor_
         problems.append(f"max_lag: must be an integer >= 1, got {max_lag!r}")
     if not (isinstance(alpha, (int, float)) and 0 < alpha < 1):
         problems.append(f"alpha: must be in (0, 1), got {alpha!r}")
-    if not (isinstance(gap_threshold, (int, float)) and math.isfinite(gap_threshold) and gap_threshold > 1):
-        problems.append(f"gap_threshold: must be a number > 1, got {gap_threshold!r}")
+    if not (isinstance(gap_ratio_limit, (int, float)) and math.isfinite(gap_ratio_limit) and gap_ratio_limit > 1):
+        problems.append(f"gap_ratio_limit: must be a number > 1, got {gap_ratio_limit!r}")
     if nperseg is not None and not (isinstance(nperseg, (int, np.integer)) and 16 <= nperseg <= n):
         problems.append(f"nperseg: must be an integer in [16, n_samples = {n}], got {nperseg!r}")
     fnyq = 0.5 / dt

@@ -126,7 +126,7 @@ def correlation_tests(r: np.ndarray, u2: np.ndarray, max_lag: int, snames: Seque
 
 
 def sensor_gaps(y2: np.ndarray, r: np.ndarray, sig: np.ndarray, nmeth: Sequence[str], snames: Sequence[str],
-                xc_list: Sequence[CrossCorrelation], gap_threshold: float) -> list[SensorGap]:
+                xc_list: Sequence[CrossCorrelation], gap_ratio_limit: float) -> list[SensorGap]:
     """NRMSE, gap ratio against the noise and model-error share per sensor, and whether it has a gap."""
     n_out = y2.shape[1]
     mse = np.mean(r ** 2, axis=0)
@@ -142,8 +142,8 @@ def sensor_gaps(y2: np.ndarray, r: np.ndarray, sig: np.ndarray, nmeth: Sequence[
             residual_rms=float(math.sqrt(mse[o])), residual_mean=float(rmean[o]), noise_std=float(sig[o]),
             noise_method=nmeth[o], gap_ratio=gap,
             model_error_fraction=float(max(0.0, 1.0 - sig[o] ** 2 / mse[o])) if mse[o] > 0 else 0.0,
-            gap_detected=bool(gap >= gap_threshold or (xsig and gap >= 1.1)
-                              or rmean[o] ** 2 >= (gap_threshold - 1) * sig[o] ** 2)))
+            gap_detected=bool(gap >= gap_ratio_limit or (xsig and gap >= 1.1)
+                              or rmean[o] ** 2 >= (gap_ratio_limit - 1) * sig[o] ** 2)))
     return sensors
 
 

@@ -25,8 +25,8 @@ class SensorGap:
     noise_method: str            #: "psd_floor", "difference_mad" or "given"
     gap_ratio: float             #: var(y - y_hat) / noise_std²
     model_error_fraction: float  #: max(0, 1 - noise_std² / MSE)
-    gap_detected: bool           #: gap_ratio >= gap_threshold, or input-correlated residual and gap_ratio >= 1.1,
-    #: or an offset with residual_mean² / noise_std² >= gap_threshold - 1
+    gap_detected: bool           #: gap_ratio >= gap_ratio_limit, or input-correlated residual and gap_ratio >= 1.1,
+    #: or an offset with residual_mean² / noise_std² >= gap_ratio_limit - 1
 
 
 @dataclass(frozen=True)

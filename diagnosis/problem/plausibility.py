@@ -22,6 +22,11 @@ from .fitting import Fit, GapProblem
 
 __all__ = ["confounded", "implausibilities", "posterior_std", "prior_checks"]
 
+#: The baseline unknowns a degeneracy names: those whose coefficient in the effect's column is at least this share
+#: of the largest (a wording choice for the sentence, not a decision: whether the effect is degenerate is
+#: ``Thresholds.confounded``'s).
+NAMED_SHARE = 0.1
+
 
 def posterior_std(problem: GapProblem, fit: Fit) -> np.ndarray:
     """Posterior standard deviations of the baseline unknowns at ``fit`` (Gauss–Newton: its Jacobian, whose
@@ -99,7 +104,7 @@ def confounded(problem: GapProblem, effect: Effect, fit: Fit, *, at_baseline: bo
         coef = np.linalg.lstsq(Jb, col, rcond=None)[0]
         left = float(np.linalg.norm(col - Jb @ coef)) / norm
         if left < problem.settings.confounded:
-            big = np.abs(coef) >= 0.1 * np.abs(coef).max()
+            big = np.abs(coef) >= NAMED_SHARE * np.abs(coef).max()
             names = [n for n, b in zip(problem.space.names, big) if b]
             lines.append(f"{effect.variables[j]} is degenerate with {', '.join(names)} (the data leave "
                          f"{left:.1e} of its effect unexplained by them): only a prior on "

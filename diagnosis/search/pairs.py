@@ -21,7 +21,8 @@ import numpy as np
 
 from ..effects import PAIR_SEPARATOR, on_top_of
 from ..problem.fitting import Fit
-from .refits import EffectRefit, explains, pair_refit, paying_refits
+from ..settings import Thresholds
+from .refits import RSS_RESOLUTION, EffectRefit, explains, pair_refit, paying_refits
 from ..candidates.score import score_effect
 from .state import Refits, Search
 
@@ -103,7 +104,7 @@ def pair_with(run: Search, single: EffectRefit, known: dict[str, Fit]
                 f"dBIC of the pair against it {pair.bic - alone.bic:.1f}")
         pays = pays and pair.bic < alone.bic - run.problem.settings.bic_margin
         before = single.fit if effect is first else known.get(effect.label)
-        if before is None or fit.rss < before.rss * (1.0 - 1e-3):     # beyond the refits' own last digits
+        if before is None or fit.rss < before.rss * (1.0 - RSS_RESOLUTION):     # not the same optimum again
             singles[effect.label] = alone
     return (pairs if pays else []), singles
 
@@ -120,14 +121,14 @@ def early_pair(run: Search, labels: list[str], local: Refits) -> tuple[Early, Re
     pairs, singles = pair_with(run, now[lead[0]], {lab: fit for lab, (fit, _) in local.items()})
     local = local | {lab: (rf.fit, local[lab][1] if lab in local else [(rf.fit.beta, rf.fit.s)])
                      for lab, rf in singles.items()}
-    if pairs and explains(pairs[0].fit, run.baseline, run.problem.settings.gap_threshold):
+    if pairs and explains(pairs[0].fit, run.baseline, run.problem.settings):
         run.say(f"the pair {pairs[0].label} explains the gap: no other basins, re-baselining or continuation refits")
     return (now[lead[0]].fit, pairs), local     # (a single improved here is paired again at the end)
 
 
-def pair_explains(early: Early, baseline: Fit, gap_threshold: float) -> bool:
+def pair_explains(early: Early, baseline: Fit, settings: Thresholds) -> bool:
     """Whether the pair tried early explains the gap."""
-    return early is not None and bool(early[1]) and explains(early[1][0].fit, baseline, gap_threshold)
+    return early is not None and bool(early[1]) and explains(early[1][0].fit, baseline, settings)
 
 
 def same_fit(a: Fit, b: Fit) -> bool:

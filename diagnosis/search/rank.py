@@ -119,7 +119,7 @@ def _refit_from_matches(run: Search, patterns: dict[str, PatternFit], labels: li
 def _pattern_stage(run: Search, evidence: ModalEvidence, local: Refits) -> tuple[dict[str, PatternFit], Refits]:
     """Match the measured modes by every structural effect and refit the ``pattern_candidates`` best
     matches from their match (module docstring): the pattern fits, and the refits with theirs."""
-    if not _linear(evidence, run.problem.settings.gap_threshold):
+    if not _linear(evidence, run.problem.settings):
         run.say(f"measured modes: their oscillators, scanned from the model's modes, leave "
                 f"{evidence.measured.gap_ratio:.3g} noise variances — a mode lies outside the scan or the records are "
                 f"not those of a linear time-invariant system: no modal pattern to compare")
@@ -155,7 +155,7 @@ def _pattern_stage(run: Search, evidence: ModalEvidence, local: Refits) -> tuple
     with run.clock.stage("refits from modal matches"):
         local = _refit_from_matches(run, patterns, ranked + special, local)
     rest = [lab for lab in general if lab not in ranked][:run.problem.settings.pattern_candidates]
-    if (rest and not any(explains(local[lab][0], run.baseline, run.problem.settings.gap_threshold) for lab in ranked)
+    if (rest and not any(explains(local[lab][0], run.baseline, run.problem.settings) for lab in ranked)
             and not run.at_noise_floor({lab: local[lab] for lab in special})):
         # the closest matches do not explain the records: the next ones (a pattern fit can stop short of its
         # optimum, and its match still lies in the right basin for the time-domain refit)
@@ -175,9 +175,9 @@ def _modal_stage(run: Search, evidence: ModalEvidence, labels: list[str], local:
     if not run.explained(local):
         with run.clock.stage("pairs"):
             early, local = early_pair(run, labels, local)
-    if not run.explained(local) and not pair_explains(early, run.baseline, run.problem.settings.gap_threshold):
+    if not run.explained(local) and not pair_explains(early, run.baseline, run.problem.settings):
         # (a better basin cannot make a linear time-invariant effect explain records no such model can)
-        linear = _linear(evidence, run.problem.settings.gap_threshold)
+        linear = _linear(evidence, run.problem.settings)
         tried = [lab for lab in labels if linear or not run.time_invariant(lab)]
         with run.clock.stage("other basins"):
             local = local | run.refit(tried, {lab: local[lab] for lab in tried}, stage="basins")
@@ -192,10 +192,10 @@ def _continuation_stage(run: Search, labels: list[str], local: Refits, early: Ea
     """Continuation refits (:mod:`diagnosis.search.refits`), the most promising first, ``parallel`` at a time, until one
     explains the gap; skipped for effects no continuation can help.  Returns the refits with theirs."""
     pending = sorted(labels, key=lambda lab: local[lab][0].rss)
-    if pair_explains(early, run.baseline, run.problem.settings.gap_threshold) or run.explained(local):
+    if pair_explains(early, run.baseline, run.problem.settings) or run.explained(local):
         run.say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
         pending = []
-    if not _linear(evidence, run.problem.settings.gap_threshold):
+    if not _linear(evidence, run.problem.settings):
         # no set of linear oscillators reproduces the records: no linear time-invariant effect can
         lti = [lab for lab in pending if run.time_invariant(lab)]
         if lti:
@@ -217,7 +217,7 @@ def _continuation_stage(run: Search, labels: list[str], local: Refits, early: Ea
         for lab in group:
             fit = local[lab][0]
             run.say(f"continuation refit {lab}: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
-        if any(explains(local[lab][0], run.baseline, run.problem.settings.gap_threshold) for lab in group):
+        if any(explains(local[lab][0], run.baseline, run.problem.settings) for lab in group):
             if pending:
                 run.say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
             break
@@ -245,7 +245,7 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
         # a remainder beyond pair_remainder asks for a second effect too — when the single is one a rig can have
         remainder = (float(np.mean(best.heldout_after)) - 1.0 > run.problem.settings.pair_remainder
                      and _plausible(run, best.label, best))
-        if ((not explains(best.fit, baseline, run.problem.settings.gap_threshold) or remainder)
+        if ((not explains(best.fit, baseline, run.problem.settings) or remainder)
                 and best.closed >= run.problem.settings.pair_minimum):
             # one effect leaves a significant remainder: a second one at once, when it pays for itself (tried
             # already before the continuation refits when this single's fit has not changed since)
@@ -470,7 +470,7 @@ def _rank_once(problem: GapProblem, baseline: Fit, plan: _Plan, rebaseline: bool
         with clock.stage("measured modes"):
             evidence = modal(baseline.beta)
         patterns, labels, early, local = _modal_stage(run, evidence, labels, local)
-    if not run.explained(local) and not pair_explains(early, baseline, problem.settings.gap_threshold):
+    if not run.explained(local) and not pair_explains(early, baseline, problem.settings):
         with clock.stage("re-baseline"):
             better = (better_baseline(problem, baseline, [fit for fit, _ in local.values()], executor)
                       if rebaseline else None)

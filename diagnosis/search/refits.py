@@ -43,7 +43,13 @@ from ..candidates.score import EffectScore, trial_values
 from .workers import side_by_side
 
 __all__ = ["EffectRefit", "explains", "summarise", "map_refits", "refit_from_match", "pair_refit",
-           "better_baseline", "paying_refits", "CONTINUATION"]
+           "better_baseline", "paying_refits", "CONTINUATION", "RSS_RESOLUTION"]
+
+#: Two fits of one model whose RSS differ by less than this share are taken as the same optimum: a margin, not a
+#: measured figure, well above the refits' own tolerances (the cost's relative change 1e-12, the step 1e-10 of the
+#: scaled unknowns, identification.least_squares) against two restarts of one basin ending a hair apart; only a
+#: larger improvement counts as a better basin (a better baseline, a single effect better alone than in its pair).
+RSS_RESOLUTION = 1e-3
 
 #: Fractions of the fit windows of the continuation refit (the first one searched globally).
 CONTINUATION = (0.1, 0.3, 1.0)
@@ -77,12 +83,13 @@ def _best_start(problem: GapProblem, baseline: Fit, effect: Effect, score: Effec
     return min(candidates, key=rss)
 
 
-def explains(fit: Fit, baseline: Fit, gap_threshold: float) -> bool:
-    """Whether ``fit`` leaves at most 10 % of the baseline's excess over the noise floor on the fit windows, or
-    less than ``gap_threshold`` (:attr:`~diagnosis.settings.Thresholds.gap_threshold`: nothing the verdict would
+def explains(fit: Fit, baseline: Fit, settings: Thresholds) -> bool:
+    """Whether ``fit`` leaves at most ``explained_share`` of the baseline's excess over the noise floor on the fit
+    windows, or less than ``gap_threshold`` (:class:`~diagnosis.settings.Thresholds`: nothing the verdict would
     call a gap)."""
     excess_before = baseline.rss / baseline.n - 1.0
-    return excess_before <= gap_threshold or fit.rss / fit.n - 1.0 <= max(0.1 * excess_before, gap_threshold)
+    floor = settings.gap_threshold
+    return excess_before <= floor or fit.rss / fit.n - 1.0 <= max(settings.explained_share * excess_before, floor)
 
 
 def _continuation_fit(problem: GapProblem, starts: list[tuple[np.ndarray, np.ndarray]], effect: Effect,
@@ -138,7 +145,7 @@ def _basin_refits(problem: GapProblem, baseline: Fit, effect: Effect, score: Eff
     """``fit``, or the refit from the baseline's other basins when that is better and ``fit`` leaves the gap;
     ``starts`` gains the starts tried."""
     starts = list(starts)
-    if not explains(fit, baseline, problem.settings.gap_threshold):
+    if not explains(fit, baseline, problem.settings):
         # the baseline unknowns may sit in a basin that only suited the model without the effect
         used = fit.n_evaluations
         starts.append((fit.beta, fit.s))
@@ -230,13 +237,13 @@ def pair_refit(problem: GapProblem, catalogue: Catalogue, label: str, first: Fit
 def better_baseline(problem: GapProblem, baseline: Fit, fits: list[Fit], executor: Executor | None = None
                     ) -> Fit | None:
     """The best baseline refitted from the baseline unknowns of ``fits`` when it beats ``baseline`` by more than
-    0.1 % in RSS, else ``None``: an effect's refit may have moved the baseline unknowns into a better basin, and
-    then the baseline itself was not at its optimum (every comparison must be made again).  The refits run on
-    ``executor``'s processes when given."""
+    :data:`RSS_RESOLUTION` in RSS, else ``None``: an effect's refit may have moved the baseline unknowns into a
+    better basin, and then the baseline itself was not at its optimum (every comparison must be made again).  The
+    refits run on ``executor``'s processes when given."""
     candidates = side_by_side(executor, problem.fit, [(f.beta,) for f in fits])
     better = None
     for cand in candidates:
-        if cand.rss < baseline.rss * (1.0 - 1e-3) and (better is None or cand.rss < better.rss):
+        if cand.rss < baseline.rss * (1.0 - RSS_RESOLUTION) and (better is None or cand.rss < better.rss):
             better = cand
     return better
 

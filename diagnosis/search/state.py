@@ -63,7 +63,7 @@ class Search:
 
     def explained(self, local: dict[str, tuple[Fit, list]]) -> bool:
         """Whether one of the refits explains the gap."""
-        return any(explains(fit, self.baseline, self.problem.settings.gap_threshold) for fit, _ in local.values())
+        return any(explains(fit, self.baseline, self.problem.settings) for fit, _ in local.values())
 
     def at_noise_floor(self, local: dict[str, tuple[Fit, list]]) -> bool:
         """Whether one of the refits leaves the fit windows within the gap threshold of the noise floor
