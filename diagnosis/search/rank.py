@@ -89,10 +89,10 @@ class Ranking:
     not_refitted: dict[str, str] = field(default_factory=dict)
 
 
-def _linear(evidence: ModalEvidence | None, gap_threshold: float) -> bool:
+def _linear(evidence: ModalEvidence | None, settings: Thresholds) -> bool:
     """Whether the measured modes' oscillators reproduce the records (within ``gap_threshold`` of the noise
     floor): if not, no linear time-invariant effect can explain the gap (unknown evidence: assume they do)."""
-    return evidence is None or evidence.measured.gap_ratio <= 1.0 + gap_threshold
+    return evidence is None or evidence.measured.gap_ratio <= 1.0 + settings.gap_threshold
 
 
 # ---------------------------------------------------------------------------
