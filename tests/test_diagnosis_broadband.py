@@ -21,26 +21,46 @@ from first_records import BROADBAND
 
 STRIP = next(c for c in BROADBAND if c.name == "strip-cantilever-tip-accelerometer")
 
-#: (withheld effect or None, the verdict): no effect, and a compliant clamp (kr 1500 N m/rad, twenty times the
-#: strip's EI/L of 75 N m/rad)
+#: (withheld effect or None, the verdict, {parameter of the named effect's refit: (truth, tolerance)}): no effect;
+#: a compliant clamp (kr 1500 N m/rad, twenty times the strip's EI/L of 75 N m/rad: 5 %, measured 0.2 % off); a 30 g
+#: accelerometer at the tip (5 %, measured 0.3 % off); a crack 5 cm from the clamp, 2 cm long at 40 % of EI (its
+#: place within one grid cell of 7.4 mm, measured 0.04 mm off; its length and factor trade against each other)
 CASES = [
-    (None, "none"),
-    (WithheldEffect("boundary_rotational_left", {"kr": 1500.0}), "boundary_rotational_left"),
+    (None, "none", {}),
+    (WithheldEffect("boundary_rotational_left", {"kr": 1500.0}), "boundary_rotational_left",
+     {"kr": (1500.0, 0.05 * 1500.0)}),
+    (WithheldEffect("point_mass", {"mass": 0.03, "x": 0.6}), "transducer_mass[a1]", {"mass": (0.03, 0.05 * 0.03)}),
+    (WithheldEffect("stiffness_loss", {"x": 0.05, "length": 0.02, "factor": 0.4}), "stiffness_loss",
+     {"x": (0.05, 0.6 / 81)}),
 ]
 
 
-def _bench(folder, effect):
+#: The strip's section as a calliper and a data sheet give it (relative: 2.4 %, 0.6 %, 0.5 %, 2 %), centred on the
+#: truth's (E 210 GPa, 7850 kg/m³, 40 × 4 mm).
+GEOMETRY = {"E": {"value": 210e9, "std": 5e9}, "density": {"value": 7850.0, "std": 50.0},
+            "width": {"value": 0.04, "std": 2e-4}, "thickness": {"value": 4e-3, "std": 8e-5}}
+
+
+def _bench(folder, effect, gain=1.0, geometry=None):
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "config.toml").write_text(dumps_toml(STRIP.config_dict()), encoding="utf-8")
+    d = STRIP.config_dict()
+    if geometry is not None:
+        d["identification"] = {"geometry": geometry}
+    (folder / "config.toml").write_text(dumps_toml(d), encoding="utf-8")
     rec = synthesize(STRIP.truth_config(), STRIP.force()[:, None], noise=STRIP.noise, seed=11, effect=effect,
                      interpolation="bandlimited", n_elements=STRIP.elements)
-    np.savetxt(folder / "record.csv", np.column_stack([rec.time, rec.inputs, rec.outputs]), delimiter=",",
+    np.savetxt(folder / "record.csv", np.column_stack([rec.time, rec.inputs, gain * rec.outputs]), delimiter=",",
                header=",".join(["time", *rec.input_names, *rec.output_names]), comments="", fmt="%.12g")
     return folder / "config.toml", folder / "record.csv"
 
 
-@pytest.mark.parametrize("effect,verdict", CASES, ids=[v for _e, v in CASES])
-def test_the_strip_under_broadband_noise_is_diagnosed(tmp_path, effect, verdict):
+@pytest.mark.parametrize("effect,verdict,found", CASES, ids=[v for _e, v, _f in CASES])
+def test_the_strip_under_broadband_noise_is_diagnosed(tmp_path, effect, verdict, found):
+    """The withheld effect named, its refit at the noise floor on the held-out records, its size or place right.
+    Before the numerics were judged again at the leading refit (:func:`diagnosis.baseline.numerics
+    .numerics_at_the_refit`), the tip mass was named with a spurious Kelvin–Voigt term beside it (161 noise
+    variances left, the mass 9 % high) and the crack left 1.4e3: the baseline's numerics (the cubic between samples)
+    were judged at a baseline the effect had taken to 2.2x the strip's EI."""
     from diagnosis.run import diagnose
 
     cfg, rec = _bench(tmp_path / "bench", effect)
@@ -49,6 +69,27 @@ def test_the_strip_under_broadband_noise_is_diagnosed(tmp_path, effect, verdict)
     assert doc["verdict"] == verdict, doc["reason"]
     assert not doc["force_sign"]["reversed"], doc["force_sign"]
     if effect is not None:
-        # the clamp's stiffness within 5 % (measured 0.2 % off: kr 1497)
-        found = doc["effects"][0]["refit"]["effect_parameters"]["kr"]
-        assert found == pytest.approx(1500.0, rel=0.05), found
+        named = next(e for e in doc["effects"] if e["label"] == verdict)["refit"]
+        # at the floor: within the gap threshold (measured 0.96, 1.14 and 1.04)
+        assert max(named["heldout_gap_ratio_after"].values()) - 1.0 <= d.problem.settings.gap_threshold, named
+        for k, (truth, tol) in found.items():
+            assert abs(named["effect_parameters"][k] - truth) <= tol, (k, named["effect_parameters"])
+
+
+def test_an_accelerometer_read_high_is_found_by_the_strips_section(tmp_path):
+    """The accelerometer's sensitivity entered 30 % high: the records alone cannot see it (EI, ρA, c scaled by
+    1/1.3 fit them as well: the baseline sits at the floor), the strip's section (a geometry prior) can — the
+    baseline then conflicts with it by 16 σ.  With one force and one sensor a gain of the force and of the sensor
+    are one model, so the verdict is the two, indistinguishable, each at 1.3.  Before the gain's score took the
+    step along the level (:mod:`diagnosis.candidates.score`) the verdict was ``none`` with the conflict said
+    beside it: the linearised score was 0.03, the gain never refitted."""
+    from diagnosis.run import diagnose
+
+    cfg, rec = _bench(tmp_path / "bench", None, gain=1.3, geometry=GEOMETRY)
+    doc = diagnose(cfg, [rec], tmp_path / "gap", plots=False, workers=1, export=False).document
+    assert doc["verdict"] == "indistinguishable", doc["reason"]
+    assert set(doc["judgement"]["ties"]) == {"sensor_gain[a1]", "actuator_gain"}, doc["judgement"]
+    gains = {e["label"]: e["refit"]["effect_parameters"]["gain"] for e in doc["effects"]
+             if e["label"] in ("sensor_gain[a1]", "actuator_gain")}
+    # the gain within 0.5 % (measured 1.30003 both: the level is fixed by the prior, ±1.1 % in EI·ρA jointly)
+    assert gains == {k: pytest.approx(1.3, rel=5e-3) for k in gains} and len(gains) == 2, gains

@@ -107,7 +107,9 @@ def plausibility(verdict: Verdict, case: Case) -> Verdict:
     problem, ranking, issues = case.problem, case.ranking, case.weighed.implausible
     settings = problem.settings
     if verdict.kind is Kind.NONE:
-        verdict = _prior_conflict(verdict, case)
+        resolved = _prior_conflict(verdict, case)
+        if resolved is not verdict:
+            return resolved                   # its reason says the baseline's conflicts
     elif verdict.label in issues:
         refits = {lab: rf for lab, rf in ranking.refits.items() if lab not in issues}
         before = ranking.heldout_before
@@ -138,8 +140,12 @@ def _prior_conflict(verdict: Verdict, case: Case) -> Verdict:
     if not ok:
         return verdict
     best = min(ok, key=lambda lab: ranking.refits[lab].delta_bic)
+    # the others that keep the priors as well and pay nearly as much are its ties, for the evidence to decide (a
+    # sensor's gain and the force's on a record of one sensor: one model, their BICs apart by round-off only)
+    ties = [lab for lab in ok if lab != best
+            and ranking.refits[lab].delta_bic - ranking.refits[best].delta_bic < settings.bic_margin]
     names = ", ".join(c.name for c in conflicts)
-    return named(best, (), (Reason("plausibility", (
+    return named(best, ties, (Reason("plausibility", (
         f"the baseline matches the records only with {names} in conflict with the prior "
         f"({'; '.join(c.line() for c in conflicts)}); {best} matches them as well with every prior kept "
         f"(held-out gap ratio {np.mean(ranking.refits[best].heldout_after):.3g}, "
