@@ -148,7 +148,8 @@ def pole_weights(s: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
     """
     s = np.asarray(s, dtype=complex).reshape(-1)
     a = s * T
-    E = np.exp(a)
+    with np.errstate(over="ignore", invalid="ignore"):          # an unstable candidate: caught downstream
+        E = np.exp(a)
     W = np.zeros((2 * HALF_WIDTH, s.size), dtype=complex)
     size = np.abs(a)
     level = np.zeros(s.size, dtype=np.int64)
@@ -157,7 +158,8 @@ def pole_weights(s: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
     for lv in np.unique(level):
         idx = np.flatnonzero(level == lv)
         if lv > _MAX_LEVEL:
-            W[:, idx] = T * _series(a[idx], E[idx])
+            with np.errstate(over="ignore", invalid="ignore"):
+                W[:, idx] = T * _series(a[idx], E[idx])
             continue
         sigma, weights, table = _panel_table(int(lv))
         with np.errstate(over="ignore", invalid="ignore"):      # an unstable candidate: caught downstream
