@@ -129,9 +129,25 @@ def fit_figure(t: np.ndarray, measured: np.ndarray, models: Mapping[str, np.ndar
     if t.size > LINE_SAMPLES:                       # the zoom's lines are named too
         more = axes[0, 1].get_legend_handles_labels()
         handles, labels = handles + more[0], labels + more[1]
-    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, bbox_to_anchor=(0.5, -0.01))
-    fig.tight_layout(rect=(0, 0.05, 1, 1))
+    _legend_below(fig, handles, labels)
     return fig
+
+
+#: Columns of a legend below a figure's panels: a long record's fit figure names up to seven lines, whose labels
+#: in one row made the saved figure twice as wide as its panels.
+LEGEND_COLUMNS = 3
+#: Height of one legend row at font size 8, and the legend's padding [inch].
+_LEGEND_ROW, _LEGEND_PAD = 0.22, 0.12
+
+
+def _legend_below(fig: Any, handles: Sequence[Any], labels: Sequence[str], *, top: float = 1.0) -> None:
+    """One legend for the whole figure, centred below its panels in rows of at most :data:`LEGEND_COLUMNS`
+    entries, and the panels laid out above it (``top``: the share of the height they may reach)."""
+    ncol = max(1, min(len(labels), LEGEND_COLUMNS))
+    rows = -(-len(labels) // ncol)
+    fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=8, bbox_to_anchor=(0.5, 0.0))
+    bottom = (rows * _LEGEND_ROW + _LEGEND_PAD) / fig.get_size_inches()[1]
+    fig.tight_layout(rect=(0, min(bottom, 0.5), 1, top))
 
 
 def spread_figure(X: np.ndarray, names: Sequence[str], knee: int, identified: np.ndarray | None) -> Any:
@@ -147,8 +163,7 @@ def spread_figure(X: np.ndarray, names: Sequence[str], knee: int, identified: np
         ax.set_xticks([])
         plain_ticks(ax)
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
-    fig.tight_layout(rect=(0, 0.1, 1, 1))
+    _legend_below(fig, handles, labels)
     return fig
 
 
@@ -198,8 +213,7 @@ def front_figure(F: np.ndarray, names: Sequence[str], knee: int, identified: np.
         ax0.set_title("one objective: no front, the GA's best members")
         plain_ticks(ax0)
     handles, labels = ax0.get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
-    fig.tight_layout(rect=(0, 0.08, 1, 0.97))
+    _legend_below(fig, handles, labels, top=0.97)
     return fig
 
 

@@ -132,6 +132,27 @@ def test_fit_figure_has_a_zoom_and_the_data_on_top_and_a_long_record_as_envelope
         plt.close(fig)
 
 
+def test_a_long_records_legend_stays_within_the_figure_below_its_panels():
+    """Two models on a long record name seven lines (the envelopes, the zoom's lines, the zoom's band): in one row
+    their legend was wider than the panels (the saved figure twice their width).  In rows of three it lies within
+    the figure's width and below every panel."""
+    dt = 2.5e-4
+    t = np.arange(40000) * dt
+    y = np.sin(2 * np.pi * 50 * t)[:, None]
+    models = {"polished knee (finer numerics)": 0.98 * y, "knee (the GA's, not polished)": 0.9 * y}
+    fig = fit_figure(t, y, models, ["a1"], ["m/s^2"])
+    try:
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        (legend,) = fig.legends
+        box, width = legend.get_window_extent(renderer), fig.bbox.width
+        assert len(legend.get_texts()) == 7
+        assert box.x0 >= 0.0 and box.x1 <= width, (box, width)
+        assert box.y1 <= min(ax.get_tightbbox(renderer).y0 for ax in fig.axes) + 1.0
+    finally:
+        plt.close(fig)
+
+
 def test_band_edges_in_plain_digits():
     from diagnosis.report.plots import _hz
 
