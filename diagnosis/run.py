@@ -341,28 +341,22 @@ class _Modes:
     in_band: np.ndarray
     f_top: float
     parallel: int
-    #: where the measured modes' scan starts (:func:`_scan_starts`), one or two sets of the frequencies and damping
-    #: ratios up to ``f_top`` and the first mode above
-    scan: tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]
+    #: where the measured modes' scan starts (:func:`_scan_start`): frequencies and damping ratios up to ``f_top``,
+    #: and the first mode above
+    scan: tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
-def _scan_starts(problem: GapProblem, freqs: np.ndarray, zetas: np.ndarray, f_top: float
-                 ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]:
-    """Where the measured modes' scan starts (:func:`diagnosis.search.modal_pattern.modal_source`, which keeps the
-    scan whose oscillators leave less): the baseline's ``freqs`` and ``zetas``, and those of the fit from the
-    records' own start (:attr:`GapProblem.rival`) — measured: a compensating baseline on a broadband record put
-    eight modes where the records have six, and the scan around them found two that are not there; with a 10 g mass
-    mid-span the baseline's frequency scale was 0.67 of the records' and the scan around it left 26 noise
-    variances, around the records' start's 0.23."""
-    sets = [(freqs, zetas)]
+def _scan_start(problem: GapProblem, freqs: np.ndarray, zetas: np.ndarray, f_top: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The modes the measured modes' scan starts from (:func:`diagnosis.search.modal_pattern.modal_source`): the
+    baseline's ``freqs`` and ``zetas``, or those of the fit from the records' own start when that fits better
+    (:attr:`GapProblem.rival`; measured: a compensating baseline on a broadband record put eight modes where the
+    records have six, and the scan around them found two that are not there)."""
     if problem.rival is not None:
-        sets.append(discrete_frequencies(*problem.space.apply(problem.config, problem.rival.beta)))
-    out = []
-    for f, z in sets:
-        inside = f <= f_top
-        inside[0] = True
-        out.append((f[inside], z[inside], f[~inside][:1]))
-    return tuple(out)
+        freqs, zetas = discrete_frequencies(*problem.space.apply(problem.config, problem.rival.beta))
+    inside = freqs <= f_top
+    inside[0] = True
+    return freqs[inside], zetas[inside], freqs[~inside][:1]
 
 
 @dataclass(frozen=True, eq=False)
@@ -404,11 +398,9 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
     if setups is not None:
         say("set-ups: " + setups.describe())
     catalogue, modes, ranking = _ranked(problem, baseline, band, setups, executor, parallel, clock, say, memo)
-    # the numerics judged again where the model has the effect the records ask for most: the first single effect
-    # of the order (a pair's second part is often what the numerics leave, and a drifting load's simulation is
-    # slow on a finer grid: the mid-span mass's pair with an axial drift took 248 s to judge, the mass alone 7 s)
-    lead = next((lab for lab in ranking.order if lab in ranking.refits and not ranking.effects[lab].members), None)
+    lead = ranking.order[0] if ranking.order and ranking.order[0] in ranking.refits else None
     if lead is not None:
+        # the numerics judged again where the model has the effect the records ask for most
         with clock.stage("numerics the leading refit asks for"):
             refined = numerics_at_the_refit(problem, ranking.refits[lead].fit, ranking.effects[lead], band[1], say)
         if refined is not None:
@@ -437,7 +429,7 @@ def _ranked(problem: GapProblem, baseline: Fit, band: tuple[float, float], setup
     in_band[0] = True
     catalogue = catalogue_of(problem, base_cfg, base_params, freqs[in_band], band[1], absent=frozenset(
         p for p in RIG_PARTS if setups is not None and not setups.records_have(p)))
-    modes = _Modes(band, freqs, zetas, in_band, f_top, parallel, _scan_starts(problem, freqs, zetas, f_top))
+    modes = _Modes(band, freqs, zetas, in_band, f_top, parallel, _scan_start(problem, freqs, zetas, f_top))
     with clock.stage("ranking (the rest)"):
         ranking = _rank(problem, baseline, catalogue, modes, executor, clock, say, memo)
     return catalogue, modes, ranking
@@ -471,7 +463,7 @@ def _rank(problem: GapProblem, baseline: Fit, catalogue: Catalogue, modes: _Mode
     baseline's ``modes`` and the diagnosis' local refits so far (``memo``)."""
     return rank_effects(problem, baseline, catalogue=catalogue, shortlist=problem.settings.shortlist,
                         progress=say, executor=executor, parallel=modes.parallel, rounds=2, clock=clock, memo=memo,
-                        modal=modal_source(problem, modes.scan, modes.band[1]),
+                        modal=modal_source(problem, *modes.scan, modes.band[1]),
                         settled=partial(settled, settings=problem.settings))
 
 

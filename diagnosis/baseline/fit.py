@@ -58,9 +58,9 @@ def floor_from_the_records(problem: GapProblem, baseline: Fit, band_hz: float, s
     A fit from the records' start that is better without reaching the floor is not the baseline — measured on the
     blind family: a spring at a pinned end compensated by the axial load from 69 to 4 noise variances, where a crack
     then closed the rest and was named — but the first of the problem's other starts, from which every shortlisted
-    effect is refitted when the baseline's basin leaves the gap.  Better or not, it stays the problem's
-    :attr:`~diagnosis.problem.fitting.GapProblem.rival` (the measured modes are scanned from its modes as well as
-    the baseline's, the modal patterns matched from it too)."""
+    effect is refitted when the baseline's basin leaves the gap, and stays the problem's
+    :attr:`~diagnosis.problem.fitting.GapProblem.rival` (the measured modes are scanned from its modes, the modal
+    patterns matched from it too); otherwise the problem has no rival."""
     floor = 1.0 + NOISE_FLOOR_EXCESS
     rival, problem = problem.rival, replace(problem, rival=None)
     if baseline.rss / baseline.n <= floor or rival is None:
@@ -79,11 +79,6 @@ def floor_from_the_records(problem: GapProblem, baseline: Fit, band_hz: float, s
     if fit.rss < baseline.rss:
         problem = replace(problem, other_starts=(np.asarray(fit.beta, dtype=float), *problem.other_starts),
                           rival=fit)
-    else:
-        # worse in time, it can still hold the records' frequency scale where the baseline does not (a 10 g mass
-        # mid-span on the broadband strip: the baseline at 0.67 of the records' scale, the records' start 1.2 %
-        # off, its level misplaced): the modal stages work from it too
-        problem = replace(problem, rival=fit)
     return numerics_from_the_records(problem, baseline, band_hz, say)
 
 

@@ -12,12 +12,7 @@ from identification.numerics import REFINEMENT_GAIN, keeps, refinements
 from ..effects import Effect
 from ..problem.fitting import Fit, GapProblem
 
-__all__ = ["REFIT_POLISH", "numerics_at_the_refit", "numerics_from_the_records"]
-
-#: Evaluations of each polish (in the beam's coordinates, then the config's) that judges a refinement at a refit:
-#: the refit is at its optimum on the config's numerics, and the finer numerics move it by a fraction of a
-#: bandwidth (measured: the crack's 110 -> 0.83 noise variances within it).
-REFIT_POLISH = 100
+__all__ = ["numerics_at_the_refit", "numerics_from_the_records"]
 
 
 def numerics_from_the_records(problem: GapProblem, baseline: Fit, band_hz: float, say: Callable[[str], None]
@@ -58,7 +53,7 @@ def numerics_at_the_refit(problem: GapProblem, refit: Fit, effect: Effect, band_
     if refit.rss / refit.n <= 1.0 + NOISE_FLOOR_EXCESS:
         return None
     first = refit.rss
-    refined, fit, kept = _refined(problem, refit, band_hz, effect, max_evaluations=REFIT_POLISH)
+    refined, fit, kept = _refined(problem, refit, band_hz, effect)
     if not kept:
         return None
     say(f"the leading refit ({effect.label}) asks for finer numerics: with {' and '.join(kept)} it goes from "
@@ -66,8 +61,8 @@ def numerics_at_the_refit(problem: GapProblem, refit: Fit, effect: Effect, band_
     return refined, fit
 
 
-def _refined(problem: GapProblem, fit: Fit, band_hz: float, effect: Effect | None = None, *,
-             max_evaluations: int = 300) -> tuple[GapProblem, Fit, list[str]]:
+def _refined(problem: GapProblem, fit: Fit, band_hz: float, effect: Effect | None = None
+             ) -> tuple[GapProblem, Fit, list[str]]:
     """Each refinement that changes ``fit``'s χ² (of ``effect`` at ``fit.s`` when given) by more than
     :data:`~identification.numerics.REFINEMENT_GAIN` per residual, fitted on and kept by
     :func:`~identification.numerics.keeps`: the problem and fit on the numerics kept, and what was kept."""
@@ -79,8 +74,7 @@ def _refined(problem: GapProblem, fit: Fit, band_hz: float, effect: Effect | Non
         r = trial.residuals(fit.beta, effect, fit.s if effect is not None else None)
         if not abs(float(r @ r) - fit.rss) > REFINEMENT_GAIN * fit.n:
             continue
-        new = trial.fit_along_the_level(fit.beta, effect, fit.s if effect is not None else None,
-                                        max_evaluations=max_evaluations)
+        new = trial.fit_along_the_level(fit.beta, effect, fit.s if effect is not None else None)
         if keeps(fit.rss, new.rss, fit.n):
             problem, fit = trial, new
             kept.append(what + (f" ({trial.config.beam.nodes} nodes, from {cfg.beam.nodes})"

@@ -111,8 +111,8 @@ class GapProblem:
     other_starts: tuple[np.ndarray, ...] = ()
     #: the baseline fit from the records' own start (:func:`diagnosis.baseline.fit.baseline_fit`), beside the
     #: baseline from the start given: the force's sign is weighed on the better of the two; after
-    #: :func:`diagnosis.baseline.fit.floor_from_the_records`, that fit when the baseline leaves a gap and it does
-    #: not reach the floor (the measured modes' scan and the modal patterns start there too), else ``None``
+    #: :func:`diagnosis.baseline.fit.floor_from_the_records`, that fit when it is better than the baseline without
+    #: reaching the floor (the measured modes' scan and the modal patterns start there too), else ``None``
     rival: Fit | None = None
     #: the thresholds every stage decides with (:class:`diagnosis.settings.Thresholds`)
     settings: Thresholds = field(default_factory=Thresholds)

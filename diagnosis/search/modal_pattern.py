@@ -40,7 +40,7 @@ from __future__ import annotations
 import math
 from concurrent.futures import Executor
 from dataclasses import dataclass
-from typing import Callable, Mapping, Sequence
+from typing import Callable, Mapping
 
 import numpy as np
 from scipy import optimize
@@ -364,8 +364,8 @@ def pattern_fits(problem: GapProblem, evidence: ModalEvidence, beta: np.ndarray,
     only the weak prior's centre.  (Measured on the rig family's pair, spring and actuator lag, ranked twice:
     the second ranking's 30 s of pattern fits.)
 
-    With a rival baseline (:attr:`GapProblem.rival`: the fit from the records' own start) every fit is made from it
-    too and the better match kept — the baseline's and
+    With a rival baseline (:attr:`GapProblem.rival`: the fit from the records' own start, better than the baseline
+    without reaching the floor) every fit is made from it too and the better match kept — the baseline's and
     each effect's: a compensating baseline can hold ρA (which the modes do not see) on a bound where the records'
     frequency scale lies beyond EI's (measured: a withheld tip mass on a broadband strip record, the baseline's
     matches all at χ² 5.6e10, the records' start 4.4e7 before any fit).
@@ -387,13 +387,12 @@ def pattern_fits(problem: GapProblem, evidence: ModalEvidence, beta: np.ndarray,
     return {"baseline": base} | best
 
 
-def modal_source(problem: GapProblem, starts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
-                 band_hz: float) -> Callable[[np.ndarray], ModalEvidence]:
+def modal_source(problem: GapProblem, freq_hz: np.ndarray, damping: np.ndarray, above_hz: np.ndarray,
+                  band_hz: float) -> Callable[[np.ndarray], ModalEvidence]:
     """The measured modes' evidence at baseline unknowns ``beta`` (:func:`modal_evidence`); the modes
-    are estimated from the fit windows once, when first asked for, from each of ``starts`` (a model's frequencies
-    [Hz], damping ratios, and its first mode above the band) — the estimate whose oscillators leave less kept.
+    are estimated from the fit windows once, when first asked for, starting from the baseline's ``freq_hz``.
 
-    Only the modes the start puts inside the excited band (up to ``band_hz``) and estimated inside it (the
+    Only the modes the baseline puts inside the excited band (up to ``band_hz``) and estimated inside it (the
     first always) are evidence: a mode above it is seen only through the band's edge, and its oscillator takes up
     what the others leave — its frequency, with a standard error that knows nothing of that, can be far from any
     mode (measured: a cantilever's fourth mode at 60.8 Hz, the top of a 60 Hz multisine, estimated at 74.9 Hz 73
@@ -405,17 +404,13 @@ def modal_source(problem: GapProblem, starts: Sequence[tuple[np.ndarray, np.ndar
     def evidence(beta: np.ndarray) -> ModalEvidence:
         if not measured:
             fit = [r for r in problem.records if r.has_fit]
-            found = []
-            for freq_hz, damping, above_hz in starts:
-                modes = estimate_modes([r.inputs[:r.fit_end] for r in fit], [r.outputs[:r.fit_end] for r in fit],
-                                       problem.noise_std, problem.config.time.dt, freq_hz, damping,
-                                       above_hz=above_hz,
-                                       bandlimited=problem.config.time.input_hold == "bandlimited",
-                                       delays=effective_delays(problem.config))
-                keep = (modes.freq_hz <= band_hz) & (freq_hz <= band_hz)
-                keep[0] = True
-                found.append(modes.select(keep))
-            measured.append(min(found, key=lambda m: m.gap_ratio))
+            modes = estimate_modes([r.inputs[:r.fit_end] for r in fit], [r.outputs[:r.fit_end] for r in fit],
+                                   problem.noise_std, problem.config.time.dt, freq_hz, damping, above_hz=above_hz,
+                                   bandlimited=problem.config.time.input_hold == "bandlimited",
+                                   delays=effective_delays(problem.config))
+            keep = (modes.freq_hz <= band_hz) & (freq_hz <= band_hz)
+            keep[0] = True
+            measured.append(modes.select(keep))
         return modal_evidence(problem, beta, measured[0])
 
     return evidence
