@@ -42,7 +42,7 @@ from .polish import residual_scale
 from .record_poles import record_modes
 from .runners import Runner, SerialRunner
 
-__all__ = ["DataStart", "MATCH_TOLERANCE", "STAGES", "data_start"]
+__all__ = ["DataStart", "MATCH_TOLERANCE", "STAGES", "alignment_miss", "data_start"]
 
 #: A peak within this relative distance of a model mode is explained by it.
 MATCH_TOLERANCE = 0.04
@@ -228,6 +228,24 @@ def _family(evaluator: Any, d: _Directions) -> list[tuple[float | None, np.ndarr
     return out
 
 
+def alignment_miss(peaks: np.ndarray, weights: np.ndarray, model_hz: np.ndarray) -> float:
+    """How badly a model's modes ``model_hz`` [Hz] place the records' modes ``peaks`` [Hz] of stability-chart
+    support ``weights``: each record mode's squared distance to the nearest model mode in units of
+    :data:`MATCH_TOLERANCE` (at most 1: a mode missed), weighted by its support, plus half a mean weight for each
+    model mode inside the records' span with no record mode near it (a node of a sensor or actuator may hide one).
+    0: every record mode on a model mode and no model mode unseen."""
+    fk = np.asarray(model_hz, dtype=float)
+    fk = fk[fk > 0]
+    if fk.size == 0 or peaks.size == 0:
+        return float(np.sum(weights))
+    d = np.min(np.abs(np.log(peaks[:, None] / fk[None, :])), axis=1) / MATCH_TOLERANCE
+    miss = float(np.sum(weights * np.minimum(d * d, 1.0)))
+    span = fk[(fk > peaks.min() * (1 - MATCH_TOLERANCE)) & (fk < peaks.max() * (1 + MATCH_TOLERANCE))]
+    unseen = np.min(np.abs(np.log(span[:, None] / peaks[None, :])), axis=1) > MATCH_TOLERANCE \
+        if span.size else np.zeros(0, bool)
+    return miss + 0.5 * float(np.mean(weights)) * int(np.count_nonzero(unseen))
+
+
 def _alignments(peaks: np.ndarray, weights: np.ndarray, family: list[tuple[float | None, np.ndarray]],
                 k_lo: float, k_hi: float, nyquist: float) -> list[tuple[float, float | None]]:
     """The best distinct ``(k, N)`` pairs by the peaks they explain (module docstring, step 1)."""
@@ -242,15 +260,8 @@ def _alignments(peaks: np.ndarray, weights: np.ndarray, family: list[tuple[float
                     ks.add(float(k))
         for k in ks:
             fk = k * f[k * f < nyquist]
-            if fk.size == 0:
-                continue
-            d = np.min(np.abs(np.log(peaks[:, None] / fk[None, :])), axis=1) / MATCH_TOLERANCE
-            miss = float(np.sum(weights * np.minimum(d * d, 1.0)))
-            # modes in the peaks' span with no peak: a node of a sensor or actuator may hide one, so half a peak
-            span = fk[(fk > peaks.min() * (1 - MATCH_TOLERANCE)) & (fk < peaks.max() * (1 + MATCH_TOLERANCE))]
-            unseen = np.min(np.abs(np.log(span[:, None] / peaks[None, :])), axis=1) > MATCH_TOLERANCE \
-                if span.size else np.zeros(0, bool)
-            scored.append((miss + 0.5 * float(np.mean(weights)) * int(np.count_nonzero(unseen)), k, nv))
+            if fk.size:
+                scored.append((alignment_miss(peaks, weights, fk), k, nv))
     scored.sort(key=lambda t: t[0])
     picks: list[tuple[float, float | None]] = []
     for _, k, nv in scored:

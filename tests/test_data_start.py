@@ -142,3 +142,21 @@ def test_bound_flags_and_hints():
     assert "reversed sign" in fit_hints(("a1",), [y[:, :1]], [-y[:, :1]], {"a1": 400.0}, level_free=False)[0]
     # a fit at the floor gets no hint
     assert fit_hints(("a1",), [y[:, :1]], [y[:, :1]], {"a1": 1.0}, level_free=True) == []
+
+
+def test_alignment_miss_counts_modes_placed_missed_and_unseen():
+    """The score that chooses a frequency scale at the records' start, and the modes a diagnosis' scan starts from:
+    0 for a model whose modes are the records'; a record mode far from every model mode costs its whole support;
+    a model mode inside the records' span with no record mode near it (a node may hide one) half a mean support."""
+    from identification.data_start import MATCH_TOLERANCE, alignment_miss
+
+    peaks, support = np.array([9.3, 57.4, 163.0, 315.2]), np.array([0.8, 0.9, 0.7, 0.8])
+    assert alignment_miss(peaks, support, peaks) == 0.0
+    # within the tolerance: a quadratic share of the support
+    near = alignment_miss(peaks, support, peaks * np.exp(0.5 * MATCH_TOLERANCE))
+    assert near == pytest.approx(0.25 * support.sum(), rel=1e-12)
+    # the baseline of a diagnosis at 0.67 of the records' frequency scale places none of them, and three of its
+    # modes (38.5, 109, 211 Hz) fall inside the records' span unseen
+    assert alignment_miss(peaks, support, 0.67 * peaks) == pytest.approx(support.sum() + 0.5 * support.mean() * 3)
+    extra = alignment_miss(peaks, support, np.sort(np.r_[peaks, 100.0]))
+    assert extra == pytest.approx(0.5 * support.mean(), rel=1e-12)

@@ -112,7 +112,8 @@ class GapProblem:
     #: the baseline fit from the records' own start (:func:`diagnosis.baseline.fit.baseline_fit`), beside the
     #: baseline from the start given: the force's sign is weighed on the better of the two; after
     #: :func:`diagnosis.baseline.fit.floor_from_the_records`, that fit when it is better than the baseline without
-    #: reaching the floor (the measured modes' scan and the modal patterns start there too), else ``None``
+    #: reaching the floor, or worse but placing the records' own modes better (the measured modes' scan and the
+    #: modal patterns start there too), else ``None``
     rival: Fit | None = None
     #: the thresholds every stage decides with (:class:`diagnosis.settings.Thresholds`)
     settings: Thresholds = field(default_factory=Thresholds)
