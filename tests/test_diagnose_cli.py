@@ -68,6 +68,10 @@ def test_diagnose_with_holdout_file_writes_gap_json_and_plots(bench, capsys):
     assert (out / "effects.png").is_file() and (out / "heldout_residuals.png").is_file()
     printed = capsys.readouterr().out
     assert "verdict: actuator_lag" in printed and "baseline's numerical share of the gap:" in printed
+    # the beam's values with and without the named effect, as gap.json has them
+    for head, params in (("baseline (no effect): ", doc["baseline"]["parameters"]),
+                         ("with actuator_lag: ", top["refit"]["baseline_parameters"])):
+        assert head + ", ".join(f"{k} = {v:.5g}" for k, v in params.items()) in printed
 
 
 @pytest.mark.parametrize("extra,problem", [

@@ -2,16 +2,32 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Mapping
 
 from ebb_model.htmlio import Section, Table, figures_in
 
 from .result import GapReport
 
-__all__ = ["text_report", "html_sections", "FIGURES"]
+__all__ = ["beam_values", "text_report", "html_sections", "FIGURES"]
 
 
 def _pct(v: float | None) -> str:
     return "   -" if v is None or v != v else f"{100 * float(v):4.0f}%"
+
+
+def beam_values(report: GapReport) -> list[str]:
+    """The beam's values without an effect (the baseline's) and, when an effect is named, with it (its refit's):
+    where they differ, the baseline's compensate what the model lacked and the refit's are the beam's."""
+    def values(params: Mapping[str, float]) -> str:
+        return ", ".join(f"{k} = {v:.5g}" for k, v in params.items())
+
+    lines = [f"baseline (no effect): {values(report.baseline.parameters)}"]
+    label = report.judged.label
+    row = next((r for r in report.effects if r.label == label and r.refit is not None), None)
+    if row is not None and row.refit is not None:
+        lines.append(f"with {label}: {values(row.refit.baseline_parameters)} (the beam once the effect is modelled; "
+                     "the baseline's values compensate the effect where they differ)")
+    return lines
 
 
 def text_report(report: GapReport, *, top: int = 6) -> str:
@@ -20,6 +36,7 @@ def text_report(report: GapReport, *, top: int = 6) -> str:
     base = report.baseline
     ratios = ", ".join(f"{k} {v:.3g}" for k, v in base.heldout_gap_ratio.items())
     lines.append(f"baseline held-out gap ratio (1 = noise floor): {ratios}")
+    lines += beam_values(report)
     if report.priors:
         lines.append("baseline against the priors:")
         lines += [f"  - {c.line()}" for c in report.priors]
@@ -75,7 +92,8 @@ def html_sections(report: GapReport, out_dir: Path, *, top: int = 10) -> list[Se
     baseline = Section("Baseline (the identifying model without an effect)", tables=(Table(
         ("sensor", "held-out gap ratio (1 = noise floor)"),
         [(k, f"{v:.4g}") for k, v in base.heldout_gap_ratio.items()]),),
-        paragraphs=(*(c.line() for c in report.priors), f"baseline's {base.numerical_adequacy.summary()}",
+        paragraphs=(*beam_values(report), *(c.line() for c in report.priors),
+                    f"baseline's {base.numerical_adequacy.summary()}",
                     base.grid_summary,
                     *(f"not named, implausible: {lab}: " + "; ".join(why) for lab, why in report.implausible.items())))
     rows = []
