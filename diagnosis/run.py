@@ -21,7 +21,7 @@ from typing import Any, Callable, Sequence, cast
 
 import numpy as np
 
-from ebb_model.adequacy import excited_band, grid_line, numerical_adequacy
+from ebb_model.adequacy import excited_band, grid_line, modes_top, numerical_adequacy
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
 from ebb_model.grid_advice import grid_advice
@@ -45,7 +45,7 @@ from .baseline.fit import baseline_fit, floor_from_the_records, start_from_resul
 from .baseline.numerics import numerics_at_the_refit
 from .baseline.polarity import PolarityCheck, check_polarity
 from .candidates.catalogue import catalogue_of
-from .effects import Catalogue
+from .effects import Catalogue, Effect
 from .design import next_experiment
 from .judgement.rules import Case, Judgement, judge
 from .judgement.verdict import Kind, settled
@@ -251,14 +251,14 @@ def _case(found: _Found, clock: StageClock, say: Callable[[str], None]) -> Case:
                               input_names=cfg.input_names) for r, y in zip(records, base_all))
     where = tuple(f"{r.name}: {s}" for r, loc in zip(records, locs) for s in loc.summary[:2])
     with clock.stage("plausibility and evidence"):
-        weighed = _weighed(problem, ranking, say)
+        weighed = _weighed(problem, ranking, f_hi, say)
     return Case(problem, ranking, weighed, float(np.max(adequacy.numerical_share)), grid_line(advice, adequacy),
                 found.polarity, where, adequacy=adequacy, advice=advice, locs=locs)
 
 
-def _weighed(problem: GapProblem, ranking: Ranking, say: Callable[[str], None]) -> Weighed:
+def _weighed(problem: GapProblem, ranking: Ranking, band_hz: float, say: Callable[[str], None]) -> Weighed:
     """The evidence on ``ranking`` (:func:`~diagnosis.judgement.weigh.weigh`), what is implausible said."""
-    weighed = weigh(problem, ranking)
+    weighed = weigh(problem, ranking, band_hz)
     for lab, lines in weighed.implausible.items():
         say(f"{lab} needs implausible values: " + "; ".join(lines))
     return weighed
@@ -285,8 +285,8 @@ def _apart(case: Case, judgement: Judgement, found: _Found, setups: Setups | Non
     with clock.stage("set-ups apart"):
         two = replace(problem, modes_lack=parts)
         ranking_two = _rank(two, ranking.baseline, found.catalogue, found.modes, executor, clock, say, memo)
-        case_two = replace(case, problem=two, ranking=ranking_two, weighed=_weighed(two, ranking_two, say),
-                           _chain={})
+        case_two = replace(case, problem=two, ranking=ranking_two,
+                           weighed=_weighed(two, ranking_two, found.modes.band[1], say), _chain={})
         verdict_two = judge(case_two).verdict
     adopted = verdict_two.kind is Kind.EFFECT
     apart = SetupsApart(why, parts, verdict_two.name, adopted, verdict_two.text())
@@ -414,27 +414,27 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
                 problem = _noise_of(problem, problem.simulate(refit.beta, ranking.effects[lead], refit.s, until="all"),
                                     clock, say)
             baseline = problem.fit_along_the_level(baseline.beta)
-            catalogue, modes, ranking = _ranked(problem, baseline, band, setups, executor, parallel, clock, say, memo)
+            catalogue, modes, ranking = _ranked(problem, baseline, band, setups, executor, parallel, clock, say, memo,
+                                                seeds={lead: (ranking.effects[lead], refit)})
     return _Found(problem, baseline, polarity, catalogue, modes, ranking)
 
 
 def _ranked(problem: GapProblem, baseline: Fit, band: tuple[float, float], setups: Setups | None, executor: Any,
-            parallel: int, clock: StageClock, say: Callable[[str], None], memo: RefitMemo
-            ) -> tuple[Catalogue, _Modes, Ranking]:
-    """The candidates sized from ``baseline`` and the search among them: the catalogue, the baseline's modes and
-    the ranking."""
+            parallel: int, clock: StageClock, say: Callable[[str], None], memo: RefitMemo,
+            seeds: dict[str, tuple[Effect, Fit]] | None = None) -> tuple[Catalogue, _Modes, Ranking]:
+    """The candidates sized from ``baseline`` and the search among them (the refits of ``seeds`` started from
+    them): the catalogue, the baseline's modes and the ranking."""
     dt = problem.config.time.dt
     base_cfg, base_params = problem.space.apply(problem.config, baseline.beta)
     freqs, zetas = discrete_frequencies(base_cfg, base_params)
-    # the modes up to a fifth above the excited band, below Nyquist (an impact excites up to it)
-    f_top = min(1.2 * band[1], 0.98 * 0.5 / dt)
+    f_top = modes_top(band[1], dt)
     in_band = freqs <= f_top
     in_band[0] = True
     catalogue = catalogue_of(problem, base_cfg, base_params, freqs[in_band], band[1], absent=frozenset(
         p for p in RIG_PARTS if setups is not None and not setups.records_have(p)))
     modes = _Modes(band, freqs, zetas, in_band, f_top, parallel, _scan_start(problem, freqs, zetas, f_top))
     with clock.stage("ranking (the rest)"):
-        ranking = _rank(problem, baseline, catalogue, modes, executor, clock, say, memo)
+        ranking = _rank(problem, baseline, catalogue, modes, executor, clock, say, memo, seeds)
     return catalogue, modes, ranking
 
 
@@ -461,13 +461,14 @@ def _noise_of(problem: GapProblem, simulated: Sequence[np.ndarray | None], clock
 
 
 def _rank(problem: GapProblem, baseline: Fit, catalogue: Catalogue, modes: _Modes, executor: Any,
-          clock: StageClock, say: Callable[[str], None], memo: RefitMemo) -> Ranking:
+          clock: StageClock, say: Callable[[str], None], memo: RefitMemo,
+          seeds: dict[str, tuple[Effect, Fit]] | None = None) -> Ranking:
     """The search (:func:`diagnosis.search.rank.rank_effects`) on ``problem`` from ``baseline``, with the
-    baseline's ``modes`` and the diagnosis' local refits so far (``memo``)."""
+    baseline's ``modes``, the diagnosis' local refits so far (``memo``) and the refits to start from (``seeds``)."""
     return rank_effects(problem, baseline, catalogue=catalogue, shortlist=problem.settings.shortlist,
                         progress=say, executor=executor, parallel=modes.parallel, rounds=2, clock=clock, memo=memo,
                         modal=modal_source(problem, *modes.scan, modes.band[1]),
-                        settled=partial(settled, settings=problem.settings))
+                        settled=partial(settled, settings=problem.settings), seeds=seeds)
 
 
 def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, locs: Sequence[Localisation], *,

@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from .grid_advice import GridAdvice
 
 __all__ = ["NOISE_FLOOR_EXCESS", "NumericalAdequacy", "TRANSIENT_SHARE", "adequacy_line", "excited_band",
-           "grid_line", "is_transient", "numerical_adequacy", "refined_grid"]
+           "grid_line", "is_transient", "modes_top", "numerical_adequacy", "refined_grid"]
 
 #: Relative excess of a residual variance over the noise floor below which there is no gap (to explain, or to
 #: share between grid and physics): a gap ratio up to ``1 + NOISE_FLOOR_EXCESS`` is the noise.
@@ -132,6 +132,12 @@ def is_transient(u: np.ndarray) -> bool:
     w = max(1, e.size // 10)
     run = np.convolve(e, np.ones(w), mode="valid")
     return float(run.max()) >= TRANSIENT_SHARE * total
+
+
+def modes_top(band_hz: float, dt: float) -> float:
+    """The top of the modes a record with the excited band's top ``band_hz`` shows [Hz]: a fifth above the band
+    (a mode just above it still answers), below Nyquist (an impact excites up to it)."""
+    return min(1.2 * band_hz, 0.98 * 0.5 / dt)
 
 
 def excited_band(inputs: Sequence[np.ndarray], dt: float, *, rel: float = 1e-3) -> tuple[float, float]:

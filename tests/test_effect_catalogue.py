@@ -368,3 +368,45 @@ def test_no_effect_at_its_bounds_raises_what_the_search_does_not_catch():
                     pass
                 tried += 1
     assert tried >= 2 * len(candidate_effects(cfg, SCALES))
+
+
+def test_a_place_has_a_mirror_image_only_on_a_beam_alike_from_either_end():
+    """On a beam the same seen from either end (its ends and its own attachments) a place and its mirror image
+    shift every natural frequency alike — the refits try both (:func:`diagnosis.effects.base.mirror_image`); a
+    pair's places mirror together, the other variables stay; an effect without a place, or a beam whose ends or
+    attachments differ, has none."""
+    from diagnosis.effects import mirror_image
+
+    pinned = make_config("pinned", "pinned", length=2.0, actuators=[("F1", 0.3)])
+    effects = {e.label: e for e in candidate_effects(pinned, SCALES)}
+    s = np.array([0.1, 0.6])
+    np.testing.assert_array_equal(mirror_image(effects["point_mass"], pinned, s), [0.1, 1.4])
+    pair = pair_effect(effects["point_mass"], effects["grounded_spring"])
+    np.testing.assert_array_equal(mirror_image(pair, pinned, np.array([0.1, 0.6, 0.3, 0.5])), [0.1, 1.4, 0.3, 1.5])
+    assert mirror_image(effects["actuator_gain"], pinned, np.array([1.2])) is None
+    assert mirror_image(effects["point_mass"], make_config("clamped", "pinned", length=2.0), s) is None
+    # the beam's own masses: alike from either end when they mirror each other, not with one of them alone
+    two = make_config("pinned", "pinned", length=2.0, masses=[("m1", 0.5, 0.2), ("m2", 1.5, 0.2)])
+    one = make_config("pinned", "pinned", length=2.0, masses=[("m1", 0.5, 0.2)])
+    assert mirror_image(effects["point_mass"], two, s) is not None
+    assert mirror_image(effects["point_mass"], one, s) is None
+
+
+def test_a_refit_moves_to_another_catalogue_by_its_physical_values():
+    """Two baselines size a mass by two values of ρA L: a refit carried from one catalogue to the other keeps its
+    mass and place (:func:`diagnosis.effects.variables_for`), and a value no point of the effect's bounds gives is
+    refused."""
+    from dataclasses import replace as dc_replace
+
+    from diagnosis.effects import variables_for
+
+    cfg = bench()
+    one = {e.label: e for e in candidate_effects(cfg, SCALES)}
+    two = {e.label: e for e in candidate_effects(cfg, dc_replace(SCALES, rhoA=1.3))}
+    s = np.array([0.05, 0.65])
+    moved = variables_for(two["point_mass"], one["point_mass"].physical(s), s)
+    assert moved is not None and moved[0] == pytest.approx(0.05 / 1.3, rel=1e-12) and moved[1] == 0.65
+    assert two["point_mass"].physical(moved) == pytest.approx(one["point_mass"].physical(s), rel=1e-12)
+    crack = np.array([0.05, 0.3, 0.03])
+    assert np.allclose(variables_for(two["stiffness_loss"], one["stiffness_loss"].physical(crack), crack), crack)
+    assert variables_for(two["point_mass"], {"mass": 5.0, "x": 0.65}, s) is None      # beyond ρA L: out of bounds

@@ -181,8 +181,8 @@ def test_lightly_damped_unresolved_modes_and_a_sensor_at_a_node():
     assert not a2.damping_resolved and "damping" not in a2.significant  # not measurable: not claimed
     assert not b2.observed and b2.significant == () and not np.isfinite(b2.freq_shift_rel)
     assert a1.significant == () and b1.significant == ()
-    assert any("sensor a: mode 2 (90 Hz) measured" in x for x in loc.summary)
-    assert not any("sensor b: mode 2" in x for x in loc.summary)
+    assert any("sensor a: the resonance nearest mode 2 (90 Hz) measured" in x for x in loc.summary)
+    assert not any("sensor b: the resonance nearest mode 2" in x for x in loc.summary)
 
 
 # ------------------------------------------------------------------------------------------ drift

@@ -8,7 +8,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ebb_model.adequacy import NOISE_FLOOR_EXCESS
+from ebb_model.adequacy import NOISE_FLOOR_EXCESS, modes_top
 from ebb_model.channel_delay import effective_delays
 from ebb_model.errors import ConfigError
 from ebb_model.modal import discrete_frequencies
@@ -96,14 +96,14 @@ def floor_from_the_records(problem: GapProblem, baseline: Fit, band_hz: float, s
 def _places_more(problem: GapProblem, fit: Fit, baseline: Fit, band_hz: float) -> bool:
     """Whether ``fit``'s modes place the records' own modes (:func:`identification.record_poles.record_modes` of
     the fit windows) better than ``baseline``'s (:func:`identification.data_start.alignment_miss`), counting the
-    modes up to a fifth above the excited band ``band_hz``, below Nyquist."""
+    modes a record of the excited band's top ``band_hz`` shows (:func:`ebb_model.adequacy.modes_top`)."""
     records = [r for r in problem.records if r.has_fit]
     dt = problem.config.time.dt
     recorded = record_modes([r.inputs[:r.fit_end] for r in records], [r.outputs[:r.fit_end] for r in records], dt,
                             effective_delays(problem.config))
     if recorded.frequencies_hz.size == 0:
         return False
-    top = min(1.2 * band_hz, 0.98 * 0.5 / dt)
+    top = modes_top(band_hz, dt)
 
     def miss(f: Fit) -> float:
         freqs, _ = discrete_frequencies(*problem.space.apply(problem.config, f.beta))

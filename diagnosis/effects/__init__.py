@@ -67,13 +67,16 @@ from .base import (
     Landing,
     Scales,
     Signal,
+    mirror_image,
     on_top_of,
     pair_effect,
     signal_effect,
+    variables_for,
 )
 
 __all__ = ["Scales", "Effect", "AugmentedModel", "AxialLoad", "Signal", "Family", "Landing", "Catalogue",
-           "candidate_effects", "pair_effect", "on_top_of", "signal_effect", "FAMILIES", "EFFECT_NAMES",
+           "candidate_effects", "pair_effect", "on_top_of", "mirror_image", "variables_for",
+           "signal_effect", "FAMILIES", "EFFECT_NAMES",
            "PAIR_SEPARATOR"]
 
 #: The catalogue, in report order: one entry per family module.

@@ -19,7 +19,7 @@ from ebb_model.errors import ConfigError
 from ebb_model.statespace import DiscreteStateSpace
 
 __all__ = ["Scales", "AxialLoad", "Signal", "AugmentedModel", "Effect", "Family", "Landing", "signal_effect",
-           "pair_effect", "on_top_of", "PAIR_SEPARATOR"]
+           "pair_effect", "on_top_of", "mirror_image", "variables_for", "PAIR_SEPARATOR"]
 
 #: Joins the labels of two effects acting at once (``foundation+actuator_lag``).
 PAIR_SEPARATOR = "+"
@@ -333,3 +333,59 @@ def on_top_of(first: Effect, s_first: np.ndarray, second: Effect) -> Effect:
         return pair.apply(cfg, params, np.concatenate([s_first, s]))
 
     return replace(second, _apply=apply)
+
+
+def mirror_image(effect: Effect, config: BeamConfig, s: np.ndarray) -> np.ndarray | None:
+    """``s`` with the effect's place taken to its mirror image about mid-span (every variable ``x``, a pair's
+    ``<label>.x`` too, to ``L − x``) when the beam ``config`` is the same seen from either end — its two ends and
+    its own point masses, springs and weak segments; the sensors and actuators are what tell the halves apart —,
+    else ``None`` (an effect without a place, or a beam whose ends differ).
+
+    On such a beam every mode is symmetric or antisymmetric, so a place and its mirror image shift the natural
+    frequencies alike: a refit can settle at the wrong one (the compressed pinned–pinned beam with a mass at 0.45 L
+    withheld: the mass placed at 0.55 L, 158 noise variances left)."""
+    places = [i for i, v in enumerate(effect.variables) if v == "x" or v.endswith(".x")]
+    L = config.beam.length
+    if not places or not _symmetric(config):
+        return None
+    out = np.array(s, dtype=float)
+    out[places] = L - out[places]
+    return out
+
+
+def variables_for(effect: Effect, physical: Mapping[str, float], start: np.ndarray) -> np.ndarray | None:
+    """The variables of ``effect`` whose physical values (:meth:`Effect.physical`) are ``physical`` — a refit of
+    the same effect in another catalogue, sized from another baseline (a mass searched as a share of the
+    baseline's ρA L) —, solved from ``start`` inside the effect's bounds; ``None`` when no point of them gives
+    those values to 1e-9 (relative)."""
+    from scipy.optimize import least_squares
+
+    keys = list(physical)
+    target = np.array([physical[k] for k in keys], dtype=float)
+    scale = np.maximum(np.abs(target), 1e-300)
+
+    def miss(s: np.ndarray) -> np.ndarray:
+        got = effect.physical(s)
+        return np.array([got.get(k, np.nan) for k in keys], dtype=float) / scale - target / scale
+
+    lo, hi = np.asarray(effect.lower, dtype=float), np.asarray(effect.upper, dtype=float)
+    if not np.all(np.isfinite(miss(np.clip(start, lo, hi)))):
+        return None
+    s = least_squares(miss, np.clip(np.asarray(start, dtype=float), lo, hi), bounds=(lo, hi), xtol=1e-15,
+                      ftol=1e-15, gtol=1e-15).x
+    return s if float(np.max(np.abs(miss(s)))) <= 1e-9 else None
+
+
+def _symmetric(config: BeamConfig) -> bool:
+    """Whether the beam ``config`` is its own mirror image about mid-span (ends and attachments; to 1e-9 L)."""
+    L, tol = config.beam.length, 1e-9 * config.beam.length
+    if config.beam.left != config.beam.right:
+        return False
+
+    def invariant(points: list[tuple[float, ...]]) -> bool:
+        here = sorted(points)
+        there = sorted((L - p[0], *p[1:]) for p in points)
+        return all(abs(a[0] - b[0]) <= tol and a[1:] == b[1:] for a, b in zip(here, there))
+
+    return (invariant([(m.x, m.mass) for m in config.masses]) and invariant([(k.x, k.k) for k in config.springs])
+            and invariant([(w.x, w.length, w.factor) for w in config.weak_segments]))

@@ -11,7 +11,7 @@ from identification.prior import PriorCheck
 
 from ..problem.fitting import GapProblem
 from ..search.rank import Ranking
-from ..problem.evidence import posterior_probabilities
+from ..problem.evidence import numerics_shift, posterior_probabilities
 from ..problem.plausibility import confounded, implausibilities, prior_checks
 
 __all__ = ["Weighed", "weigh", "chain_degeneracies"]
@@ -48,12 +48,15 @@ class Weighed:
         return [c for c in self.priors if c.status == "conflict"]
 
 
-def weigh(problem: GapProblem, ranking: Ranking) -> Weighed:
-    """Measure the evidence on every refit of ``ranking`` (the effects it carries, :attr:`Ranking.effects`)."""
+def weigh(problem: GapProblem, ranking: Ranking, band_hz: float) -> Weighed:
+    """Measure the evidence on every refit of ``ranking`` (the effects it carries, :attr:`Ranking.effects`); the
+    posterior probabilities on the finer numerics for the excited band's top ``band_hz``
+    (:func:`~diagnosis.problem.evidence.numerics_shift`)."""
     effects = ranking.effects
     issues = {lab: implausibilities(problem, effects[lab], rf.fit) for lab, rf in ranking.refits.items()}
     priors = prior_checks(problem, ranking.baseline)
-    probs = posterior_probabilities(problem, ranking.baseline, {lab: rf.fit for lab, rf in ranking.refits.items()})
+    probs = posterior_probabilities(problem, ranking.baseline, {lab: rf.fit for lab, rf in ranking.refits.items()},
+                                    effects=effects, shift=numerics_shift(problem, ranking.baseline, band_hz))
     tangled = {lab: line for lab, rf in ranking.refits.items()
                if (line := confounded(problem, effects[lab], rf.fit)) is not None}
     agreement: dict[str, dict[str, Any]] = {}

@@ -45,7 +45,11 @@ def _summary(sensors: Sequence[SensorGap], modes: Sequence[ModeGap], bands: Sequ
                 continue
             share = (f"; {m.band_excess_fraction:.0%} of the model-error energy is in this band"
                      if np.isfinite(m.band_excess_fraction) else "")
-            out.append(f"sensor {name}: mode {m.mode} ({m.model_freq_hz:.4g} Hz) " + ", ".join(parts) + share)
+            # the records' resonance nearest the model's mode: on a baseline whose frequency scale is off it need not
+            # be the same mode (the strip's mid-span mass: the baseline at 0.67 of the records' scale, its fifth mode
+            # read against the records' fourth)
+            out.append(f"sensor {name}: the resonance nearest mode {m.mode} ({m.model_freq_hz:.4g} Hz) "
+                       + ", ".join(parts) + share)
         if not ms:
             bs = [b for b in bands if b.sensor == name and np.isfinite(b.excess_fraction)]
             if bs:

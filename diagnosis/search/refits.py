@@ -30,12 +30,12 @@ from __future__ import annotations
 
 from concurrent.futures import Executor
 from dataclasses import dataclass, replace
-from typing import Mapping
+from typing import Callable, Mapping
 
 import numpy as np
 
 
-from ..effects import Catalogue, Effect
+from ..effects import Catalogue, Effect, mirror_image, variables_for
 from ..problem.fitting import Fit, GapProblem
 from ..settings import Thresholds
 from .modal_pattern import PatternFit
@@ -43,7 +43,7 @@ from ..candidates.score import EffectScore, trial_values
 from .workers import side_by_side
 
 __all__ = ["EffectRefit", "explains", "summarise", "map_refits", "refit_from_match", "pair_refit",
-           "better_baseline", "paying_refits", "CONTINUATION", "RSS_RESOLUTION"]
+           "better_baseline", "paying_refits", "seeded", "CONTINUATION", "RSS_RESOLUTION"]
 
 #: Two fits of one model whose RSS differ by less than this share are taken as the same optimum: a margin, not a
 #: measured figure, well above the refits' own tolerances (the cost's relative change 1e-12, the step 1e-10 of the
@@ -119,7 +119,7 @@ def _local_refit(problem: GapProblem, baseline: Fit, effect: Effect, score: Effe
     """
     fit = problem.fit(baseline.beta, effect, _best_start(problem, baseline, effect, score),
                       max_evaluations=max_evaluations)
-    fit = _rescaled(problem, effect, fit, max_evaluations)
+    fit = _mirrored(problem, effect, _rescaled(problem, effect, fit, max_evaluations), max_evaluations)
     return _basin_refits(problem, baseline, effect, score, fit, [], max_evaluations) if basins else (fit, [])
 
 
@@ -135,6 +135,20 @@ def _rescaled(problem: GapProblem, effect: Effect, fit: Fit, max_evaluations: in
     z = np.clip(np.concatenate(start), lo, hi)
     p = problem.space.dim
     moved = problem.fit(z[:p], effect, z[p:], max_evaluations=max_evaluations)
+    best = moved if moved.rss < fit.rss else fit
+    return replace(best, n_evaluations=fit.n_evaluations + moved.n_evaluations)
+
+
+def _mirrored(problem: GapProblem, effect: Effect, fit: Fit, max_evaluations: int) -> Fit:
+    """``fit``, or the refit from the mirror image of the effect's place on a beam that is the same seen from
+    either end (:func:`~diagnosis.effects.base.mirror_image`) when ``fit`` leaves a gap and that is better."""
+    if fit.rss / fit.n - 1.0 <= problem.settings.gap_threshold:
+        return fit
+    at, _params = problem.space.apply(problem.config, fit.beta)
+    s = mirror_image(effect, at, fit.s)
+    if s is None:
+        return fit
+    moved = problem.fit(fit.beta, effect, s, max_evaluations=max_evaluations)
     best = moved if moved.rss < fit.rss else fit
     return replace(best, n_evaluations=fit.n_evaluations + moved.n_evaluations)
 
@@ -202,8 +216,9 @@ def _refit_task(problem: GapProblem, catalogue: Catalogue, label: str, baseline:
 def refit_from_match(problem: GapProblem, catalogue: Catalogue, label: str, start: PatternFit, max_evaluations: int
                 ) -> tuple[Fit, list]:
     """Refit of one effect from its modal-pattern match, in this or a worker process."""
-    fit = problem.fit(start.beta, catalogue.effect(label), start.s, max_evaluations=max_evaluations)
-    return fit, [(start.beta, start.s)]
+    effect = catalogue.effect(label)
+    fit = problem.fit(start.beta, effect, start.s, max_evaluations=max_evaluations)
+    return _mirrored(problem, effect, fit, max_evaluations), [(start.beta, start.s)]
 
 
 def map_refits(executor: Executor | None, problem: GapProblem, catalogue: Catalogue, labels: list[str],
@@ -254,3 +269,25 @@ def paying_refits(refits: Mapping[str, EffectRefit], before: np.ndarray, setting
     paying = [lab for lab, rf in refits.items()
               if rf.delta_bic < -settings.bic_margin and np.mean(rf.heldout_after) < np.mean(before)]
     return sorted(paying, key=lambda lab: float(np.mean(refits[lab].heldout_after)))
+
+
+def seeded(problem: GapProblem, effects: Mapping[str, Effect], local: dict[str, tuple[Fit, list]],
+           seeds: Mapping[str, tuple[Effect, Fit]], max_evaluations: int, say: Callable[[str], None]
+           ) -> dict[str, tuple[Fit, list]]:
+    """``local`` (the refits so far by label, :data:`~diagnosis.search.state.Refits`) with each of ``seeds`` — a
+    refit an earlier stage made, with the effect it was made with — polished on ``problem``, kept where it fits
+    better.  A seed's variables are taken to ``effects``' by their physical values
+    (:func:`~diagnosis.effects.variables_for`: the catalogues of two baselines size a mass by two values of ρA L —
+    the pinned beam's 55 g mass, seeded by its share of the other, was polished from 1.02 noise variances to
+    1.20)."""
+    out = dict(local)
+    for lab, (made_with, seed) in seeds.items():
+        effect = effects[lab]
+        s = variables_for(effect, made_with.physical(seed.s), seed.s)
+        if s is None:
+            continue
+        fit = problem.fit(seed.beta, effect, s, max_evaluations=max_evaluations)
+        say(f"refit {lab} from the earlier stage's: fit RSS/n {fit.rss / fit.n:.4g}")
+        if lab not in out or fit.rss < out[lab][0].rss:
+            out[lab] = (fit, [(seed.beta, s)])
+    return out
