@@ -58,6 +58,7 @@ BENCHMARKS: dict[str, tuple[str, tuple[str, ...]]] = {
     "bench_identify_light": ("benchmarks/bench_identify_light.py", ()),
     "bench_first_records": ("benchmarks/bench_first_records.py", ()),
     "bench_black_box": ("benchmarks/bench_black_box.py", ()),
+    "bench_hint_rates": ("benchmarks/bench_hint_rates.py", ()),
     "bench_identify": ("benchmarks/bench_identify.py", ()),
     "bench_diagnose_batch": ("benchmarks/bench_diagnose_batch.py", ()),
     "bench_diagnosis": ("benchmarks/bench_diagnosis.py", ()),

@@ -127,7 +127,7 @@ def test_the_records_start_has_the_truths_frequency_scale(name, tmp_path):
     p = dict(zip(ev.space.names, start.x))
     assert abs((p["EI"] / p["rhoA"]) / (case.truth["EI"] / case.truth["rhoA"]) - 1.0) < 0.01, p
     assert np.all(start.x >= ev.space.lower) and np.all(start.x <= ev.space.upper)
-    assert not start.notes
+    assert start.level_note is None
 
 
 def test_bound_flags_and_hints():
