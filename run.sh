@@ -2,7 +2,7 @@
 # One entry point for a fresh machine (Python 3.11, pip, gcc):
 #   bash run.sh demo   - the main job on the embedded default example
 #   bash run.sh test   - the test suite
-#   bash run.sh lint   - ruff and the type check of the public API (configured in pyproject.toml)
+#   bash run.sh lint   - ruff and the type check of the whole project (configured in pyproject.toml)
 #   bash run.sh lock   - refresh requirements.lock (the exact versions installed by demo and test)
 # Each command creates/refreshes the virtual environment .venv first.
 set -euo pipefail

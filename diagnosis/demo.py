@@ -156,7 +156,7 @@ def comparison_table(identified: dict[str, float], report: GapReport, truth: dic
         lines.append(f"{k:<28}{PARAMETER_UNITS.get(k, ''):<10}{v:>12.4g}{c:>12}{truth.get(k, float('nan')):>12.4g}")
     name, values = withheld
     spec = EFFECT_CATALOGUE[name]
-    found = refit.effect_parameters if refit is not None and row.effect == name else {}
+    found = refit.effect_parameters if refit is not None and row is not None and row.effect == name else {}
     for p, unit in zip(spec.parameters, spec.units):
         c = f"{found[p]:.4g}" if p in found else "-"
         lines.append(f"{name + '.' + p:<28}{unit:<10}{'-':>12}{c:>12}{values[p]:>12.4g}")

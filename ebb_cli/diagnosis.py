@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Callable
+from typing import Callable, cast
 
 from .messages import Subcommands, add_target_argument
 from .modes import add_modes_arguments, config_with_spectrum_modes
@@ -29,9 +29,10 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     from diagnosis.report.html import text_report
 
     print(text_report(d.report))
-    print(f"wrote {d.out_dir / 'gap.json'}")
+    out_dir = cast(Path, d.out_dir)     # --out is required: the diagnosis was written there
+    print(f"wrote {out_dir / 'gap.json'}")
     if d.report.corrected_files:
-        _say_corrected(d.out_dir / "corrected")
+        _say_corrected(out_dir / "corrected")
     return 0
 
 

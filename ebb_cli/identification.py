@@ -5,9 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 from .messages import Subcommands, add_target_argument
 from .modes import add_modes_arguments, config_with_spectrum_modes
+
+if TYPE_CHECKING:
+    from identification.fisher import FisherReport
 
 __all__ = ["add_parsers"]
 
@@ -30,7 +34,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         if (Path(args.out) / CHECKPOINT).exists():
             raise Interrupted(f"interrupted; resume with --resume (checkpoint kept in {args.out})") from None
         raise Interrupted("interrupted before the first generation; nothing was written") from None
-    f = res.fisher_nominal
+    f = cast("FisherReport", res.fisher_nominal)     # identify computes it (None only in a result read back)
     print(f"Fisher information at the nominal point: rank {f.rank}/{len(f.names)}, "
           f"condition number {f.condition_number:.3g}")
     for m in f.messages:

@@ -63,7 +63,9 @@ class FlagParser(argparse.ArgumentParser):
         group.add_argument = lambda *a, **k: self._record(add(*a, **k))      # type: ignore[method-assign]
         return group
 
-    def add_subparsers(self, **kwargs: Any) -> Subcommands:                 # noqa: D102 - as argparse's
+    # returns a Subcommands, typed Any: argparse's own return type depends on the parser_class given (a caller's is
+    # kept), which a single signature cannot state
+    def add_subparsers(self, **kwargs: Any) -> Any:                         # noqa: D102 - as argparse's
         kwargs.setdefault("parser_class", functools.partial(FlagParser, flags=self.flags))
         return super().add_subparsers(**kwargs)
 

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence, cast
 
 import numpy as np
 
@@ -97,7 +97,9 @@ def _endpoint_derivatives() -> tuple[np.ndarray, np.ndarray]:
     d0 = np.zeros((_SERIES_TERMS, m.size))
     d1 = np.zeros((_SERIES_TERMS, m.size))
     for j, mj in enumerate(m):
-        p = Chebyshev.interpolate(lambda x, mj=mj: kernel(np.clip(x, 0.0, 1.0) - mj), _CHEBYSHEV_DEGREE,
+        # typed by the cast: mypy cannot infer a lambda with a default argument in context (python/mypy#15459)
+        p = Chebyshev.interpolate(cast("Callable[[np.ndarray], np.ndarray]",
+                                       lambda x, mj=mj: kernel(np.clip(x, 0.0, 1.0) - mj)), _CHEBYSHEV_DEGREE,
                                   domain=[0.0, 1.0])
         for k in range(_SERIES_TERMS):
             d0[k, j], d1[k, j] = p(0.0), p(1.0)

@@ -54,6 +54,7 @@ import numpy as np
 from .bandlimited import HALF_WIDTH, kernel
 
 if TYPE_CHECKING:
+    from .beam import Actuator, Sensor
     from .config import BeamConfig
 
 __all__ = ["MAX_DELAY_SAMPLES", "WHOLE", "channel_problems", "effective_delays", "with_channel_delays",
@@ -124,7 +125,8 @@ def with_channel_delays(system: S, config: BeamConfig) -> S:
 def without_delays(config: BeamConfig) -> BeamConfig:
     """``config`` with every channel's delay 0 (the beam without its records' acquisition delays); ``config``
     itself when it declares none."""
-    if not any(c.delay for c in (*config.actuators, *config.sensors)):
+    channels: tuple[Actuator | Sensor, ...] = (*config.actuators, *config.sensors)
+    if not any(c.delay for c in channels):
         return config
     return replace(config, actuators=tuple(replace(a, delay=0.0) for a in config.actuators),
                    sensors=tuple(replace(s, delay=0.0) for s in config.sensors))
@@ -171,7 +173,8 @@ def refuse_in(config: BeamConfig, what: str) -> None:
     model driven sample by sample) cannot take yet."""
     from .errors import ConfigError
 
-    names = [c.name for c in (*config.actuators, *config.sensors) if c.delay]
+    channels: tuple[Actuator | Sensor, ...] = (*config.actuators, *config.sensors)
+    names = [c.name for c in channels if c.delay]
     if names:
         raise ConfigError(f"channel delays ({', '.join(names)}) are taken by the native model only: {what} does "
                           "not carry them yet — build it from a config without them (a delay belongs to the "

@@ -6,6 +6,7 @@ Validation reports **every** problem at once (FMPy's ``validate_fmu`` habit), ea
 from __future__ import annotations
 
 import math
+import os
 import re
 import tomllib
 from pathlib import Path
@@ -36,7 +37,7 @@ MAX_DT = 1e3
 _DEFAULTS: Mapping[str, float] = MappingProxyType({"c": 0.0, "eta": 0.0, "N": 0.0, "rhoI": 0.0, "kf": 0.0})
 
 
-def load_config(path: str | Path, *, extra_sections: tuple[str, ...] = ()) -> BeamConfig:
+def load_config(path: str | os.PathLike[str], *, extra_sections: tuple[str, ...] = ()) -> BeamConfig:
     """Read and validate a TOML config file.
 
     Parameters
@@ -301,7 +302,7 @@ def _weak_segments(pr: Problems, points: list[dict[str, Any]], length: float | N
             pr.add(f"{where}.length", f"the segment {w['x'] - seg_len / 2:g} … {w['x'] + seg_len / 2:g} m leaves the "
                                       f"beam [0, {length:g}] m")
             seg_len = None
-        if None not in (seg_len, factor, w["x"], w["name"]):
+        if seg_len is not None and factor is not None and None not in (w["x"], w["name"]):
             out.append(WeakSegment(w["name"], w["x"], seg_len, factor))
     return out
 

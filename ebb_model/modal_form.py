@@ -28,6 +28,7 @@ Two routes lead here:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import scipy.linalg as sla
@@ -122,7 +123,8 @@ class ModalStateSpace:
     def input_matrix(self, z: complex) -> np.ndarray:
         """``Σ_j G_j z^{−j}`` (nb, 2, m): the input matrix of the transfer function at ``z``."""
         m = self.D.shape[1]
-        return sum(self.G[:, :, j * m:(j + 1) * m] * z ** (-j) for j in range(self.delays + 1))
+        # j = 0 … delays (delays >= 0): at least one term, so an array, never sum's start 0
+        return cast(np.ndarray, sum(self.G[:, :, j * m:(j + 1) * m] * z ** (-j) for j in range(self.delays + 1)))
 
     def spectral_radius(self) -> float:
         """Largest modulus of the block eigenvalues (closed form for 2×2 blocks)."""

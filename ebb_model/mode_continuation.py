@@ -188,7 +188,8 @@ def chebyshev_panel(solve: Callable[[float], Modes], panel: int, lengths: np.nda
     """
     a = panel * PANEL_WIDTH
     nodes, weights = chebyshev_points(a, a + PANEL_WIDTH, PANEL_DEGREE)
-    w2, w2_f, psi = [], [], []
+    w2, w2_f = [], []
+    psi: list[np.ndarray] = []
     for U in nodes:
         r, f, s = solve(float(U))
         if not positive(f):

@@ -296,6 +296,7 @@ def _continued(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray | Com
     if stem is None:
         return None
     U = key.N * key.length ** 2
+    psi: np.ndarray | Combination
     if U == 0.0:
         if key.kf == 0.0:
             return None
@@ -380,6 +381,7 @@ def unit_modes(key: FamilyKey) -> UnitModes:
     continued = _continued(key)
     if continued is None:
         continued = _attached(key)
+    psi: np.ndarray | Combination
     if continued is None:
         (w2, w2_f, psi), fine = _solve_pair(*unit_pair(key))
     else:

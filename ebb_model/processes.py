@@ -26,7 +26,8 @@ __all__ = ["process_pool", "stop_now"]
 def _main_path_hidden() -> Iterator[None]:
     """The main module without its ``__file__`` (and module spec) while workers are started."""
     main = sys.modules.get("__main__")
-    saved = {k: main.__dict__[k] for k in ("__file__", "__spec__") if main is not None and k in main.__dict__}
+    saved: dict[str, Any] = {k: main.__dict__[k] for k in ("__file__", "__spec__")
+                             if main is not None and k in main.__dict__}
     try:
         for k in saved:
             if k == "__spec__":

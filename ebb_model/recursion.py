@@ -305,10 +305,12 @@ def run_modal_recursion(T: np.ndarray, G: np.ndarray, Cm: np.ndarray, D: np.ndar
     y = np.empty((u.shape[0], p))
     fn = compiled_recursion(m, taps, p) if compiled else None
     if fn is None:
-        arrays = [np.ascontiguousarray(a, dtype=float) for a in (
+        # unpacked by name: mypy rejects f(*a_list, x), the list's length being unknown to it
+        t00, t01, t10, t11, g0, g1, c0, c1, d_taps, u_c = [np.ascontiguousarray(a, dtype=float) for a in (
             T[:, 0, 0], T[:, 0, 1], T[:, 1, 0], T[:, 1, 1], G[:, 0, :].T, G[:, 1, :].T, Cm[:, :, 0], Cm[:, :, 1],
             np.hstack([D, np.zeros((p, m * delays))]) if D_taps is None else D_taps, u)]
-        _modal_kernel(*arrays, delays, y, np.array(z[:, 0], dtype=float), np.array(z[:, 1], dtype=float))
+        _modal_kernel(t00, t01, t10, t11, g0, g1, c0, c1, d_taps, u_c, delays, y, np.array(z[:, 0], dtype=float),
+                      np.array(z[:, 1], dtype=float))
         return y
     T, G, Cm, D, z = (np.ascontiguousarray(a, dtype=float) for a in (T, G, Cm, D, z))
     u = np.ascontiguousarray(u, dtype=float)

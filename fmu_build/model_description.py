@@ -19,7 +19,7 @@ adds them:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Mapping, Sequence, cast
 from xml.dom.minidom import parseString
 from xml.etree.ElementTree import Element, SubElement, tostring
 
@@ -137,7 +137,7 @@ def finish_model_description(
     index: dict[str, int] = {}
     entries = list(variables)
     for i, sv in enumerate(entries, start=1):
-        name = sv.get("name")
+        name = cast(str, sv.get("name"))  # pythonfmu writes a name on every ScalarVariable
         index[name] = i
         unit = units.get(name)
         real = sv.find("Real")
@@ -157,7 +157,7 @@ def finish_model_description(
     if outputs:
         node = SubElement(structure, "Outputs")
         for sv in outputs:
-            name = sv.get("name")
+            name = cast(str, sv.get("name"))
             deps = []
             for input_name in feedthrough.get(name, ()):
                 if input_name not in index:
@@ -171,7 +171,7 @@ def finish_model_description(
     if initial:
         node = SubElement(structure, "InitialUnknowns")
         for sv in initial:
-            attrib = {"index": str(index[sv.get("name")])}
+            attrib = {"index": str(index[cast(str, sv.get("name"))])}
             if sv.get("causality") == "calculatedParameter":
                 attrib["dependencies"] = ""  # fixed by the build
             SubElement(node, "Unknown", attrib)

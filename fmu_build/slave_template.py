@@ -42,7 +42,7 @@ import math
 import operator
 import os
 import sys
-from typing import Any, Sequence
+from typing import Any, Sequence, cast
 
 #: What the FMU's Python must provide (the bundled core imports them); the model description says so too.
 REQUIRED_PACKAGES = ("numpy", "scipy", "numba")
@@ -124,7 +124,7 @@ class BeamSlave(Fmi2Slave):
         self._cfg = _core.config_from_dict(spec["config"])
         self._field = bool(spec.get("field", False))
         self._dt = float(spec["dt"])
-        self.modelName = spec.get("model_name", self.modelName)
+        self.modelName: str | None = spec.get("model_name", self.modelName)
         self.description = spec.get("description")
         self.default_experiment = DefaultExperiment(start_time=0.0, step_size=self._dt)
 
@@ -140,14 +140,15 @@ class BeamSlave(Fmi2Slave):
         self._problem = ""  # why the model or the outputs are unavailable
         self._u: list[float] = [0.0] * len(self._inputs)
         self._plan: _StepPlan | None = None
-        # the hot path's references into the plan (see _assemble)
-        self._z: np.ndarray | None = None  # (x, u)
+        # the hot path's references into the plan (see _assemble): np.ndarray once assembled, None before; typed
+        # Any because they are read only after an assembly and the per-step path must stay free of narrowing
+        self._z: Any = None  # (x, u)
         #: at the start time: with a first-order-hold realisation, "at rest" is x = −Γ₁ u(t0)
         self._at_start = True
-        self._x: np.ndarray | None = None  # view z[:nx]
-        self._W: np.ndarray | None = None
-        self._buf: np.ndarray | None = None
-        self._next_x: np.ndarray | None = None  # view buf[:nx]
+        self._x: Any = None  # view z[:nx]
+        self._W: Any = None
+        self._buf: Any = None
+        self._next_x: Any = None  # view buf[:nx]
         self._cx_valid = False  # plan.cx holds C x of the current state
 
     # ----------------------------------------------------------- variables
@@ -281,7 +282,7 @@ class BeamSlave(Fmi2Slave):
         """
         if self._model_stale and not self._assemble():
             return False
-        plan = self._plan
+        plan = cast(_StepPlan, self._plan)  # not stale: an assembly has set it
         self._rest_start()
         if not self._cx_valid:
             plan.N.dot(self._z, out=plan.cx)
@@ -370,7 +371,7 @@ class BeamSlave(Fmi2Slave):
             values = [reals[vr] for vr in vrs]
             if None in values:
                 raise TypeError("a requested variable is not of type Real")
-            return values
+            return cast("list[float]", values)  # no None among them (checked above)
         except Exception as exc:
             self._error("fmi2GetReal", f"value references {list(vrs)}: {type(exc).__name__}: {exc}")
             return [math.nan] * len(vrs)
@@ -380,10 +381,13 @@ class BeamSlave(Fmi2Slave):
             roles, reals = self._roles, self._reals
             for vr, value in zip(vrs, values):
                 try:
-                    kind, key = roles[vr]
-                except (IndexError, TypeError):
+                    role = roles[vr]
+                except (IndexError, TypeError):  # no such value reference
+                    role = None
+                if role is None:  # or an output or a constant
                     self._error("fmi2SetReal", f"variable {self._name(vr)} cannot be set")
                     continue
+                kind, key = role
                 if kind == 0:  # input
                     if not math.isfinite(value):
                         self._error("fmi2SetReal", f"input {self._name(vr)} = {value!r} is not a finite number")

@@ -15,7 +15,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, cast
 
 import numpy as np
 import scipy.linalg as sla
@@ -50,7 +50,8 @@ def save_statespace(sys: DiscreteStateSpace, path: str | Path, *, name: str = ""
         np.savez(tmp, A=sys.A, B=sys.B, C=sys.C, D=sys.D, dt=np.array(sys.dt),
                  inputs=np.array(sys.input_names), outputs=np.array(sys.output_names),
                  states=np.array(sys.state_names), metadata=np.array(json.dumps(meta)),
-                 **({"hold": sys.hold} if sys.hold is not None else {}))
+                 # as dict[str, Any]: mypy matches a dict[str, ndarray] against savez's allow_pickle (not a key here)
+                 **cast("dict[str, Any]", {"hold": sys.hold} if sys.hold is not None else {}))
     return path
 
 

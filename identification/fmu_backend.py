@@ -31,7 +31,7 @@ import uuid
 import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Mapping, cast
 
 import numpy as np
 
@@ -193,9 +193,15 @@ class FmuEvaluator(ObjectiveFunction):
             raise ConfigError(f"`fmu_path` {self.fmu_path}: no such file")
         check_fmu_file(self.fmu_path, (*self.parameter_names, *self.input_names, *self.output_names))
 
+    def _names(self) -> tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]:
+        """The parameters', inputs' and outputs' names (tuples since ``__post_init__``)."""
+        return cast("tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]",
+                    (self.parameter_names, self.input_names, self.output_names))
+
     def _create(self) -> _Instance:
         inst = _Instance(self.fmu_path, "identification")
-        missing = [n for n in (*self.parameter_names, *self.input_names, *self.output_names) if n not in inst.vr]
+        parameter_names, input_names, output_names = self._names()
+        missing = [n for n in (*parameter_names, *input_names, *output_names) if n not in inst.vr]
         if missing:
             inst.close()
             raise FmuError(f"{self.fmu_path}: no variable(s) {', '.join(missing)}")
@@ -217,9 +223,10 @@ class FmuEvaluator(ObjectiveFunction):
         spectral radius is not known here)."""
         inst = self._instance()
         fmu = inst.fmu
-        vr_p = [inst.vr[n] for n in self.parameter_names]
-        vr_u = [inst.vr[n] for n in self.input_names]
-        vr_y = [inst.vr[n] for n in self.output_names]
+        parameter_names, input_names, output_names = self._names()
+        vr_p = [inst.vr[n] for n in parameter_names]
+        vr_u = [inst.vr[n] for n in input_names]
+        vr_y = [inst.vr[n] for n in output_names]
         dt = self.config.time.dt
         outs = []
         for e in self.experiments:

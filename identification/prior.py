@@ -131,9 +131,12 @@ class Prior:
                         corr[i, j] = corr[j, i] = section.cov[k, kk] / np.sqrt(section.cov[k, k]
                                                                                * section.cov[kk, kk])
                 continue
-            has = spec is not None and spec.prior_std is not None
-            mean.append(spec.value if has else 0.0)           # type: ignore[union-attr]
-            std.append(spec.prior_std if has else math.inf)   # type: ignore[union-attr]
+            if spec is not None and spec.prior_std is not None:
+                mean.append(spec.value)
+                std.append(spec.prior_std)
+            else:
+                mean.append(0.0)
+                std.append(math.inf)
             sources.append("config")
         return cls(tuple(names), np.array(mean, dtype=float), np.array(std, dtype=float),
                    None if np.array_equal(corr, np.eye(len(names))) else corr, tuple(sources))

@@ -272,11 +272,13 @@ def write_uncertainty(model: UncertaintyModel, evaluator: NativeEvaluator, out_d
     from .export_statespace import save_statespace
 
     d = make_dir(Path(out_dir) / FOLDER, exist_ok=True)
-    arrays = {"f_hz": model.f_hz, "measured": model.measured, "multiplicative": model.multiplicative,
-              "additive": model.additive, "parametric": model.parametric, "residual": model.residual,
-              "nominal": model.nominal, "covariance": model.covariance, "point": model.point,
-              "samples": model.samples, "parameters": np.array(model.names), "inputs": np.array(model.input_names),
-              "outputs": np.array(model.output_names)}
+    # Any: mypy matches a dict[str, ndarray] passed as **kwargs against savez's allow_pickle (these keys are not)
+    arrays: dict[str, Any] = {
+        "f_hz": model.f_hz, "measured": model.measured, "multiplicative": model.multiplicative,
+        "additive": model.additive, "parametric": model.parametric, "residual": model.residual,
+        "nominal": model.nominal, "covariance": model.covariance, "point": model.point,
+        "samples": model.samples, "parameters": np.array(model.names), "inputs": np.array(model.input_names),
+        "outputs": np.array(model.output_names)}
     with atomic_path(d / "bound.npz", suffix=".npz") as tmp:
         np.savez(tmp, **arrays)
     written = [d / "bound.npz", write_json(d / "bound.json", model.summary())]

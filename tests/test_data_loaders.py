@@ -217,6 +217,19 @@ def test_npz_round_trip_and_to_npz(tmp_path):
     assert back.units == exp.units
 
 
+@pytest.mark.parametrize("name", ["file", "allow_pickle"])
+def test_to_npz_keeps_a_signal_named_like_an_argument_of_savez(name, tmp_path):
+    """A sensor named ``file`` or ``allow_pickle``: ``np.savez`` took it for its own argument (a TypeError, or the
+    signal left out of the file); ``to_npz`` writes every signal by its name."""
+    c = make_config(nodes=20, dt=DT, actuators=[("F1", 0.3)], sensors=[(name, 0.5, "displacement")])
+    sig = signals()
+    sig = {"time": sig["time"], "F1": sig["F1"], name: sig["y1"]}
+    exp = load_experiment(write_csv(tmp_path / "r.csv", sig), c)
+    back = load_experiment(exp.to_npz(tmp_path / "r.npz"), c)
+    np.testing.assert_array_equal(back.outputs, exp.outputs)
+    np.testing.assert_array_equal(back.inputs, exp.inputs)
+
+
 def test_to_npz_keeps_units_so_no_double_conversion(tmp_path):
     sig = signals()
     exp = load_experiment(write_csv(tmp_path / "r.csv", sig), cfg(), units={"F1": "kN"})

@@ -46,6 +46,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import optimize
 from scipy.stats import chi2
 
@@ -176,7 +177,7 @@ def _along_the_valley(problem: GapProblem, baseline: Fit, effect: Effect) -> tup
     return float(baseline.residuals @ baseline.residuals - r @ r), z[p:]
 
 
-def trial_values(lower: np.ndarray, upper: np.ndarray, off: np.ndarray) -> list[np.ndarray]:
+def trial_values(lower: ArrayLike, upper: ArrayLike, off: ArrayLike) -> list[np.ndarray]:
     """A coarse grid of an effect's variables around "off": the switch variable on a geometric grid up to its
     bound (both ways for a two-sided effect), times :data:`MASS_GRID` positions when there is a second variable
     — or, when the second is a one-sided size too (its off value on its lower bound: a shaker's suspension

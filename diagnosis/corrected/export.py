@@ -89,11 +89,12 @@ def _constant_terms(model: AugmentedModel) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _in_series(model: AugmentedModel, beam: DiscreteStateSpace) -> DiscreteStateSpace | None:
-    sys: DiscreteStateSpace | None = beam
+    sys = beam
     for part in model.signals:
-        sys = part.in_series(sys)
-        if sys is None:
+        joined = part.in_series(sys)
+        if joined is None:
             return None
+        sys = joined
     return sys
 
 

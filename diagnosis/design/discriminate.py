@@ -163,7 +163,7 @@ def next_experiment(problem: GapProblem, ranking: Ranking, judgement: Judgement,
     the refits that close the gap held within the plausibility limits), the design separates those, each at its
     held refit."""
     s = problem.settings
-    held = {}
+    held: dict[str, PlausibleReading] = {}
     for r in readings:                       # most probable first; one per effect
         held.setdefault(r.label, r)
     if len(held) >= 2:
@@ -213,10 +213,10 @@ def _designed(problem: GapProblem, band: tuple[float, float], mode_hz: np.ndarra
                 break
             y[lab], J[lab] = out, bench.jacobian(z[lab], effects[lab], out)
         else:
-            for d in group:
-                cols = bench.columns(d.sensor)
+            for design in group:
+                cols = bench.columns(design.sensor)
                 per = {f"{a}>{b}": _divergence(y[a], y[b], J[b], cols) / bench.duration for a, b in pairs}
-                scored.append(ScoredDesign(d, min(per.values()), per))
+                scored.append(ScoredDesign(design, min(per.values()), per))
     if not scored:
         return NextExperiment(labels, probs, seconds, decisive, reason="no design could be simulated",
                               implausible=implausible, held=held)

@@ -123,7 +123,7 @@ class AugmentedModel:
     """
 
     config: BeamConfig
-    params: dict[str, float]
+    params: Mapping[str, float]
     signals: tuple[Signal, ...] = ()
 
     @property

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import Any, cast
 
 import numpy as np
 
@@ -16,7 +17,8 @@ __all__ = ["FAMILY"]
 
 
 def _with_end(config: BeamConfig, side: str, end: End) -> BeamConfig:
-    return replace(config, beam=replace(config.beam, **{side: end}))
+    # as dict[str, Any]: mypy matches a dict[str, End] against every field of the geometry (side is left or right)
+    return replace(config, beam=replace(config.beam, **cast("dict[str, Any]", {side: end})))
 
 
 def _boundary(config: BeamConfig, sc: Scales, side: str, dof: str) -> Effect:

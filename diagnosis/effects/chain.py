@@ -16,7 +16,7 @@ before, by fitting the baseline both ways (:mod:`diagnosis.baseline.polarity`).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Callable, cast
 
 import numpy as np
 
@@ -107,9 +107,11 @@ def candidates(config: BeamConfig, scales: Scales, identified: tuple[str, ...]) 
     """The actuators' common gain and each sensor's, in :data:`GAIN_RANGE` (off: 1)."""
     effects = ((signal_effect("actuator_gain", None, "gain", GAIN_RANGE, 1.0,
                               "gain (calibration or unit) error of the measured force", ActuatorGain, "gain", "1"),)
+               # typed by the cast: mypy cannot infer a lambda with a default argument in context (python/mypy#15459)
                + tuple(signal_effect("sensor_gain", s.name, "gain", GAIN_RANGE, 1.0,
                                      f"gain (calibration or unit) error of sensor {s.name}",
-                                     lambda g, name=s.name: SensorGain(name, g), "gain", "1")
+                                     cast("Callable[[float], Signal]", lambda g, name=s.name: SensorGain(name, g)),
+                                     "gain", "1")
                        for s in config.sensors))
     return tuple(replace(e, rescale=rescaled_start, scale_degenerate=True) for e in effects)
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable, cast
 
 import numpy as np
 import scipy.signal as ss
@@ -190,8 +191,10 @@ def candidates(config: BeamConfig, scales: Scales, identified: tuple[str, ...]) 
     return ((signal_effect("actuator_lag", None, "tau", (0.0, hi), 0.0,
                            "first-order lag between the measured force and the force the beam feels",
                            ActuatorLag, "tau", "s"),)
+            # typed by the cast: mypy cannot infer a lambda with a default argument in context (python/mypy#15459)
             + tuple(signal_effect("sensor_lag", s.name, "tau", (0.0, hi), 0.0, f"first-order lag of sensor {s.name}",
-                                  lambda tau, name=s.name: SensorLag(name, tau), "tau", "s")
+                                  cast("Callable[[float], Signal]", lambda tau, name=s.name: SensorLag(name, tau)),
+                                  "tau", "s")
                     for s in config.sensors))
 
 

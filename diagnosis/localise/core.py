@@ -259,11 +259,12 @@ def _frfs(dt: float, u2: np.ndarray, y2: np.ndarray, yh2: np.ndarray, nperseg: i
                         for sl in (slice(0, half), slice(half, n))))
 
 
-def _noise(noise_std: float | Sequence[float] | None, u2: np.ndarray, y2: np.ndarray, dt: float, nperseg: int,
+def _noise(noise_std: ArrayLike | None, u2: np.ndarray, y2: np.ndarray, dt: float, nperseg: int,
            f: np.ndarray, mf: np.ndarray) -> tuple[np.ndarray, tuple[str, ...]]:
     """Noise standard deviation per sensor and how it was obtained (given, or the model-free estimate over the
     excited band)."""
     n_out = y2.shape[1]
+    sig: np.ndarray | None
     if noise_std is None:
         pu = np.real(_welch_psd(u2, dt, nperseg)[1])
         exc_any = np.any(pu >= 1e-2 * pu.max(axis=0, keepdims=True), axis=1)  # within 20 dB of the peak

@@ -185,6 +185,7 @@ def band_gaps(r: np.ndarray, dt: float, nperseg: int, f: np.ndarray, mf: np.ndar
             bands.append(BandGap(snames[o], float(lo), float(hi), band_modes[b],
                                  e / e_tot if e_tot > 0 else float("nan"),
                                  en / e_tot if e_tot > 0 else float("nan"), ef))
-            if band_modes[b] is not None:
-                excess_by_mode[(o, band_modes[b])] = ef
+            mode = band_modes[b]
+            if mode is not None:
+                excess_by_mode[(o, mode)] = ef
     return bands, edges, excess_by_mode

@@ -85,8 +85,8 @@ def _segment_fft(x: np.ndarray, nperseg: int, pad: int = 1) -> np.ndarray:
     return sfft.rfft(seg * win[None, :, None], n=pad * nperseg, axis=1)
 
 
-def choose_nperseg(n: int, dt: float, mode_freqs_hz: Sequence[float],
-                   mode_damping: Sequence[float] | None = None) -> int:
+def choose_nperseg(n: int, dt: float, mode_freqs_hz: Sequence[float] | np.ndarray,
+                   mode_damping: Sequence[float] | np.ndarray | None = None) -> int:
     """Welch segment length: ≈ 4 bins per half-power bandwidth of the sharpest mode.
 
     Capped so that at least 8 segments (50 % overlap) are averaged, and at least

@@ -124,7 +124,7 @@ def _twins(dt: float, u2: np.ndarray, yh2: np.ndarray, sig: np.ndarray, nperseg:
     return out
 
 
-def _beyond_twins(tc: np.ndarray, values: np.ndarray, twins: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _beyond_twins(tc: np.ndarray, values: np.ndarray, twins: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """The record's five statistics beyond its twins (:func:`_window_values` rows: changes over the record of the
     relative RMS, gain and phase — OLS slope × span —, and the mean gain and phase slopes against ln(level)) and
     their two-sided p-values.
@@ -197,7 +197,8 @@ def window_and_amplitude_gaps(dt: float, u2: np.ndarray, y2: np.ndarray, yh2: np
     for o in range(n_out):
         rms = np.array([math.sqrt(float(np.mean(r[w, o] ** 2))) for w in idx_w])
         values = _window_values(yc2[:, o], ylin[:, o], ylq[:, o], env[:, o], idx_w, amplitude_bins)
-        null = [_window_values(*(a[:, o] for a in twin), idx_w, amplitude_bins) for twin in twins]
+        null = [_window_values(yc_t[:, o], lin_t[:, o], lq_t[:, o], env_t[:, o], idx_w, amplitude_bins)
+                for yc_t, lin_t, lq_t, env_t in twins]
         (rms_change, d_g, d_p, g_sl, p_sl), (p_r, p_g, p_p, g_p, p_p2) = _beyond_twins(tc, values, null)
         lrms, gw, pw = values[0], values[1], values[2]
         drift = ((p_r * n_drift < alpha and abs(rms_change) >= MIN_RMS_CHANGE)

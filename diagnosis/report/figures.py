@@ -40,7 +40,8 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, localisations:
             if s is None or s <= 0:
                 a1.text(left, k, "  pair: no score test" if s is None else "  0", va="center", fontsize=7)
         a1.set_xlabel("score-test statistic (LM)")
-        a2.barh([r.label for r in rows][::-1], [100 * (r.refit.closed or 0.0) for r in rows][::-1])
+        a2.barh([r.label for r in rows][::-1],
+                [100 * (r.refit.closed or 0.0) for r in rows if r.refit is not None][::-1])  # (each row has one)
         a2.axvline(80, color="k", lw=0.5, ls="--")
         a2.set_xlabel("held-out gap closed after refit [%]")
         fig.suptitle(f"verdict: {report.verdict}")

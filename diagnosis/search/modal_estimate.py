@@ -30,7 +30,7 @@ prediction.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Callable, Iterable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -211,7 +211,7 @@ class _Problem:
 
 
 def estimate_modes(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], noise_std: np.ndarray, dt: float,
-                   freq_hz: ArrayLike, damping: ArrayLike, *, above_hz: ArrayLike = (),
+                   freq_hz: ArrayLike, damping: ArrayLike, *, above_hz: Iterable[float] = (),
                    search: float = SEARCH, bandlimited: bool = False, delays: Sequence[float] = ()) -> MeasuredModes:
     """Fit the frequency and damping of every mode in ``freq_hz`` to the records (module docstring).
 

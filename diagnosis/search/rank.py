@@ -195,7 +195,7 @@ def _continuation_stage(run: Search, labels: list[str], local: Refits, early: Ea
     if pair_explains(early, run.baseline, run.problem.settings) or run.explained(local):
         run.say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
         pending = []
-    if not _linear(evidence, run.problem.settings):
+    if evidence is not None and not _linear(evidence, run.problem.settings):   # (unknown evidence: linear)
         # no set of linear oscillators reproduces the records: no linear time-invariant effect can
         lti = [lab for lab in pending if run.time_invariant(lab)]
         if lti:

@@ -59,7 +59,7 @@ class Search:
                           self.max_evaluations, stage=stage) if todo else {}
         for lab, refit in made.items():
             self.memo.put(keys[lab], self.problem, refit)
-        return {lab: made[lab] if known[lab] is None else known[lab] for lab in labels}
+        return {lab: made[lab] if (hit := known[lab]) is None else hit for lab in labels}
 
     def explained(self, local: dict[str, tuple[Fit, list]]) -> bool:
         """Whether one of the refits explains the gap."""

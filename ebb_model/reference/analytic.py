@@ -82,7 +82,7 @@ from __future__ import annotations
 
 import math
 from types import MappingProxyType
-from typing import Callable, Mapping
+from typing import Callable, Mapping, Union
 
 import numpy as np
 from scipy.optimize import brentq
@@ -126,7 +126,9 @@ _SUPPORTED_PAIRS: tuple[tuple[str, str], ...] = (
 # Root scan step in beta (eigenvalues are ~pi apart in beta).
 _BETA_STEP: float = math.pi / 128.0
 
-CharFun = Callable[[np.ndarray, np.ndarray, float], np.ndarray]
+#: alpha and beta: arrays, or one float64 each (a root's refinement)
+Values = Union[np.ndarray, np.float64]
+CharFun = Callable[[Values, Values, float], np.ndarray]
 
 
 # --------------------------------------------------------------------------
@@ -172,13 +174,13 @@ def _canonical_pair(left: str, right: str) -> tuple[str, str]:
 # --------------------------------------------------------------------------
 # overflow-safe elementary functions
 # --------------------------------------------------------------------------
-def _sech(a: np.ndarray) -> np.ndarray:
+def _sech(a: Values) -> np.ndarray:
     r""":math:`\operatorname{sech} a = 2e^{-a}/(1 + e^{-2a})` for :math:`a \ge 0` (no overflow)."""
     e = np.exp(-a)
     return 2.0 * e / (1.0 + e * e)
 
 
-def _tanhc(a: np.ndarray) -> np.ndarray:
+def _tanhc(a: Values) -> np.ndarray:
     r""":math:`\tanh(a)/a`, continued by 1 at :math:`a = 0` (series for small ``a``)."""
     a = np.asarray(a, dtype=float)
     small = np.abs(a) < 1e-4
@@ -187,12 +189,12 @@ def _tanhc(a: np.ndarray) -> np.ndarray:
     return np.where(small, 1.0 - a2 / 3.0 + 2.0 * a2 * a2 / 15.0, np.tanh(safe) / safe)
 
 
-def _sinc(b: np.ndarray) -> np.ndarray:
+def _sinc(b: Values) -> np.ndarray:
     r""":math:`\sin(b)/b`, continued by 1 at :math:`b = 0`."""
     return np.sinc(np.asarray(b, dtype=float) / np.pi)
 
 
-def _alpha_from_beta(beta: np.ndarray, U: float) -> np.ndarray:
+def _alpha_from_beta(beta: Values, U: float) -> np.ndarray:
     r""":math:`\alpha = \sqrt{\beta^2 + U}` (clipped at 0 against round-off)."""
     return np.sqrt(np.maximum(beta * beta + U, 0.0))
 
@@ -200,7 +202,7 @@ def _alpha_from_beta(beta: np.ndarray, U: float) -> np.ndarray:
 # --------------------------------------------------------------------------
 # scaled characteristic functions g(alpha, beta, U)
 # --------------------------------------------------------------------------
-def _g_pinned_pinned(alpha: np.ndarray, beta: np.ndarray, U: float) -> np.ndarray:
+def _g_pinned_pinned(alpha: Values, beta: Values, U: float) -> np.ndarray:
     r"""Scaled pinned–pinned determinant.
 
     The determinant is proportional to
@@ -211,7 +213,7 @@ def _g_pinned_pinned(alpha: np.ndarray, beta: np.ndarray, U: float) -> np.ndarra
     return _tanhc(alpha) * _sinc(beta)
 
 
-def _g_clamped_clamped(alpha: np.ndarray, beta: np.ndarray, U: float) -> np.ndarray:
+def _g_clamped_clamped(alpha: Values, beta: Values, U: float) -> np.ndarray:
     r"""Scaled clamped–clamped function.
 
     .. math::
@@ -224,7 +226,7 @@ def _g_clamped_clamped(alpha: np.ndarray, beta: np.ndarray, U: float) -> np.ndar
     return 2.0 * (_sech(alpha) - np.cos(beta)) + U * _tanhc(alpha) * _sinc(beta)
 
 
-def _g_clamped_pinned(alpha: np.ndarray, beta: np.ndarray, U: float) -> np.ndarray:
+def _g_clamped_pinned(alpha: Values, beta: Values, U: float) -> np.ndarray:
     r"""Scaled clamped–pinned function.
 
     .. math::
@@ -236,7 +238,7 @@ def _g_clamped_pinned(alpha: np.ndarray, beta: np.ndarray, U: float) -> np.ndarr
     return _sinc(beta) - np.cos(beta) * _tanhc(alpha)
 
 
-def _g_clamped_free(alpha: np.ndarray, beta: np.ndarray, U: float) -> np.ndarray:
+def _g_clamped_free(alpha: Values, beta: Values, U: float) -> np.ndarray:
     r"""Scaled clamped–free function.
 
     .. math::

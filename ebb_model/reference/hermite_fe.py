@@ -451,6 +451,6 @@ def hermite_beam(
     K = (Kb + N * G + (kf / rhoA) * Mr + Ks + Kp)[ix]
     C = ((c / rhoA) * Mr + eta * Kb)[ix]
     K_axial = G[ix]
-    for a in (M, C, K, free, K_axial):
-        a.setflags(write=False)
+    for arr in (M, C, K, free, K_axial):
+        arr.setflags(write=False)
     return HermiteBeam(M=M, C=C, K=K, free_dofs=free, n_elements=ne, length=L, K_axial=K_axial)

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Mapping, Sequence, cast
 
 import numpy as np
 import scipy.linalg as sla
@@ -54,8 +54,8 @@ class Truth:
         none) —, its ``k3``, friction force and slip velocity, the stop's stiffness and gap.
     """
 
-    left: tuple[float, ...]
-    right: tuple[float, ...]
+    left: tuple[float, float]
+    right: tuple[float, float]
     masses: list[tuple[float, float]]
     springs: list[tuple[float, float]]
     weak: list[tuple[float, float, float]]
@@ -82,7 +82,7 @@ class Truth:
 
 def _check_not_buckled(beam: HermiteBeam, dn_min: float, N: float, where: str) -> None:
     """Raise :class:`StabilityError` if ``K + dn_min G`` has a negative eigenvalue (w.r.t. ``M``)."""
-    K = beam.K + dn_min * beam.K_axial
+    K = beam.K + dn_min * cast(np.ndarray, beam.K_axial)  # hermite_beam sets it (the caller checks)
     lam = sla.eigh(K, beam.M, eigvals_only=True, subset_by_index=[0, 0])[0]
     scale = float(np.max(np.abs(np.diag(K)) / np.diag(beam.M)))
     if lam < -1e-9 * scale:
@@ -186,7 +186,9 @@ def apply_effects(config: BeamConfig, p: Mapping[str, float], effects: Sequence[
                 friction, slip = v["force"], v["slip"]
         else:  # pragma: no cover - the catalogue and this dispatch are kept in step by the tests
             raise ConfigError(f"effect {e.name!r} is not implemented by the generator")
-    return Truth(left=tuple(ends["left"]), right=tuple(ends["right"]), masses=masses, springs=springs, weak=weak,
+    # each end's list is its (kt, kr) pair
+    return Truth(left=cast("tuple[float, float]", tuple(ends["left"])),
+                 right=cast("tuple[float, float]", tuple(ends["right"])), masses=masses, springs=springs, weak=weak,
                  eta=eta, rhoI=rhoI, kf=kf, rate=rate, ea=ea, act_tau=act_tau, sen_tau=sen_tau, lag_sensor=lag_sensor,
                  local_x=local_x, k3=k3, friction=friction, slip=slip, stop_k=stop_k, stop_gap=stop_gap)
 

@@ -141,7 +141,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any, Sequence
+from typing import Any, Iterator, Sequence, cast
 
 import numpy as np
 
@@ -240,7 +240,9 @@ def _run(coefficients: Any, tol: float | None, *, normalise: bool) -> _Run:
     e0 = shift(d, always=True)     # the sums below must not overflow
     d = rescaled(d, e0)
     at_one = 0
-    while len(d) > 1 and abs(total(d, exact)) <= eps_rel * sum(abs(x) for x in d):
+    # abs keeps each coefficient's type, float or Fraction (mypy would join the two to object)
+    while len(d) > 1 and cast(Number, abs(total(d, exact))) <= eps_rel * sum(
+            cast("Iterator[Number]", (abs(x) for x in d))):
         d = div_z_minus_1(d, zero)
         at_one += 1
     n = len(d) - 1
@@ -291,7 +293,7 @@ def _run(coefficients: Any, tol: float | None, *, normalise: bool) -> _Run:
         # m = number of vanishing low-order (= high-order) coefficients of T_k;
         # m > 0 is a nonessential singularity.  T_k is not ~0, so m <= k/2.
         m = 0
-        while abs(t_k[m]) <= threshold:
+        while cast(Number, abs(t_k[m])) <= threshold:  # abs keeps the type (see above)
             m += 1
         delta = t_k1[0] / t_k[m]
         # B = (z^-m + z^(m+1)) T_k, nominal degree k + 1

@@ -44,7 +44,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Mapping
+from typing import Mapping, cast
 
 import numpy as np
 
@@ -263,7 +263,8 @@ def stability_bounds(config: BeamConfig, params: Mapping[str, float] | None = No
             crit = np.polysub(np.polymul(Q, np.polyder(P)), np.polymul(P, np.polyder(Q)))
             for s in [s_lo, s_hi] + _interior_roots(crit, s_lo, s_hi):
                 q = np.polyval(Q, s)
-                r = p0[name] - np.polyval(P, s) / q
+                # a float64 scalar (s is a float; numpy's stub types polyval's value as an array)
+                r = cast(float, p0[name] - np.polyval(P, s) / q)
                 if q > 0:
                     lo = max(lo, r)
                 else:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 import numbers
 from fractions import Fraction
-from typing import Any, Sequence, Union
+from typing import Any, Iterator, Sequence, Union, cast
 
 import numpy as np
 
@@ -86,7 +86,8 @@ def check_tol(tol: float | None) -> float:
 # --------------------------------------------------------------------------
 
 def norm(p: Sequence[Number]) -> Number:
-    return max(abs(x) for x in p)
+    # abs keeps each coefficient's type, float or Fraction (mypy would join the two to object)
+    return max(cast("Iterator[Number]", (abs(x) for x in p)))
 
 
 def total(p: Sequence[Number], exact: bool) -> Number:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Sequence, cast
 from xml.dom.minidom import parseString
 from xml.etree.ElementTree import Element, SubElement, tostring
 
@@ -198,10 +198,10 @@ def model_description_xml(variables: Sequence[Variable], *, identity: FmuIdentit
         child: dict[str, str] = {}
         if v.role == "parameter":
             attrib |= {"causality": "parameter", "variability": "tunable"}
-            child["start"] = _num(v.value)
+            child["start"] = _num(cast(float, v.value))  # parameters and inputs start at a float (fmu_variables)
         elif v.role == "input":
             attrib |= {"causality": "input", "variability": "continuous"}
-            child["start"] = _num(v.value)
+            child["start"] = _num(cast(float, v.value))
         elif v.role == "output":
             attrib |= {"causality": "output", "variability": "continuous"}
         elif v.role == "constant":
@@ -315,11 +315,13 @@ def config_header(config: BeamConfig, variables: Sequence[Variable], identity: F
     text += _array("signed char", "EBB_VAR_TYPE", [str(_TYPES[v.type]) for v in variables])
     text += _array("signed char", "EBB_VAR_ROLE", [str(_ROLES[v.role]) for v in variables])
     text += _array("int", "EBB_VAR_INDEX", [str(v.index) for v in variables])
-    text += _array("double", "EBB_VAR_REAL",
-                   [_c_double(v.value) if v.type == "Real" and v.role == "constant" else "0.0" for v in variables])
+    # a constant's value is of its type (fmu_variables)
+    text += _array("double", "EBB_VAR_REAL", [_c_double(cast(float, v.value))
+                                              if v.type == "Real" and v.role == "constant" else "0.0"
+                                              for v in variables])
     text += _array("int", "EBB_VAR_INT", [str(v.value) if v.type == "Integer" else "0" for v in variables])
     text += _array("char *const", "EBB_VAR_STRING",
-                   [_c_string(v.value) if v.type == "String" else "0" for v in variables])
+                   [_c_string(cast(str, v.value)) if v.type == "String" else "0" for v in variables])
     text += _array("char *const", "EBB_VAR_NAME", [_c_string(v.name) for v in variables])
     text += "\n#endif\n"
     return text

@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import json
 import math
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Mapping
+from typing import BinaryIO, Mapping
 
 import numpy as np
 
@@ -37,6 +38,15 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 
 def _matrix(name: str, value: object, n: int, k: int, where: str) -> np.ndarray:
     return as_matrix(value, f"{where}: {name}", shape=(n, k), finite=False, readonly=True)
+
+
+def _savez(fh: BinaryIO, /, **arrays: np.ndarray) -> None:
+    """``np.savez(fh, **arrays)`` (the same archive) for any names: savez takes a signal named ``file`` or
+    ``allow_pickle`` for its own argument (a TypeError, or the signal left out of the file)."""
+    with zipfile.ZipFile(fh, mode="w", compression=zipfile.ZIP_STORED, allowZip64=True) as zf:
+        for key, val in arrays.items():
+            with zf.open(key + ".npy", "w", force_zip64=True) as fid:
+                np.lib.format.write_array(fid, np.asanyarray(val), allow_pickle=True)
 
 
 @dataclass(frozen=True, eq=False)
@@ -245,7 +255,7 @@ class Experiment:
         for j, s in enumerate(self.output_names):
             arrays[s] = np.asarray(self.outputs[:, j])
         with atomic_path(p) as tmp, tmp.open("wb") as fh:
-            np.savez(fh, **arrays, **{NPZ_META_KEY: np.array(json.dumps(meta))})
+            _savez(fh, **arrays, **{NPZ_META_KEY: np.array(json.dumps(meta))})
         return p
 
     def to_csv(self, path: str | Path) -> Path:

@@ -25,10 +25,10 @@ from ebb_model.errors import DataError
 __all__ = ["band_limit", "check_band", "condition"]
 
 
-def check_band(band: object, dt: float, *, where: str) -> tuple[float, float]:
+def check_band(band: Any, dt: float, *, where: str) -> tuple[float, float]:
     """Validate ``band = [f_lo, f_hi]`` in Hz against the Nyquist frequency ``0.5/dt``."""
     try:
-        lo, hi = (float(v) for v in band)  # type: ignore[union-attr]
+        lo, hi = (float(v) for v in band)  # any value: what is not two numbers raises TypeError or ValueError
     except (TypeError, ValueError):
         raise DataError(f"{where}: band must be two numbers [f_lo, f_hi] in Hz, got {band!r}") from None
     nyq = 0.5 / dt

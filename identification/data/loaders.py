@@ -86,6 +86,7 @@ _Role = tuple[str, str, str]     # (signal name, "actuator" | "sensor", quantity
 
 
 def _format_of(path: Path, fmt: str | None) -> str:
+    f: str | None
     if fmt is not None:
         f = _FORMAT_ALIASES.get(str(fmt).lower(), str(fmt).lower())
         if f not in FORMATS:
@@ -124,13 +125,14 @@ def _check_options(path: Path, config: BeamConfig, mapping: Mapping[str, Key] | 
                    ) -> tuple[dict[str, Key], dict[str, str], dict[str, float]]:
     signals = config.input_names + config.output_names
     problems: list[str] = []
-    tables = {"mapping": mapping, "units": units, "gains": gains}
+    tables: dict[str, Mapping[str, Any] | None] = {"mapping": mapping, "units": units, "gains": gains}
     for name, table in tables.items():
         if table is not None and not isinstance(table, Mapping):
             problems.append(f"{name}: must be a table {{signal = ...}}, got {table!r}")
             tables[name] = None
     mapping, units, gains = tables["mapping"], tables["units"], tables["gains"]
     m = dict(mapping or {})
+    v: Any  # a value as the caller gave it (checked here)
     for k, v in m.items():
         if k not in signals and k != "time":
             problems.append(f"mapping: {k!r} is not a signal of the config; allowed: time, {', '.join(signals)}")
