@@ -4,8 +4,11 @@ A config's grid (``[beam] nodes``) and its force between samples (``[time] input
 a newcomer takes the examples' grid and the default cubic, and on the record labs make most — a shaker fed
 broadband noise, read by an accelerometer — both leave a gap the parameters then compensate (the strip of the
 broadband family, 80 nodes and the cubic: 409 noise variances and EI 4 % low; the band-limited force: 1.9 and
-1.1 % low; and 323 nodes: the noise floor).  After the polish, when the identified model leaves a gap above the
-noise floor, the refinements that can close a gap made by numerics are tried at the identified point, in turn:
+1.1 % low; and 323 nodes: the noise floor).  After the polish, the refinements that can close a gap made by
+numerics are tried at the identified point, in turn — at the noise floor too, where the parameters may have taken
+up the numerics' error (a cantilever's accelerometer near the clamp under noise to 0.2 fs, 80 nodes and the cubic:
+1.13 noise variances with EI and ρA 1.26 % high, six Cramér–Rao deviations; the refinements were not tried there).
+Above the floor they are tried in turn:
 
 * the band-limited force between samples (:mod:`ebb_model.bandlimited`), when the records' force reaches
   :data:`~ebb_model.bandlimited.BROADBAND_EDGE` of the sampling rate and the config takes the cubic;
@@ -16,13 +19,17 @@ A refinement that changes the identified point's χ² by more than :data:`REFINE
 sample (either way: at that point the parameters compensate the coarser numerics' error) is polished on, and kept
 (:func:`keeps`) when the polished fit is lower by more than that, or at the noise floor and not higher by more
 than that (a model's own record, made with its grid and cubic, fits those better and keeps them); the next
-refinement is judged from there.
+refinement is judged from there.  At the floor each alone can look no better — the parameters have compensated
+their joint error (that cantilever: the band-limited force alone 1.2, the finer grid alone 1.18) — so every
+refinement is tried at once and kept when its polished fit is decisively better (:data:`FLOOR_EVIDENCE`; that
+cantilever: 0.98, EI within its Cramér–Rao deviation).
 Records the model made itself (its own cubic, its own grid) fit worse on other numerics, so they keep theirs:
 the records choose, not a rule about the force's band.  The FMU backend keeps the config's numerics (an FMU takes
 the force sample by sample; :func:`ebb_model.bandlimited.hold_hint` then says what would model the records).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import Any, Callable, Mapping, Sequence
 
@@ -39,8 +46,8 @@ from .polish import PolishResult, ResidualEvaluator, polish
 from .prior import Prior
 from .runners import Runner
 
-__all__ = ["REFINEMENT_GAIN", "REFINEMENT_SHARE", "NumericsChoice", "keeps", "numerics_for_records", "refine_numerics",
-           "refinements"]
+__all__ = ["FLOOR_EVIDENCE", "REFINEMENT_GAIN", "REFINEMENT_SHARE", "NumericsChoice", "keeps", "numerics_for_records",
+           "refine_numerics", "refinements"]
 
 #: A refinement is judged (polished on) when it changes the identified point's χ² by more than this many noise
 #: variances per sample, and kept (:func:`keeps`) when it lowers the fit by more than that: the noise floor's own
@@ -50,6 +57,10 @@ REFINEMENT_GAIN = NOISE_FLOOR_EXCESS
 #: ... and by this share of the excess over the floor: the share of a gap from which the numerics are named in it
 #: (:attr:`diagnosis.settings.Thresholds.grid_caution`, the same 10 %).
 REFINEMENT_SHARE = 0.1
+#: At the noise floor the finest numerics are kept when their polished χ² is lower by more than this: decisive odds
+#: of 100 to 1 between two models of the same unknowns (2 ln 100).  A model's own record, made with its grid and
+#: cubic, fits those better and keeps them.
+FLOOR_EVIDENCE = 2.0 * math.log(100.0)
 
 
 @dataclass(frozen=True)
@@ -136,12 +147,23 @@ def numerics_for_records(evaluator: NativeEvaluator, candidates: Sequence[np.nda
     x = np.asarray(candidates[0], dtype=float)
     samples = sum(e.outputs.size for e in evaluator.experiments)
     first = chi2(evaluator, x)
-    if not np.isfinite(first) or first / samples <= 1.0 + NOISE_FLOOR_EXCESS:
+    if not np.isfinite(first):
         return NumericsChoice(evaluator, None, None)
     cfg = evaluator.config
     at_x, params = evaluator.space.apply(cfg, x)
     current, level, fit, kept = evaluator, first, None, []
-    for what, refine in refinements(at_x, params, [e.inputs for e in evaluator.experiments], band_hz):
+    steps = refinements(at_x, params, [e.inputs for e in evaluator.experiments], band_hz)
+    if steps and first / samples <= 1.0 + NOISE_FLOOR_EXCESS:
+        # at the floor every refinement at once, kept only when the records decisively prefer it (module docstring)
+        each = tuple(steps)
+
+        def finest(c: BeamConfig) -> BeamConfig:
+            for _, refine in each:
+                c = refine(c)
+            return c
+
+        steps = [(" and ".join(w for w, _ in each), finest)]
+    for what, refine in steps:
         trial = evaluator_for(refine(current.config))
         if not abs(chi2(trial, x) - level) > REFINEMENT_GAIN * samples:
             continue                  # the records cannot tell the two numerics apart here
@@ -149,7 +171,8 @@ def numerics_for_records(evaluator: NativeEvaluator, candidates: Sequence[np.nda
         # error (the strip's band-limited fit on 80 nodes: 2.0 noise variances there, 4.9 on 323 nodes at the same
         # point — and 1.0 once polished on them)
         step = polished(trial, x)
-        if keeps(level, step.cost, samples):
+        at_floor = first / samples <= 1.0 + NOISE_FLOOR_EXCESS
+        if (level - step.cost > FLOOR_EVIDENCE) if at_floor else keeps(level, step.cost, samples):
             current, level, fit, x = trial, step.cost, step, step.x
             kept.append(what)
     if fit is None:
@@ -159,7 +182,7 @@ def numerics_for_records(evaluator: NativeEvaluator, candidates: Sequence[np.nda
         if step.cost < fit.cost:
             fit = step
     grid = current.config.beam.nodes
-    said = " and ".join(w + (f" ({grid} nodes, from {cfg.beam.nodes})" if w == "a finer grid" else "") for w in kept)
+    said = " and ".join(kept).replace("a finer grid", f"a finer grid ({grid} nodes, from {cfg.beam.nodes})")
     note = (f"the records ask for finer numerics: with {said} the fit goes from {first / samples:.3g} to "
             f"{fit.cost / samples:.3g} noise variances per sample; the identified model is polished on them (the "
             "config's numerics left a gap the parameters would compensate)")

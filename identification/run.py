@@ -45,7 +45,7 @@ from ebb_model.output import check_new_output_dir, check_writable_dir, make_dir
 from .data import Experiment, load_experiments
 from .data_start import DataStart, data_start
 from .export_targets import DEFAULT_TARGETS, check_targets
-from .fisher import fisher_information
+from .fisher import fisher_information, nominal_fisher
 from .basins import better_of, noise_at, polish_basins
 from .fit_hints import fit_hints
 from .progress import Progress
@@ -182,7 +182,7 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         stored.check(run_record, out)
     space: ParameterSpace = parameter_space(cfg)
     evaluator = NativeEvaluator(cfg, space, _arrays(cfg, exps), per=per, stabilising=bool(stabilising))
-    fisher0 = fisher_information(evaluator, space.nominal, noise_std=noise_std)
+    fisher0 = nominal_fisher(evaluator, noise_std=noise_std)
     if fisher0.singular and not force:
         raise ConfigError(["identifiability: the Fisher information matrix is singular at the nominal point "
                            f"(rank {fisher0.rank} of {space.dim})", *fisher0.messages,

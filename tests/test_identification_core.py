@@ -297,3 +297,27 @@ def test_polish_stops_once_the_data_cannot_tell_the_remaining_step_apart():
     print(f"\nstop after {res.n_evaluations} evaluations (vs {full.n_evaluations}); chi2 left {chi2_left:.2e}")
     assert -1e-9 <= chi2_left < CHI2_RESOLUTION
     assert res.n_evaluations < full.n_evaluations
+
+
+def test_a_buckled_guess_is_checked_with_its_load_relaxed():
+    """A newcomer's guesses of EI and a compressive N can be a buckled beam (clamped–clamped, EI 10: buckling at
+    4π² EI/L² ≈ 395 N; the guess N −480): the identifiability check before the search is made with the load
+    relaxed towards zero inside its bounds and says so, where it ended in a ``StabilityError`` before any search."""
+    from ebb_model.errors import StabilityError
+    from identification.fisher import nominal_fisher
+
+    truth = make_config(nodes=20, N=-200.0, c=0.5)
+    d = truth.to_dict()
+    d["parameters"]["EI"].update(bounds=[5.0, 20.0], identify=True)
+    d["parameters"]["N"].update(value=-480.0, bounds=[-600.0, 100.0], identify=True)
+    cfg = em.config_from_dict(d, extra_sections=("identification",))
+    sp = parameter_space(cfg)
+    u, y = synthetic(truth)
+    ev = NativeEvaluator(cfg, sp, experiments_from_arrays([("e", u, y)]))
+    assert not ev.simulate(np.asarray(sp.nominal)).stable          # the guess is buckled
+    with pytest.raises(StabilityError):
+        fisher_information(ev, sp.nominal)
+    rep = nominal_fisher(ev)
+    j = sp.names.index("N")
+    assert rep.point[j] == pytest.approx(-240.0) and rep.point[0] == sp.nominal[0]
+    assert not rep.singular and "N -480 buckles the nominal beam" in rep.messages[0], rep.messages
