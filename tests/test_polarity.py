@@ -69,3 +69,41 @@ def test_the_sign_is_weighed_with_the_mechanisms(tmp_path):
     assert doc["verdict"] == "shaker_armature[F1]", doc["reason"]
     fitted = doc["effects"][0]["refit"]["effect_parameters"]
     assert fitted["mass"] == pytest.approx(ARMATURE["mass"], rel=SIZE_TOLERANCE), fitted
+
+
+@pytest.mark.parametrize("index", [18, 22, 45])
+def test_a_better_fit_reversed_that_leaves_most_of_the_misfit_is_no_reversed_force(tmp_path, index):
+    """The hint family's records on which the baseline's sign was read REVERSED with decisive odds though every
+    record holds its force as read: sensors two samples late (records 18 and 22: 824 → 566 and 449 → 313 noise
+    variances reversed, ln odds +1.8e5 and +1.9e5) and a withheld point mass (record 45: 1.56 → 1.50, +42.6) — the
+    reversed force removes 31 %, 30 % and 11 % of the misfit over the floor.  The sign is taken as read (a
+    reversed force removes at least half: :data:`~diagnosis.baseline.polarity.SIGN_REMOVES`), and the line says
+    why instead of asking for the load cell to be checked.  Measured on the baseline stage of all 64 records of the
+    family: 3 false reversals before, none now."""
+    from functools import partial
+
+    import numpy as np
+    from hint_family import hint_bench, write_hint_case
+
+    from diagnosis.baseline.fit import baseline_fit
+    from diagnosis.baseline.polarity import SIGN_REMOVES, check_polarity
+    from diagnosis.problem.fitting import GapProblem
+    from diagnosis.problem.records import ordered_record, split_records
+    from diagnosis.settings import thresholds_from_config
+    from identification.noise import records_noise_std
+    from identification.parameters import parameter_space
+    from identification.prior import Prior
+    from identification.run import load_identification_config, read_data
+
+    cfg_path, rec = write_hint_case(hint_bench(index), tmp_path)
+    cfg = load_identification_config(cfg_path)
+    records = split_records([ordered_record(cfg, e) for e in read_data(cfg, [rec])], [], holdout_fraction=0.3)
+    space = parameter_space(cfg)
+    sigma = records_noise_std([r.inputs for r in records], [r.outputs for r in records], cfg.time.dt)
+    problem = GapProblem(cfg, space, records, sigma, prior=Prior.of(cfg, space.names),
+                         settings=thresholds_from_config(cfg))
+    _, _, check = check_polarity(problem, partial(baseline_fit, beta0=np.asarray(space.nominal)))
+    assert not check.reversed, check.line()
+    if check.log_odds >= np.log(check.decisive_odds):      # the reversed force fits better, decisively ...
+        assert check.removed < SIGN_REMOVES                # ... but leaves most of the misfit, and says so
+        assert "REVERSED" not in check.line() and "leaves most of the misfit" in check.line()

@@ -121,8 +121,9 @@ def _pattern_stage(run: Search, evidence: ModalEvidence, local: Refits) -> tuple
     matches from their match (module docstring): the pattern fits, and the refits with theirs."""
     if not _linear(evidence, run.problem.settings):
         run.say(f"measured modes: their oscillators, scanned from the model's modes, leave "
-                f"{evidence.measured.gap_ratio:.3g} noise variances — a mode lies outside the scan or the records are "
-                f"not those of a linear time-invariant system: no modal pattern to compare")
+                f"{evidence.measured.gap_ratio:.3g} noise variances — a mode lies outside the scan, a channel's delay "
+                f"or filter is missing from the config, or the records are not those of a linear time-invariant "
+                f"system: no modal pattern to compare")
         return {}, local
     with run.clock.stage("modal pattern fits"):
         patterns = pattern_fits(run.problem, evidence, run.baseline.beta, run.catalogue, run.executor,
@@ -201,7 +202,7 @@ def _continuation_stage(run: Search, labels: list[str], local: Refits, early: Ea
         if lti:
             run.say(f"continuation refits of {', '.join(lti)} skipped: the measured modes' own fit leaves "
                     f"{evidence.measured.gap_ratio:.3g} noise variances, more than a linear time-invariant effect "
-                    f"near the model's modes would")
+                    f"near the model's modes would leave (so does a channel's delay or filter missing from the config)")
         pending = [lab for lab in pending if lab not in lti]
     if patterns:
         # a structural effect's basin is where its modal pattern put it (or the pattern showed that no effect
