@@ -35,13 +35,13 @@ from identification.cluster import parse_local_address
 from identification.export_targets import DEFAULT_TARGETS, check_targets
 from identification.modal_data import modal_data
 from identification.noise import given_noise_std, records_noise_std
-from identification.noise_model import estimate_noise_model
 from identification.parameters import parameter_space
 from identification.prior import Prior
 from identification.result import IdentificationResult
 from identification.run import load_identification_config, read_data
 
 from .baseline.fit import baseline_fit, floor_from_the_records, start_from_result
+from .baseline.noise import noise_of, under_the_noise
 from .baseline.numerics import numerics_at_the_refit
 from .baseline.polarity import PolarityCheck, check_polarity
 from .candidates.catalogue import catalogue_of
@@ -387,13 +387,13 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
     records, dt = problem.records, problem.config.time.dt
     say(polarity.line())
     if fit_noise:
-        problem, baseline = _noise_model(problem, baseline, clock, say)
+        problem, baseline = under_the_noise(problem, baseline, clock, say)
     band = excited_band([r.inputs for r in records], dt)
     with clock.stage("baseline from the records' start, on the numerics they ask for"):
         problem, found = floor_from_the_records(problem, baseline, band[1], say)
     if fit_noise and found is not baseline:
         # the noise model again, from the residual of the baseline taken (the first one's held its misfit)
-        problem, found = _noise_model(problem, found, clock, say, along_the_level=True)
+        problem, found = under_the_noise(problem, found, clock, say, along_the_level=True)
     baseline = found
     # stages 2 and 3, the candidates and the search
     if setups is not None:
@@ -402,7 +402,7 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
     # the numerics judged again where the model has the effect the records ask for most: the first single effect
     # of the order (a pair's second part is often what the numerics leave, and a drifting load is slow to simulate
     # on a finer grid: the mid-span mass's pair with an axial drift took 164 s to judge)
-    lead = next((lab for lab in ranking.order if lab in ranking.refits and not ranking.effects[lab].members), None)
+    lead = _lead(ranking)
     if lead is not None:
         with clock.stage("numerics the leading refit asks for"):
             refined = numerics_at_the_refit(problem, ranking.refits[lead].fit, ranking.effects[lead], band[1], say)
@@ -411,12 +411,17 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
             if fit_noise:
                 # the noise model again, from the residual of the best model there is (the baseline's held the
                 # effect's misfit: the strip's 30 g tip mass then left 0.11 of that "noise")
-                problem = _noise_of(problem, problem.simulate(refit.beta, ranking.effects[lead], refit.s, until="all"),
-                                    clock, say)
+                problem = noise_of(problem, problem.simulate(refit.beta, ranking.effects[lead], refit.s, until="all"),
+                                   clock, say)
             baseline = problem.fit_along_the_level(baseline.beta)
             catalogue, modes, ranking = _ranked(problem, baseline, band, setups, executor, parallel, clock, say, memo,
                                                 seeds={lead: (ranking.effects[lead], refit)})
     return _Found(problem, baseline, polarity, catalogue, modes, ranking)
+
+
+def _lead(ranking: Ranking) -> str | None:
+    """The leading single effect of ``ranking``'s order that was refitted (``None``: none was)."""
+    return next((lab for lab in ranking.order if lab in ranking.refits and not ranking.effects[lab].members), None)
 
 
 def _ranked(problem: GapProblem, baseline: Fit, band: tuple[float, float], setups: Setups | None, executor: Any,
@@ -436,28 +441,6 @@ def _ranked(problem: GapProblem, baseline: Fit, band: tuple[float, float], setup
     with clock.stage("ranking (the rest)"):
         ranking = _rank(problem, baseline, catalogue, modes, executor, clock, say, memo, seeds)
     return catalogue, modes, ranking
-
-
-def _noise_model(problem: GapProblem, baseline: Fit, clock: StageClock, say: Callable[[str], None], *,
-                 along_the_level: bool = False) -> tuple[GapProblem, Fit]:
-    """The noise as it is in each record (level and colour), from the baseline's residual, and the baseline fitted
-    again under it (``along_the_level``: :meth:`GapProblem.fit_along_the_level`)."""
-    problem = _noise_of(problem, problem.simulate(baseline.beta, until="all"), clock, say)
-    with clock.stage("noise model"):
-        baseline = (problem.fit_along_the_level if along_the_level else problem.fit)(baseline.beta)
-    return problem, baseline
-
-
-def _noise_of(problem: GapProblem, simulated: Sequence[np.ndarray | None], clock: StageClock,
-              say: Callable[[str], None]) -> GapProblem:
-    """``problem`` under the noise as it is in each record (level and colour), from the residual of the model
-    outputs ``simulated`` (every record's whole length)."""
-    records, cfg = problem.records, problem.config
-    with clock.stage("noise model"):
-        problem = problem.with_noise(estimate_noise_model([r.inputs for r in records], [
-            r.outputs - y for r, y in zip(records, simulated)], cfg.time.dt))
-    say("noise model: " + "; ".join(problem.noise_model.describe(cfg.output_names, [r.name for r in records])))
-    return problem
 
 
 def _rank(problem: GapProblem, baseline: Fit, catalogue: Catalogue, modes: _Modes, executor: Any,

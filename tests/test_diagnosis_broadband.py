@@ -132,6 +132,10 @@ PINNED_CASES = [
 ]
 
 
+# the crack's diagnosis ranks three times on the newcomer's 80 nodes and once more on the 323 its refit asks
+# for: 898-934 s beside another diagnosis on 2 cores (767 s alone, profiled), past the suite's 900 s guard
+# against a hang; its 248 s of modal pattern fits on the finer grid are issue 74's to remove
+@pytest.mark.timeout(1800)
 @pytest.mark.parametrize("effect,verdict,found", PINNED_CASES, ids=[v for _e, v, _f in PINNED_CASES])
 def test_a_beam_alike_from_either_end_is_diagnosed_on_the_right_half(tmp_path, effect, verdict, found):
     """A beam the same seen from either end shifts its modes alike for a place and its mirror image; the refits
