@@ -59,7 +59,7 @@ from .report.result import DiagnosisSettings, GapReport
 from .judgement.apart import SetupsApart, apart_parts, disagreement
 from .search.reuse import RefitMemo
 from .search.plausible import plausible_readings
-from .search.modal_pattern import modal_source
+from .search.modal_pattern import PatternFit, carried, modal_source
 from .search.rank import Ranking, rank_effects
 from .search.sign import sign_with_refits
 from .search.workers import DaskExecutor, close_refit_pool, refit_pool
@@ -252,7 +252,7 @@ def _case(found: _Found, clock: StageClock, say: Callable[[str], None]) -> Case:
     where = tuple(f"{r.name}: {s}" for r, loc in zip(records, locs) for s in loc.summary[:2])
     with clock.stage("plausibility and evidence"):
         weighed = _weighed(problem, ranking, f_hi, say)
-    return Case(problem, ranking, weighed, float(np.max(adequacy.numerical_share)), grid_line(advice, adequacy),
+    return Case(problem, ranking, weighed, adequacy.share_of_the_gap, grid_line(advice, adequacy),
                 found.polarity, where, adequacy=adequacy, advice=advice, locs=locs)
 
 
@@ -415,7 +415,7 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
                                    clock, say)
             baseline = problem.fit_along_the_level(baseline.beta)
             catalogue, modes, ranking = _ranked(problem, baseline, band, setups, executor, parallel, clock, say, memo,
-                                                seeds={lead: (ranking.effects[lead], refit)})
+                                                seeds={lead: (ranking.effects[lead], refit)}, earlier=ranking)
     return _Found(problem, baseline, polarity, catalogue, modes, ranking)
 
 
@@ -426,9 +426,11 @@ def _lead(ranking: Ranking) -> str | None:
 
 def _ranked(problem: GapProblem, baseline: Fit, band: tuple[float, float], setups: Setups | None, executor: Any,
             parallel: int, clock: StageClock, say: Callable[[str], None], memo: RefitMemo,
-            seeds: dict[str, tuple[Effect, Fit]] | None = None) -> tuple[Catalogue, _Modes, Ranking]:
+            seeds: dict[str, tuple[Effect, Fit]] | None = None,
+            earlier: Ranking | None = None) -> tuple[Catalogue, _Modes, Ranking]:
     """The candidates sized from ``baseline`` and the search among them (the refits of ``seeds`` started from
-    them): the catalogue, the baseline's modes and the ranking."""
+    them, the modal matches of the ranking on other numerics, ``earlier``, polished): the catalogue, the baseline's
+    modes and the ranking."""
     dt = problem.config.time.dt
     base_cfg, base_params = problem.space.apply(problem.config, baseline.beta)
     freqs, zetas = discrete_frequencies(base_cfg, base_params)
@@ -439,19 +441,22 @@ def _ranked(problem: GapProblem, baseline: Fit, band: tuple[float, float], setup
         p for p in RIG_PARTS if setups is not None and not setups.records_have(p)))
     modes = _Modes(band, freqs, zetas, in_band, f_top, parallel, _scan_start(problem, freqs, zetas, f_top))
     with clock.stage("ranking (the rest)"):
-        ranking = _rank(problem, baseline, catalogue, modes, executor, clock, say, memo, seeds)
+        ranking = _rank(problem, baseline, catalogue, modes, executor, clock, say, memo, seeds, None
+                        if earlier is None else carried(earlier.patterns, earlier.effects, catalogue))
     return catalogue, modes, ranking
 
 
 def _rank(problem: GapProblem, baseline: Fit, catalogue: Catalogue, modes: _Modes, executor: Any,
           clock: StageClock, say: Callable[[str], None], memo: RefitMemo,
-          seeds: dict[str, tuple[Effect, Fit]] | None = None) -> Ranking:
+          seeds: dict[str, tuple[Effect, Fit]] | None = None,
+          matches: dict[str, PatternFit] | None = None) -> Ranking:
     """The search (:func:`diagnosis.search.rank.rank_effects`) on ``problem`` from ``baseline``, with the
-    baseline's ``modes``, the diagnosis' local refits so far (``memo``) and the refits to start from (``seeds``)."""
+    baseline's ``modes``, the diagnosis' local refits so far (``memo``) and the refits and modal matches to start
+    from (``seeds``, ``matches``)."""
     return rank_effects(problem, baseline, catalogue=catalogue, shortlist=problem.settings.shortlist,
                         progress=say, executor=executor, parallel=modes.parallel, rounds=2, clock=clock, memo=memo,
                         modal=modal_source(problem, *modes.scan, modes.band[1]),
-                        settled=partial(settled, settings=problem.settings), seeds=seeds)
+                        settled=partial(settled, settings=problem.settings), seeds=seeds, matches=matches)
 
 
 def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, locs: Sequence[Localisation], *,

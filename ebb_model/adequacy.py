@@ -27,8 +27,8 @@ from .simulate import fast_model, simulate
 if TYPE_CHECKING:
     from .grid_advice import GridAdvice
 
-__all__ = ["NOISE_FLOOR_EXCESS", "NumericalAdequacy", "TRANSIENT_SHARE", "adequacy_line", "excited_band",
-           "grid_line", "is_transient", "modes_top", "numerical_adequacy", "refined_grid"]
+__all__ = ["NOISE_FLOOR_EXCESS", "NumericalAdequacy", "TRANSIENT_SHARE", "adequacy_line", "at_the_floor",
+           "excited_band", "grid_line", "is_transient", "modes_top", "numerical_adequacy", "refined_grid"]
 
 #: Relative excess of a residual variance over the noise floor below which there is no gap (to explain, or to
 #: share between grid and physics): a gap ratio up to ``1 + NOISE_FLOOR_EXCESS`` is the noise.
@@ -64,6 +64,16 @@ class NumericalAdequacy:
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(self.gap > 0, self.change / self.gap, 0.0)
 
+    @property
+    def share_of_the_gap(self) -> float:
+        """The largest sensor's :attr:`numerical_share`, or 0 when every sensor is at the noise floor
+        (:func:`at_the_floor`): then there is no gap to share — the one reading of :func:`adequacy_line` and of the
+        diagnosis' grid rule (a cantilever's correct record fitted to 1.1 noise variances on a coarse grid was said
+        to be at the floor, "none to share", beside "27 % of the baseline gap is the model's grid")."""
+        if at_the_floor(self.gap):
+            return 0.0
+        return float(np.max(self.numerical_share, initial=0.0))
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary."""
         per = {s: {"gap_ratio": float(g), "gap_ratio_refined": float(r), "change": float(c),
@@ -86,7 +96,7 @@ def adequacy_line(summary: Mapping[str, Any]) -> str:
     """
     share = summary["max_numerical_share"]
     per = summary.get("sensors", {}).values()
-    if per and all(s["gap_ratio"] <= 1.0 + NOISE_FLOOR_EXCESS for s in per):
+    if per and at_the_floor([s["gap_ratio"] for s in per]):
         change = max(s["change"] for s in per)
         return (f"numerical share of the gap: none to share, the fit is at the noise floor (refining the grid to "
                 f"{summary['refined_nodes']} nodes changes the outputs by {change:.2g} noise variances)")
@@ -94,6 +104,12 @@ def adequacy_line(summary: Mapping[str, Any]) -> str:
     refine = share > 0.1 and change > NOISE_FLOOR_EXCESS      # the grid line's criterion (grid_line) as well
     return (f"numerical share of the gap: {100 * share:.2g} % at most (refined grid of {summary['refined_nodes']} "
             "nodes" + ("; refine [beam] nodes before blaming physics)" if refine else ")"))
+
+
+def at_the_floor(gap_ratios: ArrayLike) -> bool:
+    """Whether every gap ratio (residual over noise variance, one per sensor) is within :data:`NOISE_FLOOR_EXCESS`
+    of the noise floor."""
+    return bool(np.all(np.asarray(gap_ratios, dtype=float) <= 1.0 + NOISE_FLOOR_EXCESS))
 
 
 def grid_line(advice: GridAdvice, adequacy: NumericalAdequacy) -> str:

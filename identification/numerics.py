@@ -46,8 +46,8 @@ from .polish import PolishResult, ResidualEvaluator, polish
 from .prior import Prior
 from .runners import Runner
 
-__all__ = ["FLOOR_EVIDENCE", "REFINEMENT_GAIN", "REFINEMENT_SHARE", "NumericsChoice", "keeps", "numerics_for_records",
-           "refine_numerics", "refinements"]
+__all__ = ["FLOOR_EVIDENCE", "REFINEMENT_GAIN", "REFINEMENT_SHARE", "NumericsChoice", "all_at_once", "keeps",
+           "numerics_for_records", "refine_numerics", "refinements"]
 
 #: A refinement is judged (polished on) when it changes the identified point's χ² by more than this many noise
 #: variances per sample, and kept (:func:`keeps`) when it lowers the fit by more than that: the noise floor's own
@@ -111,6 +111,22 @@ def refinements(config: BeamConfig, params: Mapping[str, float], inputs: Sequenc
     return out
 
 
+def all_at_once(steps: Sequence[tuple[str, Callable[[BeamConfig], BeamConfig]]]
+                ) -> list[tuple[str, Callable[[BeamConfig], BeamConfig]]]:
+    """:func:`refinements`' ``steps`` as one step, every refinement at once (none: none) — what is tried at the noise
+    floor, where each alone can look no better (module docstring)."""
+    if not steps:
+        return []
+    each = tuple(steps)
+
+    def finest(c: BeamConfig) -> BeamConfig:
+        for _, refine in each:
+            c = refine(c)
+        return c
+
+    return [(" and ".join(w for w, _ in each), finest)]
+
+
 def numerics_for_records(evaluator: NativeEvaluator, candidates: Sequence[np.ndarray], runner: Runner, *,
                          budget: int, band_hz: float, noise: NoiseModel | None = None, prior: Prior | None = None,
                          modes: ModalData | None = None,
@@ -153,16 +169,9 @@ def numerics_for_records(evaluator: NativeEvaluator, candidates: Sequence[np.nda
     at_x, params = evaluator.space.apply(cfg, x)
     current, level, fit, kept = evaluator, first, None, []
     steps = refinements(at_x, params, [e.inputs for e in evaluator.experiments], band_hz)
-    if steps and first / samples <= 1.0 + NOISE_FLOOR_EXCESS:
+    if first / samples <= 1.0 + NOISE_FLOOR_EXCESS:
         # at the floor every refinement at once, kept only when the records decisively prefer it (module docstring)
-        each = tuple(steps)
-
-        def finest(c: BeamConfig) -> BeamConfig:
-            for _, refine in each:
-                c = refine(c)
-            return c
-
-        steps = [(" and ".join(w for w, _ in each), finest)]
+        steps = all_at_once(steps)
     for what, refine in steps:
         trial = evaluator_for(refine(current.config))
         if not abs(chi2(trial, x) - level) > REFINEMENT_GAIN * samples:

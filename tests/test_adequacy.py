@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ebb_model.adequacy import numerical_adequacy, refined_grid
+from ebb_model.adequacy import NumericalAdequacy, numerical_adequacy, refined_grid
 from test_exact_scheme import CASES, SAMPLES_PER_CASE, band_limited_input, config, truth
 
 
@@ -107,3 +107,14 @@ def test_grid_advice_against_the_closed_form(scheme, nodes, substeps):
                      time=replace(cfg.time, substeps=advice.substeps_needed))
     assert np.max(_true_error_bandwidths(better, k)) <= BANDWIDTH_FRACTION, _true_error_bandwidths(better, k)
     assert grid_advice(better, band_hz=band).adequate
+
+
+def test_no_gap_has_no_share_for_the_rules_either():
+    """The share the diagnosis' grid rule reads is the report line's: none at the noise floor (a correct cantilever
+    record fitted to 1.1 noise variances on 80 nodes, refinement changing its outputs by 0.3, was called "none to
+    share" beside a caution that "27 % of the baseline gap is the model's grid"), the largest sensor's above it."""
+    at_floor = NumericalAdequacy(("s1",), np.array([1.1]), np.array([1.0]), np.array([0.3]), 323)
+    assert at_floor.numerical_share[0] == pytest.approx(0.3 / 1.1)
+    assert at_floor.share_of_the_gap == 0.0 and "none to share" in at_floor.summary()
+    gap = NumericalAdequacy(("s1", "s2"), np.array([1.1, 4.0]), np.array([1.0, 2.0]), np.array([0.3, 2.0]), 323)
+    assert gap.share_of_the_gap == pytest.approx(0.5) and gap.summary().startswith("numerical share of the gap: 50 %")

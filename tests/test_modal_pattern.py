@@ -6,6 +6,7 @@ frequencies ``Ω_n = nπ √(n²π² + U)`` and mass-proportional damping ratios
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -72,13 +73,14 @@ def test_measured_modes_are_the_analytic_ones(kind):
 
 def test_modal_pattern_finds_a_compensated_clamp(tmp_path, monkeypatch):
     """A compliant clamp scores 0 in the one-sided test at a baseline that compensated it; its modal pattern,
-    with the baseline profiled out, matches the measured modes — and a point mass' pattern does not."""
+    with the baseline profiled out, matches the measured modes — and a point mass' pattern does not.  A match is
+    polished from an earlier one, and carried to a catalogue sized from another baseline by its physical values."""
     from identification.noise import records_noise_std
     from identification.parameters import parameter_space
     from identification.run import read_data
     from diagnosis.effects import Catalogue, Scales
     from diagnosis.problem.fitting import GapProblem
-    from diagnosis.search.modal_pattern import modal_evidence, pattern_fit, pattern_fits
+    from diagnosis.search.modal_pattern import carried, modal_evidence, pattern_fit, pattern_fits
     from diagnosis.problem.records import split_records
     from diagnosis.problem.records import ordered_record
     from ebb_model.modal import discrete_frequencies
@@ -135,6 +137,19 @@ def test_modal_pattern_finds_a_compensated_clamp(tmp_path, monkeypatch):
     assert again.chi2 <= 2.0 * ev.n_modes
     assert catalogue.effect("boundary_rotational_left").physical(again.s)["kr"] / ratio_again == pytest.approx(
         200.0, rel=0.05)
+    # the same records searched on other numerics, the catalogue sized from another baseline (ρA and EI 1.7 times
+    # these): each match is carried by its physical values, not by its variables (a mass is searched as a share of
+    # the baseline's ρA L, so the same variables would be a mass 1.7 times as large)
+    other = Catalogue(c0, dataclasses.replace(scales, EI=1.7 * scales.EI, rhoA=1.7 * scales.rhoA),
+                      tuple(space.names))
+    made_with = {lab: catalogue.effect(lab) for lab in ("boundary_rotational_left", "point_mass")}
+    moved = carried({"boundary_rotational_left": clamp, "point_mass": mass}, made_with, other)
+    assert set(moved) == set(made_with)
+    for lab, pf in (("boundary_rotational_left", clamp), ("point_mass", mass)):
+        before, after = made_with[lab].physical(pf.s), other.effect(lab).physical(moved[lab].s)
+        assert after == pytest.approx(before, rel=1e-9), lab          # variables_for solves them to 1e-9
+        assert np.array_equal(moved[lab].beta, pf.beta) and moved[lab].chi2 == pf.chi2
+    assert not np.allclose(moved["point_mass"].s, mass.s, rtol=0.1)      # not the same variables
 
 
 def test_standard_errors_are_those_of_the_linearised_fit_and_infinite_when_undetermined():

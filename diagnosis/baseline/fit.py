@@ -74,7 +74,7 @@ def floor_from_the_records(problem: GapProblem, baseline: Fit, band_hz: float, s
     fit = problem.fit(rival.beta)
     if fit.rss / fit.n <= floor:
         _say_floor(say, baseline, fit, "")
-        return problem, fit
+        return numerics_from_the_records(problem, fit, band_hz, say)    # at the floor too: they may still be asked
     lines: list[str] = []
     refined, fit_refined = numerics_from_the_records(problem, fit, band_hz, lines.append)
     if fit_refined.rss / fit_refined.n <= floor:

@@ -7,7 +7,7 @@ from dataclasses import replace
 from typing import Callable
 
 from ebb_model.adequacy import NOISE_FLOOR_EXCESS
-from identification.numerics import REFINEMENT_GAIN, keeps, refinements
+from identification.numerics import FLOOR_EVIDENCE, REFINEMENT_GAIN, all_at_once, keeps, refinements
 
 from ..effects import Effect
 from ..problem.fitting import Fit, GapProblem
@@ -18,14 +18,17 @@ __all__ = ["numerics_at_the_refit", "numerics_from_the_records"]
 def numerics_from_the_records(problem: GapProblem, baseline: Fit, band_hz: float, say: Callable[[str], None]
                               ) -> tuple[GapProblem, Fit]:
     """The problem on the numerics the records ask for and the baseline refitted on them (the problem and baseline
-    given when the baseline is at the noise floor, or no refinement is kept).
+    given when no refinement is kept).
 
-    A refinement (:func:`identification.numerics.refinements`) that changes the baseline's χ² by more than
-    :data:`~identification.numerics.REFINEMENT_GAIN` per residual is fitted on, and kept by the identification's
-    rule (:func:`identification.numerics.keeps`).
+    The identification's rule (:func:`identification.numerics.numerics_for_records`): a refinement
+    (:func:`identification.numerics.refinements`) that changes the baseline's χ² by more than
+    :data:`~identification.numerics.REFINEMENT_GAIN` per residual is fitted on, and kept by
+    :func:`identification.numerics.keeps`; at the noise floor every refinement at once, kept when its fit is lower
+    by :data:`~identification.numerics.FLOOR_EVIDENCE` — there the parameters have taken up the coarser numerics'
+    error, which the held-out window then shows as a gap (measured: the hint family's correct cantilever record 48,
+    an accelerometer under noise to 0.2 fs, 80 nodes and the cubic: fit 1.1 noise variances, held out 1.44, the
+    verdict ``unexplained``; at the truth 323 nodes and the band-limited force leave 1.02 and 0.99).
     """
-    if baseline.rss / baseline.n <= 1.0 + NOISE_FLOOR_EXCESS:
-        return problem, baseline
     first = baseline.rss
     problem, baseline, kept = _refined(problem, baseline, band_hz)
     if kept:
@@ -65,17 +68,20 @@ def _refined(problem: GapProblem, fit: Fit, band_hz: float, effect: Effect | Non
              ) -> tuple[GapProblem, Fit, list[str]]:
     """Each refinement that changes ``fit``'s χ² (of ``effect`` at ``fit.s`` when given) by more than
     :data:`~identification.numerics.REFINEMENT_GAIN` per residual, fitted on and kept by
-    :func:`~identification.numerics.keeps`: the problem and fit on the numerics kept, and what was kept."""
+    :func:`~identification.numerics.keeps` (at the noise floor all at once, kept by
+    :data:`~identification.numerics.FLOOR_EVIDENCE`): the problem and fit on the numerics kept, and what was kept."""
     cfg = problem.config
     at, params = problem.space.apply(cfg, fit.beta)
     kept: list[str] = []
-    for what, refine in refinements(at, params, [r.inputs for r in problem.records], band_hz):
+    steps = refinements(at, params, [r.inputs for r in problem.records], band_hz)
+    at_floor = fit.rss / fit.n <= 1.0 + NOISE_FLOOR_EXCESS
+    for what, refine in all_at_once(steps) if at_floor else steps:
         trial = replace(problem, config=refine(problem.config))
         r = trial.residuals(fit.beta, effect, fit.s if effect is not None else None)
         if not abs(float(r @ r) - fit.rss) > REFINEMENT_GAIN * fit.n:
             continue
         new = trial.fit_along_the_level(fit.beta, effect, fit.s if effect is not None else None)
-        if keeps(fit.rss, new.rss, fit.n):
+        if fit.rss - new.rss > FLOOR_EVIDENCE if at_floor else keeps(fit.rss, new.rss, fit.n):
             problem, fit = trial, new
             kept.append(what + (f" ({trial.config.beam.nodes} nodes, from {cfg.beam.nodes})"
                                 if trial.config.beam.nodes != cfg.beam.nodes else ""))

@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import math
 from concurrent.futures import Executor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Mapping
 
 import numpy as np
@@ -50,7 +50,7 @@ from ebb_model.channel_delay import effective_delays
 from ebb_model.errors import EbbError
 from ebb_model.modal import discrete_frequencies
 
-from ..effects import Catalogue, Effect
+from ..effects import Catalogue, Effect, variables_for
 from ..problem.fitting import GapProblem
 from .modal_estimate import MeasuredModes, estimate_modes
 from ..candidates.score import trial_values
@@ -359,10 +359,10 @@ def pattern_fits(problem: GapProblem, evidence: ModalEvidence, beta: np.ndarray,
     baseline alone is returned): a χ² is a sum of squares, so no effect could match better by more than the
     margin.  (Measured on the displacement actuator-lag record of the blind family, whose baseline matches its
     five modes with χ² 1.6: 33 of its 48 s were these fits.)  An effect with a match in ``previous`` (the same
-    records' modes matched from another baseline, in an earlier ranking) is polished from it instead of
-    searched again (:func:`pattern_fit`'s ``start``): the grid's starts were tried once, and a new baseline moves
-    only the weak prior's centre.  (Measured on the rig family's pair, spring and actuator lag, ranked twice:
-    the second ranking's 30 s of pattern fits.)
+    records' modes matched from another baseline, in an earlier ranking or on other numerics: :func:`carried`) is
+    polished from it instead of searched again (:func:`pattern_fit`'s ``start``): the grid's starts were tried
+    once, and a new baseline moves only the weak prior's centre.  (Measured on the rig family's pair, spring and
+    actuator lag, ranked twice: the second ranking's 30 s of pattern fits.)
 
     With a rival baseline (:attr:`GapProblem.rival`: the fit from the records' own start, better than the baseline
     without reaching the floor) every fit is made from it too and the better match kept — the baseline's and
@@ -385,6 +385,20 @@ def pattern_fits(problem: GapProblem, evidence: ModalEvidence, beta: np.ndarray,
         if f.label not in best or f.chi2 < best[f.label].chi2:
             best[f.label] = f
     return {"baseline": base} | best
+
+
+def carried(matches: Mapping[str, PatternFit], made_with: Mapping[str, Effect], catalogue: Catalogue
+            ) -> dict[str, PatternFit]:
+    """``matches`` — pattern fits of the effects ``made_with`` (by label), in another catalogue of the same records:
+    sized from another baseline, on other numerics — as matches of ``catalogue``'s effects of the same labels, by
+    their physical values (:func:`~diagnosis.effects.variables_for`); one without such a point is left out."""
+    out = {}
+    for e in catalogue.effects():
+        pf, old = matches.get(e.label), made_with.get(e.label)
+        s = None if pf is None or old is None else variables_for(e, old.physical(pf.s), pf.s)
+        if pf is not None and s is not None:
+            out[e.label] = replace(pf, s=s)
+    return out
 
 
 def modal_source(problem: GapProblem, freq_hz: np.ndarray, damping: np.ndarray, above_hz: np.ndarray,

@@ -315,7 +315,8 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
                  modal: Callable[[np.ndarray], ModalEvidence] | None = None,
                  clock: StageClock | None = None, memo: RefitMemo | None = None,
                  settled: Callable[[Ranking], bool] = lambda ranking: False,
-                 seeds: Mapping[str, tuple[Effect, Fit]] | None = None) -> Ranking:
+                 seeds: Mapping[str, tuple[Effect, Fit]] | None = None,
+                 matches: Mapping[str, PatternFit] | None = None) -> Ranking:
     """Score every effect, refit the ``shortlist`` best, rank and decide — again from a better baseline basin
     when the refits reveal one (the one re-baselining loop).
 
@@ -364,6 +365,9 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
         numerics it asked for: :func:`diagnosis.baseline.numerics.numerics_at_the_refit`, in the catalogue of the
         baseline before them): each polished on this problem and kept where it fits better than the ranking's own
         refit — the best point any stage found is not lost.
+    matches
+        Modal matches of ``catalogue``'s effects made on other numerics (:func:`~diagnosis.search.modal_pattern
+        .carried`), polished instead of searched again, as a later ranking polishes an earlier one's.
 
     Returns
     -------
@@ -374,7 +378,7 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
     clock = clock if clock is not None else StageClock()
     early_rebaseline, left = rebaseline, rounds
     # the modal matches, polished again by a later ranking, and the local refits, taken instead of repeated
-    plan = _Plan(catalogue, shortlist, max_evaluations, say, executor, parallel, modal, clock, {},
+    plan = _Plan(catalogue, shortlist, max_evaluations, say, executor, parallel, modal, clock, dict(matches or {}),
                  memo if memo is not None else RefitMemo(), dict(seeds or {}))
     while True:
         outcome = _rank_once(problem, baseline, plan, early_rebaseline)
