@@ -156,3 +156,23 @@ def test_a_beam_alike_from_either_end_is_diagnosed_on_the_right_half(tmp_path, e
     assert max(named["heldout_gap_ratio_after"].values()) - 1.0 <= d.problem.settings.gap_threshold, named
     for k, (truth, tol) in found.items():
         assert abs(named["effect_parameters"][k] - truth) <= tol, (k, named["effect_parameters"])
+
+
+def test_a_correct_record_of_the_hint_family_at_the_floor_on_coarse_numerics_is_none(tmp_path):
+    """The hint family's correct record 48 (``tests/hint_family.py``: a cantilever's accelerometer under noise to
+    0.2 fs, a newcomer's config, the truth converged: 128 elements) with the default options: fitted to 1.1 noise
+    variances on 80 nodes and the cubic, held out 1.44, it was ``unexplained`` — the numerics were not judged at a
+    baseline at the floor (:func:`diagnosis.baseline.numerics.numerics_from_the_records`; at the truth 323 nodes and
+    the band-limited force leave 1.02 and 0.99).  Of the family's 16 correct records, 15 are ``none`` now (measured;
+    record 44 is ``unexplained`` at 1.46: the band-limited force's first samples, issue 71)."""
+    from diagnosis.run import diagnose
+    from hint_family import hint_bench, write_hint_case
+
+    case = hint_bench(48, elements=128)
+    assert case.kind == "correct"
+    cfg, rec = write_hint_case(case, tmp_path / "bench")
+    d = diagnose(cfg, [rec], tmp_path / "gap", plots=False, workers=1, export=False)
+    doc = d.document
+    assert doc["verdict"] == "none", doc["reason"]
+    # at the noise floor held out: within the gap threshold (measured 0.99)
+    assert max(doc["baseline"]["heldout_gap_ratio"].values()) - 1.0 <= d.problem.settings.gap_threshold, doc["baseline"]
