@@ -47,7 +47,7 @@ from .prior import Prior
 from .runners import Runner
 
 __all__ = ["FLOOR_EVIDENCE", "REFINEMENT_GAIN", "REFINEMENT_SHARE", "NumericsChoice", "all_at_once", "keeps",
-           "numerics_for_records", "refine_numerics", "refinements"]
+           "numerics_for_records", "records_keep", "refine_numerics", "refinements"]
 
 #: A refinement is judged (polished on) when it changes the identified point's χ² by more than this many noise
 #: variances per sample, and kept (:func:`keeps`) when it lowers the fit by more than that: the noise floor's own
@@ -95,6 +95,13 @@ def keeps(before: float, after: float, n: int) -> bool:
     if gain > REFINEMENT_GAIN * n and gain > REFINEMENT_SHARE * (before - n):
         return True
     return after / n <= 1.0 + NOISE_FLOOR_EXCESS and after <= before + REFINEMENT_GAIN * n
+
+
+def records_keep(before: float, after: float, n: int, at_floor: bool) -> bool:
+    """Whether the records keep a refinement tried from a fit at the noise floor (``at_floor``: every refinement at
+    once, kept when lower by :data:`FLOOR_EVIDENCE`) or above it (:func:`keeps`) — the rule of
+    :func:`numerics_for_records` and of the diagnosis' baseline."""
+    return before - after > FLOOR_EVIDENCE if at_floor else keeps(before, after, n)
 
 
 def refinements(config: BeamConfig, params: Mapping[str, float], inputs: Sequence[np.ndarray], band_hz: float
@@ -181,7 +188,7 @@ def numerics_for_records(evaluator: NativeEvaluator, candidates: Sequence[np.nda
         # point — and 1.0 once polished on them)
         step = polished(trial, x)
         at_floor = first / samples <= 1.0 + NOISE_FLOOR_EXCESS
-        if (level - step.cost > FLOOR_EVIDENCE) if at_floor else keeps(level, step.cost, samples):
+        if records_keep(level, step.cost, samples, at_floor):
             current, level, fit, x = trial, step.cost, step, step.x
             kept.append(what)
     if fit is None:

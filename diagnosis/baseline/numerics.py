@@ -7,7 +7,7 @@ from dataclasses import replace
 from typing import Callable
 
 from ebb_model.adequacy import NOISE_FLOOR_EXCESS
-from identification.numerics import FLOOR_EVIDENCE, REFINEMENT_GAIN, all_at_once, keeps, refinements
+from identification.numerics import REFINEMENT_GAIN, all_at_once, records_keep, refinements
 
 from ..effects import Effect
 from ..problem.fitting import Fit, GapProblem
@@ -81,7 +81,7 @@ def _refined(problem: GapProblem, fit: Fit, band_hz: float, effect: Effect | Non
         if not abs(float(r @ r) - fit.rss) > REFINEMENT_GAIN * fit.n:
             continue
         new = trial.fit_along_the_level(fit.beta, effect, fit.s if effect is not None else None)
-        if fit.rss - new.rss > FLOOR_EVIDENCE if at_floor else keeps(fit.rss, new.rss, fit.n):
+        if records_keep(fit.rss, new.rss, fit.n, at_floor):
             problem, fit = trial, new
             kept.append(what + (f" ({trial.config.beam.nodes} nodes, from {cfg.beam.nodes})"
                                 if trial.config.beam.nodes != cfg.beam.nodes else ""))
