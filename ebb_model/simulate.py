@@ -24,7 +24,7 @@ import numba
 import numpy as np
 
 from .arrays import as_matrix
-from .bandlimited import advance_input
+from .bandlimited import lead_in
 from .channel_delay import delay_outputs, with_channel_delays
 from .output import atomic_path
 from .config import BeamConfig
@@ -123,15 +123,18 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
     x0
         Initial state (block state ``(nb, 2)`` flattened for modal systems).
         Default: at rest — zero, or ``−Γ₁ u[0]`` for a first-order-hold
-        realisation (``system.hold``, see :mod:`ebb_model.theta_scheme`).
+        realisation (``system.hold``, see :mod:`ebb_model.theta_scheme`).  A system that reads its input
+        ``system.advance`` samples ahead (the band-limited force) starts that many samples before the record, under
+        the record's first sample held (:func:`ebb_model.bandlimited.lead_in`): ``x0`` is its state there.
 
     Returns
     -------
     SimulationResult
         ``y[k] = C x[k] + D u[k]`` at ``t_k = k dt``.
     """
+    lead = system.advance if np.size(u) else 0        # outputs before the record (lead_in), dropped
     if isinstance(system, ModalStateSpace):
-        u = advance_input(as_matrix(u, "input", shape=(None, system.D.shape[1])), system.advance)
+        u = lead_in(as_matrix(u, "input", shape=(None, system.D.shape[1])), system.advance)
         if x0 is not None:
             z = np.asarray(x0, dtype=float).reshape(system.nblocks, 2)
         elif system.hold is not None and u.shape[0]:
@@ -139,10 +142,10 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
         else:
             z = np.zeros((system.nblocks, 2))
         y = run_modal_recursion(system.T, system.G, system.Cm, system.D, u, system.delays, z,
-                                D_taps=system.feedthrough_taps())
+                                D_taps=system.feedthrough_taps())[lead:]
         y = delay_outputs(y, system.output_delays)
     else:
-        u = advance_input(as_matrix(u, "input", shape=(None, system.ninputs)), system.advance)
+        u = lead_in(as_matrix(u, "input", shape=(None, system.ninputs)), system.advance)
         y = np.empty((u.shape[0], system.noutputs))
         if x0 is not None:
             x = np.asarray(x0, dtype=float).reshape(system.nstates)
@@ -152,7 +155,7 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
             x = np.zeros(system.nstates)
         _dense_kernel(np.ascontiguousarray(system.A), np.ascontiguousarray(system.B),
                       np.ascontiguousarray(system.C), np.ascontiguousarray(system.D), x, u, y)
-        y = delay_outputs(y, system.output_delays)
+        y = delay_outputs(y[lead:], system.output_delays)
     return SimulationResult(y, tuple(system.output_names), system.dt)
 
 

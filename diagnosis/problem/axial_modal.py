@@ -46,7 +46,7 @@ from ebb_model.config import BeamConfig
 from ebb_model.discretisation import discretise
 from ebb_model.errors import StabilityError
 from ebb_model.exact_modal import continuous_modes
-from ebb_model.bandlimited import advance_input
+from ebb_model.bandlimited import lead_in
 from ebb_model.sample_integrals import ADVANCE, INPUT_TAPS, input_weights, pole_integrals
 from ebb_model.richardson_pair import refined_config
 from ebb_model.parameter_values import resolve_parameters
@@ -192,7 +192,10 @@ def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None,
     taps = np.array(INPUT_TAPS[config.time.input_hold], dtype=np.int64)
     Kg = psi.T @ geometric_stiffness(fine, p) @ psi
     Gm = psi.T @ stretch_matrix(fine) @ psi
-    y = np.empty((u.shape[0], len(config.sensors)))
+    # a force read ADVANCE samples ahead starts that many samples before the record, under its first sample held
+    # (ebb_model.bandlimited.lead_in, as the model's below): those outputs are dropped, the axial force's time kept
+    lead = ADVANCE[config.time.input_hold] if u.shape[0] else 0
+    y = np.empty((u.shape[0] + lead, len(config.sensors)))
     # the poles the modal load drives or reads (the modes below Nyquist, the filters): the rest respond to the
     # force alone, as in the time-invariant model, whose outputs the perturbation's are added to
     P = np.flatnonzero(np.any(Bg != 0, axis=1) | np.any(Vq != 0, axis=0))
@@ -200,10 +203,10 @@ def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None,
             np.ascontiguousarray(drive[P], dtype=np.complex128), np.ascontiguousarray(W[:, P], dtype=np.complex128),
             taps, *_rows(Bg[P]), *_rows(Vq[:, P]), np.ascontiguousarray(Kg), np.ascontiguousarray(Gm),
             np.ascontiguousarray(Cz[:, P], dtype=np.complex128), np.ascontiguousarray(Dg),
-            np.ascontiguousarray(advance_input(u, ADVANCE[config.time.input_hold]), dtype=float), float(dt),
-            float(offset), float(rate),
+            np.ascontiguousarray(lead_in(u, lead), dtype=float), float(dt),
+            float(offset) - float(rate) * lead * float(dt), float(rate),
             float(EA) / (2.0 * config.beam.length), y)
-    y = delay_outputs(y, effective_delays(config))       # the channels' converter delays, as the model's below
+    y = delay_outputs(y[lead:], effective_delays(config))       # the channels' converter delays, as the model's below
     y += simulate(fast_model(config, p), u).outputs
     if check_stability and not np.all(np.isfinite(y)):
         raise StabilityError("the simulation with axial drift/stretching diverged (non-finite outputs): "
