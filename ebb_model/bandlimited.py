@@ -27,7 +27,7 @@ advances as ``z⁺ = e^{sT} z + Σ_m W_m u_{k+m}`` with
 computed here by composite Gauss–Legendre quadrature (:func:`pole_weights`; panels narrow enough for
 ``e^{sT(1−σ)}`` on each — a mode far above the Nyquist frequency gets more of them).  The reconstruction is not
 causal: ``M − 1`` samples lie beyond the lookahead that the other holds read.  The model reads the record
-:data:`ADVANCE` samples ahead (:func:`advance_input`: the last sample held after the record, the first before
+:data:`ADVANCE` samples ahead (:func:`lead_in`: the last sample held after the record, the first before
 it), which a record allows and a co-simulation host, feeding the force sample by sample, does not (the FMUs say
 so and take the cubic).
 """
@@ -43,7 +43,7 @@ if TYPE_CHECKING:
     from .config import BeamConfig
 
 __all__ = ["HALF_WIDTH", "BETA", "BAND", "ADVANCE", "TAPS", "kernel", "pole_weights",
-           "dense_weights", "advance_input", "lead_in", "causal_config", "hold_hint", "BROADBAND_EDGE",
+           "dense_weights", "lead_in", "causal_config", "hold_hint", "BROADBAND_EDGE",
            "reconstruction_error", "RECONSTRUCTION_ERROR"]
 
 #: Half-width ``M`` of the kernel in samples.
@@ -170,28 +170,18 @@ def pole_weights(s: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
     return E, W
 
 
-def advance_input(u: np.ndarray, advance: int) -> np.ndarray:
-    """The record read ``advance`` samples ahead: ``u[k + advance]``, the last sample held after the record.
-
-    A recursion run on it from the record's first sample reads ``u[advance]`` where the reconstruction needs
-    ``u[0 … advance − 1]`` (its past samples are its first one held): :func:`lead_in` is what a simulation from the
-    record's start runs on."""
-    if advance <= 0 or u.shape[0] == 0:
-        return u
-    return np.concatenate([u[advance:], np.repeat(u[-1:], min(advance, u.shape[0]), axis=0)])
-
-
 def lead_in(u: np.ndarray, advance: int) -> np.ndarray:
     """What a recursion reading the record ``advance`` samples ahead runs on, from ``advance`` samples before the
     record (its first ``advance`` outputs are before the record, dropped): the record with its last sample held
     ``advance`` samples after it.  Every sample the reconstruction needs is then read — before the record its first
     sample held, as the recursion holds its past.
 
-    Run from the record's first sample on :func:`advance_input` instead, the reconstruction took ``u[advance]`` for
-    ``u[0 … advance − 1]``: a step of the force at the start, whose lowest mode rang through the record (measured: a
-    cantilever under noise to fs/2.56, two velocity sensors and a displacement one, 1 % noise: 3-4 noise variances
-    in the first 0.2 s at the truth's parameters, 1.1-1.3 until 1.4 s, with the model on a grid four times finer;
-    0.000 from the record's first sample held before it)."""
+    Run from the record's first sample on the record read ``advance`` samples ahead instead (as it was before
+    this lead-in), the reconstruction took ``u[advance]`` for ``u[0 … advance − 1]``: a step of the force at the
+    start, whose lowest mode rang through the record (measured: a cantilever under noise to fs/2.56, two velocity
+    sensors and a displacement one, 1 % noise: 3-4 noise variances in the first 0.2 s at the truth's parameters,
+    1.1-1.3 until 1.4 s, with the model on a grid four times finer; 0.000 from the record's first sample held
+    before it)."""
     if advance <= 0 or u.shape[0] == 0:
         return u
     return np.concatenate([u, np.repeat(u[-1:], advance, axis=0)])

@@ -35,7 +35,7 @@ exact to :data:`~ebb_model.bandlimited.RECONSTRUCTION_ERROR` when the response i
 ``[time] input = "bandlimited"``.  A fractional delay therefore needs that setting (a polynomial force between
 samples has images above the band that the kernel does not reproduce); a converter that delays is a DAQ, whose
 records are band-limited anyway.  Before the record the output is held at its first value and after it at its
-last (as the force is, :func:`ebb_model.bandlimited.advance_input`).
+last (as the force is, :func:`ebb_model.bandlimited.lead_in`).
 
 The frequency response of a delayed channel is the beam's times ``e^{−iωτ}`` (:func:`delay_response`).  The
 delays belong to the records' acquisition, not to the beam: the exports of an identified or corrected model (a
