@@ -1,6 +1,8 @@
-"""The ``ebb`` parser and its exit codes: 0 done, 2 bad input (one line), 130 interrupted (Ctrl-C)."""
+"""The ``ebb`` parser and its exit codes: 0 done, 2 bad input (one line), 130 interrupted (Ctrl-C), 141 the
+reader of the output closed its pipe (``ebb modes CFG | head -2``; 128 + SIGPIPE, as a shell's own tools)."""
 from __future__ import annotations
 
+import os
 import sys
 from typing import Any, Sequence
 
@@ -35,7 +37,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     Returns
     -------
     int
-        0 on success, 2 for bad input (``ebb COMMAND: error: ...`` on one line), 130 when interrupted.
+        0 on success, 2 for bad input (``ebb COMMAND: error: ...`` on one line), 130 when interrupted, 141 when
+        the output's reader closed the pipe (quietly).
     """
     import warnings
 
@@ -55,13 +58,36 @@ def main(argv: Sequence[str] | None = None) -> int:
             warnings.simplefilter("default", ConfigWarning)    # once: a config is loaded more than once
             warnings.showwarning = one_line
             with single_blas_thread():   # every subcommand (ebb_model.threads)
-                return int(args.func(args) or 0)
+                code = int(args.func(args) or 0)
+                sys.stdout.flush()     # a reader gone is found here, not by the interpreter's flush at exit
+                return code
     except Interrupted as exc:
         print(f"{prog}: {exc}", file=sys.stderr)
         return 130
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        if not _stdout_closed():
+            raise                          # another pipe (a worker's, say): not the reader's doing
+        return 141
     except EbbError as exc:
         print(f"{prog}: error: {render(str(exc), flags)}", file=sys.stderr)
         return 2
+
+
+def _stdout_closed() -> bool:
+    """Whether standard output's reader has gone (its pipe reports an error to a poll: Linux and macOS); then
+    it points to the null device from here on, so that the interpreter's own flush at exit finds nothing to say."""
+    import select
+
+    try:
+        fd = sys.stdout.fileno()
+        poller = select.poll()
+        poller.register(fd, select.POLLOUT)
+        closed = any(ev & select.POLLERR for _fd, ev in poller.poll(0))
+    except (AttributeError, OSError, ValueError):   # no poll here, or no file behind stdout
+        return False
+    if closed:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), fd)
+    return closed

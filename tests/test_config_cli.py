@@ -226,6 +226,22 @@ def test_cli_subprocess_exit_codes(tmp_path):
     assert "beam.nodes" in r.stderr and "Traceback" not in r.stderr
 
 
+def test_a_reader_that_closed_the_pipe_ends_the_command_quietly():
+    """``ebb modes CFG | head -2``: the reader gone before the table is written.  The read end is closed before
+    the command starts, so that every write meets the broken pipe (with ``head`` it depends on timing): exit 141
+    (128 + SIGPIPE, as a shell's own tools), nothing on standard error.  Before: a ``BrokenPipeError`` traceback,
+    exit 1."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        r = subprocess.run([sys.executable, "-m", "ebb_cli", "modes", str(SEED)], stdout=write_end,
+                           stderr=subprocess.PIPE, text=True, timeout=300)
+    finally:
+        os.close(write_end)
+    assert r.returncode == 141, r.stderr
+    assert r.stderr == ""
+
+
 def test_impossible_magnitudes_are_parameter_errors_not_linear_algebra_failures():
     """A point mass 1e30 kg broke the Cholesky factor of M (LinAlgError); EI = 1e300 overflowed the matrices."""
     d = base()
