@@ -318,6 +318,8 @@ def pattern_fit(problem: GapProblem, evidence: ModalEvidence, beta0: np.ndarray,
             # the best re-adjusted values, and the best as they were (a re-adjustment can also mislead)
             starts += [g[0] for g in sorted(grid, key=lambda g: g[1])[:k_profiled]]
             starts += [raw[i] for i in np.argsort([float(r @ r) for r in map(res, raw)])[:k_raw]]
+            if base is beta0 and effect.dim > 1:
+                starts += _best_per_place(trials, grid)
         # every value of the grid with the modes' common scale aligned to the measured ones: a baseline that
         # compensated the effect can hold EI where no re-adjustment reaches the effect's basin
         if ei is not None:
@@ -356,6 +358,19 @@ def pattern_fit(problem: GapProblem, evidence: ModalEvidence, beta0: np.ndarray,
     except (EbbError, ValueError, np.linalg.LinAlgError):
         f = zeta = np.full(evidence.n_modes, np.nan)
     return PatternFit("baseline" if effect is None else effect.label, float(2 * best.cost), z[:p], s, f, zeta)
+
+
+def _best_per_place(trials: list[np.ndarray], grid: list[tuple[np.ndarray, float]]) -> list[np.ndarray]:
+    """The re-adjusted start of least cost at each value of an effect's second variable (a place) on its grid:
+    the pattern's cost is sharp in the place, and the best few starts of the whole grid can all lie at wrong
+    places (measured: a 0.22 kg mass at 0.62 L on a beam in tension, its baseline's N at 0.36 of the value the
+    held ρA asks for: the four best starts at other places, χ² 2.9e5; the best start of the nearest place on the
+    grid, 0.66 L, reaches 21 for 9 modes — the truth's own values polish to the same — for 10 % more time)."""
+    best: dict[float, tuple[np.ndarray, float]] = {}
+    for s, g in zip(trials, grid):
+        if float(s[1]) not in best or g[1] < best[float(s[1])][1]:
+            best[float(s[1])] = g
+    return [g[0] for g in best.values()]
 
 
 #: Starts of a pattern fit from the effect's grid with the modes' common scale aligned (:func:`_aligned`), and
