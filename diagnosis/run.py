@@ -59,7 +59,8 @@ from .report.result import DiagnosisSettings, GapReport
 from .judgement.apart import SetupsApart, apart_parts, disagreement
 from .search.reuse import RefitMemo
 from .search.plausible import plausible_readings
-from .search.modal_pattern import PatternFit, carried, modal_source
+from .search.modal_pattern import PatternFit, carried
+from .search.modal_source import modal_source
 from .search.rank import Ranking, rank_effects
 from .search.sign import sign_with_refits
 from .search.workers import DaskExecutor, close_refit_pool, refit_pool
@@ -348,7 +349,7 @@ class _Modes:
 
 def _scan_start(problem: GapProblem, freqs: np.ndarray, zetas: np.ndarray, f_top: float
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The modes the measured modes' scan starts from (:func:`diagnosis.search.modal_pattern.modal_source`): the
+    """The modes the measured modes' scan starts from (:func:`diagnosis.search.modal_source.modal_source`): the
     baseline's ``freqs`` and ``zetas``, or those of the fit from the records' own start when that fits better or
     places the records' own modes better (:attr:`GapProblem.rival`; measured: a compensating baseline on a
     broadband record put eight modes where the records have six, and the scan around them found two that are not

@@ -254,3 +254,31 @@ def test_the_match_of_measured_to_model_modes_is_the_least_costly_increasing_one
     measured = np.delete(model, 3)[:6]
     j = _matched(((model[None, :] - measured[:, None]) / 0.01) ** 2)
     assert list(j) == [0, 1, 2, 4, 5, 6]
+
+
+def test_a_place_profile_returns_the_other_minima_of_the_place_best_first():
+    """:func:`diagnosis.search.pattern_starts.place_profiled` on a cost with three basins in the place ``p``
+    (minima at 0.30, 0.34 and 0.37, costs 1, 0 and 0.25; the other unknown ``a`` follows the place): from the
+    match at 0.30 the other two minima come back, the deepest first, each with ``a`` re-fitted to its place —
+    and never the match's own place."""
+    from scipy import optimize
+
+    from diagnosis.search.pattern_starts import PROFILE_POINTS, place_profiled
+
+    wells = ((0.30, 1.0), (0.34, 0.0), (0.37, 0.5))
+
+    def res(x: np.ndarray) -> np.ndarray:
+        a, p = x
+        depth = min(d + 2e3 * (p - c) ** 2 for c, d in wells)
+        return np.array([a - 3.0 * p, depth])
+
+    def polish(r, x0, lo, hi, budget):
+        return optimize.least_squares(r, np.clip(x0, lo, hi), bounds=(lo, hi), max_nfev=budget)
+
+    lo, hi = np.array([-10.0, 0.0]), np.array([10.0, 1.0])
+    step = 0.08                       # the 17 places 0.01 apart: 0.34 and 0.37 lie on the profile's grid
+    assert PROFILE_POINTS == 17
+    found = place_profiled(res, np.array([0.0, 0.30]), 1, step, lo, hi, polish)
+    assert [round(float(z[1]), 3) for z in found] == [0.34, 0.37]
+    for z in found:
+        assert abs(z[0] - 3.0 * z[1]) < 1e-6      # the other unknown re-fitted at the fixed place

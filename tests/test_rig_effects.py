@@ -410,7 +410,7 @@ def test_a_shakers_armature_is_named_on_the_cantilever(tmp_path):
     """A 50 g armature on a 20 N/m suspension at 0.9 m of the cantilever (1–60 Hz multisine).  Measured:
     0.0498 kg, 19.98 N/m, 100 % closed (1.1e3 → 0.998 noise variances), 31 s.  It needed the measured modes
     limited to the excited band: the fourth (60.8 Hz in the truth, at the band's top) was estimated at 74.9 Hz,
-    73 standard errors away, and dominated every modal match (:func:`diagnosis.search.modal_pattern.modal_source`)."""
+    73 standard errors away, and dominated every modal match (:func:`diagnosis.search.modal_source.modal_source`)."""
     cfg = cantilever_bench()
     values = CANTILEVER_ARMATURE
     u = band_limited_input(N_SAMPLES, DT, 1.0, 60.0, seed=3)

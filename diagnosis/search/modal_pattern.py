@@ -41,7 +41,6 @@ their own.
 """
 from __future__ import annotations
 
-import math
 from concurrent.futures import Executor
 from dataclasses import dataclass, replace
 from typing import Callable, Mapping
@@ -49,20 +48,21 @@ from typing import Callable, Mapping
 import numpy as np
 from scipy import optimize
 
+from scipy import stats
+
 from ebb_model.adequacy import refined_grid
-from ebb_model.channel_delay import effective_delays
 from ebb_model.errors import EbbError
 from ebb_model.modal import discrete_frequencies
-from identification.data_start import alignment_miss
-from identification.record_poles import record_modes
 
 from ..effects import Catalogue, Effect, variables_for
 from ..problem.fitting import GapProblem
-from .modal_estimate import SEARCH, MeasuredModes, estimate_modes
-from ..candidates.score import trial_values
+from .modal_estimate import MeasuredModes
+from ..candidates.score import MASS_GRID, trial_values
+from .pattern_starts import (ALIGNED, aligned, amplitude_scale, best_per_place, fixed_place_fits, jacobian,
+                             place_profiled, profiled, room, within)
 from .workers import side_by_side
 
-__all__ = ["ModalEvidence", "PatternFit", "modal_evidence", "modal_source", "moves_modes", "pattern_fit",
+__all__ = ["ModalEvidence", "PatternFit", "amplitude_screened", "modal_evidence", "moves_modes", "pattern_fit",
            "pattern_fits", "time_invariant"]
 
 #: Relative floor of the damping ratios' uncertainty (the estimate of a damping ratio carries what the
@@ -94,6 +94,11 @@ FAILED = 1e12
 #: from the estimate; matched index to index, every effect's pattern was off by one mode from the fourth on, χ²
 #: 8e6 for the best, the spring itself 1e9).
 SKIPPED = 2
+#: Probability below which a match's χ² is beyond the records' scatter (its upper quantile for twice the modes'
+#: number of terms): a match of a place's effect beyond it has its place profiled
+#: (:func:`diagnosis.search.pattern_starts.place_profiled`).  The right effect's matches measured 9–21 for 8–12
+#: modes (the quantile: 42–51), a wrong basin's 1e3 and more.
+SCATTER = 1e-3
 
 
 @dataclass(frozen=True)
@@ -236,35 +241,26 @@ def _free(problem: GapProblem, effect: Effect | None) -> np.ndarray:
     return np.concatenate([free, np.ones(0 if effect is None else effect.dim, dtype=bool)])
 
 
-def _jacobian(res: Callable[[np.ndarray], np.ndarray], x: np.ndarray, k: int, span: np.ndarray) -> np.ndarray:
-    """Forward-difference Jacobian of ``res`` w.r.t. the first ``k`` variables at ``x``."""
-    r0 = res(x)
-    cols = []
-    for j in range(k):
-        dx = 1e-6 * span[j]
-        x1 = x.copy()
-        x1[j] += dx
-        cols.append((res(x1) - r0) / dx)
-    return np.column_stack(cols)
+def _mode_cost(ev: ModalEvidence, f: np.ndarray, zeta: np.ndarray) -> float:
+    """χ² of the model's modes ``(f, zeta)`` matched to the measured ones (:func:`_compared`)."""
+    fr, zr = _compared(ev, f, zeta)
+    return float(np.sum(((fr - ev.measured.freq_hz) / ev.freq_sigma) ** 2
+                        + ((zr - ev.measured.damping) / ev.damping_sigma) ** 2))
 
 
-def _profiled(res: Callable[[np.ndarray], np.ndarray], x: np.ndarray, J: np.ndarray, lo: np.ndarray,
-              hi: np.ndarray, steps: int = 2) -> tuple[np.ndarray, float]:
-    """``x`` with its first ``J.shape[1]`` (baseline) variables moved by Gauss–Newton steps of fixed ``J``,
-    kept while the cost falls; the point and its cost."""
-    k = J.shape[1]
-    r = res(x)
-    cost = float(r @ r)
-    for _ in range(steps):
-        step = np.linalg.lstsq(J, -r, rcond=None)[0]
-        x1 = x.copy()
-        x1[:k] = np.clip(x[:k] + step, lo[:k], hi[:k])
-        r1 = res(x1)
-        c1 = float(r1 @ r1)
-        if not c1 < cost:
-            break
-        x, r, cost = x1, r1, c1
-    return x, cost
+def _least_squares(res: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                   budget: int) -> optimize.OptimizeResult:
+    """A pattern fit's polish: bounded least squares of ``res`` from ``x0`` for at most ``budget`` evaluations."""
+    return optimize.least_squares(res, np.clip(x0, lo, hi), bounds=(lo, hi), x_scale=hi - lo, diff_step=DIFF_STEP,
+                                  ftol=FTOL, max_nfev=budget)
+
+
+def _place(effect: Effect | None, free: np.ndarray, p: int) -> int | None:
+    """Index among the free variables (``free``, ``p`` baseline unknowns first) of ``effect``'s place ``x``."""
+    if effect is None or "x" not in effect.variables:
+        return None
+    k = p + effect.variables.index("x")
+    return int(np.count_nonzero(free[:k])) if free[k] else None
 
 
 def pattern_fit(problem: GapProblem, evidence: ModalEvidence, beta0: np.ndarray, effect: Effect | None = None,
@@ -277,7 +273,7 @@ def pattern_fit(problem: GapProblem, evidence: ModalEvidence, beta0: np.ndarray,
     p = np.asarray(beta0).size
     span = hi[:p] - lo[:p]
     free = _free(problem, effect)
-    beta0 = _room(problem, np.asarray(beta0, dtype=float), free[:p], lo[:p], hi[:p])
+    beta0 = room(problem, np.asarray(beta0, dtype=float), free[:p], lo[:p], hi[:p])
     held = np.concatenate([beta0, np.asarray(effect.off if effect is not None else [], dtype=float)])
 
     def full(x: np.ndarray) -> np.ndarray:
@@ -290,12 +286,16 @@ def pattern_fit(problem: GapProblem, evidence: ModalEvidence, beta0: np.ndarray,
     def res(x: np.ndarray) -> np.ndarray:
         return _residual(evidence, beta0, span, modes, full(x))
 
+    def cost(f: np.ndarray, zeta: np.ndarray) -> float:
+        return _mode_cost(evidence, f, zeta)
+
     ei = list(problem.space.names).index("EI") if "EI" in problem.space.names else None
     if ei is not None and not free[ei]:
         ei = None
     if effect is None:
-        # as it is, and with the modes' common scale aligned to the measured ones (:func:`_aligned`)
-        starts = [held[free]] + ([_aligned(evidence, modes, held, ei, lo, hi)[0][free]] if ei is not None else [])
+        # as it is, and with the modes' common scale aligned to the measured ones
+        # (:func:`~diagnosis.search.pattern_starts.aligned`)
+        starts = [held[free]] + ([aligned(modes, cost, held, ei, lo, hi)[0][free]] if ei is not None else [])
     elif start is not None:
         # the measured modes are the same: the match found from another baseline lies in the effect's basin
         starts = [np.clip(np.concatenate([start.beta, start.s]), lo, hi)[free]]
@@ -304,7 +304,7 @@ def pattern_fit(problem: GapProblem, evidence: ModalEvidence, beta0: np.ndarray,
         # baseline's Jacobian at the start): the baseline may sit where it compensated the effect
         nb = int(np.sum(free[:p]))
         x_off = held[free]
-        J = _jacobian(res, x_off, nb, (hi - lo)[free][:nb])
+        J = jacobian(res, x_off, nb, (hi - lo)[free][:nb])
         trials = trial_values(effect.lower, effect.upper, effect.off)
         starts = []
         # from the baseline, and from the config's nominal values: a baseline that compensated the effect can sit
@@ -314,36 +314,44 @@ def pattern_fit(problem: GapProblem, evidence: ModalEvidence, beta0: np.ndarray,
         nominal = np.clip(np.asarray(problem.space.nominal, dtype=float), lo[:p], hi[:p])
         for base, k_profiled, k_raw in ((beta0, STARTS if effect.dim > 1 else 2, 2), (nominal, 1, 1)):
             raw = [np.concatenate([base, s])[free] for s in trials]
-            grid = [_profiled(res, x, J, lo[free], hi[free]) for x in raw]
+            grid = [profiled(res, x, J, lo[free], hi[free]) for x in raw]
             # the best re-adjusted values, and the best as they were (a re-adjustment can also mislead)
             starts += [g[0] for g in sorted(grid, key=lambda g: g[1])[:k_profiled]]
             starts += [raw[i] for i in np.argsort([float(r @ r) for r in map(res, raw)])[:k_raw]]
             if base is beta0 and effect.dim > 1:
-                starts += _best_per_place(trials, grid)
+                starts += best_per_place(trials, grid)
         # every value of the grid with the modes' common scale aligned to the measured ones: a baseline that
         # compensated the effect can hold EI where no re-adjustment reaches the effect's basin
         if ei is not None:
-            aligned = [_aligned(evidence, modes, np.concatenate([beta0, s]), ei, lo, hi) for s in trials]
-            starts += [a[0][free] for a in sorted(aligned, key=lambda a: a[1])[:ALIGNED]]
+            at_scale = [aligned(modes, cost, np.concatenate([beta0, s]), ei, lo, hi) for s in trials]
+            starts += [a[0][free] for a in sorted(at_scale, key=lambda a: a[1])[:ALIGNED]]
 
     def polish(x0: np.ndarray, budget: int = max_evaluations) -> optimize.OptimizeResult:
-        return optimize.least_squares(res, np.clip(x0, lo[free], hi[free]), bounds=(lo[free], hi[free]),
-                                      x_scale=(hi - lo)[free], diff_step=DIFF_STEP, ftol=FTOL, max_nfev=budget)
+        return _least_squares(res, x0, lo[free], hi[free], budget)
 
     # every start for a few iterations, then the best one to convergence
     best = min((polish(x0, min(RACE, max_evaluations)) for x0 in starts), key=lambda sol: sol.cost)
     if best.status == 0:       # stopped by the budget, not converged
         best = polish(best.x)
+    place = _place(effect, free, p)
+    if place is not None and start is None and 2.0 * best.cost > stats.chi2.isf(SCATTER, 2 * evidence.n_modes):
+        # a match beyond the records' scatter at a place can be a basin of the place: profiled over one grid
+        # step either side, then polished from the profile's other minima (a match polished from ``start`` was
+        # profiled where it was found)
+        for x1 in place_profiled(res, best.x, place, (hi - lo)[free][place] / (MASS_GRID - 1), lo[free], hi[free],
+                                 _least_squares):
+            other = polish(x1)
+            best = other if other.cost < best.cost else best
     if not np.all(free[:p]):
         # the scale the modes cannot see, from the amplitudes: multiplying every force-like constant by λ
         # divides the response by λ and leaves the modes alone
-        lam = _amplitude_scale(problem, effect, full(best.x))
+        lam = amplitude_scale(problem, effect, full(best.x))
         if lam is not None:
             z0 = full(best.x)
             scaled = np.zeros(z0.size, dtype=bool)
             scaled[:p] = True
             scaled[[p + i for i in (effect.scaled if effect is not None else ())]] = True   # a mass, a stiffness:
-            lam = _within(lam, z0[scaled], lo[scaled], hi[scaled])        # the same ratio to the beam, the same modes
+            lam = within(lam, z0[scaled], lo[scaled], hi[scaled])        # the same ratio to the beam, the same modes
             before = (held.copy(), best)
             held[:p][~free[:p]] = held[:p][~free[:p]] * lam
             z0[scaled] *= lam
@@ -360,110 +368,55 @@ def pattern_fit(problem: GapProblem, evidence: ModalEvidence, beta0: np.ndarray,
     return PatternFit("baseline" if effect is None else effect.label, float(2 * best.cost), z[:p], s, f, zeta)
 
 
-def _best_per_place(trials: list[np.ndarray], grid: list[tuple[np.ndarray, float]]) -> list[np.ndarray]:
-    """The re-adjusted start of least cost at each value of an effect's second variable (a place) on its grid:
-    the pattern's cost is sharp in the place, and the best few starts of the whole grid can all lie at wrong
-    places (measured: a 0.22 kg mass at 0.62 L on a beam in tension, its baseline's N at 0.36 of the value the
-    held ρA asks for: the four best starts at other places, χ² 2.9e5; the best start of the nearest place on the
-    grid, 0.66 L, reaches 21 for 9 modes — the truth's own values polish to the same — for 10 % more time)."""
-    best: dict[float, tuple[np.ndarray, float]] = {}
-    for s, g in zip(trials, grid):
-        if float(s[1]) not in best or g[1] < best[float(s[1])][1]:
-            best[float(s[1])] = g
-    return [g[0] for g in best.values()]
+def amplitude_screened(problem: GapProblem, evidence: ModalEvidence, effect: Effect, match: PatternFit
+                       ) -> PatternFit:
+    """``match`` (``effect``'s pattern fit), or the match of the measured modes with the effect at another place
+    of its grid (:data:`~diagnosis.candidates.score.MASS_GRID` places, every other variable re-fitted,
+    :func:`~diagnosis.search.pattern_starts.fixed_place_fits`) that fits the records' amplitudes better — when
+    ``match`` is within the records' scatter (:data:`SCATTER`): then the modes may not tell the places apart,
+    and the time-domain refit's start is the one of the places the modes allow whose residual on the fit windows
+    is least, each at its amplitudes' scale (measured: a clamped–pinned beam in strong tension with a stiff
+    spring at 0.505 L withheld, three modes measured: every place from 0.42 to 0.70 L matched them at χ² 0.10;
+    the match at 0.61 L leaves 1.57 noise variances on the records, the grid's place 0.50 L 0.92, and the
+    refit from there lands 0.7 mm from the truth, held out 0.93–1.00).  Without a place, or beyond the scatter,
+    ``match``."""
+    p = match.beta.size
+    limit = stats.chi2.isf(SCATTER, 2 * evidence.n_modes)
+    free = _free(problem, effect)
+    place = _place(effect, free, p)
+    if place is None or not match.chi2 <= limit:
+        return match
+    box = problem.box(effect)
+    lo, hi = np.asarray(box.lower, dtype=float), np.asarray(box.upper, dtype=float)
+    held = np.concatenate([match.beta, match.s])
+    modes = _ModesAt(problem, effect, p, evidence.n_modes)
 
+    def res(x: np.ndarray) -> np.ndarray:
+        z = held.copy()
+        z[free] = x
+        return _residual(evidence, match.beta, hi[:p] - lo[:p], modes, z)
 
-#: Starts of a pattern fit from the effect's grid with the modes' common scale aligned (:func:`_aligned`), and
-#: the scales tried between EI's bounds (log-spaced: 400 steps over a ×16 range are 0.35 % in frequency, within
-#: a few measured standard errors of a light mode's; the polish does the rest).
-ALIGNED = 2
-ALIGN_STEPS = 400
-
-
-def _aligned(evidence: ModalEvidence, modes: _ModesAt, z: np.ndarray, ei: int, lo: np.ndarray, hi: np.ndarray
-             ) -> tuple[np.ndarray, float]:
-    """``z`` with EI (index ``ei``) scaled so that the model's modes, all multiplied by ``√(EI'/EI)``, best
-    match the measured ones (:func:`_compared`; exact without an axial load, a start otherwise), and that
-    match's cost; ``z`` and ``inf`` if the model cannot be evaluated at ``z``."""
-    try:
-        f, zeta = modes(z)
-    except (EbbError, ValueError, np.linalg.LinAlgError):
-        return z, math.inf
-    if not (z[ei] > 0.0 and lo[ei] > 0.0):
-        return z, math.inf
-    ratios = np.geomspace(lo[ei] / z[ei], hi[ei] / z[ei], ALIGN_STEPS)
-
-    def cost(r: float) -> float:
-        fr, zr = _compared(evidence, f * math.sqrt(r), zeta)
-        return float(np.sum(((fr - evidence.measured.freq_hz) / evidence.freq_sigma) ** 2
-                            + ((zr - evidence.measured.damping) / evidence.damping_sigma) ** 2))
-
-    costs = [cost(r) for r in ratios]
-    k = int(np.argmin(costs))
-    out = z.copy()
-    out[ei] = z[ei] * ratios[k]
-    return out, costs[k]
-
-
-#: EI within this factor of a bound is on it (:func:`_room`).
-ON_BOUND = 1.01
-
-
-def _room(problem: GapProblem, beta: np.ndarray, free: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """``beta`` with every force-like constant multiplied by one ratio (the same modes: see
-    :func:`_amplitude_scale`) so that EI sits at the geometric centre of its bounds, as far as the other unknowns'
-    bounds allow — when ρA is held (:func:`_free`) and EI lies on a bound (within :data:`ON_BOUND`), else ``beta``
-    as it is: the modes see only the ratio, and a baseline that compensated
-    an effect can hold ρA where the ratio the records ask for puts EI beyond its bound (measured: a withheld tip
-    mass on a broadband strip record, EI on its bound ×4 the nominal, every match stuck at χ² 3.6e10; at the
-    centre the transducer's mass matched at 1.6).  When EI is inside its bounds but the held ρA lies on one, ρA
-    goes to its centre instead (measured: a compressed clamped–pinned beam with a withheld 0.25 kg mass, ρA on its
-    upper bound ×5.6 the truth, EI at 0.36 of it: the ratio the modes ask for put EI at twice its upper bound, the
-    mass's match stuck at χ² 1.5e4 while a short soft segment at the mass's place matched at 25).  The scale is set
-    afterwards from the amplitudes."""
-    names = list(problem.space.names)
-    if np.all(free) or "EI" not in names:
-        return beta
-
-    def on_bound(k: int) -> bool:
-        return beta[k] > 0.0 and not lo[k] * ON_BOUND < beta[k] < hi[k] / ON_BOUND
-
-    # EI on a bound: EI to its centre; else the held ρA on a bound: ρA to its centre (EI, free, then reaches
-    # every ratio the boxes allow on either side)
-    held = [k for k in range(len(names)) if not free[k] and names[k] == "rhoA"]
-    i = names.index("EI") if on_bound(names.index("EI")) else held[0] if held and on_bound(held[0]) else None
-    if i is None or not lo[i] > 0.0:
-        return beta
-    return beta * _within(math.sqrt(lo[i] * hi[i]) / beta[i], beta, lo, hi)
-
-
-def _within(lam: float, values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
-    """``lam`` clipped to the ratios that keep every one of ``values`` multiplied by it inside ``[lo, hi]``; 1 if
-    no ratio does.  (A scale clipped at a bound variable by variable changes the modes: measured, a pattern χ² of
-    3.5e5 went to 1.1e8 when the amplitudes asked for ×16 and EI stopped at its bound while ρA did not.)"""
-    pos, neg = values > 0.0, values < 0.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        top = np.min(np.concatenate([hi[pos] / values[pos], lo[neg] / values[neg]]), initial=np.inf)
-        bottom = np.max(np.concatenate([lo[pos] / values[pos], hi[neg] / values[neg]]), initial=0.0)
-    return min(max(lam, bottom), top) if bottom <= top else 1.0
-
-
-def _amplitude_scale(problem: GapProblem, effect: Effect | None, z: np.ndarray) -> float | None:
-    """``λ`` with measured ≈ simulated / λ on the fit windows (least squares), ``None`` if it cannot be had."""
-    p = problem.space.dim
-    try:
-        sims = problem.simulate(z[:p], effect, z[p:] if effect is not None else None)
-    except (EbbError, ValueError, np.linalg.LinAlgError):
-        return None
-    num = den = 0.0
-    with np.errstate(over="ignore", invalid="ignore"):   # a diverging candidate: rejected below
-        for y, r in zip(sims, problem.records):
-            if y is not None:
-                a, b = y / problem.noise_std, r.outputs[:r.fit_end] / problem.noise_std
-                num, den = num + float(np.sum(a * b)), den + float(np.sum(a * a))
-    if not (num > 0 and den > 0 and np.isfinite(num / den)):
-        return None
-    return den / num
+    scaled = np.zeros(held.size, dtype=bool)
+    scaled[:p] = True
+    scaled[[p + i for i in effect.scaled]] = True
+    k = p + effect.variables.index("x")
+    points, costs = fixed_place_fits(res, held[free], place, np.linspace(lo[k], hi[k], MASS_GRID), lo[free],
+                                     hi[free], _least_squares)
+    best, best_rss, best_chi2 = held, _records_rss(problem, effect, match), match.chi2
+    for x, chi2 in zip(points, costs):
+        if chi2 <= limit:
+            z = held.copy()
+            z[free] = x
+            lam = amplitude_scale(problem, effect, z)
+            if lam is not None:
+                z[scaled] *= within(lam, z[scaled], lo[scaled], hi[scaled])
+            r = _records_rss(problem, effect, replace(match, beta=z[:p], s=z[p:]))
+            if r < best_rss:
+                best, best_rss, best_chi2 = z, r, chi2
+    if best is held:
+        return match
+    f, zeta = _compared(evidence, *modes(best))        # the same modes at any scale
+    return PatternFit(match.label, best_chi2, best[:p], best[p:], f, zeta)
 
 
 def _pattern_task(problem: GapProblem, evidence: ModalEvidence, beta: np.ndarray, catalogue: Catalogue,
@@ -491,7 +444,10 @@ def pattern_fits(problem: GapProblem, evidence: ModalEvidence, beta: np.ndarray,
     without reaching the floor) every fit is made from it too and the better match kept — the baseline's and
     each effect's: a compensating baseline can hold ρA (which the modes do not see) on a bound where the records'
     frequency scale lies beyond EI's (measured: a withheld tip mass on a broadband strip record, the baseline's
-    matches all at χ² 5.6e10, the records' start 4.4e7 before any fit).
+    matches all at χ² 5.6e10, the records' start 4.4e7 before any fit).  When both matches of an effect are
+    within the records' scatter (:data:`SCATTER`) the modes cannot choose: the one that fits the records'
+    amplitudes better is kept (measured: three modes of a beam in strong tension with a stiff spring withheld,
+    matched at χ² 0.140 by a spring near its place and 0.139 by a rigid support 0.25 L away in another beam).
     """
     betas = [np.asarray(beta, dtype=float)]
     if problem.rival is not None:
@@ -504,10 +460,20 @@ def pattern_fits(problem: GapProblem, evidence: ModalEvidence, beta: np.ndarray,
     args = [(problem, evidence, b, catalogue, e.label, previous.get(e.label) if k == 0 else None)
             for e in moving for k, b in enumerate(betas)]   # the costliest first
     best: dict[str, PatternFit] = {}
+    limit = stats.chi2.isf(SCATTER, 2 * evidence.n_modes)
     for f in side_by_side(executor, _pattern_task, args):
-        if f.label not in best or f.chi2 < best[f.label].chi2:
+        g = best.get(f.label)
+        if g is None or (f.chi2 < g.chi2 if not max(f.chi2, g.chi2) <= limit else
+                         _records_rss(problem, catalogue.effect(f.label), f) < _records_rss(
+                             problem, catalogue.effect(g.label), g)):
             best[f.label] = f
     return {"baseline": base} | best
+
+
+def _records_rss(problem: GapProblem, effect: Effect, match: PatternFit) -> float:
+    """The residual sum of squares of ``match`` (at its amplitudes' scale) on the records' fit windows."""
+    r = problem.residuals(match.beta, effect, match.s)
+    return float(r @ r) if np.all(np.isfinite(r)) else np.inf
 
 
 def carried(matches: Mapping[str, PatternFit], made_with: Mapping[str, Effect], catalogue: Catalogue
@@ -522,72 +488,3 @@ def carried(matches: Mapping[str, PatternFit], made_with: Mapping[str, Effect], 
         if pf is not None and s is not None:
             out[e.label] = replace(pf, s=s)
     return out
-
-
-#: Ratios of the model's modes to the records' tried for their common scale (:func:`_recorded_start`): 0.25 % steps.
-SCALES = np.geomspace(0.25, 4.0, 1111)
-
-
-def _recorded_start(rec_hz: np.ndarray, rec_zeta: np.ndarray, support: np.ndarray, model_hz: np.ndarray,
-                    model_zeta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Where a scan starts from the records' stable poles ``rec_hz`` (their damping ``rec_zeta`` and
-    stability-chart ``support``): those poles, and the model's modes ``model_hz`` above the highest of them,
-    scaled by the common ratio that best places the records' poles on the model's modes
-    (:func:`identification.data_start.alignment_miss`, over :data:`SCALES`).  The model's modes above the records'
-    are fitted, not held: the first mode above a band's edge is excited by the filter's skirt, and held at a
-    baseline's frequency 17 % off it left 2.2 noise variances on a velocity sensor where fitted leaves 0.99."""
-    misses = [alignment_miss(rec_hz, support, r * model_hz) for r in SCALES]
-    scaled = SCALES[int(np.argmin(misses))] * model_hz
-    above = scaled > rec_hz.max() * (1.0 + SEARCH)
-    return np.concatenate([rec_hz, scaled[above]]), np.concatenate([rec_zeta, model_zeta[above]])
-
-
-def modal_source(problem: GapProblem, freq_hz: np.ndarray, damping: np.ndarray, above_hz: np.ndarray,
-                  band_hz: float) -> Callable[[np.ndarray], ModalEvidence]:
-    """The measured modes' evidence at baseline unknowns ``beta`` (:func:`modal_evidence`); the modes
-    are estimated from the fit windows once, when first asked for, starting from the baseline's ``freq_hz``.
-
-    Only the modes the baseline puts inside the excited band (up to ``band_hz``) and estimated inside it (the
-    first always) are evidence: a mode above it is seen only through the band's edge, and its oscillator takes up
-    what the others leave — its frequency, with a standard error that knows nothing of that, can be far from any
-    mode (measured: a cantilever's fourth mode at 60.8 Hz, the top of a 60 Hz multisine, estimated at 74.9 Hz 73
-    standard errors away, which then dominated every modal match) or land on the edge inside the band (a
-    compressed beam's fifth mode, 118.6 Hz, above a 2–100 Hz sweep, estimated at 99.0 Hz in one run).  It still
-    takes part in the modal fit as a regressor.  When the scan from the baseline's modes leaves more than the gap
-    threshold (a mode outside every scan window: a baseline that compensated an effect holds its modes in the
-    wrong places), the scan starts again from the records' own stable poles
-    (:func:`identification.record_poles.record_modes`) and the estimate that leaves less is kept (measured: a
-    clamped–pinned beam with a withheld stiff spring, the baseline's modes 1.3× the records', 2.78 noise variances
-    left from the baseline's modes).  The match with the model passes over the modes the records do not show
-    (:func:`_matched`)."""
-    measured: list[MeasuredModes] = []
-
-    def evidence(beta: np.ndarray) -> ModalEvidence:
-        if not measured:
-            fit = [r for r in problem.records if r.has_fit]
-            inputs, outputs = [r.inputs[:r.fit_end] for r in fit], [r.outputs[:r.fit_end] for r in fit]
-            delays = effective_delays(problem.config)
-
-            def estimate(f0: np.ndarray, z0: np.ndarray, above: np.ndarray | tuple[()]) -> MeasuredModes:
-                modes = estimate_modes(inputs, outputs, problem.noise_std, problem.config.time.dt, f0, z0,
-                                       above_hz=above, bandlimited=problem.config.time.input_hold == "bandlimited",
-                                       delays=delays)
-                keep = (modes.freq_hz <= band_hz) & (f0 <= band_hz)
-                keep[0] = True
-                return modes.select(keep)
-
-            found = estimate(freq_hz, damping, above_hz)
-            if found.gap_ratio > 1.0 + problem.settings.gap_threshold:
-                # the scan from the model's modes misses one: from the records' own stable poles instead
-                recorded = record_modes(inputs, outputs, problem.config.time.dt, delays)
-                inside = recorded.frequencies_hz <= band_hz
-                if np.any(inside):
-                    f0, z0 = _recorded_start(recorded.frequencies_hz[inside], recorded.damping[inside],
-                                             recorded.support[inside], np.concatenate([freq_hz, above_hz]),
-                                             np.concatenate([damping, damping[-1:] * np.ones(len(above_hz))]))
-                    other = estimate(f0, z0, ())
-                    found = other if other.gap_ratio < found.gap_ratio else found
-            measured.append(found)
-        return modal_evidence(problem, beta, measured[0])
-
-    return evidence
