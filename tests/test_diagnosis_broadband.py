@@ -194,9 +194,9 @@ def test_an_effect_the_baseline_took_up_in_another_beam_is_named_from_the_record
     * 5 (strong tension, three sensors, a stiff spring at 0.505 L): three modes measured, which every place of
       the spring from 0.42 to 0.70 L matches (χ² 0.10 for 3 modes), and a rigid support 0.25 L away in another
       beam too (0.139 against the spring's 0.140): the better χ² was kept and refitted to a support on its
-      bound, held out 840; the verdict was a soft segment with a sensor's lag leaving 8.2 noise variances.  Matches
-      within the records' scatter are told apart by the records' amplitudes, among the two baselines' and among
-      the places the modes allow (:func:`diagnosis.search.modal_pattern.amplitude_screened`).
+      bound, held out 840; the verdict was a soft segment with a sensor's lag leaving 8.2 noise variances.  Two
+      baselines' matches within the records' scatter are both refitted, the better refit kept
+      (:func:`diagnosis.search.refits.refit_from_match`).
     * 13 (noise to fs/2.56, the spring near the fourth mode's node): the measured modes, scanned from the
       baseline's, have no fourth mode; matched index to index every effect's modal pattern was a mode off from the
       fourth on (the spring's χ² 1.3e7, the best 3.6e5) and the verdict ``unexplained``.  The match passes over a
@@ -214,7 +214,7 @@ def test_an_effect_the_baseline_took_up_in_another_beam_is_named_from_the_record
       beyond the records' scatter has its place profiled and the profile's other minima polished
       (:func:`diagnosis.search.pattern_starts.place_profiled`): χ² 9.2 for 12 modes, N in compression.
 
-    Measured now: 5 k 0.6 % high, x 0.7 mm off, held out 0.93 / 0.99 / 1.00; 13 k 0.13 % high, x 1.1 mm off,
+    Measured now: 5 k 0.07 % high, x 0.4 mm off, held out 0.94 / 1.00 / 1.01; 13 k 0.13 % high, x 1.1 mm off,
     held out 0.97 / 1.04; 45 the mass 0.2 % heavy, x 0.003 mm off, held out 0.92; 49 k 0.02 %, x 0.8 mm,
     0.94 / 1.09;
     53 the mass 0.3 % heavy, x 0.03 mm off — but held out 1.24 / 0.72 / 1.58 per sensor (1.18 overall), with the

@@ -58,12 +58,12 @@ from ..effects import Catalogue, Effect, variables_for
 from ..problem.fitting import GapProblem
 from .modal_estimate import MeasuredModes
 from ..candidates.score import MASS_GRID, trial_values
-from .pattern_starts import (ALIGNED, aligned, amplitude_scale, best_per_place, fixed_place_fits, jacobian,
-                             place_profiled, profiled, room, within)
+from .pattern_starts import (ALIGNED, aligned, amplitude_scale, best_per_place, jacobian, place_profiled, profiled,
+                             room, within)
 from .workers import side_by_side
 
-__all__ = ["ModalEvidence", "PatternFit", "amplitude_screened", "modal_evidence", "moves_modes", "pattern_fit",
-           "pattern_fits", "time_invariant"]
+__all__ = ["ModalEvidence", "PatternFit", "modal_evidence", "moves_modes", "pattern_fit", "pattern_fits",
+           "time_invariant"]
 
 #: Relative floor of the damping ratios' uncertainty (the estimate of a damping ratio carries what the
 #: oscillator model leaves out, e.g. the small phase of a lag).
@@ -125,6 +125,9 @@ class PatternFit:
     s: np.ndarray
     freq_hz: np.ndarray
     damping: np.ndarray
+    #: the same effect's matches from the other baselines that are within the records' scatter too (the modes
+    #: cannot choose between them: the time-domain refit starts from each, :func:`pattern_fits`)
+    others: tuple["PatternFit", ...] = ()
 
 
 def _modes(problem: GapProblem, beta: np.ndarray, effect: Effect | None, s: np.ndarray | None, m: int,
@@ -368,57 +371,6 @@ def pattern_fit(problem: GapProblem, evidence: ModalEvidence, beta0: np.ndarray,
     return PatternFit("baseline" if effect is None else effect.label, float(2 * best.cost), z[:p], s, f, zeta)
 
 
-def amplitude_screened(problem: GapProblem, evidence: ModalEvidence, effect: Effect, match: PatternFit
-                       ) -> PatternFit:
-    """``match`` (``effect``'s pattern fit), or the match of the measured modes with the effect at another place
-    of its grid (:data:`~diagnosis.candidates.score.MASS_GRID` places, every other variable re-fitted,
-    :func:`~diagnosis.search.pattern_starts.fixed_place_fits`) that fits the records' amplitudes better — when
-    ``match`` is within the records' scatter (:data:`SCATTER`): then the modes may not tell the places apart,
-    and the time-domain refit's start is the one of the places the modes allow whose residual on the fit windows
-    is least, each at its amplitudes' scale (measured: a clamped–pinned beam in strong tension with a stiff
-    spring at 0.505 L withheld, three modes measured: every place from 0.42 to 0.70 L matched them at χ² 0.10;
-    the match at 0.61 L leaves 1.57 noise variances on the records, the grid's place 0.50 L 0.92, and the
-    refit from there lands 0.7 mm from the truth, held out 0.93–1.00).  Without a place, or beyond the scatter,
-    ``match``."""
-    p = match.beta.size
-    limit = stats.chi2.isf(SCATTER, 2 * evidence.n_modes)
-    free = _free(problem, effect)
-    place = _place(effect, free, p)
-    if place is None or not match.chi2 <= limit:
-        return match
-    box = problem.box(effect)
-    lo, hi = np.asarray(box.lower, dtype=float), np.asarray(box.upper, dtype=float)
-    held = np.concatenate([match.beta, match.s])
-    modes = _ModesAt(problem, effect, p, evidence.n_modes)
-
-    def res(x: np.ndarray) -> np.ndarray:
-        z = held.copy()
-        z[free] = x
-        return _residual(evidence, match.beta, hi[:p] - lo[:p], modes, z)
-
-    scaled = np.zeros(held.size, dtype=bool)
-    scaled[:p] = True
-    scaled[[p + i for i in effect.scaled]] = True
-    k = p + effect.variables.index("x")
-    points, costs = fixed_place_fits(res, held[free], place, np.linspace(lo[k], hi[k], MASS_GRID), lo[free],
-                                     hi[free], _least_squares)
-    best, best_rss, best_chi2 = held, _records_rss(problem, effect, match), match.chi2
-    for x, chi2 in zip(points, costs):
-        if chi2 <= limit:
-            z = held.copy()
-            z[free] = x
-            lam = amplitude_scale(problem, effect, z)
-            if lam is not None:
-                z[scaled] *= within(lam, z[scaled], lo[scaled], hi[scaled])
-            r = _records_rss(problem, effect, replace(match, beta=z[:p], s=z[p:]))
-            if r < best_rss:
-                best, best_rss, best_chi2 = z, r, chi2
-    if best is held:
-        return match
-    f, zeta = _compared(evidence, *modes(best))        # the same modes at any scale
-    return PatternFit(match.label, best_chi2, best[:p], best[p:], f, zeta)
-
-
 def _pattern_task(problem: GapProblem, evidence: ModalEvidence, beta: np.ndarray, catalogue: Catalogue,
                   label: str | None, start: PatternFit | None = None) -> PatternFit:
     """One pattern fit, in this or a worker process (effects are rebuilt from their label: they do not pickle)."""
@@ -445,9 +397,10 @@ def pattern_fits(problem: GapProblem, evidence: ModalEvidence, beta: np.ndarray,
     each effect's: a compensating baseline can hold ρA (which the modes do not see) on a bound where the records'
     frequency scale lies beyond EI's (measured: a withheld tip mass on a broadband strip record, the baseline's
     matches all at χ² 5.6e10, the records' start 4.4e7 before any fit).  When both matches of an effect are
-    within the records' scatter (:data:`SCATTER`) the modes cannot choose: the one that fits the records'
-    amplitudes better is kept (measured: three modes of a beam in strong tension with a stiff spring withheld,
-    matched at χ² 0.140 by a spring near its place and 0.139 by a rigid support 0.25 L away in another beam).
+    within the records' scatter (:data:`SCATTER`) the modes cannot choose: the other one is kept with the better
+    (:attr:`PatternFit.others`), and the time-domain refit starts from both (measured: three modes of a beam in
+    strong tension with a stiff spring withheld, matched at χ² 0.140 by a spring near its place and 0.139 by a
+    rigid support 0.25 L away in another beam, which alone refitted to 840 noise variances held out).
     """
     betas = [np.asarray(beta, dtype=float)]
     if problem.rival is not None:
@@ -463,17 +416,12 @@ def pattern_fits(problem: GapProblem, evidence: ModalEvidence, beta: np.ndarray,
     limit = stats.chi2.isf(SCATTER, 2 * evidence.n_modes)
     for f in side_by_side(executor, _pattern_task, args):
         g = best.get(f.label)
-        if g is None or (f.chi2 < g.chi2 if not max(f.chi2, g.chi2) <= limit else
-                         _records_rss(problem, catalogue.effect(f.label), f) < _records_rss(
-                             problem, catalogue.effect(g.label), g)):
+        if g is None:
             best[f.label] = f
+        else:
+            won, lost = (f, g) if f.chi2 < g.chi2 else (g, f)
+            best[f.label] = replace(won, others=won.others + (lost,)) if lost.chi2 <= limit else won
     return {"baseline": base} | best
-
-
-def _records_rss(problem: GapProblem, effect: Effect, match: PatternFit) -> float:
-    """The residual sum of squares of ``match`` (at its amplitudes' scale) on the records' fit windows."""
-    r = problem.residuals(match.beta, effect, match.s)
-    return float(r @ r) if np.all(np.isfinite(r)) else np.inf
 
 
 def carried(matches: Mapping[str, PatternFit], made_with: Mapping[str, Effect], catalogue: Catalogue
@@ -486,5 +434,5 @@ def carried(matches: Mapping[str, PatternFit], made_with: Mapping[str, Effect], 
         pf, old = matches.get(e.label), made_with.get(e.label)
         s = None if pf is None or old is None else variables_for(e, old.physical(pf.s), pf.s)
         if pf is not None and s is not None:
-            out[e.label] = replace(pf, s=s)
+            out[e.label] = replace(pf, s=s, others=())
     return out

@@ -98,12 +98,11 @@ def _linear(evidence: ModalEvidence | None, settings: Thresholds) -> bool:
 # ---------------------------------------------------------------------------
 # stage: the modal pattern
 # ---------------------------------------------------------------------------
-def _refit_from_matches(run: Search, evidence: ModalEvidence, patterns: dict[str, PatternFit], labels: list[str],
-                        local: Refits) -> Refits:
-    """Refit ``labels`` from their modal match of the measured modes ``evidence``, side by side: the refits
-    ``local`` with them added (or the better of the two kept)."""
-    fits = run.side_by_side(refit_from_match, [(run.problem, run.catalogue, lab, patterns[lab], run.max_evaluations,
-                                                evidence) for lab in labels])
+def _refit_from_matches(run: Search, patterns: dict[str, PatternFit], labels: list[str], local: Refits) -> Refits:
+    """Refit ``labels`` from their modal match, side by side: the refits ``local`` with them added (or the better
+    of the two kept)."""
+    fits = run.side_by_side(refit_from_match, [(run.problem, run.catalogue, lab, patterns[lab], run.max_evaluations)
+                                               for lab in labels])
     local = dict(local)
     for lab, (fit, starts) in zip(labels, fits):
         run.say(f"refit {lab} from its modal match: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
@@ -154,14 +153,14 @@ def _pattern_stage(run: Search, evidence: ModalEvidence, local: Refits) -> tuple
         ranked = [lab for lab in ranked if patterns[lab].chi2 <= limit]
         special = [lab for lab in special if patterns[lab].chi2 < patterns[ranked[0]].chi2]
     with run.clock.stage("refits from modal matches"):
-        local = _refit_from_matches(run, evidence, patterns, ranked + special, local)
+        local = _refit_from_matches(run, patterns, ranked + special, local)
     rest = [lab for lab in general if lab not in ranked][:run.problem.settings.pattern_candidates]
     if (rest and not any(explains(local[lab][0], run.baseline, run.problem.settings) for lab in ranked)
             and not run.at_noise_floor({lab: local[lab] for lab in special})):
         # the closest matches do not explain the records: the next ones (a pattern fit can stop short of its
         # optimum, and its match still lies in the right basin for the time-domain refit)
         with run.clock.stage("refits from modal matches"):
-            local = _refit_from_matches(run, evidence, patterns, rest, local)
+            local = _refit_from_matches(run, patterns, rest, local)
     return patterns, local
 
 

@@ -38,7 +38,7 @@ import numpy as np
 from ..effects import Catalogue, Effect, mirror_image, variables_for
 from ..problem.fitting import Fit, GapProblem
 from ..settings import Thresholds
-from .modal_pattern import ModalEvidence, PatternFit, amplitude_screened
+from .modal_pattern import PatternFit
 from ..candidates.score import EffectScore, trial_values
 from .workers import side_by_side
 
@@ -213,15 +213,15 @@ def _refit_task(problem: GapProblem, catalogue: Catalogue, label: str, baseline:
     return _continued(problem, *previous, effect, max_evaluations), []
 
 
-def refit_from_match(problem: GapProblem, catalogue: Catalogue, label: str, match: PatternFit, max_evaluations: int,
-                     evidence: ModalEvidence) -> tuple[Fit, list]:
-    """Refit of one effect from its modal-pattern match — or, where the measured modes allow other places of
-    the effect, from the one of them that fits the records best
-    (:func:`~diagnosis.search.modal_pattern.amplitude_screened`) —, in this or a worker process."""
+def refit_from_match(problem: GapProblem, catalogue: Catalogue, label: str, match: PatternFit, max_evaluations: int
+                     ) -> tuple[Fit, list]:
+    """Refit of one effect from its modal-pattern match, and from the other baselines' matches the modes cannot
+    tell from it (:attr:`PatternFit.others`), in this or a worker process; the best refit is kept."""
     effect = catalogue.effect(label)
-    start = amplitude_screened(problem, evidence, effect, match)
-    fit = problem.fit(start.beta, effect, start.s, max_evaluations=max_evaluations)
-    return _mirrored(problem, effect, fit, max_evaluations), [(start.beta, start.s)]
+    starts = [match, *match.others]
+    fit = min((problem.fit(m.beta, effect, m.s, max_evaluations=max_evaluations) for m in starts),
+              key=lambda f: f.rss)
+    return _mirrored(problem, effect, fit, max_evaluations), [(m.beta, m.s) for m in starts]
 
 
 def map_refits(executor: Executor | None, problem: GapProblem, catalogue: Catalogue, labels: list[str],
