@@ -1,4 +1,4 @@
-"""Cost of one communication step of the beam FMU through fmpy, next to pythonfmu's floor.
+"""Cost of one communication step of the beam FMU through fmpy, next to pythonfmu's floor; and of its start.
 
 Case R1: ``examples/seed_clamped.toml`` (50 interior nodes, clamped-clamped,
 dt = 1e-4 s, one force, two displacement sensors).  The floor is a trivial
@@ -10,9 +10,14 @@ Each communication step is the low-level ``fmpy.fmi2.FMU2Slave`` sequence
 (``reset()`` between repeats).  Reported: the median over repeats of the mean
 time per step, in microseconds, and the ratio beam / floor.
 
+The start: a new Python process (fmpy imported) extracts the FMU, instantiates it, initialises it and takes one
+step — what a host pays on every simulation start; the median over ``--starts`` processes, timed inside the
+process from after fmpy's import.  Beside it the same FMU without its carried compiled core (its ``__pycache__``
+files removed before zipping it again): what the start cost before the FMU carried it (fmu_build/kernels.py).
+
 Usage::
 
-    python benchmarks/bench_fmu.py [--steps 20000] [--repeats 7] [--json out.json]
+    python benchmarks/bench_fmu.py [--steps 20000] [--repeats 7] [--starts 7] [--json out.json]
 """
 from __future__ import annotations
 
@@ -23,6 +28,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -116,10 +122,55 @@ def time_steps(fmu_path: Path, inputs: list[str], outputs: list[str], *, dt: flo
     return results
 
 
+#: One host start in a new process: extract, instantiate, initialise, one step; the seconds from after fmpy's
+#: import to the first step's outputs.
+_START = """
+import sys, time
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+t0 = time.perf_counter()
+d = extract(sys.argv[1])
+md = read_model_description(d)
+f = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="s")
+f.instantiate()
+f.setupExperiment(startTime=0.0)
+f.enterInitializationMode()
+f.exitInitializationMode()
+u = [v.valueReference for v in md.modelVariables if v.causality == "input"]
+y = [v.valueReference for v in md.modelVariables if v.causality == "output"]
+f.setReal(u[:1], [1.0])
+f.doStep(0.0, float(md.defaultExperiment.stepSize))
+f.getReal(y)
+print(time.perf_counter() - t0)
+f.terminate()
+f.freeInstance()
+"""
+
+
+def without_carried_core(fmu_path: Path, out: Path) -> Path:
+    """The FMU ``fmu_path`` without its ``__pycache__`` files (no compiled kernels, no byte code), as ``out``."""
+    with zipfile.ZipFile(fmu_path) as src, zipfile.ZipFile(out, "w", compression=zipfile.ZIP_DEFLATED) as dst:
+        for item in src.infolist():
+            if "/__pycache__/" not in item.filename:
+                dst.writestr(item, src.read(item))
+    return out
+
+
+def time_starts(fmu_path: Path, starts: int) -> list[float]:
+    """Seconds from extraction to the first step's outputs, each in a new process."""
+    times = []
+    for _ in range(starts):
+        run = subprocess.run([sys.executable, "-c", _START, str(fmu_path)], check=True, capture_output=True,
+                             text=True)
+        times.append(float(run.stdout.split()[-1]))
+    return times
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=20000, help="communication steps per repeat")
     parser.add_argument("--repeats", type=int, default=7, help="timed repeats")
+    parser.add_argument("--starts", type=int, default=7, help="new processes timed for the start")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures to this JSON file")
     args = parser.parse_args(argv)
 
@@ -129,6 +180,8 @@ def main(argv: list[str] | None = None) -> int:
         floor = build_floor_fmu(work)
         beam_us = time_steps(beam, ["F1"], ["y1", "y2"], dt=1e-4, steps=args.steps, repeats=args.repeats)
         floor_us = time_steps(floor, ["u"], ["y"], dt=1e-4, steps=args.steps, repeats=args.repeats)
+        start_s = time_starts(beam, args.starts)
+        bare_s = time_starts(without_carried_core(beam, work / "beam_r1_bare.fmu"), args.starts)
 
     beam_med, floor_med = statistics.median(beam_us), statistics.median(floor_us)
     figures = {
@@ -142,11 +195,21 @@ def main(argv: list[str] | None = None) -> int:
         "floor_median_us": floor_med,
         "ratio": beam_med / floor_med,
         "target_us": 12.0,
+        "start": "new process: extract, instantiate, initialise, one step (after fmpy's import)",
+        "start_s": start_s,
+        "start_median_s": statistics.median(start_s),
+        "bare_start_s": bare_s,
+        "bare_start_median_s": statistics.median(bare_s),
+        "start_target_s": 0.5,
     }
     print(f"beam FMU (R1)          : {beam_med:7.2f} us/step  (median of {args.repeats} x {args.steps} steps)")
     print(f"trivial pythonfmu FMU  : {floor_med:7.2f} us/step")
     print(f"ratio beam / floor     : {beam_med / floor_med:7.2f}")
     print(f"target <= 12 us/step   : {'met' if beam_med <= 12.0 else 'NOT met'}")
+    start_med, bare_med = statistics.median(start_s), statistics.median(bare_s)
+    print(f"start, new process     : {start_med:7.3f} s  (median of {args.starts}; extract to first step)")
+    print(f"  without its compiled core: {bare_med:7.3f} s")
+    print(f"target <= 0.5 s        : {'met' if start_med <= 0.5 else 'NOT met'}")
     if args.json:
         args.json.write_text(json.dumps(figures, indent=2), encoding="utf-8")
     return 0

@@ -28,6 +28,7 @@ from typing import Sequence
 
 import pythonfmu
 
+import ebb_model
 from ebb_model import PARAMETER_NAMES, BeamConfig, DiscreteStateSpace, assemble, load_config
 from ebb_model.assemble import assemble_modal
 from ebb_model.bandlimited import causal_config
@@ -36,7 +37,8 @@ from ebb_model.output import atomic_path, check_output_file
 from ebb_model.errors import FmuError, OutputError
 
 from . import slave_template
-from .bundle import write_resources
+from .bundle import core_sources, write_resources
+from .kernels import KERNEL_SUFFIXES, carry_kernels, compile_bytecode, core_package_name
 from .loader import compile_loader, find_python_runtime
 from .model_description import FmuIdentity, feedthrough_from_D, finish_model_description
 
@@ -49,7 +51,8 @@ _RESERVED = {"beam", "time", "actuators", "sensors", "masses", "springs", "weak_
 
 
 def _identity(base: str) -> FmuIdentity:
-    """Fresh names for one build, derived from ``base`` (e.g. the config file's stem)."""
+    """Fresh names for one build, derived from ``base`` (e.g. the config file's stem); the core's name is its
+    sources' (:func:`~fmu_build.kernels.core_package_name`: numba's carried kernels name their module)."""
     stem = re.sub(r"\W", "_", base, flags=re.ASCII).strip("_") or "beam"
     if not stem[0].isalpha():
         stem = "beam_" + stem
@@ -60,7 +63,7 @@ def _identity(base: str) -> FmuIdentity:
     return FmuIdentity(
         model_identifier=model_identifier,
         class_name=f"BeamSlave_{tag}",
-        core_package=f"ebb_core_{tag}",
+        core_package=core_package_name(core_sources(), Path(ebb_model.__file__).parent),
         guid=f"{{{token}}}",
         model_name=stem,
     )
@@ -158,9 +161,10 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
     runtime = find_python_runtime()
     identity = _identity(base)
     description = _description(cfg, sys.executable, runtime.version, field)
+    config_dict = {k: v for k, v in cfg.to_dict().items() if k not in cfg.extra}
     spec = {
         "format": 1,
-        "config": {k: v for k, v in cfg.to_dict().items() if k not in cfg.extra},
+        "config": config_dict,
         "field": bool(field),
         "dt": float(system.dt),
         "model_name": identity.model_name,
@@ -190,10 +194,12 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
             xml = finish_model_description(slave.to_xml(), identity=identity, description=description,
                                            units=slave.variable_units, feedthrough=feedthrough)
             (staging / "modelDescription.xml").write_bytes(xml)
+            carry_kernels(resources / identity.core_package, config_dict, field=field)
+            compile_bytecode(resources)
 
             with open(tmp_path, "xb") as fh, zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_DEFLATED) as zf:
                 for f in sorted(staging.rglob("*")):
-                    if f.is_file() and "__pycache__" not in f.parts:
+                    if f.is_file() and (f.parent.name != "__pycache__" or f.suffix in (".pyc", *KERNEL_SUFFIXES)):
                         zf.write(f, f.relative_to(staging).as_posix())
     except OutputError as exc:   # writing the archive failed (full disk …): nothing half-written is left
         raise FmuError(str(exc), function="build_fmu") from None

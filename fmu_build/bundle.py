@@ -6,7 +6,8 @@ Layout written by :func:`write_resources`::
       slavemodule.txt          name of the entry module (read by pythonfmu's binary)
       <modelIdentifier>.py     entry module: imports the slave class, nothing else
       <modelIdentifier>_slave.py  the slave (slave_template.py, class renamed)
-      <core_package>/          a private copy of the ebb_model modules the slave imports
+      <core_package>/          a private copy of the ebb_model modules the slave imports, with their
+                               compiled kernels and byte code (fmu_build.kernels)
       pythonfmu/               pythonfmu's Python runtime (as pythonfmu's own builder does)
       ebb_fmu.json             the config (JSON) and build options
 
@@ -45,7 +46,7 @@ from ebb_model.errors import FmuError
 from . import slave_template
 from .model_description import FmuIdentity
 
-__all__ = ["write_resources", "copy_package", "core_modules", "render_slave", "render_entry"]
+__all__ = ["write_resources", "copy_package", "core_modules", "core_sources", "render_slave", "render_entry"]
 
 _SKIP_DIRS = {"__pycache__"}
 
@@ -239,6 +240,11 @@ def copy_package(src: Path, dest: Path, *, old_name: str, new_name: str,
             shutil.copy2(path, target)
 
 
+def core_sources() -> list[Path]:
+    """The ``ebb_model`` source files an FMU bundles: the import closure of the modules the slave imports."""
+    return core_modules(Path(ebb_model.__file__).parent, "ebb_model", slave_template.CORE_MODULES)
+
+
 def write_resources(resources: Path, *, identity: FmuIdentity, spec: Mapping[str, Any]) -> None:
     """Fill ``resources`` with everything the slave needs at run time.
 
@@ -258,9 +264,8 @@ def write_resources(resources: Path, *, identity: FmuIdentity, spec: Mapping[str
     (resources / slave_template.SPEC_FILE).write_text(json.dumps(spec, indent=2, allow_nan=False),
                                                        encoding="utf-8")
     core_src = Path(ebb_model.__file__).parent
-    needed = core_modules(core_src, "ebb_model", slave_template.CORE_MODULES)
     copy_package(core_src, resources / identity.core_package, old_name="ebb_model", new_name=identity.core_package,
-                 only=set(needed))
+                 only=set(core_sources()))
     runtime = resources / "pythonfmu"
     runtime.mkdir()
     for f in Path(pythonfmu.__file__).parent.glob("*.py"):

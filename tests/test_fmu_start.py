@@ -1,0 +1,106 @@
+"""The pythonfmu FMU carries its core compiled (issue 74): a host's fresh process compiles nothing before the
+first step — no numba kernel, no byte code — and the outputs are the model's.
+
+How it is checked: the FMU is extracted into a writable folder and run through fmpy in a new Python process
+(instantiate, initialise, one step). Whatever numba compiles there it writes into the extracted core's
+``__pycache__``, and whatever byte code Python finds invalid it writes anew, so a compile shows as a new or
+changed file. A control strips the carried files from the same FMU and sees the kernels compiled: the check
+can fail. How long the start takes is measured in ``benchmarks/bench_fmu.py``, not here.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent / "fmu_hosts"))
+from fmu_configs import SEED_TOML, mixed_config, substep_config  # noqa: E402
+
+from ebb_model import assemble, config_from_dict, load_config, simulate  # noqa: E402
+from fmu_build import build_fmu  # noqa: E402
+from fmu_build.kernels import KERNEL_SUFFIXES  # noqa: E402
+
+#: One fresh process: instantiate, initialise, one step of a unit force on the first input; the outputs as JSON.
+FIRST_STEP = """
+import json, sys
+from fmpy import read_model_description
+from fmpy.fmi2 import FMU2Slave
+d = sys.argv[1]
+md = read_model_description(d)
+vr = {v.name: v.valueReference for v in md.modelVariables}
+f = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="x")
+f.instantiate()
+f.setupExperiment(startTime=0.0)
+f.enterInitializationMode()
+f.exitInitializationMode()
+inputs = [v for v in md.modelVariables if v.causality == "input"]
+outputs = [v for v in md.modelVariables if v.causality == "output"]
+f.setReal([inputs[0].valueReference], [1.0])
+f.doStep(0.0, float(md.defaultExperiment.stepSize))
+print(json.dumps({v.name: f.getReal([v.valueReference])[0] for v in outputs}))
+f.terminate()
+f.freeInstance()
+"""
+
+
+def _cached(folder: Path) -> dict[Path, int]:
+    """Every file in a ``__pycache__`` below ``folder``, with its modification time."""
+    return {p: p.stat().st_mtime_ns for p in folder.rglob("*") if p.is_file() and p.parent.name == "__pycache__"}
+
+
+def _first_step(fmu: Path, folder: Path, *, strip: bool = False) -> tuple[dict[str, float], list[str]]:
+    """The outputs after one step in a fresh process, and the cache files that process wrote (``strip``: the FMU's
+    carried cache removed first)."""
+    with zipfile.ZipFile(fmu) as zf:
+        zf.extractall(folder)
+    if strip:
+        for p in _cached(folder):
+            p.unlink()
+    before = _cached(folder)
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONDONTWRITEBYTECODE", "NUMBA_CACHE_DIR",
+                                                             "NUMBA_DISABLE_JIT")}
+    run = subprocess.run([sys.executable, "-c", FIRST_STEP, str(folder)], capture_output=True, text=True, env=env,
+                         timeout=300)
+    assert run.returncode == 0, run.stderr
+    after = _cached(folder)
+    written = sorted(p.relative_to(folder).as_posix() for p in after if before.get(p) != after[p])
+    return json.loads(run.stdout), written
+
+
+CONFIGS = {"seed": lambda: load_config(SEED_TOML), "mixed": lambda: config_from_dict(mixed_config()),
+           "theta scheme": lambda: config_from_dict(substep_config())}
+
+
+@pytest.mark.parametrize("field", [False, True], ids=["sensors", "field"])
+@pytest.mark.parametrize("name", sorted(CONFIGS))
+def test_a_fresh_process_compiles_nothing_before_the_first_step(name, field, tmp_path):
+    cfg = CONFIGS[name]()
+    fmu = build_fmu(cfg, tmp_path / "beam.fmu", field=field)
+    with zipfile.ZipFile(fmu) as zf:
+        names = zf.namelist()
+    core = [n for n in names if n.startswith("resources/ebb_core_") and "/__pycache__/" in n]
+    assert all(n.endswith((".pyc", *KERNEL_SUFFIXES)) for n in core)
+    outputs, written = _first_step(fmu, tmp_path / "extracted")
+    assert written == []
+    # the outputs of that process are the model's after one step (the FMU's own equivalence to 1e-10 is
+    # test_fmu_fmpy's; here it shows the carried kernels are the ones the model runs)
+    u = np.zeros((2, len(cfg.actuators)))
+    u[:, 0] = 1.0                                   # the force set at the start and held over the step
+    ref = simulate(assemble(cfg), u).outputs[1]
+    got = np.array([outputs[s.name] for s in cfg.sensors])
+    assert np.max(np.abs(got - ref)) <= 1e-10 * np.max(np.abs(ref))
+
+
+def test_without_the_carried_cache_the_kernels_compile(tmp_path):
+    """The control: the same FMU stripped of its carried cache compiles its kernels in the host's process."""
+    fmu = build_fmu(load_config(SEED_TOML), tmp_path / "beam.fmu")
+    outputs, written = _first_step(fmu, tmp_path / "extracted", strip=True)
+    assert any(w.endswith(".nbi") for w in written) and any(w.endswith(".pyc") for w in written)
+    carried, again = _first_step(fmu, tmp_path / "again")
+    assert again == [] and carried == outputs
