@@ -104,3 +104,21 @@ def test_without_the_carried_cache_the_kernels_compile(tmp_path):
     assert any(w.endswith(".nbi") for w in written) and any(w.endswith(".pyc") for w in written)
     carried, again = _first_step(fmu, tmp_path / "again")
     assert again == [] and carried == outputs
+
+
+def test_a_cache_directory_that_cannot_be_written_leaves_a_working_fmu(tmp_path, monkeypatch):
+    """The carried kernels only accelerate: a builder whose cache directory is unusable (a file in its place)
+    still writes an FMU that runs, with its byte code."""
+    blocker = tmp_path / "blocker"
+    blocker.write_text("not a directory")
+    monkeypatch.setenv("EBB_MODEL_CACHE", str(blocker / "cache"))
+    cfg = load_config(SEED_TOML)
+    fmu = build_fmu(cfg, tmp_path / "beam.fmu")
+    with zipfile.ZipFile(fmu) as zf:
+        assert any(n.endswith(f"_slave.{sys.implementation.cache_tag}.pyc") for n in zf.namelist())
+    outputs, _ = _first_step(fmu, tmp_path / "extracted")
+    u = np.zeros((2, 1))
+    u[:, 0] = 1.0
+    ref = simulate(assemble(cfg), u).outputs[1]
+    got = np.array([outputs[s.name] for s in cfg.sensors])
+    assert np.max(np.abs(got - ref)) <= 1e-10 * np.max(np.abs(ref))
