@@ -50,9 +50,9 @@ _PLATFORM = "linux64"
 _RESERVED = {"beam", "time", "actuators", "sensors", "masses", "springs", "weak_segments", slave_template.FIELD_NAME}
 
 
-def _identity(base: str) -> FmuIdentity:
-    """Fresh names for one build, derived from ``base`` (e.g. the config file's stem); the core's name is its
-    sources' (:func:`~fmu_build.kernels.core_package_name`: numba's carried kernels name their module)."""
+def _identity(base: str, core_package: str = "") -> FmuIdentity:
+    """Fresh names for one build, derived from ``base`` (e.g. the config file's stem); ``core_package`` the name of
+    the bundled core, when the FMU bundles one (:func:`~fmu_build.kernels.core_package_name`)."""
     stem = re.sub(r"\W", "_", base, flags=re.ASCII).strip("_") or "beam"
     if not stem[0].isalpha():
         stem = "beam_" + stem
@@ -63,7 +63,7 @@ def _identity(base: str) -> FmuIdentity:
     return FmuIdentity(
         model_identifier=model_identifier,
         class_name=f"BeamSlave_{tag}",
-        core_package=core_package_name(core_sources(), Path(ebb_model.__file__).parent),
+        core_package=core_package,
         guid=f"{{{token}}}",
         model_name=stem,
     )
@@ -159,7 +159,8 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
     if system is None:
         system = assemble(cfg)  # nominal parameters must give a valid, stable model
     runtime = find_python_runtime()
-    identity = _identity(base)
+    sources = core_sources()
+    identity = _identity(base, core_package_name(sources, Path(ebb_model.__file__).parent))
     description = _description(cfg, sys.executable, runtime.version, field)
     config_dict = {k: v for k, v in cfg.to_dict().items() if k not in cfg.extra}
     spec = {
@@ -176,7 +177,7 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
         with tempfile.TemporaryDirectory(prefix="ebb_fmu_") as staging_dir, atomic_path(out) as tmp_path:
             staging = Path(staging_dir)
             resources = staging / "resources"
-            write_resources(resources, identity=identity, spec=spec)
+            write_resources(resources, identity=identity, spec=spec, sources=sources)
 
             binaries = staging / "binaries" / _PLATFORM
             binaries.mkdir(parents=True)

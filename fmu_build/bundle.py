@@ -245,7 +245,8 @@ def core_sources() -> list[Path]:
     return core_modules(Path(ebb_model.__file__).parent, "ebb_model", slave_template.CORE_MODULES)
 
 
-def write_resources(resources: Path, *, identity: FmuIdentity, spec: Mapping[str, Any]) -> None:
+def write_resources(resources: Path, *, identity: FmuIdentity, spec: Mapping[str, Any],
+                    sources: Collection[Path]) -> None:
     """Fill ``resources`` with everything the slave needs at run time.
 
     Parameters
@@ -256,6 +257,8 @@ def write_resources(resources: Path, *, identity: FmuIdentity, spec: Mapping[str
         Names of this build.
     spec
         JSON-serialisable model description for the slave (config, options).
+    sources
+        The core's source files to bundle (:func:`core_sources`; the caller named the core from them).
     """
     resources.mkdir(parents=True, exist_ok=True)
     (resources / "slavemodule.txt").write_text(identity.model_identifier, encoding="utf-8")
@@ -265,7 +268,7 @@ def write_resources(resources: Path, *, identity: FmuIdentity, spec: Mapping[str
                                                        encoding="utf-8")
     core_src = Path(ebb_model.__file__).parent
     copy_package(core_src, resources / identity.core_package, old_name="ebb_model", new_name=identity.core_package,
-                 only=set(core_sources()))
+                 only=set(sources))
     runtime = resources / "pythonfmu"
     runtime.mkdir()
     for f in Path(pythonfmu.__file__).parent.glob("*.py"):

@@ -125,10 +125,11 @@ def _continuation_stage(run: Search, labels: list[str], local: Refits, early: Ea
 # the ranking
 # ---------------------------------------------------------------------------
 def _screened_best(run: Search, evidence: ModalEvidence, match: PatternFit, refits: dict[str, EffectRefit],
-                   by_score: list[str]) -> tuple[dict[str, EffectRefit], list[str], list[str]]:
-    """The refits and their order, with the best paying effect refitted also from the place of its grid the records'
-    amplitudes choose when its modal ``match`` leaves the place free
-    (:func:`~diagnosis.search.modal_pattern.amplitude_screened`), the better refit kept.
+                   paying: list[str], order: list[str], by_score: list[str]
+                   ) -> tuple[dict[str, EffectRefit], list[str], list[str]]:
+    """The refits, the paying ones and their order (``paying``, ``order`` as they are), with the best paying
+    effect refitted also from the place of its grid the records' amplitudes choose when its modal ``match`` leaves
+    the place free (:func:`~diagnosis.search.modal_pattern.amplitude_screened`), the better refit kept.
 
     The named effect only, once the ranking has named it: given to every match before the ranking, that start
     lifted a soft segment beside the clamp above the blind family's compliant clamp.  (Measured: one
@@ -138,12 +139,13 @@ def _screened_best(run: Search, evidence: ModalEvidence, match: PatternFit, refi
     label = match.label
     screened = amplitude_screened(run.problem, evidence, run.effects[label], match)
     if screened is match:
-        return refits, *_order(refits, run.before, by_score, run.problem.settings)
+        return refits, paying, order
     fit, _ = refit_from_match(run.problem, run.catalogue, label, replace(screened, others=()), run.max_evaluations)
     run.say(f"{label}: its modal match leaves the place free; refitted from the place the records choose: fit "
             f"RSS/n {refits[label].fit.rss / fit.n:.4g} -> {fit.rss / fit.n:.4g}")
-    if fit.rss < refits[label].fit.rss:
-        refits = refits | {label: run.summary(run.effects[label], fit)}
+    if fit.rss >= refits[label].fit.rss:
+        return refits, paying, order
+    refits = refits | {label: run.summary(run.effects[label], fit)}
     return refits, *_order(refits, run.before, by_score, run.problem.settings)
 
 
@@ -160,7 +162,7 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
             f"dBIC {rf.delta_bic:.1f}")
     paying, order = _order(refits, before, by_score, run.problem.settings)
     if paying and evidence is not None and paying[0] in patterns:
-        refits, paying, order = _screened_best(run, evidence, patterns[paying[0]], refits, by_score)
+        refits, paying, order = _screened_best(run, evidence, patterns[paying[0]], refits, paying, order, by_score)
     excess = float(np.mean(before)) - 1.0
     if excess >= run.problem.settings.gap_threshold and paying:
         best = refits[paying[0]]
