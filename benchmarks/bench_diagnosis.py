@@ -1,6 +1,8 @@
-"""Wall time of the gap diagnosis on the blind family's records (``tests/test_diagnosis_blind.py``), or with
+"""Wall time of the gap diagnosis on the blind family's records (``tests/test_diagnosis_blind.py``), with
 ``--family rig`` on the rig and specimen effects' (``tests/test_rig_effects.py``, ``tests/test_transducer_mass.py``:
-other benches, excitations and sensors).
+other benches, excitations and sensors), or with ``--family broadband`` on what labs record most
+(``tests/test_diagnosis_broadband.py``: the steel strip under random noise through one accelerometer, and the hint
+family's records of the test suite, clamped–pinned beams whose baseline takes the effect up in another beam).
 
 Each case's record is generated first (not timed: the independent FE truth is the test's, not the diagnosis'
 cost), then :func:`diagnosis.run.diagnose` runs blind with its defaults (two worker processes) and its wall time
@@ -11,8 +13,8 @@ and its largest size error against the withheld values, and the family's time pe
 (``stage_seconds`` of ``gap.json``, :mod:`diagnosis.stages`) with its share.  The median and the largest time
 over the chosen cases close the table.
 
-Run as ``python benchmarks/bench_diagnosis.py [CASE ...] [--family blind|rig] [--json PATH]`` (default: every case
-of the blind family; ``--list`` names them).
+Run as ``python benchmarks/bench_diagnosis.py [CASE ...] [--family blind|rig|broadband] [--json PATH]``
+(default: every case of the blind family; ``--list`` names them).
 """
 from __future__ import annotations
 
@@ -28,6 +30,7 @@ from typing import Any, Callable
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import test_diagnosis_blind as blind  # noqa: E402
+import test_diagnosis_broadband as broadband  # noqa: E402
 import test_rig_effects as rig  # noqa: E402
 import test_transducer_mass as transducer  # noqa: E402
 
@@ -35,18 +38,21 @@ from diagnosis.run import diagnose  # noqa: E402
 from ebb_model.reference.excitation import band_limited_input  # noqa: E402
 from ebb_model.reference.withheld import WithheldEffect  # noqa: E402
 from figures import add_json_argument, write_figures  # noqa: E402  benchmarks/figures.py
+from hint_family import hint_bench, write_hint_case  # noqa: E402  tests/hint_family.py
 
 
 @dataclass(frozen=True)
 class Case:
     """One record of a family: ``write(folder) -> (config, record path)`` (the independent generator's record),
-    the withheld effect(s), the right verdicts and, when the fitted variables are not the withheld ones (an
-    armature, a crack's compliance, a transducer), the true values of the fitted variables."""
+    the withheld effect(s), the right verdicts, when the fitted variables are not the withheld ones (an
+    armature, a crack's compliance, a transducer), the true values of the fitted variables, and the beam's length
+    [m] (a place's error is a share of it)."""
 
     write: Callable[[Path], tuple[Any, Path]]
     effect: Any
     right: set[str]
     values: dict[str, float] | None = None
+    length: float = 1.0
 
 
 def _blind(kind: str, f_max: float, effect: Any, seed: int = 3) -> Callable[[Path], tuple[Any, Path]]:
@@ -142,7 +148,31 @@ def rig_cases() -> dict[str, Case]:
     return out
 
 
-FAMILIES = {"blind": cases, "rig": rig_cases}
+def broadband_cases() -> dict[str, Case]:
+    """What labs record most (``tests/test_diagnosis_broadband.py``): the steel strip under random noise to fs/2.56
+    through one tip accelerometer with nothing, a compliant clamp, a tip accelerometer's mass, a crack or a small
+    mass mid-span withheld, and the hint family's records of the test suite (clamped–pinned beams under noise,
+    a newcomer's config, a spring or a mass withheld; two correct records)."""
+    def strip(effect: Any) -> Callable[[Path], tuple[Any, Path]]:
+        return lambda folder: broadband._bench(folder, effect)
+
+    def hint(i: int) -> Callable[[Path], tuple[Any, Path]]:
+        return lambda folder: write_hint_case(hint_bench(i, elements=128), folder)
+
+    length = broadband.STRIP.length
+    out = {"strip-none": Case(strip(None), None, {"none"}, length=length)}
+    for effect, verdict, found in broadband.CASES:
+        values = {k: truth for k, (truth, _) in found.items()}
+        out[f"strip-{verdict}"] = Case(strip(effect), None, {verdict}, values, length)
+    for i in (5, 9, 13, 45, 49, 53, 44, 48):
+        case = hint_bench(i, elements=128)
+        right = {case.effect.name} if case.effect is not None else {"none"}
+        out[f"hint{i}-{case.effect.name if case.effect is not None else 'none'}"] = Case(
+            hint(i), case.effect, right, length=case.bench.length)
+    return out
+
+
+FAMILIES = {"blind": cases, "rig": rig_cases, "broadband": broadband_cases}
 
 
 def _size(doc: dict, case: Case) -> tuple[float | None, float | None]:
@@ -152,7 +182,7 @@ def _size(doc: dict, case: Case) -> tuple[float | None, float | None]:
     if row is None or row["refit"] is None:                                            # the point mass it nests in)
         return None, None
     refit = row["refit"]
-    fitted, length = refit["effect_parameters"], blind.bench_config().beam.length   # every bench is 1 m long
+    fitted, length = refit["effect_parameters"], case.length
     if case.values is not None:
         truth = case.values
     else:
@@ -177,7 +207,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("cases", nargs="*", help="case names (default: all)")
     ap.add_argument("--family", choices=sorted(FAMILIES), default="blind",
-                    help="the blind family (default) or the rig and specimen effects")
+                    help="the blind family (default), the rig and specimen effects, or broadband records")
     ap.add_argument("--list", action="store_true", help="list the case names")
     add_json_argument(ap)
     args = ap.parse_args()

@@ -42,7 +42,6 @@ from identification.run import load_identification_config, read_data
 
 from .baseline.fit import baseline_fit, floor_from_the_records, start_from_result
 from .baseline.noise import noise_of, under_the_noise
-from .baseline.numerics import numerics_at_the_refit
 from .baseline.polarity import PolarityCheck, check_polarity
 from .candidates.catalogue import catalogue_of
 from .effects import Catalogue, Effect
@@ -57,6 +56,7 @@ from .report.assemble import effect_rows, gap_report
 from .report.html import html_sections
 from .report.result import DiagnosisSettings, GapReport
 from .judgement.apart import SetupsApart, apart_parts, disagreement
+from .search.lead import LeadNumerics, lead
 from .search.reuse import RefitMemo
 from .search.plausible import plausible_readings
 from .search.modal_pattern import PatternFit, carried
@@ -399,39 +399,32 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
     # stages 2 and 3, the candidates and the search
     if setups is not None:
         say("set-ups: " + setups.describe())
-    catalogue, modes, ranking = _ranked(problem, baseline, band, setups, executor, parallel, clock, say, memo)
-    # the numerics judged again where the model has the effect the records ask for most: the first single effect
-    # of the order (a pair's second part is often what the numerics leave, and a drifting load is slow to simulate
-    # on a finer grid: the mid-span mass's pair with an axial drift took 164 s to judge)
-    lead = _lead(ranking)
-    if lead is not None:
-        with clock.stage("numerics the leading refit asks for"):
-            refined = numerics_at_the_refit(problem, ranking.refits[lead].fit, ranking.effects[lead], band[1], say)
-        if refined is not None:
-            problem, refit = refined
-            if fit_noise:
-                # the noise model again, from the residual of the best model there is (the baseline's held the
-                # effect's misfit: the strip's 30 g tip mass then left 0.11 of that "noise")
-                problem = noise_of(problem, problem.simulate(refit.beta, ranking.effects[lead], refit.s, until="all"),
-                                   clock, say)
-            baseline = problem.fit_along_the_level(baseline.beta)
-            catalogue, modes, ranking = _ranked(problem, baseline, band, setups, executor, parallel, clock, say, memo,
-                                                seeds={lead: (ranking.effects[lead], refit)}, earlier=ranking)
+    # the numerics judged again at the leading refit, after each round of the ranking (diagnosis.search.lead)
+    numerics = LeadNumerics(problem, band[1], clock, say)
+    catalogue, modes, ranking = _ranked(problem, baseline, band, setups, executor, parallel, clock, say, memo,
+                                        stop=numerics)
+    refined, first = numerics.refined(ranking), lead(ranking)
+    if refined is not None and first is not None:
+        problem, refit = refined
+        if fit_noise:
+            # the noise model again, from the residual of the best model there is (the baseline's held the
+            # effect's misfit: the strip's 30 g tip mass then left 0.11 of that "noise")
+            problem = noise_of(problem, problem.simulate(refit.beta, ranking.effects[first], refit.s, until="all"),
+                               clock, say)
+        baseline = problem.fit_along_the_level(baseline.beta)
+        catalogue, modes, ranking = _ranked(problem, baseline, band, setups, executor, parallel, clock, say, memo,
+                                            seeds={first: (ranking.effects[first], refit)}, earlier=ranking)
     return _Found(problem, baseline, polarity, catalogue, modes, ranking)
-
-
-def _lead(ranking: Ranking) -> str | None:
-    """The leading single effect of ``ranking``'s order that was refitted (``None``: none was)."""
-    return next((lab for lab in ranking.order if lab in ranking.refits and not ranking.effects[lab].members), None)
 
 
 def _ranked(problem: GapProblem, baseline: Fit, band: tuple[float, float], setups: Setups | None, executor: Any,
             parallel: int, clock: StageClock, say: Callable[[str], None], memo: RefitMemo,
             seeds: dict[str, tuple[Effect, Fit]] | None = None,
-            earlier: Ranking | None = None) -> tuple[Catalogue, _Modes, Ranking]:
+            earlier: Ranking | None = None,
+            stop: Callable[[Ranking], bool] | None = None) -> tuple[Catalogue, _Modes, Ranking]:
     """The candidates sized from ``baseline`` and the search among them (the refits of ``seeds`` started from
-    them, the modal matches of the ranking on other numerics, ``earlier``, polished): the catalogue, the baseline's
-    modes and the ranking."""
+    them, the modal matches of the ranking on other numerics, ``earlier``, polished; its rounds ended also when
+    ``stop`` says so): the catalogue, the baseline's modes and the ranking."""
     dt = problem.config.time.dt
     base_cfg, base_params = problem.space.apply(problem.config, baseline.beta)
     freqs, zetas = discrete_frequencies(base_cfg, base_params)
@@ -443,21 +436,25 @@ def _ranked(problem: GapProblem, baseline: Fit, band: tuple[float, float], setup
     modes = _Modes(band, freqs, zetas, in_band, f_top, parallel, _scan_start(problem, freqs, zetas, f_top))
     with clock.stage("ranking (the rest)"):
         ranking = _rank(problem, baseline, catalogue, modes, executor, clock, say, memo, seeds, None
-                        if earlier is None else carried(earlier.patterns, earlier.effects, catalogue))
+                        if earlier is None else carried(earlier.patterns, earlier.effects, catalogue), stop)
     return catalogue, modes, ranking
 
 
 def _rank(problem: GapProblem, baseline: Fit, catalogue: Catalogue, modes: _Modes, executor: Any,
           clock: StageClock, say: Callable[[str], None], memo: RefitMemo,
           seeds: dict[str, tuple[Effect, Fit]] | None = None,
-          matches: dict[str, PatternFit] | None = None) -> Ranking:
+          matches: dict[str, PatternFit] | None = None,
+          stop: Callable[[Ranking], bool] | None = None) -> Ranking:
     """The search (:func:`diagnosis.search.rank.rank_effects`) on ``problem`` from ``baseline``, with the
     baseline's ``modes``, the diagnosis' local refits so far (``memo``) and the refits and modal matches to start
-    from (``seeds``, ``matches``)."""
+    from (``seeds``, ``matches``); its rounds end when a ranking is settled or ``stop`` says so."""
+    def done(ranking: Ranking) -> bool:
+        return settled(ranking, settings=problem.settings) or (stop is not None and stop(ranking))
+
     return rank_effects(problem, baseline, catalogue=catalogue, shortlist=problem.settings.shortlist,
                         progress=say, executor=executor, parallel=modes.parallel, rounds=2, clock=clock, memo=memo,
-                        modal=modal_source(problem, *modes.scan, modes.band[1]),
-                        settled=partial(settled, settings=problem.settings), seeds=seeds, matches=matches)
+                        modal=modal_source(problem, *modes.scan, modes.band[1]), settled=done, seeds=seeds,
+                        matches=matches)
 
 
 def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, locs: Sequence[Localisation], *,

@@ -236,24 +236,48 @@ def test_a_band_limited_oscillator_spans_the_exact_response_to_the_band_limited_
 
 
 def test_the_match_of_measured_to_model_modes_is_the_least_costly_increasing_one():
-    """:func:`diagnosis.search.modal_pattern._matched` against every strictly increasing assignment enumerated,
+    """:func:`diagnosis.search.mode_match.matched` against every strictly increasing assignment enumerated,
     on random costs and on a measured set with a model mode missing (a mode at a sensor's node)."""
     import itertools
 
-    from diagnosis.search.modal_pattern import _matched
+    from diagnosis.search.mode_match import matched
 
     rng = np.random.default_rng(5)
     for m, n in [(1, 3), (3, 3), (4, 6), (6, 8)]:
         for _ in range(20):
             cost = rng.exponential(size=(m, n))
             best = min(itertools.combinations(range(n), m), key=lambda j: cost[np.arange(m), list(j)].sum())
-            j = _matched(cost)
+            j = matched(cost)
             assert np.all(np.diff(j) > 0)
             assert cost[np.arange(m), j].sum() == pytest.approx(cost[np.arange(m), list(best)].sum(), rel=1e-12)
     model = np.array([5.0, 11.8, 24.9, 42.1, 64.4, 91.1, 122.6, 158.8])
     measured = np.delete(model, 3)[:6]
-    j = _matched(((model[None, :] - measured[:, None]) / 0.01) ** 2)
+    j = matched(((model[None, :] - measured[:, None]) / 0.01) ** 2)
     assert list(j) == [0, 1, 2, 4, 5, 6]
+
+
+def test_a_stack_of_model_mode_sets_is_matched_and_costed_as_each_set_alone():
+    """The aligned starts cost 400 scalings of one mode set at once (:func:`diagnosis.search.pattern_starts
+    .aligned`): each set of the stack gets the assignment and the χ² it gets alone, to the last bit (ties of the
+    assignment included: rounded frequencies), so the start it chooses is the one chosen set by set."""
+    from diagnosis.search.modal_estimate import MeasuredModes
+    from diagnosis.search.mode_match import ModalEvidence, matched, mode_cost
+
+    rng = np.random.default_rng(11)
+    for trial in range(40):
+        m = int(rng.integers(1, 10))
+        n = m + int(rng.integers(0, 3))
+        measured = MeasuredModes(np.sort(rng.uniform(1, 100, m)), rng.uniform(1e-3, 0.05, m),
+                                 np.full(m, 0.1), np.full(m, 1e-4), 1.0)
+        ev = ModalEvidence(measured, rng.uniform(1e-3, 1, m), rng.uniform(1e-5, 1e-2, m))
+        f = np.sort(rng.uniform(1, 100, n))
+        f = np.round(f) if trial % 2 else f
+        zeta = rng.uniform(1e-3, 0.05, n)
+        stack = f[None, :] * np.sqrt(np.geomspace(0.25, 4.0, 50))[:, None]
+        alone = np.array([mode_cost(ev, row, zeta) for row in stack])
+        assert np.array_equal(mode_cost(ev, stack, zeta), alone)
+        cost = rng.exponential(size=(7, m, n))
+        assert np.array_equal(matched(cost), np.array([matched(c) for c in cost]))
 
 
 def test_a_place_profile_returns_the_other_minima_of_the_place_best_first():

@@ -13,7 +13,8 @@ from identification.record_poles import record_modes
 
 from ..problem.fitting import GapProblem
 from .modal_estimate import SEARCH, MeasuredModes, estimate_modes
-from .modal_pattern import ModalEvidence, modal_evidence
+from .modal_pattern import modal_evidence
+from .mode_match import ModalEvidence
 
 __all__ = ["SCALES", "modal_source"]
 
@@ -52,7 +53,7 @@ def modal_source(problem: GapProblem, freq_hz: np.ndarray, damping: np.ndarray, 
     (:func:`identification.record_poles.record_modes`) and the estimate that leaves less is kept (measured: a
     clamped–pinned beam with a withheld stiff spring, the baseline's modes 1.3× the records', 2.78 noise variances
     left from the baseline's modes).  The match with the model passes over the modes the records do not show
-    (:func:`_matched`)."""
+    (:func:`~diagnosis.search.mode_match.matched`)."""
     measured: list[MeasuredModes] = []
 
     def evidence(beta: np.ndarray) -> ModalEvidence:

@@ -19,7 +19,8 @@ from dataclasses import replace
 import numpy as np
 
 from ..settings import Thresholds
-from .modal_pattern import ModalEvidence, PatternFit, pattern_fits
+from .modal_pattern import PatternFit, pattern_fits
+from .mode_match import ModalEvidence
 from .pairs import Early, early_pair, pair_explains
 from .refits import explains, refit_from_match
 from .state import Refits, Search

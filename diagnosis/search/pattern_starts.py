@@ -97,11 +97,12 @@ def best_per_place(trials: list[np.ndarray], grid: list[tuple[np.ndarray, float]
     return [g[0] for g in best.values()]
 
 
-def aligned(modes: Modes, cost: Callable[[np.ndarray, np.ndarray], float], z: np.ndarray, ei: int, lo: np.ndarray,
-            hi: np.ndarray) -> tuple[np.ndarray, float]:
+def aligned(modes: Modes, cost: Callable[[np.ndarray, np.ndarray], np.ndarray], z: np.ndarray, ei: int,
+            lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
     """``z`` with EI (index ``ei``) scaled so that the model's modes ``modes(z)``, all multiplied by
-    ``√(EI'/EI)``, best match the measured ones by ``cost`` (of the model's frequencies and damping ratios; exact
-    without an axial load, a start otherwise), and that match's cost; ``z`` and ``inf`` if the model cannot be
+    ``√(EI'/EI)``, best match the measured ones by ``cost`` (of a stack of the model's frequency sets, one per
+    row, and its damping ratios: a value per row; exact without an axial load, a start otherwise), and that
+    match's cost; ``z`` and ``inf`` if the model cannot be
     evaluated at ``z``."""
     try:
         f, zeta = modes(z)
@@ -110,11 +111,11 @@ def aligned(modes: Modes, cost: Callable[[np.ndarray, np.ndarray], float], z: np
     if not (z[ei] > 0.0 and lo[ei] > 0.0):
         return z, math.inf
     ratios = np.geomspace(lo[ei] / z[ei], hi[ei] / z[ei], ALIGN_STEPS)
-    costs = [cost(f * math.sqrt(r), zeta) for r in ratios]
+    costs = cost(f[None, :] * np.sqrt(ratios)[:, None], zeta)      # every scale at once
     k = int(np.argmin(costs))
     out = z.copy()
     out[ei] = z[ei] * ratios[k]
-    return out, costs[k]
+    return out, float(costs[k])
 
 
 def room(problem: GapProblem, beta: np.ndarray, free: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

@@ -44,8 +44,9 @@ import numpy as np
 
 from ..effects import PAIR_SEPARATOR, Catalogue, Effect
 from ..problem.fitting import Fit, GapProblem
-from .modal_pattern import ModalEvidence, PatternFit, amplitude_screened, moves_modes
+from .modal_pattern import PatternFit, amplitude_screened, moves_modes
 from .modal_stage import linear_records, modal_stage
+from .mode_match import ModalEvidence
 from .exclusions import not_refitted
 from .nested import landing_refits
 from .pairs import Early, early_pair, pair_explains, pair_with, same_fit
@@ -282,7 +283,8 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
     settled
         Whether a ranking is final — the judgement's naming rule names an effect whose refit reaches the floor
         (:func:`diagnosis.judgement.verdict.settled`, which the caller binds to its settings: the search does not
-        import the judgement that follows it); by default never, every round is taken.
+        import the judgement that follows it), or its leading refit asks for other numerics, where the rounds
+        are better spent (:class:`diagnosis.search.lead.LeadNumerics`); by default never, every round is taken.
     seeds
         Refits an earlier stage found, by label, each with the effect it was made with (the leading refit on the
         numerics it asked for: :func:`diagnosis.baseline.numerics.numerics_at_the_refit`, in the catalogue of the
