@@ -63,6 +63,7 @@ BENCHMARKS: dict[str, tuple[str, tuple[str, ...]]] = {
     "bench_diagnose_batch": ("benchmarks/bench_diagnose_batch.py", ()),
     "bench_diagnosis": ("benchmarks/bench_diagnosis.py", ()),
     "bench_rig": ("benchmarks/bench_diagnosis.py", ("--family", "rig")),
+    "bench_broadband": ("benchmarks/bench_diagnosis.py", ("--family", "broadband")),
     "arts_identify": ("examples/arts_identify.py", ()),
     "arts_diagnose": ("examples/arts_diagnose.py", ()),
 }
