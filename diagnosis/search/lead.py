@@ -13,7 +13,7 @@ round asked for 323 nodes and the band-limited force, where the mass reached the
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 from ..baseline.numerics import numerics_at_the_refit
@@ -32,13 +32,14 @@ def lead(ranking: Ranking) -> str | None:
 @dataclass(eq=False)
 class LeadNumerics:
     """Whether a ranking's leading refit asks for other numerics (called as a stop rule of the ranking's rounds),
-    each ranking judged once (module docstring)."""
+    the last ranking judged kept with its answer (module docstring).  The ranking itself is held, not its
+    ``id``: a round's ranking that was let go can leave its ``id`` to the next one's."""
 
     problem: GapProblem
     band_hz: float
     clock: StageClock
     say: Callable[[str], None]
-    _asked: dict[int, tuple[GapProblem, Fit] | None] = field(default_factory=dict)
+    _last: tuple[Ranking, tuple[GapProblem, Fit] | None] | None = None
 
     def __call__(self, ranking: Ranking) -> bool:
         return self.refined(ranking) is not None
@@ -49,8 +50,8 @@ class LeadNumerics:
         label = lead(ranking)
         if label is None:
             return None
-        if id(ranking) not in self._asked:
+        if self._last is None or self._last[0] is not ranking:
             with self.clock.stage("numerics the leading refit asks for"):
-                self._asked[id(ranking)] = numerics_at_the_refit(self.problem, ranking.refits[label].fit,
-                                                                 ranking.effects[label], self.band_hz, self.say)
-        return self._asked[id(ranking)]
+                self._last = (ranking, numerics_at_the_refit(self.problem, ranking.refits[label].fit,
+                                                             ranking.effects[label], self.band_hz, self.say))
+        return self._last[1]

@@ -102,8 +102,7 @@ def aligned(modes: Modes, cost: Callable[[np.ndarray, np.ndarray], np.ndarray], 
     """``z`` with EI (index ``ei``) scaled so that the model's modes ``modes(z)``, all multiplied by
     ``√(EI'/EI)``, best match the measured ones by ``cost`` (of a stack of the model's frequency sets, one per
     row, and its damping ratios: a value per row; exact without an axial load, a start otherwise), and that
-    match's cost; ``z`` and ``inf`` if the model cannot be
-    evaluated at ``z``."""
+    match's cost; ``z`` and ``inf`` if the model cannot be evaluated at ``z``."""
     try:
         f, zeta = modes(z)
     except (EbbError, ValueError, np.linalg.LinAlgError):
