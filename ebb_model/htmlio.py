@@ -15,6 +15,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Sequence
 
+from .figureio import PAGE_WIDTH_PX
 from .output import atomic_path
 
 __all__ = ["Table", "Section", "write_page", "figures_in", "PAGE"]
@@ -22,8 +23,10 @@ __all__ = ["Table", "Section", "write_page", "figures_in", "PAGE"]
 #: The file name of a run's page.
 PAGE = "report.html"
 
+#: The page's style; its content width is the one the figures are measured against
+#: (:data:`ebb_model.figureio.PAGE_WIDTH_PX`).
 _STYLE = """
-body { font-family: system-ui, sans-serif; max-width: 1100px; margin: 2em auto; padding: 0 1em; color: #222; }
+body { font-family: system-ui, sans-serif; max-width: PAGE_WIDTHpx; margin: 2em auto; padding: 0 1em; color: #222; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; border-bottom: 1px solid #ccc; padding-bottom: .2em; }
 table { border-collapse: collapse; margin: .5em 0 1em; font-size: .92em; }
 th, td { border: 1px solid #ccc; padding: .25em .6em; text-align: left; vertical-align: top; }
@@ -32,7 +35,7 @@ caption { caption-side: top; text-align: left; font-style: italic; padding-botto
 figure { margin: 1em 0; } figure img { max-width: 100%; border: 1px solid #eee; }
 figcaption { font-size: .9em; color: #555; } pre { background: #f7f7f7; padding: .6em; overflow-x: auto; }
 .verdict { font-size: 1.15em; font-weight: 600; } footer { margin-top: 2em; font-size: .8em; color: #777; }
-"""
+""".replace("PAGE_WIDTH", str(PAGE_WIDTH_PX))
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ebb_model.beam import PARAMETER_UNITS
-from ebb_model.output import atomic_path
+from ebb_model.figureio import save_figure
 
 __all__ = ["plot_results", "fit_figure", "spread_figure", "front_figure", "zoom_window", "dominant_hz",
            "plain_ticks", "trace", "LINE_SAMPLES"]
@@ -35,12 +35,7 @@ def _pyplot() -> Any:
 
 def _save(fig: Any, path: Any) -> None:
     """Write ``fig`` as a PNG to ``path`` atomically and close it."""
-    plt = _pyplot()
-    try:
-        with atomic_path(path, suffix=".png") as tmp:
-            fig.savefig(tmp, dpi=110, bbox_inches="tight")
-    finally:
-        plt.close(fig)
+    save_figure(fig, path)
 
 
 def _objective_label(name: str) -> str:

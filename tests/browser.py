@@ -23,13 +23,13 @@ FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-
 
 @dataclass(frozen=True)
 class Rendered:
-    """What the browser saw: the title, the headings, the text, the images (source, loaded and their natural
-    width), the console's errors and failed requests, the page's rendered height."""
+    """What the browser saw: the title, the headings, the text, the images (source, loaded, natural width and the
+    width shown on the page), the console's errors and failed requests, the page's rendered height."""
 
     title: str
     headings: list[str]
     text: str
-    images: list[tuple[str, bool, int]]
+    images: list[tuple[str, bool, int, float]]
     errors: list[str]
     height: int
 
@@ -69,7 +69,7 @@ def render(page_path: Path, screenshot: Path | None = None) -> Rendered:
             page.on("requestfailed", lambda r: errors.append(f"failed: {r.url}"))
             page.goto(Path(page_path).resolve().as_uri(), wait_until="load")
             images = page.evaluate("Array.from(document.images).map(i => [i.getAttribute('src'), i.complete, "
-                                   "i.naturalWidth])")
+                                   "i.naturalWidth, i.getBoundingClientRect().width])")
             out = Rendered(page.title(), page.eval_on_selector_all("h1, h2", "els => els.map(e => e.textContent)"),
                            page.inner_text("body"), [tuple(v) for v in images], errors,
                            int(page.evaluate("document.body.scrollHeight")))
@@ -78,6 +78,22 @@ def render(page_path: Path, screenshot: Path | None = None) -> Rendered:
             return out
         finally:
             browser.close()
+
+
+def smallest_text_shown(page_path: Path, seen: Rendered) -> dict[str, float]:
+    """Each figure's smallest text as the browser showed it [px]: the size the figure was written with
+    (:data:`ebb_model.figureio.TEXT_PX_KEY` in its PNG, at natural size) times the width shown over the natural
+    width; NaN for an image written without it."""
+    from PIL import Image
+
+    from ebb_model.figureio import TEXT_PX_KEY
+
+    out = {}
+    for src, _, natural, shown in seen.images:
+        with Image.open(Path(page_path).parent / src) as im:
+            text = getattr(im, "text", {}).get(TEXT_PX_KEY)
+        out[src] = float(text) * shown / natural if text is not None and natural else float("nan")
+    return out
 
 
 if __name__ == "__main__":

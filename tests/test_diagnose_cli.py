@@ -133,8 +133,11 @@ def test_demo_quick_runs_the_whole_workflow(tmp_path, capsys):
 
 def _check_pages(out, tmp_path):
     """The demo's three pages (the demo's, the identification's, the diagnosis') open in a real headless Chromium:
-    titled, every figure loaded, nothing failed, the verdict and the identified values on them."""
-    from browser import render
+    titled, every figure loaded and its smallest text shown at 10 px or more, nothing failed, the verdict and the
+    identified values on them."""
+    from browser import render, smallest_text_shown
+
+    from ebb_model.figureio import MIN_TEXT_PX
 
     verdict, identified = "verdict: boundary_rotational_left", "identified model (polished, from "
     pages = {out / "report.html": (["Result", "Identification — Identified model", "Diagnosis — Verdict",
@@ -148,7 +151,10 @@ def _check_pages(out, tmp_path):
         seen = render(page, tmp_path / f"{page.parent.name}.png")
         assert seen.title.startswith("ebb "), seen.title
         assert all(h in seen.headings for h in headings), (page, seen.headings)
-        assert seen.images and all(ok and width > 0 for _, ok, width in seen.images), seen.images
+        assert seen.images and all(ok and width > 0 for _, ok, width, _ in seen.images), seen.images
+        # every figure legible at the page's width: its smallest text as shown, measured (ebb_model.figureio)
+        shown = smallest_text_shown(page, seen)
+        assert all(px >= MIN_TEXT_PX for px in shown.values()), shown
         assert not seen.errors, seen.errors
         assert all(t in seen.text for t in texts), (page, texts)
     # the demo's page shows every figure of both runs

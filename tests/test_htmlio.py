@@ -40,7 +40,7 @@ def test_a_page_shows_its_tables_and_figures_and_escapes_text(tmp_path):
     assert seen.title == "run <1> & co"
     assert seen.headings == ["run <1> & co", "Verdict", "Values"]
     assert "verdict: <none>" in seen.text and "a < b" in seen.text and "<script>" in seen.text
-    assert [(src, ok, w > 0) for src, ok, w in seen.images] == [("b.png", True, True), ("sub/a.png", True, True)]
+    assert [(src, ok, w > 0) for src, ok, w, _ in seen.images] == [("b.png", True, True), ("sub/a.png", True, True)]
     assert not seen.errors
 
 

@@ -142,3 +142,26 @@ def test_with_nothing_plausible_the_refits_that_close_the_gap_are_separated():
     assert leading_candidates(judged(["mass", "soft"], every - {"soft"}), ranking, 3, 0.8) == ("soft", "mass",
                                                                                                "gain")
     assert leading_candidates(judged(["mass", "soft", "spring"], {"mass"}), ranking, 3, 0.8) == ("soft", "spring")
+
+
+def test_the_next_experiments_chart_is_legible_at_the_pages_width(tied, tmp_path):
+    """The chart of the designs (twelve here, the longest phrase 96 characters) fits the page at its natural size
+    with its smallest text at 10 px or more, and its legend lies outside the axes — it was 1,090 px wide with 7 pt
+    labels and its legend over the bars.  Measured on the figure (ebb_model.figureio), then on the file written."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from PIL import Image
+
+    from diagnosis.report.figures import next_experiment_figure
+    from ebb_model.figureio import MIN_TEXT_PX, PAGE_WIDTH_PX, TEXT_PX_KEY, legibility, save_figure
+
+    fig = next_experiment_figure(plt, tied[2].report.next_experiment)
+    seen = legibility(fig)
+    assert seen.width_px <= PAGE_WIDTH_PX and seen.shown_px >= MIN_TEXT_PX, seen
+    renderer = fig.canvas.get_renderer()
+    (ax,) = fig.axes
+    assert not fig.legends[0].get_window_extent(renderer).overlaps(ax.get_window_extent(renderer))
+    with Image.open(save_figure(fig, tmp_path / "next_experiment.png")) as im:
+        assert im.size[0] <= PAGE_WIDTH_PX and float(im.text[TEXT_PX_KEY]) == pytest.approx(seen.text_px, abs=0.01)

@@ -97,6 +97,12 @@ class WindowGap:
     phase_change_deg: float      #: fitted phase change over the record [deg]
     phase_p: float
     drift: bool                  #: a significant (Bonferroni) and non-trivial trend
+    #: what a linear time-invariant record shows per window under the same input (the linear twins of
+    #: :mod:`diagnosis.localise.trends`): the mean gain and phase [deg] and their standard deviations
+    twin_gain: tuple[float, ...] = ()
+    twin_gain_sd: tuple[float, ...] = ()
+    twin_phase_deg: tuple[float, ...] = ()
+    twin_phase_sd: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -119,6 +125,9 @@ class AmplitudeGap:
     phase_slope_deg: float       #: d angle(c) / d ln(level) [deg]
     phase_p: float
     nonlinear: bool              #: a significant (Bonferroni) and non-trivial slope
+    #: the linear twins' gain per bin (mean, standard deviation): what a linear record shows there
+    twin_gain: tuple[float, ...] = ()
+    twin_gain_sd: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -158,6 +158,32 @@ def _beyond_twins(tc: np.ndarray, values: np.ndarray, twins: Sequence[np.ndarray
     return excess, p
 
 
+def _bin_values(yc: np.ndarray, ylin: np.ndarray, ylq: np.ndarray, env: np.ndarray, r: np.ndarray | None,
+                yhc: np.ndarray | None, bins: int) -> tuple[list[float], list[float], list[float], list[float],
+                                                            list[float]]:
+    """One sensor's record-wide envelope bins (quantiles of ``env``; a bin of fewer than 8 samples left out): the
+    mean level, the model residual's RMS and its share of the centred model output's (``r``, ``yhc``; NaN when
+    not given), and the gain and phase [deg] of ``yc`` over its best linear approximation ``ylin``."""
+    lab = _quantile_bins(env, bins)
+    lvl, rr, rel, gb, pb = [], [], [], [], []
+    for b in range(bins):
+        s = np.flatnonzero(lab == b)
+        if len(s) < 8:
+            continue
+        cb = _local_gain(yc[s], ylin[s], ylq[s])
+        lvl.append(float(np.mean(env[s])))
+        rr.append(math.sqrt(float(np.mean(r[s] ** 2))) if r is not None else math.nan)
+        rel.append(rr[-1] / max(math.sqrt(float(np.mean(yhc[s] ** 2))), 1e-300) if yhc is not None else math.nan)
+        gb.append(abs(cb))
+        pb.append(math.degrees(np.angle(cb)))
+    return lvl, rr, rel, gb, pb
+
+
+def _mean_sd(stack: np.ndarray) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """The mean and standard deviation over the twins (rows) of each column."""
+    return tuple(map(float, np.mean(stack, axis=0))), tuple(map(float, np.std(stack, axis=0, ddof=1)))
+
+
 def _p(value: float, var: float, dof: int) -> float:
     """Two-sided t-test p-value of ``value`` against zero with variance ``var``."""
     if var <= 0:
@@ -204,23 +230,20 @@ def window_and_amplitude_gaps(dt: float, u2: np.ndarray, y2: np.ndarray, yh2: np
         drift = ((p_r * n_drift < alpha and abs(rms_change) >= MIN_RMS_CHANGE)
                  or (p_g * n_drift < alpha and abs(d_g) >= MIN_GAIN / 2)
                  or (p_p * n_drift < alpha and abs(d_p) >= MIN_PHASE_DEG / 2))
+        twin_g, twin_gsd = _mean_sd(np.stack([t[1] for t in null]))
+        twin_p, twin_psd = _mean_sd(np.stack([t[2] for t in null]))
         wins.append(WindowGap(snames[o], tuple(map(float, tc)), tuple(map(float, rms)), tuple(map(float, lrms)),
                               tuple(map(float, gw)), tuple(map(float, pw)), float(rms_change), float(p_r),
-                              float(d_g), float(p_g), float(d_p), float(p_p), bool(drift)))
+                              float(d_g), float(p_g), float(d_p), float(p_p), bool(drift), twin_g, twin_gsd,
+                              twin_p, twin_psd))
         g_sl, g_p, p_sl, p_p2 = float(g_sl), float(g_p), float(p_sl), float(p_p2)
         # record-wide bins for the table and plots
-        lab = _quantile_bins(env[:, o], amplitude_bins)
-        lvl, rr, rel, gb, pb = [], [], [], [], []
-        for b in range(amplitude_bins):
-            s = np.flatnonzero(lab == b)
-            if len(s) < 8:
-                continue
-            cb = _local_gain(yc2[s, o], ylin[s, o], ylq[s, o])
-            lvl.append(float(np.mean(env[s, o])))
-            rr.append(math.sqrt(float(np.mean(r[s, o] ** 2))))
-            rel.append(rr[-1] / max(math.sqrt(float(np.mean(yhc[s, o] ** 2))), 1e-300))
-            gb.append(abs(cb))
-            pb.append(math.degrees(np.angle(cb)))
+        lvl, rr, rel, gb, pb = _bin_values(yc2[:, o], ylin[:, o], ylq[:, o], env[:, o], r[:, o], yhc[:, o],
+                                           amplitude_bins)
+        twin_bins = [_bin_values(yc_t[:, o], lin_t[:, o], lq_t[:, o], env_t[:, o], None, None, amplitude_bins)[3]
+                     for yc_t, lin_t, lq_t, env_t in twins]
+        tg = (np.array(twin_bins) if all(len(g) == len(gb) for g in twin_bins)
+              else np.full((len(twins), len(gb)), np.nan))     # a twin whose bins came out otherwise: no band
         corr = np.array(rr) ** 2 - sig[o] ** 2
         okb = (corr > 0) & (np.array(lvl) > 0)
         expo = float(np.polyfit(np.log(np.array(lvl)[okb]), 0.5 * np.log(corr[okb]), 1)[0]) \
@@ -229,5 +252,5 @@ def window_and_amplitude_gaps(dt: float, u2: np.ndarray, y2: np.ndarray, yh2: np
         nonlin = bool((np.isfinite(g_p) and g_p * n_nl < alpha and abs(g_sl * log_range) >= MIN_GAIN / 2)
                       or (np.isfinite(p_p2) and p_p2 * n_nl < alpha and abs(p_sl * log_range) >= MIN_PHASE_DEG / 2))
         amps.append(AmplitudeGap(snames[o], tuple(lvl), tuple(rr), tuple(rel), tuple(gb), tuple(pb), expo,
-                                 g_sl, g_p, p_sl, p_p2, nonlin))
+                                 g_sl, g_p, p_sl, p_p2, nonlin, *_mean_sd(tg)))
     return wins, amps

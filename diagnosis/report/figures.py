@@ -6,12 +6,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ebb_model.output import atomic_path, make_dir
+from ebb_model.figureio import save_figure
+from ebb_model.output import make_dir
 from identification.plots import trace
 
 from .result import GapReport
 
-__all__ = ["plot_diagnosis"]
+__all__ = ["plot_diagnosis", "next_experiment_figure"]
 
 
 def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, localisations: Sequence[Any], out_dir: Path
@@ -38,7 +39,7 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, localisations:
         a1.set_xlim(left=left)
         for k, s in enumerate(scores):
             if s is None or s <= 0:
-                a1.text(left, k, "  pair: no score test" if s is None else "  0", va="center", fontsize=7)
+                a1.text(left, k, "  pair: no score test" if s is None else "  0", va="center", fontsize=8)
         a1.set_xlabel("score-test statistic (LM)")
         a2.barh([r.label for r in rows][::-1],
                 [100 * (r.refit.closed or 0.0) for r in rows if r.refit is not None][::-1])  # (each row has one)
@@ -46,10 +47,7 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, localisations:
         a2.set_xlabel("held-out gap closed after refit [%]")
         fig.suptitle(f"verdict: {report.verdict}")
         fig.tight_layout()
-        paths.append(out_dir / "effects.png")
-        with atomic_path(paths[-1], suffix=".png") as tmp:
-            fig.savefig(tmp, dpi=100, bbox_inches="tight")
-        plt.close(fig)
+        paths.append(save_figure(fig, out_dir / "effects.png"))
     _, before = problem.heldout(ranking.baseline.beta)
     after = None
     named = report.judged.label
@@ -69,13 +67,10 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, localisations:
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0.0)
     axes[-1, 0].set_xlabel("time in the held-out window [s]")
     fig.tight_layout()
-    paths.append(out_dir / "heldout_residuals.png")
-    with atomic_path(paths[-1], suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=100, bbox_inches="tight")
-    plt.close(fig)
+    paths.append(save_figure(fig, out_dir / "heldout_residuals.png"))
     nxt = report.next_experiment
     if nxt is not None and nxt.designs:
-        paths.append(_plot_next_experiment(plt, nxt, out_dir / "next_experiment.png"))
+        paths.append(save_figure(next_experiment_figure(plt, nxt), out_dir / "next_experiment.png"))
     try:
         from .plots import plot_localisation
     except ImportError:  # pragma: no cover - localisation plots are optional
@@ -91,29 +86,40 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, localisations:
     return paths
 
 
-def _plot_next_experiment(plt: Any, nxt: Any, path: Path) -> Path:
+def _design_label(design: Any, setups: bool) -> str:
+    """A design in two short lines for the chart's axis: the band, then the sensors (and the set-up when the
+    bench has several)."""
+    lo, hi = design.band_hz
+    where = ("the records' sensors" if design.sensor is None
+             else f"+ {design.sensor[0]} sensor at x = {design.sensor[1]:.3g} m")
+    return (f"{lo:.3g}-{hi:.3g} Hz ({design.band_name})\n" + (f"{design.setup}: " if setups else "") + where)
+
+
+def next_experiment_figure(plt: Any, nxt: Any) -> Any:
     """The designed experiments' expected log Bayes factors (the worst pair's, each direction of every pair
-    marked), the records' own design and the decisive level: :class:`diagnosis.design.NextExperiment`."""
+    marked), the records' own design and the decisive level: :class:`diagnosis.design.NextExperiment`.  Each
+    design is labelled in two short lines and the legend sits below the axes, so the chart fits the page at its
+    natural size (:mod:`ebb_model.figureio`)."""
     shown = list(nxt.designs)
     if nxt.as_recorded is not None and nxt.as_recorded not in shown:
         shown.append(nxt.as_recorded)
-    names = [d.design.describe() + (" — the records' own" if d is nxt.as_recorded else "") for d in shown]
+    setups = len({d.design.setup for d in shown}) > 1
+    names = [_design_label(d.design, setups) + ("\n(the records' own)" if d is nxt.as_recorded else "")
+             for d in shown]
     floor = 1e-3
     rows = np.arange(len(shown))[::-1]          # the best at the top
-    fig, ax = plt.subplots(figsize=(11, 0.4 * len(shown) + 1.8))
+    height = 0.55 * len(shown) + 2.2            # inches
+    fig, ax = plt.subplots(figsize=(8.5, height))
     ax.barh(rows, [max(d.rate * nxt.seconds, floor) for d in shown], color="0.6", label="worst pair")
     for pair in nxt.designs[0].pairs:
-        ax.plot([max(d.pairs[pair] * nxt.seconds, floor) for d in shown], rows, "o", ms=3,
+        ax.plot([max(d.pairs[pair] * nxt.seconds, floor) for d in shown], rows, "o", ms=4,
                 label=pair.replace(">", " true, against "))
     ax.set_yticks(rows, names)
     ax.axvline(nxt.decisive, color="k", lw=0.8, ls="--", label="decisive")
     ax.set_xscale("log")
-    ax.set_xlabel(f"expected ln Bayes factor in a {nxt.seconds:.3g} s record")
-    ax.tick_params(axis="y", labelsize=7)
-    ax.legend(fontsize=7, loc="lower right")
-    ax.set_title("next experiment: " + " / ".join(nxt.candidates))
-    fig.tight_layout()
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=100, bbox_inches="tight")
-    plt.close(fig)
-    return path
+    ax.set_xlabel(f"random force: expected ln Bayes factor in a {nxt.seconds:.3g} s record")
+    ax.tick_params(axis="y", labelsize=8)
+    ax.set_title("next experiment: " + " / ".join(nxt.candidates), fontsize=10)
+    fig.legend(*ax.get_legend_handles_labels(), fontsize=8, loc="lower center", ncol=2, frameon=False)
+    fig.tight_layout(rect=(0.0, 0.5 / height, 1.0, 1.0))      # the legend's two rows below the axes
+    return fig

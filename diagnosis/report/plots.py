@@ -8,13 +8,14 @@ residual auto- and cross-correlations with their 99 % bands.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from ebb_model.arrays import as_matrix
 from ebb_model.errors import DataError
-from ebb_model.output import atomic_path, make_dir
+from ebb_model.figureio import save_figure
+from ebb_model.output import make_dir
 from identification.plots import plain_ticks, trace
 
 from ..localise import Localisation, estimate_frf
@@ -81,15 +82,7 @@ def plot_localisation(loc: Localisation, dt: float, u: np.ndarray, y: np.ndarray
     figures = localisation_figures(loc, dt, u, y, y_hat, units)
     out = Path(out_dir)
     make_dir(out, exist_ok=True, parents=True)
-    plt = _pyplot()
-    files: list[Path] = []
-    for name, fig in figures.items():
-        p = out / name
-        with atomic_path(p, suffix=".png") as tmp:
-            fig.savefig(tmp, dpi=100, bbox_inches="tight")
-        plt.close(fig)
-        files.append(p)
-    return files
+    return [save_figure(fig, out / name) for name, fig in figures.items()]
 
 
 class _Units:
@@ -116,7 +109,7 @@ class _Units:
 
 def _outside_legend(ax: Any) -> None:
     """The axis' legend to the right of its data."""
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, borderaxespad=0.0)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0.0)
 
 
 def _residuals_figure(plt: Any, loc: Localisation, t: np.ndarray, y2: np.ndarray, yh2: np.ndarray, unit: _Units
@@ -198,14 +191,31 @@ def _windows_figure(plt: Any, loc: Localisation, unit: _Units) -> Any:
             axes[0].axhline(noise[w.sensor], color=f"C{o}", ls=":", lw=0.8)
         axes[1].plot(tc, w.gain, "o-", color=f"C{o}", label=f"{w.sensor} (trend p={w.gain_p:.2g})")
         axes[2].plot(tc, w.phase_deg, "o-", color=f"C{o}", label=f"{w.sensor} (trend p={w.phase_p:.2g})")
+        for ax, mid, sd in ((axes[1], w.twin_gain, w.twin_gain_sd), (axes[2], w.twin_phase_deg, w.twin_phase_sd)):
+            _twin_band(ax, tc, mid, sd, o)
     axes[0].set_ylabel(f"model residual RMS{unit.common([w.sensor for w in loc.windows])}\n(dotted: noise σ)")
     axes[1].set_ylabel("gain vs. time-invariant\nlinear fit [-]")
     axes[2].set_ylabel("phase vs. time-invariant\nlinear fit [deg]")
     axes[2].set_xlabel("window centre [s]")
     for ax in axes:
         _outside_legend(ax)
-    axes[0].set_title("per time window (drift)", fontsize=9)
+    drifting = [w.sensor for w in loc.windows if w.drift]
+    axes[0].set_title("per time window: " + (f"drift in {', '.join(drifting)} (a trend beyond a linear record's)"
+                                              if drifting else "no drift (every trend within a linear record's)"),
+                      fontsize=10)
+    axes[1].set_title("pale line: a linear time-invariant record under the same input (shaded: its ±2σ)", fontsize=8)
     return fig
+
+
+def _twin_band(ax: Any, x: np.ndarray, mid: Sequence[float], sd: Sequence[float], o: int) -> None:
+    """Draw what the record's linear twins show at ``x`` in the sensor's colour: their mean as a broad pale line
+    under the record's, ± 2 standard deviations shaded; nothing where the twins were not formed.  A record's
+    points on the pale line show what a linear time-invariant record under the same input shows (a short
+    record's gain per window swings by half with its input's spectrum, and so do its twins')."""
+    if len(mid) == len(x) and len(sd) == len(x):
+        m, s = np.asarray(mid, dtype=float), np.asarray(sd, dtype=float)
+        ax.plot(x, m, "-", color=f"C{o}", lw=8, alpha=0.25, zorder=0, solid_capstyle="round")
+        ax.fill_between(x, m - 2 * s, m + 2 * s, color=f"C{o}", alpha=0.2, lw=0)
 
 
 def _amplitude_figure(plt: Any, loc: Localisation, unit: _Units) -> Any:
@@ -218,13 +228,18 @@ def _amplitude_figure(plt: Any, loc: Localisation, unit: _Units) -> Any:
                        label=f"{a.sensor} (exponent {a.rms_exponent:.2g})")
         axes[0].axhline(loc.sensors[o].noise_std, color=f"C{o}", ls=":", lw=0.8)
         axes[1].semilogx(lv, a.gain, "o-", color=f"C{o}", label=f"{a.sensor} (p={a.gain_p:.2g})")
+        _twin_band(axes[1], lv, a.twin_gain, a.twin_gain_sd, o)
     common = unit.common([a.sensor for a in loc.amplitude])
     axes[0].set_ylabel(f"residual RMS{common}\n(dotted: noise σ)")
     axes[1].set_ylabel("gain vs. time-invariant\nlinear fit [-]")
     axes[1].set_xlabel(f"response envelope level{common}")
     for ax in axes:
         _outside_legend(ax)
-    axes[0].set_title("per amplitude level (nonlinearity)", fontsize=9)
+    bent = [a.sensor for a in loc.amplitude if a.nonlinear]
+    axes[0].set_title("per amplitude level: " + (f"nonlinear in {', '.join(bent)} (beyond a linear record's)" if bent
+                                                  else "no amplitude dependence beyond a linear record's"),
+                      fontsize=10)
+    axes[1].set_title("pale line: a linear record under the same input (shaded: its ±2σ)", fontsize=8)
     return fig
 
 
@@ -240,8 +255,9 @@ def _correlation_figure(plt: Any, loc: Localisation) -> Any:
         lags = np.arange(1, len(h.autocorr) + 1)
         ax.bar(lags, h.autocorr, color="C0", width=0.8)
         ax.axhspan(-h.band, h.band, color="k", alpha=0.15)
-        ax.set_title(f"{h.sensor}: autocorr (LB p={h.ljung_box_p:.2g})", fontsize=8)
-        ax.set_xlabel("lag [samples] (grey: 99 % band of white noise)", fontsize=7)
+        ax.set_title(f"{h.sensor}: residual {'white' if h.white else 'not white'} (Ljung-Box p={h.ljung_box_p:.2g})",
+                     fontsize=8)
+        ax.set_xlabel("lag [samples] (grey: 99 % band of white noise)", fontsize=8)
         ax.set_ylabel("correlation [-]")
     for c in loc.cross_correlation:
         o = names.index(c.sensor)
@@ -250,8 +266,11 @@ def _correlation_figure(plt: Any, loc: Localisation) -> Any:
         m = (len(c.xcorr) - 1) // 2
         ax.bar(np.arange(-m, m + 1), c.xcorr, color="C1", width=0.8)
         ax.axhspan(-c.band, c.band, color="k", alpha=0.15)
-        ax.set_title(f"{c.sensor} vs {c.input}: xcorr (p={c.p:.2g})", fontsize=8)
-        ax.set_xlabel("lag [samples] (grey: 99 % band, no input-related error)", fontsize=7)
+        said = ("input-related error" if c.significant
+                else "no input-related error" + ("" if c.p * len(loc.cross_correlation) >= 0.01
+                                                 else ": no lag outside the band"))
+        ax.set_title(f"{c.sensor} vs {c.input}: {said} (p={c.p:.2g})", fontsize=8)
+        ax.set_xlabel("lag [samples] (grey: 99 % band of an error unrelated to the input)", fontsize=8)
         ax.set_ylabel("correlation [-]")
     return fig
 
@@ -281,7 +300,7 @@ def _bands_figure(plt: Any, loc: Localisation) -> Any:
         ax.bar(x - 0.2, [b.residual_fraction or 0.0 for b in bs], width=0.4, label="residual energy")
         ax.bar(x + 0.2, [0.0 if not np.isfinite(b.excess_fraction) else b.excess_fraction for b in bs],
                width=0.4, label="model-error energy")
-        ax.set_xticks(x, labels, fontsize=7)
+        ax.set_xticks(x, labels, fontsize=8)
         ax.set_ylabel(f"{names[o]}: energy fraction [-]", fontsize=8)
         ax.set_ylim(0, 1)
     _outside_legend(axes[0, 0])
