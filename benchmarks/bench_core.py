@@ -42,8 +42,8 @@ import scipy.signal as ss
 from threadpoolctl import threadpool_limits
 
 import ebb_model as em
-from ebb_model.richardson_pair import companion_config, lowest_modes
-from ebb_model.recursion import compiled_recursion, one_tap_form
+from ebb_model.space.richardson_pair import companion_config, lowest_modes
+from ebb_model.exact.recursion import compiled_recursion, one_tap_form
 
 from figures import add_json_argument, write_figures  # benchmarks/figures.py
 from timing import interleaved_medians, median_time  # benchmarks/timing.py
@@ -99,7 +99,7 @@ def against_floor(cfg: em.BeamConfig, u: np.ndarray, rng: np.random.Generator, r
 
 def kernel_floor(fm: em.ModalStateSpace, u: np.ndarray):
     """A callable running the library's compiled recursion for ``fm`` directly on arrays prepared once (the
-    model's arrays in the one-tap form the library gives them, :func:`ebb_model.recursion.one_tap_form`)."""
+    model's arrays in the one-tap form the library gives them, :func:`ebb_model.exact.recursion.one_tap_form`)."""
     fn = compiled_recursion(fm.D.shape[1], fm.delays + 1, fm.D.shape[0])
     if fn is None:
         raise SystemExit("the benchmark needs the compiled recursion (a C compiler)")

@@ -5,7 +5,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from ebb_model.jsonio import write_json
+from ebb_model.io.jsonio import write_json
 
 __all__ = ["add_json_argument", "write_figures"]
 

@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from ebb_model.errors import OutputError
-from ebb_model.output import atomic_path
+from ebb_model.io.output import atomic_path
 
 ROOT = Path(__file__).resolve().parents[1]
 FIGURES = ROOT / "docs" / "figures.json"

@@ -21,7 +21,7 @@ from typing import Any, Callable, Sequence
 
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
-from ebb_model.output import check_new_output_dir, staged_dir
+from ebb_model.io.output import check_new_output_dir, staged_dir
 from identification.run import load_identification_config, read_data
 
 from .search.workers import DaskExecutor, close_refit_pool, refit_pool, side_by_side, task_cluster

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ebb_model.output import atomic_path, check_new_output_dir, make_dir
+from ebb_model.io.output import atomic_path, check_new_output_dir, make_dir
 
 if TYPE_CHECKING:
     from .report.result import GapReport
@@ -124,7 +124,7 @@ def run_demo(out: str | Path = "demo-out", *, quick: bool = False, progress: boo
         tmp.write_text(text + "\n")
     from dataclasses import replace
 
-    from ebb_model.htmlio import PAGE, Section, write_page
+    from ebb_model.io.htmlio import PAGE, Section, write_page
     from identification.report import html_sections as identify_sections
 
     from .report.html import html_sections

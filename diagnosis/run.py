@@ -21,14 +21,14 @@ from typing import Any, Callable, Sequence, cast
 
 import numpy as np
 
-from ebb_model.adequacy import excited_band, grid_line, modes_top, numerical_adequacy
+from ebb_model.space.adequacy import excited_band, grid_line, modes_top, numerical_adequacy
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
-from ebb_model.grid_advice import grid_advice
-from ebb_model.htmlio import PAGE, write_page
-from ebb_model.jsonio import write_json
-from ebb_model.modal import discrete_frequencies
-from ebb_model.output import check_new_output_dir, staged_dir
+from ebb_model.space.grid_advice import grid_advice
+from ebb_model.io.htmlio import PAGE, write_page
+from ebb_model.io.jsonio import write_json
+from ebb_model.modes.modal import discrete_frequencies
+from ebb_model.io.output import check_new_output_dir, staged_dir
 from ebb_model.threads import one_blas_thread
 
 from identification.cluster import parse_local_address

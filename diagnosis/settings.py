@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields, replace
 from typing import Any, Mapping
 
-from ebb_model.adequacy import NOISE_FLOOR_EXCESS
+from ebb_model.space.adequacy import NOISE_FLOOR_EXCESS
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
 
@@ -36,7 +36,7 @@ class Thresholds:
 
     gap_threshold: float = field(default=NOISE_FLOOR_EXCESS, metadata=_reason(
         "relative excess of the held-out residual variance over the noise floor below which there is no gap "
-        "(ebb_model.adequacy.NOISE_FLOOR_EXCESS: a gap ratio up to 1.25 is the noise)", 0.0, 1e9))
+        "(ebb_model.space.adequacy.NOISE_FLOOR_EXCESS: a gap ratio up to 1.25 is the noise)", 0.0, 1e9))
     explained_share: float = field(default=0.1, metadata=_reason(
         "a refit that leaves at most this share of the baseline's excess over the noise floor on the fit windows "
         "explains the gap: the search stops widening (other basins, continuation refits); what is left is the "

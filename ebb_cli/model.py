@@ -1,5 +1,5 @@
 """``ebb modes`` and ``ebb simulate``: parse, then call :func:`ebb_model.reports.modes_report` /
-:func:`ebb_model.signals_io.simulate_files`."""
+:func:`ebb_model.io.signals_io.simulate_files`."""
 from __future__ import annotations
 
 import argparse
@@ -62,7 +62,7 @@ def _cmd_modes(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from ebb_model.signals_io import simulate_files
+    from ebb_model.io.signals_io import simulate_files
 
     out = simulate_files(args.config, args.input, args.out, params=parse_params(args.param))
     print(f"wrote {out}")

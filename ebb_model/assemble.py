@@ -1,8 +1,8 @@
 """From a config and parameter values to a validated, stable discrete system.
 
 The data flow Beam → Discretisation → StateSpace in one call:
-:func:`~ebb_model.discretisation.discretise` (finite differences in space),
-:func:`~ebb_model.theta_scheme.discretise_time` (θ-scheme in time), then the
+:func:`~ebb_model.space.discretisation.discretise` (finite differences in space),
+:func:`~ebb_model.theta.theta_scheme.discretise_time` (θ-scheme in time), then the
 stability check of the *finite* beam (spectral radius of Φ), whose error
 message names the parameters that violate the Bistritz bounds of the
 dispersion relation (:mod:`ebb_model.stability.dispersion`).
@@ -13,14 +13,14 @@ from typing import Mapping
 
 import numpy as np
 
-from .channel_delay import with_channel_delays
+from .acquisition.channel_delay import with_channel_delays
 from .config import BeamConfig
-from .discretisation import discretise
+from .space.discretisation import discretise
 from .errors import StabilityError
-from .exact_modal import exact_model
+from .exact.exact_modal import exact_model
 from .parameter_values import resolve_parameters
 from .statespace import DiscreteStateSpace
-from .theta_scheme import discretise_time
+from .theta.theta_scheme import discretise_time
 
 __all__ = ["assemble", "assemble_modal", "buckling_load", "field_config", "field_matrix", "check_stable"]
 
@@ -28,7 +28,7 @@ __all__ = ["assemble", "assemble_modal", "buckling_load", "field_config", "field
 def buckling_load(config: BeamConfig, params: Mapping[str, float] | None = None) -> float | None:
     """The compressive axial force at which the discretised beam buckles.
 
-    The largest ``N < 0`` at which the stiffness matrix ``K(N)`` of :func:`~ebb_model.discretisation.discretise`
+    The largest ``N < 0`` at which the stiffness matrix ``K(N)`` of :func:`~ebb_model.space.discretisation.discretise`
     (bending, axial force, ends, foundation) stops being positive definite, found by bracketing and bisection
     (relative tolerance 1e-7) on the Cholesky factorisation of its symmetric part.
 
@@ -100,7 +100,7 @@ def assemble(config: BeamConfig, params: Mapping[str, float] | None = None, *,
     -------
     DiscreteStateSpace
         ``scheme = "theta"``: state ``x[k] = (q^{mk}, v^{mk-1/2})`` of nodal unknowns;
-        ``scheme = "exact"``: the modal block state of :func:`ebb_model.exact_modal.exact_modal`.
+        ``scheme = "exact"``: the modal block state of :func:`ebb_model.exact.exact_modal.exact_modal`.
         Inputs named after the actuators, outputs after the sensors.
 
     Raises

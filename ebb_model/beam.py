@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .antialias import AntiAlias
+from .acquisition.antialias import AntiAlias
 
 __all__ = [
     "PARAMETER_NAMES",
@@ -136,10 +136,10 @@ class Actuator:
 
     name: str
     x: float
-    #: the anti-alias filter the force's record passed (:mod:`ebb_model.antialias`; it cancels against the
+    #: the anti-alias filter the force's record passed (:mod:`ebb_model.acquisition.antialias`; it cancels against the
     #: sensors' identical filters), or ``None``
     antialias: AntiAlias | None = None
-    #: the channel's converter delay [s] (:mod:`ebb_model.channel_delay`; the sensors' are taken after it)
+    #: the channel's converter delay [s] (:mod:`ebb_model.acquisition.channel_delay`; the sensors' are taken after it)
     delay: float = 0.0
 
 
@@ -150,9 +150,10 @@ class Sensor:
     name: str
     x: float
     kind: str = "displacement"
-    #: the acquisition's analog anti-alias filter on this channel (:mod:`ebb_model.antialias`), or ``None``
+    #: the acquisition's analog anti-alias filter on this channel (:mod:`ebb_model.acquisition.antialias`), or ``None``
     antialias: AntiAlias | None = None
-    #: the channel's converter delay [s]: the record is the quantity ``delay`` late (:mod:`ebb_model.channel_delay`)
+    #: the channel's converter delay [s]: the record is the quantity ``delay`` late
+    #: (:mod:`ebb_model.acquisition.channel_delay`)
     delay: float = 0.0
 
     @property

@@ -85,7 +85,7 @@ class FmuError(EbbError, RuntimeError):
 
 class OutputError(EbbError):
     """A place to write that cannot take the output: a read-only or full file system, a missing directory, a
-    directory where a file is expected (:mod:`ebb_model.output`).
+    directory where a file is expected (:mod:`ebb_model.io.output`).
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """A per-process memo of array results with a budget of bytes (:func:`memoised`).
 
-The model's expensive pure functions — a family's unit modes (:mod:`ebb_model.mode_family`), a grid's difference
-operators (:mod:`ebb_model.discretisation`) — are computed once per key and process.  The memo keeps results up to
+The model's expensive pure functions — a family's unit modes (:mod:`ebb_model.modes.mode_family`), a grid's difference
+operators (:mod:`ebb_model.space.discretisation`) — are computed once per key and process.  The memo keeps results up to
 :data:`MEMO_BYTES` each, dropping the least recently used, so a result never depends on which calls came before:
 a resumed run or another worker computes the same numbers.
 """

@@ -13,7 +13,7 @@ from typing import Any, Protocol
 
 from .beam import PARAMETER_NAMES
 from .errors import ParameterError
-from .problems import Problems
+from .config.problems import Problems
 
 __all__ = ["ParameterValues", "resolve_parameters", "check_parameter_values", "range_problem", "POSITIVE",
            "NON_NEGATIVE", "MAX_MAGNITUDE", "MIN_POSITIVE"]

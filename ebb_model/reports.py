@@ -31,7 +31,7 @@ def modes_report(config_path: str | Path, *, n_modes: int = 10, params: Mapping[
     progress : callable, optional
         Receives one line before each stage (modes, grid advice, stability) with the time so far, for grids of
         at least :data:`PROGRESS_NODES` nodes: the work grows as nodes³ (tens of seconds at the limit,
-        :data:`~ebb_model.config_types.MAX_NODES`).
+        :data:`~ebb_model.config.types.MAX_NODES`).
 
     Returns
     -------
@@ -46,8 +46,8 @@ def modes_report(config_path: str | Path, *, n_modes: int = 10, params: Mapping[
         Invalid config, parameter values or ``band_hz``.
     """
     from . import analyse_stability, discrete_frequencies, fast_model, load_config, modes
-    from .grid_advice import grid_advice
-    from .jsonio import jsonable
+    from .space.grid_advice import grid_advice
+    from .io.jsonio import jsonable
     from .parameter_values import resolve_parameters
 
     if band_hz is not None and not (math.isfinite(band_hz) and band_hz > 0):

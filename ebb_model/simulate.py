@@ -2,9 +2,9 @@
 
 Two kernels:
 
-* the **modal** recursion for :class:`~ebb_model.modal_form.ModalStateSpace`:
+* the **modal** recursion for :class:`~ebb_model.theta.modal_form.ModalStateSpace`:
   2×2 real blocks, ``O(n)`` work per sample — the fast path, compiled C specialised for the model's input,
-  tap and output counts (:mod:`ebb_model.recursion`);
+  tap and output counts (:mod:`ebb_model.exact.recursion`);
 * the **dense** kernel for a general :class:`~ebb_model.statespace.DiscreteStateSpace`
   (``O(n²)`` per sample, numba, cached on disk after the first call), used when no modal form is available.
 
@@ -24,17 +24,17 @@ import numba
 import numpy as np
 
 from .arrays import as_matrix
-from .bandlimited import lead_in
-from .channel_delay import delay_outputs, with_channel_delays
-from .output import atomic_path
+from .acquisition.bandlimited import lead_in
+from .acquisition.channel_delay import delay_outputs, with_channel_delays
+from .io.output import atomic_path
 from .config import BeamConfig
-from .discretisation import discretise
-from .exact_modal import exact_model
-from .modal_form import ModalStateSpace, modal_from_beam, modal_from_theta
+from .space.discretisation import discretise
+from .exact.exact_modal import exact_model
+from .theta.modal_form import ModalStateSpace, modal_from_beam, modal_from_theta
 from .parameter_values import resolve_parameters
-from .recursion import FASTMATH, run_modal_recursion
+from .exact.recursion import FASTMATH, run_modal_recursion
 from .statespace import DiscreteStateSpace
-from .theta_scheme import discretise_time
+from .theta.theta_scheme import discretise_time
 
 __all__ = ["SimulationResult", "simulate", "fast_model", "simulate_config", "simulate_batch"]
 
@@ -123,9 +123,9 @@ def simulate(system: DiscreteStateSpace | ModalStateSpace, u: np.ndarray,
     x0
         Initial state (block state ``(nb, 2)`` flattened for modal systems).
         Default: at rest — zero, or ``−Γ₁ u[0]`` for a first-order-hold
-        realisation (``system.hold``, see :mod:`ebb_model.theta_scheme`).  A system that reads its input
+        realisation (``system.hold``, see :mod:`ebb_model.theta.theta_scheme`).  A system that reads its input
         ``system.advance`` samples ahead (the band-limited force) starts that many samples before the record, under
-        the record's first sample held (:func:`ebb_model.bandlimited.lead_in`): ``x0`` is its state there.
+        the record's first sample held (:func:`ebb_model.acquisition.bandlimited.lead_in`): ``x0`` is its state there.
 
     Returns
     -------
@@ -163,9 +163,9 @@ def fast_model(config: BeamConfig, params: Mapping[str, float] | None = None
                ) -> ModalStateSpace | DiscreteStateSpace:
     """Assemble the fastest reliable realisation of the beam for ``params``.
 
-    ``scheme = "exact"``: :func:`ebb_model.exact_modal.exact_model`.  ``scheme = "theta"``: the seed's
+    ``scheme = "exact"``: :func:`ebb_model.exact.exact_modal.exact_model`.  ``scheme = "theta"``: the seed's
     scheme, by the proportional-damping modal route when it applies (checked numerically), otherwise from the
-    eigenvectors of one sub-step (:func:`~ebb_model.modal_form.modal_from_theta`).  Either falls back to the
+    eigenvectors of one sub-step (:func:`~ebb_model.theta.modal_form.modal_from_theta`).  Either falls back to the
     dense system (same scheme, ``O(n²)`` per sample) when no well-conditioned block-diagonal form exists, so
     this never raises for want of one.  Stability is **not** checked here (see :func:`ebb_model.assemble`).
     """

@@ -65,15 +65,15 @@ class DiscreteStateSpace:
         Signal names; defaults ``u[i]``, ``y[i]``, ``x[i]``.
     hold
         Optional (n×m) matrix ``Γ₁`` of a first-order-hold realisation
-        (:mod:`ebb_model.theta_scheme`): the state is ``ξ = x − Γ₁ u``, so
+        (:mod:`ebb_model.theta.theta_scheme`): the state is ``ξ = x − Γ₁ u``, so
         a start at rest is ``ξ[0] = −Γ₁ u[0]`` (what :func:`ebb_model.simulate`
         uses by default).  ``None``: a start at rest is ``ξ[0] = 0``.
     advance
         How many samples ahead of the record the input is read (0: none): the system's input ``u[k]`` is the
-        record's ``u[k + advance]`` (:mod:`ebb_model.bandlimited`: a reconstruction that reads samples ahead),
-        as :func:`ebb_model.simulate` feeds it.
+        record's ``u[k + advance]`` (:mod:`ebb_model.acquisition.bandlimited`: a reconstruction that reads samples
+        ahead), as :func:`ebb_model.simulate` feeds it.
     output_delays
-        Each output's channel delay in samples (:mod:`ebb_model.channel_delay`), applied to the simulated
+        Each output's channel delay in samples (:mod:`ebb_model.acquisition.channel_delay`), applied to the simulated
         outputs and the frequency response; ``()``: none.
     """
 
@@ -152,14 +152,14 @@ class DiscreteStateSpace:
         ------
         ConfigError
             The system reads its input ahead of the record (``advance`` > 0), which a StateSpace cannot say:
-            realise it from :func:`ebb_model.bandlimited.causal_config` (the design models do).
+            realise it from :func:`ebb_model.acquisition.bandlimited.causal_config` (the design models do).
         """
         import control
 
         if self.advance:
             raise ConfigError(f"this system reads its input {self.advance} samples ahead of the record (a band-limited "
                               "force between samples), which a StateSpace cannot carry: build it from "
-                              "ebb_model.bandlimited.causal_config(config)")
+                              "ebb_model.acquisition.bandlimited.causal_config(config)")
         if self.output_delays:
             raise ConfigError("this system delays its outputs by the channels' converter delays "
                               f"({', '.join(f'{d:g}' for d in self.output_delays)} samples), which a StateSpace does "

@@ -31,9 +31,9 @@ import pythonfmu
 import ebb_model
 from ebb_model import PARAMETER_NAMES, BeamConfig, DiscreteStateSpace, assemble, load_config
 from ebb_model.assemble import assemble_modal
-from ebb_model.bandlimited import causal_config
-from ebb_model.channel_delay import refuse_in
-from ebb_model.output import atomic_path, check_output_file
+from ebb_model.acquisition.bandlimited import causal_config
+from ebb_model.acquisition.channel_delay import refuse_in
+from ebb_model.io.output import atomic_path, check_output_file
 from ebb_model.errors import FmuError, OutputError
 
 from . import slave_template
@@ -138,7 +138,7 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
         The nominal parameters give no valid (stable) model.
     FmuError
         The output is unusable (not a .fmu name; its place not writable, read-only or full, checked before the
-        build by :func:`ebb_model.output.check_output_file`), names clash, the interpreter has no shared
+        build by :func:`ebb_model.io.output.check_output_file`), names clash, the interpreter has no shared
         libpython, no C compiler is available, or writing the archive fails (nothing half-written is left).
 
     Notes

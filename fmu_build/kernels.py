@@ -5,15 +5,15 @@ in a ``__pycache__`` beside their module and found again by the source's content
 processor.  A host extracts an FMU afresh, so an FMU without that cache compiled them again in every new process
 (about 2.5 s before its first step on the seed config).  The build therefore puts into the FMU:
 
-* the numba cache of every kernel the built model's assembly runs (``.nbi``/``.nbc`` files in
-  ``resources/<core>/__pycache__``);
+* the numba cache of every kernel the built model's assembly runs (``.nbi``/``.nbc`` files in the
+  ``__pycache__`` of each of ``resources/<core>``'s sub-packages);
 * hash-checked byte code (``.pyc``) of every Python module in ``resources/`` — valid wherever the archive is
   extracted, unlike Python's default timestamped byte code (an extraction sets new times).
 
 Numba's cached code imports its module by name when it loads, so the bundled core's name must be the same in
 every FMU that shares the cache: it is a hash of the core's sources (:func:`core_package_name`), the same for
 every FMU built from one version of the project and different for another.  The kernels are compiled once per
-core, in a copy of it kept in the cache directory (:func:`ebb_model.recursion.cache_directory`), by assembling
+core, in a copy of it kept in the cache directory (:func:`ebb_model.exact.recursion.cache_directory`), by assembling
 each built config's model there: a later build loads what an earlier one compiled.  The carried cache only
 accelerates: a host with another processor or a read-only extraction directory compiles as before, and a build
 whose cache directory cannot be written carries the byte code alone.
@@ -32,7 +32,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any, Iterable, Mapping
 
-from ebb_model.recursion import cache_directory
+from ebb_model.exact.recursion import cache_directory
 
 __all__ = ["core_package_name", "carry_kernels", "compile_bytecode", "KERNEL_SUFFIXES"]
 
@@ -85,7 +85,8 @@ def _kept_copy(core: Path) -> Path:
 
 
 def carry_kernels(core: Path, config: Mapping[str, Any], *, field: bool) -> int:
-    """Put the numba cache of the kernels that assembling ``config`` runs into ``core/__pycache__``.
+    """Put the numba cache of the kernels that assembling ``config`` runs into ``core``'s ``__pycache__`` folders
+    (each beside its module, in every sub-package).
 
     Parameters
     ----------
@@ -109,16 +110,17 @@ def carry_kernels(core: Path, config: Mapping[str, Any], *, field: bool) -> int:
         copy.assemble_modal(cfg, dict(cfg.parameter_values()), field=field)
         # where this process's copy keeps its kernels (the kept copy, unless an FMU loaded here brought its own),
         # then the kept copy's
-        found: dict[str, Path] = {}
-        for cached in (Path(str(copy.__file__)).parent / "__pycache__", home / core.name / "__pycache__"):
-            for f in sorted(cached.glob("*")) if cached.is_dir() else ():
+        # (every sub-package's ``__pycache__``: the kernels live in ``exact/``, ``modes/``, ``space/`` …)
+        found: dict[Path, Path] = {}
+        for base in (Path(str(copy.__file__)).parent, home / core.name):
+            for f in sorted(base.rglob("__pycache__/*")) if base.is_dir() else ():
                 if f.suffix in KERNEL_SUFFIXES:
-                    found.setdefault(f.name, f)
-        files = sorted(found.values(), key=lambda f: (f.suffix != ".nbi", f.name))
-        target = core / "__pycache__"
-        target.mkdir(exist_ok=True)
-        for f in files:   # indexes first: an overload an index names was written before it
-            shutil.copyfile(f, target / f.name)
+                    found.setdefault(f.relative_to(base), f)
+        rels = sorted(found, key=lambda r: (r.suffix != ".nbi", r.as_posix()))
+        for rel in rels:   # indexes first: an overload an index names was written before it
+            (core / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(found[rel], core / rel)
+        files = rels
     except Exception:   # an acceleration only: any failure leaves the FMU compiling as numba does by itself
         return 0
     return len(files)

@@ -28,7 +28,7 @@ from xml.sax.saxutils import quoteattr
 from ebb_model.beam import PARAMETER_NAMES, PARAMETER_UNITS
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
-from ebb_model.output import atomic_path, check_writable_dir, make_dir
+from ebb_model.io.output import atomic_path, check_writable_dir, make_dir
 
 from .export import chosen
 from .result import IdentificationResult
@@ -86,7 +86,7 @@ def _ssd(name: str, config: BeamConfig, bound: str, dt: float, stop: float) -> s
 def stop_time(config: BeamConfig, params: dict[str, float]) -> float:
     """The default experiment's duration: ten periods of the model's lowest mode, a whole number of steps ``dt``
     (at least one)."""
-    from ebb_model.modal import discrete_frequencies
+    from ebb_model.modes.modal import discrete_frequencies
 
     dt = config.time.dt
     freqs, _ = discrete_frequencies(config, params)

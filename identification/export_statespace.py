@@ -21,10 +21,10 @@ import numpy as np
 import scipy.linalg as sla
 
 from ebb_model import DiscreteStateSpace
-from ebb_model.output import atomic_path
+from ebb_model.io.output import atomic_path
 from ebb_model.beam import PARAMETER_UNITS
 from ebb_model.errors import ConfigError, StabilityError
-from ebb_model.jsonio import jsonable
+from ebb_model.io.jsonio import jsonable
 
 __all__ = ["save_statespace", "load_statespace", "load_metadata", "rest_state", "BalancedModel",
            "balanced_truncation", "continuous_equivalent"]
@@ -35,7 +35,7 @@ def save_statespace(sys: DiscreteStateSpace, path: str | Path, *, name: str = ""
                     modes: Mapping[str, Any] | None = None) -> Path:
     """Write ``sys`` to ``path`` (``.npz``), atomically, with its name, parameter values (and units), config,
     the hold matrix of a first-order-hold realisation (:func:`rest_state`) and — ``modes`` — which modes it keeps
-    with each one's frequency error estimate (:meth:`ebb_model.truncation.ModeResolution.to_dict`)."""
+    with each one's frequency error estimate (:meth:`ebb_model.modes.truncation.ModeResolution.to_dict`)."""
     path = Path(path)
     meta = {"name": name or path.stem,
             "parameters": {k: float(v) for k, v in (parameters or {}).items()},

@@ -184,7 +184,7 @@ def records_noise_std(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray
         When the records give no positive, finite estimate (noise-free or constant records, or inputs
         without power).
     """
-    from ebb_model.adequacy import excited_band
+    from ebb_model.space.adequacy import excited_band
 
     f_top = excited_band(list(inputs), dt)[1]
     sigma = np.median(np.array([noise_std(y, dt, band=(0.0, f_top)) for y in outputs]), axis=0)

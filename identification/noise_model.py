@@ -295,9 +295,9 @@ def fit_spectrum(f: np.ndarray, S: np.ndarray, nu: float, dt: float, quiet: np.n
 
 
 def quiet_bins(f: np.ndarray, u: np.ndarray, dt: float, *, margin: float = 1.5) -> np.ndarray:
-    """The bins outside this record's excited band (:func:`ebb_model.adequacy.excited_band` of its inputs)
+    """The bins outside this record's excited band (:func:`ebb_model.space.adequacy.excited_band` of its inputs)
     widened by ``margin`` either way: where the record carries noise, not signal."""
-    from ebb_model.adequacy import excited_band
+    from ebb_model.space.adequacy import excited_band
 
     lo, hi = excited_band([u], dt)
     return (f < lo / margin) | (f > hi * margin)
@@ -344,7 +344,7 @@ def _spectrum_or_floor(f: np.ndarray, S: np.ndarray, nu: float, dt: float, quiet
     """:func:`fit_spectrum`, or — when the quiet bins follow no smooth shape it can carry across the band — white
     noise at the Welch floor above the excited band (:func:`identification.noise.noise_std`: the estimate used
     before there was a noise model)."""
-    from ebb_model.adequacy import excited_band
+    from ebb_model.space.adequacy import excited_band
 
     from .noise import noise_std
 

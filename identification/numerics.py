@@ -10,9 +10,9 @@ up the numerics' error (a cantilever's accelerometer near the clamp under noise 
 1.13 noise variances with EI and ρA 1.26 % high, six Cramér–Rao deviations; the refinements were not tried there).
 Above the floor they are tried in turn:
 
-* the band-limited force between samples (:mod:`ebb_model.bandlimited`), when the records' force reaches
-  :data:`~ebb_model.bandlimited.BROADBAND_EDGE` of the sampling rate and the config takes the cubic;
-* the grid the numerical adequacy compares with (:func:`ebb_model.adequacy.adequacy_grid`: four times the
+* the band-limited force between samples (:mod:`ebb_model.acquisition.bandlimited`), when the records' force reaches
+  :data:`~ebb_model.acquisition.bandlimited.BROADBAND_EDGE` of the sampling rate and the config takes the cubic;
+* the grid the numerical adequacy compares with (:func:`ebb_model.space.adequacy.adequacy_grid`: four times the
   intervals for the exact scheme, so that its Richardson pair is a finer pair too, or the grid advice's).
 
 A refinement that changes the identified point's χ² by more than :data:`REFINEMENT_GAIN` noise variances per
@@ -25,7 +25,7 @@ refinement is tried at once and kept when its polished fit is decisively better 
 cantilever: 0.98, EI within its Cramér–Rao deviation).
 Records the model made itself (its own cubic, its own grid) fit worse on other numerics, so they keep theirs:
 the records choose, not a rule about the force's band.  The FMU backend keeps the config's numerics (an FMU takes
-the force sample by sample; :func:`ebb_model.bandlimited.hold_hint` then says what would model the records).
+the force sample by sample; :func:`ebb_model.acquisition.bandlimited.hold_hint` then says what would model the records).
 """
 from __future__ import annotations
 
@@ -35,8 +35,8 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from ebb_model.adequacy import NOISE_FLOOR_EXCESS, adequacy_grid, excited_band
-from ebb_model.bandlimited import hold_hint
+from ebb_model.space.adequacy import NOISE_FLOOR_EXCESS, adequacy_grid, excited_band
+from ebb_model.acquisition.bandlimited import hold_hint
 from ebb_model.config import BeamConfig
 
 from .modal_data import ModalData, modal_data
@@ -51,7 +51,7 @@ __all__ = ["FLOOR_EVIDENCE", "REFINEMENT_GAIN", "REFINEMENT_SHARE", "NumericsCho
 
 #: A refinement is judged (polished on) when it changes the identified point's χ² by more than this many noise
 #: variances per sample, and kept (:func:`keeps`) when it lowers the fit by more than that: the noise floor's own
-#: allowance (:data:`~ebb_model.adequacy.NOISE_FLOOR_EXCESS`), so that a change the noise could make never moves
+#: allowance (:data:`~ebb_model.space.adequacy.NOISE_FLOOR_EXCESS`), so that a change the noise could make never moves
 #: the numerics.
 REFINEMENT_GAIN = NOISE_FLOOR_EXCESS
 #: ... and by this share of the excess over the floor: the share of a gap from which the numerics are named in it

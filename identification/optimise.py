@@ -21,7 +21,7 @@ from pymoo.algorithms.moo.nsga3 import NSGA3
 from pymoo.operators.sampling.rnd import FloatRandomSampling
 from pymoo.util.ref_dirs import get_reference_directions
 
-from ebb_model.output import atomic_path
+from ebb_model.io.output import atomic_path
 from ebb_model.errors import ConfigError
 
 from .problem import IdentificationProblem

@@ -12,7 +12,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ebb_model.beam import PARAMETER_UNITS
-from ebb_model.figureio import save_figure
+from ebb_model.io.figureio import save_figure
 
 __all__ = ["plot_results", "fit_figure", "spread_figure", "front_figure", "zoom_window", "dominant_hz",
            "plain_ticks", "trace", "LINE_SAMPLES"]

@@ -31,8 +31,8 @@ from typing import Sequence
 import numpy as np
 from scipy import signal
 
-from ebb_model.adequacy import is_transient
-from ebb_model.channel_delay import delay_outputs
+from ebb_model.space.adequacy import is_transient
+from ebb_model.acquisition.channel_delay import delay_outputs
 
 __all__ = ["RecordModes", "record_modes", "frequency_response_estimate", "EDGE"]
 
@@ -162,8 +162,8 @@ def record_modes(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], dt
                  delays: Sequence[float] = ()) -> RecordModes:
     """The records' modes (module docstring); empty when none is stable (a record excited only below its first
     mode, say).  ``delays``: each output channel's delay after the force's in samples
-    (:func:`ebb_model.channel_delay.effective_delays`), taken out of the records first (a delay is a phase that
-    grows with frequency, which no pole describes)."""
+    (:func:`ebb_model.acquisition.channel_delay.effective_delays`), taken out of the records first (a delay is a phase
+    that grows with frequency, which no pole describes)."""
     outputs = [delay_outputs(y, [-d for d in delays]) for y in outputs] if any(delays) else outputs
     stable: list[tuple[int, int, float, float]] = []           # (band, order, frequency, damping)
     bands: list[tuple[float, float, int]] = []                  # each band's inner range [Hz] and orders

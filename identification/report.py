@@ -6,7 +6,7 @@ import json
 from typing import TYPE_CHECKING
 
 from ebb_model.beam import PARAMETER_UNITS
-from ebb_model.htmlio import Section, Table, figures_in
+from ebb_model.io.htmlio import Section, Table, figures_in
 
 if TYPE_CHECKING:  # pragma: no cover
     from .result import IdentificationResult
@@ -69,7 +69,7 @@ FIGURES = {"knee_fit.png": "Measured and simulated outputs (the knee, and the id
 
 
 def html_sections(res: IdentificationResult) -> list[Section]:
-    """The identification as sections of an HTML page (:func:`ebb_model.htmlio.write_page`): the identified
+    """The identification as sections of an HTML page (:func:`ebb_model.io.htmlio.write_page`): the identified
     model with its standard deviations, the fit, the uncertainty written beside it, the search, the figures."""
     from .uncertainty import FOLDER
 

@@ -19,11 +19,11 @@ The schema of ``pareto.json`` is written and read here only:
     Every Pareto point and every polished point: parameters, objectives, Cramér–Rao standard deviations,
     growth factor and stability (polished points also their start, evaluations and the local solver's verdict).
 ``numerical_adequacy``
-    The grid's share of the gap at the identified model (:class:`~ebb_model.adequacy.NumericalAdequacy`).
+    The grid's share of the gap at the identified model (:class:`~ebb_model.space.adequacy.NumericalAdequacy`).
 ``noise_model``
     Each experiment's noise per sensor: level and colour (:mod:`identification.noise_model`).
 ``grid_advice``
-    Which grid the records' band needs at the identified model (:func:`ebb_model.grid_advice.grid_advice`).
+    Which grid the records' band needs at the identified model (:func:`ebb_model.space.grid_advice.grid_advice`).
 ``events``
     What happened to the run's workers (a Dask worker lost mid-run and its tasks run again), one sentence each.
 ``data_start``
@@ -39,7 +39,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ebb_model.adequacy import NumericalAdequacy
+from ebb_model.space.adequacy import NumericalAdequacy
 from ebb_model.config import BeamConfig, config_from_dict
 from ebb_model.errors import ConfigError
 
@@ -141,7 +141,7 @@ class IdentificationResult:
     cramer_rao_note
         Why the identified model's Cramér–Rao standard deviations cannot be computed, when they cannot.
     grid_advice
-        Which grid the records' band needs at the identified model (:func:`ebb_model.grid_advice.grid_advice`,
+        Which grid the records' band needs at the identified model (:func:`ebb_model.space.grid_advice.grid_advice`,
         the advice ``diagnose`` gives too), with its one-line ``summary``.
     events
         What happened to the run's workers worth telling (a Dask worker lost mid-run), one sentence each.

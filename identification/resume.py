@@ -19,7 +19,7 @@ import numpy as np
 
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError
-from ebb_model.jsonio import write_json
+from ebb_model.io.jsonio import write_json
 
 from .data import Experiment
 

@@ -31,16 +31,16 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ebb_model import max_growth_factor
-from ebb_model.bandlimited import hold_hint
-from ebb_model.adequacy import excited_band, grid_line, numerical_adequacy
-from ebb_model.grid_advice import grid_advice
-from ebb_model.output import atomic_path
+from ebb_model.acquisition.bandlimited import hold_hint
+from ebb_model.space.adequacy import excited_band, grid_line, numerical_adequacy
+from ebb_model.space.grid_advice import grid_advice
+from ebb_model.io.output import atomic_path
 from ebb_model.config import BeamConfig
 from ebb_model.threads import one_blas_thread
 from ebb_model.errors import ConfigError, OutputError, StabilityError
-from ebb_model.htmlio import PAGE, write_page
-from ebb_model.jsonio import write_json
-from ebb_model.output import check_new_output_dir, check_writable_dir, make_dir
+from ebb_model.io.htmlio import PAGE, write_page
+from ebb_model.io.jsonio import write_json
+from ebb_model.io.output import check_new_output_dir, check_writable_dir, make_dir
 
 from .data import Experiment, load_experiments
 from .data_start import DataStart, data_start

@@ -82,11 +82,11 @@ def render(page_path: Path, screenshot: Path | None = None) -> Rendered:
 
 def smallest_text_shown(page_path: Path, seen: Rendered) -> dict[str, float]:
     """Each figure's smallest text as the browser showed it [px]: the size the figure was written with
-    (:data:`ebb_model.figureio.TEXT_PX_KEY` in its PNG, at natural size) times the width shown over the natural
+    (:data:`ebb_model.io.figureio.TEXT_PX_KEY` in its PNG, at natural size) times the width shown over the natural
     width; NaN for an image written without it."""
     from PIL import Image
 
-    from ebb_model.figureio import TEXT_PX_KEY
+    from ebb_model.io.figureio import TEXT_PX_KEY
 
     out = {}
     for src, _, natural, shown in seen.images:

@@ -87,8 +87,8 @@ def foh_reference(cfg, u):
     import numpy as np
 
     from ebb_model import field_matrix
-    from ebb_model.discretisation import discretise
-    from ebb_model.theta_scheme import hold_matrices, one_step, output_matrices, theta_coefficients
+    from ebb_model.space.discretisation import discretise
+    from ebb_model.theta.theta_scheme import hold_matrices, one_step, output_matrices, theta_coefficients
 
     ts = cfg.time
     beam = discretise(cfg)

@@ -20,7 +20,7 @@ from scipy import signal
 
 from ebb_model.config import BeamConfig, config_from_dict
 from ebb_model.reference import band_limited_input, synthesize
-from ebb_model.tomlio import dumps as dumps_toml
+from ebb_model.io.tomlio import dumps as dumps_toml
 
 __all__ = ["CASES", "FirstRecord", "write_case"]
 

@@ -25,7 +25,7 @@ import numpy as np
 from scipy import signal
 
 from ebb_model.reference import WithheldEffect, synthesize
-from ebb_model.tomlio import dumps as dumps_toml
+from ebb_model.io.tomlio import dumps as dumps_toml
 
 from first_records import FirstRecord
 

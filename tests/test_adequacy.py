@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ebb_model.adequacy import NumericalAdequacy, numerical_adequacy, refined_grid
+from ebb_model.space.adequacy import NumericalAdequacy, numerical_adequacy, refined_grid
 from test_exact_scheme import CASES, SAMPLES_PER_CASE, band_limited_input, config, truth
 
 
@@ -49,7 +49,7 @@ def test_the_exact_scheme_gap_is_not_numerical(noisy_record):
 
 def test_refinement_is_a_genuinely_finer_pair_of_grids():
     """For the exact scheme the refined config's Richardson pair must not be the original pair again."""
-    from ebb_model.richardson_pair import companion_config
+    from ebb_model.space.richardson_pair import companion_config
 
     case = CASES["cantilever-mixed"]
     for nodes in (20, 60, 120):
@@ -93,7 +93,7 @@ def test_grid_advice_against_the_closed_form(scheme, nodes, substeps):
     0.88–1.0: the reference pair's own error is below 1e-5 bandwidths)."""
     from dataclasses import replace
 
-    from ebb_model.grid_advice import BANDWIDTH_FRACTION, grid_advice
+    from ebb_model.space.grid_advice import BANDWIDTH_FRACTION, grid_advice
 
     band = 50.0                                                      # modes 1–3 of this beam
     cfg = _pinned_pinned(scheme, nodes, substeps)

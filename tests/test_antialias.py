@@ -1,4 +1,4 @@
-"""The acquisition's anti-alias filter on a sensor (ebb_model/antialias.py): exact in time, in every route.
+"""The acquisition's anti-alias filter on a sensor (ebb_model/acquisition/antialias.py): exact in time, in every route.
 
 Truth, independent of the code under test:
 
@@ -20,13 +20,13 @@ import pytest
 import scipy.signal as ss
 
 from ebb_model import config_from_dict, load_config, simulate
-from ebb_model.antialias import AntiAlias
+from ebb_model.acquisition.antialias import AntiAlias
 from ebb_model.errors import ConfigError
-from ebb_model.exact_modal import exact_modal, exact_statespace
-from ebb_model.modal import frequency_response
+from ebb_model.exact.exact_modal import exact_modal, exact_statespace
+from ebb_model.modes.modal import frequency_response
 from ebb_model.parameter_values import resolve_parameters
 from ebb_model.simulate import fast_model
-from ebb_model.truncation import design_modal_model
+from ebb_model.modes.truncation import design_modal_model
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "fmu_hosts"))
 from fmu_configs import mixed_config  # noqa: E402
@@ -139,8 +139,8 @@ def test_the_standalone_fmu_carries_the_filter_in_both_interfaces(tmp_path):
     import fmpy
     from test_fmu_standalone import _me_instance, _state_matrix
 
-    from ebb_model.antialias import series_statespace
-    from ebb_model.exact_modal import modal_matrices, modal_state_matrix
+    from ebb_model.acquisition.antialias import series_statespace
+    from ebb_model.exact.exact_modal import modal_matrices, modal_state_matrix
     from fmu_build.standalone import build_standalone_fmu
 
     cfg = config_from_dict(filtered_mixed())

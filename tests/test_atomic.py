@@ -1,11 +1,11 @@
-"""The one atomic writer (ebb_model.output): the target appears only complete, nothing is left behind on an
+"""The one atomic writer (ebb_model.io.output): the target appears only complete, nothing is left behind on an
 interruption."""
 from __future__ import annotations
 
 import pytest
 
 from ebb_model.errors import OutputError
-from ebb_model.output import atomic_path
+from ebb_model.io.output import atomic_path
 
 
 def test_target_is_replaced_only_when_the_block_succeeds(tmp_path):

@@ -1,6 +1,6 @@
 """Axial drift and stretching on the exact-scheme model (diagnosis.problem.axial_modal), against independent truths.
 
-* with ``δN ≡ 0`` the perturbed recursion is the linear model of :func:`ebb_model.exact_modal.exact_modal`
+* with ``δN ≡ 0`` the perturbed recursion is the linear model of :func:`ebb_model.exact.exact_modal.exact_modal`
   (another code path: real blocks and the compiled modal kernel);
 * a constant ``δN`` agrees with re-discretising the beam with ``N + δN``, within the budget the module
   documents (the perturbation load is linear between samples);
@@ -70,8 +70,8 @@ def test_nodal_initial_state_is_refused_for_the_exact_scheme():
 
 
 def test_a_band_limited_record_from_rest_is_read_from_its_first_sample():
-    """The band-limited force read 15 samples ahead (:func:`ebb_model.bandlimited.lead_in`): a force faded in from
-    zero under an axial drift, recorded with 60 silent samples before it or from its first sample — the same
+    """The band-limited force read 15 samples ahead (:func:`ebb_model.acquisition.bandlimited.lead_in`): a force faded
+    in from zero under an axial drift, recorded with 60 silent samples before it or from its first sample — the same
     outputs from the first sample on, with the drift's clock at the record's start (the silent record's drift
     offset by its 60 samples).  Measured 1.5e-15 / 2.6e-15 of the effect's largest values; the recursion started at
     the record's first sample took its 16th for the first 15 (6.0e-4 / 1.5e-3 of the effect here)."""

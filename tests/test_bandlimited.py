@@ -1,4 +1,4 @@
-"""The band-limited force between samples (``[time] input = "bandlimited"``, :mod:`ebb_model.bandlimited`).
+"""The band-limited force between samples (``[time] input = "bandlimited"``, :mod:`ebb_model.acquisition.bandlimited`).
 
 Truth: the periodic steady state of a cubic Hermite finite-element beam under a random-phase multisine (exactly
 band-limited and periodic over the record), from its frequency response bin by bin — no time stepping at all,
@@ -17,9 +17,9 @@ import scipy.integrate as si
 import ebb_model as em
 from ebb_model import bandlimited as bl
 from ebb_model.errors import ConfigError
-from ebb_model.exact_modal import continuous_modes, exact_statespace
-from ebb_model.modal import frequency_response
-from ebb_model.recursion import run_modal_recursion
+from ebb_model.exact.exact_modal import continuous_modes, exact_statespace
+from ebb_model.modes.modal import frequency_response
+from ebb_model.exact.recursion import run_modal_recursion
 from ebb_model.reference.exact_fe import periodic_fe_response
 from ebb_model.reference.excitation import band_limited_input
 from ebb_model.reference.hermite_fe import hermite_beam
@@ -195,7 +195,7 @@ def test_a_causal_model_takes_the_cubic():
     """What is driven sample by sample — a design model, its StateSpace, an FMU — cannot read the record ahead:
     the design model of a band-limited config is the cubic's, a StateSpace of the band-limited model is refused
     with one line, and the theta-scheme refuses the reconstruction in the config."""
-    from ebb_model.truncation import design_model
+    from ebb_model.modes.truncation import design_model
 
     bandl, cubic = config(30, "bandlimited"), config(30, "cubic")
     assert bl.causal_config(bandl).time.input_hold == "cubic"
@@ -234,7 +234,7 @@ def test_a_broadband_force_with_the_cubic_gets_a_hint_and_nothing_else_does():
 def test_a_record_from_rest_is_read_from_its_first_sample():
     """A force faded in from zero, recorded with silence before it or from its first sample: the same outputs from
     the first sample on, to round-off (the silence is what the model holds before a record).  The recursion reads the
-    record :data:`~ebb_model.bandlimited.ADVANCE` samples ahead; run from the record's first sample it took
+    record :data:`~ebb_model.acquisition.bandlimited.ADVANCE` samples ahead; run from the record's first sample it took
     ``u[ADVANCE]`` for the first ``ADVANCE`` samples — a step of the force whose lowest mode rang through the record
     (here 1 % and 3 % of the outputs' largest values; a cantilever of the hint family: 3-4 noise variances at the
     truth)."""

@@ -1,4 +1,4 @@
-"""A channel's own delay (``delay`` on a sensor or a force channel, :mod:`ebb_model.channel_delay`).
+"""A channel's own delay (``delay`` on a sensor or a force channel, :mod:`ebb_model.acquisition.channel_delay`).
 
 Truth: the periodic steady state of a cubic Hermite finite-element beam under a random-phase multisine to 0.4 fs,
 bin by bin (:func:`~ebb_model.reference.exact_fe.periodic_fe_response`, shown converged in
@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 
 import ebb_model as em
-from ebb_model.bandlimited import HALF_WIDTH
-from ebb_model.channel_delay import delay_outputs, effective_delays, without_delays
+from ebb_model.acquisition.bandlimited import HALF_WIDTH
+from ebb_model.acquisition.channel_delay import delay_outputs, effective_delays, without_delays
 from ebb_model.errors import ConfigError
-from ebb_model.modal import frequency_response
+from ebb_model.modes.modal import frequency_response
 from ebb_model.reference.exact_fe import periodic_fe_response
 from ebb_model.reference.hermite_fe import hermite_beam
-from ebb_model.tomlio import dumps as toml_dumps
+from ebb_model.io.tomlio import dumps as toml_dumps
 
 from test_bad_input import one_line_error
 from test_bandlimited import CASE, ENDS, SAMPLES, config, last_periods, multisine, noise_variances
@@ -200,7 +200,7 @@ def test_identify_takes_the_delay_and_says_nothing_false_without_it(tmp_path):
 
     Truth converged: 96 → 128 elements moves the lagged record by < 0.05 noise variances (asserted)."""
     from identification.run import identify
-    from ebb_model.tomlio import dumps as toml_dumps
+    from ebb_model.io.tomlio import dumps as toml_dumps
 
     u, y = _lagged_record(tmp_path, 41)
     _, y96 = _lagged_record(tmp_path, 41, elements=96)

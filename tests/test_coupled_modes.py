@@ -1,4 +1,4 @@
-"""Modes coupled by point masses on a viscously damped beam (:mod:`ebb_model.coupled_modes`) against the dense
+"""Modes coupled by point masses on a viscously damped beam (:mod:`ebb_model.modes.coupled_modes`) against the dense
 eigenproblem of the same modal system and against the Van Loan matrix exponential (no eigenvectors at all)."""
 from __future__ import annotations
 
@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 import ebb_model as em
-import ebb_model.coupled_modes as cmod
+import ebb_model.modes.coupled_modes as cmod
 from conftest import make_config
-from ebb_model.exact_modal import continuous_modes, exact_modal, exact_statespace, modal_matrices, \
+from ebb_model.exact.exact_modal import continuous_modes, exact_modal, exact_statespace, modal_matrices, \
     modal_state_matrix
-from ebb_model.modal_form import basis_condition
-from ebb_model.modal_poles import modal_poles
+from ebb_model.theta.modal_form import basis_condition
+from ebb_model.modes.modal_poles import modal_poles
 from ebb_model.reference.excitation import band_limited_input
 
 
@@ -130,8 +130,8 @@ def test_kelvin_voigt_damping_without_what_it_leaves_out_is_decoupled(what):
 
 def discretised_C(cfg: em.BeamConfig) -> np.ndarray:
     """The damping matrix on the grid the modes' shapes live on (the refined one of the Richardson pair)."""
-    from ebb_model.discretisation import discretise
-    from ebb_model.richardson_pair import refined_config
+    from ebb_model.space.discretisation import discretise
+    from ebb_model.space.richardson_pair import refined_config
     return discretise(refined_config(cfg), cfg.parameter_values()).C
 
 
@@ -155,7 +155,7 @@ def test_low_rank_simulation_equals_the_matrix_exponential():
 def test_lowest_poles_equal_every_pole():
     """``modal_poles`` with ``lowest`` (the modal pattern's comparison) equals the lowest of all poles, and the
     structured route equals the full-coupling Newton route it replaced (:func:`_coupled_poles`)."""
-    import ebb_model.modal_poles as mpoles
+    import ebb_model.modes.modal_poles as mpoles
 
     cfg = beam(MASSES["two masses"])
     p = cfg.parameter_values()
@@ -202,9 +202,9 @@ def test_mass_proportional_damping_near_buckling_is_decoupled():
     half-way to buckling ``Ψᵀ C Ψ`` has off-diagonal round-off above ``is_proportional``'s 1e-10 (the
     eigenvectors of the nearly singular ``K``), which sent every evaluation of the rig family's compressed bench
     through the dense eigenproblem.  Decoupled, it simulates the outputs of the matrix exponential."""
-    from ebb_model.discretisation import discretise
-    from ebb_model.richardson_pair import refined_config
-    from ebb_model.modal_form import is_proportional
+    from ebb_model.space.discretisation import discretise
+    from ebb_model.space.richardson_pair import refined_config
+    from ebb_model.theta.modal_form import is_proportional
 
     cfg = make_config("pinned", "pinned", nodes=60, dt=5e-4, EI=11.2, rhoA=0.9, c=2.3, N=-43.0,
                       actuators=[("F1", 0.45)], sensors=[("v1", 0.3, "velocity"), ("v2", 0.7, "velocity")])

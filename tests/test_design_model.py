@@ -1,7 +1,7 @@
 """Models a control designer can design with (issue 33): no aliased modes in a StateSpace export, python-control's
 own tools on it.
 
-Reference: the beam's continuous modal system (:func:`ebb_model.exact_modal.modal_matrices`), its poles and
+Reference: the beam's continuous modal system (:func:`ebb_model.exact.exact_modal.modal_matrices`), its poles and
 frequency response.  The set-up is ``tests/fmu_hosts/fmu_configs.mixed_config`` (two forces; displacement,
 velocity and acceleration sensors; damping, a point mass, a spring to ground, an elastic end) sampled at 1 kHz:
 11 of its 31 modes lie below the Nyquist frequency.
@@ -19,8 +19,8 @@ import pytest
 from ebb_model import assemble, config_from_dict
 from ebb_model import load_config as em_load
 from ebb_model.errors import ConfigError
-from ebb_model.exact_modal import modal_state_matrix, exact_model, modal_matrices
-from ebb_model.truncation import design_model, in_band, static_correction_bound
+from ebb_model.exact.exact_modal import modal_state_matrix, exact_model, modal_matrices
+from ebb_model.modes.truncation import design_model, in_band, static_correction_bound
 from identification.export_statespace import continuous_equivalent, load_statespace, rest_state, save_statespace
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "fmu_hosts"))
@@ -238,9 +238,9 @@ def test_every_exported_mode_is_within_the_stated_tolerance_of_the_beams(tmp_pat
     3.2 % of the true error from mode 2 on (an h⁴ extrapolation's remainder, growing with the mode number), and
     4.6e-7 off at mode 1 (the reference's own error there), far below the tolerance.  The file says which modes
     it keeps and each one's error estimate."""
-    from ebb_model.grid_advice import BANDWIDTH_FRACTION, ZETA_FLOOR
+    from ebb_model.space.grid_advice import BANDWIDTH_FRACTION, ZETA_FLOOR
     from ebb_model.reference.analytic import analytic_frequencies_hz
-    from ebb_model.truncation import mode_resolution
+    from ebb_model.modes.truncation import mode_resolution
     from identification.export_statespace import load_metadata
 
     cfg = em_load(Path(__file__).resolve().parents[1] / "examples" / "seed_clamped.toml")

@@ -137,7 +137,7 @@ def _check_pages(out, tmp_path):
     identified values on them."""
     from browser import render, smallest_text_shown
 
-    from ebb_model.figureio import MIN_TEXT_PX
+    from ebb_model.io.figureio import MIN_TEXT_PX
 
     verdict, identified = "verdict: boundary_rotational_left", "identified model (polished, from "
     pages = {out / "report.html": (["Result", "Identification — Identified model", "Diagnosis — Verdict",
@@ -152,7 +152,7 @@ def _check_pages(out, tmp_path):
         assert seen.title.startswith("ebb "), seen.title
         assert all(h in seen.headings for h in headings), (page, seen.headings)
         assert seen.images and all(ok and width > 0 for _, ok, width, _ in seen.images), seen.images
-        # every figure legible at the page's width: its smallest text as shown, measured (ebb_model.figureio)
+        # every figure legible at the page's width: its smallest text as shown, measured (ebb_model.io.figureio)
         shown = smallest_text_shown(page, seen)
         assert all(px >= MIN_TEXT_PX for px in shown.values()), shown
         assert not seen.errors, seen.errors

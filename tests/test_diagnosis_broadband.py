@@ -15,7 +15,7 @@ import pytest
 
 from ebb_model.reference import synthesize
 from ebb_model.reference.withheld import WithheldEffect
-from ebb_model.tomlio import dumps as dumps_toml
+from ebb_model.io.tomlio import dumps as dumps_toml
 
 from first_records import BROADBAND
 
@@ -168,7 +168,7 @@ def test_a_correct_record_of_the_hint_family_at_the_floor_on_coarse_numerics_is_
     not judged at a baseline at the floor (:func:`diagnosis.baseline.numerics.numerics_from_the_records`; at the
     truth 323 nodes and the band-limited force leave 1.02 and 0.99).  Record 44 was ``unexplained`` at 1.46: the
     band-limited model started at the record's first sample took its 16th for the first 15, a force step whose
-    lowest mode rang through the record (:func:`ebb_model.bandlimited.lead_in`).  Of the family's 16 correct
+    lowest mode rang through the record (:func:`ebb_model.acquisition.bandlimited.lead_in`).  Of the family's 16 correct
     records, 16 are ``none`` now (measured; 14 before both)."""
     from diagnosis.run import diagnose
     from hint_family import hint_bench, write_hint_case

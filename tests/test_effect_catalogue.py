@@ -197,7 +197,7 @@ from pathlib import Path
 
 from scipy.io import savemat
 
-from ebb_model.output import atomic_path
+from ebb_model.io.output import atomic_path
 
 
 def write(item, out_dir: Path) -> list[Path]:

@@ -208,7 +208,7 @@ def test_pole_integrals_equal_the_matrix_exponential():
     """Closed form and Taylor branch (|sT| < 1/2) against scipy's expm of the augmented 3×3 matrix."""
     import scipy.linalg as sla
 
-    from ebb_model.sample_integrals import pole_integrals
+    from ebb_model.exact.sample_integrals import pole_integrals
 
     rng = np.random.default_rng(0)
     mag = 10.0 ** rng.uniform(-3, 5, 300)
@@ -230,8 +230,8 @@ def test_dense_exact_route_equals_the_modal_route():
     column-scaled basis, computed here); the matrix exponential is backward stable.  Factor 10 for the sum over
     the states of a sample and the 800-sample recursion.
     """
-    from ebb_model.exact_modal import continuous_modes, exact_modal, exact_statespace
-    from ebb_model.modal_form import basis_condition
+    from ebb_model.exact.exact_modal import continuous_modes, exact_modal, exact_statespace
+    from ebb_model.theta.modal_form import basis_condition
 
     for name, hold in (("clamped-pinned-accelerometers", "foh"), ("cantilever-mixed", "zoh"),
                        ("clamped-pinned-light", "cubic")):
@@ -250,7 +250,7 @@ def test_dense_exact_route_equals_the_modal_route():
 
 def test_exact_scheme_falls_back_to_the_dense_route(monkeypatch):
     """A basis above the condition limit gives the dense exact system, not an error: same outputs."""
-    import ebb_model.exact_modal as xm
+    import ebb_model.exact.exact_modal as xm
 
     case = CASES["clamped-pinned-accelerometers"]                 # N and eta: non-proportional damping
     cfg = config(case, 30, "exact")
@@ -276,9 +276,9 @@ def test_theta_fast_path_never_raises_on_ill_conditioned_eigenvectors():
     dense nodal system and the one-sub-step route stay within ``err_twin`` of it, so on the non-proportional
     case the two may differ by at most ``2 · err_twin`` (factor 3 kept for the different damping).
     """
-    from ebb_model.discretisation import discretise
-    from ebb_model.modal_form import ModalStateSpace, modal_from_beam, modal_from_theta
-    from ebb_model.theta_scheme import discretise_time
+    from ebb_model.space.discretisation import discretise
+    from ebb_model.theta.modal_form import ModalStateSpace, modal_from_beam, modal_from_theta
+    from ebb_model.theta.theta_scheme import discretise_time
 
     case = CASES["clamped-pinned-accelerometers"]
     u = band_limited_input(1000, case["dt"], *case["band"], seed=4)
@@ -327,7 +327,7 @@ def test_polynomial_integrals_equal_the_matrix_exponential():
     5×5 matrix augmented with the chain of derivatives of ``σ³``."""
     import scipy.linalg as sla
 
-    from ebb_model.sample_integrals import polynomial_integrals
+    from ebb_model.exact.sample_integrals import polynomial_integrals
 
     rng = np.random.default_rng(1)
     mag = 10.0 ** rng.uniform(-3, 5, 300)
@@ -348,7 +348,7 @@ def test_the_series_branch_keeps_the_integrals_at_round_off():
     series to 40 digits (mpmath), 200 poles of ``|sT|`` 1e-8 … 1 (complex and real), every degree 0 … 3."""
     import mpmath as mp
 
-    from ebb_model.sample_integrals import polynomial_integrals
+    from ebb_model.exact.sample_integrals import polynomial_integrals
 
     mp.mp.dps = 40
     rng = np.random.default_rng(6)
@@ -372,8 +372,8 @@ def test_the_series_branch_keeps_the_integrals_at_round_off():
 def test_lowest_poles_of_damping_coupled_modes_equal_the_full_eigenproblem(cfg_factory, extra):
     # a point mass with viscous damping couples the modes through C_m: the lowest poles by Newton on
     # det(s²I + sC_m + Λ) must be the 2k × 2k eigenvalue problem's, and they must be found that way
-    from ebb_model.exact_modal import modal_matrices
-    from ebb_model.modal_poles import _coupled_poles
+    from ebb_model.exact.exact_modal import modal_matrices
+    from ebb_model.modes.modal_poles import _coupled_poles
 
     cfg = cfg_factory("clamped", "pinned", nodes=40, c=3.0, scheme="exact", **extra)
     mm = modal_matrices(cfg, cfg.parameter_values())
@@ -394,7 +394,7 @@ def test_lowest_poles_of_damping_coupled_modes_equal_the_full_eigenproblem(cfg_f
 def test_lowest_poles_of_mass_proportional_damping_need_no_mode_shapes(cfg_factory, ends, extra):
     # viscous damping per unit mass (C = c/ρA · M) leaves the modes decoupled: the lowest poles come from the
     # two grids' lowest eigenvalues alone (no shapes) and must equal the full route's
-    from ebb_model.modal_poles import _mass_proportional_poles
+    from ebb_model.modes.modal_poles import _mass_proportional_poles
 
     kw = {"c": 3.0, **extra}
     cfg = cfg_factory(*ends, nodes=60, scheme="exact", **kw)
@@ -413,7 +413,7 @@ def test_lowest_poles_of_mass_proportional_damping_need_no_mode_shapes(cfg_facto
 
 
 def test_damping_that_is_not_mass_proportional_takes_the_full_route(cfg_factory):
-    from ebb_model.modal_poles import _mass_proportional_poles
+    from ebb_model.modes.modal_poles import _mass_proportional_poles
 
     for extra in ({"masses": [("m", 0.7, 0.1)]}, {"eta": 2e-4}):
         cfg = cfg_factory("clamped", "pinned", nodes=40, c=3.0, scheme="exact", **extra)

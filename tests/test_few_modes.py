@@ -1,4 +1,4 @@
-"""The few lowest ``ω²`` by Lanczos on the inverted banded pencil (:mod:`ebb_model.few_modes`) against the same
+"""The few lowest ``ω²`` by Lanczos on the inverted banded pencil (:mod:`ebb_model.space.few_modes`) against the same
 matrices' eigenvalues in 32-digit arithmetic (mpmath: Cholesky of ``K``, ``L⁻¹ M L⁻ᵀ``, its symmetric
 eigenproblem) — the truth for the matrices themselves, so every error measured is the solver's."""
 from __future__ import annotations
@@ -9,9 +9,9 @@ import pytest
 import scipy.linalg as sla
 
 from conftest import make_config
-from ebb_model.few_modes import MAX_BANDWIDTH, _bandwidth, _cholesky, inverse_eigenvalues
-from ebb_model.mode_family import family_key, unit_pair
-from ebb_model.richardson_pair import lowest_modes
+from ebb_model.space.few_modes import MAX_BANDWIDTH, _bandwidth, _cholesky, inverse_eigenvalues
+from ebb_model.modes.mode_family import family_key, unit_pair
+from ebb_model.space.richardson_pair import lowest_modes
 from ebb_model.parameter_values import resolve_parameters
 
 

@@ -1,4 +1,4 @@
-"""Report figures written one way (:mod:`ebb_model.figureio`): measured as the page shows them."""
+"""Report figures written one way (:mod:`ebb_model.io.figureio`): measured as the page shows them."""
 from __future__ import annotations
 
 import matplotlib
@@ -8,7 +8,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pytest  # noqa: E402
 from PIL import Image  # noqa: E402
 
-from ebb_model.figureio import DPI, PAGE_WIDTH_PX, TEXT_PX_KEY, legibility, save_figure  # noqa: E402
+from ebb_model.io.figureio import DPI, PAGE_WIDTH_PX, TEXT_PX_KEY, legibility, save_figure  # noqa: E402
 
 
 def test_a_figure_wider_than_the_page_is_measured_as_the_page_scales_it(tmp_path):

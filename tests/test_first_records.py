@@ -66,7 +66,7 @@ def _model_record(folder: Path, *, scale: float = 1.0) -> tuple[Path, Path]:
     (1000: read in mm as if in m)."""
     from ebb_model import fast_model, simulate
     from ebb_model.config import config_from_dict
-    from ebb_model.tomlio import dumps
+    from ebb_model.io.tomlio import dumps
 
     d = {"beam": {"length": 0.8, "nodes": 40, "left": "clamped", "right": "free"}, "time": {"dt": 1e-3},
          "parameters": {"EI": {"value": 10.0, "bounds": [2.0, 20.0], "identify": True},
@@ -144,8 +144,8 @@ def test_one_grid_advice_and_it_delivers(tmp_path):
     from dataclasses import replace
 
     from diagnosis.run import diagnose
-    from ebb_model.grid_advice import BANDWIDTH_FRACTION
-    from ebb_model.modal import discrete_frequencies
+    from ebb_model.space.grid_advice import BANDWIDTH_FRACTION
+    from ebb_model.modes.modal import discrete_frequencies
     from ebb_model.reference.analytic import analytic_frequencies_hz
 
     cfg, rec = _model_record(tmp_path / "bench")

@@ -93,9 +93,9 @@ def test_binaries_resources_and_embedded_config(seed_fmu):
     assert any(n.endswith(".nbc") for n in cached) and f"resources/__pycache__/{mid}_slave.cpython-" in " ".join(cached)
     # the model core only: no reference solutions, data generator, file readers or reports
     core = {n.split("/", 2)[2] for n in names if n.startswith("resources/ebb_core_")}
-    assert "stability/bistritz.py" in core and "config.py" in core
+    assert "stability/bistritz.py" in core and "config/__init__.py" in core
     assert not any(n.startswith("reference/") for n in core)
-    assert not core & {"signals_io.py", "csvio.py", "reports.py", "jsonio.py"}
+    assert not core & {"io/signals_io.py", "io/csvio.py", "reports.py", "io/jsonio.py"}
     assert config_from_dict(spec["config"]) == load_config(SEED_TOML)
     assert mid in entry and "import" in entry
 

@@ -32,15 +32,15 @@ from fmu_loops import compile_host, fmpy_outputs, host_run  # noqa: E402
 
 from ebb_model import assemble, config_from_dict, load_config, simulate  # noqa: E402
 from ebb_cli import main  # noqa: E402
-from ebb_model.exact_modal import modal_matrices  # noqa: E402
+from ebb_model.exact.exact_modal import modal_matrices  # noqa: E402
 from fmu_build import build_fmu  # noqa: E402
 from fmu_build.standalone import build_standalone_fmu  # noqa: E402
 
 LOOPS = HOSTS / "fmu_loops.py"
 #: against the Python model: the C core solves the pencil assembled with the parameter set's own values
-#: (EI·B₄ − N·D₂ …) with its own eigen-solver, the Python core its family's unit pencil (ebb_model.mode_family)
+#: (EI·B₄ − N·D₂ …) with its own eigen-solver, the Python core its family's unit pencil (ebb_model.modes.mode_family)
 #: scaled — and on a beam under N without attachments (the seed) continued in U by a Chebyshev panel
-#: (ebb_model.mode_continuation), whose first mode's ω² is 2.9e-10 off a 40-digit solution of the Richardson pair
+#: (ebb_model.modes.mode_continuation), whose first mode's ω² is 2.9e-10 off a 40-digit solution of the Richardson pair
 #: (the C core's 1e-14): a phase that grows with the record, 3e-10 of the outputs over 500 samples, 6e-10 over
 #: 1,000 (this file's records), 2.1e-9 over 3,000.  Where both solve directly (the mixed config) the C route's own
 #: round-off is left, measured as the spread of the outputs when every stiffness and mass is scaled by a few ulps:
@@ -290,7 +290,7 @@ def test_errors_are_fmi2error_naming_the_cause(fmus, host, tmp_path):
 
 
 def test_the_c_model_accepts_the_magnitudes_the_api_accepts():
-    from ebb_model.antialias import MAX_ORDER
+    from ebb_model.acquisition.antialias import MAX_ORDER
     from ebb_model.parameter_values import MAX_MAGNITUDE, MIN_POSITIVE
     from fmu_build.standalone.builder import SOURCE_DIR
 
@@ -658,7 +658,7 @@ def test_theta_scheme_explicit_limit_names_theta(tmp_path, host):
 
 def test_theta_model_exchange_is_the_nodal_system(tmp_path):
     """Model exchange of a θ config: states are the nodal unknowns, ``q'' = M⁻¹(F u − C q' − K q)``."""
-    from ebb_model.discretisation import discretise
+    from ebb_model.space.discretisation import discretise
 
     cfg = config_from_dict(_theta_configs()["mixed_theta"])
     f, md = _me_instance(build_standalone_fmu(cfg, tmp_path / "me.fmu"))

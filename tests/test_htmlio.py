@@ -1,4 +1,4 @@
-"""The run pages (:mod:`ebb_model.htmlio`): text escaped, figures linked relative to the page, refused outside it,
+"""The run pages (:mod:`ebb_model.io.htmlio`): text escaped, figures linked relative to the page, refused outside it,
 nothing partial; opened in a real headless Chromium."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from pathlib import Path
 import matplotlib
 import pytest
 
-from ebb_model.htmlio import Section, Table, figures_in, write_page
+from ebb_model.io.htmlio import Section, Table, figures_in, write_page
 
 from browser import render
 

@@ -39,7 +39,7 @@ def test_config_pickles():
     with pytest.raises(TypeError):
         back.parameters["EI"] = None
     # checkpoints written before the config pickled itself hold "call _rebuild_config(dict form, extra)"
-    from ebb_model.config_validation import _rebuild_config
+    from ebb_model.config.validation import _rebuild_config
 
     class OldPickle:
         def __reduce__(self):

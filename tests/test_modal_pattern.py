@@ -83,7 +83,7 @@ def test_modal_pattern_finds_a_compensated_clamp(tmp_path, monkeypatch):
     from diagnosis.search.modal_pattern import carried, modal_evidence, pattern_fit, pattern_fits
     from diagnosis.problem.records import split_records
     from diagnosis.problem.records import ordered_record
-    from ebb_model.modal import discrete_frequencies
+    from ebb_model.modes.modal import discrete_frequencies
     from test_diagnosis_blind import PRIOR, TRUTH, _write, bench_config
 
     cfg = bench_config("acceleration")
@@ -204,15 +204,15 @@ def test_a_scan_trial_leaves_the_residual_of_one_least_squares_solve_with_every_
 
 def test_a_band_limited_oscillator_spans_the_exact_response_to_the_band_limited_force():
     """The oscillator's columns under the band-limited force (``bandlimited=True``: one complex pole, its weights
-    from :func:`ebb_model.bandlimited.pole_weights`) against an independent route: the oscillator's real 2×2 state
-    space ``ẋ = A x + b u`` discretised by :func:`ebb_model.bandlimited.dense_weights` (matrix exponentials at the
-    quadrature nodes, no pole, no series), driven by white noise to 0.4 fs.  Its displacement and velocity lie in
-    the columns' span to round-off; the columns of a force linear between samples miss them by a few per cent
-    (the check can fail)."""
+    from :func:`ebb_model.acquisition.bandlimited.pole_weights`) against an independent route: the oscillator's
+    real 2×2 state space ``ẋ = A x + b u`` discretised by :func:`ebb_model.acquisition.bandlimited.dense_weights`
+    (matrix exponentials at the quadrature nodes, no pole, no series), driven by white noise to 0.4 fs.  Its
+    displacement and velocity lie in the columns' span to round-off; the columns of a force linear between samples
+    miss them by a few per cent (the check can fail)."""
     from scipy import signal
 
     from diagnosis.search.modal_estimate import _mode_columns
-    from ebb_model.bandlimited import HALF_WIDTH, dense_weights
+    from ebb_model.acquisition.bandlimited import HALF_WIDTH, dense_weights
 
     dt, omega, zeta = 1e-3, 2 * math.pi * 180.0, 0.01      # a mode at 0.18 fs, in a force to 0.4 fs
     rng = np.random.default_rng(3)

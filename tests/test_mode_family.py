@@ -1,9 +1,9 @@
-"""The undamped modes as one dimensionless family (:mod:`ebb_model.mode_family`).
+"""The undamped modes as one dimensionless family (:mod:`ebb_model.modes.mode_family`).
 
 Independent truth here is the direct route the family replaces: the Richardson pair's eigen-decomposition of the
-beam discretised with the parameter set's own values (:func:`ebb_model.discretisation.discretise`,
-:func:`ebb_model.richardson_pair.richardson_modes`).  The two are different roundings of the same problem, so their
-difference is held to the direct route's own round-off, measured in each test by re-solving it with every
+beam discretised with the parameter set's own values (:func:`ebb_model.space.discretisation.discretise`,
+:func:`ebb_model.space.richardson_pair.richardson_modes`).  The two are different roundings of the same problem, so
+their difference is held to the direct route's own round-off, measured in each test by re-solving it with every
 stiffness and mass scaled by a factor a few ulps from one (the same physics: the same ``ω²``, ``Ψ/√f``).
 """
 from __future__ import annotations
@@ -14,14 +14,14 @@ import numpy as np
 import pytest
 
 import ebb_model as em
-from ebb_model.config_validation import config_from_dict
-from ebb_model.discretisation import discretise
-from ebb_model.exact_modal import exact_modal, modal_matrices
-from ebb_model.mode_continuation import lebesgue_constant, panel_index
-from ebb_model.mode_family import (attached_panel, attachment, continuation_panel, continuation_stem, family_key,
+from ebb_model.config.validation import config_from_dict
+from ebb_model.space.discretisation import discretise
+from ebb_model.exact.exact_modal import exact_modal, modal_matrices
+from ebb_model.modes.mode_continuation import lebesgue_constant, panel_index
+from ebb_model.modes.mode_family import (attached_panel, attachment, continuation_panel, continuation_stem, family_key,
                                    unit_modes, unit_pair)
-from ebb_model.parameter_modes import family_modes
-from ebb_model.richardson_pair import companion_config, richardson_modes
+from ebb_model.modes.parameter_modes import family_modes
+from ebb_model.space.richardson_pair import companion_config, richardson_modes
 from ebb_model.parameter_values import resolve_parameters
 
 from conftest import make_config
@@ -58,10 +58,11 @@ def _bench(kind: str):
 
 BENCHES = ("clamped, tension", "cantilever", "pinned, compression", "point mass", "spring", "elastic end",
            "120 nodes", "weak segment", "rotary inertia")
-#: the benches whose modes are continued in U (no attachments, N ≠ 0: :func:`ebb_model.mode_family.continuation_stem`)
+#: the benches whose modes are continued in U (no attachments, N ≠ 0:
+#: :func:`ebb_model.modes.mode_family.continuation_stem`)
 CONTINUED = ("clamped, tension", "pinned, compression", "120 nodes")
 #: the benches whose modes update the continued bases of the beam without their one attachment
-#: (:func:`ebb_model.mode_family.attachment`)
+#: (:func:`ebb_model.modes.mode_family.attachment`)
 ATTACHED = ("point mass", "spring")
 
 

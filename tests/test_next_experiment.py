@@ -147,7 +147,7 @@ def test_with_nothing_plausible_the_refits_that_close_the_gap_are_separated():
 def test_the_next_experiments_chart_is_legible_at_the_pages_width(tied, tmp_path):
     """The chart of the designs (twelve here, the longest phrase 96 characters) fits the page at its natural size
     with its smallest text at 10 px or more, and its legend lies outside the axes — it was 1,090 px wide with 7 pt
-    labels and its legend over the bars.  Measured on the figure (ebb_model.figureio), then on the file written."""
+    labels and its legend over the bars.  Measured on the figure (ebb_model.io.figureio), then on the file written."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -155,7 +155,7 @@ def test_the_next_experiments_chart_is_legible_at_the_pages_width(tied, tmp_path
     from PIL import Image
 
     from diagnosis.report.figures import next_experiment_figure
-    from ebb_model.figureio import MIN_TEXT_PX, PAGE_WIDTH_PX, TEXT_PX_KEY, legibility, save_figure
+    from ebb_model.io.figureio import MIN_TEXT_PX, PAGE_WIDTH_PX, TEXT_PX_KEY, legibility, save_figure
 
     fig = next_experiment_figure(plt, tied[2].report.next_experiment)
     seen = legibility(fig)

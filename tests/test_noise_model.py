@@ -190,7 +190,7 @@ def test_a_shape_the_model_cannot_carry_is_not_claimed_as_colour():
                                       N) for _ in range(2)])
     model = estimate_noise_model([u], [e], DT)
     assert all(sp.white for sp in model.spectra[0])
-    from ebb_model.adequacy import excited_band
+    from ebb_model.space.adequacy import excited_band
     from identification.noise import noise_std
     np.testing.assert_allclose(model.std[0], noise_std(e, DT, band=(0.0, excited_band([u], DT)[1])), rtol=1e-12)
 

@@ -30,9 +30,9 @@ import pytest
 import ebb_model as em
 import identification.optimise as opt
 from ebb_cli import main
-from ebb_model.adequacy import adequacy_line
+from ebb_model.space.adequacy import adequacy_line
 from ebb_model.assemble import buckling_load
-from ebb_model.output import MIN_FREE_BYTES, make_dir, staged_dir
+from ebb_model.io.output import MIN_FREE_BYTES, make_dir, staged_dir
 
 from conftest import IDENTIFY_CFG
 from test_bad_input import one_line_error
@@ -355,7 +355,7 @@ def test_a_write_that_fails_midway_leaves_the_old_file_and_no_temporary(tmp_path
     target.write_text("old")
     body = textwrap.dedent(f"""
         from ebb_model.errors import OutputError
-        from ebb_model.output import atomic_path
+        from ebb_model.io.output import atomic_path
         try:
             with atomic_path({str(target)!r}) as tmp, open(tmp, "wb") as fh:
                 fh.write(b"x" * 1_000_000)

@@ -34,7 +34,7 @@ from ebb_model import (
     modes,
     simulate,
 )
-from ebb_model.discretisation import discretise
+from ebb_model.space.discretisation import discretise
 from ebb_model.stability import (
     dispersion_coefficients,
     growth_factors,
@@ -327,7 +327,7 @@ def test_growth_factor_at_most_one_exactly_when_bistritz_says_stable_with_rhoI_a
 def test_dispersion_roots_are_the_pinned_beams_scheme_eigenvalues():
     """Pinned–pinned FD modes are the grid's sines at κ = nπ/L, so the eigenvalues of the θ-scheme's
     one-step map of the finite beam (theta_scheme) are the roots of p_κ(z) (dispersion) at those κ."""
-    from ebb_model.theta_scheme import discretise_time
+    from ebb_model.theta.theta_scheme import discretise_time
 
     p = {"EI": EI, "rhoA": RHOA, "c": 0.3, "eta": 0.0, "N": -12.0, "rhoI": 4e-3, "kf": 900.0}
     nodes, tau, theta = 20, 3e-4, 0.3

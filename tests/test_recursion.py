@@ -1,4 +1,4 @@
-"""The modal recursion compiled for its input, tap and output counts (ebb_model.recursion) against a strict-order
+"""The modal recursion compiled for its input, tap and output counts (ebb_model.exact.recursion) against a strict-order
 NumPy loop and against its numba kernel, its one-tap form, its cache and its fallback where no compiler can be used."""
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ebb_model.recursion import ONE_TAP_RADIUS, compiled_recursion, one_tap_form, run_modal_recursion
+from ebb_model.exact.recursion import ONE_TAP_RADIUS, compiled_recursion, one_tap_form, run_modal_recursion
 
 ROOT = Path(__file__).resolve().parents[1]
 

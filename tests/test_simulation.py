@@ -21,8 +21,8 @@ from ebb_model import (
     simulate_config,
 )
 from ebb_model.config import config_from_dict, load_config
-from ebb_model.discretisation import discretise
-from ebb_model.modal_form import modal_from_statespace
+from ebb_model.space.discretisation import discretise
+from ebb_model.theta.modal_form import modal_from_statespace
 
 from conftest import foh_reference, make_config
 
@@ -233,7 +233,7 @@ def test_the_modal_kernel_reads_the_cubics_past_samples_as_the_dense_delay_state
     Budget: the two realisations' round-off over the recursion (the modal basis' ``eps · cond(V)`` and the
     matrix exponential's, summed over 600 samples): measured <= 1.3e-13 of the outputs' peak, 1e-12 allowed.
     Reading ``u[−j]`` as zero instead moves the outputs by 6e-7 to 2e-2 of their peak (measured): the check fails."""
-    from ebb_model.exact_modal import exact_modal, exact_statespace
+    from ebb_model.exact.exact_modal import exact_modal, exact_statespace
 
     actuators = [(f"F{i + 1}", x) for i, x in enumerate((0.3, 0.55, 0.8)[:n_inputs])]
     cfg = make_config("clamped", "pinned", nodes=25, dt=5e-4, EI=10.0, rhoA=1.0, c=2.0, N=10.0, actuators=actuators,

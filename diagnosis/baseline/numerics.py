@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Callable
 
-from ebb_model.adequacy import NOISE_FLOOR_EXCESS
+from ebb_model.space.adequacy import NOISE_FLOOR_EXCESS
 from identification.numerics import REFINEMENT_GAIN, all_at_once, records_keep, refinements
 
 from ..effects import Effect

@@ -30,10 +30,10 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ebb_model import DiscreteStateSpace, assemble, simulate
-from ebb_model.channel_delay import DELAYS_LEFT_OUT, without_delays
-from ebb_model.output import atomic_path, make_dir
-from ebb_model.jsonio import write_json
-from ebb_model.truncation import design_model, design_resolution
+from ebb_model.acquisition.channel_delay import DELAYS_LEFT_OUT, without_delays
+from ebb_model.io.output import atomic_path, make_dir
+from ebb_model.io.jsonio import write_json
+from ebb_model.modes.truncation import design_model, design_resolution
 from identification.export_targets import DEFAULT_TARGETS
 
 from ..effects import AugmentedModel
@@ -165,7 +165,7 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
     ConfigError
         An unknown target name (before anything is written).
     """
-    from ebb_model.tomlio import dumps as toml_dumps
+    from ebb_model.io.tomlio import dumps as toml_dumps
     from identification.export_targets import ExportItem, check_targets, export_target, target_carries
 
     targets = check_targets(targets, model.config)

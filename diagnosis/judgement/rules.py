@@ -26,8 +26,8 @@ from typing import Callable
 
 import numpy as np
 
-from ebb_model.adequacy import NumericalAdequacy
-from ebb_model.grid_advice import GridAdvice
+from ebb_model.space.adequacy import NumericalAdequacy
+from ebb_model.space.grid_advice import GridAdvice
 
 from ..baseline.polarity import PolarityCheck
 from ..effects import PAIR_SEPARATOR

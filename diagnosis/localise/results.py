@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ebb_model.jsonio import jsonable
+from ebb_model.io.jsonio import jsonable
 
 
 # ----------------------------------------------------------------------------------------------
@@ -184,7 +184,7 @@ class Localisation:
     summary: tuple[str, ...]
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain JSON-able dict (:func:`ebb_model.jsonio.jsonable`: NaN → None, ±inf → "inf", tuples → lists)."""
+        """Plain JSON-able dict (:func:`ebb_model.io.jsonio.jsonable`: NaN → None, ±inf → "inf", tuples → lists)."""
         return jsonable({f.name: getattr(self, f.name) for f in fields(self)})
 
     def table(self) -> list[tuple[str, str, str, str]]:

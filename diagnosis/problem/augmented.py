@@ -15,12 +15,12 @@ stretching ``EA``, from :mod:`diagnosis.effects.axial`) are integrated here:
 Axial-force perturbation
 ------------------------
 Both axial effects are an extra axial force :math:`\delta N(t)` on the
-finite-difference beam of :mod:`ebb_model.discretisation`.  Its stiffness
+finite-difference beam of :mod:`ebb_model.space.discretisation`.  Its stiffness
 matrix is affine in ``N``, :math:`K(N) = K_0 + N K_g`, so ``δN`` is the nodal
 load :math:`g = -\delta N\,K_g q` with the model's own geometric stiffness
 :math:`K_g = \partial K/\partial N` (same ghost-node relations; computed as a
 difference quotient of two discretisations, exact because ``K`` is affine).
-The load enters the θ-scheme of :mod:`ebb_model.theta_scheme` *explicitly* at
+The load enters the θ-scheme of :mod:`ebb_model.theta.theta_scheme` *explicitly* at
 the centre level of every sub-step ``j`` (``τ = dt/substeps``):
 
 .. math::
@@ -41,11 +41,11 @@ conditionally stable in the perturbation only: :math:`\tau^2\,
 or stretching force at the project's grids and sample times.  Between samples
 the force follows the straight line between them (first-order hold), as in
 :func:`ebb_model.assemble.assemble`; with ``δN ≡ 0`` the recursion is exactly the sub-stepped scheme that
-:func:`ebb_model.theta_scheme.discretise_time` condenses into ``Φ = S^m``.
+:func:`ebb_model.theta.theta_scheme.discretise_time` condenses into ``Φ = S^m``.
 
 Outputs at ``t_k`` (sub-step ``j = mk``) use the scheme's central differences
 including the perturbation load, consistent with the feedthrough of
-:func:`ebb_model.theta_scheme.output_matrices`: displacement ``P q^j``,
+:func:`ebb_model.theta.theta_scheme.output_matrices`: displacement ``P q^j``,
 velocity ``P (v^{j+1/2} + v^{j-1/2})/2``, acceleration
 ``P (v^{j+1/2} - v^{j-1/2})/τ``.
 
@@ -81,11 +81,11 @@ from ebb_model.arrays import as_matrix
 from ebb_model.assemble import check_stable
 from ebb_model.checks import finite_scalar
 from ebb_model.config import BeamConfig
-from ebb_model.discretisation import SemiDiscreteBeam, discretise
+from ebb_model.space.discretisation import SemiDiscreteBeam, discretise
 from ebb_model.errors import ConfigError, DataError, StabilityError
 from ebb_model.parameter_values import resolve_parameters
 from ebb_model.simulate import fast_model, simulate
-from ebb_model.theta_scheme import ThetaCoefficients, one_step, theta_coefficients
+from ebb_model.theta.theta_scheme import ThetaCoefficients, one_step, theta_coefficients
 
 from .axial_modal import simulate_axial_exact
 from .axial_terms import geometric_stiffness

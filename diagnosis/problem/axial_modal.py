@@ -1,7 +1,7 @@
 r"""Axial-force perturbations (drift, mid-plane stretching) on the exact-scheme model.
 
 The counterpart of :func:`diagnosis.problem.augmented.simulate_axial` for ``[time] scheme = "exact"``
-(:mod:`ebb_model.exact_modal`), so that a candidate effect is simulated with the same accuracy as the
+(:mod:`ebb_model.exact.exact_modal`), so that a candidate effect is simulated with the same accuracy as the
 baseline it is compared with.  In the Richardson modes ``q = Ψ η`` of the refined grid the extra axial
 force ``δN(t)`` is the modal load
 
@@ -22,8 +22,9 @@ recursion), so with ``δN ≡ 0`` the outputs are exactly the model's (outputs w
 pole, in less than half its time on the blind bench).
 
 The perturbation acts on the modes below the Nyquist frequency (the ones a record at this ``dt``
-resolves); higher modes respond to the forces only.  A sensor's anti-alias filter (:mod:`ebb_model.antialias`)
-takes the modal load like the force: its poles appended to the beam's, driven by both.
+resolves); higher modes respond to the forces only.  A sensor's anti-alias filter
+(:mod:`ebb_model.acquisition.antialias`) takes the modal load like the force: its poles appended to the beam's, driven
+by both.
 
 Accuracy, measured against re-discretising with ``N + δN`` for a constant ``δN`` (clamped–pinned, 60 nodes,
 ``dt = 5e-4``, 2–120 Hz): displacement 4e-4 of the effect of ``δN``, acceleration 4e-2 (4e-3 at ``dt/4``:
@@ -39,16 +40,16 @@ from collections.abc import Mapping
 import numba
 import numpy as np
 
-from ebb_model.antialias import effective_filters, filtered_poles
-from ebb_model.channel_delay import delay_outputs, effective_delays
+from ebb_model.acquisition.antialias import effective_filters, filtered_poles
+from ebb_model.acquisition.channel_delay import delay_outputs, effective_delays
 from ebb_model.assemble import check_stable
 from ebb_model.config import BeamConfig
-from ebb_model.discretisation import discretise
+from ebb_model.space.discretisation import discretise
 from ebb_model.errors import StabilityError
-from ebb_model.exact_modal import continuous_modes
-from ebb_model.bandlimited import lead_in
-from ebb_model.sample_integrals import ADVANCE, INPUT_TAPS, input_weights, pole_integrals
-from ebb_model.richardson_pair import refined_config
+from ebb_model.exact.exact_modal import continuous_modes
+from ebb_model.acquisition.bandlimited import lead_in
+from ebb_model.exact.sample_integrals import ADVANCE, INPUT_TAPS, input_weights, pole_integrals
+from ebb_model.space.richardson_pair import refined_config
 from ebb_model.parameter_values import resolve_parameters
 from ebb_model.simulate import fast_model, simulate
 
@@ -193,7 +194,8 @@ def simulate_axial_exact(config: BeamConfig, params: Mapping[str, float] | None,
     Kg = psi.T @ geometric_stiffness(fine, p) @ psi
     Gm = psi.T @ stretch_matrix(fine) @ psi
     # a force read ADVANCE samples ahead starts that many samples before the record, under its first sample held
-    # (ebb_model.bandlimited.lead_in, as the model's below): those outputs are dropped, the axial force's time kept
+    # (ebb_model.acquisition.bandlimited.lead_in, as the model's below): those outputs are dropped, the axial force's
+    # time kept
     lead = ADVANCE[config.time.input_hold] if u.shape[0] else 0
     y = np.empty((u.shape[0] + lead, len(config.sensors)))
     # the poles the modal load drives or reads (the modes below Nyquist, the filters): the rest respond to the

@@ -1,6 +1,6 @@
 r"""The finite-difference beam's axial-force terms: geometric stiffness and the stretching integral.
 
-An extra axial force :math:`\delta N` acts on the beam of :mod:`ebb_model.discretisation` through
+An extra axial force :math:`\delta N` acts on the beam of :mod:`ebb_model.space.discretisation` through
 :math:`K_g = \partial K/\partial N` (:func:`geometric_stiffness`); mid-plane stretching makes it
 :math:`\frac{EA}{2L}\int_0^L w_x^2\,dx`, the integral taken exactly for the piecewise-linear interpolant of
 the grid deflection (:func:`stretch_integral`, :func:`stretch_of_nodes`; as a quadratic form
@@ -14,7 +14,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from ebb_model.config import BeamConfig
-from ebb_model.discretisation import discretise
+from ebb_model.space.discretisation import discretise
 from ebb_model.errors import DataError
 from ebb_model.parameter_values import resolve_parameters
 
@@ -24,7 +24,7 @@ __all__ = ["geometric_stiffness", "stretch_integral", "stretch_of_nodes", "stret
 def geometric_stiffness(config: BeamConfig, params: Mapping[str, float] | None = None) -> np.ndarray:
     r"""The finite-difference geometric stiffness :math:`K_g = \partial K/\partial N` (n_u × n_u).
 
-    ``K`` of :func:`ebb_model.discretisation.discretise` is affine in ``N``
+    ``K`` of :func:`ebb_model.space.discretisation.discretise` is affine in ``N``
     (the ghost-node relations included), so the difference quotient
     ``(K(N + s) - K(N))/s`` is exact up to round-off; ``s = EI/h²`` balances the
     two terms of ``K`` to keep that round-off at machine precision.

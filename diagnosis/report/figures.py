@@ -6,8 +6,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ebb_model.figureio import save_figure
-from ebb_model.output import make_dir
+from ebb_model.io.figureio import save_figure
+from ebb_model.io.output import make_dir
 from identification.plots import trace
 
 from .result import GapReport
@@ -99,7 +99,7 @@ def next_experiment_figure(plt: Any, nxt: Any) -> Any:
     """The designed experiments' expected log Bayes factors (the worst pair's, each direction of every pair
     marked), the records' own design and the decisive level: :class:`diagnosis.design.NextExperiment`.  Each
     design is labelled in two short lines and the legend sits below the axes, so the chart fits the page at its
-    natural size (:mod:`ebb_model.figureio`)."""
+    natural size (:mod:`ebb_model.io.figureio`)."""
     shown = list(nxt.designs)
     if nxt.as_recorded is not None and nxt.as_recorded not in shown:
         shown.append(nxt.as_recorded)

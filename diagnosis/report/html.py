@@ -4,7 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Mapping
 
-from ebb_model.htmlio import Section, Table, figures_in
+from ebb_model.io.htmlio import Section, Table, figures_in
 
 from .result import GapReport
 
@@ -84,7 +84,7 @@ FIGURES = {"effects.png": "The candidates: score-test statistic, and the share o
 
 
 def html_sections(report: GapReport, out_dir: Path, *, top: int = 10) -> list[Section]:
-    """The diagnosis as sections of an HTML page (:func:`ebb_model.htmlio.write_page`): the verdict, the
+    """The diagnosis as sections of an HTML page (:func:`ebb_model.io.htmlio.write_page`): the verdict, the
     baseline, where the gap lies, the ranked effects, the corrected model and the figures found in ``out_dir``
     (and its ``localisation`` folder)."""
     base = report.baseline

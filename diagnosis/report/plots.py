@@ -14,8 +14,8 @@ import numpy as np
 
 from ebb_model.arrays import as_matrix
 from ebb_model.errors import DataError
-from ebb_model.figureio import save_figure
-from ebb_model.output import make_dir
+from ebb_model.io.figureio import save_figure
+from ebb_model.io.output import make_dir
 from identification.plots import plain_ticks, trace
 
 from ..localise import Localisation, estimate_frf

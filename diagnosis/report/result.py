@@ -3,16 +3,16 @@
 :class:`GapReport` is what :func:`diagnosis.run.diagnose` found — the verdict and its reason, the baseline, the
 measured modes, where the gap is (:class:`~diagnosis.localise.Localisation` per record) and every effect's row
 (:class:`EffectRow`: score, refit, modal pattern).  The text report, the plots and the command line read these
-fields; :meth:`GapReport.to_dict` is the ``gap.json`` document (strict JSON: :func:`ebb_model.jsonio.jsonable`).
+fields; :meth:`GapReport.to_dict` is the ``gap.json`` document (strict JSON: :func:`ebb_model.io.jsonio.jsonable`).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-from ebb_model.adequacy import NumericalAdequacy, grid_line
-from ebb_model.grid_advice import GridAdvice
-from ebb_model.jsonio import jsonable
+from ebb_model.space.adequacy import NumericalAdequacy, grid_line
+from ebb_model.space.grid_advice import GridAdvice
+from ebb_model.io.jsonio import jsonable
 from identification.prior import PriorCheck
 
 from ..localise import Localisation
@@ -105,8 +105,8 @@ class EffectRow:
 @dataclass(frozen=True)
 class BaselineSummary:
     """The baseline fit (the model without effect): parameters, gap ratios (1 = the noise floor), BIC, its in-band
-    modes, and how much of its gap is the model's own grid (:mod:`ebb_model.adequacy`,
-    :mod:`ebb_model.grid_advice`)."""
+    modes, and how much of its gap is the model's own grid (:mod:`ebb_model.space.adequacy`,
+    :mod:`ebb_model.space.grid_advice`)."""
 
     parameters: Mapping[str, float]
     fit_gap_ratio: float
@@ -127,7 +127,7 @@ class BaselineSummary:
 
     @property
     def grid_summary(self) -> str:
-        """The one grid advice from the records (:func:`ebb_model.adequacy.grid_line`)."""
+        """The one grid advice from the records (:func:`ebb_model.space.adequacy.grid_line`)."""
         return grid_line(self.grid_advice, self.numerical_adequacy)
 
 

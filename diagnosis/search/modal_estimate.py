@@ -10,7 +10,7 @@ excited mode is a single-degree-of-freedom oscillator of its own frequency
 .. math::  \ddot x_{ik} + 2\zeta_i\omega_i\dot x_{ik} + \omega_i^2 x_{ik} = u_k(t),
 
 driven by every input :math:`u_k` (linear between samples, or band-limited when the model takes the force so —
-:mod:`ebb_model.bandlimited`, the same reconstruction — integrated exactly).
+:mod:`ebb_model.acquisition.bandlimited`, the same reconstruction — integrated exactly).
 Every output is a linear combination of the :math:`x_{ik}`, :math:`\dot x_{ik}`
 (a residue and its phase: mode shapes, sensor and actuator lags), of the
 inputs and their first two derivatives (the quasi-static share of the modes
@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy import linalg, optimize, signal
 
-from ebb_model.channel_delay import delay_outputs
+from ebb_model.acquisition.channel_delay import delay_outputs
 
 __all__ = ["MeasuredModes", "estimate_modes"]
 
@@ -105,7 +105,8 @@ def _mode_columns(inputs: Sequence[np.ndarray], omega: float, zeta: float, dt: f
                   bandlimited: bool = False) -> np.ndarray:
     """Displacement and velocity responses of one oscillator to every input of every record, stacked (an input
     linear between samples); ``bandlimited``: the real and imaginary parts of its modal coordinate under the
-    band-limited input between samples (:mod:`ebb_model.bandlimited`; the same span, the residues are free)."""
+    band-limited input between samples (:mod:`ebb_model.acquisition.bandlimited`; the same span, the residues are
+    free)."""
     if bandlimited:
         return _bandlimited_columns(inputs, omega, zeta, dt)
     bx, bv, a = _oscillator(omega, zeta, dt)
@@ -120,9 +121,9 @@ def _mode_columns(inputs: Sequence[np.ndarray], omega: float, zeta: float, dt: f
 
 def _bandlimited_columns(inputs: Sequence[np.ndarray], omega: float, zeta: float, dt: float) -> np.ndarray:
     """The oscillator's pole ``s`` under the band-limited input: ``q⁺ = e^{sT} q + Σ_m W_m u_{k+m}``
-    (:func:`ebb_model.bandlimited.pole_weights`, the record held at its first and last sample beyond its ends);
-    columns ``Re q`` and ``Im q`` per input."""
-    from ebb_model.bandlimited import HALF_WIDTH, pole_weights
+    (:func:`ebb_model.acquisition.bandlimited.pole_weights`, the record held at its first and last sample beyond its
+    ends); columns ``Re q`` and ``Im q`` per input."""
+    from ebb_model.acquisition.bandlimited import HALF_WIDTH, pole_weights
 
     s = complex(-zeta * omega, omega * np.sqrt(max(1.0 - zeta * zeta, 0.0)))
     E, W = pole_weights(np.array([s]), dt)
@@ -232,8 +233,9 @@ def estimate_modes(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], 
     bandlimited
         The inputs band-limited between samples (the model's ``[time] input = "bandlimited"``), not linear.
     delays
-        Each output channel's delay after the force's in samples (:func:`ebb_model.channel_delay.effective_delays`),
-        taken out of the records first (the oscillators are the beam's, shared by every output).
+        Each output channel's delay after the force's in samples
+        (:func:`ebb_model.acquisition.channel_delay.effective_delays`), taken out of the records first (the oscillators
+        are the beam's, shared by every output).
 
     Returns
     -------

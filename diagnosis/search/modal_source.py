@@ -7,7 +7,7 @@ from typing import Callable
 
 import numpy as np
 
-from ebb_model.channel_delay import effective_delays
+from ebb_model.acquisition.channel_delay import effective_delays
 from identification.data_start import alignment_miss
 from identification.record_poles import record_modes
 

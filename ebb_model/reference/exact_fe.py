@@ -18,7 +18,7 @@ variances.  This integrator has no time-step error of its own:
 
 Outputs at the samples: displacement ``φ(x)ᵀ q``, velocity ``φ(x)ᵀ q̇``, acceleration
 ``φ(x)ᵀ M⁻¹ (F f − C q̇ − K q)`` — exact for the finite-element model.  It shares no code with the
-identifying finite-difference model (nor with :mod:`ebb_model.exact_modal`).
+identifying finite-difference model (nor with :mod:`ebb_model.exact.exact_modal`).
 """
 from __future__ import annotations
 
@@ -160,7 +160,7 @@ def periodic_fe_response(beam: HermiteBeam, inputs: np.ndarray, dt: float, actua
     random-phase multisine on the record's DFT grid, :func:`~ebb_model.reference.excitation.band_limited_input`
     with ``fade = 0``): it is then that one continuous signal, and each DFT bin's response is the finite-element
     beam's frequency response there, ``(K + iωC − ω²M) q = F U`` — no time stepping, so no time-step error and
-    no assumption about the force between samples (the truth for :mod:`ebb_model.bandlimited`).
+    no assumption about the force between samples (the truth for :mod:`ebb_model.acquisition.bandlimited`).
     """
     u = np.asarray(inputs, dtype=float).reshape(-1)
     U = np.fft.rfft(u)

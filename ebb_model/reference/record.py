@@ -8,7 +8,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..output import atomic_path
+from ..io.output import atomic_path
 from ..errors import DataError
 from .withheld import WithheldEffect
 

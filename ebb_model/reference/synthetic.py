@@ -429,7 +429,7 @@ def synthesize(
         a force faded in and out, band-limited below the Nyquist frequency),
         by :data:`BANDLIMITED_OVERSAMPLING`-fold resampling and the spline
         through the fine samples; independent of the model's kernel
-        (:mod:`ebb_model.bandlimited`).
+        (:mod:`ebb_model.acquisition.bandlimited`).
     richardson
         Newmark only: combine runs with ``substeps`` and ``2 * substeps`` to
         cancel the :math:`O(h^2)` Newmark error (default ``True``).

@@ -1,8 +1,8 @@
 """Dispersion relation of the θ-scheme and the stability analysis built on it.
 
 Von Neumann ansatz on the unbounded grid, :math:`w_j^n = z^n e^{i\\kappa j h}`,
-in the interior stencil of :mod:`ebb_model.discretisation` and
-:mod:`ebb_model.theta_scheme` gives, per wavenumber κ, a quadratic in the
+in the interior stencil of :mod:`ebb_model.space.discretisation` and
+:mod:`ebb_model.theta.theta_scheme` gives, per wavenumber κ, a quadratic in the
 temporal growth factor ``z`` (per sub-step ``τ``):
 
 .. math::

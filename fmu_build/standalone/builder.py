@@ -29,10 +29,10 @@ from pathlib import Path
 
 from ebb_model import BeamConfig, DiscreteStateSpace, assemble, load_config
 from ebb_model.assemble import field_config
-from ebb_model.bandlimited import causal_config
-from ebb_model.channel_delay import refuse_in
-from ebb_model.config_types import MAX_NODES
-from ebb_model.output import atomic_path
+from ebb_model.acquisition.bandlimited import causal_config
+from ebb_model.acquisition.channel_delay import refuse_in
+from ebb_model.config.types import MAX_NODES
+from ebb_model.io.output import atomic_path
 from ebb_model.errors import ConfigError, FmuError, OutputError
 
 from ..builder import _check_names, _check_output, _identity
@@ -44,7 +44,7 @@ __all__ = ["build_standalone_fmu", "compile_binary", "SOURCE_DIR"]
 #: Where the C sources live (copied verbatim into the FMU's ``sources/``).
 SOURCE_DIR = Path(__file__).resolve().parent / "csrc"
 _PLATFORM = "linux64"
-#: The largest grid, :data:`ebb_model.config_types.MAX_NODES` (1000), is also the C model's: its solvers are dense
+#: The largest grid, :data:`ebb_model.config.types.MAX_NODES` (1000), is also the C model's: its solvers are dense
 #: (Jacobi sweeps, O(n³) each): initialisation takes 0.2 s at 200 nodes and 1.6 s at 400 (exact scheme), about
 #: 25 s at 1000.
 #: Compiler flags of the linux64 binary (plain C99, hidden symbols except the fmi2 functions).

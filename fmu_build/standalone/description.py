@@ -23,7 +23,7 @@ from xml.dom.minidom import parseString
 from xml.etree.ElementTree import Element, SubElement, tostring
 
 from ebb_model import PARAMETER_NAMES, BeamConfig
-from ebb_model.antialias import effective_filters
+from ebb_model.acquisition.antialias import effective_filters
 from ebb_model.beam import PARAMETER_DESCRIPTIONS, PARAMETER_UNITS, SENSOR_KINDS, Sensor
 
 from ..model_description import UNIT_DEFINITIONS, FmuIdentity
@@ -64,7 +64,7 @@ def n_modes(config: BeamConfig) -> int:
 
 
 def n_filter_states(config: BeamConfig) -> int:
-    """States of the sensors' anti-alias filters (:mod:`ebb_model.antialias`), after the modal ones."""
+    """States of the sensors' anti-alias filters (:mod:`ebb_model.acquisition.antialias`), after the modal ones."""
     return sum(f.order for f in effective_filters(config) if f is not None)
 
 

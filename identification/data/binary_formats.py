@@ -16,7 +16,7 @@ import numpy as np
 import scipy.io
 
 from ebb_model.errors import DataError
-from ebb_model.textio import printable
+from ebb_model.io.textio import printable
 
 from .experiment import NPZ_META_KEY
 from .table import RawTable

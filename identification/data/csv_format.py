@@ -1,4 +1,4 @@
-"""CSV experiment files, read by :func:`ebb_model.csvio.read_csv_table` (the one set of CSV rules).
+"""CSV experiment files, read by :func:`ebb_model.io.csvio.read_csv_table` (the one set of CSV rules).
 
 Leading blank lines and ``#`` comment lines are skipped; the delimiter is
 the first of ``,`` ``;`` tab found in the header.  The time column is called
@@ -10,9 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ebb_model.csvio import read_csv_table
+from ebb_model.io.csvio import read_csv_table
 from ebb_model.errors import DataError
-from ebb_model.textio import read_text as read_file_text
+from ebb_model.io.textio import read_text as read_file_text
 
 from .table import RawTable
 from .textblock import column_resolutions, edge_lines

@@ -19,10 +19,10 @@ from typing import BinaryIO, Mapping
 import numpy as np
 
 from ebb_model.arrays import as_matrix
-from ebb_model.output import atomic_path
+from ebb_model.io.output import atomic_path
 from ebb_model.config import BeamConfig
 from ebb_model.errors import DataError
-from ebb_model.signals_io import check_time_vector
+from ebb_model.io.signals_io import check_time_vector
 
 __all__ = ["Experiment", "NPZ_META_KEY"]
 
@@ -152,7 +152,7 @@ class Experiment:
           (the model needs every input force);
         * every output is one of the config's sensors;
         * the samples are uniform at ``config.time.dt`` within ``rtol``
-          (:func:`ebb_model.signals_io.check_time_vector`, the one timebase rule).
+          (:func:`ebb_model.io.signals_io.check_time_vector`, the one timebase rule).
 
         Raises
         ------

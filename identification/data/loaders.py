@@ -38,8 +38,8 @@ import numpy as np
 from ebb_model.beam import SENSOR_UNITS
 from ebb_model.config import BeamConfig
 from ebb_model.errors import DataError
-from ebb_model.signals_io import check_time_vector
-from ebb_model.textio import printable
+from ebb_model.io.signals_io import check_time_vector
+from ebb_model.io.textio import printable
 
 from .binary_formats import read_mat, read_npz
 from .csv_format import read_csv

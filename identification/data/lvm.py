@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ebb_model.csvio import parse_block
+from ebb_model.io.csvio import parse_block
 from ebb_model.errors import DataError, DataWarning
 
 from .csv_format import read_text

@@ -1,6 +1,6 @@
 """The printed precision of the columns of a delimited block of numbers.
 
-The numbers themselves are parsed by :func:`ebb_model.csvio.parse_block`, the one parser of delimited text.
+The numbers themselves are parsed by :func:`ebb_model.io.csvio.parse_block`, the one parser of delimited text.
 """
 from __future__ import annotations
 

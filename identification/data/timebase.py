@@ -43,7 +43,7 @@ from scipy.interpolate import CubicSpline
 from scipy.signal import firwin, kaiserord, resample_poly
 
 from ebb_model.errors import DataError
-from ebb_model.signals_io import check_time_vector
+from ebb_model.io.signals_io import check_time_vector
 
 __all__ = ["regularise_time", "mean_step", "resample_uniform", "MAX_RATE_FACTOR"]
 
@@ -85,7 +85,7 @@ def regularise_time(t: np.ndarray, tolerance: float, dt_hint: float | None = Non
         (``2 * tolerance`` for the end-point estimate of dt, whose own error
         adds); else ``t`` itself if its steps agree with the mean step within
         1e-6 relative (the tolerance of
-        :func:`ebb_model.signals_io.check_time_vector`).
+        :func:`ebb_model.io.signals_io.check_time_vector`).
 
     Raises
     ------

@@ -19,7 +19,7 @@ import numpy as np
 import pyuff
 
 from ebb_model.errors import DataError
-from ebb_model.textio import printable
+from ebb_model.io.textio import printable
 
 from .table import RawTable
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ebb_model.errors import StabilityError
-from ebb_model.jsonio import write_json
+from ebb_model.io.jsonio import write_json
 
 from ..export_statespace import balanced_truncation, save_statespace
 from . import ExportItem

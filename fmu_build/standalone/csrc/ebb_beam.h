@@ -21,7 +21,7 @@ enum { EBB_EI, EBB_RHOA, EBB_C, EBB_ETA, EBB_N, EBB_RHOI, EBB_KF, EBB_NPARAM };
 #define EBB_MAX_MAGNITUDE 1e30
 #define EBB_MIN_POSITIVE 1e-30
 
-/* the highest anti-alias filter order (ebb_model.antialias.MAX_ORDER; a test compares them) */
+/* the highest anti-alias filter order (ebb_model.acquisition.antialias.MAX_ORDER; a test compares them) */
 #define EBB_MAX_FILTER 10
 #define EBB_PI 3.14159265358979323846
 

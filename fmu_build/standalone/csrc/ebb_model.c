@@ -1,14 +1,14 @@
 /*
  * ebb_model.c -- the beam model of ebb_model (scheme "exact"), assembled from the physical parameters.
  *
- * 1. Space: central finite differences with ghost nodes (port of ebb_model/discretisation.py): on a grid of
+ * 1. Space: central finite differences with ghost nodes (port of ebb_model/space/discretisation.py): on a grid of
  *    n interior points, spacing h = L/(n+1), the semi-discrete beam M q'' + C q' + K q = F u with
  *      K = diag(V)(EI D4 - N D2)E + kf diag(V) + sum_s k_s phi(a_s) phi(a_s)^T,  C = c diag(V) + eta EI diag(V) D4 E,
  *      M = rhoA diag(V) + rhoI h (GP)^T(GP) + sum_m m_m phi(a_m) phi(a_m)^T,
  *    E the extension by the ghost nodes of the moment and shear conditions (elastic ends kt, kr in [0, inf]),
  *    forces, sensors, point masses and springs to ground on the grid's hat functions; with weak segments the
  *    bending term is D2 (e D2 w) with e the cells' compliance-averaged relative EI (ghost nodes: their end's).
- * 2. Richardson modes (ebb_model/exact_modal.py): the beam on the config's grid and on its companion grid
+ * 2. Richardson modes (ebb_model/exact/exact_modal.py): the beam on the config's grid and on its companion grid
  *    (2n+1 nodes up to 201, else (n-1)/2); the lowest w2 of both, extrapolated as
  *    w2_f + weight (w2_f - w2_c)/((h_c/h_f)^2 - 1) (weight 1 for the lower half of the coarse grid's modes,
  *    fading to 0), mass-normalised shapes and damping from the finer grid; as many modes as the config's grid
@@ -386,7 +386,7 @@ static int van_loan(const double *AT, const double *BT, int n, int nv, int deg, 
 
 static int build_theta(const ebb_structure *s, const double *p, ebb_model *out, char *msg, size_t msglen);
 
-/* The anti-alias filter of order n and corner fc [Hz] (ebb_model/antialias.py): the Butterworth low-pass as a
+/* The anti-alias filter of order n and corner fc [Hz] (ebb_model/acquisition/antialias.py): the Butterworth low-pass as a
  * cascade of unit-DC-gain sections, w^2/(s^2 + 2 sig s + w^2) on the states (y, y'/w) and a/(s + a) on y, each
  * driven by the previous one's output.  Writes A (n x n, row-major), b (n) and c (n). */
 static void butterworth(int n, double fc, double *A, double *b, double *c)
@@ -755,7 +755,7 @@ done:
 }
 
 /* ---------------------------------------------------------------------------------------------------------
- * The seed's theta-scheme ([time] scheme = "theta"), port of ebb_model/theta_scheme.py on the config's grid:
+ * The seed's theta-scheme ([time] scheme = "theta"), port of ebb_model/theta/theta_scheme.py on the config's grid:
  * L' = M/tau + C/2 + theta tau K, Kt = L'^-1 K, Ct = L'^-1 C, Bt = L'^-1 F (tau = dt/substeps); one sub-step
  * on x = (q^j, v^{j-1/2}):  v+ = (I - Ct) v - Kt q + Bt f,  q+ = q + tau v+;  per sample Phi = S^m and the
  * hold sums G0, G1 of the force at the sub-step levels (straight line or held), made causal on xi = x - G1 u;
