@@ -18,14 +18,8 @@
 """
 from __future__ import annotations
 
-from .analytic import (
-    U_MAX,
-    analytic_frequencies_hz,
-    analytic_omegas,
-    characteristic_function,
-    critical_buckling_U,
-    solve_characteristic,
-)
+from .analytic import U_MAX, analytic_frequencies_hz, analytic_omegas, critical_buckling_U, solve_characteristic
+from .characteristic import characteristic_function
 from .excitation import EXCITATION_KINDS, band_limited_input
 from .hermite_fe import (
     CLAMPED,

@@ -2,9 +2,7 @@ r"""Analytic natural frequencies of an axially loaded Euler–Bernoulli beam.
 
 This module is an *independent truth* for the project's finite-difference
 model: it never discretises the beam, it solves the exact characteristic
-equations of the continuous problem.  (Its length, just over 500 lines, is
-one concern: a quarter of it is the derivation below, which the root
-bracketing relies on.)
+equations of the continuous problem.
 
 Model
 -----
@@ -41,17 +39,8 @@ The boundary conditions are
 * free:    :math:`W'' = 0,\; W''' - U W' = 0` (zero bending moment and zero
   transverse shear force for an axial force of fixed direction).
 
-Characteristic equations (non-trivial solutions of the 4 x 4 system):
-
-* pinned–pinned: :math:`\sinh\alpha \sin\beta = 0`, closed form
-  :math:`\Omega_n = n\pi\sqrt{n^2\pi^2 + U}`;
-* clamped–clamped:
-  :math:`2\alpha\beta(1 - \cosh\alpha\cos\beta) + (\alpha^2-\beta^2)\sinh\alpha\sin\beta = 0`;
-* clamped–pinned: :math:`\alpha\sin\beta\cosh\alpha - \beta\cos\beta\sinh\alpha = 0`
-  (the pole-free form of :math:`\alpha\tan\beta = \beta\tanh\alpha`);
-* clamped–free:
-  :math:`2\alpha^2\beta^2 + (\alpha^4+\beta^4)\cos\beta\cosh\alpha
-  + \alpha\beta(\alpha^2-\beta^2)\sin\beta\sinh\alpha = 0`.
+The characteristic equations of the four pairs of ends and their scaling (pole-free, no overflow)
+are :mod:`ebb_model.reference.characteristic`'s.
 
 Numerical strategy
 ------------------
@@ -63,17 +52,7 @@ monotonically from 0, and consecutive eigenvalues are separated by roughly
 regimes alike), so a uniform grid of step :math:`\pi/128` cannot step over
 a root.
 
-Each characteristic function is
-
-1. divided by :math:`\alpha\beta` where this removes the trivial root
-   :math:`\Omega = 0` (using the entire functions
-   :math:`\operatorname{sinc}\beta = \sin\beta/\beta` and
-   :math:`\tanh\alpha/\alpha`), and
-2. divided by :math:`\cosh\alpha` so that nothing overflows (only
-   :math:`\tanh\alpha` and :math:`\operatorname{sech}\alpha` remain);
-
-the clamped–free function is further divided by :math:`\alpha^4 + \beta^4`.
-The scaled functions are smooth and pole-free; sign changes on the grid are
+The scaled functions (:mod:`~ebb_model.reference.characteristic`) are smooth and pole-free; sign changes on the grid are
 refined with :func:`scipy.optimize.brentq`, and any bracket whose refined
 residual is not small compared with the bracketing values (the signature of
 a pole) is rejected.
@@ -81,20 +60,18 @@ a pole) is rejected.
 from __future__ import annotations
 
 import math
-from types import MappingProxyType
-from typing import Callable, Mapping, Union
 
 import numpy as np
 from scipy.optimize import brentq
 
 from ..checks import finite_scalar
-from ..errors import ConfigError, ParameterError
+from ..errors import ParameterError
+from .characteristic import CHARACTERISTIC, CharFun, alpha_from_beta, canonical_pair
 
 __all__ = [
     "analytic_omegas",
     "analytic_frequencies_hz",
     "critical_buckling_U",
-    "characteristic_function",
     "solve_characteristic",
     "U_MAX",
 ]
@@ -102,200 +79,9 @@ __all__ = [
 #: Largest nondimensional tension ``U = N L^2 / EI`` accepted.
 U_MAX: float = 1.0e4
 
-# Read-only alias table: accepted spellings -> canonical boundary condition.
-_BC_ALIASES: Mapping[str, str] = MappingProxyType(
-    {
-        "clamped": "clamped",
-        "fixed": "clamped",
-        "built-in": "clamped",
-        "pinned": "pinned",
-        "hinged": "pinned",
-        "simply-supported": "pinned",
-        "simply_supported": "pinned",
-        "free": "free",
-    }
-)
-_BC_RANK: Mapping[str, int] = MappingProxyType({"clamped": 0, "pinned": 1, "free": 2})
-_SUPPORTED_PAIRS: tuple[tuple[str, str], ...] = (
-    ("pinned", "pinned"),
-    ("clamped", "clamped"),
-    ("clamped", "pinned"),
-    ("clamped", "free"),
-)
 
 # Root scan step in beta (eigenvalues are ~pi apart in beta).
 _BETA_STEP: float = math.pi / 128.0
-
-#: alpha and beta: arrays, or one float64 each (a root's refinement)
-Values = Union[np.ndarray, np.float64]
-CharFun = Callable[[Values, Values, float], np.ndarray]
-
-
-# --------------------------------------------------------------------------
-# boundary-condition handling
-# --------------------------------------------------------------------------
-def _canonical_bc(name: str) -> str:
-    """Return the canonical name (``clamped``/``pinned``/``free``) of ``name``."""
-    if not isinstance(name, str):
-        raise ConfigError(f"boundary condition must be a string, got {name!r}")
-    key = name.strip().lower().replace(" ", "-")
-    try:
-        return _BC_ALIASES[key]
-    except KeyError:
-        raise ConfigError(
-            f"unknown boundary condition {name!r}; expected one of "
-            "'clamped', 'pinned', 'free'"
-        ) from None
-
-
-def _canonical_pair(left: str, right: str) -> tuple[str, str]:
-    """Order-independent canonical boundary pair, validated.
-
-    The eigenvalues of the beam do not depend on which end is called *left*,
-    so the pair is sorted clamped < pinned < free.
-
-    Raises
-    ------
-    ConfigError
-        (a :class:`ValueError`) for unknown names or unsupported pairs.
-    """
-    a, b = sorted((_canonical_bc(left), _canonical_bc(right)), key=_BC_RANK.__getitem__)
-    pair = (a, b)
-    if pair not in _SUPPORTED_PAIRS:
-        supported = ", ".join(f"{p}-{q}" for p, q in _SUPPORTED_PAIRS)
-        raise ConfigError(
-            f"boundary-condition pair {left!r}-{right!r} is not supported by the "
-            f"analytic reference (pairs with a rigid-body mode, such as free-free "
-            f"or pinned-free, are excluded); supported pairs: {supported}"
-        )
-    return pair
-
-
-# --------------------------------------------------------------------------
-# overflow-safe elementary functions
-# --------------------------------------------------------------------------
-def _sech(a: Values) -> np.ndarray:
-    r""":math:`\operatorname{sech} a = 2e^{-a}/(1 + e^{-2a})` for :math:`a \ge 0` (no overflow)."""
-    e = np.exp(-a)
-    return 2.0 * e / (1.0 + e * e)
-
-
-def _tanhc(a: Values) -> np.ndarray:
-    r""":math:`\tanh(a)/a`, continued by 1 at :math:`a = 0` (series for small ``a``)."""
-    a = np.asarray(a, dtype=float)
-    small = np.abs(a) < 1e-4
-    safe = np.where(small, 1.0, a)
-    a2 = a * a
-    return np.where(small, 1.0 - a2 / 3.0 + 2.0 * a2 * a2 / 15.0, np.tanh(safe) / safe)
-
-
-def _sinc(b: Values) -> np.ndarray:
-    r""":math:`\sin(b)/b`, continued by 1 at :math:`b = 0`."""
-    return np.sinc(np.asarray(b, dtype=float) / np.pi)
-
-
-def _alpha_from_beta(beta: Values, U: float) -> np.ndarray:
-    r""":math:`\alpha = \sqrt{\beta^2 + U}` (clipped at 0 against round-off)."""
-    return np.sqrt(np.maximum(beta * beta + U, 0.0))
-
-
-# --------------------------------------------------------------------------
-# scaled characteristic functions g(alpha, beta, U)
-# --------------------------------------------------------------------------
-def _g_pinned_pinned(alpha: Values, beta: Values, U: float) -> np.ndarray:
-    r"""Scaled pinned–pinned determinant.
-
-    The determinant is proportional to
-    :math:`(\alpha^2+\beta^2)\sinh\alpha\sin\beta`; divided by
-    :math:`(\alpha^2+\beta^2)\,\alpha\beta\cosh\alpha` it becomes
-    :math:`(\tanh\alpha/\alpha)\,\operatorname{sinc}\beta`.
-    """
-    return _tanhc(alpha) * _sinc(beta)
-
-
-def _g_clamped_clamped(alpha: Values, beta: Values, U: float) -> np.ndarray:
-    r"""Scaled clamped–clamped function.
-
-    .. math::
-
-        \frac{2\alpha\beta(1-\cosh\alpha\cos\beta)
-              + (\alpha^2-\beta^2)\sinh\alpha\sin\beta}{\alpha\beta\cosh\alpha}
-        = 2(\operatorname{sech}\alpha - \cos\beta)
-          + U\,\frac{\tanh\alpha}{\alpha}\,\operatorname{sinc}\beta .
-    """
-    return 2.0 * (_sech(alpha) - np.cos(beta)) + U * _tanhc(alpha) * _sinc(beta)
-
-
-def _g_clamped_pinned(alpha: Values, beta: Values, U: float) -> np.ndarray:
-    r"""Scaled clamped–pinned function.
-
-    .. math::
-
-        \frac{\alpha\sin\beta\cosh\alpha - \beta\cos\beta\sinh\alpha}
-             {\alpha\beta\cosh\alpha}
-        = \operatorname{sinc}\beta - \cos\beta\,\frac{\tanh\alpha}{\alpha}.
-    """
-    return _sinc(beta) - np.cos(beta) * _tanhc(alpha)
-
-
-def _g_clamped_free(alpha: Values, beta: Values, U: float) -> np.ndarray:
-    r"""Scaled clamped–free function.
-
-    .. math::
-
-        \frac{2\alpha^2\beta^2 + (\alpha^4+\beta^4)\cos\beta\cosh\alpha
-              + \alpha\beta(\alpha^2-\beta^2)\sin\beta\sinh\alpha}
-             {(\alpha^4+\beta^4)\cosh\alpha}
-        = \cos\beta + \frac{2\alpha^2\beta^2\operatorname{sech}\alpha
-              + \alpha\beta\,U\sin\beta\tanh\alpha}{\alpha^4+\beta^4}.
-
-    (:math:`\Omega = 0` is not a root here, so no division by
-    :math:`\alpha\beta` is needed.)
-    """
-    a2 = alpha * alpha
-    b2 = beta * beta
-    den = a2 * a2 + b2 * b2
-    den = np.where(den > 0.0, den, 1.0)
-    return np.cos(beta) + (
-        2.0 * a2 * b2 * _sech(alpha) + alpha * beta * U * np.sin(beta) * np.tanh(alpha)
-    ) / den
-
-
-_CHAR_FUNS: Mapping[tuple[str, str], CharFun] = MappingProxyType(
-    {
-        ("pinned", "pinned"): _g_pinned_pinned,
-        ("clamped", "clamped"): _g_clamped_clamped,
-        ("clamped", "pinned"): _g_clamped_pinned,
-        ("clamped", "free"): _g_clamped_free,
-    }
-)
-
-
-def characteristic_function(left: str, right: str, U: float, Omega: np.ndarray | float) -> np.ndarray:
-    r"""Evaluate the scaled characteristic function at nondimensional ``Omega``.
-
-    Parameters
-    ----------
-    left, right
-        Boundary conditions (``"clamped"``, ``"pinned"``, ``"free"``).
-    U
-        Nondimensional axial force :math:`N L^2 / EI`.
-    Omega
-        Nondimensional circular frequency/frequencies :math:`\Omega > 0`.
-
-    Returns
-    -------
-    numpy.ndarray
-        :math:`g(\alpha(\Omega), \beta(\Omega))`; its zeros for
-        :math:`\Omega > 0` are the eigenvalues.  See the module docstring for
-        the scaling.
-    """
-    g = _CHAR_FUNS[_canonical_pair(left, right)]
-    Om = np.asarray(Omega, dtype=float)
-    root = np.sqrt(U * U + 4.0 * Om * Om)
-    alpha = np.sqrt(np.maximum(0.5 * (U + root), 0.0))
-    beta = np.sqrt(np.maximum(0.5 * (-U + root), 0.0))
-    return g(alpha, beta, float(U))
 
 
 # --------------------------------------------------------------------------
@@ -333,7 +119,7 @@ def _roots_in_beta(g: CharFun, U: float, n_modes: int) -> np.ndarray:
     roots: list[float] = []
 
     def gs(b: float) -> float:
-        return float(g(_alpha_from_beta(np.float64(b), U), np.float64(b), U))
+        return float(g(alpha_from_beta(np.float64(b), U), np.float64(b), U))
 
     # At U = 0 the point beta0 = 0 is a (double) trivial zero; for |U| tiny
     # its computed sign is round-off, so begin one step further: no
@@ -345,7 +131,7 @@ def _roots_in_beta(g: CharFun, U: float, n_modes: int) -> np.ndarray:
             raise RuntimeError("analytic root scan did not find enough roots")
         first = chunk * per_chunk + (start_index if chunk == 0 else 0)
         b = beta0 + step * np.arange(first, (chunk + 1) * per_chunk + 1)
-        vals = g(_alpha_from_beta(b, U), b, U)
+        vals = g(alpha_from_beta(b, U), b, U)
         # brackets: strict sign changes, plus exact zeros on grid points
         candidates = np.flatnonzero((vals[:-1] == 0.0) | (vals[:-1] * vals[1:] < 0.0))
         for i in candidates:
@@ -388,11 +174,11 @@ def solve_characteristic(left: str, right: str, U: float, n_modes: int) -> np.nd
     numpy.ndarray
         :math:`\Omega_1 < \dots < \Omega_n`.
     """
-    pair = _canonical_pair(left, right)
+    pair = canonical_pair(left, right)
     U = _validate_U(U, critical_buckling_U(*pair))
     n_modes = _validate_n_modes(n_modes)
-    beta = _roots_in_beta(_CHAR_FUNS[pair], U, n_modes)
-    alpha = _alpha_from_beta(beta, U)
+    beta = _roots_in_beta(CHARACTERISTIC[pair], U, n_modes)
+    alpha = alpha_from_beta(beta, U)
     return alpha * beta
 
 
@@ -429,7 +215,7 @@ def analytic_omegas(left: str, right: str, U: float, n_modes: int) -> np.ndarray
     :math:`\Omega_n = n\pi\sqrt{n^2\pi^2 + U}`; the other pairs use
     :func:`solve_characteristic`.
     """
-    pair = _canonical_pair(left, right)
+    pair = canonical_pair(left, right)
     U = _validate_U(U, critical_buckling_U(*pair))
     n_modes = _validate_n_modes(n_modes)
     if pair == ("pinned", "pinned"):
@@ -504,7 +290,7 @@ def critical_buckling_U(left: str, right: str) -> float:
     ValueError
         For unknown/unsupported boundary conditions.
     """
-    pair = _canonical_pair(left, right)
+    pair = canonical_pair(left, right)
     if pair == ("pinned", "pinned"):
         return math.pi**2
     if pair == ("clamped", "clamped"):
