@@ -85,7 +85,7 @@ from .residual_tests import band_gaps, correlation_tests, sensor_gaps
 from .results import Localisation
 from .spectra import _check_dt, _matrix, _names, _welch_psd, choose_nperseg, estimate_frf
 from .summary import _summary
-from .thresholds import PAD
+from .thresholds import NOISE_BAND_BEYOND_MODE, NOISE_BAND_REL, PAD
 from .trends import window_and_amplitude_gaps
 
 # ----------------------------------------------------------------------------------------------
@@ -267,10 +267,10 @@ def _noise(noise_std: ArrayLike | None, u2: np.ndarray, y2: np.ndarray, dt: floa
     sig: np.ndarray | None
     if noise_std is None:
         pu = np.real(_welch_psd(u2, dt, nperseg)[1])
-        exc_any = np.any(pu >= 1e-2 * pu.max(axis=0, keepdims=True), axis=1)  # within 20 dB of the peak
+        exc_any = np.any(pu >= NOISE_BAND_REL * pu.max(axis=0, keepdims=True), axis=1)
         f_hi = float(f[np.flatnonzero(exc_any)[-1]]) if exc_any.any() else 0.0
         if len(mf):
-            f_hi = max(f_hi, 1.2 * float(mf[-1]))
+            f_hi = max(f_hi, NOISE_BAND_BEYOND_MODE * float(mf[-1]))
         ne = noise_estimate(y2, dt, band=(0.0, f_hi))
         sig = ne.std
         nmeth = ne.method

@@ -13,7 +13,7 @@ from scipy import stats
 
 from .results import ModeGap
 from .spectra import FrfEstimate, _fit_sdof, _peak_bin, _peak_location, _Sdof
-from .thresholds import MIN_DAMPING_RATIO, MIN_GAIN, MIN_PHASE_DEG, MIN_SHIFT, PAD
+from .thresholds import DAMPING_BINS, MIN_DAMPING_RATIO, MIN_GAIN, MIN_PHASE_DEG, MIN_SHIFT, PAD
 
 __all__ = ["FrfSet", "mode_gaps"]
 
@@ -145,7 +145,7 @@ def _sdof_comparison(sh: _Sdof, sm: _Sdof, df: float) -> dict[str, Any]:
                 model_fit_damping=sh.zeta, measured_damping=sm.zeta, damping_ratio=dr,
                 damping_ratio_std=dr * sl,
                 damping_p=float(2 * stats.norm.sf(abs(math.log(dr)) / sl)) if sl > 0 else 0.0,
-                damping_resolved=bool(2 * min(sh.zeta * sh.fn, sm.zeta * sm.fn) >= 3 * df),
+                damping_resolved=bool(2 * min(sh.zeta * sh.fn, sm.zeta * sm.fn) >= DAMPING_BINS * df),
                 amplitude_ratio=abs(hr), phase_diff_deg=math.degrees(np.angle(hr)))
 
 

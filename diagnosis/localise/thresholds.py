@@ -2,6 +2,14 @@
 Z99 = 2.5758293035489004
 #: Input PSD below this fraction of its maximum: the bin is "not excited".
 EXCITE_REL = 1e-3
+#: The band over which the model-free noise estimate reads the records: where the input's PSD is within 20 dB of its
+#: peak (the response there is the force's; beyond it the records hold the noise and the force's tail alike) ...
+NOISE_BAND_REL = 1e-2
+#: ... and 20 % beyond the highest mode the model places (a mode's half-power band lies well inside it).
+NOISE_BAND_BEYOND_MODE = 1.2
+#: A resonance's damping is resolved by an FRF when its half-power bandwidth spans at least this many bins (with
+#: fewer the SDOF fit's damping is the window's, not the beam's).
+DAMPING_BINS = 3
 #: Practical minimum sizes for naming something in the summary.
 MIN_SHIFT = 1e-3          # relative frequency shift
 MIN_DAMPING_RATIO = 1.2   # damping ratio measured/model (or its inverse)
