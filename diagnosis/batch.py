@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from ebb_model.config import BeamConfig
-from ebb_model.errors import ConfigError
+from ebb_model.errors import ClusterError, ConfigError
 from ebb_model.io.output import check_new_output_dir, staged_dir
 from identification.run import load_identification_config, read_data
 
@@ -100,10 +100,12 @@ def diagnose_each(config: BeamConfig | str | Path, data: Sequence[str | Path], o
             docs = side_by_side(executor, _diagnose_one, [(cfg, str(p), str(staged / s), dict(options))
                                                           for p, s in zip(paths, stems)])
             events = executor.events() if isinstance(executor, DaskExecutor) else ()
-        except BaseException:
+        except BaseException as exc:
             if executor is not None:
                 close_refit_pool(executor, now=True)   # Ctrl-C or a failed record: the others are not waited for
                 executor = None
+            if isinstance(exc, ClusterError):
+                raise ClusterError(f"{exc}; no record's results were kept in {out}") from None
             raise
         finally:
             if executor is not None:

@@ -23,7 +23,7 @@ import numpy as np
 
 from ebb_model.space.adequacy import excited_band, grid_line, modes_top, numerical_adequacy
 from ebb_model.config import BeamConfig
-from ebb_model.errors import ConfigError
+from ebb_model.errors import ClusterError, ConfigError
 from ebb_model.space.grid_advice import grid_advice
 from ebb_model.io.htmlio import PAGE, write_page
 from ebb_model.io.jsonio import write_json
@@ -206,10 +206,13 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
             return Diagnosis(problem, ranking, report, None)
         report = _write(out, problem, ranking, report, case.locs, plots=plots, export=export, targets=targets)
         return Diagnosis(problem, ranking, report, out)
-    except BaseException:
+    except BaseException as exc:
         if executor is not None:
             close_refit_pool(executor, now=True)     # Ctrl-C or a failure: the fits in flight are not waited for
             executor = None
+        if isinstance(exc, ClusterError) and out is not None:
+            raise ClusterError(f"{exc}; nothing was written to {out} (a diagnosis writes its results when it "
+                               "ends)") from None
         raise
     finally:
         if executor is not None:

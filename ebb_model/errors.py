@@ -18,6 +18,7 @@ __all__ = [
     "DataError",
     "FmuError",
     "OutputError",
+    "ClusterError",
     "Interrupted",
     "DataWarning",
     "ConfigWarning",
@@ -101,6 +102,10 @@ class OutputError(EbbError):
         self.path = path
         self.errno = errno
         super().__init__(message)
+
+
+class ClusterError(EbbError, RuntimeError):
+    """The Dask cluster a run evaluates on went away (its scheduler lost); the message says what was kept."""
 
 
 class Interrupted(EbbError):

@@ -32,11 +32,13 @@ the run can say what happened.
 """
 from __future__ import annotations
 
+import contextlib
+import logging
 import re
 from types import MappingProxyType
-from typing import Any, Mapping
+from typing import Any, Iterator, Mapping
 
-from ebb_model.errors import ConfigError
+from ebb_model.errors import ClusterError, ConfigError
 
 __all__ = ["LOW_OVERHEAD", "WorkerWatch", "connect", "disconnect", "local_cluster", "parse_local_address"]
 
@@ -122,14 +124,44 @@ def connect(address: Any) -> tuple[Any, Any, bool]:
 
 
 def disconnect(client: Any, cluster: Any, own: bool) -> None:
-    """Close what :func:`connect` opened (a client it was given is left open)."""
+    """Close what :func:`connect` opened (a client it was given is left open).  A client that lost its scheduler
+    is closed quietly: closing it cancels its reconnection, which it would log as an error with a traceback
+    after the run has said what happened in one line (:func:`raise_if_scheduler_lost`)."""
     if not own:
         return
     try:
-        client.close()
+        with _silenced("distributed.client") if scheduler_lost(client) else contextlib.nullcontext():
+            client.close()
     finally:
         if cluster is not None:
             cluster.close()
+
+
+def scheduler_lost(client: Any) -> bool:
+    """Whether ``client`` has lost its scheduler (its status is no longer ``running``: it is reconnecting, or
+    gave up)."""
+    return str(getattr(client, "status", "running")) != "running"
+
+
+def raise_if_scheduler_lost(client: Any, exc: BaseException) -> None:
+    """Raise :class:`~ebb_model.errors.ClusterError` (one line naming the scheduler) from ``exc`` when ``client``
+    has lost its scheduler: the client then cancels every future it holds ("scheduler-connection-lost") and
+    nothing sent to the cluster can come back; otherwise return (the caller re-raises ``exc``)."""
+    if scheduler_lost(client):
+        address = getattr(getattr(client, "scheduler", None), "address", None) or "its address"
+        raise ClusterError(f"the Dask scheduler at {address} went away during the run") from exc
+
+
+@contextlib.contextmanager
+def _silenced(logger: str) -> Iterator[None]:
+    """``logger`` says nothing below CRITICAL inside the block."""
+    log = logging.getLogger(logger)
+    level = log.level
+    log.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        log.setLevel(level)
 
 
 def _worker_addresses(dask_scheduler: Any) -> list[str]:

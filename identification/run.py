@@ -37,7 +37,7 @@ from ebb_model.space.grid_advice import grid_advice
 from ebb_model.io.output import atomic_path
 from ebb_model.config import BeamConfig
 from ebb_model.threads import one_blas_thread
-from ebb_model.errors import ConfigError, OutputError, StabilityError
+from ebb_model.errors import ClusterError, ConfigError, OutputError, StabilityError
 from ebb_model.io.htmlio import PAGE, write_page
 from ebb_model.io.jsonio import write_json
 from ebb_model.io.output import check_new_output_dir, check_writable_dir, make_dir
@@ -244,6 +244,13 @@ def identify(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         if not (out / CHECKPOINT).exists():
             _remove_partial(out, created)
         raise
+    except ClusterError as exc:
+        # the cluster's scheduler gone mid-run: what it was computing is lost, the last generation's checkpoint is not
+        if (out / CHECKPOINT).exists():
+            raise ClusterError(f"{exc}; the checkpoint of the last finished generation is kept in {out}: continue "
+                               "with `resume` on a running cluster (or on local workers)") from None
+        _remove_partial(out, created)
+        raise ClusterError(f"{exc}; nothing was kept") from None
     except OutputError as exc:
         # a full disk or a file system gone read-only mid-run: the atomic writes left no partial file
         if (out / RESULT_FILE).exists():

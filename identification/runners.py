@@ -133,15 +133,28 @@ class DaskRunner(Runner):
         self._to_close: list[Any] = []  # evaluators with per-worker resources
 
     def __call__(self, evaluator: Evaluator, X: np.ndarray) -> np.ndarray:
-        if self._scattered is None or self._scattered[0] is not evaluator:
-            self._scattered = (evaluator, self.client.scatter(evaluator, broadcast=True))
-            if callable(getattr(evaluator, "close", None)) and not any(e is evaluator for e in self._to_close):
-                self._to_close.append(evaluator)
-        ev = self._scattered[1]
-        futs = [self.client.submit(_evaluate_chunk, ev, c, pure=False) for c in _chunks(X, self.workers)]
-        F = np.vstack(self.client.gather(futs))
-        self._watch.check()
+        try:
+            if self._scattered is None or self._scattered[0] is not evaluator:
+                self._scattered = (evaluator, self.client.scatter(evaluator, broadcast=True))
+                if callable(getattr(evaluator, "close", None)) and not any(e is evaluator for e in self._to_close):
+                    self._to_close.append(evaluator)
+            ev = self._scattered[1]
+            futs = [self.client.submit(_evaluate_chunk, ev, c, pure=False) for c in _chunks(X, self.workers)]
+            F = np.vstack(self.client.gather(futs))
+            self._watch.check()
+        except Exception as exc:
+            # the scheduler gone: nothing sent can come back, so the run ends here (the caller keeps its checkpoint)
+            from .cluster import raise_if_scheduler_lost
+
+            raise_if_scheduler_lost(self.client, exc)
+            raise
         return F
+
+    def scheduler_lost(self) -> bool:
+        """Whether the client has lost its scheduler."""
+        from .cluster import scheduler_lost
+
+        return scheduler_lost(self.client)
 
     def events(self) -> tuple[str, ...]:
         """A lost worker, said (:class:`identification.cluster.WorkerWatch`)."""
@@ -149,8 +162,9 @@ class DaskRunner(Runner):
 
     def close(self) -> None:
         self._scattered = None
+        lost = self.scheduler_lost()
         try:
-            for ev in self._to_close:
+            for ev in self._to_close if not lost else ():   # no workers to reach without a scheduler
                 self.client.run(_close_evaluator, ev)
         finally:
             self._to_close.clear()

@@ -68,17 +68,23 @@ class DaskExecutor(Executor):
         # a task's own fits go ahead of the tasks still queued (Dask runs higher priorities first): the task
         # waiting for them holds its record's results back
         future = self.client.submit(_in_one_blas_thread, fn, *args, pure=False, priority=1 if self._nested else 0)
-        return _Awaited(future) if self._nested else future
+        return _Awaited(future, self.client, self._nested)
 
     def results(self, futures: Iterable[Any]) -> list[Any]:
         """The results of futures this executor submitted, in order (waiting once, outside the worker's thread
         pool when this is a task)."""
+        from identification.cluster import raise_if_scheduler_lost
+
         futures = list(futures)
-        if not self._nested:
-            out = [f.result() for f in futures]
-        else:
-            out = _outside_pool(lambda: self.client.gather([f.future for f in futures]))
-        self._watch.check()
+        try:
+            if not self._nested:
+                out = [f.result() for f in futures]
+            else:
+                out = _outside_pool(lambda: self.client.gather([f.future for f in futures]))
+            self._watch.check()
+        except Exception as exc:
+            raise_if_scheduler_lost(self.client, exc)       # the scheduler gone: one line, not Dask's cancellation
+            raise
         return out
 
     def events(self) -> tuple[str, ...]:
@@ -126,16 +132,24 @@ def _outside_pool(wait: Callable[[], Any]) -> Any:
 
 
 class _Awaited:
-    """A Dask future submitted by a task: ``result()`` waits outside the worker's thread pool."""
+    """A Dask future of :class:`DaskExecutor`: ``result()`` waits — outside the worker's thread pool when the
+    future was submitted by a task (``nested``) — and a lost scheduler is one line
+    (:func:`identification.cluster.raise_if_scheduler_lost`), not Dask's cancellation."""
 
-    def __init__(self, future: Any):
-        self.future = future
+    def __init__(self, future: Any, client: Any, nested: bool):
+        self.future, self._client, self._nested = future, client, nested
 
     def result(self) -> Any:
         """The task's result (its exception raised)."""
-        if self.future.done():
-            return self.future.result()
-        return _outside_pool(self.future.result)
+        from identification.cluster import raise_if_scheduler_lost
+
+        try:
+            if not self._nested or self.future.done():
+                return self.future.result()
+            return _outside_pool(self.future.result)
+        except Exception as exc:
+            raise_if_scheduler_lost(self._client, exc)
+            raise
 
 
 def refit_pool(workers: int, dask: Any = None) -> Executor | None:

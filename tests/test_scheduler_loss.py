@@ -1,0 +1,126 @@
+"""A Dask scheduler lost mid-run (issue 74): the scheduler of a real cluster — a ``dask scheduler`` process and a
+``dask worker`` process started here — killed (SIGKILL) in the middle of ``identify`` and of ``diagnose``.  Nothing the cluster was
+computing can come back, so the run ends at once with one line saying so and where the checkpoint of the last
+finished generation is; ``resume`` on another cluster then completes with the result of a run without the loss
+(every evaluation and the GA's state are deterministic).  The kill comes from the run's own progress callback
+after the GA's third generation, so the test does not depend on timing.
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from diagnosis.run import diagnose
+from ebb_model.errors import ClusterError
+from identification.optimise import CHECKPOINT
+from identification.run import identify
+
+from test_evidence import siso_lag_record
+
+
+class _Cluster:
+    """A scheduler and one single-threaded worker, each its own process (a cluster started by hand)."""
+
+    def __init__(self, where: Path):
+        where.mkdir(parents=True, exist_ok=True)
+        self.file = where / "scheduler.json"
+        quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self.scheduler = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--port", "0",
+                                           "--no-dashboard", "--scheduler-file", str(self.file)], **quiet)
+        deadline = time.monotonic() + 60
+        while not (self.file.is_file() and self.file.stat().st_size) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        self.address = json.loads(self.file.read_text())["address"]
+        self.worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", "--scheduler-file",
+                                        str(self.file), "--nthreads", "1", "--no-dashboard"], **quiet)
+        from distributed import Client
+
+        with Client(self.address) as client:
+            client.wait_for_workers(1, timeout=60)
+
+    def close(self) -> None:
+        for p in (self.worker, self.scheduler):
+            p.kill()
+            p.wait()
+
+
+def test_identify_ends_with_one_line_and_resumes_when_the_scheduler_is_lost(identify_case):
+    cfg, data, tmp = identify_case
+    opts = dict(pop=16, generations=6, seed=3, progress=False, export=False)
+    alone = identify(cfg, [data], tmp / "alone", **opts)
+    first = _Cluster(tmp / "first")
+    try:
+        def kill_the_scheduler(p) -> None:
+            if p.stage == "generation" and p.step == 3 and first.scheduler.poll() is None:
+                first.scheduler.kill()
+                first.scheduler.wait()
+
+        t0 = time.monotonic()
+        with pytest.raises(ClusterError) as lost:
+            identify(cfg, [data], tmp / "run", dask=first.address, on_progress=kill_the_scheduler, **opts)
+        ended = time.monotonic() - t0
+    finally:
+        first.close()
+    said = str(lost.value)
+    assert "\n" not in said and first.address in said and "went away" in said and "resume" in said, said
+    assert (tmp / "run" / CHECKPOINT).is_file() and not (tmp / "run" / "pareto.json").exists()
+    assert ended < 60, ended                    # not the client's 30 s of reconnecting, nor a hang
+    second = _Cluster(tmp / "second")
+    try:
+        res = identify(cfg, [data], tmp / "run", dask=second.address, resume=True, **opts)
+    finally:
+        second.close()
+    np.testing.assert_array_equal(res.pareto.X, alone.pareto.X)
+    np.testing.assert_array_equal(res.pareto.F, alone.pareto.F)
+    assert res.best == alone.best
+
+
+def test_the_command_line_says_it_in_one_line(identify_case):
+    """``ebb identify --dask ADDRESS`` with the scheduler killed once the first generation is checkpointed: exit
+    2, and standard error holds the progress bar and one line — not the client's traceback of its cancelled
+    reconnection, which it logs when it is closed while reconnecting."""
+    cfg, data, tmp = identify_case
+    cluster = _Cluster(tmp / "cluster")
+    out = tmp / "cli"
+    try:
+        run = subprocess.Popen([sys.executable, "-c", "import sys; from ebb_cli import main; sys.exit(main())",
+                                "identify", str(cfg), str(data), "--out",
+                                str(out), "--dask", cluster.address, "--pop", "16", "--generations", "500",
+                                "--no-export"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 120
+        while not (out / CHECKPOINT).is_file() and run.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        cluster.scheduler.kill()
+        _, err = run.communicate(timeout=120)
+    finally:
+        cluster.close()
+    lines = [ln for ln in err.replace("\r", "\n").splitlines() if ln.strip() and "gen/s]" not in ln]
+    assert run.returncode == 2 and len(lines) == 1, err[-3000:]
+    assert lines[0].startswith("ebb identify: error: the Dask scheduler at") and "--resume" in lines[0], lines
+
+
+def test_diagnose_ends_with_one_line_and_writes_nothing_when_the_scheduler_is_lost(tmp_path):
+    """The scheduler killed at the diagnosis' first score (its refits about to be sent out): one line naming the
+    scheduler, saying that nothing was written, and nothing in the output directory."""
+    cfg, rec = siso_lag_record(tmp_path)
+    cluster = _Cluster(tmp_path / "cluster")
+    try:
+        def kill_at_first_score(message: str) -> None:
+            if message.startswith("score") and cluster.scheduler.poll() is None:
+                cluster.scheduler.kill()
+                cluster.scheduler.wait()
+
+        with pytest.raises(ClusterError) as lost:
+            diagnose(cfg, [rec], tmp_path / "gap", plots=False, export=False, dask=cluster.address,
+                     progress=kill_at_first_score)
+    finally:
+        cluster.close()
+    said = str(lost.value)
+    assert "\n" not in said and cluster.address in said and "nothing was written" in said, said
+    assert not (tmp_path / "gap").exists() or not any((tmp_path / "gap").iterdir())
