@@ -22,6 +22,10 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
     if args.each:
         return _each(args, say)
+    if args.resume:
+        from ebb_model.errors import ConfigError
+
+        raise ConfigError("--resume continues a batch (--each) whose Dask scheduler went away")
     d = diagnose(config_with_spectrum_modes(args), args.data, args.out, holdout=args.holdout or (), result=args.result,
                  holdout_fraction=args.holdout_fraction, shortlist=args.shortlist, plots=not args.no_plots,
                  export=not args.no_export, targets=args.target, workers=args.workers, dask=args.dask,
@@ -56,7 +60,7 @@ def _each(args: argparse.Namespace, say: Callable[[str], None]) -> int:
     docs = diagnose_each(config_with_spectrum_modes(args), args.data, args.out, workers=args.workers,
                          dask=args.dask, progress=say, holdout_fraction=args.holdout_fraction,
                          shortlist=args.shortlist, plots=not args.no_plots, export=not args.no_export,
-                         targets=args.target)
+                         targets=args.target, resume=args.resume)
     for path, doc in zip(args.data, docs):
         print(f"{path}: verdict {doc['verdict']} ({Path(args.out) / Path(path).stem / 'gap.json'})")
     return 0
@@ -90,6 +94,8 @@ def add_parsers(sub: Subcommands) -> None:
                    help="run them on a Dask cluster instead: a scheduler address or local:K")
     p.add_argument("--each", action="store_true",
                    help="diagnose each record on its own, as independent tasks (OUT/<record stem>/ per record)")
+    p.add_argument("--resume", action="store_true",
+                   help="with --each: continue a batch whose Dask scheduler went away (OUT holds its checkpoint)")
     p.add_argument("--no-plots", action="store_true", help="skip the report plots")
     p.add_argument("--no-export", action="store_true",
                    help="do not write the corrected model (config and the export targets' files) when an "

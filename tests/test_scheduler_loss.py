@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from diagnosis.run import diagnose
-from ebb_model.errors import ClusterError
+from ebb_model.errors import ClusterError, ConfigError
 from identification.optimise import CHECKPOINT
 from identification.run import identify
 
@@ -124,3 +124,76 @@ def test_diagnose_ends_with_one_line_and_writes_nothing_when_the_scheduler_is_lo
     said = str(lost.value)
     assert "\n" not in said and cluster.address in said and "nothing was written" in said, said
     assert not (tmp_path / "gap").exists() or not any((tmp_path / "gap").iterdir())
+
+
+def _long_record(tmp_path: Path) -> Path:
+    """The same bench and lag as :func:`test_evidence.siso_lag_record`, three times as long (its diagnosis takes
+    longer than the short record's whole batch task)."""
+    from ebb_model.reference.excitation import band_limited_input
+    from ebb_model.reference.synthetic import synthesize
+    from ebb_model.reference.withheld import WithheldEffect
+    from test_diagnosis_blind import DT, N_SAMPLES, TRUTH
+
+    (tmp_path / "long").mkdir()
+    cfg, _ = siso_lag_record(tmp_path / "long")
+    u = band_limited_input(3 * N_SAMPLES, DT, 2.0, 60.0, seed=4)
+    rec = synthesize(cfg, u, params=TRUTH, effect=WithheldEffect("actuator_lag", {"tau": 5e-4}), noise=0.01,
+                     seed=104)
+    path = tmp_path / "long.npz"
+    np.savez(path, time=rec.time, F1=rec.inputs[:, 0], y2=rec.outputs[:, 0])
+    return path
+
+
+def test_a_batch_keeps_its_finished_records_and_resumes_the_others(tmp_path):
+    """``diagnose --each`` on a cluster whose scheduler is killed once the short record's ``gap.json`` is written
+    (the long record still running): one line saying 1 of 2 records is kept, the short record's results and the
+    checkpoint in OUT; ``resume`` on another cluster diagnoses the long record alone, and the batch's verdicts and
+    the short record's results are those of a batch without the loss.  A resume with another option is refused."""
+    import threading
+
+    from diagnosis.batch import BATCH_FILE, diagnose_each
+
+    cfg, short = siso_lag_record(tmp_path)
+    long = _long_record(tmp_path)
+    opts = dict(plots=False, export=False)
+    alone = diagnose_each(cfg, [short, long], tmp_path / "alone", workers=1, **opts)
+    out = tmp_path / "batch"
+    first = _Cluster(tmp_path / "first")
+    stop = threading.Event()
+
+    def kill_once_the_short_record_is_done() -> None:
+        while not stop.is_set():
+            if any(tmp_path.glob(f".{out.name}.*.part/{short.stem}/gap.json")):
+                first.scheduler.kill()
+                return
+            time.sleep(0.02)
+
+    watcher = threading.Thread(target=kill_once_the_short_record_is_done, daemon=True)
+    watcher.start()
+    try:
+        with pytest.raises(ClusterError) as lost:
+            diagnose_each(cfg, [short, long], out, dask=first.address, **opts)
+    finally:
+        stop.set()
+        watcher.join()
+        first.close()
+    said = str(lost.value)
+    assert "\n" not in said and "1 of 2 records are done and kept" in said and "resume" in said, said
+    assert (out / BATCH_FILE).is_file() and (out / short.stem / "gap.json").is_file()
+    assert not (out / long.stem).exists()
+    kept = (out / short.stem / "gap.json").read_bytes()
+    with pytest.raises(ConfigError, match="options differ"):
+        diagnose_each(cfg, [short, long], out, workers=1, resume=True, plots=False, export=False,
+                      holdout_fraction=0.25)
+    second = _Cluster(tmp_path / "second")
+    said_too: list[str] = []
+    try:
+        docs = diagnose_each(cfg, [short, long], out, dask=second.address, resume=True, progress=said_too.append,
+                             **opts)
+    finally:
+        second.close()
+    assert any("diagnosing 1 records" in m and "1 done before the resume" in m for m in said_too), said_too
+    assert [d["verdict"] for d in docs] == [d["verdict"] for d in alone]
+    assert (out / short.stem / "gap.json").read_bytes() == kept
+    assert (out / long.stem / "gap.json").is_file() and not (out / BATCH_FILE).exists()
+    assert sorted(p.name for p in out.iterdir()) == sorted([short.stem, long.stem])
