@@ -1,9 +1,11 @@
 """A Dask scheduler lost mid-run (issue 74): the scheduler of a real cluster — a ``dask scheduler`` process and a
-``dask worker`` process started here — killed (SIGKILL) in the middle of ``identify`` and of ``diagnose``.  Nothing the cluster was
-computing can come back, so the run ends at once with one line saying so and where the checkpoint of the last
-finished generation is; ``resume`` on another cluster then completes with the result of a run without the loss
-(every evaluation and the GA's state are deterministic).  The kill comes from the run's own progress callback
-after the GA's third generation, so the test does not depend on timing.
+``dask worker`` process started here — killed (SIGKILL) in the middle of ``identify``, of ``diagnose`` and of a
+batch.  Nothing the cluster was computing can come back, so the run ends at once with one line saying so and what
+was kept: the last finished generation's checkpoint (``resume`` on another cluster then completes with the result
+of a run without the loss: every evaluation and the GA's state are deterministic), nothing for a diagnosis, the
+finished records of a batch (``resume`` diagnoses the others).  The kills come from the run's own progress callback
+(after the GA's third generation, at the diagnosis' first score) or, for a batch, once the short record's results
+are written while the long one still runs.
 """
 from __future__ import annotations
 
