@@ -33,8 +33,12 @@ def _same_diagnosis(here: dict, there: dict) -> None:
                 assert e["refit"]["effect_parameters"][k] == pytest.approx(v, rel=1e-9), (e["label"], k)
 
 
-@pytest.mark.parametrize("where", [{"dask": "local:2"}, {"workers": 2}], ids=["dask", "processes"])
+@pytest.mark.parametrize("where", [{"dask": "local:2"}, {"workers": 2}, {"workers": 4}],
+                         ids=["dask", "processes", "4-processes"])
 def test_the_refits_on_other_processes_give_the_single_process_result(tmp_path, where):
+    """1, 2 and 4 local processes and a Dask cluster: the same diagnosis (the continuation refits, run
+    ``parallel`` at a time, are taken in order up to the first that explains the gap, as one process takes them:
+    diagnosis/search/rank._continuation_stage)."""
     cfg, rec = siso_lag_record(tmp_path)
     here = diagnose(cfg, [rec], tmp_path / "here", plots=False, export=False, workers=1).document
     there = diagnose(cfg, [rec], tmp_path / "there", plots=False, export=False, **where).document

@@ -109,16 +109,24 @@ def _continuation_stage(run: Search, labels: list[str], local: Refits, early: Ea
             run.say(f"continuation refits of {', '.join(matched)} skipped: their modal pattern was weighed")
         pending = [lab for lab in pending if lab not in matched]
     while pending:
+        # ``parallel`` at a time, taken in order up to the first that explains the gap: the refits computed beside
+        # it are left out, so that the ranking holds the refits a single process would have made, whatever the
+        # worker count (tests/test_worker_counts.py)
         group, pending = pending[:max(1, parallel)], pending[max(1, parallel):]
         with run.clock.stage("continuation refits"):
-            local = local | run.refit(group, {lab: local[lab] for lab in group}, stage="continuation")
-        for lab in group:
-            fit = local[lab][0]
+            made = run.refit(group, {lab: local[lab] for lab in group}, stage="continuation")
+        for i, lab in enumerate(group):
+            local = local | {lab: made[lab]}
+            fit = made[lab][0]
             run.say(f"continuation refit {lab}: fit RSS/n {fit.rss / fit.n:.4g} ({fit.n_evaluations} evaluations)")
-        if any(explains(local[lab][0], run.baseline, run.problem.settings) for lab in group):
-            if pending:
-                run.say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
-            break
+            if explains(fit, run.baseline, run.problem.settings):
+                pending = group[i + 1:] + pending
+                break
+        else:
+            continue
+        if pending:
+            run.say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
+        break
     return local
 
 
