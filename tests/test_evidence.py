@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from scipy import special, stats
 
 from diagnosis.effects import signal_effect
@@ -18,6 +19,7 @@ from diagnosis.effects.lag import ActuatorLag
 from diagnosis.problem.evidence import laplace_log_evidence, posterior_probabilities
 from diagnosis.problem.fitting import GapProblem
 from diagnosis.problem.records import split_records
+from diagnosis.problem.ties import TIE_RTOL, tie_ordered
 from ebb_model.config import config_from_dict
 from identification.native import NativeEvaluator, experiments_from_arrays
 from identification.parameters import parameter_space
@@ -136,10 +138,23 @@ def test_a_lag_on_the_only_force_or_the_only_sensor_is_indistinguishable(tmp_pat
     cfg, rec = siso_lag_record(tmp_path)
     doc = diagnose(cfg, [rec], tmp_path / "gap", plots=False, export=True, workers=1).document
     assert doc["verdict"] == Kind.INDISTINGUISHABLE.value, doc["reason"]
-    assert sorted(doc["indistinguishable"]) == ["actuator_lag", "sensor_lag[y2]"]
+    # one model: their scores apart by round-off only (1e-13 relative), so the order is the tie rule's, by label
+    # (diagnosis.problem.ties), not the rounding's — the same on every machine
+    assert doc["indistinguishable"] == ["actuator_lag", "sensor_lag[y2]"]
+    first, second = doc["effects"][:2]
+    assert [first["label"], second["label"]] == ["actuator_lag", "sensor_lag[y2]"]
+    assert first["score"] == pytest.approx(second["score"], rel=TIE_RTOL)
     p = doc["posterior_probability"]
     assert max(p["actuator_lag"], p["sensor_lag[y2]"]) < DECISIVE_ODDS * min(p["actuator_lag"], p["sensor_lag[y2]"])
     for lab in ("actuator_lag", "sensor_lag[y2]"):
         row = doc["effects"][[e["label"] for e in doc["effects"]].index(lab)]
         assert row["refit"]["closed"] >= 0.8, row["refit"]
     assert not (tmp_path / "gap" / "corrected").exists()
+
+
+def test_exact_ties_are_ordered_by_label_and_near_ties_by_value():
+    """Values within TIE_RTOL of each other (the rounding of two equivalent refits, 1.4e-11) are one value, ordered
+    by label; a difference a record could show (1e-6) orders by value."""
+    v = {"b": 1.0, "a": 1.0 + 1e-12, "c": 0.5, "e": 2.0, "d": 2.0 * (1 + 1e-6)}
+    assert tie_ordered(v, v.__getitem__) == ["c", "a", "b", "e", "d"]
+    assert tie_ordered([], v.__getitem__) == []

@@ -33,6 +33,7 @@ from ..baseline.polarity import PolarityCheck
 from ..effects import PAIR_SEPARATOR
 from ..localise import Localisation
 from ..problem.fitting import GapProblem
+from ..problem.ties import tie_ordered
 from ..search.plausible import PlausibleReading, readings_text
 from ..search.rank import Ranking
 from .apart import SetupsApart
@@ -139,7 +140,7 @@ def _prior_conflict(verdict: Verdict, case: Case) -> Verdict:
           and float(np.mean(ranking.refits[lab].heldout_after)) - 1.0 <= settings.gap_threshold]
     if not ok:
         return verdict
-    best = min(ok, key=lambda lab: ranking.refits[lab].delta_bic)
+    best = tie_ordered(ok, lambda lab: ranking.refits[lab].delta_bic)[0]
     # the others that keep the priors as well and pay nearly as much are its ties, for the evidence to decide (a
     # sensor's gain and the force's on a record of one sensor: one model, their BICs apart by round-off only)
     ties = [lab for lab in ok if lab != best

@@ -12,6 +12,7 @@ from typing import Mapping
 
 from ..candidates.score import EffectScore
 from ..effects import Effect
+from ..problem.ties import tie_ordered
 from ..settings import Thresholds
 from .modal_pattern import PatternFit
 
@@ -46,7 +47,7 @@ def not_refitted(effects: Mapping[str, Effect], scores: Mapping[str, EffectScore
     """For each effect whose score's p-value is below ``settings.score_significance`` and that is not among
     ``refitted``, the line saying so and why (``dropped``: the effects refitted but dropped, with the reason), in
     score order."""
-    by_score = sorted(scores, key=lambda lab: -scores[lab].lm)
+    by_score = tie_ordered(scores, lambda lab: -scores[lab].lm)
     out = {}
     for rank, lab in enumerate(by_score, start=1):
         sc = scores[lab]

@@ -21,6 +21,7 @@ import numpy as np
 
 from ..effects import PAIR_SEPARATOR, on_top_of
 from ..problem.fitting import Fit
+from ..problem.ties import tie_ordered
 from ..settings import Thresholds
 from .refits import RSS_RESOLUTION, EffectRefit, explains, pair_refit, paying_refits
 from ..candidates.score import score_effect
@@ -87,7 +88,7 @@ def pair_with(run: Search, single: EffectRefit, known: dict[str, Fit]
     rescored = {e.label: score_effect(run.problem, single.fit, on_top_of(first, single.fit.s, e)).lm
                 for e in run.effects.values() if e.name != first.name and e.nested_in is None
                 and (with_prior or not e.scale_degenerate)}
-    partners = [lab for lab in sorted(rescored, key=lambda k: -rescored[k])
+    partners = [lab for lab in tie_ordered(rescored, lambda k: -rescored[k])
                 if rescored[lab] > 0][:run.problem.settings.pair_partners]
     run.say(f"second-effect scores at the {single.label} refit: "
             + ", ".join(f"{lab} {rescored[lab]:.4g}" for lab in partners))

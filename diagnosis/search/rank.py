@@ -57,6 +57,7 @@ from .reuse import RefitMemo
 from ..stages import StageClock
 from ..settings import Thresholds
 from ..problem.plausibility import implausibilities
+from ..problem.ties import tie_ordered
 
 __all__ = ["Ranking", "Refits", "rank_effects"]
 
@@ -202,7 +203,9 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
                 pairs += [rf for rf in rival_pairs[:1] if frozenset(rf.label.split(PAIR_SEPARATOR)) not in same]
             if pairs:
                 paying, order = _order(refits, before, by_score, run.problem.settings)
-                pairs.sort(key=lambda rf: float(np.mean(rf.heldout_after)))
+                by_label = {rf.label: rf for rf in pairs}
+                pairs = [by_label[lab] for lab in tie_ordered(by_label, lambda lab: float(np.mean(
+                    by_label[lab].heldout_after)))]
                 refits |= {rf.label: rf for rf in pairs}
                 order = [rf.label for rf in pairs] + order
                 paying = [rf.label for rf in pairs] + paying
@@ -236,8 +239,8 @@ def _order(refits: dict[str, EffectRefit], before: np.ndarray, by_score: list[st
     """The refits that pay for themselves (best first), and the report order: those, the other refits by held-out
     error, then the effects not refitted by score."""
     paying = paying_refits(refits, before, settings)
-    others = sorted((lab for lab in refits if lab not in paying),
-                    key=lambda lab: float(np.mean(refits[lab].heldout_after)))
+    others = tie_ordered((lab for lab in refits if lab not in paying),
+                         lambda lab: float(np.mean(refits[lab].heldout_after)))
     return paying, paying + others + [lab for lab in by_score if lab not in refits]
 
 
@@ -398,7 +401,7 @@ def _rank_once(problem: GapProblem, baseline: Fit, plan: _Plan, rebaseline: bool
             say(f"score {lab}: {scores[lab].lm:.4g}")
     run = Search(problem, baseline, catalogue, effects, before, scores, plan.max_evaluations, executor, say, clock,
                  plan.matches, plan.memo)
-    by_score = sorted(effects, key=lambda lab: -scores[lab].lm)
+    by_score = tie_ordered(effects, lambda lab: -scores[lab].lm)
     labels = _shortlist(problem, effects, scores, by_score, plan.shortlist)
     seeds = {lab: fit for lab, fit in plan.seeds.items() if lab in effects}
     labels += [lab for lab in seeds if lab not in labels]

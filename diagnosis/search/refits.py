@@ -37,6 +37,7 @@ import numpy as np
 
 from ..effects import Catalogue, Effect, mirror_image, variables_for
 from ..problem.fitting import Fit, GapProblem
+from ..problem.ties import tie_ordered
 from ..settings import Thresholds
 from .modal_pattern import PatternFit
 from ..candidates.score import EffectScore, trial_values
@@ -268,10 +269,10 @@ def better_baseline(problem: GapProblem, baseline: Fit, fits: list[Fit], executo
 
 def paying_refits(refits: Mapping[str, EffectRefit], before: np.ndarray, settings: Thresholds) -> list[str]:
     """The effects whose refit pays for its parameters (BIC by ``settings.bic_margin``) and lowers the held-out
-    error, the lowest held-out error first."""
+    error, the lowest held-out error first (an exact tie by label: :mod:`diagnosis.problem.ties`)."""
     paying = [lab for lab, rf in refits.items()
               if rf.delta_bic < -settings.bic_margin and np.mean(rf.heldout_after) < np.mean(before)]
-    return sorted(paying, key=lambda lab: float(np.mean(refits[lab].heldout_after)))
+    return tie_ordered(paying, lambda lab: float(np.mean(refits[lab].heldout_after)))
 
 
 def seeded(problem: GapProblem, effects: Mapping[str, Effect], local: dict[str, tuple[Fit, list]],

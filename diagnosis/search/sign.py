@@ -21,6 +21,7 @@ from ..candidates.score import score_effect
 from ..effects import Catalogue
 from ..problem.evidence import laplace_log_evidence
 from ..problem.fitting import GapProblem
+from ..problem.ties import tie_ordered
 from .rank import Ranking
 from .refits import map_refits
 
@@ -45,7 +46,7 @@ def sign_with_refits(problem: GapProblem, ranking: Ranking, catalogue: Catalogue
     other_base = other.fit(check.other_beta)
     effects = {e.label: e for e in catalogue.effects()}
     scores = {lab: score_effect(other, other_base, e) for lab, e in effects.items()}
-    singles = [lab for lab in sorted(effects, key=lambda lab: -scores[lab].lm) if scores[lab].lm > 0
+    singles = [lab for lab in tie_ordered(effects, lambda lab: -scores[lab].lm) if scores[lab].lm > 0
                and not effects[lab].scale_degenerate][:problem.settings.shortlist]
     leading = [lab for lab in sorted(fits, key=lambda lab: float(np.mean(ranking.refits[lab].heldout_after)))
                if lab in effects][:LEADING]
