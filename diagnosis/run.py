@@ -27,7 +27,7 @@ from ebb_model.errors import ClusterError, ConfigError
 from ebb_model.space.grid_advice import grid_advice
 from ebb_model.io.htmlio import PAGE, write_page
 from ebb_model.io.jsonio import write_json
-from ebb_model.modes.modal import discrete_frequencies
+from ebb_model.modal.modal import discrete_frequencies
 from ebb_model.io.output import check_new_output_dir, staged_dir
 from ebb_model.threads import one_blas_thread
 

@@ -1,7 +1,7 @@
 """ebb_model — axially loaded Euler–Bernoulli beam as a discrete state-space system.
 
 Data flow: :func:`load_config` (:mod:`ebb_model.config`) → :func:`discretise` (finite differences with ghost
-nodes, :mod:`ebb_model.space`) → the modes (:mod:`ebb_model.modes`) → :func:`assemble`: the realisation exact in
+nodes, :mod:`ebb_model.space`) → the modes (:mod:`ebb_model.modal`) → :func:`assemble`: the realisation exact in
 time by default (:mod:`ebb_model.exact`), the seed's three-level θ-scheme on request (:func:`discretise_time`,
 :mod:`ebb_model.theta`), the acquisition's channels on it (:mod:`ebb_model.acquisition`) → :func:`simulate`
 (compiled recursion; modal fast path :func:`fast_model`); analysis with :func:`modes`, :func:`frequency_response`
@@ -14,7 +14,7 @@ from .config import BeamConfig, ParameterSpec, config_from_dict, load_config
 from .space.discretisation import SemiDiscreteBeam, discretise
 from .errors import (ConfigError, ConfigWarning, DataError, DataWarning, EbbError, FmuError, OutputError,
                      ParameterError, StabilityError)
-from .modes.modal import FrequencyResponse, ModalAnalysis, discrete_frequencies, frequency_response, modes
+from .modal.modal import FrequencyResponse, ModalAnalysis, discrete_frequencies, frequency_response, modes
 from .theta.modal_form import ModalStateSpace
 from .simulate import SimulationResult, fast_model, simulate, simulate_batch, simulate_config
 from .stability import StabilityReport, analyse_stability, bistritz, max_growth_factor, stability_bounds

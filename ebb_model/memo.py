@@ -1,6 +1,6 @@
 """A per-process memo of array results with a budget of bytes (:func:`memoised`).
 
-The model's expensive pure functions — a family's unit modes (:mod:`ebb_model.modes.mode_family`), a grid's difference
+The model's expensive pure functions — a family's unit modes (:mod:`ebb_model.modal.mode_family`), a grid's difference
 operators (:mod:`ebb_model.space.discretisation`) — are computed once per key and process.  The memo keeps results up to
 :data:`MEMO_BYTES` each, dropping the least recently used, so a result never depends on which calls came before:
 a resumed run or another worker computes the same numbers.

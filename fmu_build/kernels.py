@@ -110,7 +110,7 @@ def carry_kernels(core: Path, config: Mapping[str, Any], *, field: bool) -> int:
         copy.assemble_modal(cfg, dict(cfg.parameter_values()), field=field)
         # where this process's copy keeps its kernels (the kept copy, unless an FMU loaded here brought its own),
         # then the kept copy's
-        # (every sub-package's ``__pycache__``: the kernels live in ``exact/``, ``modes/``, ``space/`` …)
+        # (every sub-package's ``__pycache__``: the kernels live in ``exact/``, ``modal/``, ``space/`` …)
         found: dict[Path, Path] = {}
         for base in (Path(str(copy.__file__)).parent, home / core.name):
             for f in sorted(base.rglob("__pycache__/*")) if base.is_dir() else ():

@@ -210,7 +210,7 @@ def _head(evaluator: Any) -> Any:
 def _family(evaluator: Any, d: _Directions) -> list[tuple[float | None, np.ndarray]]:
     """The model's undamped frequencies [Hz] at the nominal EI and ρA, per value of N tried (``None``: N is not
     unknown)."""
-    from ebb_model.modes.modal import discrete_frequencies
+    from ebb_model.modal.modal import discrete_frequencies
 
     cfg = evaluator.config
     n_modes = min(40, cfg.beam.nodes)

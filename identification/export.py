@@ -24,7 +24,7 @@ from typing import Sequence
 from ebb_model import assemble
 from ebb_model.acquisition.channel_delay import DELAYS_LEFT_OUT, without_delays
 from ebb_model.errors import ConfigError, ConfigWarning, StabilityError
-from ebb_model.modes.truncation import design_model, design_resolution
+from ebb_model.modal.truncation import design_model, design_resolution
 from ebb_model.io.output import check_writable_dir, make_dir
 
 from .export_targets import DEFAULT_TARGETS, ExportItem, check_targets, export_target
@@ -85,7 +85,7 @@ def export_points(result: IdentificationResult, points: Sequence[int] | str | No
         The ``statespace`` target also writes a balanced truncation of this order.
     modes_up_to
         The ``statespace`` target keeps the modes up to this frequency [Hz] that the grid resolves, the others
-        as a static correction (:func:`ebb_model.modes.truncation.design_model`; which modes, with each one's error
+        as a static correction (:func:`ebb_model.modal.truncation.design_model`; which modes, with each one's error
         estimate, in the file's metadata, ``modes``); default the Nyquist frequency, ``math.inf`` every mode.
         The FMUs always carry the whole beam.
 

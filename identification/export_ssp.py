@@ -86,7 +86,7 @@ def _ssd(name: str, config: BeamConfig, bound: str, dt: float, stop: float) -> s
 def stop_time(config: BeamConfig, params: dict[str, float]) -> float:
     """The default experiment's duration: ten periods of the model's lowest mode, a whole number of steps ``dt``
     (at least one)."""
-    from ebb_model.modes.modal import discrete_frequencies
+    from ebb_model.modal.modal import discrete_frequencies
 
     dt = config.time.dt
     freqs, _ = discrete_frequencies(config, params)

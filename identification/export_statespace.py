@@ -35,7 +35,7 @@ def save_statespace(sys: DiscreteStateSpace, path: str | Path, *, name: str = ""
                     modes: Mapping[str, Any] | None = None) -> Path:
     """Write ``sys`` to ``path`` (``.npz``), atomically, with its name, parameter values (and units), config,
     the hold matrix of a first-order-hold realisation (:func:`rest_state`) and — ``modes`` — which modes it keeps
-    with each one's frequency error estimate (:meth:`ebb_model.modes.truncation.ModeResolution.to_dict`)."""
+    with each one's frequency error estimate (:meth:`ebb_model.modal.truncation.ModeResolution.to_dict`)."""
     path = Path(path)
     meta = {"name": name or path.stem,
             "parameters": {k: float(v) for k, v in (parameters or {}).items()},

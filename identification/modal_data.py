@@ -51,7 +51,7 @@ class ModalData:
 
     def model_frequencies(self, config: BeamConfig, params: Mapping[str, float]) -> np.ndarray:
         """The model's lowest :attr:`count` natural frequencies [Hz] (damped, of the discrete model)."""
-        from ebb_model.modes.modal import discrete_frequencies
+        from ebb_model.modal.modal import discrete_frequencies
 
         f, _ = discrete_frequencies(config, params, self.count)
         return np.asarray(f[:self.count], dtype=float)

@@ -1,7 +1,7 @@
 r"""Uncertainty a robust-control designer can use: the parameters' covariance, models sampled from it, and a
 frequency-dependent multiplicative bound per output.
 
-The identified model :math:`G_0` (the design model of the export, :func:`ebb_model.modes.truncation.design_model`, at
+The identified model :math:`G_0` (the design model of the export, :func:`ebb_model.modal.truncation.design_model`, at
 the identified unknowns :math:`\hat x`) comes with
 
 * the **covariance** :math:`P = S F^{-1} S` of the unknowns, :math:`F` the Fisher information of the scaled
@@ -41,11 +41,11 @@ from scipy import signal
 from ebb_model.space.adequacy import excited_band, is_transient
 from ebb_model.errors import DataError, StabilityError
 from ebb_model.io.jsonio import write_json
-from ebb_model.modes.modal import frequency_response
+from ebb_model.modal.modal import frequency_response
 from ebb_model.io.output import atomic_path, make_dir
 from ebb_model.theta.modal_form import ModalStateSpace
 from ebb_model.statespace import DiscreteStateSpace
-from ebb_model.modes.truncation import ModeResolution, design_modal_model, design_resolution
+from ebb_model.modal.truncation import ModeResolution, design_modal_model, design_resolution
 
 from .fisher import fisher_information
 from .native import NativeEvaluator
@@ -164,7 +164,7 @@ def _responses(evaluator: NativeEvaluator, xs: Sequence[np.ndarray], f_hz: np.nd
                resolution: ModeResolution | None
                ) -> tuple[list[np.ndarray], list[np.ndarray], list[ModalStateSpace | DiscreteStateSpace]]:
     """The design models' responses at ``f_hz`` of the parameter sets ``xs`` that are stable, those sets and
-    their design models (:func:`ebb_model.modes.truncation.design_modal_model`, keeping the modes ``resolution``
+    their design models (:func:`ebb_model.modal.truncation.design_modal_model`, keeping the modes ``resolution``
     keeps: the identified model's)."""
     H, kept, models = [], [], []
     for x in xs:

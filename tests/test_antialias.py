@@ -23,10 +23,10 @@ from ebb_model import config_from_dict, load_config, simulate
 from ebb_model.acquisition.antialias import AntiAlias
 from ebb_model.errors import ConfigError
 from ebb_model.exact.exact_modal import exact_modal, exact_statespace
-from ebb_model.modes.modal import frequency_response
+from ebb_model.modal.modal import frequency_response
 from ebb_model.parameter_values import resolve_parameters
 from ebb_model.simulate import fast_model
-from ebb_model.modes.truncation import design_modal_model
+from ebb_model.modal.truncation import design_modal_model
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "fmu_hosts"))
 from fmu_configs import mixed_config  # noqa: E402

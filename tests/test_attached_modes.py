@@ -1,5 +1,5 @@
 """A beam with one point mass or one spring: modes by a rank-one update of the continued bases without it
-(:mod:`ebb_model.modes.attached_modes`), against 40-digit eigenpairs of the same matrices and against the direct
+(:mod:`ebb_model.modal.attached_modes`), against 40-digit eigenpairs of the same matrices and against the direct
 route."""
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import mpmath
 import numpy as np
 import pytest
 
-from ebb_model.modes.attached_modes import CHECK_BASIS_SHAPES
+from ebb_model.modal.attached_modes import CHECK_BASIS_SHAPES
 from ebb_model.beam import PointMass, PointSpring
-from ebb_model.modes.mode_continuation import CHECK_FREQUENCIES, panel_index
-from ebb_model.modes.mode_family import (_direct_modes, _unit_beam, attached_panel, attachment, continuation_panel,
+from ebb_model.modal.mode_continuation import CHECK_FREQUENCIES, panel_index
+from ebb_model.modal.mode_family import (_direct_modes, _unit_beam, attached_panel, attachment, continuation_panel,
                                    family_key, unit_modes)
 from ebb_model.space.richardson_pair import companion_nodes
 

@@ -268,8 +268,8 @@ def test_export_polished_of_a_run_without_polish_refuses(case, capsys):
 def test_export_reduce_order_out_of_range(finished_run, capsys):
     tmp, out = finished_run
     # the exported StateSpace's states: the modes the 16-node grid resolves (of its 16) and the cubic input's two
-    # past samples (ebb_model.modes.truncation.design_model)
-    from ebb_model.modes.truncation import design_model
+    # past samples (ebb_model.modal.truncation.design_model)
+    from ebb_model.modal.truncation import design_model
     from identification.result import IdentificationResult
 
     (_, c, params), = IdentificationResult.read(out).models([0])

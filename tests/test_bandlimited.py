@@ -15,10 +15,10 @@ import pytest
 import scipy.integrate as si
 
 import ebb_model as em
-from ebb_model import bandlimited as bl
+from ebb_model.acquisition import bandlimited as bl
 from ebb_model.errors import ConfigError
 from ebb_model.exact.exact_modal import continuous_modes, exact_statespace
-from ebb_model.modes.modal import frequency_response
+from ebb_model.modal.modal import frequency_response
 from ebb_model.exact.recursion import run_modal_recursion
 from ebb_model.reference.exact_fe import periodic_fe_response
 from ebb_model.reference.excitation import band_limited_input
@@ -195,7 +195,7 @@ def test_a_causal_model_takes_the_cubic():
     """What is driven sample by sample — a design model, its StateSpace, an FMU — cannot read the record ahead:
     the design model of a band-limited config is the cubic's, a StateSpace of the band-limited model is refused
     with one line, and the theta-scheme refuses the reconstruction in the config."""
-    from ebb_model.modes.truncation import design_model
+    from ebb_model.modal.truncation import design_model
 
     bandl, cubic = config(30, "bandlimited"), config(30, "cubic")
     assert bl.causal_config(bandl).time.input_hold == "cubic"

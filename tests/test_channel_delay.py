@@ -16,7 +16,7 @@ import ebb_model as em
 from ebb_model.acquisition.bandlimited import HALF_WIDTH
 from ebb_model.acquisition.channel_delay import delay_outputs, effective_delays, without_delays
 from ebb_model.errors import ConfigError
-from ebb_model.modes.modal import frequency_response
+from ebb_model.modal.modal import frequency_response
 from ebb_model.reference.exact_fe import periodic_fe_response
 from ebb_model.reference.hermite_fe import hermite_beam
 from ebb_model.io.tomlio import dumps as toml_dumps

@@ -21,7 +21,7 @@ from diagnosis.effects.chain import ActuatorGain, SensorGain
 from diagnosis.effects.lag import ActuatorLag, SensorLag
 from ebb_model.reference.excitation import band_limited_input
 from ebb_model.io.tomlio import dumps
-from ebb_model.modes.truncation import design_model
+from ebb_model.modal.truncation import design_model
 from identification.export_statespace import load_metadata, load_statespace
 
 from conftest import make_config

@@ -1,4 +1,4 @@
-"""Modes coupled by point masses on a viscously damped beam (:mod:`ebb_model.modes.coupled_modes`) against the dense
+"""Modes coupled by point masses on a viscously damped beam (:mod:`ebb_model.modal.coupled_modes`) against the dense
 eigenproblem of the same modal system and against the Van Loan matrix exponential (no eigenvectors at all)."""
 from __future__ import annotations
 
@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 import ebb_model as em
-import ebb_model.modes.coupled_modes as cmod
+import ebb_model.modal.coupled_modes as cmod
 from conftest import make_config
 from ebb_model.exact.exact_modal import continuous_modes, exact_modal, exact_statespace, modal_matrices, \
     modal_state_matrix
 from ebb_model.theta.modal_form import basis_condition
-from ebb_model.modes.modal_poles import modal_poles
+from ebb_model.modal.modal_poles import modal_poles
 from ebb_model.reference.excitation import band_limited_input
 
 
@@ -155,7 +155,7 @@ def test_low_rank_simulation_equals_the_matrix_exponential():
 def test_lowest_poles_equal_every_pole():
     """``modal_poles`` with ``lowest`` (the modal pattern's comparison) equals the lowest of all poles, and the
     structured route equals the full-coupling Newton route it replaced (:func:`_coupled_poles`)."""
-    import ebb_model.modes.modal_poles as mpoles
+    import ebb_model.modal.modal_poles as mpoles
 
     cfg = beam(MASSES["two masses"])
     p = cfg.parameter_values()

@@ -20,7 +20,7 @@ from ebb_model import assemble, config_from_dict
 from ebb_model import load_config as em_load
 from ebb_model.errors import ConfigError
 from ebb_model.exact.exact_modal import modal_state_matrix, exact_model, modal_matrices
-from ebb_model.modes.truncation import design_model, in_band, static_correction_bound
+from ebb_model.modal.truncation import design_model, in_band, static_correction_bound
 from identification.export_statespace import continuous_equivalent, load_statespace, rest_state, save_statespace
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "fmu_hosts"))
@@ -240,7 +240,7 @@ def test_every_exported_mode_is_within_the_stated_tolerance_of_the_beams(tmp_pat
     it keeps and each one's error estimate."""
     from ebb_model.space.grid_advice import BANDWIDTH_FRACTION, ZETA_FLOOR
     from ebb_model.reference.analytic import analytic_frequencies_hz
-    from ebb_model.modes.truncation import mode_resolution
+    from ebb_model.modal.truncation import mode_resolution
     from identification.export_statespace import load_metadata
 
     cfg = em_load(Path(__file__).resolve().parents[1] / "examples" / "seed_clamped.toml")

@@ -373,7 +373,7 @@ def test_lowest_poles_of_damping_coupled_modes_equal_the_full_eigenproblem(cfg_f
     # a point mass with viscous damping couples the modes through C_m: the lowest poles by Newton on
     # det(s²I + sC_m + Λ) must be the 2k × 2k eigenvalue problem's, and they must be found that way
     from ebb_model.exact.exact_modal import modal_matrices
-    from ebb_model.modes.modal_poles import _coupled_poles
+    from ebb_model.modal.modal_poles import _coupled_poles
 
     cfg = cfg_factory("clamped", "pinned", nodes=40, c=3.0, scheme="exact", **extra)
     mm = modal_matrices(cfg, cfg.parameter_values())
@@ -394,7 +394,7 @@ def test_lowest_poles_of_damping_coupled_modes_equal_the_full_eigenproblem(cfg_f
 def test_lowest_poles_of_mass_proportional_damping_need_no_mode_shapes(cfg_factory, ends, extra):
     # viscous damping per unit mass (C = c/ρA · M) leaves the modes decoupled: the lowest poles come from the
     # two grids' lowest eigenvalues alone (no shapes) and must equal the full route's
-    from ebb_model.modes.modal_poles import _mass_proportional_poles
+    from ebb_model.modal.modal_poles import _mass_proportional_poles
 
     kw = {"c": 3.0, **extra}
     cfg = cfg_factory(*ends, nodes=60, scheme="exact", **kw)
@@ -413,7 +413,7 @@ def test_lowest_poles_of_mass_proportional_damping_need_no_mode_shapes(cfg_facto
 
 
 def test_damping_that_is_not_mass_proportional_takes_the_full_route(cfg_factory):
-    from ebb_model.modes.modal_poles import _mass_proportional_poles
+    from ebb_model.modal.modal_poles import _mass_proportional_poles
 
     for extra in ({"masses": [("m", 0.7, 0.1)]}, {"eta": 2e-4}):
         cfg = cfg_factory("clamped", "pinned", nodes=40, c=3.0, scheme="exact", **extra)

@@ -10,7 +10,7 @@ import scipy.linalg as sla
 
 from conftest import make_config
 from ebb_model.space.few_modes import MAX_BANDWIDTH, _bandwidth, _cholesky, inverse_eigenvalues
-from ebb_model.modes.mode_family import family_key, unit_pair
+from ebb_model.modal.mode_family import family_key, unit_pair
 from ebb_model.space.richardson_pair import lowest_modes
 from ebb_model.parameter_values import resolve_parameters
 

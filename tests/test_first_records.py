@@ -145,7 +145,7 @@ def test_one_grid_advice_and_it_delivers(tmp_path):
 
     from diagnosis.run import diagnose
     from ebb_model.space.grid_advice import BANDWIDTH_FRACTION
-    from ebb_model.modes.modal import discrete_frequencies
+    from ebb_model.modal.modal import discrete_frequencies
     from ebb_model.reference.analytic import analytic_frequencies_hz
 
     cfg, rec = _model_record(tmp_path / "bench")

@@ -38,9 +38,9 @@ from fmu_build.standalone import build_standalone_fmu  # noqa: E402
 
 LOOPS = HOSTS / "fmu_loops.py"
 #: against the Python model: the C core solves the pencil assembled with the parameter set's own values
-#: (EI·B₄ − N·D₂ …) with its own eigen-solver, the Python core its family's unit pencil (ebb_model.modes.mode_family)
+#: (EI·B₄ − N·D₂ …) with its own eigen-solver, the Python core its family's unit pencil (ebb_model.modal.mode_family)
 #: scaled — and on a beam under N without attachments (the seed) continued in U by a Chebyshev panel
-#: (ebb_model.modes.mode_continuation), whose first mode's ω² is 2.9e-10 off a 40-digit solution of the Richardson pair
+#: (ebb_model.modal.mode_continuation), whose first mode's ω² is 2.9e-10 off a 40-digit solution of the Richardson pair
 #: (the C core's 1e-14): a phase that grows with the record, 3e-10 of the outputs over 500 samples, 6e-10 over
 #: 1,000 (this file's records), 2.1e-9 over 3,000.  Where both solve directly (the mixed config) the C route's own
 #: round-off is left, measured as the spread of the outputs when every stiffness and mass is scaled by a few ulps:

@@ -8,7 +8,7 @@ import pytest
 
 import ebb_model as em
 from ebb_cli import main
-from ebb_model.modes.truncation import design_model
+from ebb_model.modal.truncation import design_model
 from identification.export_statespace import load_metadata, load_statespace
 
 from conftest import IDENTIFY_CFG as CFG

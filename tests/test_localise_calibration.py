@@ -18,7 +18,7 @@ import pytest
 
 from diagnosis.localise import localise
 from ebb_model import fast_model, simulate
-from ebb_model.modes.modal import discrete_frequencies
+from ebb_model.modal.modal import discrete_frequencies
 from ebb_model.reference.excitation import band_limited_input
 
 from conftest import make_config

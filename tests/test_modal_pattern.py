@@ -83,7 +83,7 @@ def test_modal_pattern_finds_a_compensated_clamp(tmp_path, monkeypatch):
     from diagnosis.search.modal_pattern import carried, modal_evidence, pattern_fit, pattern_fits
     from diagnosis.problem.records import split_records
     from diagnosis.problem.records import ordered_record
-    from ebb_model.modes.modal import discrete_frequencies
+    from ebb_model.modal.modal import discrete_frequencies
     from test_diagnosis_blind import PRIOR, TRUTH, _write, bench_config
 
     cfg = bench_config("acceleration")

@@ -1,4 +1,4 @@
-"""The family's modes continued in the axial load (:mod:`ebb_model.modes.mode_continuation`).
+"""The family's modes continued in the axial load (:mod:`ebb_model.modal.mode_continuation`).
 
 Independent truth: on a pinned–pinned grid the FD beam's modes are sines, ``ψ_j(x) ∝ sin(jπx/L)``, with
 ``ω̃²_j = (16/h⁴) sin⁴(jπh/2L) + U (4/h²) sin²(jπh/2L)`` per unit ``EI``, ``ρA`` (``M̃ = h I``): closed forms,
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import ebb_model as em
-from ebb_model.modes.mode_continuation import (PANEL_DEGREE, PANEL_WIDTH, Panel, chebyshev_points, lebesgue_constant,
+from ebb_model.modal.mode_continuation import (PANEL_DEGREE, PANEL_WIDTH, Panel, chebyshev_points, lebesgue_constant,
                                          panel_index)
-from ebb_model.modes.mode_family import _direct_modes, continuation_panel, continuation_stem, family_key, unit_modes
+from ebb_model.modal.mode_family import _direct_modes, continuation_panel, continuation_stem, family_key, unit_modes
 from ebb_model.parameter_values import resolve_parameters
 
 from conftest import make_config

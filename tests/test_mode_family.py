@@ -1,4 +1,4 @@
-"""The undamped modes as one dimensionless family (:mod:`ebb_model.modes.mode_family`).
+"""The undamped modes as one dimensionless family (:mod:`ebb_model.modal.mode_family`).
 
 Independent truth here is the direct route the family replaces: the Richardson pair's eigen-decomposition of the
 beam discretised with the parameter set's own values (:func:`ebb_model.space.discretisation.discretise`,
@@ -17,10 +17,10 @@ import ebb_model as em
 from ebb_model.config.validation import config_from_dict
 from ebb_model.space.discretisation import discretise
 from ebb_model.exact.exact_modal import exact_modal, modal_matrices
-from ebb_model.modes.mode_continuation import lebesgue_constant, panel_index
-from ebb_model.modes.mode_family import (attached_panel, attachment, continuation_panel, continuation_stem, family_key,
+from ebb_model.modal.mode_continuation import lebesgue_constant, panel_index
+from ebb_model.modal.mode_family import (attached_panel, attachment, continuation_panel, continuation_stem, family_key,
                                    unit_modes, unit_pair)
-from ebb_model.modes.parameter_modes import family_modes
+from ebb_model.modal.parameter_modes import family_modes
 from ebb_model.space.richardson_pair import companion_config, richardson_modes
 from ebb_model.parameter_values import resolve_parameters
 
@@ -59,10 +59,10 @@ def _bench(kind: str):
 BENCHES = ("clamped, tension", "cantilever", "pinned, compression", "point mass", "spring", "elastic end",
            "120 nodes", "weak segment", "rotary inertia")
 #: the benches whose modes are continued in U (no attachments, N ≠ 0:
-#: :func:`ebb_model.modes.mode_family.continuation_stem`)
+#: :func:`ebb_model.modal.mode_family.continuation_stem`)
 CONTINUED = ("clamped, tension", "pinned, compression", "120 nodes")
 #: the benches whose modes update the continued bases of the beam without their one attachment
-#: (:func:`ebb_model.modes.mode_family.attachment`)
+#: (:func:`ebb_model.modal.mode_family.attachment`)
 ATTACHED = ("point mass", "spring")
 
 

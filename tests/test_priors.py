@@ -158,7 +158,7 @@ def test_identify_reports_what_moved_each_parameter(tmp_path):
 
     cfg = truth_config(EI={"value": 13.0, "prior_std": 0.5}, N={"prior_std": 50.0})
     # the truth's three lowest modes, measured to 0.3 %, as data of another kind
-    from ebb_model.modes.modal import discrete_frequencies
+    from ebb_model.modal.modal import discrete_frequencies
 
     f_true = discrete_frequencies(cfg, TRUTH, 3)[0][:3]
     (tmp_path / "bench.toml").write_text(_toml(cfg) + "[identification.modes]\nfrequencies_hz = "

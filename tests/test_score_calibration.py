@@ -24,7 +24,7 @@ from diagnosis.candidates.catalogue import catalogue_of
 from diagnosis.candidates.score import score_effect
 from diagnosis.problem.fitting import GapProblem
 from diagnosis.problem.records import split_records
-from ebb_model.modes.modal import discrete_frequencies
+from ebb_model.modal.modal import discrete_frequencies
 from ebb_model.reference.excitation import band_limited_input
 from ebb_model.simulate import fast_model, simulate
 from identification.parameters import parameter_space

@@ -1,4 +1,4 @@
-"""Eigenpairs of ``diag(d) + ρ w wᵀ`` by the secular equation (:mod:`ebb_model.modes.secular`), against LAPACK and
+"""Eigenpairs of ``diag(d) + ρ w wᵀ`` by the secular equation (:mod:`ebb_model.modal.secular`), against LAPACK and
 against 40-digit arithmetic."""
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import mpmath
 import numpy as np
 import pytest
 
-from ebb_model.modes.secular import rank_one_eigen
+from ebb_model.modal.secular import rank_one_eigen
 
 EPS = np.finfo(float).eps
 
@@ -39,7 +39,7 @@ def test_eigenpairs_are_those_of_the_matrix(zeros):
 def test_each_eigenvalue_to_relative_accuracy():
     """A beam-like spectrum (``d = 1/λ``, ``λ ∝ n⁴``: eleven decades): every eigenvalue, the smallest included, to a
     few eps of itself against 40-digit arithmetic (measured 4.4e-16); LAPACK's dense solver is off by up to 3e-9
-    on the smallest (``eps`` of the largest) — why :mod:`ebb_model.modes.attached_modes` solves it this way."""
+    on the smallest (``eps`` of the largest) — why :mod:`ebb_model.modal.attached_modes` solves it this way."""
     rng = np.random.default_rng(3)
     n = 60
     d = np.sort(1.0 / ((np.arange(1, n + 1) * np.pi) ** 4 * (1 + 0.01 * np.arange(n))))

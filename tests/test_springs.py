@@ -21,7 +21,7 @@ from scipy.optimize import brentq
 
 from ebb_model import assemble, config_from_dict, simulate
 from ebb_model.errors import ConfigError, ParameterError
-from ebb_model.modes.modal import discrete_frequencies
+from ebb_model.modal.modal import discrete_frequencies
 from ebb_model.reference.hermite_fe import hermite_beam
 
 from conftest import make_config

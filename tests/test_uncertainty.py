@@ -103,7 +103,7 @@ def test_the_bound_covers_held_out_data(tmp_path, effect, param_cover):
     assert np.all(np.abs(z) < 5.0) and 0.5 < np.std(z) < 1.5      # 128 standard-normal draws
     sys0 = load_statespace(tmp_path / "out" / FOLDER / "sample_0.npz")
     assert sys0.dt == DT and sys0.ninputs == 1 and sys0.noutputs == 2
-    from ebb_model.modes.truncation import design_model
+    from ebb_model.modal.truncation import design_model
     again = design_model(*res.space.apply(res.config, samples[0]))
     assert np.array_equal(sys0.A, again.A) and np.array_equal(sys0.D, again.D)   # the export's own design model
     if effect is None:

@@ -16,7 +16,7 @@ import pytest
 
 from ebb_model import assemble, config_from_dict
 from ebb_model.errors import ConfigError
-from ebb_model.modes.modal import discrete_frequencies
+from ebb_model.modal.modal import discrete_frequencies
 from ebb_model.reference.hermite_fe import hermite_beam
 
 from conftest import make_config

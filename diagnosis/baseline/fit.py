@@ -11,7 +11,7 @@ import numpy as np
 from ebb_model.space.adequacy import NOISE_FLOOR_EXCESS, modes_top
 from ebb_model.acquisition.channel_delay import effective_delays
 from ebb_model.errors import ConfigError
-from ebb_model.modes.modal import discrete_frequencies
+from ebb_model.modal.modal import discrete_frequencies
 from identification.data_start import alignment_miss
 from identification.record_poles import record_modes
 from identification.result import IdentificationResult

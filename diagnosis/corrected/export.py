@@ -33,7 +33,7 @@ from ebb_model import DiscreteStateSpace, assemble, simulate
 from ebb_model.acquisition.channel_delay import DELAYS_LEFT_OUT, without_delays
 from ebb_model.io.output import atomic_path, make_dir
 from ebb_model.io.jsonio import write_json
-from ebb_model.modes.truncation import design_model, design_resolution
+from ebb_model.modal.truncation import design_model, design_resolution
 from identification.export_targets import DEFAULT_TARGETS
 
 from ..effects import AugmentedModel

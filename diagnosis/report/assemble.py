@@ -6,7 +6,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ebb_model.modes.modal import discrete_frequencies
+from ebb_model.modal.modal import discrete_frequencies
 
 from ..baseline.polarity import PolarityCheck
 from ..judgement.rules import Judgement

@@ -9,7 +9,7 @@ moves the low modes most, Kelvin–Voigt damping ratios grow with ω.
 
 For every structural effect of the catalogue (and for the baseline alone) the
 measured modes (:mod:`diagnosis.search.modal_estimate`) are fitted by the model's
-own discrete modes, :func:`ebb_model.modes.modal.discrete_frequencies`, over the
+own discrete modes, :func:`ebb_model.modal.modal.discrete_frequencies`, over the
 baseline unknowns *and* the effect together — the baseline is profiled out
 globally, not linearised at the point where it compensated the effect:
 
@@ -33,7 +33,7 @@ from the best of a coarse grid of the effect, with the baseline unknowns at the
 baseline's values and at the config's nominal ones
 (:func:`diagnosis.candidates.score.trial_values`; each start polished for :data:`RACE`
 evaluations, the best one to convergence; only the compared modes are
-computed, :func:`ebb_model.modes.modal.discrete_frequencies` with ``n_modes``).  Its
+computed, :func:`ebb_model.modal.modal.discrete_frequencies` with ``n_modes``).  Its
 optimum is a start of the effect's time-domain refit that lies in the right
 basin even when the baseline had compensated the effect — a one-sided score
 test then sees nothing, the modal pattern still does.  Signal-level effects
@@ -53,7 +53,7 @@ from scipy import stats
 
 from ebb_model.space.adequacy import refined_grid
 from ebb_model.errors import EbbError
-from ebb_model.modes.modal import discrete_frequencies
+from ebb_model.modal.modal import discrete_frequencies
 
 from ..effects import Catalogue, Effect, variables_for
 from ..problem.fitting import GapProblem

@@ -237,7 +237,7 @@ def causal_config(config: "BeamConfig") -> "BeamConfig":
 
     The band-limited reconstruction reads :data:`ADVANCE` samples beyond the lookahead — a record has them, a
     co-simulation host feeding the force step by step or a controller commanding it does not.  The FMUs and the
-    design models (:func:`ebb_model.modes.truncation.design_model`, the exports) take the cubic through the samples
+    design models (:func:`ebb_model.modal.truncation.design_model`, the exports) take the cubic through the samples
     ``k−2 … k+1`` instead: the same beam, the force between samples as a causal model can know it.  Any other
     config is returned as it is.
     """

@@ -13,7 +13,7 @@ seed's spatial discretisation (same grid, ghost nodes, matrices):
    the sensors and actuators) and the modal damping come from the finer grid.  The model keeps as many modes
    as the config's grid has unknowns (the state dimension of the seed's model).  The undamped modes depend on
    the parameters through ratios only: one eigen-decomposition serves every parameter set with the same
-   ratios (:mod:`ebb_model.modes.mode_family`).
+   ratios (:mod:`ebb_model.modal.mode_family`).
 2. **Time, exact.**  The modal system ``q̈ + C_m q̇ + Λ q = Ψᵀ F u`` (``C_m = Ψᵀ C Ψ``: non-proportional
    damping is kept) is diagonalised in continuous time and each pole ``s`` is integrated exactly over a
    sample under the input of :attr:`~ebb_model.config.TimeSettings.input_hold`: the cubic through the
@@ -44,8 +44,8 @@ import scipy.linalg as sla
 from ..acquisition.antialias import effective_filters, filtered_poles, series_statespace
 from ..acquisition.channel_delay import effective_delays
 from ..config import BeamConfig
-from ..modes.coupled_modes import LowRankDamping, coupled_modes
-from ..modes.parameter_modes import FamilyModes, family_modes
+from ..modal.coupled_modes import LowRankDamping, coupled_modes
+from ..modal.parameter_modes import FamilyModes, family_modes
 from ..theta.modal_form import MAX_BASIS_CONDITION, ModalStateSpace, basis_condition
 from ..parameter_values import resolve_parameters
 from ..acquisition.bandlimited import dense_weights
@@ -169,7 +169,7 @@ class ModalMatrices:
     ``C``, ``D`` give the outputs from ``x = (q, q̇)`` and ``u``; ``damping`` is the diagonal of ``C_m`` when
     the damping is proportional (``C_m`` diagonal), else ``None``; ``low_rank`` is ``C_m``'s structure when
     it is the identity times a rate plus a low-rank part (point masses on a viscously damped beam:
-    :mod:`ebb_model.modes.coupled_modes`), else ``None``.
+    :mod:`ebb_model.modal.coupled_modes`), else ``None``.
     """
 
     frequencies2: np.ndarray
@@ -188,7 +188,7 @@ class ModalMatrices:
 
 
 def modal_matrices(config: BeamConfig, params: Mapping[str, float]) -> ModalMatrices:
-    """Two-grid Richardson modes of the FD beam (:func:`ebb_model.modes.parameter_modes.family_modes`: one
+    """Two-grid Richardson modes of the FD beam (:func:`ebb_model.modal.parameter_modes.family_modes`: one
     eigen-decomposition per family of parameter sets) with their damping, forcing and sensor rows.
 
     Raises

@@ -28,9 +28,9 @@ import numpy as np
 from ..config import BeamConfig
 from ..config.types import MAX_NODES
 from .discretisation import discretise
-from ..modes.parameter_modes import family_modes
+from ..modal.parameter_modes import family_modes
 from .richardson_pair import extrapolated, lowest_modes
-from ..modes.modal import discrete_frequencies
+from ..modal.modal import discrete_frequencies
 from ..parameter_values import resolve_parameters
 
 __all__ = ["GridAdvice", "grid_advice", "mode_errors", "BANDWIDTH_FRACTION", "ZETA_FLOOR"]

@@ -5,7 +5,7 @@ The FD beam's eigenvalues ``ω_i²`` converge as ``h²``; discretised on the con
 ``ω²_f + (ω²_f − ω²_c)/((h_c/h_f)² − 1)`` is ``O(h⁴)`` (:func:`richardson_modes`); the shapes come from the finer
 grid.  The eigenvalues themselves come from :func:`lowest_modes`, which resolves the lowest ones to relative
 accuracy.  What depends on the parameters only through ratios — the family of a parameter set — is
-:mod:`ebb_model.modes.mode_family`.
+:mod:`ebb_model.modal.mode_family`.
 """
 from __future__ import annotations
 

@@ -53,7 +53,7 @@ class ModalStateSpace:
     :func:`~ebb_model.theta.theta_scheme.discretise_time`.  ``hold`` (nb, 2, m), when given, is the lookahead
     matrix ``Γ₁`` in block coordinates (a start at rest is ``z[0] = −Γ₁ u[0]``, see
     :class:`DiscreteStateSpace`).  ``frequencies_hz`` (nb,), when known, is the continuous natural frequency of
-    each block's mode (:func:`ebb_model.modes.truncation.in_band` keeps the modes in a band by it; the dense form then
+    each block's mode (:func:`ebb_model.modal.truncation.in_band` keeps the modes in a band by it; the dense form then
     names the states by mode).  The last ``filters`` blocks, when any, are the sensors' anti-alias filters
     (:mod:`ebb_model.acquisition.antialias`); their ``frequencies_hz`` are the filter poles' moduli.  ``advance`` > 0:
     the recursion's input ``u[k]`` is the record's ``u[k + advance]`` (a reconstruction that reads samples ahead,

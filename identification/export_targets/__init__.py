@@ -89,7 +89,7 @@ class ExportItem:
         Identified physical parameter values.
     system
         The model for control design (what a StateSpace export writes): the beam at ``params`` with its modes in
-        the band (:func:`ebb_model.modes.truncation.design_model`), with a corrected model's signal-level parts in
+        the band (:func:`ebb_model.modal.truncation.design_model`), with a corrected model's signal-level parts in
         series when it has them; ``None`` when the model has no such form (a corrected model whose effect is not
         time-invariant, or a constant force: ``no_system`` says why) — a target that writes ``system`` then writes
         nothing and says so, never the beam without the effect.
@@ -102,7 +102,7 @@ class ExportItem:
         model's lags and gains, :mod:`diagnosis.corrected.export`).
     modes
         Which modes ``system`` keeps, each with its frequency error estimate against a converged grid
-        (:meth:`ebb_model.modes.truncation.ModeResolution.to_dict`); ``None`` when it did not choose them so.
+        (:meth:`ebb_model.modal.truncation.ModeResolution.to_dict`); ``None`` when it did not choose them so.
     no_system
         Why ``system`` is ``None`` ("" when it is not).
     """

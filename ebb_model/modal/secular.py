@@ -7,7 +7,7 @@ The eigenvalues ``λ`` of ``diag(d) + ρ w wᵀ`` (``d`` ascending) are the root
 one in each interval ``(d_i, d_{i+1})`` and the last in ``(d_n, d_n + ρ‖w‖²)``; the eigenvector of ``λ`` is
 ``(diag(d) − λ)⁻¹ w``, normalised.  Computed as in LAPACK's divide and conquer (``dlaed2``–``dlaed4``, Bunch,
 Nielsen and Sorensen 1978; Gu and Eisenstat 1995), written here for its one use (a point mass or a spring added to
-a beam whose modes are known, :mod:`ebb_model.modes.attached_modes`):
+a beam whose modes are known, :mod:`ebb_model.modal.attached_modes`):
 
 * **deflation**: a component with ``ρ‖w‖ |w_j| ≤ 8 eps · max(|d|, ρ‖w‖²)`` leaves ``(d_j, e_j)`` an eigenpair as it
   is;

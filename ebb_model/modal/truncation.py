@@ -174,7 +174,7 @@ def design_modal_model(config: BeamConfig, params: Mapping[str, float] | None = 
                        f_max: float | None = None, error_limit: float = BANDWIDTH_FRACTION,
                        resolution: ModeResolution | None = None) -> ModalStateSpace | DiscreteStateSpace:
     """:func:`design_model` before its realisation as one StateSpace: the modal form in the band when the model
-    has one (its frequency response is cheap, :func:`ebb_model.modes.modal.frequency_response`), else the whole model.
+    has one (its frequency response is cheap, :func:`ebb_model.modal.modal.frequency_response`), else the whole model.
 
     Raises
     ------

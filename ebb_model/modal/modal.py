@@ -103,7 +103,7 @@ def discrete_frequencies(config: BeamConfig, params: Mapping[str, float] | None 
     conjugate pair, sorted by frequency; the difference to :func:`modes` is the
     scheme's period elongation.  With ``n_modes``, the ``n_modes`` lowest only
     (the exact scheme then needs only their poles:
-    :func:`ebb_model.modes.modal_poles.modal_poles`).
+    :func:`ebb_model.modal.modal_poles.modal_poles`).
     """
     from .modal_poles import modal_poles
     from ..theta.theta_scheme import discretise_time

@@ -11,10 +11,10 @@ beam without it (``K̃₀ Φ = M̃₀ Φ Λ``, ``ΦᵀM̃₀Φ = I``) and ``z = 
 * a point mass: ``Λ^{-1/2}(I + m z zᵀ)Λ^{-1/2} = Λ⁻¹ + m w wᵀ`` with ``w = Λ^{-1/2} z``; its unit eigenvectors
   ``t`` give ``ψ = Φ Λ^{-1/2} t / √μ``.
 
-Both are solved by their secular equation (:mod:`ebb_model.modes.secular`: every eigenvalue to relative accuracy,
+Both are solved by their secular equation (:mod:`ebb_model.modal.secular`: every eigenvalue to relative accuracy,
 orthogonal vectors), ``O(n²)`` instead of a decomposition's ``O(n³)``.  The beam without the attachment has
 the axial load of the member: its full bases on both grids of the Richardson pair come from a Chebyshev panel in
-``U = N L²/EI`` (:class:`BasisPanel`, as :mod:`ebb_model.modes.mode_continuation` continues the lowest modes), a
+``U = N L²/EI`` (:class:`BasisPanel`, as :mod:`ebb_model.modal.mode_continuation` continues the lowest modes), a
 foundation shifting every ``ω²``.
 
 Two attachments are two updates (:func:`updated_modes`: every mode after the first).  Measured on the blind bench's
@@ -82,7 +82,7 @@ class BasisPanel:
 
 def _agree(interpolated: tuple[Basis, Basis], direct: tuple[Basis, Basis],
            lengths: tuple[np.ndarray, np.ndarray]) -> bool:
-    """Whether every ``ω²`` agrees to :data:`~ebb_model.modes.mode_continuation.CHECK_FREQUENCIES` and every shape to
+    """Whether every ``ω²`` agrees to :data:`~ebb_model.modal.mode_continuation.CHECK_FREQUENCIES` and every shape to
     :data:`CHECK_BASIS_SHAPES` times ``eps·ω²_max/ω²_min`` of the finer grid."""
     w2_f = direct[0].frequencies2
     scale = np.finfo(float).eps * float(np.max(w2_f) / np.min(w2_f))
@@ -99,7 +99,7 @@ def basis_panel(solve: Callable[[float], tuple[Basis, Basis]], panel: int,
                 lengths: tuple[np.ndarray, np.ndarray], modes: int) -> BasisPanel | None:
     """The interpolant of ``solve`` (``U`` → the direct full bases ``(fine, coarse)``) on ``panel``, or ``None``
     when one of the finer grid's lowest ``modes`` is not clearly positive at a point or the interpolant misses a
-    direct solve at a check point (as :func:`~ebb_model.modes.mode_continuation.chebyshev_panel`, whose rules for the
+    direct solve at a check point (as :func:`~ebb_model.modal.mode_continuation.chebyshev_panel`, whose rules for the
     lowest modes these are); ``lengths`` are both grids' control lengths."""
     a = panel * PANEL_WIDTH
     nodes, weights = chebyshev_points(a, a + PANEL_WIDTH, PANEL_DEGREE)

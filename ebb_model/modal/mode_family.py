@@ -15,13 +15,13 @@ positions of sensors and actuators do not enter.  So every parameter set with th
 of the key memoised per process (the least recently used dropped beyond a budget of bytes), so a result never
 depends on which evaluations came before (a resumed run, another worker, compute the same numbers).  An identification
 with ``N`` known and no attached mass needs one decomposition for all its evaluations (the difference Jacobians'
-steps in ``EI``, ``ρA``, ``c``, ``η`` and positions included); :func:`~ebb_model.modes.parameter_modes.family_modes`
+steps in ``EI``, ``ρA``, ``c``, ``η`` and positions included); :func:`~ebb_model.modal.parameter_modes.family_modes`
 scales it and builds the finer grid's damping, load and sensor rows for the parameter set at hand.
 
 **The continuation.**  With ``N`` unknown every evaluation is a new member.  On a beam without attachments
 (:func:`continuation_stem`) the members differ only in ``U = N L²/EI`` and ``k_f/EI``: their modes are taken
 from a Chebyshev panel in ``U`` of the family without load (:func:`continuation_panel`,
-:mod:`ebb_model.modes.mode_continuation`), shifted by ``k_f/EI``; a refused panel, ``U = 0`` and every other family are
+:mod:`ebb_model.modal.mode_continuation`), shifted by ``k_f/EI``; a refused panel, ``U = 0`` and every other family are
 decomposed directly.
 """
 from __future__ import annotations
@@ -93,7 +93,7 @@ def family_key(config: BeamConfig, p: Mapping[str, float]) -> FamilyKey:
 class UnitModes:
     """The Richardson modes of a family's unit beam (``EI = ρA = 1``): ``frequencies2`` (``ω̃²``, as many as the
     config's grid has unknowns) and ``shapes`` (``ψ̃``, mass-normalised, on the ``fine`` unit beam of the pair;
-    continued modes keep them as their panel's :class:`~ebb_model.modes.mode_continuation.Combination`, formed whole
+    continued modes keep them as their panel's :class:`~ebb_model.modal.mode_continuation.Combination`, formed whole
     when first read, by rows in :meth:`shape_rows`).  Read-only arrays (shared by every caller).  The modal
     damping's unit matrices are formed when first read (a beam without Kelvin–Voigt damping and with
     ``M̃ = diag(V)`` needs the diagonal of the viscous one only); the memo's budget counts the fields and the
@@ -167,7 +167,7 @@ class UnitModes:
     @functools.cached_property
     def mass_excess(self) -> tuple[np.ndarray, np.ndarray] | None:
         """``(J, R_J)``: the unknowns ``J`` where ``M̃`` differs from ``diag(V)`` (the point masses) and ``M̃ − diag(V)``
-        on them, or ``None`` when more than :data:`~ebb_model.modes.coupled_modes.MAX_RANK` do (rotary inertia).
+        on them, or ``None`` when more than :data:`~ebb_model.modal.coupled_modes.MAX_RANK` do (rotary inertia).
         Nothing when :attr:`viscous_is_mass` (``M̃`` is assembled as ``diag(V)`` then)."""
         if self.viscous_is_mass:
             return _read_only(np.zeros(0, dtype=np.intp)), _read_only(np.zeros((0, 0)))
@@ -177,7 +177,7 @@ class UnitModes:
     def stiffness_excess(self) -> tuple[np.ndarray, np.ndarray] | None:
         """``(J, R_J)``: the unknowns ``J`` where ``K̃`` differs from the Kelvin–Voigt ``C̃`` (springs to ground; an
         elastic end's springs enter both through the same ghost rows) and ``K̃ − C̃`` on them, or ``None`` when more
-        than :data:`~ebb_model.modes.coupled_modes.MAX_RANK` do (axial load, a foundation)."""
+        than :data:`~ebb_model.modal.coupled_modes.MAX_RANK` do (axial load, a foundation)."""
         return _excess(self.fine.K, self.fine.K - self.fine.C)
 
     @functools.cached_property
@@ -198,7 +198,7 @@ _EXCESS_RTOL = 1e-12
 
 def _excess(A: np.ndarray, delta: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """``(J, delta_JJ)`` for the rows ``J`` of ``delta`` with an entry above :data:`_EXCESS_RTOL` of ``A``'s
-    largest, or ``None`` beyond :data:`~ebb_model.modes.coupled_modes.MAX_RANK` rows."""
+    largest, or ``None`` beyond :data:`~ebb_model.modal.coupled_modes.MAX_RANK` rows."""
     scale = max(float(np.max(np.abs(A), initial=0.0)), float(np.finfo(float).tiny))
     J = np.flatnonzero(np.max(np.abs(delta), axis=1, initial=0.0) > _EXCESS_RTOL * scale)
     if J.size > MAX_RANK:
@@ -259,14 +259,14 @@ def _fine_grid(key: FamilyKey) -> Grid:
     return grid(key.length, _fine_nodes(key), key.left, key.right)
 
 
-#: Largest panel (:mod:`ebb_model.modes.mode_continuation`) in bytes: beyond it (a finer grid of about 400 unknowns) a
+#: Largest panel (:mod:`ebb_model.modal.mode_continuation`) in bytes: beyond it (a finer grid of about 400 unknowns) a
 #: family is solved directly at every ``U``.
 _MAX_PANEL_BYTES = 16 * 2 ** 20
 
 
 def continuation_stem(key: FamilyKey) -> FamilyKey | None:
     """``key`` without its axial load and foundation (``N = k_f = 0``) when its modes are continued in ``U``
-    (:mod:`ebb_model.modes.mode_continuation`: no point masses or springs, no weak segments, no rotary inertia, each
+    (:mod:`ebb_model.modal.mode_continuation`: no point masses or springs, no weak segments, no rotary inertia, each
     end's springs zero or rigid, a panel within :data:`_MAX_PANEL_BYTES`), else ``None``."""
     if key.masses or key.springs or key.segments or key.rhoI != 0.0:
         return None
@@ -281,7 +281,7 @@ def continuation_stem(key: FamilyKey) -> FamilyKey | None:
 
 @memoised
 def continuation_panel(where: tuple[FamilyKey, int]) -> Panel | None:
-    """The Chebyshev panel (:func:`~ebb_model.modes.mode_continuation.chebyshev_panel`) of the stem
+    """The Chebyshev panel (:func:`~ebb_model.modal.mode_continuation.chebyshev_panel`) of the stem
     (:func:`continuation_stem`) and panel index ``where``, or ``None`` when it is refused (memoised per process)."""
     stem, index = where
     L2 = stem.length ** 2
@@ -313,9 +313,9 @@ def _continued(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray | Com
 
 def attachment(key: FamilyKey) -> tuple[FamilyKey, tuple[tuple[str, float, float], ...]] | None:
     """``(stem, changes)`` when ``key`` is a continued beam (:func:`continuation_stem`, the stem) with one or
-    :data:`~ebb_model.modes.attached_modes.MAX_ATTACHMENTS` point masses or springs of positive size added — ``changes``
+    :data:`~ebb_model.modal.attached_modes.MAX_ATTACHMENTS` point masses or springs of positive size added — ``changes``
     their ``(kind, x, size)``, ``kind`` ``"mass"`` or ``"spring"``, masses first —, whose modes are then rank-one
-    updates of the stem's (:mod:`ebb_model.modes.attached_modes`); else ``None``."""
+    updates of the stem's (:mod:`ebb_model.modal.attached_modes`); else ``None``."""
     changes = tuple(("mass", m.x, m.mass) for m in key.masses) + tuple(("spring", k.x, k.k) for k in key.springs)
     if not 1 <= len(changes) <= MAX_ATTACHMENTS or not all(size > 0.0 for _, _, size in changes):
         return None
@@ -334,7 +334,7 @@ def _full_bases(key: FamilyKey) -> tuple[Basis, Basis]:
 
 @memoised
 def attached_panel(where: tuple[FamilyKey, int]) -> BasisPanel | None:
-    """The full bases' Chebyshev panel (:func:`~ebb_model.modes.attached_modes.basis_panel`) of the stem and panel index
+    """The full bases' Chebyshev panel (:func:`~ebb_model.modal.attached_modes.basis_panel`) of the stem and panel index
     ``where``, or ``None`` when it is refused (memoised per process)."""
     stem, index = where
     L2 = stem.length ** 2
@@ -346,7 +346,7 @@ def attached_panel(where: tuple[FamilyKey, int]) -> BasisPanel | None:
 
 def _attached(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """``(ω²_R, ω²_f, Ψ)`` of ``key`` by rank-one updates of its stem's full bases (:func:`attachment`,
-    :mod:`ebb_model.modes.attached_modes`), shifted by the foundation's ``k_f/EI``; ``None`` when ``key`` is decomposed
+    :mod:`ebb_model.modal.attached_modes`), shifted by the foundation's ``k_f/EI``; ``None`` when ``key`` is decomposed
     directly (not one or two attachments on a continued beam, a refused panel, coinciding poles)."""
     found = attachment(key)
     if found is None:
@@ -377,9 +377,9 @@ def _attached(key: FamilyKey) -> tuple[np.ndarray, np.ndarray, np.ndarray] | Non
 @memoised
 def unit_modes(key: FamilyKey) -> UnitModes:
     """The Richardson modes of the family ``key``'s unit beam (memoised per process; module docstring), continued
-    from a panel in ``U`` where :func:`continuation_stem` allows (:mod:`ebb_model.modes.mode_continuation`),
+    from a panel in ``U`` where :func:`continuation_stem` allows (:mod:`ebb_model.modal.mode_continuation`),
     updated from a continued beam's full bases where :func:`attachment` allows
-    (:mod:`ebb_model.modes.attached_modes`)."""
+    (:mod:`ebb_model.modal.attached_modes`)."""
     continued = _continued(key)
     if continued is None:
         continued = _attached(key)

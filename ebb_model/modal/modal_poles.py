@@ -1,6 +1,6 @@
 """The continuous-time poles of the accurate realisation, without its state space.
 
-What a modal comparison needs (:func:`ebb_model.modes.modal.discrete_frequencies`: frequencies and damping ratios, often
+What a modal comparison needs (:func:`ebb_model.modal.modal.discrete_frequencies`: frequencies and damping ratios, often
 of the few lowest modes only) is the poles of :func:`~ebb_model.exact.exact_modal.modal_matrices`' modal system
 ``q̈ + C_m q̇ + Λ q = 0``, not its input and output rows.  Three routes, each exact to round-off:
 
@@ -11,7 +11,7 @@ of the few lowest modes only) is the poles of :func:`~ebb_model.exact.exact_moda
   full route's cost (measured 0.55× on the family's bench, the eigenvectors being what it saves);
 * **damping coupling the modes through a low-rank part** (point masses on a viscously damped beam): every
   mode's shape is needed for ``C_m``; the wanted poles by Newton's iteration on ``r × r`` algebra
-  (:func:`ebb_model.modes.coupled_modes.coupled_poles`);
+  (:func:`ebb_model.modal.coupled_modes.coupled_poles`);
 * **other damping coupling the modes, a few modes**: the lowest poles are refined by Newton's iteration from
   their decoupled values with the full coupling (:func:`_coupled_poles`);
 * otherwise every pole: closed form when ``C_m`` is diagonal, else the ``2k × 2k`` eigenvalue problem.
@@ -74,7 +74,7 @@ def modal_poles(config: BeamConfig, params: Mapping[str, float], lowest: int | N
 def _mass_proportional_rate(config: BeamConfig, p: Mapping[str, float]) -> float | None:
     """``α`` when ``C = α M`` (then ``Ψᵀ C Ψ = α I`` for mass-normalised modes), else ``None``; ``p`` resolved.
 
-    Read from the structure (:func:`~ebb_model.modes.parameter_modes.scaled_beam`: ``C = c V + η EI C̃``, ``M = ρA M̃``):
+    Read from the structure (:func:`~ebb_model.modal.parameter_modes.scaled_beam`: ``C = c V + η EI C̃``, ``M = ρA M̃``):
     no Kelvin–Voigt term, and the viscous damping where the mass is, ``M̃ = diag(V)`` — no point mass with a
     mass, no rotary inertia — or no damping at all."""
     if p["eta"] * p["EI"] != 0.0:
@@ -91,7 +91,7 @@ def _mass_proportional_poles(config: BeamConfig, p: Mapping[str, float], n: int)
     underdamped (then so is every higher one, ``d`` being the same for all), else ``None``; ``p`` resolved.
 
     The values are :func:`~ebb_model.exact.exact_modal.modal_matrices`' (the same unit beams of the family
-    (:mod:`ebb_model.modes.mode_family`), the same extrapolation, the fade scaled by the full count), computed for these
+    (:mod:`ebb_model.modal.mode_family`), the same extrapolation, the fade scaled by the full count), computed for these
     modes alone.
     """
     alpha = _mass_proportional_rate(config, p)

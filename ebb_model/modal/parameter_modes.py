@@ -1,4 +1,4 @@
-"""One parameter set's undamped modes: its family's unit modes (:mod:`ebb_model.modes.mode_family`) scaled for its
+"""One parameter set's undamped modes: its family's unit modes (:mod:`ebb_model.modal.mode_family`) scaled for its
 values, with what a realisation reads of them — the shapes where its loads and sensors are, the modal damping's
 structure (diagonal, low-rank or full) and, when asked, the finer grid's dense beam.
 
@@ -114,13 +114,13 @@ class FamilyModes:
         return d if diagonal else None
 
     def low_rank_damping(self) -> LowRankDamping | None:
-        """The modal damping as ``diag(d⁰) + G E Gᵀ`` (:mod:`ebb_model.modes.coupled_modes`), or ``None``.
+        """The modal damping as ``diag(d⁰) + G E Gᵀ`` (:mod:`ebb_model.modal.coupled_modes`), or ``None``.
 
         ``V = M̃ − R_M`` and ``C̃ = K̃ − R_K`` with ``R_M``, ``R_K`` on a few unknowns ``J``
         (:attr:`UnitModes.mass_excess`, :attr:`UnitModes.stiffness_excess`) give, with ``ψ̃ᵀM̃ψ̃ = I`` and
         ``ψ̃ᵀK̃ψ̃ = diag(ω̃²_f)``, ``ΨᵀCΨ = a ψ̃ᵀVψ̃ + b ψ̃ᵀC̃ψ̃ = diag(a + b ω̃²_f) − ψ̃_Jᵀ (a R_M + b R_K)_JJ ψ̃_J``
         (the modes' orthogonality taken as exact).  ``None`` when a term with a non-zero weight differs on more
-        than :data:`~ebb_model.modes.coupled_modes.MAX_RANK` unknowns (rotary inertia with viscous damping; axial load
+        than :data:`~ebb_model.modal.coupled_modes.MAX_RANK` unknowns (rotary inertia with viscous damping; axial load
         or a foundation with Kelvin–Voigt damping): the caller decides on the matrix."""
         a, b = self._damping_weights()
         unit = self.unit

@@ -4,7 +4,7 @@ When a point mass (a transducer, a shaker's armature, a lumped attachment) sits 
 per unit length, the damping is proportional to the beam's distributed mass but not to the attached mass; when a
 spring (to ground, at an elastic end) holds a beam with Kelvin–Voigt damping, the damping is proportional to the
 beam's bending stiffness but not to the spring's.  Without axial load, foundation or rotary inertia
-(:meth:`ebb_model.modes.parameter_modes.FamilyModes.low_rank_damping`) ``C = α M + β K + ΔC`` with ``ΔC`` non-zero only
+(:meth:`ebb_model.modal.parameter_modes.FamilyModes.low_rank_damping`) ``C = α M + β K + ΔC`` with ``ΔC`` non-zero only
 on the few unknowns the attachments are spread over (the hat functions' two nodes each).  In the mass-normalised
 undamped modes ``Ψ`` (``ΨᵀKΨ = Λ_f``, the grid's own eigenvalues) the modal damping is then diagonal plus a
 matrix of small rank ``r``:
