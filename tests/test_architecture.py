@@ -95,3 +95,23 @@ def test_the_diagnosis_stages_point_one_way():
             if target in STAGES and target != rel[0] and STAGES.index(target) > STAGES.index(rel[0]):
                 late.append(f"{'/'.join(rel)} imports the later stage {target}")
     assert not late, late
+
+
+def test_no_package_attribute_hides_a_subpackage():
+    """Every package's sub-packages are reachable as attributes of it: a name the package exports must not be one of
+    its sub-packages' (``ebb_model.modes``, a function, hid the folder ``ebb_model/modes/``, and
+    ``import ebb_model.modes.coupled_modes as m`` failed on a fresh clone)."""
+    import importlib
+    import pkgutil
+
+    hidden = []
+    for name in PACKAGES:
+        top = importlib.import_module(name)
+        for info in pkgutil.walk_packages(top.__path__, name + "."):
+            if not info.ispkg:
+                continue
+            parent, _, child = info.name.rpartition(".")
+            sub = importlib.import_module(info.name)
+            if getattr(importlib.import_module(parent), child, None) is not sub:
+                hidden.append(info.name)
+    assert not hidden, hidden
