@@ -108,7 +108,11 @@ def next_experiment_figure(plt: Any, nxt: Any) -> Any:
              for d in shown]
     floor = 1e-3
     rows = np.arange(len(shown))[::-1]          # the best at the top
-    height = 0.55 * len(shown) + 2.2            # inches
+    # the legend below the axes, two entries a row: every ordered pair ("a>b": a true, against b), "decisive" and
+    # "worst pair"
+    legend_rows = -(-(len(nxt.designs[0].pairs) + 2) // 2)
+    legend = 0.2 * legend_rows + 0.1             # inches
+    height = 0.55 * len(shown) + 1.8 + legend     # inches
     fig, ax = plt.subplots(figsize=(8.5, height))
     ax.barh(rows, [max(d.rate * nxt.seconds, floor) for d in shown], color="0.6", label="worst pair")
     for pair in nxt.designs[0].pairs:
@@ -121,5 +125,5 @@ def next_experiment_figure(plt: Any, nxt: Any) -> Any:
     ax.tick_params(axis="y", labelsize=8)
     ax.set_title("next experiment: " + " / ".join(nxt.candidates), fontsize=10)
     fig.legend(*ax.get_legend_handles_labels(), fontsize=8, loc="lower center", ncol=2, frameon=False)
-    fig.tight_layout(rect=(0.0, 0.5 / height, 1.0, 1.0))      # the legend's two rows below the axes
+    fig.tight_layout(rect=(0.0, legend / height, 1.0, 1.0))      # the legend's rows below the axes
     return fig
