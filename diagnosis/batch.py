@@ -135,12 +135,12 @@ def diagnose_each(config: BeamConfig | str | Path, data: Sequence[str | Path], o
     if twice:
         raise ConfigError(f"records with the same name {', '.join(twice)}: each names its output directory")
     out = Path(out_dir)
-    made = _checkpoint(cfg, paths, options)
-    done = _resumed(out, made) if resume else []
     if not resume:
         check_new_output_dir(out)
     for p in paths:
         read_data(cfg, [p])          # every record readable before the first task starts
+    made = _checkpoint(cfg, paths, options)
+    done = _resumed(out, made) if resume else []
     if isinstance(dask, str):
         from identification.cluster import parse_local_address
 
