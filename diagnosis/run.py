@@ -204,7 +204,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
             say(f"note: {event}")
         if out is None:
             return Diagnosis(problem, ranking, report, None)
-        report = _write(out, problem, ranking, report, case.locs, plots=plots, export=export, targets=targets)
+        report = _write(out, problem, ranking, report, case.locs, plots=plots, export=export, targets=targets,
+                        clock=clock)
         return Diagnosis(problem, ranking, report, out)
     except BaseException as exc:
         if executor is not None:
@@ -461,9 +462,10 @@ def _rank(problem: GapProblem, baseline: Fit, catalogue: Catalogue, modes: _Mode
 
 
 def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, locs: Sequence[Localisation], *,
-           plots: bool, export: bool, targets: Sequence[str]) -> GapReport:
+           plots: bool, export: bool, targets: Sequence[str], clock: StageClock) -> GapReport:
     """Write ``gap.json``, the plots and the corrected model into ``out`` at once (a temporary directory renamed
-    at the end: nothing partial is left on error or interrupt); returns the report with the files it wrote."""
+    at the end: nothing partial is left on error or interrupt); returns the report with the files it wrote.  The
+    export and the figures are stages of their own (``stage_seconds``, written last)."""
     named = report.judged.label
     with staged_dir(out) as tmp:
         rf = ranking.refits.get(named) if named is not None else None
@@ -471,17 +473,20 @@ def _write(out: Path, problem: GapProblem, ranking: Ranking, report: GapReport, 
             from .corrected.export import export_corrected
             from .corrected.summary import corrected_summary
 
-            effect = ranking.effects[named]
-            model = problem.model(rf.fit.beta, effect, rf.fit.s)
-            summary = corrected_summary(problem.config, problem.space.to_dict(ranking.baseline.beta),
-                                        report.row(named), effect)
-            files = export_corrected(model, tmp / "corrected", summary, targets=targets)
+            with clock.stage("corrected model export"):
+                effect = ranking.effects[named]
+                model = problem.model(rf.fit.beta, effect, rf.fit.s)
+                summary = corrected_summary(problem.config, problem.space.to_dict(ranking.baseline.beta),
+                                            report.row(named), effect)
+                files = export_corrected(model, tmp / "corrected", summary, targets=targets)
             report = replace(report, corrected_files=tuple(f.name for f in files))
-        write_json(tmp / GAP_FILE, report.to_dict())
         if plots:
             from .report.figures import plot_diagnosis
 
-            plot_diagnosis(report, problem, ranking, locs, tmp)
+            with clock.stage("report figures"):
+                plot_diagnosis(report, problem, ranking, locs, tmp)
+        report = replace(report, stage_seconds=dict(clock.seconds))
+        write_json(tmp / GAP_FILE, report.to_dict())
         write_page(tmp / PAGE, "ebb diagnose: where the model and the records disagree, and why",
                    html_sections(report, tmp), subtitle="records: " + ", ".join(r.name for r in problem.records))
     return report
