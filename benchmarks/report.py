@@ -64,6 +64,7 @@ BENCHMARKS: dict[str, tuple[str, tuple[str, ...]]] = {
     "bench_diagnosis": ("benchmarks/bench_diagnosis.py", ()),
     "bench_rig": ("benchmarks/bench_diagnosis.py", ("--family", "rig")),
     "bench_broadband": ("benchmarks/bench_diagnosis.py", ("--family", "broadband")),
+    "bench_hint_diagnosis": ("benchmarks/bench_diagnosis.py", ("--family", "hint")),
     "arts_identify": ("examples/arts_identify.py", ()),
     "arts_diagnose": ("examples/arts_diagnose.py", ()),
 }

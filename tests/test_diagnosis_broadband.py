@@ -162,7 +162,7 @@ def test_a_beam_alike_from_either_end_is_diagnosed_on_the_right_half(tmp_path, e
 
 @pytest.mark.parametrize("index", [44, 48])
 def test_a_correct_record_of_the_hint_family_at_the_floor_on_coarse_numerics_is_none(tmp_path, index):
-    """The hint family's correct records 44 and 48 (``tests/hint_family.py``: a cantilever's accelerometer under
+    """The hint family's first-draw correct records 44 and 48 (``tests/hint_family.py``: a cantilever's accelerometer under
     noise to 0.2 fs, a newcomer's config, the truth converged: 128 elements) with the default options.  Record 48,
     fitted to 1.1 noise variances on 80 nodes and the cubic, held out 1.44, was ``unexplained`` — the numerics were
     not judged at a baseline at the floor (:func:`diagnosis.baseline.numerics.numerics_from_the_records`; at the
@@ -171,9 +171,9 @@ def test_a_correct_record_of_the_hint_family_at_the_floor_on_coarse_numerics_is_
     lowest mode rang through the record (:func:`ebb_model.acquisition.bandlimited.lead_in`).  Of the family's 16 correct
     records, 16 are ``none`` now (measured; 14 before both)."""
     from diagnosis.run import diagnose
-    from hint_family import hint_bench, write_hint_case
+    from hint_family import first_draw, write_hint_case
 
-    case = hint_bench(index, elements=128)
+    case = first_draw(index, elements=128)
     assert case.kind == "correct"
     cfg, rec = write_hint_case(case, tmp_path / "bench")
     d = diagnose(cfg, [rec], tmp_path / "gap", plots=False, workers=1, export=False)
@@ -186,7 +186,7 @@ def test_a_correct_record_of_the_hint_family_at_the_floor_on_coarse_numerics_is_
 
 @pytest.mark.parametrize("index", [5, 9, 13, 45, 49, 53])
 def test_an_effect_the_baseline_took_up_in_another_beam_is_named_from_the_records_modes(tmp_path, index):
-    """The hint family's records 5, 9, 13, 45, 49 and 53 (``tests/hint_family.py``): clamped–pinned beams, a
+    """The hint family's first-draw records 5, 9, 13, 45, 49 and 53 (``tests/hint_family.py``): clamped–pinned beams, a
     newcomer's config, a spring to ground (5, 9, 13, 49) or a point mass (45, 53) withheld.  The baseline takes the
     effect up in another beam (13, 49: EI 2.2× and 2.0× the truth; 5: EI 0.57×, N 1.9×; 45: EI 0.36×, ρA 5.6×, N
     on its bound; 53: EI 1.4×, ρA 1.35×, N 0.48×), its modes where the records have none.
@@ -226,9 +226,9 @@ def test_an_effect_the_baseline_took_up_in_another_beam_is_named_from_the_record
     truth converged (its 128 elements 4e-5 noise variances off 256) and the grid adequate (0.054): what leaves the
     third sensor's 0.58 is open (issue 71), so on 53 the held-out floor per sensor is not asserted."""
     from diagnosis.run import diagnose
-    from hint_family import hint_bench, write_hint_case
+    from hint_family import first_draw, write_hint_case
 
-    case = hint_bench(index, elements=128)
+    case = first_draw(index, elements=128)
     assert case.kind == "withheld effect" and case.effect is not None
     name, size = case.effect.name, {"grounded_spring": "k", "point_mass": "mass"}[case.effect.name]
     cfg, rec = write_hint_case(case, tmp_path / "bench")

@@ -73,7 +73,7 @@ def test_the_sign_is_weighed_with_the_mechanisms(tmp_path):
 
 @pytest.mark.parametrize("index", [18, 22, 45])
 def test_a_better_fit_reversed_that_leaves_most_of_the_misfit_is_no_reversed_force(tmp_path, index):
-    """The hint family's records on which the baseline's sign was read REVERSED with decisive odds though every
+    """The hint family's first-draw records on which the baseline's sign was read REVERSED with decisive odds though every
     record holds its force as read: sensors two samples late (records 18 and 22: 824 → 566 and 449 → 313 noise
     variances reversed, ln odds +1.8e5 and +1.9e5) and a withheld point mass (record 45: 1.56 → 1.50, +42.6) — the
     reversed force removes 31 %, 30 % and 11 % of the misfit over the floor.  The sign is taken as read (a
@@ -83,7 +83,7 @@ def test_a_better_fit_reversed_that_leaves_most_of_the_misfit_is_no_reversed_for
     from functools import partial
 
     import numpy as np
-    from hint_family import hint_bench, write_hint_case
+    from hint_family import first_draw, write_hint_case
 
     from diagnosis.baseline.fit import baseline_fit
     from diagnosis.baseline.polarity import SIGN_REMOVES, check_polarity
@@ -95,7 +95,7 @@ def test_a_better_fit_reversed_that_leaves_most_of_the_misfit_is_no_reversed_for
     from identification.prior import Prior
     from identification.run import load_identification_config, read_data
 
-    cfg_path, rec = write_hint_case(hint_bench(index), tmp_path)
+    cfg_path, rec = write_hint_case(first_draw(index), tmp_path)
     cfg = load_identification_config(cfg_path)
     records = split_records([ordered_record(cfg, e) for e in read_data(cfg, [rec])], [], holdout_fraction=0.3)
     space = parameter_space(cfg)
