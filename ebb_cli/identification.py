@@ -23,6 +23,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from identification.run import identify
     from identification.uncertainty import FOLDER
 
+    if not args.data:
+        return _identify_from_modes(args)
     try:
         res = identify(config_with_spectrum_modes(args), args.data, args.out, backend=args.backend,
                        workers=args.workers, dask=args.dask, pop=args.pop, generations=args.generations, seed=args.seed,
@@ -74,6 +76,19 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     return 0
 
 
+def _identify_from_modes(args: argparse.Namespace) -> int:
+    """``ebb identify CONFIG --out DIR`` without records: the measured natural frequencies alone
+    (:func:`identification.modes_only.identify_from_modes`)."""
+    from identification.modes_only import identify_from_modes
+
+    res = identify_from_modes(config_with_spectrum_modes(args), args.out)
+    print("no record: identified from the measured natural frequencies and the config's priors alone")
+    for line in res.lines():
+        print(line)
+    print(f"wrote {Path(args.out) / 'identified.json'}")
+    return 0
+
+
 def _cmd_export(args: argparse.Namespace) -> int:
     from identification.export import export_points
     from identification.result import IdentificationResult
@@ -101,7 +116,9 @@ def add_parsers(sub: Subcommands) -> None:
     """Register ``identify`` and ``export`` on the ``ebb`` parser."""
     p = sub.add_parser("identify", help="multi-objective identification of the config's unknowns from data")
     p.add_argument("config", help="TOML config with identify = true parameters")
-    p.add_argument("data", nargs="+", help="data files (.csv, .npz, .mat, .lvm, .uff)")
+    p.add_argument("data", nargs="*", help="data files (.csv, .npz, .mat, .lvm, .uff); none: identify from the "
+                                           "measured natural frequencies alone (--modes FILE or "
+                                           "[identification.modes])")
     p.add_argument("--out", required=True, help="result directory (checkpoint, pareto.json, plots, exports)")
     p.add_argument("--backend", default="auto", help="auto | native | fmu (default auto: the native model)")
     p.add_argument("--fmu", default=None, help="FMU to evaluate with --backend fmu (default: one built from CONFIG)")

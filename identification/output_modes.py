@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import optimize
@@ -30,6 +31,9 @@ from scipy import optimize
 from ebb_model.errors import DataError
 
 from .record_poles import EXP_WINDOW, record_modes
+
+if TYPE_CHECKING:
+    from .modal_data import ModalData
 
 __all__ = ["OutputModes", "free_decay_modes", "SIGNIFICANCE"]
 
@@ -90,6 +94,21 @@ class OutputModes:
         z = np.zeros(0)
         return cls(z, z, z, z, np.zeros((0, n_sensors)), np.zeros((0, n_sensors)), np.zeros(0, int), z,
                    np.asarray(noise_std, dtype=float), 1.0, kind)
+
+    def modal_data(self) -> "ModalData":
+        """The frequencies as measured modes (:class:`identification.modal_data.ModalData`: the model's lowest in
+        order — a mode the record does not show shifts the rest, so give records that show the lowest ones).
+
+        Raises
+        ------
+        DataError
+            The record shows no mode.
+        """
+        from .modal_data import ModalData
+
+        if self.frequencies_hz.size == 0:
+            raise DataError("the record shows no mode: no natural frequency to identify from")
+        return ModalData(self.frequencies_hz.copy(), self.frequency_std.copy())
 
     def to_dict(self) -> dict[str, object]:
         """JSON values."""

@@ -4,13 +4,13 @@ its true sign, in its true units, and the truth's parameters lie inside the newc
 Each bench is drawn from its index: one of four pairs of ends (every pair with every kind below, in turn by
 the index's quarter: the first draw took both from the index's remainder, so every correct record was a
 cantilever without axial load and every withheld effect clamped–pinned), no axial load, tension (0.5–4 Euler
-loads) or compression (0.1–0.5), one to three sensors of random kinds and places, a shaker at a random place fed noise to
-fs/2.56, to 0.2 fs or white to the Nyquist frequency (then displacement sensors only: ``tests/first_records.py``),
-1–5 % noise, 2 s at 1 kHz, a config as a newcomer writes it (every unknown 30–60 % off, bounds ×0.25…×4).  The
-record is one of four kinds, in turn: **correct** (the model's physics, the truth from the independent FE
-generator), a **withheld effect** (a point mass, a crack, a compliant clamp, an intermediate spring — what a
-diagnosis is for), an **undeclared delay** of the sensor channels (2–10 samples: a sigma-delta card's group delay)
-or an **undeclared anti-alias filter** on the sensor channels (a 4th-order Butterworth at 0.3–0.45 fs).  The last
+loads) or compression (0.1–0.5), one to three sensors of random kinds and places, a shaker at a random place fed
+noise to fs/2.56, to 0.2 fs or white to the Nyquist frequency (then displacement sensors only:
+``tests/first_records.py``), 1–5 % noise, 2 s at 1 kHz, a config as a newcomer writes it (every unknown 30–60 % off,
+bounds ×0.25…×4).  The record is one of four kinds, in turn: **correct** (the model's physics, the truth from the
+independent FE generator), a **withheld effect** (a point mass, a crack, a compliant clamp, an intermediate spring —
+what a diagnosis is for), an **undeclared delay** of the sensor channels (2–10 samples: a sigma-delta card's group
+delay) or an **undeclared anti-alias filter** on the sensor channels (a 4th-order Butterworth at 0.3–0.45 fs).  The last
 three are records the model does not describe, and where hints have claimed false things: an undeclared delay made
 the records' start say "opposite in sign" and "the records' level asks for EI 49".
 

@@ -162,8 +162,8 @@ def test_a_beam_alike_from_either_end_is_diagnosed_on_the_right_half(tmp_path, e
 
 @pytest.mark.parametrize("index", [44, 48])
 def test_a_correct_record_of_the_hint_family_at_the_floor_on_coarse_numerics_is_none(tmp_path, index):
-    """The hint family's first-draw correct records 44 and 48 (``tests/hint_family.py``: a cantilever's accelerometer under
-    noise to 0.2 fs, a newcomer's config, the truth converged: 128 elements) with the default options.  Record 48,
+    """The hint family's first-draw correct records 44 and 48 (``tests/hint_family.py``: a cantilever's accelerometer
+    under noise to 0.2 fs, a newcomer's config, the truth converged: 128 elements) with the default options.  Record 48,
     fitted to 1.1 noise variances on 80 nodes and the cubic, held out 1.44, was ``unexplained`` — the numerics were
     not judged at a baseline at the floor (:func:`diagnosis.baseline.numerics.numerics_from_the_records`; at the
     truth 323 nodes and the band-limited force leave 1.02 and 0.99).  Record 44 was ``unexplained`` at 1.46: the

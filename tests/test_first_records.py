@@ -191,10 +191,10 @@ def test_more_effort_never_gives_a_worse_answer(name, tmp_path):
 
 
 def test_a_fit_at_the_floor_on_coarse_numerics_takes_the_finer(tmp_path):
-    """A cantilever's accelerometer near the clamp under noise to 0.2 fs (the hint family's first-draw record 48, its truth on
-    128 elements), from the newcomer's 80-node config with the cubic: the fit ended at 1.13 noise variances with EI
-    and ρA 1.26 % high — six Cramér–Rao deviations, the parameters taking up the numerics' error where each finer
-    numerics alone fits no better (1.2, 1.18) — because the refinements were not tried at the floor.  Both at once
+    """A cantilever's accelerometer near the clamp under noise to 0.2 fs (the hint family's first-draw record 48, its
+    truth on 128 elements), from the newcomer's 80-node config with the cubic: the fit ended at 1.13 noise variances
+    with EI and ρA 1.26 % high — six Cramér–Rao deviations, the parameters taking up the numerics' error where each
+    finer numerics alone fits no better (1.2, 1.18) — because the refinements were not tried at the floor.  Both at once
     are kept (decisively better: :data:`identification.numerics.FLOOR_EVIDENCE`) and the truth is within 1 %."""
     from hint_family import first_draw, write_hint_case
 

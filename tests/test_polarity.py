@@ -73,8 +73,8 @@ def test_the_sign_is_weighed_with_the_mechanisms(tmp_path):
 
 @pytest.mark.parametrize("index", [18, 22, 45])
 def test_a_better_fit_reversed_that_leaves_most_of_the_misfit_is_no_reversed_force(tmp_path, index):
-    """The hint family's first-draw records on which the baseline's sign was read REVERSED with decisive odds though every
-    record holds its force as read: sensors two samples late (records 18 and 22: 824 → 566 and 449 → 313 noise
+    """The hint family's first-draw records on which the baseline's sign was read REVERSED with decisive odds though
+    every record holds its force as read: sensors two samples late (records 18 and 22: 824 → 566 and 449 → 313 noise
     variances reversed, ln odds +1.8e5 and +1.9e5) and a withheld point mass (record 45: 1.56 → 1.50, +42.6) — the
     reversed force removes 31 %, 30 % and 11 % of the misfit over the floor.  The sign is taken as read (a
     reversed force removes at least half: :data:`~diagnosis.baseline.polarity.SIGN_REMOVES`), and the line says

@@ -217,8 +217,8 @@ def test_defaults_converged_against_a_much_finer_truth():
 
 def test_the_exact_truth_converges_with_the_mesh_on_a_lightly_damped_accelerometer_record():
     """The exact-in-time truth refined 64 → 128 → 256 elements on a cantilever's accelerometer near the clamp under
-    noise to fs/2.56 (the hint family's first-draw record 44, 2 s at 1 kHz): each refinement changes the outputs by far less
-    than the noise, and less with each refinement.  Diagonalising the one-sample map instead (the integrator
+    noise to fs/2.56 (the hint family's first-draw record 44, 2 s at 1 kHz): each refinement changes the outputs by far
+    less than the noise, and less with each refinement.  Diagonalising the one-sample map instead (the integrator
     before) drifted apart with the mesh: 0.003, then 7–15 noise variances (its eigenvectors' condition ×8 per
     refinement, 1.8e11 at 256 elements).  Measured now: 3.5e-4 and 2.5e-5 noise variances at most."""
     from hint_family import first_draw
