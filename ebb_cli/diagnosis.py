@@ -20,6 +20,8 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(msg, file=sys.stderr)
 
+    if not args.data:
+        return _from_modes(args)
     if args.each:
         return _each(args, say)
     if args.resume:
@@ -37,6 +39,21 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     print(f"wrote {out_dir / 'gap.json'}")
     if d.report.corrected_files:
         _say_corrected(out_dir / "corrected")
+    return 0
+
+
+def _from_modes(args: argparse.Namespace) -> int:
+    """``ebb diagnose CONFIG --out DIR`` without records (:func:`diagnosis.from_modes.diagnose_from_modes`)."""
+    from diagnosis.from_modes import diagnose_from_modes
+    from ebb_model.errors import ConfigError
+
+    if args.each or args.resume or args.holdout or args.result:
+        raise ConfigError("without records: --each, --resume, --holdout and --result do not apply")
+    d = diagnose_from_modes(config_with_spectrum_modes(args), args.out)
+    print("no record: the effects weighed against the measured natural frequencies alone")
+    for line in d.lines():
+        print(line)
+    print(f"wrote {Path(args.out) / 'gap.json'}")
     return 0
 
 
@@ -77,7 +94,9 @@ def add_parsers(sub: Subcommands) -> None:
     """Register ``diagnose`` and ``demo`` on the ``ebb`` parser."""
     p = sub.add_parser("diagnose", help="where model and data disagree, which effect explains it, how far it closes")
     p.add_argument("config", help="TOML config (the baseline model; identify = true unknowns with bounds)")
-    p.add_argument("data", nargs="+", help="measured records to fit (.csv, .npz, .mat, .lvm, .uff)")
+    p.add_argument("data", nargs="*", help="measured records to fit (.csv, .npz, .mat, .lvm, .uff); none: weigh the "
+                                           "effects against the measured natural frequencies alone (--modes FILE "
+                                           "or [identification.modes])")
     p.add_argument("--holdout", nargs="+", default=None, metavar="FILE",
                    help="records held out entirely (default: hold out the tail of each record)")
     p.add_argument("--holdout-fraction", type=float, default=0.3,
