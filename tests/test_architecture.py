@@ -67,7 +67,7 @@ def test_the_diagnosis_folders_are_its_stages():
     assert folders == {"problem", "baseline", "effects", "candidates", "search", "localise", "judgement", "design",
                        "report", "corrected"}
     loose = sorted(p.stem for p in (ROOT / "diagnosis").glob("*.py"))
-    assert loose == ["__init__", "batch", "demo", "run", "settings", "setups", "stages"], loose
+    assert loose == ["__init__", "batch", "demo", "from_modes", "run", "settings", "setups", "stages"], loose
 
 
 #: The diagnosis' stages in the order they run; the problem they share and the effects first.
