@@ -7,7 +7,7 @@ from dataclasses import replace
 from typing import Callable
 
 from ebb_model.space.adequacy import NOISE_FLOOR_EXCESS
-from identification.numerics import REFINEMENT_GAIN, all_at_once, records_keep, refinements
+from identification.numerics import all_at_once, records_keep, records_tell_apart, refinements
 
 from ..effects import Effect
 from ..problem.fitting import Fit, GapProblem
@@ -21,8 +21,8 @@ def numerics_from_the_records(problem: GapProblem, baseline: Fit, band_hz: float
     given when no refinement is kept).
 
     The identification's rule (:func:`identification.numerics.numerics_for_records`): a refinement
-    (:func:`identification.numerics.refinements`) that changes the baseline's χ² by more than
-    :data:`~identification.numerics.REFINEMENT_GAIN` per residual is fitted on, and kept by
+    (:func:`identification.numerics.refinements`) that changes the baseline's χ² so that the records tell it apart
+    (:func:`identification.numerics.records_tell_apart`) is fitted on, and kept by
     :func:`identification.numerics.keeps`; at the noise floor every refinement at once, kept when its fit is lower
     by :data:`~identification.numerics.FLOOR_EVIDENCE` — there the parameters have taken up the coarser numerics'
     error, which the held-out window then shows as a gap (measured: the hint family's correct cantilever record 48,
@@ -78,7 +78,7 @@ def _refined(problem: GapProblem, fit: Fit, band_hz: float, effect: Effect | Non
     for what, refine in all_at_once(steps) if at_floor else steps:
         trial = replace(problem, config=refine(problem.config))
         r = trial.residuals(fit.beta, effect, fit.s if effect is not None else None)
-        if not abs(float(r @ r) - fit.rss) > REFINEMENT_GAIN * fit.n:
+        if not records_tell_apart(fit.rss, float(r @ r), fit.n, at_floor):
             continue
         new = trial.fit_along_the_level(fit.beta, effect, fit.s if effect is not None else None)
         if records_keep(fit.rss, new.rss, fit.n, at_floor):
