@@ -32,10 +32,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from ebb_model.config import BeamConfig
-from ebb_model.errors import ConfigError
-from identification.config_file import load_identification_config
-from identification.modal_data import ModalData, modal_data
-from identification.modes_only import Extension, ModesFit, ModesOnlyError, fit_modes
+from identification.modal_data import ModalData
+from identification.modes_only import Extension, ModesFit, fit_modes, modes_input
 from identification.parameters import parameter_space
 from identification.prior import Prior
 
@@ -185,13 +183,7 @@ def diagnose_from_modes(config: BeamConfig | str | Path, out_dir: str | Path | N
     ConfigError
         An invalid config.
     """
-    cfg = config if isinstance(config, BeamConfig) else load_identification_config(config)
-    modes = modes if modes is not None else modal_data(cfg)
-    if modes is None:
-        raise ModesOnlyError("no measured natural frequencies: give [identification.modes], --modes FILE or a record")
-    out = None if out_dir is None else Path(out_dir)
-    if out is not None and out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise ConfigError(f"{out}: the output directory must not exist or be empty")
+    cfg, modes, out = modes_input(config, modes, out_dir)
     settings = thresholds_from_config(cfg)
     space = parameter_space(cfg)
     base = fit_modes(cfg, modes)

@@ -43,15 +43,13 @@ from .parameters import ParameterSpace, parameter_space
 from .prior import Prior, PriorCheck
 
 __all__ = ["HELD_WIDTH", "Extension", "ModesFit", "ModesOnlyError", "ModalIdentification", "fit_modes",
-           "identify_from_modes"]
+           "identify_from_modes", "modes_input"]
 
 #: An unknown whose conditional standard deviation from the frequencies alone exceeds this share of its bounds'
 #: width is held at its nominal value (the frequencies cannot place it within its bounds).
 HELD_WIDTH = 1.0
-#: A direction of the unknowns (relative units: each unknown over its nominal magnitude) along which the
-#: frequencies and priors leave a standard deviation above this is free: they do not place it within its own size.
-#: The common scale's is infinite but for round-off and the damping's second-order share of a damped frequency
-#: (``√(1 − ζ²)``: 1e-5 of a frequency's sensitivity at ζ 0.4 %).
+#: A direction of the unknowns (relative units) along which the frequencies and priors leave a standard deviation
+#: above this is free: they do not place it within its own size (the common scale's: infinite but for round-off).
 FREE_STD = 1.0
 #: Starts of the search besides the nominal values.
 STARTS = 16
@@ -67,7 +65,7 @@ RESTARTS = 3
 #: Relative step of the Jacobian's central differences (the eigen-solver resolves a frequency to ~1e-9
 #: relative: a step of 1e-6 left derivatives 1e-3 off, enough to make the common scale look seen).
 JACOBIAN_STEP = 1e-4
-#: Relative step of the forward differences of the Jacobian (the eigen-solver's round-off ~1e-13 relative).
+#: Relative step of the least-squares polish's forward differences.
 STEP = 1e-6
 
 
@@ -150,11 +148,8 @@ class ModalIdentification:
 
 
 def _jacobian(f: Any, x: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """Central differences of ``f`` in the relative units ``x / scale``.  Forward ones leave a truncation error of
-    half a step times the curvature, which for residuals of ~1e6 per relative change is of order one: the common
-    scale, along which the frequencies are the same to round-off, then looked fixed by them (smallest singular
-    value 104); a step of :data:`JACOBIAN_STEP` keeps the eigen-solver's ~1e-9 relative error to 1e-5 of a
-    derivative."""
+    """Central differences of ``f`` in the relative units ``x / scale`` (:data:`JACOBIAN_STEP`: forward ones at
+    1e-6 made the common scale, along which the frequencies are the same to round-off, look fixed by them)."""
     cols = []
     for j in range(x.size):
         h = JACOBIAN_STEP * scale[j]
@@ -308,12 +303,10 @@ def _solve(problem: _Problem, free: np.ndarray, starts: np.ndarray, polished: in
         return float(r.cost), x, int(r.status)
 
     costs = [float(np.sum(problem(x0) ** 2)) for x0 in starts]
-    # every chosen start for a few iterations, then the best one to convergence
     raced = [polish(starts[k], RACE) for k in np.argsort(costs)[:polished]]
     cost, x, _ = min(raced, key=lambda r: r[0])
-    # to convergence, the trust region restarted until it stops paying: a polish that ends on its step tolerance
-    # along a direction only the priors see (the common scale) stops short (a spring's fit: cost 10.4 after the
-    # race, 0.51 from a fresh polish of the same point)
+    # the race's best to convergence, the trust region restarted while it pays (a polish ending on its step
+    # tolerance along the common scale stops short)
     for _ in range(RESTARTS):
         again, x_again, _ = polish(x, None)
         improved = again < cost * (1.0 - 1e-6)
@@ -329,9 +322,8 @@ def _solve(problem: _Problem, free: np.ndarray, starts: np.ndarray, polished: in
         if not again < cost * (1.0 - 1e-6):
             break
         cost, x = again, x_again
-    # the covariance in units of each unknown's size at the fit (an effect's size is far from its "off" scale: a
-    # step of the off scale's millionth on a spring 115 times that size is round-off, which showed the common
-    # scale of EI, ρA and the spring as fixed by the frequencies to 6e-5)
+    # the covariance in units of each unknown's size at the fit (an effect's size far from its "off" scale made
+    # the steps round-off: the common scale of EI, ρA and a spring looked fixed by the frequencies to 6e-5)
     scale = np.maximum(np.abs(x), scale)
     J = _jacobian(problem, x, scale)[:, free]
     m = problem.modes.count
@@ -436,6 +428,28 @@ def fit_modes(cfg: BeamConfig, modes: ModalData, *, extension: Extension | None 
     return replace(fit, n_evaluations=fit.n_evaluations + first.n_evaluations, compared=compared)
 
 
+def modes_input(config: BeamConfig | str | Path, modes: ModalData | None, out_dir: str | Path | None
+                ) -> tuple[BeamConfig, ModalData, Path | None]:
+    """The config (loaded and checked), the measured frequencies (default its ``[identification.modes]``) and the
+    output directory of a run from the modes alone, checked before any work.
+
+    Raises
+    ------
+    ModesOnlyError
+        No measured frequencies.
+    ConfigError
+        An invalid config, or an output directory that exists and is not empty.
+    """
+    cfg = config if isinstance(config, BeamConfig) else load_identification_config(config)
+    modes = modes if modes is not None else modal_data(cfg)
+    if modes is None:
+        raise ModesOnlyError("no measured natural frequencies: give [identification.modes], --modes FILE or a record")
+    out = None if out_dir is None else Path(out_dir)
+    if out is not None and out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ConfigError(f"{out}: the output directory must not exist or be empty")
+    return cfg, modes, out
+
+
 def identify_from_modes(config: BeamConfig | str | Path, out_dir: str | Path | None = None, *,
                         modes: ModalData | None = None, seed: int = 0) -> ModalIdentification:
     """Fit the config's unknowns to measured natural frequencies and the config's priors (module docstring).
@@ -458,13 +472,7 @@ def identify_from_modes(config: BeamConfig | str | Path, out_dir: str | Path | N
     ConfigError
         An invalid config.
     """
-    cfg = config if isinstance(config, BeamConfig) else load_identification_config(config)
-    modes = modes if modes is not None else modal_data(cfg)
-    if modes is None:
-        raise ModesOnlyError("no measured natural frequencies: give [identification.modes], --modes FILE or a record")
-    out = None if out_dir is None else Path(out_dir)
-    if out is not None and out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise ConfigError(f"{out}: the output directory must not exist or be empty")
+    cfg, modes, out = modes_input(config, modes, out_dir)
     fit = fit_modes(cfg, modes, seed=seed)
     names, x, free, cov = list(fit.names), fit.x, fit.free, fit.cov
     held = {n: "the measured frequencies barely depend on it and it has no prior" for n, f in zip(names, free)
