@@ -209,7 +209,12 @@ def _head(evaluator: Any) -> Any:
 
 def _family(evaluator: Any, d: _Directions) -> list[tuple[float | None, np.ndarray]]:
     """The model's undamped frequencies [Hz] at the nominal EI and ρA, per value of N tried (``None``: N is not
-    unknown)."""
+    unknown), the values of N that buckle the beam left out: their "frequencies" are those of an unstable model
+    (measured: a pinned–pinned beam bounded at 5.8 Euler loads in compression — its first eight values of N
+    buckled it, every pairing with them placed the one mode its records showed, and the start went to the
+    bound's end, EI 0.96 and N −32 for 3.79 and −11.8).  A candidate scales N with EI, so a value that buckles
+    the beam at the nominal EI buckles it at every frequency scale."""
+    from ebb_model.assemble import buckling_load
     from ebb_model.modal.modal import discrete_frequencies
 
     cfg = evaluator.config
@@ -217,6 +222,14 @@ def _family(evaluator: Any, d: _Directions) -> list[tuple[float | None, np.ndarr
     if d.has("N"):
         i = d.names.index("N")
         values: list[float | None] = [float(v) for v in np.linspace(d.lower[i], d.upper[i], N_GRID)]
+        if d.lower[i] < 0:
+            try:
+                c, p = evaluator.space.apply(cfg, d.candidate(1.0, 0.0, 0.0))
+                n_cr = buckling_load(c, p)
+            except (EbbError, ValueError, np.linalg.LinAlgError):
+                n_cr = None
+            if n_cr is not None:
+                values = [v for v in values if v is not None and v > n_cr]
     else:
         values = [None]
     out = []

@@ -160,3 +160,32 @@ def test_alignment_miss_counts_modes_placed_missed_and_unseen():
     assert alignment_miss(peaks, support, 0.67 * peaks) == pytest.approx(support.sum() + 0.5 * support.mean() * 3)
     extra = alignment_miss(peaks, support, np.sort(np.r_[peaks, 100.0]))
     assert extra == pytest.approx(0.5 * support.mean(), rel=1e-12)
+
+
+def test_the_start_never_takes_an_axial_force_that_buckles_the_beam(tmp_path):
+    """A pinned–pinned beam in compression whose bounds reach 5.8 Euler loads (the hint family's record 56: three
+    displacement sensors, a force to 0.2 fs, the records show one mode): the values of N that buckle the model have
+    no frequencies to align, and the start's N leaves the beam stable.  Before, every pairing with a buckled value
+    placed the one mode the records showed, the start went to the bound's end (EI 0.96 and N −32 for 3.79 and
+    −11.8) and the search stayed in the EI–N valley: 5.5, 0.65 and 11.5 noise variances."""
+    from ebb_model.assemble import buckling_load
+    from hint_family import hint_bench, write_hint_case
+    from identification.data_start import _Directions, _family
+
+    case = hint_bench(56, elements=128)
+    assert (case.kind, case.bench.left, case.bench.right) == ("correct", "pinned", "pinned")
+    cfg_path, rec_path = write_hint_case(case, tmp_path)
+    cfg = load_identification_config(cfg_path)
+    ev = NativeEvaluator(cfg, parameter_space(cfg), _arrays(cfg, read_data(cfg, [rec_path])), stabilising=False)
+    sp = ev.space
+    d = _Directions(tuple(sp.names), sp.lower, sp.upper, sp.nominal, {}, 1.0)
+    c0, p0 = sp.apply(cfg, d.candidate(1.0, 0.0, 0.0))
+    n_cr = buckling_load(c0, p0)
+    assert n_cr is not None and sp.lower[sp.names.index("N")] < n_cr      # the bounds do reach beyond it
+    family = _family(ev, d)
+    assert family and all(nv is not None and nv > n_cr for nv, _ in family)
+    assert all(np.all(np.diff(f[f > 0]) > 0) for _, f in family)        # no repeated "frequencies" of a buckled model
+    start = data_start(ev)
+    assert start is not None
+    c, p = sp.apply(cfg, start.x)
+    assert p["N"] > buckling_load(c, p)
