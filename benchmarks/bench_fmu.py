@@ -12,8 +12,9 @@ time per step, in microseconds, and the ratio beam / floor.
 
 The start: a new Python process (fmpy imported) extracts the FMU, instantiates it, initialises it and takes one
 step — what a host pays on every simulation start; the median over ``--starts`` processes, timed inside the
-process from after fmpy's import.  Beside it the same FMU without its carried compiled core (its ``__pycache__``
-files removed before zipping it again): what the start cost before the FMU carried it (fmu_build/kernels.py).
+process from after fmpy's import.  Beside it the same FMU without what it carries to start at once — its
+compiled core (the ``__pycache__`` files) and its model at its own values (``resources/ebb_model.npz``), removed
+before zipping it again: what the start cost before the FMU carried them (fmu_build/kernels.py).
 
 Usage::
 
@@ -40,6 +41,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from fmu_build import build_fmu  # noqa: E402
+from fmu_build.slave_template import MODEL_FILE  # noqa: E402
 
 R1_CONFIG = ROOT / "examples" / "seed_clamped.toml"
 
@@ -148,10 +150,11 @@ f.freeInstance()
 
 
 def without_carried_core(fmu_path: Path, out: Path) -> Path:
-    """The FMU ``fmu_path`` without its ``__pycache__`` files (no compiled kernels, no byte code), as ``out``."""
+    """The FMU ``fmu_path`` without its ``__pycache__`` files (no compiled kernels, no byte code) and its carried
+    model, as ``out``."""
     with zipfile.ZipFile(fmu_path) as src, zipfile.ZipFile(out, "w", compression=zipfile.ZIP_DEFLATED) as dst:
         for item in src.infolist():
-            if "/__pycache__/" not in item.filename:
+            if "/__pycache__/" not in item.filename and item.filename != f"resources/{MODEL_FILE}":
                 dst.writestr(item, src.read(item))
     return out
 

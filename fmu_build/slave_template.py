@@ -88,6 +88,9 @@ CORE_MODULES = ("", ".beam")
 #: step of 0).
 STEP_TOLERANCE = 1e-6
 
+#: The model at the FMU's own parameter values, in its resources (written by the builder: :mod:`fmu_build.kernels`).
+MODEL_FILE = "ebb_model.npz"
+
 #: Base name of the deflection outputs ``w[0] ... w[nodes+1]`` (``field=True``).
 FIELD_NAME = "w"
 
@@ -122,6 +125,8 @@ class BeamSlave(Fmi2Slave):
         with open(os.path.join(resources, SPEC_FILE), encoding="utf-8") as fh:
             spec = json.load(fh)
         self._cfg = _core.config_from_dict(spec["config"])
+        #: the model the FMU carries and the parameter values it is for (:func:`_carried_model`), or None
+        self._carried = _carried_model(os.path.join(resources, MODEL_FILE))
         self._field = bool(spec.get("field", False))
         self._dt = float(spec["dt"])
         self.modelName: str | None = spec.get("model_name", self.modelName)
@@ -255,8 +260,11 @@ class BeamSlave(Fmi2Slave):
         try:
             # the modal realisation: cheaper to rebuild for new parameters than the nodal one, and
             # better conditioned (field outputs are appended as displacement outputs at the grid nodes)
-            system = _core.assemble_modal(self._cfg, dict(self._params), field=self._field)
-            plan = _StepPlan(system.A, system.B, system.C, system.D, system.hold)
+            if self._carried is not None and self._carried[0] == self._params:
+                plan = _StepPlan(*self._carried[1])       # the model the FMU carries for these values
+            else:
+                system = _core.assemble_modal(self._cfg, dict(self._params), field=self._field)
+                plan = _StepPlan(system.A, system.B, system.C, system.D, system.hold)
         except Exception as exc:
             self._model_stale = True
             self._problem = f"no valid model for these parameters: {type(exc).__name__}: {exc}"
@@ -470,6 +478,18 @@ class _StepPlan:
         self.feedthrough: list[tuple[int, list[float]]] = [
             (i, D[i].tolist()) for i in range(D.shape[0]) if D[i].any()
         ]
+
+
+def _carried_model(path: str) -> tuple[dict[str, float], tuple[Any, ...]] | None:
+    """The parameter values and the model ``(A, B, C, D, hold)`` the FMU carries (:data:`MODEL_FILE`), or None.
+    An acceleration only: a missing or unreadable file leaves every assembly to the core."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            values = {str(n): float(v) for n, v in zip(z["names"], z["values"])}
+            hold = z["hold"] if bool(z["has_hold"]) else None
+            return values, (z["A"], z["B"], z["C"], z["D"], hold)
+    except Exception:   # noqa: BLE001 - see the docstring
+        return None
 
 
 def _dedupe_sys_path(resources: str) -> None:

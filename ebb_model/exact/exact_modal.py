@@ -39,7 +39,6 @@ from typing import Mapping
 
 import numba
 import numpy as np
-import scipy.linalg as sla
 
 from ..acquisition.antialias import effective_filters, filtered_poles, series_statespace
 from ..acquisition.channel_delay import effective_delays
@@ -304,6 +303,7 @@ def exact_statespace(config: BeamConfig, params: Mapping[str, float]) -> Discret
     ParameterError
         Invalid parameter values (from the discretisation).
     """
+    import scipy.linalg as sla     # here: an FMU whose model needs none of scipy starts without it
     mm = modal_matrices(config, params)
     A = modal_state_matrix(mm.frequencies2, mm.Cm)
     B = np.vstack([np.zeros_like(mm.Fm), mm.Fm])

@@ -16,7 +16,6 @@ from typing import Mapping
 
 import numba
 import numpy as np
-import scipy.linalg as sla
 
 from ..acquisition.channel_delay import delay_response
 from ..config import BeamConfig
@@ -65,6 +64,7 @@ def _normalise(shapes: np.ndarray) -> np.ndarray:
 def modes(config: BeamConfig, params: Mapping[str, float] | None = None,
           n_modes: int | None = None) -> ModalAnalysis:
     """Natural frequencies, damping ratios and mode shapes of the discretised beam."""
+    import scipy.linalg as sla     # here: an FMU whose model needs none of scipy starts without it
     beam = discretise(config, params)
     P = beam.field_rows()
     w2, Psi = sla.eigh(beam.K, beam.M)
@@ -146,6 +146,7 @@ def frequency_response(system: DiscreteStateSpace | ModalStateSpace, f_hz) -> Fr
     numpy.linalg.LinAlgError
         A frequency is a pole of a dense model (``zI − A`` singular).
     """
+    import scipy.linalg as sla     # here: an FMU whose model needs none of scipy starts without it
     f = np.atleast_1d(np.asarray(f_hz, dtype=float))
     z = np.exp(2j * np.pi * f * system.dt)
     if isinstance(system, ModalStateSpace):

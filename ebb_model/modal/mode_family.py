@@ -74,6 +74,12 @@ class FamilyKey:
     def __hash__(self) -> int:
         return self.digest
 
+    def __reduce__(self) -> tuple[type, tuple]:
+        # built again where it is unpickled (a worker): a string's hash differs from process to process, so the
+        # digest must be that process's — a pickled one never matched that process's own keys
+        return (FamilyKey, (self.length, self.nodes, self.left, self.right, self.N, self.kf, self.rhoI, self.masses,
+                            self.springs, self.segments))
+
 
 def family_key(config: BeamConfig, p: Mapping[str, float]) -> FamilyKey:
     """The :class:`FamilyKey` of ``config`` with the (resolved) parameter values ``p``."""

@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-import scipy.linalg as sla
 
 from ..config import BeamConfig
 from .discretisation import SemiDiscreteBeam
@@ -63,6 +62,7 @@ def lowest_modes(beam: SemiDiscreteBeam, n_modes: int, *, vectors: bool = True):
     an inverted problem whose smallest ``ω²`` is below :data:`_SINGULAR_K` of the grid's scale
     ``tr K / tr M`` is such a case (it put a 24-node free–free beam's mode 3 2e-4 off) and goes direct too.
     """
+    import scipy.linalg as sla     # here: an FMU whose model needs none of scipy starts without it
     size = beam.n_unknowns
     try:   # all pairs by divide and conquer ("gvd"): twice as fast as a subset by "gvx" at these sizes
         if vectors:

@@ -31,7 +31,6 @@ from dataclasses import dataclass
 from typing import cast
 
 import numpy as np
-import scipy.linalg as sla
 
 from ..space.discretisation import SemiDiscreteBeam
 from ..statespace import DiscreteStateSpace, with_input_delays
@@ -96,6 +95,7 @@ class ModalStateSpace:
 
     def to_statespace(self) -> DiscreteStateSpace:
         """The equivalent dense :class:`DiscreteStateSpace` (block-diagonal A; past inputs as delay states)."""
+        import scipy.linalg as sla     # here: an FMU whose model needs none of scipy starts without it
         nb, m = self.nblocks, self.D.shape[1]
         A = sla.block_diag(*self.T) if nb else np.zeros((0, 0))
         G = [self.G[:, :, j * m:(j + 1) * m].reshape(2 * nb, m) for j in range(self.delays + 1)]
@@ -163,6 +163,7 @@ def off_diagonal_magnitude(a: np.ndarray) -> float:
 def modal_from_beam(beam: SemiDiscreteBeam, dt: float, theta: float = 0.25,
                     substeps: int = 1, input_hold: str = "foh") -> ModalStateSpace | None:
     """Exact modal form via the undamped modes, or ``None`` if damping is not proportional."""
+    import scipy.linalg as sla     # here: an FMU whose model needs none of scipy starts without it
     w2, Psi = sla.eigh(beam.K, beam.M)
     prop, d = is_proportional(Psi, beam.C)
     if not prop:

@@ -62,7 +62,6 @@ under axial load with a stabilising objective (TU Wien).
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg as sla
 
 from ..space.discretisation import SemiDiscreteBeam
 from ..statespace import DiscreteStateSpace
@@ -80,6 +79,7 @@ class ThetaCoefficients:
 
 def theta_coefficients(beam: SemiDiscreteBeam, dt: float, theta: float, substeps: int = 1) -> ThetaCoefficients:
     """Factorise the θ-scheme's implicit matrix ``L'`` once and return ``K̃, C̃, B̃, τ``."""
+    import scipy.linalg as sla     # here: an FMU whose model needs none of scipy starts without it
     tau = dt / substeps
     M, C, K = beam.M, beam.C, beam.K
     L = M / tau + C / 2 + (theta * tau) * K
