@@ -242,3 +242,28 @@ def test_an_effect_the_baseline_took_up_in_another_beam_is_named_from_the_record
     # the place within one of the model's grid steps (80 nodes), the size within 5 %
     assert abs(named["effect_parameters"]["x"] - truth["x"]) <= case.bench.length / 79, named
     assert abs(named["effect_parameters"][size] / truth[size] - 1.0) <= 0.05, named
+
+
+def test_the_measured_modes_gate_the_modal_stages_by_the_share_of_the_gap_they_leave(tmp_path):
+    """The hint family's record 49 as drawn now (``hint_bench``: a cantilever, a displacement and a velocity sensor,
+    noise to 0.2 fs, a spring to ground withheld).  The baseline takes the spring up in a beam 4.2× as stiff (EI
+    35.2 for 8.47) and leaves 374 noise variances; the measured modes' oscillators leave 1.4.  The modal stages were
+    gated by the floor itself (1.25): no pattern was compared, no continuation refit of a linear time-invariant
+    effect ran, and the verdict named a pair (a soft segment with a support or a spring, 50 noise variances held
+    out).  The gate is now the verdict's own (:func:`diagnosis.search.modal_stage.linear_records`: what the
+    oscillators leave against the baseline's gap): the spring's pattern matches at χ² 1.8 for 4 modes and its
+    refit is held out at the floor."""
+    from diagnosis.run import diagnose
+    from hint_family import hint_bench, write_hint_case
+
+    case = hint_bench(49, elements=128)
+    assert case.kind == "withheld effect" and case.effect is not None and case.effect.name == "grounded_spring"
+    cfg, rec = write_hint_case(case, tmp_path / "bench")
+    d = diagnose(cfg, [rec], tmp_path / "gap", plots=False, workers=1, export=False)
+    doc = d.document
+    assert doc["verdict"] == "grounded_spring", doc["reason"]
+    named = next(e for e in doc["effects"] if e["label"] == "grounded_spring")["refit"]
+    assert max(named["heldout_gap_ratio_after"].values()) - 1.0 <= d.problem.settings.gap_threshold, named
+    truth = case.effect.values
+    assert abs(named["effect_parameters"]["x"] - truth["x"]) <= case.bench.length / 79, named
+    assert abs(named["effect_parameters"]["k"] / truth["k"] - 1.0) <= 0.05, named

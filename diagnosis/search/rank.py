@@ -94,8 +94,9 @@ def _continuation_stage(run: Search, labels: list[str], local: Refits, early: Ea
     if pair_explains(early, run.baseline, run.problem.settings) or run.explained(local):
         run.say(f"continuation refits of {', '.join(pending)} skipped: the gap is explained")
         pending = []
-    if evidence is not None and not linear_records(evidence, run.problem.settings):   # (unknown evidence: linear)
-        # no set of linear oscillators reproduces the records: no linear time-invariant effect can
+    if evidence is not None and not linear_records(evidence, run.problem.settings, run.baseline):
+        # no set of linear oscillators reproduces the records: no linear time-invariant effect can (unknown
+        # evidence: linear)
         lti = [lab for lab in pending if run.time_invariant(lab)]
         if lti:
             run.say(f"continuation refits of {', '.join(lti)} skipped: the measured modes' own fit leaves "
