@@ -12,7 +12,7 @@ from identification.data_start import alignment_miss
 from identification.record_poles import record_modes
 
 from ..problem.fitting import GapProblem
-from .modal_estimate import SEARCH, MeasuredModes, estimate_modes
+from .modal_estimate import SEARCH, MeasuredModes, estimate_modes, seen
 from .modal_pattern import modal_evidence
 from .mode_match import ModalEvidence
 
@@ -47,7 +47,8 @@ def modal_source(problem: GapProblem, freq_hz: np.ndarray, damping: np.ndarray, 
     mode (measured: a cantilever's fourth mode at 60.8 Hz, the top of a 60 Hz multisine, estimated at 74.9 Hz 73
     standard errors away, which then dominated every modal match) or land on the edge inside the band (a
     compressed beam's fifth mode, 118.6 Hz, above a 2–100 Hz sweep, estimated at 99.0 Hz in one run).  It still
-    takes part in the modal fit as a regressor.  When the scan from the baseline's modes leaves more than the gap
+    takes part in the modal fit as a regressor; so does an oscillator the records do not need
+    (:func:`~diagnosis.search.modal_estimate.seen`), and the set is ordered by frequency.  When the scan from the baseline's modes leaves more than the gap
     threshold (a mode outside every scan window: a baseline that compensated an effect holds its modes in the
     wrong places), the scan starts again from the records' own stable poles
     (:func:`identification.record_poles.record_modes`) and the estimate that leaves less is kept (measured: a
@@ -66,9 +67,9 @@ def modal_source(problem: GapProblem, freq_hz: np.ndarray, damping: np.ndarray, 
                 modes = estimate_modes(inputs, outputs, problem.noise_std, problem.config.time.dt, f0, z0,
                                        above_hz=above, bandlimited=problem.config.time.input_hold == "bandlimited",
                                        delays=delays)
-                keep = (modes.freq_hz <= band_hz) & (f0 <= band_hz)
+                keep = (modes.freq_hz <= band_hz) & (f0 <= band_hz) & seen(modes)
                 keep[0] = True
-                return modes.select(keep)
+                return modes.select(keep).in_order()
 
             found = estimate(freq_hz, damping, above_hz)
             if found.gap_ratio > 1.0 + problem.settings.gap_threshold:
