@@ -43,10 +43,10 @@ def _why(effect: Effect, patterns: Mapping[str, PatternFit], settings: Threshold
 
 def not_refitted(effects: Mapping[str, Effect], scores: Mapping[str, EffectScore], refitted: set[str],
                  patterns: Mapping[str, PatternFit], dropped: Mapping[str, str], settings: Thresholds, *,
-                 with_prior: bool) -> dict[str, str]:
+                 with_prior: bool, at_floor: bool = False) -> dict[str, str]:
     """For each effect whose score's p-value is below ``settings.score_significance`` and that is not among
-    ``refitted``, the line saying so and why (``dropped``: the effects refitted but dropped, with the reason), in
-    score order."""
+    ``refitted``, the line saying so and why (``dropped``: the effects refitted but dropped, with the reason;
+    ``at_floor``: no effect was refitted, the baseline leaving nothing to explain), in score order."""
     by_score = tie_ordered(scores, lambda lab: -scores[lab].lm)
     out = {}
     for rank, lab in enumerate(by_score, start=1):
@@ -54,6 +54,11 @@ def not_refitted(effects: Mapping[str, Effect], scores: Mapping[str, EffectScore
         if lab in refitted or not sc.p_value < settings.score_significance:
             continue
         head = f"score {sc.lm:.3g} (rank {rank} of {len(by_score)}, p {sc.p_value:.2g})"
-        out[lab] = (f"{head}, refitted but dropped: {dropped[lab]}" if lab in dropped
-                    else f"{head}, not refitted: {_why(effects[lab], patterns, settings, with_prior)}")
+        if lab in dropped:
+            out[lab] = f"{head}, refitted but dropped: {dropped[lab]}"
+        elif at_floor:
+            out[lab] = (f"{head}, not refitted: the baseline is within {settings.gap_threshold:.0%} of the noise "
+                        f"floor, nothing to explain")
+        else:
+            out[lab] = f"{head}, not refitted: {_why(effects[lab], patterns, settings, with_prior)}"
     return out
