@@ -20,13 +20,19 @@ from test_evidence import siso_lag_record
 from test_noise_model import truth_config, truth_records
 
 
-def _same_diagnosis(here: dict, there: dict) -> None:
-    """The verdict, the posterior probabilities and every refit's parameters (to 1e-9) agree."""
+def _same_diagnosis(here: dict, there: dict, *, refitted: bool = True) -> None:
+    """The verdict, the posterior probabilities, the baseline's parameters, every score and every refit's
+    parameters (to 1e-9) agree; ``refitted``: there are refits to compare (a record without effect whose baseline
+    is at the floor has none: no refit could change its verdict)."""
     assert there["verdict"] == here["verdict"] and there["indistinguishable"] == here["indistinguishable"]
     for lab, p in here["posterior_probability"].items():
         assert there["posterior_probability"][lab] == pytest.approx(p, rel=1e-9, abs=1e-12)
+    for k, v in here["baseline"]["parameters"].items():
+        assert there["baseline"]["parameters"][k] == pytest.approx(v, rel=1e-9), k
+    scores = {e["label"]: e["score"] for e in here["effects"]}
+    assert {e["label"]: e["score"] for e in there["effects"]} == pytest.approx(scores, rel=1e-9, abs=1e-9)
     refits = {e["label"]: e["refit"] for e in here["effects"] if e.get("refit")}
-    assert refits
+    assert bool(refits) == refitted, refits
     for e in there["effects"]:
         if e.get("refit"):
             for k, v in refits[e["label"]]["effect_parameters"].items():
@@ -86,7 +92,7 @@ def test_each_record_is_diagnosed_on_its_own(tmp_path, capsys, where):
         assert f"{f}: verdict none" in printed
     # a record diagnosed in the batch (on the cluster: its fits as tasks of it) is the record diagnosed alone
     alone = diagnose(cfg, [files[0]], None, plots=False, export=False, workers=1).document
-    _same_diagnosis(alone, json.loads((out / files[0].stem / "gap.json").read_text()))
+    _same_diagnosis(alone, json.loads((out / files[0].stem / "gap.json").read_text()), refitted=False)
 
 
 def test_bad_batches_and_addresses_stop_before_anything_is_written(tmp_path, capsys):
