@@ -125,6 +125,11 @@ class GapProblem:
         if self.noise is None:
             object.__setattr__(self, "noise", NoiseModel.white(self.noise_std, len(self.records)))
 
+    @property
+    def has_prior(self) -> bool:
+        """Whether a prior on the beam's unknowns is given (one term or more)."""
+        return self.prior is not None and self.prior.count > 0
+
     # ----------------------------------------------------------- simulation
     def model(self, beta: np.ndarray, effect: Effect | None = None, s: np.ndarray | None = None
               ) -> AugmentedModel:

@@ -49,9 +49,8 @@ def modal_source(problem: GapProblem, freq_hz: np.ndarray, damping: np.ndarray, 
     compressed beam's fifth mode, 118.6 Hz, above a 2–100 Hz sweep, estimated at 99.0 Hz in one run).  It still
     takes part in the modal fit as a regressor; so does an oscillator the records do not need
     (:func:`~diagnosis.search.modal_estimate.seen`), and the set is ordered by frequency.  When the scan from the
-    baseline's modes leaves more than the gap
-    threshold (a mode outside every scan window: a baseline that compensated an effect holds its modes in the
-    wrong places), the scan starts again from the records' own stable poles
+    baseline's modes leaves more than the gap threshold (a mode outside every scan window: a baseline that
+    compensated an effect holds its modes in the wrong places), the scan starts again from the records' own stable poles
     (:func:`identification.record_poles.record_modes`) and the estimate that leaves less is kept (measured: a
     clamped–pinned beam with a withheld stiff spring, the baseline's modes 1.3× the records', 2.78 noise variances
     left from the baseline's modes).  The match with the model passes over the modes the records do not show

@@ -82,7 +82,7 @@ def pair_with(run: Search, single: EffectRefit, known: dict[str, Fit]
     the other single refits.  The best pair's near-equal rivals (:func:`best_pair`) come after it.
     """
     first = run.catalogue.effect(single.label)
-    with_prior = run.problem.prior is not None and run.problem.prior.count > 0
+    with_prior = run.problem.has_prior
     # a chain's gain as the second effect only where a prior breaks its degeneracy (as on the shortlist); a
     # special case never (the general effect that nests it stands in for it: diagnosis.search.nested)
     rescored = {e.label: score_effect(run.problem, single.fit, on_top_of(first, single.fit.s, e)).lm

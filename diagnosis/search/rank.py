@@ -212,7 +212,7 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
                 paying = [rf.label for rf in pairs] + paying
     effects = run.effects | {lab: run.catalogue.effect(lab) for lab in refits if lab not in run.effects}
     unseen = not_refitted(run.effects, run.scores, set(refits), patterns, dropped, run.problem.settings,
-                          with_prior=run.problem.prior is not None and run.problem.prior.count > 0)
+                          with_prior=run.problem.has_prior)
     for line in unseen.values():
         say(line)
     return Ranking(baseline, before, run.scores, refits, order, paying, effects, patterns=patterns, modal=evidence,
@@ -349,9 +349,8 @@ def _nothing_to_explain(problem: GapProblem, baseline: Fit, before: np.ndarray) 
     second set-up the baseline may misfit).  Measured on the grid test's record without effect: five local refits
     on the refined grid's 243 nodes, every one leaving the baseline's 1.033 noise variances, took 74 of 175 s."""
     threshold = problem.settings.gap_threshold
-    has_prior = problem.prior is not None and problem.prior.count > 0
     return (baseline.rss / baseline.n - 1.0 < threshold and float(np.mean(before)) - 1.0 < threshold
-            and not has_prior and problem.modes is None)
+            and not problem.has_prior and problem.modes is None)
 
 
 def _shortlist(problem: GapProblem, effects: dict[str, Effect], scores: dict[str, EffectScore], by_score: list[str],
@@ -371,7 +370,7 @@ def _shortlist(problem: GapProblem, effects: dict[str, Effect], scores: dict[str
     chain = {lab for lab in effects if effects[lab].scale_degenerate}
     nested = {lab for lab in effects if effects[lab].nested_in is not None}
     labels = [lab for lab in by_score if scores[lab].lm > 0 and lab not in chain | nested][:shortlist]
-    with_prior = problem.prior is not None and problem.prior.count > 0
+    with_prior = problem.has_prior
     extra = [lab for lab in by_score if lab in chain and scores[lab].lm > 0
              and ((with_prior and scores[lab].p_value < significant) or lab == by_score[0])]
     top = by_score[0] if by_score else None
