@@ -204,8 +204,8 @@ def notes(verdict: Verdict, case: Case) -> Verdict:
     w, name = case.weighed, verdict.name
     if name in w.evidence and _remains(verdict, case) is None:    # a probability only among models that fit
         others = [f"{lab} {p:.2g}" for lab, p in w.evidence.items() if lab != name][:2]
-        verdict = verdict.said("notes", f"posterior probability {w.evidence[name]:.3g} (Laplace evidence; next: "
-                                        f"{', '.join(others)})")
+        rivals = f"next: {', '.join(others)}" if others else "the only model weighed: no effect was refitted"
+        verdict = verdict.said("notes", f"posterior probability {w.evidence[name]:.3g} (Laplace evidence; {rivals})")
     if name in w.confounded:
         verdict = verdict.said("notes", w.confounded[name])
     if verdict.kind is Kind.NONE and case.chain():

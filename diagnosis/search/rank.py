@@ -326,8 +326,8 @@ def rank_effects(problem: GapProblem, baseline: Fit, catalogue: Catalogue, *, sh
             baseline, early_rebaseline = outcome, False
             continue
         ranking = outcome
-        if left == 0 or settled(ranking):
-            return ranking
+        if left == 0 or settled(ranking) or not ranking.refits:
+            return ranking      # (without a refit there is no effect's optimum to re-fit the baseline from)
         left -= 1
         # an effect's refit may have moved the baseline unknowns into a better basin (refits.better_baseline)
         say("baseline re-fit from the effects' optima")
