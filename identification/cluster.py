@@ -143,14 +143,20 @@ def scheduler_lost(client: Any) -> bool:
     return str(getattr(client, "status", "running")) != "running"
 
 
-def raise_if_scheduler_lost(client: Any, exc: BaseException) -> None:
-    """Raise :class:`~ebb_model.errors.ClusterError` (one line naming the scheduler) from ``exc`` when ``client``
-    has lost its scheduler: the client then cancels every future it holds ("scheduler-connection-lost") and
-    nothing sent to the cluster can come back; otherwise return (the caller re-raises ``exc``).  The cancellation
-    itself says so too: a future can be cancelled a moment before the client marks itself reconnecting."""
+def scheduler_address(client: Any) -> str:
+    """The address of ``client``'s scheduler, read while it is connected (a client that gave up reconnecting has
+    forgotten it: keep it from the start for :func:`raise_if_scheduler_lost`)."""
+    return str(getattr(getattr(client, "scheduler", None), "address", None) or "its address")
+
+
+def raise_if_scheduler_lost(client: Any, exc: BaseException, address: str) -> None:
+    """Raise :class:`~ebb_model.errors.ClusterError` (one line naming the scheduler at ``address``, as
+    :func:`scheduler_address` read it when the run connected) from ``exc`` when ``client`` has lost its
+    scheduler: the client then cancels every future it holds ("scheduler-connection-lost") and nothing sent to
+    the cluster can come back; otherwise return (the caller re-raises ``exc``).  The cancellation itself says so
+    too: a future can be cancelled a moment before the client marks itself reconnecting."""
     cancelled_for_it = "scheduler-connection-lost" in f"{getattr(exc, 'reason', '')} {exc}"
     if cancelled_for_it or scheduler_lost(client):
-        address = getattr(getattr(client, "scheduler", None), "address", None) or "its address"
         raise ClusterError(f"the Dask scheduler at {address} went away during the run") from exc
 
 

@@ -120,9 +120,10 @@ class DaskRunner(Runner):
     """
 
     def __init__(self, address: str | Any):
-        from .cluster import WorkerWatch, connect, disconnect
+        from .cluster import WorkerWatch, connect, disconnect, scheduler_address
 
         self.client, self._cluster, self._own = connect(address)
+        self._address = scheduler_address(self.client)
         try:
             self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
             self._watch = WorkerWatch(self.client)
@@ -146,7 +147,7 @@ class DaskRunner(Runner):
             # the scheduler gone: nothing sent can come back, so the run ends here (the caller keeps its checkpoint)
             from .cluster import raise_if_scheduler_lost
 
-            raise_if_scheduler_lost(self.client, exc)
+            raise_if_scheduler_lost(self.client, exc, self._address)
             raise
         return F
 

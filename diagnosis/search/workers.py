@@ -46,9 +46,10 @@ class DaskExecutor(Executor):
     """
 
     def __init__(self, address: Any):
-        from identification.cluster import WorkerWatch, connect, disconnect
+        from identification.cluster import WorkerWatch, connect, disconnect, scheduler_address
 
         self.client, self._cluster, self._own = connect(address)
+        self._address = scheduler_address(self.client)
         self._nested = _on_dask_worker()
         try:
             self._watch = WorkerWatch(self.client)
@@ -68,7 +69,7 @@ class DaskExecutor(Executor):
         # a task's own fits go ahead of the tasks still queued (Dask runs higher priorities first): the task
         # waiting for them holds its record's results back
         future = self.client.submit(_in_one_blas_thread, fn, *args, pure=False, priority=1 if self._nested else 0)
-        return _Awaited(future, self.client, self._nested)
+        return _Awaited(future, self.client, self._address, self._nested)
 
     def results(self, futures: Iterable[Any]) -> list[Any]:
         """The results of futures this executor submitted, in order (waiting once, outside the worker's thread
@@ -83,7 +84,7 @@ class DaskExecutor(Executor):
                 out = _outside_pool(lambda: self.client.gather([f.future for f in futures]))
             self._watch.check()
         except Exception as exc:
-            raise_if_scheduler_lost(self.client, exc)       # the scheduler gone: one line, not Dask's cancellation
+            raise_if_scheduler_lost(self.client, exc, self._address)  # the scheduler gone: one line
             raise
         return out
 
@@ -136,8 +137,8 @@ class _Awaited:
     future was submitted by a task (``nested``) — and a lost scheduler is one line
     (:func:`identification.cluster.raise_if_scheduler_lost`), not Dask's cancellation."""
 
-    def __init__(self, future: Any, client: Any, nested: bool):
-        self.future, self._client, self._nested = future, client, nested
+    def __init__(self, future: Any, client: Any, address: str, nested: bool):
+        self.future, self._client, self._address, self._nested = future, client, address, nested
 
     def result(self) -> Any:
         """The task's result (its exception raised)."""
@@ -148,7 +149,7 @@ class _Awaited:
                 return self.future.result()
             return _outside_pool(self.future.result)
         except Exception as exc:
-            raise_if_scheduler_lost(self._client, exc)
+            raise_if_scheduler_lost(self._client, exc, self._address)
             raise
 
 
