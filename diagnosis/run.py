@@ -384,15 +384,17 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
     """Stages 1 to 3: the baseline with the force's sign weighed (``take``: that sign, as the refits decided),
     the noise model, the candidates and the search."""
     # stage 1, the baseline: the measured force's sign is evidence too — the baseline fitted with the force as
-    # read and reversed (side by side when there are workers)
+    # read and reversed (side by side when there are workers), weighed under the noise as it is in the records
     say("baseline fit, with the force as read and reversed (its sign as evidence)")
+
+    def under_noise(p: GapProblem, fit: Fit) -> GapProblem:
+        return noise_of(p, p.simulate(fit.beta, until="all"), clock, say)
+
     with clock.stage("baseline and the force's sign"):
         problem, baseline, polarity = check_polarity(problem, partial(baseline_fit, beta0=beta0), executor,
-                                                     take=take)
+                                                     take=take, noise=under_noise if fit_noise else None)
     records, dt = problem.records, problem.config.time.dt
     say(polarity.line())
-    if fit_noise:
-        problem, baseline = under_the_noise(problem, baseline, clock, say)
     band = excited_band([r.inputs for r in records], dt)
     with clock.stage("baseline from the records' start, on the numerics they ask for"):
         problem, found = floor_from_the_records(problem, baseline, band[1], say)

@@ -30,6 +30,13 @@ def test_a_reversed_force_is_found_and_used(tmp_path, gain):
     # the wrong sign leaves a gap thousands of noise variances wide; the right one sits at the noise floor
     right, wrong = ("reversed", "as_read") if gain < 0 else ("as_read", "reversed")
     assert sign["fit_gap_ratio"][right] < 1.25 < 100 < sign["fit_gap_ratio"][wrong], sign
+    # and the sign's line quotes the baseline the report gives, under the same noise model (the sign was once
+    # weighed under the records' first noise estimate: on a hint record 0.032 noise variances quoted for a
+    # baseline the report put at 0.99).  The two are the same optimum, refitted once more after the check; the
+    # fit stops once its step is resolved against the uncertainty, which leaves far below one unit of χ² over the
+    # record's thousands of residuals (measured: 3.6e-7 relative); 1e-4 would be a different fit
+    assert sign["fit_gap_ratio"][right] == pytest.approx(doc["baseline"]["fit_gap_ratio"], rel=1e-4), \
+        (sign, doc["baseline"]["fit_gap_ratio"])
     assert doc["verdict"] == "none", doc["reason"]
     assert ("REVERSED" in doc["reason"]) == (gain < 0)
 
