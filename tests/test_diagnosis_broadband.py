@@ -18,6 +18,7 @@ from ebb_model.reference.withheld import WithheldEffect
 from ebb_model.io.tomlio import dumps as dumps_toml
 
 from first_records import BROADBAND
+from one_baseline import assert_no_worse_than_identify
 
 STRIP = next(c for c in BROADBAND if c.name == "strip-cantilever-tip-accelerometer")
 
@@ -95,11 +96,13 @@ def test_a_record_without_an_effect_is_none_and_says_so_with_its_probability(tmp
     from diagnosis.run import diagnose
 
     cfg, rec = _bench(tmp_path / "bench", None, case=case)
-    doc = diagnose(cfg, [rec], tmp_path / "gap", plots=False, workers=1, export=False).document
+    d = diagnose(cfg, [rec], tmp_path / "gap", plots=False, workers=1, export=False)
+    doc = d.document
     assert doc["verdict"] == "none", doc["reason"]
     assert not doc["force_sign"]["reversed"], doc["force_sign"]
     assert doc["posterior_probability"]["none"] > 0.5, doc["reason"]
     assert "posterior probability" in doc["reason"], doc["reason"]
+    assert_no_worse_than_identify(d, cfg, [rec], tmp_path / "identify")
 
 
 def test_an_accelerometer_read_high_is_found_by_the_strips_section(tmp_path):
@@ -235,6 +238,7 @@ def test_an_effect_the_baseline_took_up_in_another_beam_is_named_from_the_record
     d = diagnose(cfg, [rec], tmp_path / "gap", plots=False, workers=1, export=False)
     doc = d.document
     assert doc["verdict"] == name, doc["reason"]
+    assert_no_worse_than_identify(d, cfg, [rec], tmp_path / "identify")
     named = next(e for e in doc["effects"] if e["label"] == name)["refit"]
     if index != 53:
         assert max(named["heldout_gap_ratio_after"].values()) - 1.0 <= d.problem.settings.gap_threshold, named
