@@ -400,7 +400,7 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
         problem, found = floor_from_the_records(problem, baseline, band[1], say)
     if fit_noise and found is not baseline:
         # the noise model again, from the residual of the baseline taken (the first one's held its misfit)
-        problem, found = under_the_noise(problem, found, clock, say, along_the_level=True)
+        problem, found = under_the_noise(problem, found, clock, say)
     baseline = found
     # stages 2 and 3, the candidates and the search
     if setups is not None:

@@ -26,11 +26,12 @@ def noise_of(problem: GapProblem, simulated: Sequence[np.ndarray | None], clock:
     return problem
 
 
-def under_the_noise(problem: GapProblem, baseline: Fit, clock: StageClock, say: Callable[[str], None], *,
-                    along_the_level: bool = False) -> tuple[GapProblem, Fit]:
+def under_the_noise(problem: GapProblem, baseline: Fit, clock: StageClock, say: Callable[[str], None]
+                    ) -> tuple[GapProblem, Fit]:
     """The noise as it is in each record, from the baseline's residual (:func:`noise_of`), and the baseline fitted
-    again under it (``along_the_level``: :meth:`GapProblem.fit_along_the_level`)."""
+    again under it along the level (:meth:`GapProblem.fit_along_the_level`).  The first noise model, before the
+    force's sign is taken, is :func:`diagnosis.baseline.polarity.check_polarity`'s."""
     problem = noise_of(problem, problem.simulate(baseline.beta, until="all"), clock, say)
     with clock.stage("noise model"):
-        baseline = (problem.fit_along_the_level if along_the_level else problem.fit)(baseline.beta)
+        baseline = problem.fit_along_the_level(baseline.beta)
     return problem, baseline
