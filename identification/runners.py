@@ -107,6 +107,10 @@ class ProcessRunner(Runner):
             stop_now(self._pool)
 
 
+#: Times a call sends its evaluator again after its last copy on the cluster was lost with a worker.
+_RESENDS = 3
+
+
 class DaskRunner(Runner):
     """Evaluate chunks on a Dask distributed cluster.
 
@@ -134,14 +138,22 @@ class DaskRunner(Runner):
         self._to_close: list[Any] = []  # evaluators with per-worker resources
 
     def __call__(self, evaluator: Evaluator, X: np.ndarray) -> np.ndarray:
+        from distributed.client import FutureCancelledError
+
         try:
-            if self._scattered is None or self._scattered[0] is not evaluator:
-                self._scattered = (evaluator, self.client.scatter(evaluator, broadcast=True))
-                if callable(getattr(evaluator, "close", None)) and not any(e is evaluator for e in self._to_close):
-                    self._to_close.append(evaluator)
-            ev = self._scattered[1]
-            futs = [self.client.submit(_evaluate_chunk, ev, c, pure=False) for c in _chunks(X, self.workers)]
-            F = np.vstack(self.client.gather(futs))
+            for resend in range(_RESENDS + 1):
+                ev = self._on_the_workers(evaluator, again=resend > 0)
+                futs = [self.client.submit(_evaluate_chunk, ev, c, pure=False) for c in _chunks(X, self.workers)]
+                try:
+                    F = np.vstack(self.client.gather(futs))
+                    break
+                except FutureCancelledError as exc:
+                    # the evaluator's last copy went with a lost worker: Dask's active memory manager (on by
+                    # default) keeps one copy of data no task waits for, so between two calls the broadcast
+                    # evaluator may live on one worker only; its chunks are cancelled ("already forgotten").
+                    # Sent again; every evaluation is deterministic, so the result is the same.
+                    if resend == _RESENDS or "forgotten" not in str(exc):
+                        raise
             self._watch.check()
         except Exception as exc:
             # the scheduler gone: nothing sent can come back, so the run ends here (the caller keeps its checkpoint)
@@ -150,6 +162,16 @@ class DaskRunner(Runner):
             raise_if_scheduler_lost(self.client, exc, self._address)
             raise
         return F
+
+    def _on_the_workers(self, evaluator: Evaluator, *, again: bool) -> Any:
+        """``evaluator``'s future on the workers: scattered to every worker when it is new (or ``again``, after its
+        last copy was lost)."""
+        if again or self._scattered is None or self._scattered[0] is not evaluator:
+            self._scattered = None   # the lost copy's future released first; the new one under a key of its own
+            self._scattered = (evaluator, self.client.scatter(evaluator, broadcast=True, hash=False))
+            if callable(getattr(evaluator, "close", None)) and not any(e is evaluator for e in self._to_close):
+                self._to_close.append(evaluator)
+        return self._scattered[1]
 
     def scheduler_lost(self) -> bool:
         """Whether the client has lost its scheduler."""
