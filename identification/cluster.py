@@ -28,8 +28,8 @@ does so for the cluster it starts from ``"local:K"``.
 A worker lost mid-run (killed, out of memory, its machine gone) costs time, not results: Dask runs its tasks
 again on the workers left (a local cluster's nanny restarts it), the evaluator scattered to every worker is
 fetched from another or, when the lost worker held its last copy (Dask's active memory manager keeps one copy of
-data no task waits for), sent again by the runner, and every evaluation is deterministic.  :class:`WorkerWatch` notices the loss, so that
-the run can say what happened.
+data no task waits for), sent again by the runner, and every evaluation is deterministic.  :class:`WorkerWatch`
+notices the loss, so that the run can say what happened.
 """
 from __future__ import annotations
 
