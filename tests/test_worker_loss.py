@@ -2,7 +2,8 @@
 kernel's OOM killer or a lost machine would) in the middle of ``identify`` and of ``diagnose``.  Dask runs the
 lost worker's tasks again on the others (the nanny restarts it), the evaluator scattered to every worker is
 fetched from another or, when the lost worker held its last copy, sent again, and every evaluation is
-deterministic: the run completes with the result of a run without the loss, and says what happened (``events`` in ``pareto.json`` / ``gap.json``, a ``note:`` line).
+deterministic: the run completes with the result of a run without the loss, and says what happened (``events``
+in ``pareto.json`` / ``gap.json``, a ``note:`` line).
 
 The kill comes from the run's own progress callback, at a point with work still to do on the cluster (after the
 GA's third generation; at the diagnosis' first score, before its refits are sent out), so the test does not
