@@ -8,11 +8,36 @@ import numpy as np
 
 from ebb_model.io.figureio import save_figure
 from ebb_model.io.output import make_dir
-from identification.plots import trace
 
 from .result import GapReport
 
-__all__ = ["plot_diagnosis", "next_experiment_figure"]
+__all__ = ["plot_diagnosis", "next_experiment_figure", "residual_spectrum", "running_rms"]
+
+#: Windows of the held-out residual's running RMS over the window (a long broadband record's residual drawn sample by
+#: sample is a solid block; its level over time is what tells a transient or a drift from the noise).
+RMS_WINDOWS = 60
+
+
+def running_rms(r: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """The RMS of ``r`` (in noise standard deviations) over consecutive stretches of ``len(r) / RMS_WINDOWS``
+    samples (at least 8): each stretch's centre time [s] and RMS — 1 where the residual is the noise."""
+    r = np.asarray(r, dtype=float)
+    k = max(8, r.size // RMS_WINDOWS)
+    m = max(1, r.size // k)
+    rms = np.sqrt(np.mean(r[:m * k].reshape(m, -1) ** 2, axis=1)) if r.size >= k else np.sqrt([np.mean(r ** 2)])
+    width = r.size // m if r.size >= k else r.size
+    return (np.arange(rms.size) + 0.5) * width * dt, rms
+
+
+def residual_spectrum(r: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Welch's power spectral density of ``r`` (in noise standard deviations) over white noise's: 1 at every
+    frequency where the residual is the noise, above it where the model misses the records (a mode's peak, a
+    band).  Frequencies [Hz] without the mean's bin."""
+    from scipy.signal import welch
+
+    r = np.asarray(r, dtype=float)
+    f, p = welch(r, fs=1.0 / dt, nperseg=max(64, min(1024, r.size // 8)))   # about 15 averages
+    return f[1:], p[1:] / (2.0 * dt)       # unit white noise: 2 dt per Hz, one-sided
 
 
 def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, localisations: Sequence[Any], out_dir: Path
@@ -54,18 +79,28 @@ def plot_diagnosis(report: GapReport, problem: Any, ranking: Any, localisations:
     if named is not None and named in ranking.refits:
         rf = ranking.refits[named]
         _, after = problem.heldout(rf.fit.beta, ranking.effects[named], rf.fit.s)
+    dt = problem.config.time.dt
     rb = before[0]
     n_s = rb.shape[1]
-    fig, axes = plt.subplots(n_s, 1, figsize=(10, 2.2 * n_s + 0.5), squeeze=False)
-    t = np.arange(rb.shape[0]) * problem.config.time.dt
+    fig, axes = plt.subplots(n_s, 2, figsize=(11, 2.3 * n_s + 0.6), squeeze=False,
+                             gridspec_kw={"width_ratios": (3, 2)})
     for j, name in enumerate(problem.config.output_names):
-        ax = axes[j, 0]
-        trace(ax, t, rb[:, j], color="C0", label="baseline")            # an envelope on a long record
+        shown = [(rb[:, j], "C0", "baseline")]
         if after is not None:
-            trace(ax, t, after[0][:, j], color="C1", alpha=0.8, label=f"with {named}")
-        ax.set_ylabel(f"{name} residual / σ [-]")
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0.0)
-    axes[-1, 0].set_xlabel("time in the held-out window [s]")
+            shown.append((after[0][:, j], "C1", f"with {named}"))
+        for r, color, label in shown:
+            t, rms = running_rms(r, dt)
+            axes[j, 0].plot(t, rms, color=color, lw=1.0, label=label)
+            f, level = residual_spectrum(r, dt)
+            axes[j, 1].semilogy(f, level, color=color, lw=0.8, label=label)
+        for ax in axes[j]:
+            ax.axhline(1.0, color="k", lw=0.6, ls="--")
+        axes[j, 0].set_ylim(bottom=0.0)
+        axes[j, 0].set_ylabel(f"{name}: RMS / σ [-]")
+        axes[j, 1].set_ylabel("power / noise floor [-]")
+        axes[j, 1].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0.0)
+    axes[-1, 0].set_xlabel("time in the held-out window [s] (running RMS; dashed: the noise floor)")
+    axes[-1, 1].set_xlabel("frequency [Hz] (Welch)")
     fig.tight_layout()
     paths.append(save_figure(fig, out_dir / "heldout_residuals.png"))
     nxt = report.next_experiment

@@ -72,7 +72,8 @@ def text_report(report: GapReport, *, top: int = 6) -> str:
 
 #: The diagnosis' figures and their captions, in the page's order (:func:`html_sections`).
 FIGURES = {"effects.png": "The candidates: score-test statistic, and the share of the held-out gap each refit closes",
-           "heldout_residuals.png": "Held-out residuals in noise standard deviations, before and after the verdict",
+           "heldout_residuals.png": ("Held-out residuals against the noise floor (running RMS and spectrum), "
+                                     "before and after the verdict"),
            "residuals.png": "Where the model and the record disagree: the residual over time",
            "frf.png": "Measured and modelled frequency response",
            "windows.png": "The residual's size window by window",
