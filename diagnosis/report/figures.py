@@ -19,14 +19,14 @@ RMS_WINDOWS = 60
 
 
 def running_rms(r: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """The RMS of ``r`` (in noise standard deviations) over consecutive stretches of ``len(r) / RMS_WINDOWS``
-    samples (at least 8): each stretch's centre time [s] and RMS — 1 where the residual is the noise."""
+    """The RMS of ``r`` (in noise standard deviations) over :data:`RMS_WINDOWS` consecutive stretches of equal
+    length (fewer on a short record: at least 8 samples each; the last samples that fill no stretch left out):
+    each stretch's centre time [s] and RMS — 1 where the residual is the noise."""
     r = np.asarray(r, dtype=float)
-    k = max(8, r.size // RMS_WINDOWS)
-    m = max(1, r.size // k)
-    rms = np.sqrt(np.mean(r[:m * k].reshape(m, -1) ** 2, axis=1)) if r.size >= k else np.sqrt([np.mean(r ** 2)])
-    width = r.size // m if r.size >= k else r.size
-    return (np.arange(rms.size) + 0.5) * width * dt, rms
+    m = max(1, min(RMS_WINDOWS, r.size // 8))
+    width = r.size // m
+    rms = np.sqrt(np.mean(r[:m * width].reshape(m, width) ** 2, axis=1))
+    return (np.arange(m) + 0.5) * width * dt, rms
 
 
 def residual_spectrum(r: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
