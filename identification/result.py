@@ -39,7 +39,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ebb_model.space.adequacy import NumericalAdequacy
+from ebb_model.space.adequacy import NumericalAdequacy, ParameterShift
 from ebb_model.config import BeamConfig, config_from_dict
 from ebb_model.errors import ConfigError
 
@@ -354,4 +354,5 @@ def _adequacy(doc: Mapping[str, Any] | None) -> NumericalAdequacy | None:
     per = doc["sensors"]
     return NumericalAdequacy(sensors, np.array([float(per[s]["gap_ratio"]) for s in sensors]),
                              np.array([float(per[s]["gap_ratio_refined"]) for s in sensors]),
-                             np.array([float(per[s]["change"]) for s in sensors]), int(doc["refined_nodes"]))
+                             np.array([float(per[s]["change"]) for s in sensors]), int(doc["refined_nodes"]),
+                             ParameterShift.from_dict(doc["parameter_shift"]) if doc.get("parameter_shift") else None)

@@ -32,7 +32,7 @@ from numpy.typing import ArrayLike
 
 from ebb_model import max_growth_factor
 from ebb_model.acquisition.bandlimited import hold_hint
-from ebb_model.space.adequacy import excited_band, grid_line, numerical_adequacy
+from ebb_model.space.adequacy import adequacy_grid, excited_band, grid_line, numerical_adequacy
 from ebb_model.space.grid_advice import grid_advice
 from ebb_model.io.output import atomic_path
 from ebb_model.config import BeamConfig
@@ -48,6 +48,7 @@ from .export_targets import DEFAULT_TARGETS, check_targets
 from .fisher import fisher_information, nominal_fisher
 from .basins import better_of, noise_at, polish_basins
 from .fit_hints import fit_hints
+from .grid_shift import on_the_grid_of, parameter_shift, residual_difference
 from .progress import Progress
 from .numerics import refine_numerics
 from .noise_model import NoiseModel, estimate_noise_model
@@ -63,6 +64,7 @@ from .resume import RunRecord
 from .result import RESULT_FILE, IdentificationResult, PolishedPoint
 from .runners import make_runner
 from .noise import given_noise_std
+from .polish import ResidualEvaluator
 from .config_file import load_identification_config
 from .settings import identification_settings
 from .uncertainty import uncertainty_model, write_uncertainty
@@ -369,13 +371,20 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
     advice = grid_advice(*space.apply(cfg, best_x), band_hz=band_hz)
     adequacy = numerical_adequacy(*space.apply(cfg, best_x), [(e.inputs, e.outputs) for e in exps], sigma,
                                   band_hz=band_hz, advice=advice)
+    prior, modes = Prior.of(cfg, space.names), modal_data(cfg)
+    if best.stable:
+        # what the refined grid would do to the answer, in its Cramér–Rao deviations (identification.grid_shift)
+        fine = on_the_grid_of(cfg, adequacy_grid(*space.apply(cfg, best_x), band_hz, advice))
+        on_fine = NativeEvaluator(fine, space, exps, per=evaluator.per, stabilising=evaluator.stabilising)
+        here = ResidualEvaluator(evaluator, noise, prior, modes).residuals
+        d = residual_difference(here, ResidualEvaluator(on_fine, noise, prior, modes).residuals, best_x)
+        adequacy = replace(adequacy, shift=parameter_shift(space.names, best_x, space.lower, space.upper, here, d,
+                                                           cfg.beam.nodes, fine.beam.nodes))
     grid = {**advice.to_dict(), "summary": grid_line(advice, adequacy)}
     priors: tuple[PriorCheck, ...] = ()
-    prior = Prior.of(cfg, space.names)
     if prior.count and best.stable:
         fi = fisher_information(evaluator, best_x, noise=noise)
         priors = tuple(prior.judge(best_x, prior.posterior_std(fi.matrix, fi.scales)))
-    modes = modal_data(cfg)
     agreement = modes.agreement(*space.apply(cfg, best_x)) if modes is not None else None
     fit_gap = None
     hints: list[str] = []
