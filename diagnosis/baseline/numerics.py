@@ -7,7 +7,7 @@ from dataclasses import replace
 from typing import Callable
 
 from ebb_model.space.adequacy import NOISE_FLOOR_EXCESS
-from identification.numerics import all_at_once, records_keep, records_tell_apart, refinements
+from identification.numerics import all_at_once, moves_the_answer, records_keep, records_tell_apart, refinements
 
 from ..effects import Effect
 from ..problem.fitting import Fit, GapProblem
@@ -67,7 +67,8 @@ def numerics_at_the_refit(problem: GapProblem, refit: Fit, effect: Effect, band_
 def _refined(problem: GapProblem, fit: Fit, band_hz: float, effect: Effect | None = None
              ) -> tuple[GapProblem, Fit, list[str]]:
     """Each refinement that changes ``fit``'s χ² (of ``effect`` at ``fit.s`` when given) by more than
-    :data:`~identification.numerics.REFINEMENT_GAIN` per residual, fitted on and kept by
+    :data:`~identification.numerics.REFINEMENT_GAIN` per residual, or that moves the baseline (``effect`` ``None``)
+    by more than a Cramér–Rao deviation (:func:`~identification.numerics.moves_the_answer`), fitted on and kept by
     :func:`~identification.numerics.keeps` (at the noise floor all at once, kept by
     :data:`~identification.numerics.FLOOR_EVIDENCE`): the problem and fit on the numerics kept, and what was kept."""
     cfg = problem.config
@@ -78,7 +79,9 @@ def _refined(problem: GapProblem, fit: Fit, band_hz: float, effect: Effect | Non
     for what, refine in all_at_once(steps) if at_floor else steps:
         trial = replace(problem, config=refine(problem.config))
         r = trial.residuals(fit.beta, effect, fit.s if effect is not None else None)
-        if not records_tell_apart(fit.rss, float(r @ r), fit.n, at_floor):
+        if not records_tell_apart(fit.rss, float(r @ r), fit.n, at_floor) and (effect is not None or not (
+                moves_the_answer(problem.space, fit.beta, problem.residuals, trial.residuals, problem.config.beam.nodes,
+                                 trial.config.beam.nodes))):
             continue
         new = trial.fit_along_the_level(fit.beta, effect, fit.s if effect is not None else None)
         if records_keep(fit.rss, new.rss, fit.n, at_floor):
