@@ -24,15 +24,12 @@ import numpy as np
 from ebb_model.config import BeamConfig
 from ebb_model.space.adequacy import ParameterShift
 
+from .fisher import REL_STEP
 from .objectives import PENALTY
 
 __all__ = ["difference_jacobian", "on_the_grid_of", "parameter_shift", "residual_difference"]
 
-#: Relative step of the difference Jacobian.  A lightly damped record is nonlinear in EI on the scale of a
-#: half-power bandwidth: on the strip of ``tests/test_grid_shift.py`` (3 s, ζ ≈ 0.1 %) the central difference in EI
-#: with a step of 1e-3 is 89 % off the one with 1e-5, with 1e-4 still 2.3 % — and that, through EI's near-collinearity
-#: with ρA, moved the predicted shift of c by 0.25 deviations from the refit's; with 1e-5 the two agree to 0.005.
-REL_STEP = 1e-5
+
 #: A Jacobian whose smallest singular value is below this share of its largest has a direction the records do not
 #: see: no deviation to count the shift in.
 RANK_TOL = 1e-9
@@ -46,8 +43,10 @@ def _refused(r: np.ndarray) -> bool:
 
 def difference_jacobian(residuals: Residuals, x: np.ndarray, lower: np.ndarray, upper: np.ndarray
                         ) -> np.ndarray | None:
-    """``∂r/∂x`` per relative change of each unknown (central differences, one-sided three-point into the box at a
-    bound), ``None`` when the model refuses a point of the stencil."""
+    """``∂r/∂x`` per relative change of each unknown (central differences of the Fisher information's step,
+    :data:`identification.fisher.REL_STEP`, one-sided three-point into the box at a bound), ``None`` when the model
+    refuses a point of the stencil.  The step matters: with 1e-4 the strip of ``tests/test_grid_shift.py`` had the
+    predicted shift of c 0.25 deviations from the refit's, with 1e-5 0.005."""
     x = np.asarray(x, dtype=float)
     lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
     scale = _scale(x, lo, hi)
