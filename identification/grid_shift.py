@@ -108,10 +108,15 @@ def parameter_shift(names: Sequence[str], x: np.ndarray, lower: np.ndarray, uppe
         return None
     step_scaled = -Vt.T @ ((U.T @ d) / s)
     crb_scaled = np.sqrt(np.sum((Vt.T / s[None, :]) ** 2, axis=1))
+    # the refit's χ² below the fit's at x: ‖r‖² − ‖r + d + JΔ‖², J Δ = −P d (P the projector on J's columns)
+    r0 = residuals(x)
+    after = r0 + d - U @ (U.T @ d)
+    gain = float(r0 @ r0 - after @ after)
     step = step_scaled * _scale(x, np.asarray(lower, dtype=float), np.asarray(upper, dtype=float))
     with np.errstate(divide="ignore", invalid="ignore"):
         relative = np.where(x != 0.0, step / x, np.nan)
-    return ParameterShift(tuple(names), step_scaled / crb_scaled, relative, int(nodes), int(refined_nodes), step)
+    return ParameterShift(tuple(names), step_scaled / crb_scaled, relative, int(nodes), int(refined_nodes), step,
+                          gain)
 
 
 def residual_difference(residuals: Residuals, fine_residuals: Residuals, x: np.ndarray) -> np.ndarray:

@@ -30,13 +30,12 @@ the force sample by sample; :func:`ebb_model.acquisition.bandlimited.hold_hint` 
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from ebb_model.space.adequacy import GRID_SHIFT, NOISE_FLOOR_EXCESS, adequacy_grid, excited_band
+from ebb_model.space.adequacy import DECISIVE_EVIDENCE, GRID_SHIFT, NOISE_FLOOR_EXCESS, adequacy_grid, excited_band
 from ebb_model.acquisition.bandlimited import hold_hint
 from ebb_model.config import BeamConfig
 
@@ -66,7 +65,7 @@ SHIFT_NODES = 400
 #: At the noise floor the finest numerics are kept when their polished χ² is lower by more than this: decisive odds
 #: of 100 to 1 between two models of the same unknowns (2 ln 100).  A model's own record, made with its grid and
 #: cubic, fits those better and keeps them.
-FLOOR_EVIDENCE = 2.0 * math.log(100.0)
+FLOOR_EVIDENCE = DECISIVE_EVIDENCE
 
 
 @dataclass(frozen=True)
