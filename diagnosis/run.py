@@ -33,7 +33,7 @@ from ebb_model.threads import one_blas_thread
 
 from identification.cluster import parse_local_address
 from identification.export_targets import DEFAULT_TARGETS, check_targets
-from identification.grid_shift import on_the_grid_of, parameter_shift, residual_difference
+from identification.grid_shift import on_the_grid_of, shift_between
 from identification.modal_data import modal_data
 from identification.noise import given_noise_std, records_noise_std
 from identification.parameters import parameter_space
@@ -252,11 +252,8 @@ def _case(found: _Found, clock: StageClock, say: Callable[[str], None]) -> Case:
             sigma, band_hz=f_hi, advice=advice)
         # what the refined grid would do to the baseline, in its Cramér–Rao deviations (identification.grid_shift)
         fine = replace(problem, config=on_the_grid_of(cfg, adequacy_grid(base_cfg, base_params, f_hi, advice)))
-        beta = found.baseline.beta
-        d = residual_difference(problem.residuals, fine.residuals, beta)
-        adequacy = replace(adequacy, shift=parameter_shift(problem.space.names, beta, problem.space.lower,
-                                                           problem.space.upper, problem.residuals, d,
-                                                           cfg.beam.nodes, fine.config.beam.nodes))
+        adequacy = replace(adequacy, shift=shift_between(problem.space, found.baseline.beta, problem.residuals,
+                                                         fine.residuals, cfg.beam.nodes, fine.config.beam.nodes))
     mf, mz = found.modes.freqs[found.modes.in_band], found.modes.zetas[found.modes.in_band]
     with clock.stage("localisation"):
         base_all = cast(list[np.ndarray], problem.simulate(ranking.baseline.beta, until="all"))   # every record

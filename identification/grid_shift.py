@@ -17,7 +17,7 @@ it at their answer, so that "grid: adequate" means what a user takes it to mean:
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -27,7 +27,7 @@ from ebb_model.space.adequacy import ParameterShift
 from .fisher import REL_STEP
 from .objectives import PENALTY
 
-__all__ = ["difference_jacobian", "on_the_grid_of", "parameter_shift", "residual_difference"]
+__all__ = ["difference_jacobian", "on_the_grid_of", "parameter_shift", "residual_difference", "shift_between"]
 
 
 #: A Jacobian whose smallest singular value is below this share of its largest has a direction the records do not
@@ -125,6 +125,14 @@ def residual_difference(residuals: Residuals, fine_residuals: Residuals, x: np.n
     if _refused(r) or _refused(rf) or r.size != rf.size:
         return np.full(r.size, np.nan)
     return rf - r
+
+
+def shift_between(space: Any, x: np.ndarray, residuals: Residuals, fine_residuals: Residuals, nodes: int,
+                  refined_nodes: int) -> ParameterShift | None:
+    """:func:`parameter_shift` of the unknowns ``space`` (names and bounds) at ``x`` between the residuals on the
+    model's grid (``nodes``) and on the refined one (``refined_nodes``)."""
+    d = residual_difference(residuals, fine_residuals, x)
+    return parameter_shift(space.names, x, space.lower, space.upper, residuals, d, nodes, refined_nodes)
 
 
 def on_the_grid_of(config: BeamConfig, fine: BeamConfig) -> BeamConfig:

@@ -42,7 +42,7 @@ from ebb_model.config import BeamConfig
 from .modal_data import ModalData, modal_data
 from .native import NativeEvaluator
 from .noise_model import NoiseModel
-from .grid_shift import parameter_shift, residual_difference
+from .grid_shift import shift_between
 from .polish import PolishResult, ResidualEvaluator, polish
 from .prior import Prior
 from .runners import Runner
@@ -134,8 +134,7 @@ def moves_the_answer(space: Any, x: np.ndarray, here: Callable[[np.ndarray], np.
     for it."""
     if trial_nodes > SHIFT_NODES:
         return False
-    shift = parameter_shift(space.names, x, space.lower, space.upper, here, residual_difference(here, there, x),
-                            nodes, trial_nodes)
+    shift = shift_between(space, x, here, there, nodes, trial_nodes)
     return shift is not None and shift.largest > GRID_SHIFT
 
 

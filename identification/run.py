@@ -48,7 +48,7 @@ from .export_targets import DEFAULT_TARGETS, check_targets
 from .fisher import fisher_information, nominal_fisher
 from .basins import better_of, noise_at, polish_basins
 from .fit_hints import fit_hints
-from .grid_shift import on_the_grid_of, parameter_shift, residual_difference
+from .grid_shift import on_the_grid_of, shift_between
 from .progress import Progress
 from .numerics import refine_numerics
 from .noise_model import NoiseModel, estimate_noise_model
@@ -376,10 +376,9 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
         # what the refined grid would do to the answer, in its Cramér–Rao deviations (identification.grid_shift)
         fine = on_the_grid_of(cfg, adequacy_grid(*space.apply(cfg, best_x), band_hz, advice))
         on_fine = NativeEvaluator(fine, space, exps, per=evaluator.per, stabilising=evaluator.stabilising)
-        here = ResidualEvaluator(evaluator, noise, prior, modes).residuals
-        d = residual_difference(here, ResidualEvaluator(on_fine, noise, prior, modes).residuals, best_x)
-        adequacy = replace(adequacy, shift=parameter_shift(space.names, best_x, space.lower, space.upper, here, d,
-                                                           cfg.beam.nodes, fine.beam.nodes))
+        adequacy = replace(adequacy, shift=shift_between(
+            space, best_x, ResidualEvaluator(evaluator, noise, prior, modes).residuals,
+            ResidualEvaluator(on_fine, noise, prior, modes).residuals, cfg.beam.nodes, fine.beam.nodes))
     grid = {**advice.to_dict(), "summary": grid_line(advice, adequacy)}
     priors: tuple[PriorCheck, ...] = ()
     if prior.count and best.stable:

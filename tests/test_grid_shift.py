@@ -17,7 +17,7 @@ from first_records import BROADBAND
 from ebb_model.reference import synthesize
 from ebb_model.space.adequacy import GRID_SHIFT, numerical_adequacy, grid_line
 from ebb_model.space.grid_advice import grid_advice
-from identification.grid_shift import parameter_shift, residual_difference
+from identification.grid_shift import shift_between
 from identification.native import NativeEvaluator, experiments_from_arrays
 from identification.noise_model import NoiseModel
 from identification.parameters import parameter_space
@@ -54,8 +54,7 @@ def test_the_shift_is_the_refit_on_the_refined_grid(strip):
     truth = np.array([STRIP.truth[k] for k in coarse.space.names])
     x_c = polish(coarse, truth, noise=noise).x
     here = ResidualEvaluator(coarse, noise).residuals
-    shift = parameter_shift(coarse.space.names, x_c, coarse.space.lower, coarse.space.upper, here,
-                            residual_difference(here, ResidualEvaluator(fine, noise).residuals, x_c), 323, 1295)
+    shift = shift_between(coarse.space, x_c, here, ResidualEvaluator(fine, noise).residuals, 323, 1295)
     assert shift is not None
     x_f = polish(fine, x_c, noise=noise).x
     crb = shift.step / shift.deviations
@@ -78,8 +77,7 @@ def _line(cfg, u, y, sigma):
     advice = grid_advice(c, params, band_hz=band)
     adequacy = numerical_adequacy(c, params, [(u, y)], sigma, band_hz=band, advice=advice)
     here = ResidualEvaluator(coarse, noise).residuals
-    shift = parameter_shift(coarse.space.names, x, coarse.space.lower, coarse.space.upper, here,
-                            residual_difference(here, ResidualEvaluator(fine, noise).residuals, x), 323, 1295)
+    shift = shift_between(coarse.space, x, here, ResidualEvaluator(fine, noise).residuals, 323, 1295)
     return grid_line(advice, replace(adequacy, shift=shift)), shift
 
 
