@@ -9,8 +9,7 @@ experiment** when candidates remain tied (:mod:`diagnosis.design`) → **report*
 gap before/after per sensor and band, ``gap.json``, figures, the page) and the **corrected model**
 (:mod:`diagnosis.corrected`).
 
-Bad input is detected before anything is written, and the output directory
-appears only when complete (built under a temporary name, then renamed).
+Bad input is detected before anything is written; the output directory appears only when complete.
 """
 from __future__ import annotations
 
@@ -63,6 +62,7 @@ from .search.plausible import plausible_readings
 from .search.modal_pattern import PatternFit, carried
 from .search.modal_source import modal_source
 from .search.rank import Ranking, rank_effects
+from .search.rebase import against_the_best_baseline
 from .search.sign import sign_with_refits
 from .search.workers import DaskExecutor, close_refit_pool, refit_pool
 from .settings import thresholds_from_config
@@ -242,7 +242,7 @@ def _case(found: _Found, clock: StageClock, say: Callable[[str], None]) -> Case:
     physics), where the baseline's residual lies, and the evidence measured once."""
     problem, ranking = found.problem, found.ranking
     records, sigma, cfg = problem.records, problem.noise_std, problem.config
-    base_cfg, base_params = problem.space.apply(cfg, found.baseline.beta)
+    base_cfg, base_params = problem.space.apply(cfg, ranking.baseline.beta)
     f_hi = found.modes.band[1]
     say("numerical adequacy of the model's grid")
     with clock.stage("numerical adequacy"):
@@ -252,7 +252,7 @@ def _case(found: _Found, clock: StageClock, say: Callable[[str], None]) -> Case:
             sigma, band_hz=f_hi, advice=advice)
         # what the refined grid would do to the baseline, in its Cramér–Rao deviations (identification.grid_shift)
         fine = replace(problem, config=on_the_grid_of(cfg, adequacy_grid(base_cfg, base_params, f_hi, advice)))
-        adequacy = replace(adequacy, shift=shift_between(problem.space, found.baseline.beta, problem.residuals,
+        adequacy = replace(adequacy, shift=shift_between(problem.space, ranking.baseline.beta, problem.residuals,
                                                          fine.residuals, cfg.beam.nodes, fine.config.beam.nodes))
     mf, mz = found.modes.freqs[found.modes.in_band], found.modes.zetas[found.modes.in_band]
     with clock.stage("localisation"):
@@ -294,7 +294,8 @@ def _apart(case: Case, judgement: Judgement, found: _Found, setups: Setups | Non
     say(why + f"; ranking again with the measured modes taken without the {', '.join(sorted(parts))}")
     with clock.stage("set-ups apart"):
         two = replace(problem, modes_lack=parts)
-        ranking_two = _rank(two, ranking.baseline, found.catalogue, found.modes, executor, clock, say, memo)
+        ranking_two = against_the_best_baseline(two, _rank(two, found.baseline, found.catalogue, found.modes, executor,
+                                                           clock, say, memo), say)
         case_two = replace(case, problem=two, ranking=ranking_two,
                            weighed=_weighed(two, ranking_two, found.modes.band[1], say), _chain={})
         verdict_two = judge(case_two).verdict
@@ -373,7 +374,8 @@ def _scan_start(problem: GapProblem, freqs: np.ndarray, zetas: np.ndarray, f_top
 @dataclass(frozen=True, eq=False)
 class _Found:
     """What the search found with one sign of the force: the problem (records with that sign, the noise model),
-    the baseline it ranked from, the check of the sign, the candidates, the modes and the ranking."""
+    the baseline its ranking ended from, the check of the sign, the candidates, the modes and the ranking (weighed
+    against the best fit without an effect: :func:`~diagnosis.search.rebase.against_the_best_baseline`)."""
 
     problem: GapProblem
     baseline: Fit
@@ -388,8 +390,6 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
             take: bool | None = None) -> _Found:
     """Stages 1 to 3: the baseline with the force's sign weighed (``take``: that sign, as the refits decided),
     the noise model, the candidates and the search."""
-    # stage 1, the baseline: the measured force's sign is evidence too — the baseline fitted with the force as
-    # read and reversed (side by side when there are workers), weighed under the noise as it is in the records
     say("baseline fit, with the force as read and reversed (its sign as evidence)")
 
     def under_noise(p: GapProblem, fit: Fit) -> GapProblem:
@@ -425,7 +425,8 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
         baseline = problem.fit_along_the_level(baseline.beta)
         catalogue, modes, ranking = _ranked(problem, baseline, band, setups, executor, parallel, clock, say, memo,
                                             seeds={first: (ranking.effects[first], refit)}, earlier=ranking)
-    return _Found(problem, baseline, polarity, catalogue, modes, ranking)
+    return _Found(problem, ranking.baseline, polarity, catalogue, modes, against_the_best_baseline(problem, ranking,
+                                                                                                   say))
 
 
 def _ranked(problem: GapProblem, baseline: Fit, band: tuple[float, float], setups: Setups | None, executor: Any,

@@ -59,12 +59,14 @@ def floor_from_the_records(problem: GapProblem, baseline: Fit, band_hz: float, s
     that fit: then there is no gap to diagnose, the fit from the config's values stopped in another basin (a
     lightly damped record's level valley).
 
-    A fit from the records' start that is better without reaching the floor is not the baseline — measured on the
-    blind family: a spring at a pinned end compensated by the axial load from 69 to 4 noise variances, where a crack
-    then closed the rest and was named — but the first of the problem's other starts, from which every shortlisted
-    effect is refitted when the baseline's basin leaves the gap, and stays the problem's
-    :attr:`~diagnosis.problem.fitting.GapProblem.rival` (the measured modes are scanned from its modes, the modal
-    patterns matched from it too).  A fit from the records' start that is worse in time stays the rival when its
+    A fit from the records' start that is better without reaching the floor is not the baseline the search starts
+    from — measured on the blind family: a spring at a pinned end compensated by the axial load (N 29.6 for 20,
+    3.6 noise variances), where a soft segment next to that end then closed the rest and was named — but the first
+    of the problem's other starts, from which every shortlisted effect is refitted when the baseline's basin leaves
+    the gap, and stays the problem's :attr:`~diagnosis.problem.fitting.GapProblem.rival` (the measured modes are
+    scanned from its modes, the modal patterns matched from it too); once the search is done it is the baseline
+    reported, every refit weighed against it (:func:`diagnosis.search.rebase.against_the_best_baseline`).  A fit
+    from the records' start that is worse in time stays the rival when its
     modes place the records' own better than the baseline's (:func:`_places_more`); otherwise the problem has no
     rival."""
     floor = 1.0 + NOISE_FLOOR_EXCESS

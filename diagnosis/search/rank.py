@@ -59,7 +59,7 @@ from ..settings import Thresholds
 from ..problem.plausibility import implausibilities
 from ..problem.ties import tie_ordered
 
-__all__ = ["Ranking", "Refits", "rank_effects"]
+__all__ = ["Ranking", "Refits", "rank_effects", "report_order"]
 
 
 
@@ -157,7 +157,7 @@ def _screened_best(run: Search, evidence: ModalEvidence, match: PatternFit, refi
     if fit.rss >= refits[label].fit.rss:
         return refits, paying, order
     refits = refits | {label: run.summary(run.effects[label], fit)}
-    return refits, *_order(refits, run.before, by_score, run.problem.settings)
+    return refits, *report_order(refits, run.before, by_score, run.problem.settings)
 
 
 def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
@@ -171,7 +171,7 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
     for label, rf in refits.items():
         say(f"refit {label}: held-out gap ratio {np.mean(before):.3g} -> {np.mean(rf.heldout_after):.3g}, "
             f"dBIC {rf.delta_bic:.1f}")
-    paying, order = _order(refits, before, by_score, run.problem.settings)
+    paying, order = report_order(refits, before, by_score, run.problem.settings)
     if paying and evidence is not None and paying[0] in patterns:
         refits, paying, order = _screened_best(run, evidence, patterns[paying[0]], refits, paying, order, by_score)
     excess = float(np.mean(before)) - 1.0
@@ -191,7 +191,7 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
                 with run.clock.stage("pairs"):
                     pairs, singles = pair_with(run, best, {lab: rf.fit for lab, rf in refits.items()})
                 refits |= singles
-                paying, order = _order(refits, before, by_score, run.problem.settings)
+                paying, order = report_order(refits, before, by_score, run.problem.settings)
             # the pairs the best single's near-equal rivals make: a pair is weighed against them, or the true
             # partner of a rival is never seen (a foundation closing 52.7 % beside a spring closing 54.7 %)
             for lab in _rivals(refits, paying, best, run.problem.settings):
@@ -203,7 +203,7 @@ def _decide(run: Search, by_score: list[str], labels: list[str], local: Refits,
                 same = {frozenset(rf.label.split(PAIR_SEPARATOR)) for rf in pairs}
                 pairs += [rf for rf in rival_pairs[:1] if frozenset(rf.label.split(PAIR_SEPARATOR)) not in same]
             if pairs:
-                paying, order = _order(refits, before, by_score, run.problem.settings)
+                paying, order = report_order(refits, before, by_score, run.problem.settings)
                 by_label = {rf.label: rf for rf in pairs}
                 pairs = [by_label[lab] for lab in tie_ordered(by_label, lambda lab: float(np.mean(
                     by_label[lab].heldout_after)))]
@@ -235,8 +235,8 @@ def _rivals(refits: dict[str, EffectRefit], paying: list[str], best: EffectRefit
     return near[:settings.pair_rivals]
 
 
-def _order(refits: dict[str, EffectRefit], before: np.ndarray, by_score: list[str], settings: Thresholds
-           ) -> tuple[list[str], list[str]]:
+def report_order(refits: dict[str, EffectRefit], before: np.ndarray, by_score: list[str], settings: Thresholds
+                 ) -> tuple[list[str], list[str]]:
     """The refits that pay for themselves (best first), and the report order: those, the other refits by held-out
     error, then the effects not refitted by score."""
     paying = paying_refits(refits, before, settings)
