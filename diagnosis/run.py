@@ -425,8 +425,8 @@ def _search(problem: GapProblem, *, beta0: np.ndarray, fit_noise: bool, setups: 
         baseline = problem.fit_along_the_level(baseline.beta)
         catalogue, modes, ranking = _ranked(problem, baseline, band, setups, executor, parallel, clock, say, memo,
                                             seeds={first: (ranking.effects[first], refit)}, earlier=ranking)
-    return _Found(problem, ranking.baseline, polarity, catalogue, modes, against_the_best_baseline(problem, ranking,
-                                                                                                   say))
+    return _Found(problem, ranking.baseline, polarity, catalogue, modes,
+                  against_the_best_baseline(problem, ranking, say))
 
 
 def _ranked(problem: GapProblem, baseline: Fit, band: tuple[float, float], setups: Setups | None, executor: Any,
