@@ -13,7 +13,12 @@ def _cmd_build_fmu(args: argparse.Namespace) -> int:
     if args.standalone:
         from fmu_build.standalone import build_standalone_fmu
 
-        path = build_standalone_fmu(args.config, args.out, field=args.field)
+        path = build_standalone_fmu(args.config, args.out, field=args.field, fmi=args.fmi)
+    elif args.fmi != 2:
+        from ebb_model.errors import FmuError
+
+        raise FmuError("`fmi` 3: only the standalone C FMU is built for FMI 3.0 so far (add `standalone`); the "
+                       "Python FMU is FMI 2.0", function="build_fmu")
     else:
         from fmu_build import build_fmu
 
@@ -23,13 +28,14 @@ def _cmd_build_fmu(args: argparse.Namespace) -> int:
 
 
 def add_parsers(sub: Subcommands) -> None:
-    """Register ``build-fmu CONFIG --out FILE [--field] [--standalone]`` on the ``ebb`` parser."""
+    """Register ``build-fmu CONFIG --out FILE [--field] [--standalone] [--fmi {2,3}]`` on the ``ebb`` parser."""
     p = sub.add_parser(
         "build-fmu",
         help="package the beam as an FMI 2.0 co-simulation FMU",
         description="Build an FMI 2.0 co-simulation FMU (Linux x86-64) of the beam described by CONFIG. "
                     "The FMU runs on this Python interpreter (numpy, scipy and numba required). With "
-                    "--standalone: an FMU in C (co-simulation and model exchange) that needs no Python.",
+                    "--standalone: an FMU in C (co-simulation and model exchange) that needs no Python, in FMI 2.0 "
+                    "or, with --fmi 3, FMI 3.0 (the deflection field as one array w, adjoint derivatives).",
     )
     p.add_argument("config", metavar="CONFIG", help="TOML config file")
     p.add_argument("--out", required=True, metavar="FILE", help="the .fmu file to write")
@@ -38,4 +44,6 @@ def add_parsers(sub: Subcommands) -> None:
     p.add_argument("--standalone", action="store_true",
                    help="build the standalone C FMU instead (model exchange and co-simulation, no Python at run "
                         "time; the model's C source is inside, compiled with gcc for linux64)")
+    p.add_argument("--fmi", type=int, choices=(2, 3), default=2,
+                   help="the FMI version: 2 (default) or 3 (with --standalone; binaries/x86_64-linux)")
     p.set_defaults(func=_cmd_build_fmu)

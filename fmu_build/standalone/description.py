@@ -31,11 +31,13 @@ from ..model_description import UNIT_DEFINITIONS, FmuIdentity
 __all__ = ["Variable", "fmu_variables", "model_description_xml", "config_header", "build_description_xml",
            "n_modes", "C_SOURCES", "C_HEADERS"]
 
-#: The C sources compiled into the binary (in this package's ``csrc``), and the headers they include.
-C_SOURCES = ("ebb_linalg.c", "ebb_model.c", "ebb_fmi2.c")
-C_HEADERS = ("ebb_beam.h",)
-#: Roles and types as ``ebb_fmi2.c`` numbers them.
-_ROLES = {"parameter": 0, "input": 1, "output": 2, "constant": 3, "state": 4, "derivative": 5}
+#: The C sources compiled into the binary (in this package's ``csrc``) for FMI 2.0 and 3.0 (the instance is
+#: common, ``ebb_fmi2.c`` or ``ebb_fmi3.c`` translates its standard's calls), and the headers they include.
+C_SOURCES = {2: ("ebb_linalg.c", "ebb_model.c", "ebb_instance.c", "ebb_derivatives.c", "ebb_fmi2.c"),
+             3: ("ebb_linalg.c", "ebb_model.c", "ebb_instance.c", "ebb_derivatives.c", "ebb_fmi3.c")}
+C_HEADERS = ("ebb_beam.h", "ebb_instance.h")
+#: Roles and types as ``ebb_instance.h`` numbers them.
+_ROLES = {"parameter": 0, "input": 1, "output": 2, "constant": 3, "state": 4, "derivative": 5, "time": 6}
 _TYPES = {"Real": 0, "Integer": 1, "String": 2}
 _HOLDS = {"zoh": "EBB_ZOH", "foh": "EBB_FOH", "cubic": "EBB_CUBIC"}
 
@@ -44,8 +46,10 @@ _HOLDS = {"zoh": "EBB_ZOH", "foh": "EBB_FOH", "cubic": "EBB_CUBIC"}
 class Variable:
     """One model variable: name, type (``Real``/``Integer``/``String``), role, index within its role, value.
 
-    ``role`` is ``parameter``, ``input``, ``output``, ``constant`` (calculated parameter, fixed), ``state`` or
-    ``derivative``; ``value`` is the start value of parameters and the value of constants.
+    ``role`` is ``parameter``, ``input``, ``output``, ``constant`` (calculated parameter, fixed), ``state``,
+    ``derivative`` or ``time`` (FMI 3.0's independent variable); ``value`` is the start value of parameters and
+    the value of constants; ``size`` is the length of an array variable (FMI 3.0's ``w``), whose elements are
+    the role's ``index``, ``index + 1``, ….
     """
 
     name: str
@@ -55,6 +59,7 @@ class Variable:
     value: float | int | str | None = None
     unit: str | None = None
     description: str = ""
+    size: int = 1
 
 
 def n_modes(config: BeamConfig) -> int:
@@ -68,8 +73,12 @@ def n_filter_states(config: BeamConfig) -> int:
     return sum(f.order for f in effective_filters(config) if f is not None)
 
 
-def fmu_variables(config: BeamConfig, field_sensors: Sequence[Sensor] = ()) -> list[Variable]:
-    """All variables of the standalone FMU, in value-reference order (see the module docstring)."""
+def fmu_variables(config: BeamConfig, field_sensors: Sequence[Sensor] = (), fmi: int = 2) -> list[Variable]:
+    """All variables of the standalone FMU, in value-reference order (see the module docstring).
+
+    With ``fmi=3`` the field outputs are one array variable ``w`` (the deflection at the grid nodes, in the
+    order of ``field_sensors``) and ``time`` (the independent variable) comes last.
+    """
     out: list[Variable] = []
     values = config.parameter_values()
     for i, name in enumerate(PARAMETER_NAMES):
@@ -80,8 +89,13 @@ def fmu_variables(config: BeamConfig, field_sensors: Sequence[Sensor] = ()) -> l
     for o, s in enumerate(config.sensors):
         through = "" if s.antialias is None else f", through its {s.antialias.describe()}"
         out.append(Variable(s.name, "Real", "output", o, None, s.unit, f"{s.kind} at x = {s.x:g} m{through}"))
-    for o, s in enumerate(field_sensors, start=len(config.sensors)):
-        out.append(Variable(s.name, "Real", "output", o, None, "m", f"deflection at grid node x = {s.x:g} m"))
+    if fmi == 3 and field_sensors:
+        out.append(Variable("w", "Real", "output", len(config.sensors), None, "m",
+                            f"deflection at the {len(field_sensors)} grid nodes x = {field_sensors[0].x:g} … "
+                            f"{field_sensors[-1].x:g} m, equally spaced", size=len(field_sensors)))
+    else:
+        for o, s in enumerate(field_sensors, start=len(config.sensors)):
+            out.append(Variable(s.name, "Real", "output", o, None, "m", f"deflection at grid node x = {s.x:g} m"))
 
     def const(name: str, value: float | int | str, description: str, unit: str | None = None) -> None:
         kind = {float: "Real", int: "Integer", str: "String"}[type(value)]
@@ -153,6 +167,8 @@ def fmu_variables(config: BeamConfig, field_sensors: Sequence[Sensor] = ()) -> l
             at += 0 if filt is None else filt.order
     for v in [v for v in out if v.role == "state"]:
         out.append(Variable(f"der({v.name})", "Real", "derivative", v.index, None, None, f"derivative of {v.name}"))
+    if fmi == 3:
+        out.append(Variable("time", "Real", "time", 0, None, "s", "simulation time"))
     return out
 
 
@@ -237,9 +253,9 @@ def model_description_xml(variables: Sequence[Variable], *, identity: FmuIdentit
     return parseString(tostring(root, encoding="UTF-8")).toprettyxml(indent="  ", encoding="UTF-8")
 
 
-def build_description_xml(identity: FmuIdentity, sources: Sequence[str]) -> bytes:
+def build_description_xml(identity: FmuIdentity, sources: Sequence[str], fmi: int = 2) -> bytes:
     """``sources/buildDescription.xml`` (FMI 2.0.4 / 3.0 layout): the C99 files and libm."""
-    root = Element("fmiBuildDescription", {"fmiVersion": "2.0"})
+    root = Element("fmiBuildDescription", {"fmiVersion": f"{fmi}.0"})
     bc = SubElement(root, "BuildConfiguration", {
         "modelIdentifier": identity.model_identifier,
         "description": "plain C99, no dependencies besides the C math library"})
@@ -315,6 +331,7 @@ def config_header(config: BeamConfig, variables: Sequence[Variable], identity: F
     text += _array("signed char", "EBB_VAR_TYPE", [str(_TYPES[v.type]) for v in variables])
     text += _array("signed char", "EBB_VAR_ROLE", [str(_ROLES[v.role]) for v in variables])
     text += _array("int", "EBB_VAR_INDEX", [str(v.index) for v in variables])
+    text += _array("int", "EBB_VAR_SIZE", [str(v.size) for v in variables])
     # a constant's value is of its type (fmu_variables)
     text += _array("double", "EBB_VAR_REAL", [_c_double(cast(float, v.value))
                                               if v.type == "Real" and v.role == "constant" else "0.0"
