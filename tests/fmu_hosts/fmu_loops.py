@@ -33,7 +33,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-HOST_SOURCE = HERE / "fmi2_host.c"
+HOST_SOURCE = {2: HERE / "fmi2_host.c", 3: HERE / "fmi3_host.c"}
 
 
 def _names(md, causality: str) -> list[str]:
@@ -193,10 +193,14 @@ def ecos_outputs(fmu: str | os.PathLike, u: np.ndarray, *,
     return y
 
 
-def compile_host(out_dir: Path) -> Path:
-    """Compile the plain C master with gcc."""
-    exe = Path(out_dir) / "fmi2_host"
-    subprocess.run(["gcc", "-O2", "-Wall", "-o", str(exe), str(HOST_SOURCE), "-ldl"], check=True,
+def compile_host(out_dir: Path, fmi: int = 2, flags: Sequence[str] = ("-O2",)) -> Path:
+    """Compile the plain C master of FMI version ``fmi`` with gcc (FMI 3.0's against the standard's headers as
+    fmpy ships them)."""
+    import fmpy
+
+    exe = Path(out_dir) / f"fmi{fmi}_host"
+    headers = ["-I", str(Path(fmpy.__file__).parent / "c-code")] if fmi == 3 else []
+    subprocess.run(["gcc", *flags, "-Wall", *headers, "-o", str(exe), str(HOST_SOURCE[fmi]), "-ldl"], check=True,
                    capture_output=True, text=True)
     return exe
 
@@ -205,7 +209,8 @@ def host_run(exe: Path, fmu: str | os.PathLike, u: np.ndarray, work: Path, *,
              params: Mapping[str, float] | None = None, step: float | None = None,
              env: Mapping[str, str] | None = None, wrapper: Sequence[str] = (),
              timeout: float = 120, checkpoint: int | None = None) -> subprocess.CompletedProcess:
-    """Run the C master on an extracted copy of ``fmu`` ("before" protocol).
+    """Run the C master on an extracted copy of ``fmu`` ("before" protocol); an FMI 3.0 FMU needs the FMI 3.0
+    master (its array outputs are read whole, written ``VRxN``).
 
     ``wrapper`` prefixes the command (e.g. ``["valgrind"]``); ``checkpoint`` K: the state is saved and serialised
     before point K and, after the run, restored and the points from K run again (lines prefixed ``R``).
@@ -215,15 +220,19 @@ def host_run(exe: Path, fmu: str | os.PathLike, u: np.ndarray, work: Path, *,
     unzipdir = Path(extract(str(fmu), unzipdir=str(Path(work) / "unzipped")))
     md = read_model_description(str(unzipdir))
     vr = {v.name: v.valueReference for v in md.modelVariables}
-    in_vr = [vr[n] for n in _names(md, "input")]
-    out_vr = [vr[n] for n in _names(md, "output")]
+    three = md.fmiVersion.startswith("3")
+    in_vr = [str(vr[n]) for n in _names(md, "input")]
+    out_vr = [f"{v.valueReference}x{int(v.dimensions[0].start)}" if three and v.dimensions else str(v.valueReference)
+              for v in md.modelVariables if v.causality == "output"]
     u = np.asarray(u, dtype=float).reshape(len(u), -1)
     inputs = Path(work) / "inputs.txt"
     np.savetxt(inputs, u, fmt="%.17g")
-    library = unzipdir / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"
-    cmd = [*wrapper, str(exe), str(library), md.guid, (unzipdir / "resources").as_uri(),
+    library = (unzipdir / "binaries" / ("x86_64-linux" if three else "linux64")
+               / f"{md.coSimulation.modelIdentifier}.so")
+    resources = str(unzipdir / "resources") + os.sep if three else (unzipdir / "resources").as_uri()
+    cmd = [*wrapper, str(exe), str(library), md.guid, resources,
            repr(float(step if step is not None else md.defaultExperiment.stepSize)), str(len(u)), str(inputs),
-           ",".join(map(str, in_vr)) or "-", ",".join(map(str, out_vr)) or "-"]
+           ",".join(in_vr) or "-", ",".join(out_vr) or "-"]
     cmd += [f"{vr[k]}={v!r}" for k, v in (params or {}).items()]
     cmd += [f"@{checkpoint}"] if checkpoint is not None else []
     # no Python variables at all; OpenBLAS's kernel choice (OPENBLAS_CORETYPE, set on some processors) is passed
