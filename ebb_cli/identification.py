@@ -106,7 +106,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
     if args.ssp:
         from identification.export_ssp import export_ssp
 
-        files.append(export_ssp(result, points, polished=polished))
+        files.append(export_ssp(result, points, polished=polished, fmi=args.ssp_fmi))
     for f in files:
         print(f"wrote {f}")
     return 0
@@ -168,4 +168,6 @@ def add_parsers(sub: Subcommands) -> None:
     p.add_argument("--ssp", action="store_true",
                    help="also an SSP package: one standalone FMU and one parameter set per chosen point "
                         "(<config>.ssp; its SystemStructure.ssd bound to the identified model)")
+    p.add_argument("--ssp-fmi", type=int, choices=(2, 3), default=2,
+                   help="the FMI version of the SSP package's FMU (default 2)")
     p.set_defaults(func=_cmd_export)

@@ -3,7 +3,8 @@
 ``export_ssp(result, …)`` writes ``<out_dir>/export/<config>.ssp``, a zip holding
 
 * ``resources/beam.fmu`` — the standalone C FMU of the result's set-up (no Python at run time; parameters
-  ``EI, rhoA, c, eta, N, rhoI, kf`` tunable);
+  ``EI, rhoA, c, eta, N, rhoI, kf`` tunable), FMI 2.0 or, with ``fmi=3``, FMI 3.0 (the systems and parameter sets
+  are the same: they name the component's variables, which both versions share);
 * ``resources/<stem>.ssv`` — one parameter set (``ssv:ParameterSet``) per chosen Pareto / polished point, every
   physical parameter with its unit;
 * ``SystemStructure.ssd`` — the system (one component ``beam`` with its inputs, outputs and parameters as
@@ -109,7 +110,7 @@ def check_ssp(result: IdentificationResult) -> None:
 
 
 def export_ssp(result: IdentificationResult, points: Sequence[int] | str | None = None, *,
-               polished: Sequence[int] | str | None = None) -> Path:
+               polished: Sequence[int] | str | None = None, fmi: int = 2) -> Path:
     """Write ``<out_dir>/export/<config>.ssp`` (module docstring) and return its path.
 
     Parameters
@@ -118,6 +119,8 @@ def export_ssp(result: IdentificationResult, points: Sequence[int] | str | None 
         The identification's result.
     points, polished
         Index lists or ``"all"``; with neither given, every Pareto and polished point.
+    fmi
+        The FMI version of the package's FMU, 2 (the default) or 3.
 
     Raises
     ------
@@ -130,6 +133,8 @@ def export_ssp(result: IdentificationResult, points: Sequence[int] | str | None 
     from fmu_build.standalone import build_standalone_fmu
 
     check_ssp(result)
+    if fmi not in (2, 3):
+        raise ConfigError(f"`fmi` = {fmi!r}: the SSP's FMU is FMI 2 or 3")
     d = result.out_dir
     check_writable_dir(d / "export" if (d / "export").is_dir() else d)
     models = result.models(*chosen(result, points, polished))
@@ -142,7 +147,7 @@ def export_ssp(result: IdentificationResult, points: Sequence[int] | str | None 
     stop = stop_time(config, next(p for stem, _, p in models if stem == bound))
     out = make_dir(d / "export", exist_ok=True) / f"{result.config_name}.ssp"
     with tempfile.TemporaryDirectory() as tmp, atomic_path(out, suffix=".ssp") as part:
-        fmu = build_standalone_fmu(config, Path(tmp) / "beam.fmu")
+        fmu = build_standalone_fmu(config, Path(tmp) / "beam.fmu", fmi=fmi)
         with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
             z.write(fmu, "resources/beam.fmu")
             for stem, _, params in models:

@@ -380,3 +380,19 @@ def test_cli_builds_fmi3_and_refuses_what_it_cannot(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["build-fmu", str(SEED_TOML), "--standalone", "--fmi", "4", "--out", str(tmp_path / "x.fmu")])
     assert exc.value.code == 2 and not (tmp_path / "x.fmu").exists()
+
+
+def test_the_diagnosed_model_exports_in_fmi3(tmp_path):
+    """``ebb diagnose --target standalone_fmi3`` (``export_corrected(..., targets=["standalone_fmi3"])``): the
+    corrected beam as an FMI 3.0 FMU, its outputs those of the core under the corrected parameters."""
+    from diagnosis.corrected.export import export_corrected
+    from diagnosis.effects import AugmentedModel
+
+    cfg = load_config(SEED_TOML)
+    params = cfg.parameter_values() | {"EI": 10.5, "c": 0.2}
+    files = export_corrected(AugmentedModel(cfg, params), tmp_path / "corrected", {"effect": "test"},
+                             targets=["standalone_fmi3"])
+    fmu = tmp_path / "corrected" / "corrected_standalone_fmi3.fmu"
+    assert fmu in files and fmpy.read_model_description(str(fmu)).fmiVersion == "3.0"
+    u = _inputs(cfg, 300, 13)
+    assert _rel_err(fmpy_outputs(fmu, u), simulate(assemble(cfg, params), u).outputs) <= RTOL_CORE

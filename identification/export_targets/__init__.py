@@ -7,7 +7,8 @@ console say it; without it: "written by the export target NAME"). Adding a targe
 line in the registry.
 
 ``statespace`` — python-control StateSpace (``.npz``, and a balanced truncation on request); ``fmu`` — the
-pythonfmu FMU; ``standalone`` — the standalone C FMU (no Python at run time).
+pythonfmu FMU; ``standalone`` — the standalone C FMU (no Python at run time); ``standalone_fmi3`` — the same in
+FMI 3.0.
 """
 from __future__ import annotations
 
@@ -28,6 +29,7 @@ TARGETS: Mapping[str, str] = MappingProxyType({
     "statespace": "identification.export_targets.statespace",   # python-control StateSpace (.npz)
     "fmu": "identification.export_targets.fmu",                 # pythonfmu FMU
     "standalone": "identification.export_targets.standalone",   # standalone C FMU
+    "standalone_fmi3": "identification.export_targets.standalone_fmi3",   # the same in FMI 3.0
 })
 #: What ``identify``, ``export`` and the corrected model write when no target is named.
 DEFAULT_TARGETS: tuple[str, ...] = ("statespace", "fmu")

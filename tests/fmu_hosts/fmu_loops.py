@@ -40,9 +40,48 @@ def _names(md, causality: str) -> list[str]:
     return [v.name for v in md.modelVariables if v.causality == causality]
 
 
+class _Fmi3AsFmi2:
+    """fmpy's ``FMU3Slave`` behind the ``FMU2Slave`` calls :func:`fmpy_outputs` makes (an array read whole)."""
+
+    def __init__(self, md, unzipdir: str, sizes: Mapping[int, int]) -> None:
+        from fmpy.fmi3 import FMU3Slave
+
+        self.f = FMU3Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
+                           instanceName="fmpy3")
+        self.sizes, self.start = sizes, 0.0
+
+    def instantiate(self) -> None:
+        self.f.instantiate()
+
+    def setupExperiment(self, startTime: float) -> None:
+        self.start = startTime
+
+    def enterInitializationMode(self) -> None:
+        self.f.enterInitializationMode(startTime=self.start)
+
+    def exitInitializationMode(self) -> None:
+        self.f.exitInitializationMode()
+
+    def setReal(self, vr: Sequence[int], values: Sequence[float]) -> None:
+        self.f.setFloat64(vr, values)
+
+    def getReal(self, vr: Sequence[int]) -> list[float]:
+        return self.f.getFloat64(vr, nValues=sum(self.sizes.get(v, 1) for v in vr))
+
+    def doStep(self, t: float, h: float) -> None:
+        self.f.doStep(t, h)
+
+    def terminate(self) -> None:
+        self.f.terminate()
+
+    def freeInstance(self) -> None:
+        self.f.freeInstance()
+
+
 def fmpy_outputs(fmu: str | os.PathLike, u: np.ndarray, *, params: Mapping[str, float] | None = None,
                  protocol: str = "before", outputs: Sequence[str] | None = None) -> np.ndarray:
-    """Outputs of the FMU through fmpy's low-level ``FMU2Slave`` API.
+    """Outputs of the FMU through fmpy's low-level ``FMU2Slave`` API (``FMU3Slave`` for an FMI 3.0 FMU, its array
+    outputs read whole: one column per element).
 
     Parameters
     ----------
@@ -68,9 +107,11 @@ def fmpy_outputs(fmu: str | os.PathLike, u: np.ndarray, *, params: Mapping[str, 
     dt = md.defaultExperiment.stepSize
     dt = float(dt)
     u = np.asarray(u, dtype=float).reshape(len(u), -1)
-    y = np.empty((len(u), len(out_vr)))
-    fmu_ = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
-                     instanceName="fmpy")
+    sizes = {v.valueReference: int(v.dimensions[0].start) for v in md.modelVariables if v.dimensions}
+    y = np.empty((len(u), sum(sizes.get(v, 1) for v in out_vr)))
+    fmu_ = _Fmi3AsFmi2(md, unzipdir, sizes) if md.fmiVersion.startswith("3") else \
+        FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
+                  instanceName="fmpy")
     fmu_.instantiate()
     try:
         fmu_.setupExperiment(startTime=0.0)
