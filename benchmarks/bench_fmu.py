@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi3 import FMU3Slave
 
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
@@ -76,7 +77,8 @@ def build_floor_fmu(workdir: Path) -> Path:
 
 def time_steps(fmu_path: Path, inputs: list[str], outputs: list[str], *, dt: float, steps: int,
                repeats: int) -> list[float]:
-    """Mean µs per communication step for each repeat, one FMU instance reused.
+    """Mean µs per communication step for each repeat, one FMU instance reused (fmpy's ``FMU2Slave``: ``setReal``,
+    ``getReal``, ``doStep``; for an FMI 3.0 FMU its ``FMU3Slave``: ``setFloat64``, ``getFloat64``, ``doStep``).
 
     Parameters
     ----------
@@ -96,17 +98,22 @@ def time_steps(fmu_path: Path, inputs: list[str], outputs: list[str], *, dt: flo
     vr = {v.name: v.valueReference for v in md.modelVariables}
     u_vr = [vr[n] for n in inputs]
     y_vr = [vr[n] for n in outputs]
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
-                    instanceName="bench")
+    three = md.fmiVersion.startswith("3")
+    fmu = (FMU3Slave if three else FMU2Slave)(guid=md.guid, unzipDirectory=unzipdir,
+                                               modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bench")
     u = np.random.default_rng(1).standard_normal((steps, len(u_vr))).tolist()
     results: list[float] = []
     fmu.instantiate()
     try:
         for rep in range(repeats + 1):
-            fmu.setupExperiment(startTime=0.0)
-            fmu.enterInitializationMode()
+            if three:
+                fmu.enterInitializationMode(startTime=0.0)
+            else:
+                fmu.setupExperiment(startTime=0.0)
+                fmu.enterInitializationMode()
             fmu.exitInitializationMode()
-            set_real, get_real, do_step = fmu.setReal, fmu.getReal, fmu.doStep
+            set_real, get_real, do_step = ((fmu.setFloat64, fmu.getFloat64, fmu.doStep) if three
+                                           else (fmu.setReal, fmu.getReal, fmu.doStep))
             t = 0.0
             start = time.perf_counter()
             for k in range(steps):

@@ -78,43 +78,6 @@ def inner_costs(fmu_path: Path, *, samples: int, repeats: int) -> tuple[list[flo
     return per_sample, init_ms
 
 
-def time_steps3(fmu_path: Path, inputs: list[str], outputs: list[str], *, dt: float, steps: int,
-                repeats: int) -> list[float]:
-    """:func:`bench_fmu.time_steps` for an FMI 3.0 FMU (fmpy's ``FMU3Slave``: ``setFloat64``, ``getFloat64``,
-    ``doStep``)."""
-    import numpy as np
-
-    unzipdir = extract(str(fmu_path))
-    md = read_model_description(unzipdir)
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    u_vr, y_vr = [vr[n] for n in inputs], [vr[n] for n in outputs]
-    fmu = FMU3Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
-                    instanceName="bench3")
-    u = np.random.default_rng(1).standard_normal((steps, len(u_vr))).tolist()
-    results: list[float] = []
-    fmu.instantiate()
-    try:
-        for rep in range(repeats + 1):
-            fmu.enterInitializationMode(startTime=0.0)
-            fmu.exitInitializationMode()
-            set_float, get_float, do_step = fmu.setFloat64, fmu.getFloat64, fmu.doStep
-            t = 0.0
-            start = time.perf_counter()
-            for k in range(steps):
-                set_float(u_vr, u[k])
-                get_float(y_vr)
-                do_step(t, dt)
-                t += dt
-            elapsed = time.perf_counter() - start
-            if rep > 0:
-                results.append(elapsed / steps * 1e6)
-            fmu.reset()
-        fmu.terminate()
-    finally:
-        fmu.freeInstance()
-    return results
-
-
 def c_master_step(work: Path, fmu_path: Path, *, steps: int) -> float:
     """ns per co-simulation step (set the input, get both outputs, one step) of R1's FMU from a C master."""
     import fmpy
@@ -148,7 +111,7 @@ def fmi_versions(work: Path, *, steps: int, repeats: int) -> dict[str, float]:
             c_step[v].append(c_master_step(work, fmus[v], steps=steps))
             inner[v] += inner_costs(fmus[v], samples=steps, repeats=1)[0]
         loop[2] += time_steps(fmus[2], ["F1"], ["y1", "y2"], dt=1e-4, steps=steps, repeats=1)
-        loop[3] += time_steps3(fmus[3], ["F1"], ["y1", "y2"], dt=1e-4, steps=steps, repeats=1)
+        loop[3] += time_steps(fmus[3], ["F1"], ["y1", "y2"], dt=1e-4, steps=steps, repeats=1)
     med = {f"{kind}_fmi{v}": statistics.median(d[v]) for kind, d in (("c_step", c_step), ("loop", loop),
                                                                      ("inner", inner)) for v in (2, 3)}
     return med | {f"{kind}_ratio_fmi3_over_fmi2": med[f"{kind}_fmi3"] / med[f"{kind}_fmi2"]

@@ -29,7 +29,7 @@ from ebb_model.beam import PARAMETER_DESCRIPTIONS, PARAMETER_UNITS, SENSOR_KINDS
 from ..model_description import UNIT_DEFINITIONS, FmuIdentity
 
 __all__ = ["Variable", "fmu_variables", "model_description_xml", "config_header", "build_description_xml",
-           "n_modes", "C_SOURCES", "C_HEADERS"]
+           "n_modes", "units_categories_experiment", "C_SOURCES", "C_HEADERS"]
 
 #: The C sources compiled into the binary (in this package's ``csrc``) for FMI 2.0 and 3.0 (the instance is
 #: common, ``ebb_fmi2.c`` or ``ebb_fmi3.c`` translates its standard's calls), and the headers they include.
@@ -194,17 +194,7 @@ def model_description_xml(variables: Sequence[Variable], *, identity: FmuIdentit
         files = SubElement(element, "SourceFiles")
         for name in sources:
             SubElement(files, "File", {"name": name})
-    units = sorted({v.unit for v in variables if v.unit})
-    if units:
-        node = SubElement(root, "UnitDefinitions")
-        for name in units:
-            unit = SubElement(node, "Unit", {"name": name})
-            if UNIT_DEFINITIONS.get(name):
-                SubElement(unit, "BaseUnit", {k: str(e) for k, e in UNIT_DEFINITIONS[name].items()})
-    cats = SubElement(root, "LogCategories")
-    SubElement(cats, "Category", {"name": "logStatusError", "description": "errors (always reported)"})
-    SubElement(cats, "Category", {"name": "logAll", "description": "everything (with debug logging on)"})
-    SubElement(root, "DefaultExperiment", {"startTime": "0.0", "stepSize": _num(dt)})
+    units_categories_experiment(root, variables, dt)
     mv = SubElement(root, "ModelVariables")
     state_index = {}
     for vr, v in enumerate(variables):
@@ -251,6 +241,22 @@ def model_description_xml(variables: Sequence[Variable], *, identity: FmuIdentit
         elif v.role == "constant":
             SubElement(node, "Unknown", {"index": str(i), "dependencies": ""})
     return parseString(tostring(root, encoding="UTF-8")).toprettyxml(indent="  ", encoding="UTF-8")
+
+
+def units_categories_experiment(root: Element, variables: Sequence[Variable], dt: float) -> None:
+    """The elements between the interfaces and the variables, the same in FMI 2.0 and 3.0: the units the variables
+    use, the log categories, the default experiment (start 0, step ``dt``)."""
+    units = sorted({v.unit for v in variables if v.unit})
+    if units:
+        node = SubElement(root, "UnitDefinitions")
+        for name in units:
+            unit = SubElement(node, "Unit", {"name": name})
+            if UNIT_DEFINITIONS.get(name):
+                SubElement(unit, "BaseUnit", {k: str(e) for k, e in UNIT_DEFINITIONS[name].items()})
+    cats = SubElement(root, "LogCategories")
+    SubElement(cats, "Category", {"name": "logStatusError", "description": "errors (always reported)"})
+    SubElement(cats, "Category", {"name": "logAll", "description": "everything (with debug logging on)"})
+    SubElement(root, "DefaultExperiment", {"startTime": "0.0", "stepSize": _num(dt)})
 
 
 def build_description_xml(identity: FmuIdentity, sources: Sequence[str], fmi: int = 2) -> bytes:

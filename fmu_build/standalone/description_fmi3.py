@@ -13,8 +13,8 @@ from typing import Sequence, cast
 from xml.dom.minidom import parseString
 from xml.etree.ElementTree import Element, SubElement, tostring
 
-from ..model_description import UNIT_DEFINITIONS, FmuIdentity
-from .description import Variable
+from ..model_description import FmuIdentity
+from .description import Variable, units_categories_experiment
 
 __all__ = ["model_description_xml3"]
 
@@ -67,17 +67,7 @@ def model_description_xml3(variables: Sequence[Variable], *, identity: FmuIdenti
     SubElement(root, "CoSimulation", common | {"canHandleVariableCommunicationStepSize": "true",
                                                "fixedInternalStepSize": _num(dt),
                                                "maxOutputDerivativeOrder": "0", "hasEventMode": "false"})
-    units = sorted({v.unit for v in variables if v.unit})
-    if units:
-        node = SubElement(root, "UnitDefinitions")
-        for name in units:
-            unit = SubElement(node, "Unit", {"name": name})
-            if UNIT_DEFINITIONS.get(name):
-                SubElement(unit, "BaseUnit", {k: str(e) for k, e in UNIT_DEFINITIONS[name].items()})
-    cats = SubElement(root, "LogCategories")
-    SubElement(cats, "Category", {"name": "logStatusError", "description": "errors (always reported)"})
-    SubElement(cats, "Category", {"name": "logAll", "description": "everything (with debug logging on)"})
-    SubElement(root, "DefaultExperiment", {"startTime": "0.0", "stepSize": _num(dt)})
+    units_categories_experiment(root, variables, dt)
     mv = SubElement(root, "ModelVariables")
     state_vr: dict[str, int] = {}
     for vr, v in enumerate(variables):

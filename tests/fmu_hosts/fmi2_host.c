@@ -28,11 +28,9 @@
  * 1 usage, 2 the library or a symbol cannot be loaded, 3 an FMI call
  * returned an error (the function and status are printed on stderr).
  */
-#include <dlfcn.h>
 #include <stdarg.h>
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
+
+#include "host_util.h"
 
 typedef void *fmi2Component;
 typedef void *fmi2ComponentEnvironment;
@@ -84,42 +82,6 @@ static void log_message(fmi2ComponentEnvironment env, fmi2String name, fmi2Statu
     va_end(args);
 }
 
-static void *symbol(void *lib, const char *name)
-{
-    void *p = dlsym(lib, name);
-    if (!p) {
-        fprintf(stderr, "missing symbol %s: %s\n", name, dlerror());
-        exit(2);
-    }
-    return p;
-}
-
-static size_t parse_vrs(const char *text, fmi2ValueReference **out)
-{
-    *out = NULL;
-    if (strcmp(text, "-") == 0) return 0;
-    size_t n = 1;
-    for (const char *p = text; *p; ++p) n += (*p == ',');
-    *out = calloc(n, sizeof **out);
-    const char *p = text;
-    for (size_t i = 0; i < n; ++i) {
-        char *end;
-        (*out)[i] = (fmi2ValueReference)strtoul(p, &end, 10);
-        p = end + (*end == ',');
-    }
-    return n;
-}
-
-#define CHECK(call, name)                                                   \
-    do {                                                                    \
-        fmi2Status s_ = (call);                                             \
-        if (s_ > fmi2Warning) {                                             \
-            fprintf(stderr, "%s failed with status %d\n", name, (int)s_);   \
-            if (s_ < fmi2Fatal) freeInstance(c);                            \
-            return 3;                                                       \
-        }                                                                   \
-    } while (0)
-
 int main(int argc, char **argv)
 {
     if (argc < 9) {
@@ -132,8 +94,9 @@ int main(int argc, char **argv)
     long nsteps = strtol(argv[5], NULL, 10);
     const char *input_file = argv[6];
     fmi2ValueReference *in_vrs, *out_vrs;
-    size_t n_in = parse_vrs(argv[7], &in_vrs);
-    size_t n_out = parse_vrs(argv[8], &out_vrs);
+    size_t *in_sizes, *out_sizes, n_in_values, n_out_values;    /* (FMI 2.0 has no arrays: sizes 1) */
+    size_t n_in = parse_vrs(argv[7], &in_vrs, &in_sizes, &n_in_values);
+    size_t n_out = parse_vrs(argv[8], &out_vrs, &out_sizes, &n_out_values);
 
     void *lib = dlopen(library, RTLD_NOW | RTLD_LOCAL);
     if (!lib) {
@@ -215,8 +178,7 @@ int main(int argc, char **argv)
         }
         if (n_in) CHECK(setReal(c, in_vrs, n_in, uk), "fmi2SetReal");
         if (n_out) CHECK(getReal(c, out_vrs, n_out, y), "fmi2GetReal");
-        for (size_t i = 0; i < n_out; ++i) printf(i ? " %.17g" : "%.17g", y[i]);
-        printf("\n");
+        print_row("", y, n_out);
         CHECK(doStep(c, t, step, 1), "fmi2DoStep");
         t = (double)(k + 1) * step;
     }
@@ -230,9 +192,7 @@ int main(int argc, char **argv)
             t = (double)k * step;
             if (n_in) CHECK(setReal(c, in_vrs, n_in, u + (size_t)k * n_in), "fmi2SetReal");
             if (n_out) CHECK(getReal(c, out_vrs, n_out, y), "fmi2GetReal");
-            printf("R ");
-            for (size_t i = 0; i < n_out; ++i) printf(i ? " %.17g" : "%.17g", y[i]);
-            printf("\n");
+            print_row("R ", y, n_out);
             CHECK(doStep(c, t, step, 1), "fmi2DoStep");
         }
         free(saved);
@@ -243,7 +203,9 @@ int main(int argc, char **argv)
     free(u);
     free(y);
     free(in_vrs);
+    free(in_sizes);
     free(out_vrs);
+    free(out_sizes);
     fflush(stdout);
     return 0;
 }

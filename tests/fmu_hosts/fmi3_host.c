@@ -25,67 +25,13 @@
  * input).  The FMU's log messages go to stderr.  Exit status: 0 success, 1 usage, 2 the library or a symbol
  * cannot be loaded, 3 an FMI call returned an error.
  */
-#include <dlfcn.h>
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
-
 #include "fmi3FunctionTypes.h"
+#include "host_util.h"
 
 static void log_message(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category, fmi3String message)
 {
     (void)env;
     fprintf(stderr, "status=%d category=%s: %s\n", (int)status, category ? category : "", message ? message : "");
-}
-
-static void *symbol(void *lib, const char *name)
-{
-    void *p = dlsym(lib, name);
-    if (!p) {
-        fprintf(stderr, "missing symbol %s: %s\n", name, dlerror());
-        exit(2);
-    }
-    return p;
-}
-
-/* value references (and their element counts, 1 unless written VRxN); returns the number of references */
-static size_t parse_vrs(const char *text, fmi3ValueReference **out, size_t **sizes, size_t *total)
-{
-    *out = NULL;
-    *sizes = NULL;
-    *total = 0;
-    if (strcmp(text, "-") == 0) return 0;
-    size_t n = 1;
-    for (const char *p = text; *p; ++p) n += (*p == ',');
-    *out = calloc(n, sizeof **out);
-    *sizes = calloc(n, sizeof **sizes);
-    const char *p = text;
-    for (size_t i = 0; i < n; ++i) {
-        char *end;
-        (*out)[i] = (fmi3ValueReference)strtoul(p, &end, 10);
-        (*sizes)[i] = 1;
-        if (*end == 'x') (*sizes)[i] = (size_t)strtoul(end + 1, &end, 10);
-        *total += (*sizes)[i];
-        p = end + (*end == ',');
-    }
-    return n;
-}
-
-#define CHECK(call, name)                                                   \
-    do {                                                                    \
-        fmi3Status s_ = (call);                                             \
-        if (s_ > fmi3Warning) {                                             \
-            fprintf(stderr, "%s failed with status %d\n", name, (int)s_);   \
-            if (s_ < fmi3Fatal) freeInstance(c);                            \
-            return 3;                                                       \
-        }                                                                   \
-    } while (0)
-
-static void print_row(const char *prefix, const fmi3Float64 *y, size_t n)
-{
-    fputs(prefix, stdout);
-    for (size_t i = 0; i < n; ++i) printf(i ? " %.17g" : "%.17g", y[i]);
-    printf("\n");
 }
 
 int main(int argc, char **argv)
