@@ -124,22 +124,17 @@ int main(int argc, char **argv)
             getenv("PYTHONHOME") ? getenv("PYTHONHOME") : "(unset)",
             getenv("PYTHONPATH") ? getenv("PYTHONPATH") : "(unset)");
     CHECK(setupExperiment(c, 0, 0.0, 0.0, 0, 0.0), "fmi2SetupExperiment");
-    long checkpoint = -1;
-    for (int i = 9; i < argc; ++i) {
-        if (argv[i][0] == '@') {
-            checkpoint = strtol(argv[i] + 1, NULL, 10);
-            continue;
-        }
-        char *eq = strchr(argv[i], '=');
-        if (!eq) {
-            fprintf(stderr, "bad parameter argument %s\n", argv[i]);
-            freeInstance(c);
-            return 1;
-        }
-        fmi2ValueReference vr = (fmi2ValueReference)strtoul(argv[i], NULL, 10);
-        fmi2Real value = strtod(eq + 1, NULL);
-        CHECK(setReal(c, &vr, 1, &value), "fmi2SetReal");
+    long checkpoint;
+    unsigned *vrs = calloc((size_t)argc, sizeof *vrs);
+    double *values = calloc((size_t)argc, sizeof *values);
+    const int n_params = parse_params(argc, argv, 9, vrs, values, &checkpoint);
+    if (n_params < 0) {
+        freeInstance(c);
+        return 1;
     }
+    for (int i = 0; i < n_params; ++i) CHECK(setReal(c, vrs + i, 1, values + i), "fmi2SetReal");
+    free(vrs);
+    free(values);
     CHECK(enterInit(c), "fmi2EnterInitializationMode");
     CHECK(exitInit(c), "fmi2ExitInitializationMode");
 

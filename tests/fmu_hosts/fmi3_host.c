@@ -73,22 +73,17 @@ int main(int argc, char **argv)
         fprintf(stderr, "fmi3InstantiateCoSimulation failed\n");
         return 3;
     }
-    long checkpoint = -1;
-    for (int i = 9; i < argc; ++i) {
-        if (argv[i][0] == '@') {
-            checkpoint = strtol(argv[i] + 1, NULL, 10);
-            continue;
-        }
-        char *eq = strchr(argv[i], '=');
-        if (!eq) {
-            fprintf(stderr, "bad parameter argument %s\n", argv[i]);
-            freeInstance(c);
-            return 1;
-        }
-        fmi3ValueReference vr = (fmi3ValueReference)strtoul(argv[i], NULL, 10);
-        fmi3Float64 value = strtod(eq + 1, NULL);
-        CHECK(setFloat64(c, &vr, 1, &value, 1), "fmi3SetFloat64");
+    long checkpoint;
+    unsigned *vrs = calloc((size_t)argc, sizeof *vrs);
+    double *values = calloc((size_t)argc, sizeof *values);
+    const int n_params = parse_params(argc, argv, 9, vrs, values, &checkpoint);
+    if (n_params < 0) {
+        freeInstance(c);
+        return 1;
     }
+    for (int i = 0; i < n_params; ++i) CHECK(setFloat64(c, vrs + i, 1, values + i, 1), "fmi3SetFloat64");
+    free(vrs);
+    free(values);
     CHECK(enterInit(c, fmi3False, 0.0, 0.0, fmi3False, 0.0), "fmi3EnterInitializationMode");
     CHECK(exitInit(c), "fmi3ExitInitializationMode");
 

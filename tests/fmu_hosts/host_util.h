@@ -57,6 +57,28 @@ static size_t parse_vrs(const char *text, unsigned **out, size_t **sizes, size_t
         }                                                                   \
     } while (0)
 
+/* the trailing arguments from argv[first]: VR=VALUE (a parameter, into vrs[i], values[i]; returns how many) and
+ * @K (the checkpoint, into *checkpoint, -1 without one); -1 and a message for anything else */
+static int parse_params(int argc, char **argv, int first, unsigned *vrs, double *values, long *checkpoint)
+{
+    int n = 0;
+    *checkpoint = -1;
+    for (int i = first; i < argc; ++i) {
+        if (argv[i][0] == '@') {
+            *checkpoint = strtol(argv[i] + 1, NULL, 10);
+            continue;
+        }
+        char *eq = strchr(argv[i], '=');
+        if (!eq) {
+            fprintf(stderr, "bad parameter argument %s\n", argv[i]);
+            return -1;
+        }
+        vrs[n] = (unsigned)strtoul(argv[i], NULL, 10);
+        values[n++] = strtod(eq + 1, NULL);
+    }
+    return n;
+}
+
 static void print_row(const char *prefix, const double *y, size_t n)
 {
     fputs(prefix, stdout);
