@@ -31,6 +31,7 @@ from fmu_loops import compile_host, fmpy_outputs, host_run  # noqa: E402
 from ebb_cli import main  # noqa: E402
 from ebb_model import assemble, config_from_dict, load_config, simulate  # noqa: E402
 from ebb_model.assemble import field_config  # noqa: E402
+from ebb_model.errors import FmuError  # noqa: E402
 from fmu_build.standalone import build_standalone_fmu  # noqa: E402
 from fmu_build.standalone.description import C_SOURCES  # noqa: E402
 
@@ -382,6 +383,9 @@ def test_cli_builds_fmi3_and_refuses_what_it_cannot(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["build-fmu", str(SEED_TOML), "--standalone", "--fmi", "4", "--out", str(tmp_path / "x.fmu")])
     assert exc.value.code == 2 and not (tmp_path / "x.fmu").exists()
+    with pytest.raises(FmuError, match="FMI 2 or 3"):           # the API: a typed error, nothing written
+        build_standalone_fmu(SEED_TOML, tmp_path / "y.fmu", fmi=4)
+    assert not (tmp_path / "y.fmu").exists()
 
 
 def test_the_diagnosed_model_exports_in_fmi3(tmp_path):
