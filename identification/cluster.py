@@ -124,14 +124,15 @@ def connect(address: Any) -> tuple[Any, Any, bool]:
     return client, cluster, own
 
 
-def disconnect(client: Any, cluster: Any, own: bool) -> None:
+def disconnect(client: Any, cluster: Any, own: bool, *, quiet: bool = False) -> None:
     """Close what :func:`connect` opened (a client it was given is left open).  A client that lost its scheduler
-    is closed quietly: closing it cancels its reconnection, which it would log as an error with a traceback
-    after the run has said what happened in one line (:func:`raise_if_scheduler_lost`)."""
+    (or whose caller found it gone, ``quiet``) is closed quietly: closing it cancels its reconnection, which it
+    would log as an error with a traceback after the run has said what happened in one line
+    (:func:`raise_if_scheduler_lost`)."""
     if not own:
         return
     try:
-        with _silenced("distributed.client") if scheduler_lost(client) else contextlib.nullcontext():
+        with _silenced("distributed.client") if quiet or scheduler_lost(client) else contextlib.nullcontext():
             client.close()
     finally:
         if cluster is not None:

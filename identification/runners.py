@@ -189,11 +189,16 @@ class DaskRunner(Runner):
         try:
             for ev in self._to_close if not lost else ():   # no workers to reach without a scheduler
                 self.client.run(_close_evaluator, ev)
+        except OSError:
+            # the scheduler went away after the check, before the client noticed (a refused or reset connection:
+            # CommClosedError is an OSError): the workers' copies go with the cluster, and what the run raises about
+            # the loss (ClusterError, one line) must not be masked by this traceback
+            lost = True
         finally:
             self._to_close.clear()
             from .cluster import disconnect
 
-            disconnect(self.client, self._cluster, self._own)
+            disconnect(self.client, self._cluster, self._own, quiet=lost)
 
 
 def make_runner(*, workers: int = 1, dask: str | None = None) -> Runner:

@@ -199,3 +199,28 @@ def test_a_batch_keeps_its_finished_records_and_resumes_the_others(tmp_path):
     assert (out / short.stem / "gap.json").read_bytes() == kept
     assert (out / long.stem / "gap.json").is_file() and not (out / BATCH_FILE).exists()
     assert sorted(p.name for p in out.iterdir()) == sorted([short.stem, long.stem])
+
+
+def test_a_scheduler_lost_while_the_runner_closes_does_not_mask_what_the_run_says(tmp_path):
+    """The scheduler killed just before the runner releases the evaluators on the workers — before the client has
+    noticed (the race a CI run met: the release then failed on a reset connection, and its traceback replaced the
+    run's one line): the run's ClusterError comes out, and the client closes without a word."""
+    from identification.runners import DaskRunner
+
+    class Closable:       # an evaluator with something to release on the workers (as the FMU backend's); local:
+        def evaluate(self, X: np.ndarray) -> np.ndarray:     # pickled by value for the worker
+            return np.asarray(X, dtype=float).sum(axis=1, keepdims=True)
+
+        def close(self) -> None:
+            pass
+
+    cluster = _Cluster(tmp_path / "cluster")
+    try:
+        with pytest.raises(ClusterError, match="went away"):
+            with DaskRunner(cluster.address) as runner:
+                assert runner(Closable(), np.ones((4, 2))).ravel().tolist() == [2.0] * 4
+                cluster.scheduler.kill()
+                cluster.scheduler.wait()
+                raise ClusterError(f"the scheduler at {cluster.address} went away (as the run says it)")
+    finally:
+        cluster.close()
