@@ -107,7 +107,7 @@ def test_archive_has_both_interfaces_sources_and_no_python(fmus, tmp_path):
     ident = md.coSimulation.modelIdentifier
     assert {f"binaries/linux64/{ident}.so", "sources/buildDescription.xml", "sources/ebb_config.h",
             "sources/ebb_model.c", "sources/ebb_linalg.c", "sources/ebb_instance.c", "sources/ebb_derivatives.c",
-            "sources/ebb_fmi2.c", "sources/ebb_beam.h", "sources/ebb_instance.h"} <= names
+            "sources/ebb_state.c", "sources/ebb_fmi2.c", "sources/ebb_beam.h", "sources/ebb_instance.h"} <= names
     assert not any(n.endswith(".py") for n in names)
     # no absolute path of the repository or the interpreter in any file, binary included
     for needle in (str(ROOT).encode(), sys.prefix.encode(), b"/work/"):

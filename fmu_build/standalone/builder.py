@@ -12,8 +12,8 @@ Archive layout::
     modelDescription.xml           ModelExchange and CoSimulation, one modelIdentifier
     binaries/linux64/<id>.so       gcc -std=c99 -O2 -shared -fPIC -fvisibility=hidden ... -lm
                                    (FMI 3.0: binaries/x86_64-linux/<id>.so)
-    sources/*.c, *.h               ebb_linalg.c, ebb_model.c, ebb_instance.c, ebb_derivatives.c, ebb_fmi2.c
-                                   (FMI 3.0: ebb_fmi3.c), ebb_beam.h, ebb_instance.h, ebb_config.h
+    sources/*.c, *.h               ebb_linalg.c, ebb_model.c, ebb_instance.c, ebb_derivatives.c, ebb_state.c,
+                                   ebb_fmi2.c (FMI 3.0: ebb_fmi3.c), ebb_beam.h, ebb_instance.h, ebb_config.h
     sources/buildDescription.xml   the same file list (FMI 2.0.4 / 3.0 layout), for other platforms
 
 FMI 3.0 (``fmi=3``) is the same instance behind the FMI 3.0 C API: the deflection field as one array variable

@@ -1,9 +1,9 @@
 /*
  * ebb_instance.h -- one instance of the standalone beam FMU, whatever the FMI version that drives it.
  *
- * ebb_instance.c holds everything an instance does (the model built from the parameters, the co-simulation
- * step, the model-exchange state and derivatives, the variables' values, saved states, the derivatives of the
- * linear maps); ebb_fmi2.c and ebb_fmi3.c only translate their standard's calls into these.  Functions return 0
+ * ebb_instance.c holds what an instance does (the model built from the parameters, the co-simulation step, the
+ * model-exchange state and derivatives, the variables' values), ebb_derivatives.c the derivatives of the linear
+ * maps, ebb_state.c the saved states; ebb_fmi2.c and ebb_fmi3.c only translate their standard's calls into these.  Functions return 0
  * on success and -1 after logging one error message that names the function and the variable.
  *
  * Variables are addressed by value reference (the generated table of ebb_config.h): a variable has a size
@@ -89,7 +89,7 @@ int ebb_adjoint(ebb_instance *c, const char *function, const unsigned unknown[],
                 const unsigned known[], size_t n_known, const double seed[], size_t n_seed,
                 double sensitivity[], size_t n_sensitivity);
 
-/* saved states: a snapshot is malloc'ed (or `reuse` overwritten); serialised as the GUID and the raw snapshot */
+/* saved states (ebb_state.c): a snapshot is malloc'ed (or `reuse` overwritten); serialised as the GUID and the raw snapshot */
 void *ebb_state_get(ebb_instance *c, const char *function, void *reuse);
 int ebb_state_set(ebb_instance *c, const char *function, const void *state);
 size_t ebb_state_size(void);
