@@ -65,8 +65,8 @@ static void to_host(const ebb_instance *c, int error, const char *category, cons
     ((fmi3LogMessageCallback)c->host_logger)(c->env, error ? fmi3Error : fmi3OK, category, message);
 }
 
-static fmi3Instance instantiate(const char *function, fmi3String name, fmi3String token, int exchange,
-                                fmi3Boolean loggingOn, fmi3InstanceEnvironment env, fmi3LogMessageCallback logger)
+/* an instance that only carries the host's logger: what a refused instantiation logs its reason through */
+static ebb_instance messenger(fmi3String name, fmi3InstanceEnvironment env, fmi3LogMessageCallback logger)
 {
     ebb_instance tmp;
     memset(&tmp, 0, sizeof(tmp));
@@ -74,6 +74,13 @@ static fmi3Instance instantiate(const char *function, fmi3String name, fmi3Strin
     tmp.log = logger ? to_host : NULL;
     tmp.env = env;
     tmp.name = (char *)(name ? name : "");
+    return tmp;
+}
+
+static fmi3Instance instantiate(const char *function, fmi3String name, fmi3String token, int exchange,
+                                fmi3Boolean loggingOn, fmi3InstanceEnvironment env, fmi3LogMessageCallback logger)
+{
+    ebb_instance tmp = messenger(name, env, logger);
     if (!token || strcmp(token, EBB_GUID) != 0) {
         ebb_fail(&tmp, function, "instantiation token %s does not match this FMU's %s", token ? token : "(null)",
                  EBB_GUID);
@@ -129,12 +136,7 @@ EBB_EXPORT fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceNam
 {
     (void)instantiationToken; (void)resourcePath; (void)visible; (void)loggingOn; (void)clockUpdate;
     (void)lockPreemption; (void)unlockPreemption;
-    ebb_instance tmp;
-    memset(&tmp, 0, sizeof(tmp));
-    tmp.host_logger = (ebb_any_fn)logMessage;
-    tmp.log = logMessage ? to_host : NULL;
-    tmp.env = env;
-    tmp.name = (char *)(instanceName ? instanceName : "");
+    ebb_instance tmp = messenger(instanceName, env, logMessage);
     ebb_fail(&tmp, "fmi3InstantiateScheduledExecution", "this FMU provides model exchange and co-simulation only");
     return NULL;
 }
