@@ -35,7 +35,9 @@ def add_parsers(sub: Subcommands) -> None:
         description="Build an FMI 2.0 co-simulation FMU (Linux x86-64) of the beam described by CONFIG. "
                     "The FMU runs on this Python interpreter (numpy, scipy and numba required). With "
                     "--standalone: an FMU in C (co-simulation and model exchange) that needs no Python, in FMI 2.0 "
-                    "or, with --fmi 3, FMI 3.0 (the deflection field as one array w, adjoint derivatives).",
+                    "or, with --fmi 3, FMI 3.0 (the deflection field as one array w, adjoint derivatives). The "
+                    "channels' converter delays (delay in CONFIG) are carried as delay lines of past output samples "
+                    "(the standalone FMU then offers co-simulation only).",
     )
     p.add_argument("config", metavar="CONFIG", help="TOML config file")
     p.add_argument("--out", required=True, metavar="FILE", help="the .fmu file to write")

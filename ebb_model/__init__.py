@@ -8,6 +8,7 @@ time by default (:mod:`ebb_model.exact`), the seed's three-level θ-scheme on re
 and :func:`analyse_stability` (Bistritz test of the θ-scheme's dispersion relation, :mod:`ebb_model.stability`).
 Files in and out: :mod:`ebb_model.io`.
 """
+from .acquisition.bandlimited import causal_config
 from .assemble import assemble, assemble_modal, check_stable, field_config, field_matrix
 from .beam import PARAMETER_NAMES, Actuator, End, PointMass, Sensor
 from .config import BeamConfig, ParameterSpec, config_from_dict, load_config
@@ -27,7 +28,7 @@ __all__ = [
     "PARAMETER_NAMES", "Actuator", "End", "PointMass", "Sensor",
     "BeamConfig", "ParameterSpec", "config_from_dict", "load_config",
     "SemiDiscreteBeam", "discretise", "discretise_time", "DiscreteStateSpace", "ModalStateSpace",
-    "assemble", "assemble_modal", "check_stable", "field_config", "field_matrix",
+    "assemble", "assemble_modal", "causal_config", "check_stable", "field_config", "field_matrix",
     "simulate", "simulate_config", "simulate_batch", "fast_model", "SimulationResult",
     "modes", "ModalAnalysis", "frequency_response", "FrequencyResponse", "discrete_frequencies",
     "analyse_stability", "StabilityReport", "bistritz", "max_growth_factor", "stability_bounds",

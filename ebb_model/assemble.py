@@ -14,6 +14,7 @@ from typing import Mapping
 import numpy as np
 
 from .acquisition.channel_delay import with_channel_delays
+from .acquisition.delay_line import delay_line
 from .config import BeamConfig
 from .space.discretisation import discretise
 from .errors import StabilityError
@@ -144,12 +145,18 @@ def assemble_modal(config: BeamConfig, params: Mapping[str, float] | None = None
     mode's contribution to an output is formed separately, instead of
     cancelling large nodal terms (acceleration outputs with sub-steps have
     ``C`` entries ~1e8 summing to outputs ~1e2 in nodal coordinates).  This is
-    what the FMU iterates (rebuilt for every new parameter set).
+    what the FMU iterates (rebuilt for every new parameter set); the channels' converter delays as delay-line
+    states (:func:`ebb_model.acquisition.delay_line.delay_line`).
 
     Parameters
     ----------
     field
-        Append outputs ``w[0] … w[nodes+1]``: the deflection at every grid node.
+        Append outputs ``w[0] … w[nodes+1]``: the deflection at every grid node (undelayed).
+
+    Raises
+    ------
+    ConfigError
+        A channel's delay has no causal delay line (:func:`~ebb_model.acquisition.delay_line.delay_line`).
     """
     from .simulate import fast_model
 
@@ -159,7 +166,7 @@ def assemble_modal(config: BeamConfig, params: Mapping[str, float] | None = None
     modal = fast_model(field_config(config) if field else config, p)
     if check_stability:
         check_stable(config, p, modal.spectral_radius())
-    return modal if isinstance(modal, DiscreteStateSpace) else modal.to_statespace()
+    return delay_line(modal if isinstance(modal, DiscreteStateSpace) else modal.to_statespace())
 
 
 def field_config(config: BeamConfig) -> BeamConfig:

@@ -146,27 +146,27 @@ class DiscreteStateSpace:
                                   advance=self.advance, output_delays=self.output_delays)
 
     def to_control(self):
-        """Convert to a :class:`control.StateSpace` (discrete, named signals).
+        """Convert to a :class:`control.StateSpace` (discrete, named signals), the channels' converter delays
+        (``output_delays``) realised as delay-line states (:func:`ebb_model.acquisition.delay_line.delay_line`).
 
         Raises
         ------
         ConfigError
             The system reads its input ahead of the record (``advance`` > 0), which a StateSpace cannot say:
-            realise it from :func:`ebb_model.acquisition.bandlimited.causal_config` (the design models do).
+            realise it from :func:`ebb_model.acquisition.bandlimited.causal_config` (the design models do); or a
+            delay has no causal delay line (ahead of the force, or a fraction of a sample too short).
         """
         import control
+
+        from .acquisition.delay_line import delay_line
 
         if self.advance:
             raise ConfigError(f"this system reads its input {self.advance} samples ahead of the record (a band-limited "
                               "force between samples), which a StateSpace cannot carry: build it from "
                               "ebb_model.acquisition.bandlimited.causal_config(config)")
-        if self.output_delays:
-            raise ConfigError("this system delays its outputs by the channels' converter delays "
-                              f"({', '.join(f'{d:g}' for d in self.output_delays)} samples), which a StateSpace does "
-                              "not carry yet: build it from a config without them")
-        return control.ss(self.A, self.B, self.C, self.D, self.dt,
-                          inputs=list(self.input_names), outputs=list(self.output_names),
-                          states=list(self.state_names))
+        s = delay_line(self)
+        return control.ss(s.A, s.B, s.C, s.D, s.dt, inputs=list(s.input_names), outputs=list(s.output_names),
+                          states=list(s.state_names))
 
     def __repr__(self) -> str:
         return (f"DiscreteStateSpace(nstates={self.nstates}, inputs={list(self.input_names)}, "

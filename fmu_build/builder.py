@@ -32,7 +32,7 @@ import ebb_model
 from ebb_model import PARAMETER_NAMES, BeamConfig, DiscreteStateSpace, assemble, load_config
 from ebb_model.assemble import assemble_modal
 from ebb_model.acquisition.bandlimited import causal_config
-from ebb_model.acquisition.channel_delay import refuse_in
+from ebb_model.acquisition.delay_line import delay_line
 from ebb_model.io.output import atomic_path, check_output_file
 from ebb_model.errors import FmuError, OutputError
 
@@ -151,18 +151,20 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
         cfg, base = config, "beam"
     else:
         cfg, base = load_config(config), Path(config).stem
-    refuse_in(cfg, "an FMU")            # a converter's delay is the records', not the beam's (channel_delay)
-    cfg = causal_config(cfg)            # a host feeds the force sample by sample: no band-limited reconstruction
+    # the config as written goes into the FMU (a fractional channel delay is valid only under the band-limited
+    # force), the slave takes it as a host drives it: sample by sample, no band-limited reconstruction
+    config_dict = {k: v for k, v in cfg.to_dict().items() if k not in cfg.extra}
+    cfg = causal_config(cfg)
     out = Path(out)
     _check_output(out, () if isinstance(config, BeamConfig) else (config,))
     _check_names(cfg)
     if system is None:
         system = assemble(cfg)  # nominal parameters must give a valid, stable model
+    lined = delay_line(system)  # the channels' delays as the slave iterates them: refused here when not causal
     runtime = find_python_runtime()
     sources = core_sources()
     identity = _identity(base, core_package_name(sources, Path(ebb_model.__file__).parent))
     description = _description(cfg, sys.executable, runtime.version, field)
-    config_dict = {k: v for k, v in cfg.to_dict().items() if k not in cfg.extra}
     spec = {
         "format": 1,
         "config": config_dict,
@@ -190,7 +192,7 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
             slave = slave_template.BeamSlave(instance_name="build", resources=str(resources))
             # the feedthrough's zero pattern: the system's D (the slave's realisation has the same D), or with
             # field outputs what the slave iterates
-            realised = assemble_modal(cfg, field=True) if field else system
+            realised = assemble_modal(cfg, field=True) if field else lined
             feedthrough = feedthrough_from_D(realised.D, realised.output_names, realised.input_names)
             xml = finish_model_description(slave.to_xml(), identity=identity, description=description,
                                            units=slave.variable_units, feedthrough=feedthrough)

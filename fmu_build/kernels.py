@@ -114,7 +114,7 @@ def carry_kernels(core: Path, config: Mapping[str, Any], *, field: bool) -> int:
     try:
         home = _kept_copy(core)
         copy = _import_copy(core.name, home)
-        cfg = copy.config_from_dict(dict(config))
+        cfg = copy.causal_config(copy.config_from_dict(dict(config)))     # as the slave takes it
         values = dict(cfg.parameter_values())
         system = copy.assemble_modal(cfg, values, field=field)
         write_model(core.parent / MODEL_FILE, values, system)

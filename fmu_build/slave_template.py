@@ -76,7 +76,7 @@ from pythonfmu.enums import Fmi2Status  # noqa: E402
 __all__ = ["BeamSlave", "CORE_PACKAGE", "CORE_MODULES", "SPEC_FILE", "STEP_TOLERANCE", "FIELD_NAME",
            "REQUIRED_PACKAGES"]
 
-#: Package that provides ``config_from_dict``, ``assemble`` and ``field_matrix``.
+#: Package that provides ``config_from_dict``, ``causal_config``, ``assemble_modal`` and ``field_matrix``.
 #: The builder rewrites this line to the FMU's bundled copy.
 CORE_PACKAGE = "ebb_model"
 
@@ -124,7 +124,9 @@ class BeamSlave(Fmi2Slave):
         _dedupe_sys_path(resources)
         with open(os.path.join(resources, SPEC_FILE), encoding="utf-8") as fh:
             spec = json.load(fh)
-        self._cfg = _core.config_from_dict(spec["config"])
+        # the config as written (its channels' fractional delays valid only under the band-limited force), then as a
+        # host drives it: sample by sample, the force between samples causal
+        self._cfg = _core.causal_config(_core.config_from_dict(spec["config"]))
         #: the model the FMU carries and the parameter values it is for (:func:`_carried_model`), or None
         self._carried = _carried_model(os.path.join(resources, MODEL_FILE))
         self._field = bool(spec.get("field", False))

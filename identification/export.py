@@ -22,7 +22,7 @@ from types import MappingProxyType
 from typing import Sequence
 
 from ebb_model import assemble
-from ebb_model.acquisition.channel_delay import DELAYS_LEFT_OUT, without_delays
+from ebb_model.acquisition.delay_line import delay_line, exported_config
 from ebb_model.errors import ConfigError, ConfigWarning, StabilityError
 from ebb_model.modal.truncation import design_model, design_resolution
 from ebb_model.io.output import check_writable_dir, make_dir
@@ -109,16 +109,17 @@ def export_points(result: IdentificationResult, points: Sequence[int] | str | No
     d = result.out_dir
     check_writable_dir(d / "export" if (d / "export").is_dir() else d)   # before any work
     models = []
-    if without_delays(result.config) is not result.config:
-        warnings.warn(DELAYS_LEFT_OUT, ConfigWarning, stacklevel=2)
+    left_out = exported_config(result.config)[1]
+    if left_out:
+        warnings.warn(left_out, ConfigWarning, stacklevel=2)
     for stem, c, params in result.models(*chosen(result, points, polished)):
-        # the beam, not its records' acquisition (ebb_model.acquisition.channel_delay)
-        c = without_delays(c)
+        # the channels' converter delays as delay-line states where causal (ebb_model.acquisition.delay_line)
+        c = exported_config(c)[0]
         try:
             beam = assemble(c, params)
             resolution = design_resolution(c, params, f_max=modes_up_to)
-            models.append((stem, c, params, design_model(c, params, f_max=modes_up_to, resolution=resolution),
-                           beam, resolution))
+            design = delay_line(design_model(c, params, f_max=modes_up_to, resolution=resolution))
+            models.append((stem, c, params, design, beam, resolution))
         except StabilityError:
             continue  # unstable points are listed in pareto.json but not exported
     if reduce_order is not None and models:

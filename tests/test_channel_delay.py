@@ -141,21 +141,9 @@ def test_delays_are_checked_in_the_config(tmp_path, capsys):
     assert "fraction of a sample" in one_line_error(capsys, "modes")
 
 
-def test_what_is_driven_sample_by_sample_says_it_leaves_the_delays_out(tmp_path, capsys):
-    """An FMU of a config with delays is refused with one line (a converter's delay is the records' acquisition,
-    not the beam); a StateSpace that carries delays refuses ``to_control``; the interpolation leaves undelayed
-    columns as they are."""
-    from ebb_cli import main
-
-    cfg = delayed(config(20, "cubic"), (4.0, 0.0))
-    path = tmp_path / "delayed.toml"
-    path.write_text(toml_dumps(cfg.to_dict()))
-    assert main(["build-fmu", str(path), "--out", str(tmp_path / "b.fmu")]) == 2
-    assert "channel delays (s0)" in one_line_error(capsys, "build-fmu")
-    assert not (tmp_path / "b.fmu").exists()
-    with pytest.raises(ConfigError, match="converter delays"):
-        em.assemble(cfg).to_control()
-    em.assemble(without_delays(cfg)).to_control()
+def test_the_interpolation_leaves_undelayed_columns_as_they_are():
+    """A column without a delay is the column itself; no delays, the array itself (what is driven sample by sample
+    carries the delays as a delay line: ``tests/test_delay_line.py``)."""
     y = np.random.default_rng(0).standard_normal((50, 2))
     out = delay_outputs(y, (0.0, 2.5))
     assert np.array_equal(out[:, 0], y[:, 0]) and not np.allclose(out[:, 1], y[:, 1])

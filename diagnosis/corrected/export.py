@@ -30,7 +30,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ebb_model import DiscreteStateSpace, assemble, simulate
-from ebb_model.acquisition.channel_delay import DELAYS_LEFT_OUT, without_delays
+from ebb_model.acquisition.delay_line import delay_line, exported_config
 from ebb_model.io.output import atomic_path, make_dir
 from ebb_model.io.jsonio import write_json
 from ebb_model.modal.truncation import design_model, design_resolution
@@ -170,8 +170,8 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
 
     targets = check_targets(targets, model.config)
     config = model.config
-    delays_left_out = without_delays(config) is not config
-    model = replace(model, config=without_delays(config))    # the beam, not its records' acquisition
+    exported, left_out = exported_config(config)     # the delays as delay-line states where causal
+    model = replace(model, config=exported)
     out = Path(out_dir)
     make_dir(out, exist_ok=True, parents=True)
     cfg = config.with_parameters(**model.params)     # the config, its channel delays kept
@@ -184,7 +184,9 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
     # a static correction
     resolution = design_resolution(model.config, model.params)
     form = statespace_form(model, design_model(model.config, model.params, resolution=resolution), full=beam)
-    item = ExportItem("corrected", "corrected", cfg, model.params, form.system, beam_system=beam,
+    system = None if form.system is None else delay_line(form.system)
+    item = ExportItem("corrected", "corrected", exported.with_parameters(**model.params), model.params, system,
+                      beam_system=beam,
                       parts=_parts(model, beam), modes=None if resolution is None else resolution.to_dict(),
                       no_system=form.reason or "")
     for name in targets:
@@ -200,7 +202,7 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
         extra["output_offsets"] = {k: {"value": v, "unit": units.get(k, "")} for k, v in form.output_offsets.items()}
         carries["note"] = ("a sensor reads the model's output plus a constant (output_offsets, in neither the "
                            "StateSpace nor the FMU): the model is time-invariant and affine")
-    if delays_left_out:
-        carries["channel delays"] = DELAYS_LEFT_OUT
+    if left_out:
+        carries["channel delays"] = left_out
     written.append(write_json(out / "corrected.json", dict(summary) | extra | {"files": carries}))
     return written

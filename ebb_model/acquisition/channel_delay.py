@@ -37,11 +37,11 @@ samples has images above the band that the kernel does not reproduce); a convert
 records are band-limited anyway.  Before the record the output is held at its first value and after it at its
 last (as the force is, :func:`ebb_model.acquisition.bandlimited.lead_in`).
 
-The frequency response of a delayed channel is the beam's times ``e^{−iωτ}`` (:func:`delay_response`).  The
-delays belong to the records' acquisition, not to the beam: the exports of an identified or corrected model (a
-StateSpace for control design, the FMUs) model the beam without them (:func:`without_delays`) and say so; what
-is driven sample by sample does not take a delay yet, so ``build-fmu`` of a config that declares one and a
-StateSpace that carries one are refused with one line (:func:`refuse_in`).
+The frequency response of a delayed channel is the beam's times ``e^{−iωτ}`` (:func:`delay_response`).  What is
+driven sample by sample — the FMUs, a StateSpace for control design, the exports of an identified or corrected
+model — carries the delays as delay-line states (:mod:`ebb_model.acquisition.delay_line`), or, where no causal
+delay line exists (a sensor ahead of the force's channel, a fraction of a sample too short to interpolate from the
+past), leaves them out and says so.
 """
 from __future__ import annotations
 
@@ -58,11 +58,7 @@ if TYPE_CHECKING:
     from ..config import BeamConfig
 
 __all__ = ["MAX_DELAY_SAMPLES", "WHOLE", "channel_problems", "effective_delays", "with_channel_delays",
-           "without_delays", "delay_outputs", "delay_response", "refuse_in", "DELAYS_LEFT_OUT"]
-
-#: What an export says when it leaves the config's channel delays out.
-DELAYS_LEFT_OUT = ("the channels' converter delays are the records' acquisition, not the beam: the exported "
-                   "models leave them out")
+           "without_delays", "delay_outputs", "delay_response"]
 
 S = TypeVar("S")
 
@@ -166,16 +162,3 @@ def delay_response(H: np.ndarray, f_hz: np.ndarray, dt: float, delays: Sequence[
         return H
     phase = np.exp(-2j * np.pi * np.outer(np.asarray(f_hz, dtype=float), np.asarray(delays, dtype=float) * dt))
     return H * phase[:, :, None]
-
-
-def refuse_in(config: BeamConfig, what: str) -> None:
-    """Raise :class:`~ebb_model.errors.ConfigError` when ``config`` declares a channel delay that ``what`` (a
-    model driven sample by sample) cannot take yet."""
-    from ..errors import ConfigError
-
-    channels: tuple[Actuator | Sensor, ...] = (*config.actuators, *config.sensors)
-    names = [c.name for c in channels if c.delay]
-    if names:
-        raise ConfigError(f"channel delays ({', '.join(names)}) are taken by the native model only: {what} does "
-                          "not carry them yet — build it from a config without them (a delay belongs to the "
-                          "records' acquisition, not the beam)")

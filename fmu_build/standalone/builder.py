@@ -7,13 +7,21 @@ modes on two grids, each mode integrated exactly over a sample under the input p
 ``rhoA``, ``c``, ``eta``, ``N``, ``rhoI``, ``kf`` stay tunable parameters; only the structure (grid, ends,
 positions, point masses, ``dt``, input reconstruction) is generated into ``sources/ebb_config.h``.
 
+The channels' converter delays (``delay`` of a ``[[sensors]]`` table, after the force's channel) are carried as
+delay lines (:mod:`ebb_model.acquisition.delay_line`): each delayed sensor's undelayed output of the last samples
+kept in the instance, its output their weighted sum (``csrc/ebb_delay.c``).  Past samples are no continuous-time
+state, so such an FMU offers co-simulation only; a delay no causal delay line realises (a sensor ahead of the
+force's channel, a fraction of a sample shorter than
+:data:`~ebb_model.acquisition.delay_line.MIN_FRACTIONAL`) is refused with one line.
+
 Archive layout::
 
-    modelDescription.xml           ModelExchange and CoSimulation, one modelIdentifier
+    modelDescription.xml           ModelExchange (not with channel delays) and CoSimulation, one modelIdentifier
     binaries/linux64/<id>.so       gcc -std=c99 -O2 -shared -fPIC -fvisibility=hidden ... -lm
                                    (FMI 3.0: binaries/x86_64-linux/<id>.so)
     sources/*.c, *.h               ebb_linalg.c, ebb_model.c, ebb_instance.c, ebb_derivatives.c, ebb_state.c,
-                                   ebb_fmi2.c (FMI 3.0: ebb_fmi3.c), ebb_beam.h, ebb_instance.h, ebb_config.h
+                                   ebb_delay.c, ebb_fmi2.c (FMI 3.0: ebb_fmi3.c), ebb_beam.h, ebb_instance.h,
+                                   ebb_config.h
     sources/buildDescription.xml   the same file list (FMI 2.0.4 / 3.0 layout), for other platforms
 
 FMI 3.0 (``fmi=3``) is the same instance behind the FMI 3.0 C API: the deflection field as one array variable
@@ -36,13 +44,13 @@ from pathlib import Path
 from ebb_model import BeamConfig, DiscreteStateSpace, assemble, load_config
 from ebb_model.assemble import field_config
 from ebb_model.acquisition.bandlimited import causal_config
-from ebb_model.acquisition.channel_delay import refuse_in
+from ebb_model.acquisition.delay_line import line_problems
 from ebb_model.config.types import MAX_NODES
 from ebb_model.io.output import atomic_path
 from ebb_model.errors import ConfigError, FmuError, OutputError
 
 from ..builder import _check_names, _check_output, _identity
-from .description import (C_HEADERS, C_SOURCES, build_description_xml, config_header, fmu_variables,
+from .description import (C_HEADERS, C_SOURCES, build_description_xml, config_header, delay_lines, fmu_variables,
                           model_description_xml, n_modes)
 from .description_fmi3 import model_description_xml3
 
@@ -66,13 +74,17 @@ def _description(config: BeamConfig, field: bool, fmi: int = 2) -> str:
     scheme = "exact" if t.scheme == "exact" else f"theta {t.theta:g} with {t.substeps} sub-step(s)"
     states = ("the modal coordinates and velocities of the Richardson modes" if t.scheme == "exact"
               else "deflection and velocity of the grid's unknowns")
+    delayed = [config.sensors[i].name for i, _, _ in delay_lines(config)]
+    exchange = (f"Model exchange: {2 * n_modes(config)} states, {states}." if not delayed else
+                f"No model exchange: the channels' converter delays (sensor(s) {', '.join(delayed)}) are delay lines "
+                "of past output samples, not continuous-time states.")
     return (f"Axially loaded Euler-Bernoulli beam (ebb_model, scheme {scheme}, input {t.input_hold}): length "
             f"{b.length:g} m, {b.nodes} interior nodes, {b.left.kind}-{b.right.kind}, dt {t.dt:g} s; "
             f"{len(config.actuators)} force input(s), {len(config.sensors)} sensor output(s)"
             + ((", deflection at every grid node" + (" (array w)" if fmi == 3 else "")) if field else "")
             + ". Standalone C (no Python at run time): the model is assembled from the parameters at "
               "initialisation. Co-simulation: communication steps must be integer multiples of dt (inputs held "
-              f"over the step). Model exchange: {2 * n_modes(config)} states, {states}. Binary for "
+              f"over the step). {exchange} Binary for "
               f"{_PLATFORM[fmi]}; sources/ compile elsewhere (C99 + libm).")
 
 
@@ -113,6 +125,8 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
                          field: bool = False, system: DiscreteStateSpace | None = None, fmi: int = 2) -> Path:
     """Build the standalone FMU (FMI 2.0 or 3.0, model exchange and co-simulation; C, no Python at run time).
 
+    The config's channel delays are carried as delay lines (module docstring): then co-simulation only.
+
     Parameters
     ----------
     config
@@ -136,7 +150,9 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
     Raises
     ------
     ConfigError
-        The config file is missing or invalid, or its grid exceeds :data:`MAX_NODES`.
+        The config file is missing or invalid, its grid exceeds :data:`MAX_NODES`, or a channel's delay has no
+        causal delay line (ahead of the force's channel, or a fraction of a sample too short): one line naming the
+        sensor(s).
     ParameterError, StabilityError
         The nominal parameters give no valid (stable) model.
     FmuError
@@ -150,7 +166,9 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
         cfg, base = config, "beam"
     else:
         cfg, base = load_config(config), Path(config).stem
-    refuse_in(cfg, "an FMU")            # a converter's delay is the records', not the beam's (channel_delay)
+    problems = line_problems(cfg)       # the host has only the past: no sensor ahead of the force, no short fraction
+    if problems:
+        raise ConfigError("; ".join(problems))
     cfg = causal_config(cfg)            # a host feeds the force sample by sample: no band-limited reconstruction
     out = Path(out)
     _check_output(out, () if isinstance(config, BeamConfig) else (config,))
@@ -169,7 +187,7 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
     sources = C_SOURCES[fmi]
     describe = model_description_xml if fmi == 2 else model_description_xml3
     xml = describe(variables, identity=identity, description=_description(cfg, field, fmi), dt=cfg.time.dt,
-                   sources=sources)
+                   sources=sources, exchange=not delay_lines(cfg))
 
     try:
         with tempfile.TemporaryDirectory(prefix="ebb_cfmu_") as staging_dir, atomic_path(out) as tmp_path:

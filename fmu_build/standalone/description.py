@@ -12,7 +12,10 @@ and velocity of the grid's ``k`` unknowns) and their derivatives ``der(...)``.
 
 ``ebb_config.h`` holds the **structure** only (grid, ends, positions, sensor kinds, point masses, springs, weak
 segments, ``dt``, input reconstruction, start values, the variable table): the matrices are assembled in C from
-the parameter values when the FMU initialises.
+the parameter values when the FMU initialises.  The channels' converter delays (after the force's channel) are
+there as each delayed sensor's delay-line taps (:func:`ebb_model.acquisition.delay_line.delay_taps`: lags and
+weights, the same float64 numbers as the Python model's); a delay line is past output samples, not a
+continuous-time state, so an FMU with one offers co-simulation only (no ``ModelExchange`` element).
 """
 from __future__ import annotations
 
@@ -22,18 +25,22 @@ from typing import Sequence, cast
 from xml.dom.minidom import parseString
 from xml.etree.ElementTree import Element, SubElement, tostring
 
+import numpy as np
+
 from ebb_model import PARAMETER_NAMES, BeamConfig
 from ebb_model.acquisition.antialias import effective_filters
+from ebb_model.acquisition.channel_delay import effective_delays
+from ebb_model.acquisition.delay_line import delay_taps
 from ebb_model.beam import PARAMETER_DESCRIPTIONS, PARAMETER_UNITS, SENSOR_KINDS, Sensor
 
 from ..model_description import UNIT_DEFINITIONS, FmuIdentity
 
 __all__ = ["Variable", "fmu_variables", "model_description_xml", "config_header", "build_description_xml",
-           "n_modes", "units_categories_experiment", "C_SOURCES", "C_HEADERS"]
+           "n_modes", "delay_lines", "units_categories_experiment", "C_SOURCES", "C_HEADERS"]
 
 #: The C sources compiled into the binary (in this package's ``csrc``) for FMI 2.0 and 3.0 (the instance is
 #: common, ``ebb_fmi2.c`` or ``ebb_fmi3.c`` translates its standard's calls), and the headers they include.
-_COMMON = ("ebb_linalg.c", "ebb_model.c", "ebb_instance.c", "ebb_derivatives.c", "ebb_state.c")
+_COMMON = ("ebb_linalg.c", "ebb_model.c", "ebb_instance.c", "ebb_derivatives.c", "ebb_state.c", "ebb_delay.c")
 C_SOURCES = {2: _COMMON + ("ebb_fmi2.c",), 3: _COMMON + ("ebb_fmi3.c",)}
 C_HEADERS = ("ebb_beam.h", "ebb_instance.h")
 #: Roles and types as ``ebb_instance.h`` numbers them.
@@ -73,6 +80,12 @@ def n_filter_states(config: BeamConfig) -> int:
     return sum(f.order for f in effective_filters(config) if f is not None)
 
 
+def delay_lines(config: BeamConfig) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """``(sensor index, lags, weights)`` of each sensor whose effective delay is not 0
+    (:func:`~ebb_model.acquisition.delay_line.delay_taps`), in sensor order; empty when none is delayed."""
+    return [(i, *delay_taps(d)) for i, d in enumerate(effective_delays(config)) if d]
+
+
 def fmu_variables(config: BeamConfig, field_sensors: Sequence[Sensor] = (), fmi: int = 2) -> list[Variable]:
     """All variables of the standalone FMU, in value-reference order (see the module docstring).
 
@@ -86,9 +99,11 @@ def fmu_variables(config: BeamConfig, field_sensors: Sequence[Sensor] = (), fmi:
                             PARAMETER_DESCRIPTIONS[name]))
     for j, a in enumerate(config.actuators):
         out.append(Variable(a.name, "Real", "input", j, 0.0, "N", f"point force at x = {a.x:g} m"))
-    for o, s in enumerate(config.sensors):
+    delays = effective_delays(config) or (0.0,) * len(config.sensors)
+    for o, (s, d) in enumerate(zip(config.sensors, delays)):
         through = "" if s.antialias is None else f", through its {s.antialias.describe()}"
-        out.append(Variable(s.name, "Real", "output", o, None, s.unit, f"{s.kind} at x = {s.x:g} m{through}"))
+        late = f", {d:g} samples late (its converter's delay after the force's)" if d else ""
+        out.append(Variable(s.name, "Real", "output", o, None, s.unit, f"{s.kind} at x = {s.x:g} m{through}{late}"))
     if fmi == 3 and field_sensors:
         out.append(Variable("w", "Real", "output", len(config.sensors), None, "m",
                             f"deflection at the {len(field_sensors)} grid nodes x = {field_sensors[0].x:g} … "
@@ -177,8 +192,9 @@ def _num(v: float) -> str:
 
 
 def model_description_xml(variables: Sequence[Variable], *, identity: FmuIdentity, description: str, dt: float,
-                          sources: Sequence[str]) -> bytes:
-    """``modelDescription.xml``: model exchange and co-simulation with the same model identifier."""
+                          sources: Sequence[str], exchange: bool = True) -> bytes:
+    """``modelDescription.xml``: model exchange (unless ``exchange`` is false: a config with channel delays) and
+    co-simulation with the same model identifier."""
     root = Element("fmiModelDescription", {
         "fmiVersion": "2.0", "modelName": identity.model_name, "guid": identity.guid,
         "description": description, "generationTool": "ebb-ident fmu_build.standalone",
@@ -186,11 +202,12 @@ def model_description_xml(variables: Sequence[Variable], *, identity: FmuIdentit
     common = {"modelIdentifier": identity.model_identifier, "canGetAndSetFMUstate": "true",
               "canSerializeFMUstate": "true", "canNotUseMemoryManagementFunctions": "true",
               "canBeInstantiatedOnlyOncePerProcess": "false", "providesDirectionalDerivative": "true"}
-    me = SubElement(root, "ModelExchange", common | {"completedIntegratorStepNotNeeded": "true"})
-    cs = SubElement(root, "CoSimulation", common | {"canHandleVariableCommunicationStepSize": "true",
-                                                     "canInterpolateInputs": "false",
-                                                     "maxOutputDerivativeOrder": "0"})
-    for element in (me, cs):
+    interfaces = [SubElement(root, "ModelExchange", common | {"completedIntegratorStepNotNeeded": "true"})] \
+        if exchange else []
+    interfaces.append(SubElement(root, "CoSimulation", common | {"canHandleVariableCommunicationStepSize": "true",
+                                                                 "canInterpolateInputs": "false",
+                                                                 "maxOutputDerivativeOrder": "0"}))
+    for element in interfaces:
         files = SubElement(element, "SourceFiles")
         for name in sources:
             SubElement(files, "File", {"name": name})
@@ -287,6 +304,27 @@ def _array(ctype: str, name: str, items: Sequence[str]) -> str:
     return f"static const {ctype} {name}[] = {{{body}}};\n"
 
 
+def _delay_header(config: BeamConfig, n_sensors: int) -> str:
+    """The delay lines of ``ebb_config.h`` (``ebb_delay.c``): per output its delayed index or -1 (the field
+    outputs are undelayed), per delayed sensor its taps ``EBB_DELAY_TAP0[d] … EBB_DELAY_TAP0[d + 1] - 1`` (lags
+    ascending, weights as :func:`~ebb_model.acquisition.delay_line.delay_taps` gives them, to the last bit), the
+    length of every history ring (the largest lag) and the delayed sensors' names (for the messages)."""
+    lines = delay_lines(config)
+    index = [-1] * n_sensors
+    for d, (i, _, _) in enumerate(lines):
+        index[i] = d
+    starts = np.cumsum([0] + [lags.size for _, lags, _ in lines])
+    names = ", ".join(config.sensors[i].name for i, _, _ in lines)
+    text = (f"\n/* the channels' converter delays as delay lines (ebb_delay.c) */\n#define EBB_NDELAYED {len(lines)}\n"
+            f"#define EBB_DELAY_LEN {max((int(lags.max()) for _, lags, _ in lines), default=0)}\n"
+            f"#define EBB_DELAYED_NAMES {_c_string(names)}\n")
+    text += _array("int", "EBB_SENS_DELAYED", [str(d) for d in index])
+    text += _array("int", "EBB_DELAY_TAP0", [str(int(k)) for k in starts])
+    text += _array("int", "EBB_DELAY_LAG", [str(int(j)) for _, lags, _ in lines for j in lags])
+    text += _array("double", "EBB_DELAY_WEIGHT", [_c_double(w) for _, _, ws in lines for w in ws])
+    return text
+
+
 def config_header(config: BeamConfig, variables: Sequence[Variable], identity: FmuIdentity,
                   field_sensors: Sequence[Sensor] = ()) -> str:
     """``ebb_config.h``: the structure of the beam and the variable table, as C constants (no matrices)."""
@@ -325,6 +363,7 @@ def config_header(config: BeamConfig, variables: Sequence[Variable], identity: F
     filters = effective_filters(config) + [None] * len(field_sensors)
     text += _array("int", "EBB_SENS_AA_ORDER", [str(0 if f is None else f.order) for f in filters])
     text += _array("double", "EBB_SENS_AA_CORNER", [_c_double(0.0 if f is None else f.corner) for f in filters])
+    text += _delay_header(config, len(sensors))
     text += _array("double", "EBB_MASS_X", [_c_double(m.x) for m in config.masses])
     text += _array("double", "EBB_MASS_M", [_c_double(m.mass) for m in config.masses])
     text += _array("double", "EBB_SPRING_X", [_c_double(sp.x) for sp in config.springs])

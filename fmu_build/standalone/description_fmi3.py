@@ -5,7 +5,8 @@ as FMI 3.0 declares them: typed elements (``Float64``, ``Int32``, ``String``) ad
 deflection field ``w`` as one array variable with its ``Dimension``, ``time`` as the independent variable, the
 states' ``derivative`` attributes naming value references, and the model structure as ``Output``,
 ``ContinuousStateDerivative`` and ``InitialUnknown`` elements.  Model exchange and co-simulation share one model
-identifier; both provide directional and adjoint derivatives and saved, serialisable states.
+identifier; both provide directional and adjoint derivatives and saved, serialisable states.  A config with channel
+delays has co-simulation only (a delay line is past samples, not a continuous-time state).
 """
 from __future__ import annotations
 
@@ -53,8 +54,9 @@ def _variable(parent: Element, vr: int, v: Variable, state_vr: dict[str, int]) -
 
 
 def model_description_xml3(variables: Sequence[Variable], *, identity: FmuIdentity, description: str, dt: float,
-                           sources: Sequence[str]) -> bytes:
-    """``modelDescription.xml`` (FMI 3.0): model exchange and co-simulation with the same model identifier."""
+                           sources: Sequence[str], exchange: bool = True) -> bytes:
+    """``modelDescription.xml`` (FMI 3.0): model exchange (unless ``exchange`` is false: a config with channel
+    delays) and co-simulation with the same model identifier."""
     del sources                         # FMI 3.0 lists the sources in sources/buildDescription.xml only
     root = Element("fmiModelDescription", {
         "fmiVersion": "3.0", "modelName": identity.model_name, "instantiationToken": identity.guid,
@@ -63,7 +65,8 @@ def model_description_xml3(variables: Sequence[Variable], *, identity: FmuIdenti
     common = {"modelIdentifier": identity.model_identifier, "canGetAndSetFMUState": "true",
               "canSerializeFMUState": "true", "canBeInstantiatedOnlyOncePerProcess": "false",
               "providesDirectionalDerivatives": "true", "providesAdjointDerivatives": "true"}
-    SubElement(root, "ModelExchange", common | {"needsCompletedIntegratorStep": "false"})
+    if exchange:
+        SubElement(root, "ModelExchange", common | {"needsCompletedIntegratorStep": "false"})
     SubElement(root, "CoSimulation", common | {"canHandleVariableCommunicationStepSize": "true",
                                                "fixedInternalStepSize": _num(dt),
                                                "maxOutputDerivativeOrder": "0", "hasEventMode": "false"})

@@ -130,3 +130,11 @@ class ExportItem:
         beam = self.system if self.beam_system is None else self.beam_system
         assert beam is not None                  # __post_init__
         return beam
+
+    @property
+    def acquisition(self) -> str:
+        """What of the records' acquisition the files carry besides the beam, in words ("" for nothing said): the
+        channels' converter delays as delay-line states (:mod:`ebb_model.acquisition.delay_line`)."""
+        from ebb_model.acquisition.channel_delay import effective_delays
+
+        return ", the channels' converter delays as delay-line states" if effective_delays(self.config) else ""

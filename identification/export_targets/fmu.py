@@ -12,7 +12,7 @@ __all__ = ["carries", "write"]
 def carries(item: ExportItem) -> str:
     """What the file carries."""
     without = f" (without {item.parts}: a signal effect outside the FMU's model)" if item.parts else ""
-    return "FMU of the beam" + without
+    return "FMU of the beam" + item.acquisition + without
 
 
 def write(item: ExportItem, out_dir: Path) -> list[Path]:

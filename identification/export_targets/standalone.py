@@ -22,7 +22,7 @@ def check(config: BeamConfig) -> None:
 def carries(item: ExportItem) -> str:
     """What the file carries."""
     without = f" (without {item.parts}: a signal effect outside the FMU's model)" if item.parts else ""
-    return "standalone C FMU of the beam (no Python at run time)" + without
+    return "standalone C FMU of the beam (no Python at run time)" + item.acquisition + without
 
 
 def write(item: ExportItem, out_dir: Path) -> list[Path]:

@@ -14,7 +14,7 @@ __all__ = ["carries", "check", "write"]
 def carries(item: ExportItem) -> str:
     """What the file carries."""
     without = f" (without {item.parts}: a signal effect outside the FMU's model)" if item.parts else ""
-    return "standalone C FMU of the beam in FMI 3.0 (no Python at run time)" + without
+    return "standalone C FMU of the beam in FMI 3.0 (no Python at run time)" + item.acquisition + without
 
 
 def write(item: ExportItem, out_dir: Path) -> list[Path]:

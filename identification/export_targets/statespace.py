@@ -20,7 +20,8 @@ def carries(item: ExportItem) -> str:
     """What the files carry (or why there are none)."""
     if item.system is None:
         return f"no StateSpace: {item.no_system}"
-    return "StateSpace of the model" + (f" ({item.parts} as states in series)" if item.parts else "")
+    return ("StateSpace of the model" + item.acquisition
+            + (f" ({item.parts} as states in series)" if item.parts else ""))
 
 
 def write(item: ExportItem, out_dir: Path) -> list[Path]:

@@ -6,7 +6,8 @@
  * (co-simulation: the outputs from the input at the current communication point; the state xi is not a
  * variable), the continuous ones Cc, Dc and the modal ODE (model exchange).  The adjoint is the transposed map,
  * applied one known element at a time (J^T seed = (e_j . J^T seed)_j = (seed . J e_j)_j): exact, and as cheap as
- * the sizes of an FMU's interface ask.
+ * the sizes of an FMU's interface ask.  A delayed sensor's output sees the current input through its lag-0 tap only
+ * (ebb_delay.c): its row is w_0 Dy, or 0 when its delay line has no lag 0.
  */
 #include <stdlib.h>
 #include <string.h>
@@ -74,7 +75,7 @@ static void apply(ebb_instance *c, const unsigned unknown[], size_t n_unknown, c
                 double acc = 0.0;
                 if (c->exchange) for (int q = 0; q < nx; q++) acc += Crow[q] * dxs[q];
                 for (int j = 0; j < m->m; j++) acc += Drow[j] * du[j];
-                out[at] = acc;
+                out[at] = c->exchange ? acc : ebb_delay_feedthrough(idx, acc);
             } else {
                 if (!have_dx) { ebb_rates(m, dxs, du, ddx); have_dx = 1; }
                 out[at] = ddx[idx];

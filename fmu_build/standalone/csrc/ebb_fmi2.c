@@ -10,7 +10,8 @@
  * Co-simulation (as the pythonfmu FMU of the project): at t_k the master sets u_k; fmi2GetReal returns
  * y_k = Cy xi_k + Dy u_k; fmi2DoStep(t, h) needs h = n dt (n a positive integer, within 1e-6 dt) and applies n
  * samples with the input held.  At the start time the state is "at rest" for the current input.
- * Model exchange: the states of the Richardson modes and the anti-alias filters (ebb_instance.c).
+ * Model exchange: the states of the Richardson modes and the anti-alias filters (ebb_instance.c); refused at
+ * instantiation when a sensor's converter delay is carried (a delay line is no continuous-time state).
  * Errors (invalid or unstable parameters, a step that is not a multiple of dt, non-finite inputs, setting a
  * variable that cannot be set) return fmi2Error with a logged message that names the variable; never fmi2Fatal.
  */
@@ -104,6 +105,7 @@ EBB_EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuTy
         ebb_fail(&tmp, "fmi2Instantiate", "unknown FMU type %d", (int)fmuType);
         return NULL;
     }
+    if (fmuType == fmi2ModelExchange && ebb_delay_refuse_exchange(&tmp, "fmi2Instantiate") != 0) return NULL;
     return ebb_new(tmp.name, fmuType == fmi2ModelExchange, loggingOn ? 1 : 0, tmp.log, tmp.host_logger, tmp.env);
 }
 

@@ -86,6 +86,7 @@ static fmi3Instance instantiate(const char *function, fmi3String name, fmi3Strin
                  EBB_GUID);
         return NULL;
     }
+    if (exchange && ebb_delay_refuse_exchange(&tmp, function) != 0) return NULL;   /* a delay line: past samples */
     return ebb_new(tmp.name, exchange, loggingOn ? 1 : 0, tmp.log, tmp.host_logger, env);
 }
 

@@ -3,7 +3,8 @@
  *
  * Co-simulation: at t_k the master sets u_k; the outputs are y_k = Cy xi_k + Dy u_k; a step of h = n dt applies
  * n samples with the input held.  At the start time the state is "at rest" for the current input (xi = -H u,
- * the input taken as constant before the record).
+ * the input taken as constant before the record).  A delayed sensor's output is its delay line's sum of past
+ * undelayed outputs (ebb_delay.c): filled at the rest start, pushed before each sample's step.
  * Model exchange: states x = (q, qdot) of the Richardson modes, qddot = -w2 q - Cm qdot + Fm u (scheme theta: the
  * nodal unknowns, qddot = M^-1 (F u - C qdot - K q)), then the anti-alias filters' states; outputs
  * y = Cc x + Dc u with the host's continuous input.
@@ -62,6 +63,7 @@ ebb_instance *ebb_new(const char *name, int exchange, int debug, ebb_log_fn log,
     c->name = malloc(strlen(name ? name : "") + 1);
     if (!c->name) { free(c); return NULL; }
     strcpy(c->name, name ? name : "");
+    if (ebb_delay_new(c) != 0) { free(c->name); free(c); return NULL; }
     c->exchange = exchange;
     c->debug = debug;
     ebb_reset(c);
@@ -72,6 +74,7 @@ void ebb_free(ebb_instance *c)
 {
     if (!c) return;
     if (c->have_model) ebb_model_free(&c->mdl);
+    ebb_delay_free(c);
     free(c->name);
     free(c);
 }
@@ -135,6 +138,7 @@ static void rest_start(ebb_instance *c)
     }
     for (int d = 0; d < m->delays; d++)
         for (int j = 0; j < m->m; j++) c->hist[d * m->m + j] = c->u[j];
+    ebb_delay_fill(c);
 }
 
 /* one sample with the current input */
@@ -142,6 +146,7 @@ static void step(ebb_instance *c)
 {
     const ebb_model *m = &c->mdl;
     const int k = m->k, nx = m->nx, ni = m->m;
+    ebb_delay_push(c);                            /* this sample's undelayed outputs, before the state advances */
     if (!m->dense) {
         modal_force(m, c->u, c->g);
         for (int d = 0; d < m->delays; d++) modal_force(m, c->hist + d * ni, c->g + (d + 1) * k);
@@ -223,7 +228,8 @@ void ebb_rates(const ebb_model *m, const double *x, const double *u, double *dx)
     }
 }
 
-static double output(ebb_instance *c, int o)
+/* y = C x + D u of one output row, on the model-exchange or the co-simulation realisation */
+static double linear_output(const ebb_instance *c, int o)
 {
     const ebb_model *m = &c->mdl;
     const int nx = m->nx;
@@ -231,13 +237,21 @@ static double output(ebb_instance *c, int o)
     if (c->exchange) {
         Crow = m->Cc + (size_t)o * nx; Drow = m->Dc + (size_t)o * m->m; state = c->x;
     } else {
-        if (c->at_start) rest_start(c);
         Crow = m->Cy + (size_t)o * nx; Drow = m->Dy + (size_t)o * m->m; state = c->xi;
     }
     double acc = 0.0;
     for (int r = 0; r < nx; r++) acc += Crow[r] * state[r];
     for (int j = 0; j < m->m; j++) acc += Drow[j] * c->u[j];
     return acc;
+}
+
+double ebb_undelayed(const ebb_instance *c, int o) { return linear_output(c, o); }
+
+static double output(ebb_instance *c, int o)
+{
+    if (c->exchange) return linear_output(c, o);
+    if (c->at_start) rest_start(c);
+    return ebb_delay_output(c, o, linear_output(c, o));
 }
 
 /* ------------------------------------------------------------------ variables */

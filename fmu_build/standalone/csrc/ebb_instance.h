@@ -3,7 +3,8 @@
  *
  * ebb_instance.c holds what an instance does (the model built from the parameters, the co-simulation step, the
  * model-exchange state and derivatives, the variables' values), ebb_derivatives.c the derivatives of the linear
- * maps, ebb_state.c the saved states; ebb_fmi2.c and ebb_fmi3.c only translate their standard's calls into these.  Functions return 0
+ * maps, ebb_state.c the saved states, ebb_delay.c the channels' converter delays (delay lines of past outputs);
+ * ebb_fmi2.c and ebb_fmi3.c only translate their standard's calls into these.  Functions return 0
  * on success and -1 after logging one error message that names the function and the variable.
  *
  * Variables are addressed by value reference (the generated table of ebb_config.h): a variable has a size
@@ -45,6 +46,9 @@ struct ebb_instance {
     double g[3 * EBB_NMODES];            /* modal forces of u[k], u[k-1], u[k-2] (per-mode form) */
     double xn[EBB_NSTATES];
     double time;
+    double *dline;                       /* co-simulation: the delayed sensors' undelayed outputs, a ring of
+                                            EBB_DELAY_LEN past samples each (ebb_delay.c; NULL when none) */
+    int dhead;                           /* the ring's slot of the latest sample */
 };
 
 /* life */
@@ -88,6 +92,20 @@ int ebb_directional(ebb_instance *c, const char *function, const unsigned unknow
 int ebb_adjoint(ebb_instance *c, const char *function, const unsigned unknown[], size_t n_unknown,
                 const unsigned known[], size_t n_known, const double seed[], size_t n_seed,
                 double sensitivity[], size_t n_sensitivity);
+
+/* the channels' converter delays (ebb_delay.c): EBB_NDELAYED sensors, each a ring of EBB_DELAY_LEN past
+ * undelayed outputs; ebb_undelayed (ebb_instance.c) is output o of co-simulation before its delay */
+double ebb_undelayed(const ebb_instance *c, int o);
+int ebb_delay_new(ebb_instance *c);
+void ebb_delay_free(ebb_instance *c);
+int ebb_delay_refuse_exchange(const ebb_instance *c, const char *function);
+void ebb_delay_fill(ebb_instance *c);
+void ebb_delay_push(ebb_instance *c);
+double ebb_delay_output(const ebb_instance *c, int o, double now);
+double ebb_delay_feedthrough(int o, double undelayed);
+void ebb_delay_save(const ebb_instance *c, double *line);
+void ebb_delay_load(ebb_instance *c, const double *line);
+#define EBB_DELAY_STORE ((size_t)EBB_NDELAYED * (size_t)EBB_DELAY_LEN)   /* doubles of the rings */
 
 /* saved states (ebb_state.c): a snapshot is malloc'ed (or `reuse` overwritten); serialised as the GUID and the raw snapshot */
 void *ebb_state_get(ebb_instance *c, const char *function, void *reuse);

@@ -7,7 +7,8 @@
 #include "ebb_instance.h"
 
 /* ------------------------------------------------------------------ saved states */
-/* Everything a continuation depends on (the model follows from p, rebuilt when p differs).  Serialised as the
+/* Everything a continuation depends on (the model follows from p, rebuilt when p differs), then the delay lines'
+ * past outputs (ebb_delay.c: EBB_DELAY_STORE doubles after the snapshot, none without delays).  Serialised as the
  * GUID and the raw snapshot: restorable by this FMU on this platform. */
 #define EBB_STATE_MAGIC 0x45424253u                /* "EBBS" */
 typedef struct {
@@ -20,6 +21,7 @@ typedef struct {
     double x[EBB_NSTATES];
     double time;
 } Snapshot;
+#define EBB_STATE_BYTES (sizeof(Snapshot) + sizeof(double) * EBB_DELAY_STORE)
 
 int ebb_state_check(ebb_instance *c, const char *function, const void *state)
 {
@@ -34,7 +36,7 @@ int ebb_state_check(ebb_instance *c, const char *function, const void *state)
 
 void *ebb_state_get(ebb_instance *c, const char *function, void *reuse)
 {
-    Snapshot *s = reuse ? (Snapshot *)reuse : malloc(sizeof(Snapshot));
+    Snapshot *s = reuse ? (Snapshot *)reuse : malloc(EBB_STATE_BYTES);
     if (!s) { ebb_fail(c, function, "out of memory"); return NULL; }
     memset(s, 0, sizeof(*s));
     s->magic = EBB_STATE_MAGIC;
@@ -46,6 +48,7 @@ void *ebb_state_get(ebb_instance *c, const char *function, void *reuse)
     memcpy(s->hist, c->hist, sizeof(s->hist));
     memcpy(s->x, c->x, sizeof(s->x));
     s->time = c->time;
+    ebb_delay_save(c, (double *)(s + 1));
     return s;
 }
 
@@ -61,10 +64,11 @@ int ebb_state_set(ebb_instance *c, const char *function, const void *state)
     memcpy(c->x, s->x, sizeof(c->x));
     c->at_start = s->at_start;
     c->time = s->time;
+    ebb_delay_load(c, (const double *)(s + 1));
     return 0;
 }
 
-size_t ebb_state_size(void) { return sizeof(EBB_GUID) + sizeof(Snapshot); }
+size_t ebb_state_size(void) { return sizeof(EBB_GUID) + EBB_STATE_BYTES; }
 
 int ebb_state_serialize(ebb_instance *c, const char *function, const void *state, unsigned char bytes[],
                         size_t size)
@@ -73,7 +77,7 @@ int ebb_state_serialize(ebb_instance *c, const char *function, const void *state
     if (size < ebb_state_size())
         return ebb_fail(c, function, "%zu bytes given, the state takes %zu", size, ebb_state_size());
     memcpy(bytes, EBB_GUID, sizeof(EBB_GUID));
-    memcpy(bytes + sizeof(EBB_GUID), state, sizeof(Snapshot));
+    memcpy(bytes + sizeof(EBB_GUID), state, EBB_STATE_BYTES);
     return 0;
 }
 
@@ -87,8 +91,8 @@ void *ebb_state_deserialize(ebb_instance *c, const char *function, const unsigne
     Snapshot tmp;
     memcpy(&tmp, bytes + sizeof(EBB_GUID), sizeof(Snapshot));
     if (ebb_state_check(c, function, &tmp) != 0) return NULL;
-    Snapshot *s = reuse ? (Snapshot *)reuse : malloc(sizeof(Snapshot));
+    Snapshot *s = reuse ? (Snapshot *)reuse : malloc(EBB_STATE_BYTES);
     if (!s) { ebb_fail(c, function, "out of memory"); return NULL; }
-    *s = tmp;
+    memcpy(s, bytes + sizeof(EBB_GUID), EBB_STATE_BYTES);
     return s;
 }
