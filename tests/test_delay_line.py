@@ -16,7 +16,8 @@ import pytest
 
 import ebb_model as em
 from ebb_model.acquisition.bandlimited import causal_config
-from ebb_model.acquisition.delay_line import MIN_FRACTIONAL, delay_line, delay_taps, line_problems
+from ebb_model.acquisition.channel_delay import effective_delays
+from ebb_model.acquisition.delay_line import MIN_FRACTIONAL, delay_line, delay_taps, exported_config, line_problems
 from ebb_model.errors import ConfigError
 from ebb_model.io.tomlio import dumps as toml_dumps
 
@@ -84,7 +85,8 @@ def test_a_fraction_in_a_causal_model_adds_nothing_to_its_error():
 def test_what_has_no_causal_delay_line_is_refused_in_one_line(tmp_path, capsys):
     """A sensor ahead of the force's channel (it would read the force ahead) and a fraction shorter than
     ``MIN_FRACTIONAL`` samples (the kernel reads that many samples after the one it delays) are refused by the
-    StateSpace and by ``ebb build-fmu`` — one line naming the channel, no file; the native model takes both."""
+    StateSpace and by ``ebb build-fmu`` — one line naming the channel, no file; the native model takes both, and the
+    exports leave them out saying why."""
     from ebb_cli import main
 
     ahead = delayed(config(20, "cubic"), (4.0, 0.0), force=1.0)
@@ -99,6 +101,10 @@ def test_what_has_no_causal_delay_line_is_refused_in_one_line(tmp_path, capsys):
         assert words in one_line_error(capsys, "build-fmu")
         assert not (tmp_path / "b.fmu").exists()
         em.simulate(em.assemble(cfg), np.ones((50, 1)))               # the records' model takes it
+        exported, said = exported_config(cfg)                         # the exports leave them out and say why
+        assert effective_delays(exported) == () and "leave the channels' converter delays out" in said
+        assert words in said
+    assert exported_config(delayed(config(20, "cubic"), (4.0, 0.0)))[1] == ""
 
 
 def test_the_python_fmu_carries_the_delays(tmp_path):
@@ -146,3 +152,36 @@ def test_the_exports_of_an_identified_model_carry_the_delays(identify_case, tmp_
     y = control.forced_response(ctl, np.arange(len(u)) * 1e-4, u.T, X0=rest_state(npz, u[0])).outputs.T
     assert _rel(y, em.simulate(design_model(cfg), u).outputs) < 1e-10
     assert _rel(fmpy_outputs(fmu, u), em.simulate(em.assemble(causal_config(cfg)), u).outputs) < 1e-10
+
+
+def test_the_corrected_model_carries_the_delays_under_its_signal_effects(tmp_path):
+    """The diagnosis' corrected model of a config whose sensors report 4 and 9 samples late, with a lag on the
+    delayed accelerometer: its StateSpace (``corrected.npz``, from the saved rest state) equals the design model's
+    native delayed run through that lag (the lag on the delayed signal: both LTI and started steady at the first
+    sample, they commute exactly for whole samples) to 1e-10, and ``corrected.json`` says nothing was left out."""
+    import json
+
+    import control
+
+    from diagnosis.corrected.export import export_corrected
+    from diagnosis.effects import AugmentedModel
+    from diagnosis.effects.lag import SensorLag
+    from ebb_model.modal.truncation import design_model
+    from ebb_model.reference.excitation import band_limited_input
+    from identification.export_statespace import load_statespace, rest_state
+
+    cfg = delayed(config(20, "cubic"), (4.0, 9.0))
+    params = cfg.parameter_values() | {"EI": 10.4}
+    lag = (SensorLag("s1", 1.5e-3),)
+    files = export_corrected(AugmentedModel(cfg, params, lag), tmp_path / "corrected", {"effect": "sensor_lag[s1]"},
+                             targets=("statespace",))
+    npz = tmp_path / "corrected" / "corrected.npz"
+    assert npz in files
+    u = band_limited_input(900, DT, 2.0, 300.0, seed=6)
+    ctl = load_statespace(npz)
+    y = control.forced_response(ctl, np.arange(len(u)) * DT, u.T, X0=rest_state(npz, u[0])).outputs.T
+    design = em.simulate(design_model(cfg.with_parameters(**params)), u).outputs
+    ref = lag[0].outputs(design, DT, tuple(cfg.output_names))
+    assert _rel(y, ref) < 1e-10
+    doc = json.loads((tmp_path / "corrected" / "corrected.json").read_text())
+    assert "channel delays" not in doc["files"] and "delay-line states" in doc["files"]["corrected.npz"]
