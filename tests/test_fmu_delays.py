@@ -18,12 +18,12 @@ import pytest
 
 import fmpy
 from fmpy.fmi2 import FMU2Model, FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
-from fmpy.fmi3 import FMU3Model, FMU3Slave
+from fmpy.fmi3 import FMU3Model
 from fmpy.validation import validate_fmu
 
 HOSTS = Path(__file__).resolve().parent / "fmu_hosts"
 sys.path.insert(0, str(HOSTS))
-from fmu_loops import compile_host, fmpy_outputs, host_run  # noqa: E402
+from fmu_loops import compile_host, fmpy_outputs, host_run, memcheck_replay, started_slave  # noqa: E402
 
 import ebb_model as em  # noqa: E402
 from ebb_cli import main  # noqa: E402
@@ -138,12 +138,7 @@ def test_a_step_of_several_samples_pushes_every_sample(fmus):
     u = _inputs(40, 3)
 
     def run(n: int) -> np.ndarray:
-        f = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(fmus["fraction"][2])),
-                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName=f"n{n}")
-        f.instantiate()
-        f.setupExperiment(startTime=0.0)
-        f.enterInitializationMode()
-        f.exitInitializationMode()
+        f = started_slave(md, fmpy.extract(str(fmus["fraction"][2])), f"n{n}")
         out = []
         for k in range(len(u)):
             f.setReal([vr["F1"]], list(u[k]))
@@ -249,17 +244,7 @@ def test_a_state_saved_mid_run_restores_the_delay_line(fmus, version):
     u = _inputs(300, 5)
 
     def instance(name: str):
-        cls = FMU2Slave if version == 2 else FMU3Slave
-        f = cls(guid=md.guid, unzipDirectory=fmpy.extract(str(fmu)), modelIdentifier=md.coSimulation.modelIdentifier,
-                instanceName=name)
-        f.instantiate()
-        if version == 2:
-            f.setupExperiment(startTime=0.0)
-            f.enterInitializationMode()
-        else:
-            f.enterInitializationMode(startTime=0.0)
-        f.exitInitializationMode()
-        return f
+        return started_slave(md, fmpy.extract(str(fmu)), name, version)
 
     def run(f, k0: int, uu: np.ndarray) -> np.ndarray:
         y = []
@@ -331,16 +316,7 @@ def test_derivatives_are_the_fmus_finite_differences(fmus, name):
         md = fmpy.read_model_description(str(fmus[name][version]))
         vr = {v.name: v.valueReference for v in md.modelVariables}
         ins, outs = [vr["F1"]], [vr["s0"], vr["s1"]]
-        cls = FMU2Slave if version == 2 else FMU3Slave
-        f = cls(guid=md.guid, unzipDirectory=fmpy.extract(str(fmus[name][version])),
-                modelIdentifier=md.coSimulation.modelIdentifier, instanceName="d")
-        f.instantiate()
-        if version == 2:
-            f.setupExperiment(startTime=0.0)
-            f.enterInitializationMode()
-        else:
-            f.enterInitializationMode(startTime=0.0)
-        f.exitInitializationMode()
+        f = started_slave(md, fmpy.extract(str(fmus[name][version])), "d", version)
         set_, get = (f.setReal, f.getReal) if version == 2 else (f.setFloat64, f.getFloat64)
         for k in range(len(u)):
             set_(ins, list(u[k]))
@@ -401,16 +377,4 @@ def test_the_delay_line_is_clean_under_valgrind(fmus, version, tmp_path):
     """Each version's C master on the fractional case under valgrind's memcheck, full leak checking: a run with a
     serialised checkpoint replayed — no invalid access, no uninitialised value used, nothing leaked (the rings
     and the states that carry them freed)."""
-    import shutil
-
-    if shutil.which("valgrind") is None:
-        pytest.skip("valgrind is not installed")
-    u = _inputs(70, 9)
-    proc = host_run(compile_host(tmp_path, fmi=version, flags=("-O1", "-g")), fmus["fraction"][version], u,
-                    tmp_path / "run", checkpoint=30, timeout=600,
-                    wrapper=["valgrind", "--leak-check=full", "--errors-for-leak-kinds=definite,indirect",
-                             "--error-exitcode=99", "--num-callers=30"])
-    assert "ERROR SUMMARY: 0 errors" in proc.stderr, proc.stderr[-3000:]
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    lines = proc.stdout.splitlines()
-    assert [ln[2:] for ln in lines if ln.startswith("R ")] == lines[30:70]
+    memcheck_replay(fmus["fraction"][version], _inputs(70, 9), tmp_path, checkpoint=30)

@@ -26,7 +26,7 @@ from fmpy.validation import validate_fmu
 HOSTS = Path(__file__).resolve().parent / "fmu_hosts"
 sys.path.insert(0, str(HOSTS))
 from fmu_configs import SEED_TOML, mixed_config  # noqa: E402
-from fmu_loops import compile_host, fmpy_outputs, host_run  # noqa: E402
+from fmu_loops import compile_host, fmpy_outputs, host_run, memcheck_replay  # noqa: E402
 
 from ebb_cli import main  # noqa: E402
 from ebb_model import assemble, config_from_dict, load_config, simulate  # noqa: E402
@@ -409,17 +409,5 @@ def test_the_c_fmu_is_clean_under_valgrind(built, version, tmp_path):
     """Each version's C master (FMI 2.0's, FMI 3.0's) on the mixed config's FMU under valgrind's memcheck with
     full leak checking: a run with a serialised checkpoint replayed (and, FMI 3.0, the derivatives) — no invalid
     access, no uninitialised value used, nothing leaked (``--errors-for-leak-kinds=definite,indirect``)."""
-    import shutil
-
-    if shutil.which("valgrind") is None:
-        pytest.skip("valgrind is not installed")
     cfgs, fmus = built
-    u = _inputs(cfgs["mixed"], 40, 8)
-    proc = host_run(compile_host(tmp_path, fmi=version, flags=("-O1", "-g")), fmus["mixed"][version], u,
-                    tmp_path / "run", checkpoint=20, timeout=600,
-                    wrapper=["valgrind", "--leak-check=full", "--errors-for-leak-kinds=definite,indirect",
-                             "--error-exitcode=99", "--num-callers=30"])
-    assert "ERROR SUMMARY: 0 errors" in proc.stderr, proc.stderr[-3000:]
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    lines = proc.stdout.splitlines()
-    assert [ln[2:] for ln in lines if ln.startswith("R ")] == lines[20:40]
+    memcheck_replay(fmus["mixed"][version], _inputs(cfgs["mixed"], 40, 8), tmp_path, checkpoint=20)

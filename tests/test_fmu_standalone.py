@@ -28,7 +28,7 @@ from fmpy.validation import validate_fmu
 HOSTS = Path(__file__).resolve().parent / "fmu_hosts"
 sys.path.insert(0, str(HOSTS))
 from fmu_configs import ROOT, SEED_TOML, mixed_config  # noqa: E402
-from fmu_loops import compile_host, fmpy_outputs, host_run  # noqa: E402
+from fmu_loops import compile_host, fmpy_outputs, host_run, started_slave  # noqa: E402
 
 from ebb_model import assemble, config_from_dict, load_config, simulate  # noqa: E402
 from ebb_cli import main  # noqa: E402
@@ -208,7 +208,6 @@ def test_parameters_set_through_the_host_as_ebb_simulate_param(fmus, configs, tm
 
 def test_step_of_several_samples_holds_the_input(fmus, configs):
     """``doStep(h = 3 dt)`` equals three steps of ``dt`` with the input held."""
-    from fmpy.fmi2 import FMU2Slave
 
     md = fmpy.read_model_description(str(fmus["mixed"]))
     unzip = fmpy.extract(str(fmus["mixed"]))
@@ -217,12 +216,7 @@ def test_step_of_several_samples_holds_the_input(fmus, configs):
     u = _inputs(configs["mixed"], 20, 8)
 
     def run(n: int) -> np.ndarray:
-        f = FMU2Slave(guid=md.guid, unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier,
-                      instanceName=f"n{n}")
-        f.instantiate()
-        f.setupExperiment(startTime=0.0)
-        f.enterInitializationMode()
-        f.exitInitializationMode()
+        f = started_slave(md, unzip, f"n{n}")
         out = []
         for k in range(len(u)):
             f.setReal([vr["F1"], vr["F2"]], u[k].tolist())

@@ -284,6 +284,48 @@ def host_run(exe: Path, fmu: str | os.PathLike, u: np.ndarray, work: Path, *,
     return subprocess.run(cmd, capture_output=True, text=True, env=clean_env, timeout=timeout)
 
 
+def memcheck_replay(fmu: str | os.PathLike, u: np.ndarray, work: Path, checkpoint: int) -> list[str]:
+    """The C master of the FMU's version (``-O1 -g``) under valgrind's memcheck with full leak checking, a
+    checkpoint serialised before point ``checkpoint`` and replayed: returns the run's output lines after asserting
+    0 errors, exit 0 and the replay equal to the run from the checkpoint on (``pytest.skip`` without valgrind)."""
+    import shutil
+
+    import pytest
+    from fmpy import read_model_description
+
+    if shutil.which("valgrind") is None:
+        pytest.skip("valgrind is not installed")
+    fmi = 3 if read_model_description(str(fmu)).fmiVersion.startswith("3") else 2
+    proc = host_run(compile_host(Path(work), fmi=fmi, flags=("-O1", "-g")), fmu, u, Path(work) / "run",
+                    checkpoint=checkpoint, timeout=600,
+                    wrapper=["valgrind", "--leak-check=full", "--errors-for-leak-kinds=definite,indirect",
+                             "--error-exitcode=99", "--num-callers=30"])
+    assert "ERROR SUMMARY: 0 errors" in proc.stderr, proc.stderr[-3000:]
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    lines = proc.stdout.splitlines()
+    assert [ln[2:] for ln in lines if ln.startswith("R ")] == lines[checkpoint:len(u)]
+    return lines
+
+
+def started_slave(md, unzipdir: str, name: str, version: int = 2):
+    """An fmpy slave of the extracted FMU (``FMU2Slave`` or ``FMU3Slave``) instantiated and through its
+    initialisation at time 0, its parameters at their start values."""
+    from fmpy.fmi2 import FMU2Slave
+    from fmpy.fmi3 import FMU3Slave
+
+    cls = FMU2Slave if version == 2 else FMU3Slave
+    f = cls(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
+            instanceName=name)
+    f.instantiate()
+    if version == 2:
+        f.setupExperiment(startTime=0.0)
+        f.enterInitializationMode()
+    else:
+        f.enterInitializationMode(startTime=0.0)
+    f.exitInitializationMode()
+    return f
+
+
 def lifecycle(fmu: str | os.PathLike, cycles: int) -> dict[str, float]:
     """RSS growth over ``cycles`` load/instantiate/reset/free cycles (after 100 warm-up cycles).
 
