@@ -44,6 +44,12 @@ __all__ = ["MeasuredModes", "estimate_modes", "seen"]
 SEARCH = 0.12
 #: The smallest damping ratio an estimate reports (far below any structure's: a bolted steel beam's is ~1e-3).
 DAMPING_FLOOR = 1e-6
+
+#: Damping ratio beyond which the oscillators' joint fit rejects a trial step outright (:func:`estimate_modes`):
+#: far above any mode a record shows (overdamped oscillators up to it stay admissible, as they always were), far
+#: below where the columns overflow.
+ZETA_REJECTED = 1e3
+
 #: A variable whose residual column reaches less than this share of the largest one is not determined.
 UNDETERMINED = 1e-10
 #: Largest number of trial frequencies per mode in the scan.
@@ -293,11 +299,20 @@ def estimate_modes(inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], 
         f[i] = trials[int(np.argmin(costs))]
         blocks[i] = prob.columns(2 * np.pi * f[i], z[i])
 
-    def resid(theta: np.ndarray) -> np.ndarray:
+    def oscillators(theta: np.ndarray) -> np.ndarray:
         fs, zs = theta[:m], np.exp(theta[m:])
         return prob.residual([prob.columns(2 * np.pi * fs[j], zs[j]) for j in range(m)])
 
     theta0 = np.concatenate([f, np.log(z)])
+    size = oscillators(theta0).size
+
+    def resid(theta: np.ndarray) -> np.ndarray:
+        # a trial step of the unbounded Levenberg–Marquardt fit once sent ζ to 1e155, where the columns overflow:
+        # beyond ZETA_REJECTED the residual is one the step cannot lower, so the step is rejected and damped
+        if np.any(theta[m:] > np.log(ZETA_REJECTED)):
+            return np.full(size, 1e100)
+        return oscillators(theta)
+
     sol = optimize.least_squares(resid, theta0, method="lm", x_scale=np.concatenate([np.maximum(z * f, 1e-3),
                                                                                      np.ones(m)]))
     n = sol.fun.size

@@ -29,7 +29,7 @@ from ..effects import Effect
 from ..problem.fitting import GapProblem
 
 __all__ = ["ALIGNED", "ALIGN_STEPS", "ON_BOUND", "PROFILE_BUDGET", "PROFILE_MINIMA", "PROFILE_POINTS", "aligned",
-           "amplitude_scale", "best_per_place", "fixed_place_fits",
+           "amplitude_scale", "at_nominal_density", "best_per_place", "fixed_place_fits",
            "jacobian", "place_profiled", "profiled", "room", "within"]
 
 #: Starts of a pattern fit from the effect's grid with the modes' common scale aligned (:func:`aligned`), and
@@ -143,6 +143,21 @@ def room(problem: GapProblem, beta: np.ndarray, free: np.ndarray, lo: np.ndarray
     if i is None or not lo[i] > 0.0:
         return beta
     return beta * within(math.sqrt(lo[i] * hi[i]) / beta[i], beta, lo, hi)
+
+
+def at_nominal_density(problem: GapProblem, beta: np.ndarray, free: np.ndarray, lo: np.ndarray, hi: np.ndarray
+                       ) -> np.ndarray | None:
+    """``beta`` with every force-like constant multiplied by one ratio (the same modes, as in :func:`room`) that
+    brings the held ρA to the config's value, as far as the unknowns' bounds allow; ``None`` when ρA is not held
+    or no ratio moves it by more than 1 %.  The config's ρA is the user's value: holding it keeps the ratios the
+    records' modes ask for near the centre of the box the config's bounds were drawn around."""
+    names = list(problem.space.names)
+    held = [k for k in range(len(names)) if not free[k] and names[k] == "rhoA"]
+    if not held or not beta[held[0]] > 0.0:
+        return None
+    k = held[0]
+    lam = within(float(problem.space.nominal[k]) / beta[k], beta, lo, hi)
+    return None if abs(lam - 1.0) <= 0.01 else beta * lam
 
 
 def within(lam: float, values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
