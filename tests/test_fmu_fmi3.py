@@ -108,7 +108,7 @@ def test_archive_is_fmi3_with_the_field_as_one_array(built, tmp_path):
         build = zf.read("sources/buildDescription.xml").decode()
         so = tmp_path / "beam.so"
         so.write_bytes(zf.read(f"binaries/x86_64-linux/{ident}.so"))
-    assert {"sources/ebb_fmi3.c", "sources/ebb_instance.c", "sources/ebb_config.h"} <= names
+    assert {"sources/ebb_fmi3.c", "sources/ebb_fmi3.h", "sources/ebb_instance.c", "sources/ebb_config.h"} <= names
     assert "sources/ebb_fmi2.c" not in names and 'fmiVersion="3.0"' in build
     exported = subprocess.run(["nm", "-D", "--defined-only", str(so)], capture_output=True, text=True,
                               check=True).stdout.split()

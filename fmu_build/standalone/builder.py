@@ -3,7 +3,7 @@
 The FMU needs no Python at run time.  It carries the C source of the same model as ``ebb_model``:
 finite-difference assembly from the physical parameters, then for the default scheme ``exact`` Richardson
 modes on two grids, each mode integrated exactly over a sample under the input polynomial, or the seed's
-θ-scheme on the nodal unknowns (``[time] scheme = "theta"``; see ``csrc/ebb_model.c``), so ``EI``,
+θ-scheme on the nodal unknowns (``[time] scheme = "theta"``; see ``csrc/ebb_theta.c``), so ``EI``,
 ``rhoA``, ``c``, ``eta``, ``N``, ``rhoI``, ``kf`` stay tunable parameters; only the structure (grid, ends,
 positions, point masses, ``dt``, input reconstruction) is generated into ``sources/ebb_config.h``.
 
@@ -19,9 +19,9 @@ Archive layout::
     modelDescription.xml           ModelExchange (not with channel delays) and CoSimulation, one modelIdentifier
     binaries/linux64/<id>.so       gcc -std=c99 -O2 -shared -fPIC -fvisibility=hidden ... -lm
                                    (FMI 3.0: binaries/x86_64-linux/<id>.so)
-    sources/*.c, *.h               ebb_linalg.c, ebb_model.c, ebb_instance.c, ebb_derivatives.c, ebb_state.c,
-                                   ebb_delay.c, ebb_fmi2.c (FMI 3.0: ebb_fmi3.c), ebb_beam.h, ebb_instance.h,
-                                   ebb_config.h
+    sources/*.c, *.h               ebb_linalg.c, ebb_fd.c, ebb_model.c, ebb_theta.c, ebb_instance.c,
+                                   ebb_derivatives.c, ebb_state.c, ebb_delay.c, ebb_fmi2.c (FMI 3.0: ebb_fmi3.c),
+                                   ebb_beam.h, ebb_instance.h (FMI 3.0: also ebb_fmi3.h), ebb_config.h
     sources/buildDescription.xml   the same file list (FMI 2.0.4 / 3.0 layout), for other platforms
 
 FMI 3.0 (``fmi=3``) is the same instance behind the FMI 3.0 C API: the deflection field as one array variable
@@ -194,7 +194,7 @@ def build_standalone_fmu(config: BeamConfig | str | os.PathLike[str], out: str |
             staging = Path(staging_dir)
             src = staging / "sources"
             src.mkdir()
-            for name in sources + C_HEADERS:
+            for name in sources + C_HEADERS[fmi]:
                 shutil.copyfile(SOURCE_DIR / name, src / name)
             (src / "ebb_config.h").write_text(config_header(cfg, variables, identity, field_sensors),
                                               encoding="utf-8")

@@ -39,10 +39,12 @@ __all__ = ["Variable", "fmu_variables", "model_description_xml", "config_header"
            "n_modes", "delay_lines", "units_categories_experiment", "C_SOURCES", "C_HEADERS"]
 
 #: The C sources compiled into the binary (in this package's ``csrc``) for FMI 2.0 and 3.0 (the instance is
-#: common, ``ebb_fmi2.c`` or ``ebb_fmi3.c`` translates its standard's calls), and the headers they include.
-_COMMON = ("ebb_linalg.c", "ebb_model.c", "ebb_instance.c", "ebb_derivatives.c", "ebb_state.c", "ebb_delay.c")
+#: common, ``ebb_fmi2.c`` or ``ebb_fmi3.c`` translates its standard's calls), and the headers they include
+#: (FMI 3.0's types in ``ebb_fmi3.h``).
+_COMMON = ("ebb_linalg.c", "ebb_fd.c", "ebb_model.c", "ebb_theta.c", "ebb_instance.c", "ebb_derivatives.c",
+           "ebb_state.c", "ebb_delay.c")
 C_SOURCES = {2: _COMMON + ("ebb_fmi2.c",), 3: _COMMON + ("ebb_fmi3.c",)}
-C_HEADERS = ("ebb_beam.h", "ebb_instance.h")
+C_HEADERS = {2: ("ebb_beam.h", "ebb_instance.h"), 3: ("ebb_beam.h", "ebb_instance.h", "ebb_fmi3.h")}
 #: Roles and types as ``ebb_instance.h`` numbers them.
 _ROLES = {"parameter": 0, "input": 1, "output": 2, "constant": 3, "state": 4, "derivative": 5, "time": 6}
 _TYPES = {"Real": 0, "Integer": 1, "String": 2}

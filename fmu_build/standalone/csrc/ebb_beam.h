@@ -3,8 +3,10 @@
  *
  * Shared declarations of the standalone FMU's model code:
  *   ebb_linalg.c  dense linear algebra written for this FMU (Cholesky, cyclic Jacobi, LU, Pade expm);
- *   ebb_model.c   finite-difference assembly from the physical parameters, Richardson modes on two grids,
- *                 exact-in-time discretisation of the modal system (Van Loan), one communication sample;
+ *   ebb_fd.c      finite-difference assembly from the physical parameters, the lowest modes of a grid;
+ *   ebb_model.c   Richardson modes on two grids, exact-in-time discretisation of the modal system (Van Loan),
+ *                 one communication sample;
+ *   ebb_theta.c   the seed's theta-scheme (scheme "theta") on the config's grid;
  *   ebb_fmi2.c    the FMI 2.0 interface (co-simulation and model exchange), reading the generated
  *                 ebb_config.h (the structure: grid, ends, positions, scheme, dt -- never matrices).
  */
@@ -106,6 +108,24 @@ int ebb_lu_solve(double *a, double *b, int n, int ncol);    /* b <- a^-1 b (a de
 /* Build the model for parameters p; on failure return nonzero with a message naming the parameter. */
 int ebb_model_build(const ebb_structure *s, const double *p, ebb_model *out, char *msg, size_t msglen);
 void ebb_model_free(ebb_model *mdl);
+
+/* ---- finite differences (ebb_fd.c): the semi-discrete beam M q'' + C q' + K q = F u on a grid ---- */
+typedef struct {
+    int n, nu, first;                 /* interior nodes, unknowns, grid index of the first unknown */
+    double h;
+    double *M, *C, *K;                /* nu x nu */
+    double *F;                        /* nu x n_act */
+    double *S;                        /* n_sens x nu */
+} fd_beam;
+
 int ebb_n_modes(const ebb_structure *s);                    /* unknowns of the config's grid */
+/* n interior nodes; -1 no memory */
+int ebb_fd_assemble(const ebb_structure *s, int n, const double *p, fd_beam *b);
+void ebb_fd_free(fd_beam *b);
+/* the nm lowest w2 and mass-normalised modes (nu x nm); -1 failed */
+int ebb_fd_lowest_modes(const fd_beam *b, int nm, double *w2, double *psi);
+
+/* ---- theta-scheme (ebb_theta.c), the model of scheme "theta" (called by ebb_model_build) ---- */
+int ebb_build_theta(const ebb_structure *s, const double *p, ebb_model *out, char *msg, size_t msglen);
 
 #endif
