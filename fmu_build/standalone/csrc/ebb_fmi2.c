@@ -56,14 +56,6 @@ typedef struct {
     fmi2Real nextEventTime;
 } fmi2EventInfo;
 
-#if defined(_WIN32)
-#define EBB_EXPORT __declspec(dllexport)
-#elif defined(__GNUC__)
-#define EBB_EXPORT __attribute__((visibility("default")))
-#else
-#define EBB_EXPORT
-#endif
-
 #define ST(call) ((call) == 0 ? fmi2OK : fmi2Error)
 #define INST(comp) ((ebb_instance *)(comp))
 

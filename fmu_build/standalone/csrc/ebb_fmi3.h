@@ -41,12 +41,4 @@ typedef void (*fmi3IntermediateUpdateCallback)(fmi3InstanceEnvironment, fmi3Floa
 typedef void (*fmi3LockPreemptionCallback)(void);
 typedef void (*fmi3UnlockPreemptionCallback)(void);
 
-#if defined(_WIN32)
-#define EBB_EXPORT __declspec(dllexport)
-#elif defined(__GNUC__)
-#define EBB_EXPORT __attribute__((visibility("default")))
-#else
-#define EBB_EXPORT
-#endif
-
 #endif

@@ -19,6 +19,15 @@
 #include "ebb_beam.h"
 #include "ebb_config.h"
 
+/* the entry points a host calls, exported from the shared library (ebb_fmi2.c, ebb_fmi3.c) */
+#if defined(_WIN32)
+#define EBB_EXPORT __declspec(dllexport)
+#elif defined(__GNUC__)
+#define EBB_EXPORT __attribute__((visibility("default")))
+#else
+#define EBB_EXPORT
+#endif
+
 enum { ROLE_PARAMETER, ROLE_INPUT, ROLE_OUTPUT, ROLE_CONSTANT, ROLE_STATE, ROLE_DERIVATIVE, ROLE_TIME };
 enum { TYPE_REAL, TYPE_INTEGER, TYPE_STRING };
 
