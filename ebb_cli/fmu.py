@@ -14,15 +14,10 @@ def _cmd_build_fmu(args: argparse.Namespace) -> int:
         from fmu_build.standalone import build_standalone_fmu
 
         path = build_standalone_fmu(args.config, args.out, field=args.field, fmi=args.fmi)
-    elif args.fmi != 2:
-        from ebb_model.errors import FmuError
-
-        raise FmuError("`fmi` 3: only the standalone C FMU is built for FMI 3.0 so far (add `standalone`); the "
-                       "Python FMU is FMI 2.0", function="build_fmu")
     else:
         from fmu_build import build_fmu
 
-        path = build_fmu(args.config, args.out, field=args.field)
+        path = build_fmu(args.config, args.out, field=args.field, fmi=args.fmi)
     print(path)
     return 0
 
@@ -31,9 +26,10 @@ def add_parsers(sub: Subcommands) -> None:
     """Register ``build-fmu CONFIG --out FILE [--field] [--standalone] [--fmi {2,3}]`` on the ``ebb`` parser."""
     p = sub.add_parser(
         "build-fmu",
-        help="package the beam as an FMI 2.0 co-simulation FMU",
-        description="Build an FMI 2.0 co-simulation FMU (Linux x86-64) of the beam described by CONFIG. "
-                    "The FMU runs on this Python interpreter (numpy, scipy and numba required). With "
+        help="package the beam as an FMI 2.0 or 3.0 co-simulation FMU",
+        description="Build an FMI 2.0 (or, with --fmi 3, FMI 3.0) co-simulation FMU (Linux x86-64) of the beam "
+                    "described by CONFIG. The FMU runs on this Python interpreter (numpy, scipy and numba "
+                    "required); in FMI 3.0 the deflection field is one array w. With "
                     "--standalone: an FMU in C (co-simulation and model exchange) that needs no Python, in FMI 2.0 "
                     "or, with --fmi 3, FMI 3.0 (the deflection field as one array w, adjoint derivatives). The "
                     "channels' converter delays (delay in CONFIG) are carried as delay lines of past output samples "
@@ -47,5 +43,6 @@ def add_parsers(sub: Subcommands) -> None:
                    help="build the standalone C FMU instead (model exchange and co-simulation, no Python at run "
                         "time; the model's C source is inside, compiled with gcc for linux64)")
     p.add_argument("--fmi", type=int, choices=(2, 3), default=2,
-                   help="the FMI version: 2 (default) or 3 (with --standalone; binaries/x86_64-linux)")
+                   help="the FMI version: 2 (default) or 3 (binaries/x86_64-linux; the Python FMU through "
+                        "pythonfmu3, the standalone one in C)")
     p.set_defaults(func=_cmd_build_fmu)

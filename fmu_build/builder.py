@@ -1,10 +1,11 @@
-"""Build an FMI 2.0 co-simulation FMU of the beam: :func:`build_fmu`.
+"""Build a co-simulation FMU of the beam running on Python: :func:`build_fmu` (FMI 2.0 or 3.0).
 
-The FMU is a pythonfmu FMU (its export library and Python runtime, a slave
-class derived from ``pythonfmu.Fmi2Slave``) with three additions:
+The FMU is a pythonfmu FMU (FMI 2.0: pythonfmu's export library and Python runtime, a slave class derived from
+``pythonfmu.Fmi2Slave``; FMI 3.0: pythonfmu3's, ``pythonfmu3.Fmi3Slave``; both slaves are
+:class:`fmu_build.slave_base.BeamModel`) with three additions:
 
-* a C loader as the entry library (``binaries/linux64/<id>.so``, see
-  ``loader.c``), so that non-Python masters can load it without
+* a C loader as the entry library (``binaries/<platform>/<id>.so``, see
+  ``loader.c``, ``loader3.c``), so that non-Python masters can load it without
   ``LD_PRELOAD`` or environment variables;
 * a completed ``modelDescription.xml`` (units, ModelStructure) that
   ``fmpy.validation.validate_fmu`` accepts without findings;
@@ -27,6 +28,7 @@ from pathlib import Path
 from typing import Sequence
 
 import pythonfmu
+import pythonfmu3
 
 import ebb_model
 from ebb_model import PARAMETER_NAMES, BeamConfig, DiscreteStateSpace, assemble, load_config
@@ -36,18 +38,20 @@ from ebb_model.acquisition.delay_line import delay_line
 from ebb_model.io.output import atomic_path, check_output_file
 from ebb_model.errors import FmuError, OutputError
 
-from . import slave_template
+from . import slave_base, slave_template, slave_template_fmi3
 from .bundle import core_sources, write_resources
 from .kernels import KERNEL_SUFFIXES, carry_kernels, compile_bytecode, core_package_name
 from .loader import compile_loader, find_python_runtime
 from .model_description import FmuIdentity, feedthrough_from_D, finish_model_description
+from .model_description_fmi3 import finish_model_description_fmi3
 
 __all__ = ["build_fmu"]
 
-_PLATFORM = "linux64"
+#: Per FMI version: the binaries' platform folder and the pythonfmu package whose export library goes inside.
+_PLATFORM = {2: ("linux64", pythonfmu), 3: ("x86_64-linux", pythonfmu3)}
 
 #: Top-level variable names the FMU itself uses besides the parameters.
-_RESERVED = {"beam", "time", "actuators", "sensors", "masses", "springs", "weak_segments", slave_template.FIELD_NAME}
+_RESERVED = {"beam", "time", "actuators", "sensors", "masses", "springs", "weak_segments", slave_base.FIELD_NAME}
 
 
 def _identity(base: str, core_package: str = "") -> FmuIdentity:
@@ -88,7 +92,7 @@ def _description(config: BeamConfig, runtime_python: str, version: str, field: b
         f"{len(config.actuators)} force input(s), {len(config.sensors)} sensor output(s)"
         + (", deflection at every grid node" if field else "")
         + ". Communication steps must be integer multiples of dt (inputs held over the step). "
-        f"Requires Python {version} with {', '.join(slave_template.REQUIRED_PACKAGES)} (built with "
+        f"Requires Python {version} with {', '.join(slave_base.REQUIRED_PACKAGES)} (built with "
         f"{runtime_python}); "
         "the FMU's loader starts that interpreter when the master is not Python itself. Linux x86-64 only."
     )
@@ -108,9 +112,19 @@ def _check_output(out: Path, inputs: Sequence[str | os.PathLike[str]] = ()) -> P
     return out.parent
 
 
+def _arrays(feedthrough: dict[str, tuple[str, ...]]) -> dict[str, tuple[str, ...]]:
+    """The feedthrough by FMI 3.0 variable: the field's outputs ``w[i]`` are the one array ``w`` (the inputs that
+    reach any element)."""
+    out: dict[str, tuple[str, ...]] = {}
+    for name, inputs in feedthrough.items():
+        key = name.split("[", 1)[0] if name.startswith(slave_base.FIELD_NAME + "[") else name
+        out[key] = tuple(dict.fromkeys(out.get(key, ()) + inputs))
+    return out
+
+
 def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLike[str], *,
-              field: bool = False, system: DiscreteStateSpace | None = None) -> Path:
-    """Build the beam FMU (FMI 2.0 co-simulation, Linux x86-64).
+              field: bool = False, system: DiscreteStateSpace | None = None, fmi: int = 2) -> Path:
+    """Build the beam FMU (FMI 2.0 or 3.0 co-simulation, Linux x86-64).
 
     Parameters
     ----------
@@ -119,11 +133,14 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
     out
         Path of the ``.fmu`` file to write (replaced if it exists).
     field
-        Also output the deflection ``w[i]`` at every grid node (boundary
-        nodes included), in addition to the sensors.
+        Also output the deflection at every grid node (boundary nodes included), in addition to the sensors:
+        the scalars ``w[i]`` in FMI 2.0, one array ``w`` in FMI 3.0.
     system
         The config's system at its nominal values (:func:`ebb_model.assemble`), when the caller has it already
         (an export hands one assembled model to every target); assembled here otherwise.
+    fmi
+        The FMI version: 2 (pythonfmu 0.7, ``binaries/linux64``) or 3 (pythonfmu3, ``binaries/x86_64-linux``).
+        The same variables, units, physics and refusals; FMI 3.0 adds the independent variable ``time``.
 
     Returns
     -------
@@ -139,7 +156,8 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
     FmuError
         The output is unusable (not a .fmu name; its place not writable, read-only or full, checked before the
         build by :func:`ebb_model.io.output.check_output_file`), names clash, the interpreter has no shared
-        libpython, no C compiler is available, or writing the archive fails (nothing half-written is left).
+        libpython, no C compiler is available, ``fmi`` is neither 2 nor 3, or writing the archive fails (nothing
+        half-written is left).
 
     Notes
     -----
@@ -147,6 +165,8 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
     library and site-packages are recorded in the loader.  ``ebb_model``'s
     sources are bundled (renamed) in the FMU's resources.
     """
+    if fmi not in _PLATFORM:
+        raise FmuError(f"`fmi` {fmi!r}: the FMI version must be 2 or 3 (FMI 2.0 or 3.0)", function="build_fmu")
     if isinstance(config, BeamConfig):
         cfg, base = config, "beam"
     else:
@@ -179,25 +199,32 @@ def build_fmu(config: BeamConfig | str | os.PathLike[str], out: str | os.PathLik
         with tempfile.TemporaryDirectory(prefix="ebb_fmu_") as staging_dir, atomic_path(out) as tmp_path:
             staging = Path(staging_dir)
             resources = staging / "resources"
-            write_resources(resources, identity=identity, spec=spec, sources=sources)
+            write_resources(resources, identity=identity, spec=spec, sources=sources, fmi=fmi)
+            # the model the FMU carries first: the build's slave below then reads it instead of assembling
+            carry_kernels(resources / identity.core_package, config_dict, field=field)
 
-            binaries = staging / "binaries" / _PLATFORM
+            platform, package = _PLATFORM[fmi]
+            binaries = staging / "binaries" / platform
             binaries.mkdir(parents=True)
-            inner = f"{identity.model_identifier}_pythonfmu.so"
-            shutil.copy2(Path(pythonfmu.__file__).parent / "resources" / "binaries" / _PLATFORM
+            inner = f"{identity.model_identifier}_{package.__name__}.so"
+            shutil.copy2(Path(str(package.__file__)).parent / "resources" / "binaries" / platform
                          / "libpythonfmu-export.so", binaries / inner)
+            slave_class = slave_template.BeamSlave if fmi == 2 else slave_template_fmi3.BeamSlave3
+            slave = slave_class(instance_name="build", resources=str(resources))
             compile_loader(binaries / f"{identity.model_identifier}.so", inner_library=inner,
-                           runtime=runtime, guid=identity.guid)
-
-            slave = slave_template.BeamSlave(instance_name="build", resources=str(resources))
+                           runtime=runtime, guid=identity.guid, fmi=fmi, arrays=slave.array_sizes())
             # the feedthrough's zero pattern: the system's D (the slave's realisation has the same D), or with
             # field outputs what the slave iterates
             realised = assemble_modal(cfg, field=True) if field else lined
             feedthrough = feedthrough_from_D(realised.D, realised.output_names, realised.input_names)
-            xml = finish_model_description(slave.to_xml(), identity=identity, description=description,
-                                           units=slave.variable_units, feedthrough=feedthrough)
+            if fmi == 2:
+                xml = finish_model_description(slave.to_xml(), identity=identity, description=description,
+                                               units=slave.variable_units, feedthrough=feedthrough)
+            else:
+                xml = finish_model_description_fmi3(slave.to_xml(), identity=identity, description=description,
+                                                    units=slave.variable_units, feedthrough=_arrays(feedthrough),
+                                                    starts=dict(cfg.parameter_values()))
             (staging / "modelDescription.xml").write_bytes(xml)
-            carry_kernels(resources / identity.core_package, config_dict, field=field)
             compile_bytecode(resources)
 
             with open(tmp_path, "xb") as fh, zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_DEFLATED) as zf:

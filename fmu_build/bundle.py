@@ -5,17 +5,23 @@ Layout written by :func:`write_resources`::
     resources/
       slavemodule.txt          name of the entry module (read by pythonfmu's binary)
       <modelIdentifier>.py     entry module: imports the slave class, nothing else
-      <modelIdentifier>_slave.py  the slave (slave_template.py, class renamed)
+      <modelIdentifier>_slave.py  the slave (slave_template.py or, FMI 3.0, slave_template_fmi3.py; class renamed)
+      <modelIdentifier>_base.py   what the slaves share (slave_base.py, its core package renamed)
       <core_package>/          a private copy of the ebb_model modules the slave imports, with their
                                compiled kernels and byte code (fmu_build.kernels)
-      pythonfmu/               pythonfmu's Python runtime (as pythonfmu's own builder does)
+      pythonfmu/               pythonfmu's Python runtime (as pythonfmu's own builder does; FMI 3.0:
+                               pythonfmu3/, pythonfmu3's)
       ebb_fmu.json             the config (JSON) and build options
 
 Why an entry module apart from the slave: pythonfmu 0.7.0 compiles and
 executes the entry module's source afresh for every instance it creates
 (and never frees that namespace).  Keeping it to one import line makes
 instantiation cheap and leaves almost nothing behind; the slave module
-itself is imported once per process, like any module.
+itself is imported once per process, like any module.  pythonfmu3 imports the
+entry module once and reads the slave class's name from its source; its
+library crashes when that import fails, so the FMI 3.0 entry module catches
+the slave's import error and hands pythonfmu3 a class that raises it when
+instantiated (reported to the host as a failed instantiation).
 
 Why a private, renamed copy of ``ebb_model``: the FMU keeps working with the
 interpreter it was built with even if the project is later changed or
@@ -39,31 +45,21 @@ from pathlib import Path
 from typing import Any, Collection, Iterator, Mapping, Sequence
 
 import pythonfmu
+import pythonfmu3
 
 import ebb_model
 from ebb_model.errors import FmuError
 
-from . import slave_template
+from . import slave_base, slave_template, slave_template_fmi3
 from .model_description import FmuIdentity
 
-__all__ = ["write_resources", "copy_package", "core_modules", "core_sources", "render_slave", "render_entry"]
+__all__ = ["write_resources", "copy_package", "core_modules", "core_sources", "render_slave", "render_base",
+           "render_entry"]
 
 _SKIP_DIRS = {"__pycache__"}
 
 
-def render_slave(identity: FmuIdentity) -> str:
-    """Source of the FMU's slave module: the template with its names replaced.
-
-    Raises
-    ------
-    FmuError
-        If the template no longer contains the lines to replace.
-    """
-    source = Path(slave_template.__file__).read_text(encoding="utf-8")
-    replacements = {
-        f'CORE_PACKAGE = "{slave_template.CORE_PACKAGE}"': f'CORE_PACKAGE = "{identity.core_package}"',
-        f"class {slave_template.BeamSlave.__name__}(Fmi2Slave):": f"class {identity.class_name}(Fmi2Slave):",
-    }
+def _render(source: str, replacements: Mapping[str, str]) -> str:
     for old, new in replacements.items():
         if source.count(old) != 1:
             raise FmuError(f"slave template: expected exactly one line {old!r}", function="build_fmu")
@@ -71,7 +67,30 @@ def render_slave(identity: FmuIdentity) -> str:
     return source
 
 
-def render_entry(identity: FmuIdentity) -> str:
+def render_slave(identity: FmuIdentity, fmi: int = 2) -> str:
+    """Source of the FMU's slave module (FMI ``fmi``): the template with its names replaced.
+
+    Raises
+    ------
+    FmuError
+        If the template no longer contains the lines to replace.
+    """
+    template, cls, base = ((slave_template, slave_template.BeamSlave, "Fmi2Slave") if fmi == 2 else
+                           (slave_template_fmi3, slave_template_fmi3.BeamSlave3, "Fmi3Slave"))
+    return _render(Path(str(template.__file__)).read_text(encoding="utf-8"), {
+        f"class {cls.__name__}(BeamModel, {base}):": f"class {identity.class_name}(BeamModel, {base}):",
+        "from fmu_build.slave_base import": f"from {identity.model_identifier}_base import",
+    })
+
+
+def render_base(identity: FmuIdentity) -> str:
+    """Source of the FMU's ``<modelIdentifier>_base.py``: ``slave_base`` importing the FMU's core."""
+    return _render(Path(slave_base.__file__).read_text(encoding="utf-8"), {
+        f'CORE_PACKAGE = "{slave_base.CORE_PACKAGE}"': f'CORE_PACKAGE = "{identity.core_package}"',
+    })
+
+
+def _render_entry2(identity: FmuIdentity) -> str:
     """Source of the entry module that pythonfmu executes per instance.
 
     pythonfmu 0.7.0 (``findClass``) imports this module, then executes its
@@ -89,6 +108,36 @@ def render_entry(identity: FmuIdentity) -> str:
         f"from {identity.model_identifier}_slave import {identity.class_name}\n"
         "\n"
         'globals().setdefault("_balance_pythonfmu_references", []).append(globals())\n'
+    )
+
+
+def render_entry(identity: FmuIdentity, fmi: int = 2) -> str:
+    """Source of the entry module pythonfmu (``fmi=2``, :func:`_render_entry2`) or pythonfmu3 (``fmi=3``) imports.
+
+    pythonfmu3 0.3.4 imports the module once, finds the line ``class <name>(... Fmi3Slave ...):`` in its source
+    and takes that class from it.  When the import fails (the Python running the FMU lacks a package) it goes on
+    with no module and crashes the host; so the import of the slave is caught here, and the class pythonfmu3 finds
+    is then one whose instantiation raises the reason: the host gets a failed instantiation and the message.
+    """
+    if fmi == 2:
+        return _render_entry2(identity)
+    name, slave = identity.class_name, f"{identity.model_identifier}_slave"
+    return (
+        f'"""Entry module of FMU {identity.model_identifier}: pythonfmu3 looks here for the slave class.\n\n'
+        "The slave's import error, if any, is raised when pythonfmu3 instantiates the class (pythonfmu3 0.3.4\n"
+        'crashes on a failed import of this module)."""\n'
+        "try:\n"
+        f"    from {slave} import {name} as Fmi3Slave\n"
+        "except Exception as exc:  # noqa: BLE001 - any reason the slave cannot run here\n"
+        "    _reason = exc\n"
+        "\n"
+        "    class Fmi3Slave:  # type: ignore[no-redef]\n"
+        "        def __init__(self, **kwargs):\n"
+        "            raise _reason\n"
+        "\n"
+        "\n"
+        f"class {name}(Fmi3Slave):\n"
+        f'    """The slave of {slave} (or, when it cannot be imported, its import error)."""\n'
     )
 
 
@@ -242,11 +291,11 @@ def copy_package(src: Path, dest: Path, *, old_name: str, new_name: str,
 
 def core_sources() -> list[Path]:
     """The ``ebb_model`` source files an FMU bundles: the import closure of the modules the slave imports."""
-    return core_modules(Path(ebb_model.__file__).parent, "ebb_model", slave_template.CORE_MODULES)
+    return core_modules(Path(ebb_model.__file__).parent, "ebb_model", slave_base.CORE_MODULES)
 
 
 def write_resources(resources: Path, *, identity: FmuIdentity, spec: Mapping[str, Any],
-                    sources: Collection[Path]) -> None:
+                    sources: Collection[Path], fmi: int = 2) -> None:
     """Fill ``resources`` with everything the slave needs at run time.
 
     Parameters
@@ -259,17 +308,21 @@ def write_resources(resources: Path, *, identity: FmuIdentity, spec: Mapping[str
         JSON-serialisable model description for the slave (config, options).
     sources
         The core's source files to bundle (:func:`core_sources`; the caller named the core from them).
+    fmi
+        The FMI version: 2 (pythonfmu) or 3 (pythonfmu3).
     """
     resources.mkdir(parents=True, exist_ok=True)
+    slave = f"{identity.model_identifier}_slave"
     (resources / "slavemodule.txt").write_text(identity.model_identifier, encoding="utf-8")
-    (resources / f"{identity.model_identifier}.py").write_text(render_entry(identity), encoding="utf-8")
-    (resources / f"{identity.model_identifier}_slave.py").write_text(render_slave(identity), encoding="utf-8")
-    (resources / slave_template.SPEC_FILE).write_text(json.dumps(spec, indent=2, allow_nan=False),
-                                                       encoding="utf-8")
+    (resources / f"{identity.model_identifier}.py").write_text(render_entry(identity, fmi), encoding="utf-8")
+    (resources / f"{slave}.py").write_text(render_slave(identity, fmi), encoding="utf-8")
+    (resources / f"{identity.model_identifier}_base.py").write_text(render_base(identity), encoding="utf-8")
+    (resources / slave_base.SPEC_FILE).write_text(json.dumps(spec, indent=2, allow_nan=False), encoding="utf-8")
     core_src = Path(ebb_model.__file__).parent
     copy_package(core_src, resources / identity.core_package, old_name="ebb_model", new_name=identity.core_package,
                  only=set(sources))
-    runtime = resources / "pythonfmu"
+    package = pythonfmu if fmi == 2 else pythonfmu3
+    runtime = resources / package.__name__
     runtime.mkdir()
-    for f in Path(pythonfmu.__file__).parent.glob("*.py"):
+    for f in Path(str(package.__file__)).parent.glob("*.py"):
         shutil.copy2(f, runtime / f.name)

@@ -40,19 +40,10 @@
  *   EBB_GUID        the FMU's GUID, checked in fmi2Instantiate
  */
 #define _GNU_SOURCE
-#include <errno.h>
-#include <dlfcn.h>
-#include <pthread.h>
 #include <stdarg.h>
-#include <stddef.h>
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
-#include <unistd.h>
 
 #include "loader_config.h"
-
-#define EXPORT __attribute__((visibility("default")))
+#include "loader_common.h"
 
 /* ---- FMI 2.0 types (fmi2TypesPlatform.h / fmi2FunctionTypes.h) ---------- */
 
@@ -125,15 +116,7 @@ typedef struct {
     fmi2Status (*GetStringStatus)(fmi2Component, const fmi2StatusKind, fmi2String *);
 } InnerApi;
 
-/* Process-wide loader state: the inner library is loaded once per process. */
-static pthread_once_t g_once = PTHREAD_ONCE_INIT;
-static pthread_mutex_t g_env_lock = PTHREAD_MUTEX_INITIALIZER;
 static InnerApi g_api;
-static void *g_inner = NULL;
-static int g_loaded_libpython = 0;
-static int (*g_py_is_initialized)(void) = NULL; /* set when this loader loaded libpython */
-static void (*g_inner_finalize)(void) = NULL;   /* pythonfmu's finalizePythonInterpreter */
-static char g_error[2048] = "";
 
 /* One instance as the host sees it: wraps pythonfmu's component. */
 typedef struct {
@@ -141,28 +124,10 @@ typedef struct {
     fmi2CallbackFunctions host;  /* the host's callbacks (copied) */
     fmi2CallbackFunctions relay; /* what pythonfmu gets: our logger, env = this */
     char *name;
-    int logging_on;
-    size_t n_categories;
-    char **categories;
-    int worst; /* worst status logged by the slave during the current call */
+    LogSwitch log; /* the host's logging switch; the worst status logged during the current call */
 } Instance;
 
 /* ---- loading ------------------------------------------------------------- */
-
-static void own_directory(char *buf, size_t size)
-{
-    Dl_info info;
-    buf[0] = '\0';
-    if (dladdr((void *)&own_directory, &info) && info.dli_fname) {
-        snprintf(buf, size, "%s", info.dli_fname);
-        char *slash = strrchr(buf, '/');
-        if (slash) {
-            *slash = '\0';
-        } else {
-            snprintf(buf, size, ".");
-        }
-    }
-}
 
 /*
  * pythonfmu keeps its interpreter state in a global std::shared_ptr and resets
@@ -174,84 +139,16 @@ static void own_directory(char *buf, size_t size)
  * use-after-free that aborts the process at exit now and then ("corrupted
  * double-linked list").  The loader calls pythonfmu's own reset first, so
  * that both later releases see an empty pointer:
- *   - from unload_inner, when the host unloads this loader (fmpy, libcosim);
+ *   - from unload_inner (loader_common.h), when the host unloads this loader (fmpy, libcosim);
  *   - from an exit handler registered right after pythonfmu's static
  *     initialisers ran (so it runs before their destructors), when the loader
  *     is still loaded at exit -- always the case when it started Python
  *     itself, because it then pins itself (the interpreter must outlive any
  *     reload of the FMU, numpy cannot be initialised twice).
  */
-static void finalize_inner(void)
-{
-    if (g_inner && g_inner_finalize) {
-        g_inner_finalize();
-        g_inner_finalize = NULL;
-    }
-}
-
-static void finalize_inner_at_exit(void) { finalize_inner(); }
-
-#define RESOLVE(field, symbol)                                                         \
-    do {                                                                               \
-        *(void **)(&g_api.field) = dlsym(g_inner, symbol);                             \
-        if (!g_api.field) {                                                            \
-            snprintf(g_error, sizeof g_error, "%s: missing symbol %s", path, symbol); \
-            return;                                                                    \
-        }                                                                              \
-    } while (0)
-
-/* The build interpreter and its site-packages must still be where the build found them: otherwise
- * name what is missing (not the first module Python fails to import). Returns 0 when all is there. */
-static int check_build_python(void)
-{
-    const char *missing = NULL;
-    char entry[4096];
-    if (access(EBB_PYTHON, X_OK) != 0) missing = EBB_PYTHON;
-    for (const char *p = EBB_PYTHONPATH; !missing && *p;) {
-        size_t n = strcspn(p, ":");
-        if (n > 0 && n < sizeof entry) {
-            memcpy(entry, p, n);
-            entry[n] = '\0';
-            if (access(entry, R_OK | X_OK) != 0) missing = entry;
-        }
-        p += n + (p[n] == ':');
-    }
-    if (!missing) return 0;
-    snprintf(g_error, sizeof g_error,
-             "the Python this FMU was built with is gone (%s: %s); the FMU runs on %s with numpy, scipy "
-             "and numba installed: restore that environment or rebuild the FMU", missing, strerror(errno),
-             EBB_PYTHON);
-    return 1;
-}
-
 static void load_inner(void)
 {
-    if (!dlsym(RTLD_DEFAULT, "Py_IsInitialized")) {
-        /* No Python in the process: bring the build interpreter's. */
-        if (check_build_python()) return;
-        void *libpython = dlopen(EBB_LIBPYTHON, RTLD_NOW | RTLD_GLOBAL);
-        if (!libpython) {
-            snprintf(g_error, sizeof g_error,
-                     "cannot load the Python runtime this FMU was built with (%s): %s",
-                     EBB_LIBPYTHON, dlerror());
-            return;
-        }
-        *(void **)(&g_py_is_initialized) = dlsym(libpython, "Py_IsInitialized");
-        if (!g_py_is_initialized) {
-            snprintf(g_error, sizeof g_error, "%s: missing symbol Py_IsInitialized", EBB_LIBPYTHON);
-            return;
-        }
-        g_loaded_libpython = 1;
-    }
-    char path[4096];
-    own_directory(path, sizeof path);
-    size_t used = strlen(path);
-    snprintf(path + used, sizeof path - used, "/%s", EBB_INNER_LIB);
-    g_inner = dlopen(path, RTLD_NOW | RTLD_LOCAL);
-    if (!g_inner) {
-        snprintf(g_error, sizeof g_error, "cannot load %s: %s", path, dlerror());
-        return;
-    }
+    if (load_python_and_inner()) return;
     RESOLVE(Instantiate, "fmi2Instantiate");
     RESOLVE(FreeInstance, "fmi2FreeInstance");
     RESOLVE(SetDebugLogging, "fmi2SetDebugLogging");
@@ -284,61 +181,10 @@ static void load_inner(void)
     RESOLVE(GetIntegerStatus, "fmi2GetIntegerStatus");
     RESOLVE(GetBooleanStatus, "fmi2GetBooleanStatus");
     RESOLVE(GetStringStatus, "fmi2GetStringStatus");
-    /* See finalize_inner. */
-    *(void **)(&g_inner_finalize) = dlsym(g_inner, "finalizePythonInterpreter");
-    if (g_inner_finalize) atexit(finalize_inner_at_exit);
-    if (g_loaded_libpython) {
-        Dl_info self;
-        if (dladdr((void *)&load_inner, &self) && self.dli_fname) {
-            dlopen(self.dli_fname, RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);
-        }
-    }
-}
-
-/* Set PYTHONHOME/PYTHONPATH for an interpreter about to start; returns which were set. */
-static int set_python_environment(void)
-{
-    int set = 0;
-    if (!getenv("PYTHONHOME")) {
-        setenv("PYTHONHOME", EBB_PYTHONHOME, 1);
-        set |= 1;
-    }
-    if (!getenv("PYTHONPATH")) {
-        setenv("PYTHONPATH", EBB_PYTHONPATH, 1);
-        set |= 2;
-    }
-    return set;
-}
-
-static void restore_environment(int set)
-{
-    if (set & 1) unsetenv("PYTHONHOME");
-    if (set & 2) unsetenv("PYTHONPATH");
-}
-
-__attribute__((destructor)) static void unload_inner(void)
-{
-    /* In a Python host, unload pythonfmu's library with us (as a master would
-     * without the loader).  An interpreter this loader started stays loaded:
-     * pythonfmu finalises it at process exit. */
-    if (g_inner && !g_loaded_libpython) {
-        finalize_inner();
-        dlclose(g_inner);
-        g_inner = NULL;
-    }
+    keep_inner(); /* see finalize_inner */
 }
 
 /* ---- logging and status ---------------------------------------------------- */
-
-static int category_enabled(const Instance *inst, fmi2String category)
-{
-    if (inst->n_categories == 0) return 1;
-    if (!category) return 0;
-    for (size_t i = 0; i < inst->n_categories; ++i) {
-        if (strcmp(inst->categories[i], category) == 0) return 1;
-    }
-    return 0;
-}
 
 /* Messages are passed on as printf formats: double every '%'.  A NULL instance name or category (pythonfmu logs
  * some fatal errors with a NULL category) is passed on as "": hosts build strings from them (OMSimulator's
@@ -371,26 +217,15 @@ static void relay_log(fmi2ComponentEnvironment env, fmi2String name, fmi2Status 
                       fmi2String category, fmi2String message, ...)
 {
     Instance *inst = (Instance *)env;
-    if (!inst) return;
-    if ((int)status > inst->worst) inst->worst = (int)status;
-    if (status >= fmi2Error || (inst->logging_on && category_enabled(inst, category))) {
-        emit(inst, name, status, category, message);
-    }
-}
-
-static fmi2Status settle(Instance *inst, fmi2Status status)
-{
-    int logged = inst->worst > fmi2Error ? fmi2Error : inst->worst;
-    if (logged == fmi2Discard) logged = fmi2Warning; /* a logged discard is not a failed call */
-    return (int)status < logged ? (fmi2Status)logged : status;
+    if (inst && log_switch_passes(&inst->log, (int)status, category)) emit(inst, name, status, category, message);
 }
 
 #define BEGIN(c)                               \
     Instance *inst = (Instance *)(c);          \
     if (!inst || !inst->inner) return fmi2Error; \
-    inst->worst = fmi2OK
+    inst->log.worst = fmi2OK
 
-#define FORWARD(call) return settle(inst, g_api.call)
+#define FORWARD(call) return (fmi2Status)log_switch_settle(&inst->log, (int)g_api.call)
 
 /* ---- FMI 2.0 functions ------------------------------------------------------ */
 
@@ -398,17 +233,9 @@ EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
 
 EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
 
-static void free_categories(Instance *inst)
-{
-    for (size_t i = 0; i < inst->n_categories; ++i) free(inst->categories[i]);
-    free(inst->categories);
-    inst->categories = NULL;
-    inst->n_categories = 0;
-}
-
 static void free_instance(Instance *inst)
 {
-    free_categories(inst);
+    log_switch_clear(&inst->log);
     free(inst->name);
     free(inst);
 }
@@ -421,7 +248,7 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
     if (!inst) return NULL;
     if (functions) inst->host = *functions;
     inst->name = strdup(instanceName ? instanceName : "");
-    inst->logging_on = loggingOn;
+    inst->log.on = loggingOn;
     inst->relay.logger = relay_log;
     inst->relay.allocateMemory = inst->host.allocateMemory ? inst->host.allocateMemory : calloc;
     inst->relay.freeMemory = inst->host.freeMemory ? inst->host.freeMemory : free;
@@ -448,17 +275,10 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, 
         return NULL;
     }
     /* pythonfmu always logs to us; the host's switch is applied in relay_log. */
-    int set = 0;
-    if (g_py_is_initialized) { /* this loader brought Python: it may start in this call */
-        pthread_mutex_lock(&g_env_lock);
-        if (!g_py_is_initialized()) set = set_python_environment();
-    }
+    int set = begin_python_start(); /* when this loader brought Python, it may start in this call */
     inst->inner = g_api.Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation,
                                     &inst->relay, visible, 1);
-    if (g_py_is_initialized) {
-        restore_environment(set);
-        pthread_mutex_unlock(&g_env_lock);
-    }
+    end_python_start(set);
     if (!inst->inner) {
         free_instance(inst);
         return NULL;
@@ -478,17 +298,7 @@ EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, si
                                       const fmi2String categories[])
 {
     BEGIN(c);
-    free_categories(inst);
-    inst->logging_on = loggingOn;
-    if (nCategories > 0 && categories) {
-        inst->categories = calloc(nCategories, sizeof(char *));
-        if (!inst->categories) return fmi2Error;
-        for (size_t i = 0; i < nCategories; ++i) {
-            inst->categories[i] = strdup(categories[i] ? categories[i] : "");
-        }
-        inst->n_categories = nCategories;
-    }
-    return fmi2OK;
+    return (fmi2Status)log_switch_set(&inst->log, loggingOn, nCategories, categories);
 }
 
 EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,

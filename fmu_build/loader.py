@@ -24,13 +24,18 @@ import sysconfig
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Mapping
+
+import pythonfmu3
 
 from ebb_model.errors import FmuError
 
-__all__ = ["PythonRuntime", "find_python_runtime", "compile_loader", "LOADER_SOURCE"]
+__all__ = ["PythonRuntime", "find_python_runtime", "compile_loader", "LOADER_SOURCE", "LOADER3_SOURCE"]
 
-#: The C source of the loader, shipped next to this module.
+#: The C source of the loader, shipped next to this module (FMI 2.0; ``loader3.c`` for FMI 3.0, both including
+#: ``loader_common.h``).
 LOADER_SOURCE = Path(__file__).with_name("loader.c")
+LOADER3_SOURCE = Path(__file__).with_name("loader3.c")
 
 
 @dataclass(frozen=True)
@@ -139,8 +144,9 @@ def _compiler() -> str:
                    function="build_fmu")
 
 
-def compile_loader(out: Path, *, inner_library: str, runtime: PythonRuntime, guid: str) -> Path:
-    """Compile ``loader.c`` into the shared library ``out``.
+def compile_loader(out: Path, *, inner_library: str, runtime: PythonRuntime, guid: str, fmi: int = 2,
+                   arrays: Mapping[int, int] | None = None) -> Path:
+    """Compile ``loader.c`` (``fmi=3``: ``loader3.c``) into the shared library ``out``.
 
     Parameters
     ----------
@@ -152,7 +158,12 @@ def compile_loader(out: Path, *, inner_library: str, runtime: PythonRuntime, gui
         The interpreter the FMU runs on outside Python (see
         :func:`find_python_runtime`).
     guid
-        The FMU's GUID; ``fmi2Instantiate`` refuses any other.
+        The FMU's GUID (FMI 3.0: instantiation token); instantiation refuses any other.
+    fmi
+        The FMI version: 2 (pythonfmu's library inside) or 3 (pythonfmu3's).
+    arrays
+        FMI 3.0: the number of elements of each array variable, by value reference (the loader checks the number
+        of values a host passes).
 
     Returns
     -------
@@ -176,14 +187,19 @@ def compile_loader(out: Path, *, inner_library: str, runtime: PythonRuntime, gui
             f"#define EBB_PYTHONPATH {_c_string(os.pathsep.join(runtime.path))}",
             f"#define EBB_INNER_LIB {_c_string(inner_library)}",
             f"#define EBB_GUID {_c_string(guid)}",
+            f"#define EBB_N_ARRAYS {len(arrays or {})}",
+            "#define EBB_ARRAYS {" + "".join(f"{{{vr}u, {n}u}}, " for vr, n in sorted((arrays or {}).items()))
+            + "{0u, 0u}}",
             "",
         ]
     )
+    # FMI 3.0: the standard's headers as pythonfmu3 ships them (its library is built against them)
+    fmi3 = ["-I", str(Path(str(pythonfmu3.__file__)).parent / "pythonfmu-export" / "src" / "fmi")] if fmi == 3 else []
     with tempfile.TemporaryDirectory(prefix="ebb_loader_") as tmp:
         Path(tmp, "loader_config.h").write_text(header, encoding="utf-8")
         cmd = [
             cc, "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall", "-Werror=implicit-function-declaration",
-            "-I", tmp, "-o", str(out), str(LOADER_SOURCE), "-ldl", "-lpthread",
+            "-I", tmp, *fmi3, "-o", str(out), str(LOADER3_SOURCE if fmi == 3 else LOADER_SOURCE), "-ldl", "-lpthread",
         ]
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True, check=False)

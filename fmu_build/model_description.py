@@ -27,7 +27,7 @@ import numpy as np
 
 from ebb_model.errors import FmuError
 
-__all__ = ["FmuIdentity", "UNIT_DEFINITIONS", "finish_model_description", "feedthrough_from_D"]
+__all__ = ["FmuIdentity", "UNIT_DEFINITIONS", "unit_definitions", "finish_model_description", "feedthrough_from_D"]
 
 #: SI base-unit exponents (FMI 2.0 ``BaseUnit`` attributes) of the units the beam FMU uses.
 UNIT_DEFINITIONS: dict[str, dict[str, int]] = {
@@ -72,7 +72,8 @@ class FmuIdentity:
     model_name: str
 
 
-def _unit_definitions(units: set[str]) -> Element:
+def unit_definitions(units: set[str]) -> Element:
+    """``<UnitDefinitions>`` of ``units`` with their SI base-unit exponents (the same in FMI 2.0 and 3.0)."""
     node = Element("UnitDefinitions")
     for name in sorted(units):
         unit = SubElement(node, "Unit", {"name": name})
@@ -146,7 +147,7 @@ def finish_model_description(
             used.add(unit)
     if used:
         position = list(root).index(cosim) + 1
-        root.insert(position, _unit_definitions(used))
+        root.insert(position, unit_definitions(used))
 
     # model structure
     old = root.find("ModelStructure")

@@ -64,8 +64,8 @@ def test_result_reads_back_and_exports_by_target_name(case, capsys):
     assert res.best == json.loads((out / "pareto.json").read_text())["identified"]["parameters"]
     capsys.readouterr()
     assert main(["export", str(out), "--polished", "0", "--target", "nonsense"]) == 2
-    assert ("--target: unknown export target 'nonsense'; allowed: statespace, fmu, standalone, standalone_fmi3"
-            in capsys.readouterr().err)
+    assert ("--target: unknown export target 'nonsense'; allowed: statespace, fmu, fmu_fmi3, standalone, "
+            "standalone_fmi3" in capsys.readouterr().err)
     before = sorted(p.name for p in (out / "export").iterdir())
     assert main(["export", str(out), "--polished", "0", "--target", "fmu"]) == 0
     assert sorted(p.name for p in (out / "export").iterdir()) == sorted(set(before) | {"polished_0.fmu"})

@@ -7,8 +7,8 @@ console say it; without it: "written by the export target NAME"). Adding a targe
 line in the registry.
 
 ``statespace`` — python-control StateSpace (``.npz``, and a balanced truncation on request); ``fmu`` — the
-pythonfmu FMU; ``standalone`` — the standalone C FMU (no Python at run time); ``standalone_fmi3`` — the same in
-FMI 3.0.
+pythonfmu FMU; ``fmu_fmi3`` — the same in FMI 3.0; ``standalone`` — the standalone C FMU (no Python at run time);
+``standalone_fmi3`` — the same in FMI 3.0.
 """
 from __future__ import annotations
 
@@ -28,6 +28,7 @@ __all__ = ["DEFAULT_TARGETS", "ExportItem", "TARGETS", "check_targets", "export_
 TARGETS: Mapping[str, str] = MappingProxyType({
     "statespace": "identification.export_targets.statespace",   # python-control StateSpace (.npz)
     "fmu": "identification.export_targets.fmu",                 # pythonfmu FMU
+    "fmu_fmi3": "identification.export_targets.fmu_fmi3",       # the same in FMI 3.0
     "standalone": "identification.export_targets.standalone",   # standalone C FMU
     "standalone_fmi3": "identification.export_targets.standalone_fmi3",   # the same in FMI 3.0
 })
