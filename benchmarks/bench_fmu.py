@@ -1,4 +1,5 @@
 """Cost of one communication step of the beam FMU through fmpy, next to pythonfmu's floor; and of its start.
+The same FMU built in FMI 3.0 (pythonfmu3) beside it, step and start, in the same run.
 
 Case R1: ``examples/seed_clamped.toml`` (50 interior nodes, clamped-clamped,
 dt = 1e-4 s, one force, two displacement sensors).  The floor is a trivial
@@ -137,19 +138,25 @@ _START = """
 import sys, time
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi3 import FMU3Slave
 t0 = time.perf_counter()
 d = extract(sys.argv[1])
 md = read_model_description(d)
-f = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="s")
+three = md.fmiVersion.startswith("3")
+f = (FMU3Slave if three else FMU2Slave)(guid=md.guid, unzipDirectory=d,
+                                         modelIdentifier=md.coSimulation.modelIdentifier, instanceName="s")
 f.instantiate()
-f.setupExperiment(startTime=0.0)
-f.enterInitializationMode()
+if three:
+    f.enterInitializationMode(startTime=0.0)
+else:
+    f.setupExperiment(startTime=0.0)
+    f.enterInitializationMode()
 f.exitInitializationMode()
 u = [v.valueReference for v in md.modelVariables if v.causality == "input"]
 y = [v.valueReference for v in md.modelVariables if v.causality == "output"]
-f.setReal(u[:1], [1.0])
+(f.setFloat64 if three else f.setReal)(u[:1], [1.0])
 f.doStep(0.0, float(md.defaultExperiment.stepSize))
-f.getReal(y)
+(f.getFloat64 if three else f.getReal)(y)
 print(time.perf_counter() - t0)
 f.terminate()
 f.freeInstance()
@@ -187,13 +194,17 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="bench_fmu_") as tmp:
         work = Path(tmp)
         beam = build_fmu(R1_CONFIG, work / "beam_r1.fmu")
+        beam3 = build_fmu(R1_CONFIG, work / "beam_r1_fmi3.fmu", fmi=3)
         floor = build_floor_fmu(work)
         beam_us = time_steps(beam, ["F1"], ["y1", "y2"], dt=1e-4, steps=args.steps, repeats=args.repeats)
+        beam3_us = time_steps(beam3, ["F1"], ["y1", "y2"], dt=1e-4, steps=args.steps, repeats=args.repeats)
         floor_us = time_steps(floor, ["u"], ["y"], dt=1e-4, steps=args.steps, repeats=args.repeats)
         start_s = time_starts(beam, args.starts)
+        start3_s = time_starts(beam3, args.starts)
         bare_s = time_starts(without_carried_core(beam, work / "beam_r1_bare.fmu"), args.starts)
 
     beam_med, floor_med = statistics.median(beam_us), statistics.median(floor_us)
+    beam3_med = statistics.median(beam3_us)
     figures = {
         "case": "R1 (seed_clamped.toml: 50 interior nodes, clamped-clamped, dt 1e-4 s, 1 force, 2 sensors)",
         "loop": "fmpy FMU2Slave: setReal(u), getReal(y), doStep(t, dt); one instance, reset between repeats",
@@ -211,6 +222,12 @@ def main(argv: list[str] | None = None) -> int:
         "bare_start_s": bare_s,
         "bare_start_median_s": statistics.median(bare_s),
         "start_target_s": 0.5,
+        "fmi3_loop": "the same FMU built in FMI 3.0 (pythonfmu3): fmpy FMU3Slave setFloat64, getFloat64, doStep",
+        "beam_fmi3_us_per_step": beam3_us,
+        "beam_fmi3_median_us": beam3_med,
+        "fmi3_over_fmi2": beam3_med / beam_med,
+        "start_fmi3_s": start3_s,
+        "start_fmi3_median_s": statistics.median(start3_s),
     }
     print(f"beam FMU (R1)          : {beam_med:7.2f} us/step  (median of {args.repeats} x {args.steps} steps)")
     print(f"trivial pythonfmu FMU  : {floor_med:7.2f} us/step")
@@ -220,6 +237,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"start, new process     : {start_med:7.3f} s  (median of {args.starts}; extract to first step)")
     print(f"  without its compiled core: {bare_med:7.3f} s")
     print(f"target <= 0.5 s        : {'met' if start_med <= 0.5 else 'NOT met'}")
+    print(f"the same in FMI 3.0    : {beam3_med:7.2f} us/step ({beam3_med / beam_med:.2f} of FMI 2.0's), start "
+          f"{statistics.median(start3_s):.3f} s")
     if args.json:
         args.json.write_text(json.dumps(figures, indent=2), encoding="utf-8")
     return 0
