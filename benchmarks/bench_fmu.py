@@ -1,5 +1,6 @@
 """Cost of one communication step of the beam FMU through fmpy, next to pythonfmu's floor; and of its start.
-The same FMU built in FMI 3.0 (pythonfmu3) beside it, step and start, in the same run.
+The same FMU built in FMI 3.0 (pythonfmu3) beside it, step and start, in the same run, next to pythonfmu3's floor
+(the same trivial FMU built with pythonfmu3): the beam's own share of a step is its time above its package's floor.
 
 Case R1: ``examples/seed_clamped.toml`` (50 interior nodes, clamped-clamped,
 dt = 1e-4 s, one force, two displacement sensors).  The floor is a trivial
@@ -67,13 +68,39 @@ class Floor(Fmi2Slave):
 '''
 
 
-def build_floor_fmu(workdir: Path) -> Path:
-    """Build the trivial pythonfmu FMU with pythonfmu's own command line."""
-    script = workdir / "floor_slave.py"
-    script.write_text(_TRIVIAL_SLAVE, encoding="utf-8")
-    subprocess.run([sys.executable, "-m", "pythonfmu", "build", "-f", str(script), "-d", str(workdir)],
+_TRIVIAL_SLAVE3 = '''
+from pythonfmu3 import Fmi3Causality, Fmi3Slave, Fmi3Variability, Float64
+from pythonfmu3.fmi3slave import Fmi3StepResult
+
+
+class Floor3(Fmi3Slave):
+    """One input copied to one output: pythonfmu3's per-step floor (with the independent variable FMI 3.0 asks
+    for, which pythonfmu3 does not add)."""
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.time = 0.0
+        self.u = 0.0
+        self.y = 0.0
+        self.register_variable(Float64("time", causality=Fmi3Causality.independent,
+                                       variability=Fmi3Variability.continuous))
+        self.register_variable(Float64("u", causality=Fmi3Causality.input))
+        self.register_variable(Float64("y", causality=Fmi3Causality.output))
+
+    def do_step(self, current_time, step_size):
+        self.y = self.u
+        return Fmi3StepResult()
+'''
+
+
+def build_floor_fmu(workdir: Path, fmi: int = 2) -> Path:
+    """Build the trivial pythonfmu FMU (``fmi=3``: the pythonfmu3 one) with the package's own command line."""
+    script = workdir / f"floor_slave{fmi}.py"
+    script.write_text(_TRIVIAL_SLAVE if fmi == 2 else _TRIVIAL_SLAVE3, encoding="utf-8")
+    package = "pythonfmu" if fmi == 2 else "pythonfmu3"
+    subprocess.run([sys.executable, "-m", package, "build", "-f", str(script), "-d", str(workdir)],
                    check=True, capture_output=True, cwd=workdir)
-    return workdir / "Floor.fmu"
+    return workdir / ("Floor.fmu" if fmi == 2 else "Floor3.fmu")
 
 
 def time_steps(fmu_path: Path, inputs: list[str], outputs: list[str], *, dt: float, steps: int,
@@ -196,15 +223,17 @@ def main(argv: list[str] | None = None) -> int:
         beam = build_fmu(R1_CONFIG, work / "beam_r1.fmu")
         beam3 = build_fmu(R1_CONFIG, work / "beam_r1_fmi3.fmu", fmi=3)
         floor = build_floor_fmu(work)
+        floor3 = build_floor_fmu(work, fmi=3)
         beam_us = time_steps(beam, ["F1"], ["y1", "y2"], dt=1e-4, steps=args.steps, repeats=args.repeats)
         beam3_us = time_steps(beam3, ["F1"], ["y1", "y2"], dt=1e-4, steps=args.steps, repeats=args.repeats)
         floor_us = time_steps(floor, ["u"], ["y"], dt=1e-4, steps=args.steps, repeats=args.repeats)
+        floor3_us = time_steps(floor3, ["u"], ["y"], dt=1e-4, steps=args.steps, repeats=args.repeats)
         start_s = time_starts(beam, args.starts)
         start3_s = time_starts(beam3, args.starts)
         bare_s = time_starts(without_carried_core(beam, work / "beam_r1_bare.fmu"), args.starts)
 
     beam_med, floor_med = statistics.median(beam_us), statistics.median(floor_us)
-    beam3_med = statistics.median(beam3_us)
+    beam3_med, floor3_med = statistics.median(beam3_us), statistics.median(floor3_us)
     figures = {
         "case": "R1 (seed_clamped.toml: 50 interior nodes, clamped-clamped, dt 1e-4 s, 1 force, 2 sensors)",
         "loop": "fmpy FMU2Slave: setReal(u), getReal(y), doStep(t, dt); one instance, reset between repeats",
@@ -226,6 +255,11 @@ def main(argv: list[str] | None = None) -> int:
         "beam_fmi3_us_per_step": beam3_us,
         "beam_fmi3_median_us": beam3_med,
         "fmi3_over_fmi2": beam3_med / beam_med,
+        "floor_fmi3_us_per_step": floor3_us,
+        "floor_fmi3_median_us": floor3_med,
+        # the beam's own share of a step (above its package's trivial FMU), per version
+        "own_fmi2_us": beam_med - floor_med,
+        "own_fmi3_us": beam3_med - floor3_med,
         "start_fmi3_s": start3_s,
         "start_fmi3_median_s": statistics.median(start3_s),
     }
@@ -239,6 +273,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"target <= 0.5 s        : {'met' if start_med <= 0.5 else 'NOT met'}")
     print(f"the same in FMI 3.0    : {beam3_med:7.2f} us/step ({beam3_med / beam_med:.2f} of FMI 2.0's), start "
           f"{statistics.median(start3_s):.3f} s")
+    print(f"trivial pythonfmu3 FMU : {floor3_med:7.2f} us/step; the beam's own share: FMI 2.0 "
+          f"{beam_med - floor_med:.2f} us, FMI 3.0 {beam3_med - floor3_med:.2f} us")
     if args.json:
         args.json.write_text(json.dumps(figures, indent=2), encoding="utf-8")
     return 0
