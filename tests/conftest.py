@@ -17,16 +17,16 @@ from typing import Any
 
 import numpy as np
 import pytest
-from threadpoolctl import threadpool_limits
 
 import ebb_model as em
 from ebb_model import config_from_dict
+from ebb_model.threads import single_blas_thread
 
 
 @pytest.fixture(scope="session", autouse=True)
 def _single_thread_blas():
     # many small dense problems: BLAS threads only thrash on the 2-core CI machine
-    with threadpool_limits(limits=1, user_api="blas"):
+    with single_blas_thread():
         yield
 
 
