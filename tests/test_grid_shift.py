@@ -15,7 +15,7 @@ import pytest
 
 from first_records import BROADBAND
 from ebb_model.reference import synthesize
-from ebb_model.space.adequacy import GRID_SHIFT, numerical_adequacy, grid_line
+from ebb_model.space.adequacy import GRID_SHIFT, NOISE_FLOOR_EXCESS, numerical_adequacy, grid_line
 from ebb_model.space.grid_advice import grid_advice
 from identification.grid_shift import shift_between
 from identification.native import NativeEvaluator, experiments_from_arrays
@@ -69,6 +69,12 @@ def test_the_shift_is_the_refit_on_the_refined_grid(strip):
 
 def _line(cfg, u, y, sigma):
     """The grid line at the polish on 323 nodes (how ``identify`` builds it)."""
+    advice, adequacy, shift = _parts(cfg, u, y, sigma)
+    return grid_line(advice, replace(adequacy, shift=shift)), shift
+
+
+def _parts(cfg, u, y, sigma):
+    """The grid advice, the numerical adequacy and the shift the grid line reads, at the polish on 323 nodes."""
     noise = NoiseModel.white(sigma, 1)
     coarse, fine = _on(cfg, 323, u, y), _on(cfg, 1295, u, y)
     x = polish(coarse, np.array([STRIP.truth[k] for k in coarse.space.names]), noise=noise).x
@@ -78,7 +84,7 @@ def _line(cfg, u, y, sigma):
     adequacy = numerical_adequacy(c, params, [(u, y)], sigma, band_hz=band, advice=advice)
     here = ResidualEvaluator(coarse, noise).residuals
     shift = shift_between(coarse.space, x, here, ResidualEvaluator(fine, noise).residuals, 323, 1295)
-    return grid_line(advice, replace(adequacy, shift=shift)), shift
+    return advice, adequacy, shift
 
 
 def test_the_grid_line_reads_the_shift(strip):
@@ -91,3 +97,17 @@ def test_the_grid_line_reads_the_shift(strip):
     assert line.endswith("use [beam] nodes >= 1295"), line
     line, shift = _line(cfg, u, clean + 10.0 * (y - clean), 10.0 * sigma)
     assert line.startswith("grid: adequate") and shift.largest < GRID_SHIFT, line
+
+
+def test_the_undecided_line_says_which_way_the_refit_moved(strip):
+    """The strip's measured shift with the refined grid's refit worse instead of better (χ² 1,100 higher, as a
+    hint record's refit was): "undecided", and the line says the refit *raises* χ² by 1.1e+03 — it read "lowers χ²
+    by -1.1e+03" before; a refit 0.7 better reads "lowers χ² by 0.7", short of decisive."""
+    cfg, u, y, sigma, _ = strip
+    advice, adequacy, shift = _parts(cfg, u, y, sigma)
+    assert shift.largest > GRID_SHIFT and float(np.max(adequacy.change)) <= NOISE_FLOOR_EXCESS
+    worse = grid_line(advice, replace(adequacy, shift=replace(shift, gain=-1.1e3)))
+    assert worse.startswith("grid: undecided") and "its refit raises χ² by 1.1e+03;" in worse, worse
+    assert "lowers" not in worse, worse
+    better = grid_line(advice, replace(adequacy, shift=replace(shift, gain=0.7)))
+    assert "its refit lowers χ² by 0.7, short of decisive" in better, better

@@ -212,9 +212,10 @@ def grid_line(advice: GridAdvice, adequacy: NumericalAdequacy) -> str:
     coarse_shift = moves and shift is not None and shift.gain > DECISIVE_EVIDENCE
     if change <= NOISE_FLOOR_EXCESS and moves and not coarse_shift:
         assert shift is not None
+        refit = (f"lowers χ² by {shift.gain:.2g}, short of decisive {DECISIVE_EVIDENCE:.2g}" if shift.gain >= 0.0
+                 else f"raises χ² by {-shift.gain:.2g}")
         return (f"grid: undecided for these records ({moved}, more than the noise leaves, but the records do not "
-                f"prefer the refined grid: its refit lowers χ² by {shift.gain:.2g}, short of decisive "
-                f"{DECISIVE_EVIDENCE:.2g}; {modes})")
+                f"prefer the refined grid: its refit {refit}; {modes})")
     if change <= NOISE_FLOOR_EXCESS and not coarse_shift:
         return f"grid: adequate for these records ({moved}; {modes})"
     why = "more than the noise leaves" if coarse_shift else "more than the noise hides"
