@@ -14,7 +14,7 @@ its mode shapes' ratios at the sensors — evidence of the kind ``[identificatio
   model (poles and amplitudes), inflated by the residuals' long-run variance when they are not white (modes
   left out, a drifting offset): the scatter of the estimates over noise realisations, not a guess.
 A record under a force nobody measured (ambient) is a free decay of the same modes in its correlations (the
-natural excitation technique); that reading is not made here yet.
+natural excitation technique): :mod:`identification.ambient_modes` reads them with :func:`decay_fit`.
 
 Mode shapes: each mode's complex amplitude at every sensor, as a ratio to the sensor that sees the mode best
 (the real part; its imaginary part is non-proportional damping or noise), with its standard uncertainty.
@@ -35,7 +35,7 @@ from .record_poles import EXP_WINDOW, record_modes
 if TYPE_CHECKING:
     from .modal_data import ModalData
 
-__all__ = ["OutputModes", "free_decay_modes", "SIGNIFICANCE"]
+__all__ = ["OutputModes", "DecayFit", "free_decay_modes", "decay_fit", "fit_poles", "shape_ratios", "SIGNIFICANCE"]
 
 #: A mode is kept when its amplitude at one sensor at least is this many standard uncertainties (a fitted pole
 #: on noise alone has an amplitude of about one).
@@ -196,8 +196,8 @@ def _long_run_factor(r: np.ndarray) -> float:
     return max(1.0, 1.0 + 2.0 * float(weights @ rho))
 
 
-def _fit(y: np.ndarray, dt: float, f0: np.ndarray, z0: np.ndarray
-         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+def fit_poles(y: np.ndarray, dt: float, f0: np.ndarray, z0: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
     """The poles' least-squares fit from ``(f0, z0)``: ``(p, cov_p, amp, cov_amp per sensor, noise per sensor,
     inflation)``."""
     n, n_out = y.shape
@@ -240,7 +240,8 @@ def _fit(y: np.ndarray, dt: float, f0: np.ndarray, z0: np.ndarray
     return p, cov_p, amp * w, cov_amp * (w[:, None, None] ** 2), w * math.sqrt(s2), infl
 
 
-def _shapes(amp: np.ndarray, cov_amp: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def shape_ratios(amp: np.ndarray, cov_amp: np.ndarray, m: int
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per mode: the shape ratios to the best-seen sensor (real part), their standard uncertainties, that sensor,
     and each mode's largest amplitude in standard uncertainties."""
     n_out = amp.shape[1]
@@ -259,6 +260,70 @@ def _shapes(amp: np.ndarray, cov_amp: np.ndarray, m: int) -> tuple[np.ndarray, n
         std[k] = np.sqrt(0.5 * (var + np.abs(ratio) ** 2 * var[r]) / abs(c[r]) ** 2)
         std[k, r] = 0.0
     return shapes, std, ref, signif
+
+
+@dataclass(frozen=True)
+class DecayFit:
+    """The poles of a sum of damped oscillations fitted to records (:func:`decay_fit`): ``p`` (ln f, ln ζ per
+    mode, ascending in f), their covariance ``cov_p``, the amplitudes ``amp`` (2m + 1, n_columns: a cosine and a
+    sine per mode, then a constant) with their covariance per column ``cov_amp`` (n_columns, 2m + 1, 2m + 1), the
+    residual's level per column ``noise``, the long-run ``inflation`` of the covariance, the shape ratios
+    (:func:`shape_ratios`) and each mode's ``significance``."""
+
+    p: np.ndarray
+    cov_p: np.ndarray
+    amp: np.ndarray
+    cov_amp: np.ndarray
+    noise: np.ndarray
+    inflation: float
+    shapes: np.ndarray
+    shape_std: np.ndarray
+    reference: np.ndarray
+    significance: np.ndarray
+
+    @property
+    def frequencies_hz(self) -> np.ndarray:
+        """The modes' undamped natural frequencies [Hz]."""
+        return np.exp(self.p[0::2])
+
+    @property
+    def damping(self) -> np.ndarray:
+        """The modes' damping ratios."""
+        return np.exp(self.p[1::2])
+
+
+def decay_fit(y: np.ndarray, dt: float) -> DecayFit | None:
+    """The significant modes (:data:`SIGNIFICANCE`) of records that are sums of damped oscillations from their
+    first sample (a free decay, or correlation functions: :mod:`identification.ambient_modes`), ``None`` when the
+    records' start finds no stable pole or none is significant.  The start is the records' own stabilised
+    estimator under a unit impulse, its exponential window's decay taken out; the least significant mode is
+    dropped and the rest fitted again until every one is significant."""
+    n, n_out = y.shape
+    impulse = np.zeros((n, 1))
+    impulse[0, 0] = 1.0
+    start = record_modes([impulse], [y], dt)
+    if start.frequencies_hz.size == 0:
+        return None
+    window_decay = 1.0 / (EXP_WINDOW * n * dt)              # the start's exponential window, in every pole
+    w0 = 2 * np.pi * start.frequencies_hz
+    z0 = np.maximum(start.damping - window_decay / w0, MIN_START_DAMPING)
+    keep = np.ones(w0.size, bool)
+    while True:
+        p, cov_p, amp, cov_amp, noise, infl = fit_poles(y, dt, start.frequencies_hz[keep], z0[keep])
+        m = p.size // 2
+        shapes, shape_std, ref, signif = shape_ratios(amp, cov_amp, m)
+        weak = signif < SIGNIFICANCE
+        if not weak.any() or m == 1:
+            break
+        idx = np.flatnonzero(keep)
+        keep[idx[int(np.argmin(signif))]] = False          # the least significant out, the rest fitted again
+    if signif.min(initial=np.inf) < SIGNIFICANCE:
+        return None
+    order = np.argsort(p[0::2])
+    pair = np.column_stack([2 * order, 2 * order + 1]).ravel()
+    cols = np.concatenate([pair, [amp.shape[0] - 1]])
+    return DecayFit(p[pair], cov_p[np.ix_(pair, pair)], amp[cols], cov_amp[:, cols][:, :, cols], noise, infl,
+                    shapes[order], shape_std[order], ref[order], signif[order])
 
 
 def free_decay_modes(outputs: np.ndarray, dt: float) -> OutputModes:
@@ -284,31 +349,10 @@ def free_decay_modes(outputs: np.ndarray, dt: float) -> OutputModes:
         Fewer than 64 samples, a NaN or a constant sensor, a bad ``dt``.
     """
     y = _as_record(outputs, dt)
-    n, n_out = y.shape
-    impulse = np.zeros((n, 1))
-    impulse[0, 0] = 1.0
-    start = record_modes([impulse], [y], dt)
-    empty = OutputModes.none(n_out, np.std(y, axis=0))
-    if start.frequencies_hz.size == 0:
-        return empty
-    window_decay = 1.0 / (EXP_WINDOW * n * dt)              # the start's exponential window, in every pole
-    w0 = 2 * np.pi * start.frequencies_hz
-    z0 = np.maximum(start.damping - window_decay / w0, MIN_START_DAMPING)
-    keep = np.ones(w0.size, bool)
-    while True:
-        p, cov_p, amp, cov_amp, noise, infl = _fit(y, dt, start.frequencies_hz[keep], z0[keep])
-        m = p.size // 2
-        shapes, shape_std, ref, signif = _shapes(amp, cov_amp, m)
-        weak = signif < SIGNIFICANCE
-        if not weak.any() or m == 1:
-            break
-        idx = np.flatnonzero(keep)
-        keep[idx[int(np.argmin(signif))]] = False          # the least significant out, the rest fitted again
-    if signif.min(initial=np.inf) < SIGNIFICANCE:
-        return empty
-    f, z = np.exp(p[0::2]), np.exp(p[1::2])
-    sd = np.sqrt(np.maximum(np.diag(cov_p), 0.0))
-    order = np.argsort(f)
-    return OutputModes(f[order], (f * sd[0::2])[order], z[order], (z * sd[1::2])[order], shapes[order],
-                       shape_std[order], ref[order], signif[order], noise, infl, "free decay")
-
+    fit = decay_fit(y, dt)
+    if fit is None:
+        return OutputModes.none(y.shape[1], np.std(y, axis=0))
+    f, z = fit.frequencies_hz, fit.damping
+    sd = np.sqrt(np.maximum(np.diag(fit.cov_p), 0.0))
+    return OutputModes(f, f * sd[0::2], z, z * sd[1::2], fit.shapes, fit.shape_std, fit.reference,
+                       fit.significance, fit.noise, fit.inflation, "free decay")

@@ -28,17 +28,19 @@ from test_output_modes import DT, EI, RHOA, L, SENSORS, _decay
 WIDTH, THICKNESS = 0.051, 0.00666        # the truth's EI and ρA are steel's (E 200 GPa... ρ 7850) of this strip
 
 
-def _config(folder: Path, modes, geometry: bool = True, damping_unknown: bool = True) -> Path:
-    """A newcomer's config of the strip with the measured modes as ``[identification.modes]``."""
-    doc = {"beam": {"length": L, "nodes": 80, "left": "clamped", "right": "free"}, "time": {"dt": DT},
+def _config(folder: Path, modes, geometry: bool = True, damping_unknown: bool = True, dt: float = DT) -> Path:
+    """A newcomer's config of the strip with the measured modes as ``[identification.modes]`` (none when
+    ``modes`` is None), sampled at ``dt``."""
+    doc = {"beam": {"length": L, "nodes": 80, "left": "clamped", "right": "free"}, "time": {"dt": dt},
            "parameters": {"EI": {"value": 1.4 * EI, "bounds": [0.25 * EI, 4 * EI], "identify": True},
                           "rhoA": {"value": 0.6 * RHOA, "bounds": [0.25 * RHOA, 4 * RHOA], "identify": True},
                           "c": {"value": 0.5, "bounds": [0.0, 40.0], "identify": damping_unknown}, "N": {"value": 0.0}},
            "actuators": [{"name": "F1", "x": 0.48}],
            "sensors": [{"name": "a1", "x": SENSORS[0], "kind": "acceleration"},
                        {"name": "a2", "x": SENSORS[1], "kind": "acceleration"}],
-           "identification": {"modes": {"frequencies_hz": [float(v) for v in modes.frequencies_hz],
-                                        "std_hz": [float(v) for v in modes.std_hz]}}}
+           "identification": {} if modes is None else {
+               "modes": {"frequencies_hz": [float(v) for v in modes.frequencies_hz],
+                         "std_hz": [float(v) for v in modes.std_hz]}}}
     if geometry:       # the documents: a thickness 5 % thicker than the strip's, E and ρ of a data sheet
         doc["identification"]["geometry"] = {
             "E": {"value": 200e9, "std": 10e9}, "density": {"value": 7850.0, "std": 50.0},

@@ -37,6 +37,8 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 
 
 def _matrix(name: str, value: object, n: int, k: int, where: str) -> np.ndarray:
+    if k == 0 and np.asarray(value).shape == (n, 0):     # no signal of this kind: a record without a force
+        return _frozen(np.zeros((n, 0)))
     return as_matrix(value, f"{where}: {name}", shape=(n, k), finite=False, readonly=True)
 
 
