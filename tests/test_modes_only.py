@@ -107,3 +107,27 @@ def test_the_command_line_identifies_from_the_config_modes(tmp_path):
     assert "√(EI/ρA) = " in r.stdout and "rests on their priors" in r.stdout and "c = 0.5 (held" in r.stdout
     doc = json.loads((tmp_path / "o" / "identified.json").read_text())
     assert abs(doc["root_EI_over_rhoA"]["value"] / math.sqrt(EI / RHOA) - 1.0) <= 0.01
+
+
+def test_the_command_line_reads_a_free_decay_record(tmp_path):
+    """``ebb identify CONFIG --decay RECORD --out DIR``: the free decay as a DAQ writes it (time and the two
+    accelerometers, no force column), its modes printed and taken — the same √(EI/ρA) as the modes the estimator
+    gives from the same samples put in the config (to 1e-9: one estimator, one fit); a record that does not exist:
+    one line, exit 2, nothing written."""
+    y = _decay(1)
+    rec = tmp_path / "decay.csv"
+    np.savetxt(rec, np.column_stack([np.arange(y.shape[0]) * DT, y]), delimiter=",", header="time,a1,a2",
+               comments="", fmt="%.17g")
+    bare = _config(tmp_path / "bare", None)
+    r = subprocess.run([sys.executable, "-m", "ebb_cli", "identify", str(bare), "--decay", str(rec), "--out",
+                        str(tmp_path / "o")], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "(a free decay)" in r.stderr and r.stderr.count(" Hz (ζ ") == 3, r.stderr
+    via_record = json.loads((tmp_path / "o" / "identified.json").read_text())["root_EI_over_rhoA"]["value"]
+    direct = identify_from_modes(_config(tmp_path / "direct", free_decay_modes(y, DT).modal_data()),
+                                 tmp_path / "direct" / "o").root_ratio[0]
+    assert via_record == pytest.approx(direct, rel=1e-9)
+    r = subprocess.run([sys.executable, "-m", "ebb_cli", "identify", str(bare), "--decay", str(tmp_path / "none.csv"),
+                        "--out", str(tmp_path / "o2")], capture_output=True, text=True)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert not (tmp_path / "o2").exists()
