@@ -6,9 +6,9 @@ that follows the change (the roller's position sensor) tells where the set-up st
 :func:`stationary_segments` finds those stretches: the channel's running median (robust to its noise and to
 the structure's vibration picked up on it) compared with itself a moment earlier — a change beyond
 :data:`JUMP_NOISE` of the channel's own noise is motion — and every still stretch at least ``min_seconds`` long
-is a segment, with the channel's level over it.  :func:`free_decays` reads each segment's modes as the free decay
-the step before it left (:mod:`identification.output_modes`), and :func:`track` follows one mode through the
-segments.
+is a segment, with the channel's level over it.  :func:`segment_modes` reads each segment's modes as the free decay
+the step before it left (:mod:`identification.output_modes`) or as an ambient record
+(:mod:`identification.ambient_modes`), and :func:`track` follows one mode through the segments.
 """
 from __future__ import annotations
 
@@ -21,9 +21,9 @@ from scipy import ndimage
 
 from ebb_model.errors import DataError
 
-from .output_modes import OutputModes, free_decay_modes
+from .output_modes import OutputModes
 
-__all__ = ["Segment", "stationary_segments", "free_decays", "track", "JUMP_NOISE", "TRACK_RANGE"]
+__all__ = ["Segment", "stationary_segments", "segment_modes", "track", "JUMP_NOISE", "TRACK_RANGE"]
 
 #: A change of the channel's running median beyond this many of its noise's standard deviations is motion.
 JUMP_NOISE = 10.0
@@ -102,21 +102,34 @@ def stationary_segments(channel: np.ndarray, dt: float, *, min_seconds: float = 
     return out
 
 
-def free_decays(outputs: np.ndarray, dt: float, segments: Sequence[Segment], *, skip_seconds: float = 0.1
-                ) -> list[OutputModes]:
-    """Each segment's modes as a free decay (:func:`identification.output_modes.free_decay_modes`) of the
-    ``outputs`` ``(n, n_sensors)``, from ``skip_seconds`` after the segment's start (the motion's last jolt and
-    the support settling) to its end; a segment too short for that has no modes."""
+def segment_modes(outputs: np.ndarray, dt: float, segments: Sequence[Segment], *, kind: str = "decay",
+                  skip_seconds: float = 0.1) -> list[OutputModes]:
+    """Each segment's modes from the ``outputs`` ``(n, n_sensors)`` — as the free decay the step before it left
+    (``kind = "decay"``, :func:`identification.output_modes.free_decay_modes`) or as a stationary record under an
+    unmeasured force (``"ambient"``, :func:`identification.ambient_modes.ambient_modes`) — from ``skip_seconds``
+    after the segment's start (the motion's last jolt and the support settling) to its end; a segment too short
+    for that has no modes.
+
+    Raises
+    ------
+    DataError
+        An unknown ``kind``.
+    """
+    from .output_record import KINDS
+
+    if kind not in KINDS:
+        raise DataError(f"a record without a force is a 'decay' or 'ambient', got {kind!r}")
     y = np.asarray(outputs, dtype=float)
     y = y[:, None] if y.ndim == 1 else y
     skip = int(round(skip_seconds / dt))
     out = []
     for s in segments:
         part = y[s.start + skip:s.stop]
-        if part.shape[0] < 64:
-            out.append(OutputModes.none(y.shape[1], np.std(y[s.start:s.stop], axis=0)))
-            continue
-        out.append(free_decay_modes(part - part.mean(axis=0), dt))
+        try:
+            out.append(KINDS[kind](part - part.mean(axis=0), dt))
+        except DataError:                       # too short for the estimator: no modes
+            noise = np.std(y[s.start:s.stop], axis=0)
+            out.append(OutputModes.none(y.shape[1], noise, kind="ambient" if kind == "ambient" else "free decay"))
     return out
 
 

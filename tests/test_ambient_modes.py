@@ -27,6 +27,7 @@ from ebb_model.reference.analytic import analytic_frequencies_hz
 from ebb_model.reference.synthetic import synthesize
 from identification.ambient_modes import SEGMENTS, ambient_modes
 from identification.output_modes import SIGNIFICANCE
+from identification.segments import segment_modes, stationary_segments, track
 
 from ebb_model.acquisition.antialias import AntiAlias
 
@@ -39,14 +40,15 @@ C = 2 * 0.01 * (2 * math.pi * 21.6) * RHOA           # ζ_1 = 1 %
 WARM, SECONDS = 5.0, 48.0
 
 
-def _ambient(seed: int) -> np.ndarray:
-    """The truth's stationary response to a white force at 0.48 m, 48 s after a 5 s warm-up, 1 % noise."""
+def _ambient(seed: int, seconds: float = SECONDS, ei: float = EI) -> np.ndarray:
+    """The truth's stationary response to a white force at 0.48 m, ``seconds`` after a 5 s warm-up, 1 % noise
+    (bending stiffness ``ei``)."""
     cfg = make_config("clamped", "free", length=L, dt=DT, EI=EI, rhoA=RHOA, c=C, actuators=[("F1", 0.48)],
                       sensors=[("a1", SENSORS[0], "acceleration"), ("a2", SENSORS[1], "acceleration")])
     cfg = replace(cfg, sensors=tuple(replace(s, antialias=AntiAlias(8, 0.4 / DT)) for s in cfg.sensors))
     warm = int(WARM / DT)
-    u = np.random.default_rng(100 + seed).standard_normal(warm + int(SECONDS / DT))
-    return synthesize(cfg, u, noise=0.01, seed=seed).outputs[warm:]
+    u = np.random.default_rng(100 + seed).standard_normal(warm + int(seconds / DT))
+    return synthesize(cfg, u, params={"EI": ei}, noise=0.01, seed=seed).outputs[warm:]
 
 
 def _truth(k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -141,3 +143,28 @@ def test_an_unreadable_ambient_record_is_refused_in_one_line(tmp_path):
                         str(tmp_path / "id")], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "missing" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert not (tmp_path / "id").exists()
+
+
+def test_an_ambient_record_that_changes_is_read_per_segment():
+    """An ambient record whose beam stiffens by 21 % halfway (24 s each, each part stationary), a declared channel
+    stepping from 1 V to 2 V over 90 ms between them with 2.5 mV of noise: two segments, each read as an ambient
+    record; the first mode followed through them rises by the truth's √1.21 = 1.1 within 4 of the two estimates'
+    combined uncertainty, each within 4 of its own of the truth's."""
+    first, second = _ambient(11, 24.0), _ambient(12, 24.0, 1.21 * EI)
+    ramp = int(0.09 / DT)
+    y = np.vstack([first, first[-1] + np.outer(np.linspace(0, 1, ramp), second[0] - first[-1]), second])
+    rng = np.random.default_rng(3)
+    channel = np.concatenate([np.full(first.shape[0], 1.0), np.linspace(1.0, 2.0, ramp),
+                              np.full(second.shape[0], 2.0)]) + 0.0025 * rng.standard_normal(y.shape[0])
+    segs = stationary_segments(channel, DT)
+    assert len(segs) == 2 and [round(s.level, 2) for s in segs] == [1.0, 2.0], segs
+    modes = segment_modes(y, DT, segs, kind="ambient")
+    assert all(m.kind == "ambient" for m in modes)
+    k = track(modes, 21.0)
+    assert all(i is not None for i in k), k
+    f = np.array([m.frequencies_hz[i] for m, i in zip(modes, k)])
+    sd = np.array([m.frequency_std[i] for m, i in zip(modes, k)])
+    fa = _truth(1)[0][0]
+    assert np.all(np.abs(f - fa * np.array([1.0, 1.1])) < 4 * sd), (f, sd)
+    ratio_sd = f[1] / f[0] * math.hypot(sd[0] / f[0], sd[1] / f[1])
+    assert abs(f[1] / f[0] - 1.1) < 4 * ratio_sd, (f, sd)

@@ -20,7 +20,7 @@ from ebb_model.reference import hermite_beam
 from ebb_model.reference.analytic import analytic_frequencies_hz
 from ebb_model.reference.synthetic import synthesize
 from identification.output_modes import SIGNIFICANCE, free_decay_modes
-from identification.segments import free_decays, stationary_segments, track
+from identification.segments import segment_modes, stationary_segments, track
 
 from conftest import make_config
 
@@ -130,7 +130,7 @@ def test_dropbears_roller_dwells_and_its_first_mode_rising_with_the_roller():
     assert len(segs) == 11
     assert np.allclose(levels[:6], [1.23, 1.65, 2.08, 2.51, 2.94, 3.37], atol=0.02), levels
     assert np.allclose(levels[5:][::-1], levels[:6], atol=0.02), levels
-    modes = free_decays(low_g, dt, segs)
+    modes = segment_modes(low_g, dt, segs)
     assert modes[0].frequencies_hz.size == 0                 # before the first step: the beam at rest
     k = track(modes[1:], 26.0)
     assert all(i is not None for i in k)
