@@ -89,6 +89,67 @@ def _identify_from_modes(args: argparse.Namespace) -> int:
     return 0
 
 
+#: A tracked unknown's slope against the declared channel is a trend when it exceeds this many of its σ.
+TREND_DEVIATIONS = 3.0
+
+
+def _cmd_track(args: argparse.Namespace) -> int:
+    """``ebb track CONFIG RECORD --channel NAME --decay|--ambient --out DIR`` (:func:`identification.tracking.track`):
+    the table printed, ``tracked.json`` and ``tracked.png`` written at once into ``--out``."""
+    import numpy as np
+
+    from ebb_model.errors import ConfigError
+    from ebb_model.io.jsonio import write_json
+    from ebb_model.io.output import staged_dir
+    from identification.config_file import load_identification_config
+    from identification.output_record import declared_channel, sensor_record
+    from identification.plots import tracking_figure
+    from identification.tracking import linear_in_channel, track
+
+    out = Path(args.out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ConfigError(f"{out}: the output directory must not exist or be empty")
+    cfg = load_identification_config(args.config)
+    outputs = sensor_record(cfg, args.record)
+    channel = declared_channel(args.record, args.channel)
+    kind = "ambient" if args.ambient else "decay"
+    rows = track(cfg, outputs, channel, kind=kind)
+    fitted_rows = [r.identified for r in rows if r.identified is not None]
+    names = list(fitted_rows[0].parameters) if fitted_rows else []
+    lines = []
+    for i, r in enumerate(rows):
+        head = (f"segment {i + 1}: {r.start_s:.3f}–{r.stop_s:.3f} s, {args.channel} {r.segment.level:.5g} ± "
+                f"{r.segment.level_std:.2g}, {r.modes.frequencies_hz.size} mode(s)")
+        if r.identified is None:
+            lines.append(f"{head}: {r.why}")
+            continue
+        fitted = ", ".join(f"{n} {r.identified.parameters[n]:.5g} ± {r.identified.std[n]:.2g}" for n in names
+                           if n not in r.identified.held)
+        agree = "" if r.identified.agreement["agrees"] else " (the model does not reproduce the modes)"
+        lines.append(f"{head}: {fitted}{agree}")
+    lines_fit = {n: linear_in_channel(rows, n) for n in names}
+    for n, fit in lines_fit.items():
+        if fit is None:
+            continue
+        if abs(fit["slope"]) <= TREND_DEVIATIONS * fit["slope_std"]:      # no line to speak of: say so, no R²
+            lines.append(f"{n}: no trend with {args.channel} (slope {fit['slope']:.3g} ± {fit['slope_std']:.2g})")
+            continue
+        lines.append(f"{n} against {args.channel}: slope {fit['slope']:.5g} ± {fit['slope_std']:.2g}, intercept "
+                     f"{fit['intercept']:.5g} ± {fit['intercept_std']:.2g}, R² {fit['r2']:.4f}, χ²/dof "
+                     f"{fit['chi2_per_dof']:.3g} over {int(fit['segments'])} segments (the segments' σ share the "
+                     "priors' part; the line takes them as independent)")
+    t = np.arange(channel.size) * cfg.time.dt
+    with staged_dir(out) as tmp:
+        write_json(tmp / "tracked.json", {"record": str(args.record), "channel": args.channel, "kind": kind,
+                                          "segments": [r.to_dict() for r in rows],
+                                          "against_channel": lines_fit})
+        tracking_figure(t, channel, rows, args.channel, tmp / "tracked.png")
+    for line in lines:
+        print(line)
+    print(f"wrote {out / 'tracked.json'} and {out / 'tracked.png'}")
+    return 0
+
+
 def _cmd_export(args: argparse.Namespace) -> int:
     from identification.export import export_points
     from identification.result import IdentificationResult
@@ -153,6 +214,17 @@ def add_parsers(sub: Subcommands) -> None:
     p.add_argument("--no-export", action="store_true", help="skip the exports at the end")
     add_target_argument(p, "export targets of every Pareto and polished point")
     p.set_defaults(func=_cmd_identify)
+    p = sub.add_parser("track", help="a record without a force that changes during acquisition: per still segment "
+                                     "of a declared channel, its modes and the unknowns they fix, as a time series")
+    p.add_argument("config", help="TOML config with identify = true parameters and their priors")
+    p.add_argument("record", help="the record: the config's sensors' columns and the declared channel")
+    p.add_argument("--channel", required=True, help="the record's column that says when the set-up changed (a "
+                                                     "position sensor, a load cell), by name or index")
+    kind = p.add_mutually_exclusive_group(required=True)
+    kind.add_argument("--decay", action="store_true", help="each segment rings down from the change before it")
+    kind.add_argument("--ambient", action="store_true", help="each segment is stationary under an unmeasured force")
+    p.add_argument("--out", required=True, help="result directory (tracked.json, tracked.png)")
+    p.set_defaults(func=_cmd_track)
     p = sub.add_parser("export", help="export Pareto points of a result directory (StateSpace, FMU)")
     p.add_argument("dir", help="result directory of 'ebb identify'")
     p.add_argument("--points", type=int, nargs="*", default=None,

@@ -172,9 +172,16 @@ def _starts(space: ParameterSpace, free: np.ndarray, seed: int) -> np.ndarray:
     return x
 
 
+def _own_size(problem: "_Problem") -> np.ndarray:
+    """Each unknown's own size, the unit a free direction is measured in: its nominal value, or its bounds' width
+    when that is 0 (an axial load a newcomer starts at 0 has no size of its own: 300 N of uncertainty leaves a
+    tension of kilonewtons placed, not free)."""
+    return np.where(problem.nominal != 0.0, problem.scale, problem.upper - problem.lower)
+
+
 def _free_direction(J: np.ndarray, names: list[str]) -> tuple[list[str], str] | None:
-    """The direction (relative units) the whitened Jacobian leaves free: its unknowns and its name in words;
-    ``None`` if there is none."""
+    """The direction (in the unknowns' own sizes, :func:`_own_size`) the whitened Jacobian leaves free: its
+    unknowns and its name in words; ``None`` if there is none."""
     _, sv, vt = np.linalg.svd(J, full_matrices=False)
     if sv.size == J.shape[1] and sv[-1] * FREE_STD > 1.0:
         return None
@@ -417,7 +424,7 @@ def fit_modes(cfg: BeamConfig, modes: ModalData, *, extension: Extension | None 
                      for j in range(len(names))])
     if not free.any():
         raise ModesOnlyError("the measured frequencies fix none of the unknowns " + ", ".join(names))
-    loose = _free_direction(J0[:, free], [n for n, f in zip(names, free) if f])
+    loose = _free_direction((J0 * _own_size(problem) / scale)[:, free], [n for n, f in zip(names, free) if f])
     if loose is not None:
         raise ModesOnlyError(f"the measured frequencies and the priors leave {loose[1]} free (frequencies fix ratios, "
                              f"not the common scale of masses and stiffnesses): give [identification.geometry], a "
@@ -480,7 +487,7 @@ def identify_from_modes(config: BeamConfig | str | Path, out_dir: str | Path | N
     space = parameter_space(cfg)
     prior = Prior.of(cfg, space.names)
     problem = _Problem(cfg, space, fit.compared or modes, prior, None)
-    Jm = _jacobian(problem, x, problem.scale)[:modes.count][:, free]
+    Jm = (_jacobian(problem, x, problem.scale) * _own_size(problem) / problem.scale)[:modes.count][:, free]
     scaled = _free_direction(Jm, [n for n, f in zip(names, free) if f])   # the frequencies alone: the priors' part
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     root = None

@@ -24,7 +24,7 @@ from .data import load_experiment
 from .output_modes import OutputModes, free_decay_modes
 from .settings import identification_settings
 
-__all__ = ["KINDS", "sensor_record", "record_output_modes"]
+__all__ = ["KINDS", "sensor_record", "record_output_modes", "declared_channel"]
 
 #: What a record without a force can be, and how its modes are read.
 KINDS: dict[str, Callable[[np.ndarray, float], OutputModes]] = {"decay": free_decay_modes, "ambient": ambient_modes}
@@ -61,3 +61,30 @@ def record_output_modes(config: BeamConfig, path: str | Path, kind: str) -> Outp
     if kind not in KINDS:
         raise DataError(f"a record without a force is a 'decay' or 'ambient', got {kind!r}")
     return KINDS[kind](sensor_record(config, path), config.time.dt)
+
+
+def declared_channel(path: str | Path, name: str) -> np.ndarray:
+    """The column ``name`` of the record at ``path`` as it is stored (a position sensor's volts, a load cell's
+    reading: a channel that says when the set-up changed, in its own units).
+
+    Raises
+    ------
+    DataError
+        The file cannot be read, it has no such column, or a value is not finite.
+    """
+    from .data.loaders import EXTENSIONS, FORMATS
+
+    p = Path(path)
+    fmt = EXTENSIONS.get(p.suffix.lower())
+    if fmt is None:
+        raise DataError(f"{p}: cannot tell the format from the extension {p.suffix!r}; known: {', '.join(EXTENSIONS)}")
+    table = FORMATS[fmt].read(p)
+    i = table.index(name)
+    if i is None and name.isdigit():            # a column by its 0-based index
+        i = table.index(int(name))
+    if i is None:
+        raise DataError(f"{p}: no {table.kind} {name!r} for the declared channel; found {', '.join(table.names)}")
+    a = np.asarray(table.columns[i], dtype=float).reshape(-1)
+    if not np.all(np.isfinite(a)):
+        raise DataError(f"{p}: the declared channel {name!r} holds NaN or infinite values")
+    return a

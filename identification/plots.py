@@ -242,3 +242,37 @@ def plot_results(res: Any, evaluator: Any) -> list[str]:
     _save(spread_figure(p.X, p.parameter_names, p.knee, np.asarray(polished[0].x) if polished else None),
           out / files[-1])
     return files
+
+
+def tracking_figure(t: np.ndarray, channel: np.ndarray, tracked: Sequence[Any], channel_name: str, path: Any) -> None:
+    """``tracked.png``: the declared channel over the record (its envelope when long) with each segment's level,
+    and below it every unknown a segment fixed, at the segment's middle with its 1σ bar — the tracked parameters
+    as a time series beside the channel that says when the set-up changed
+    (:func:`identification.tracking.track`)."""
+    plt = _pyplot()
+    names: list[str] = []
+    for row in tracked:
+        if row.identified is not None:
+            names += [n for n in row.identified.parameters if n not in row.identified.held and n not in names]
+    fig, axes = plt.subplots(1 + len(names), 1, figsize=(7.0, 2.0 + 1.6 * len(names)), sharex=True,
+                             squeeze=False)
+    ax = axes[0, 0]
+    trace(ax, t, channel, color="0.6", label=channel_name)
+    for row in tracked:
+        ax.plot([row.start_s, row.stop_s], [row.segment.level] * 2, color="C0", lw=2.0)
+    ax.set_ylabel(channel_name)
+    plain_ticks(ax)
+    for ax, name in zip(axes[1:, 0], names):
+        mid, val, sd = [], [], []
+        for row in tracked:
+            ident = row.identified
+            if ident is not None and name in ident.parameters and name not in ident.held:
+                mid.append(0.5 * (row.start_s + row.stop_s))
+                val.append(ident.parameters[name])
+                sd.append(ident.std[name])
+        ax.errorbar(mid, val, yerr=sd, fmt="o", color="C1", ms=4, capsize=3)
+        ax.set_ylabel(_parameter_label(name))
+        plain_ticks(ax)
+    axes[-1, 0].set_xlabel("time [s]")
+    fig.suptitle("tracked per still segment (1σ bars)")
+    _save(fig, path)

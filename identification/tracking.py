@@ -1,0 +1,114 @@
+"""A record that changes during acquisition, tracked: per still segment its modes and the unknowns they fix.
+
+A beam whose axial load is stepped between dwells, a support a motor moves, a structure warming in stages: one
+model of the whole record fits none of its parts.  A channel that follows the change (a load cell, a position
+sensor) says where the set-up stood still (:func:`identification.segments.stationary_segments`); each still
+segment is read without a force — as a free decay or as an ambient record
+(:func:`identification.segments.segment_modes`) — and the config's unknowns are fitted to that segment's modes
+and the config's priors (:func:`identification.modes_only.identify_from_modes`).  The result is a time series:
+per segment its time span, the channel's level with its uncertainty, the modes, and every unknown with its
+posterior standard deviation — or, where a segment fixes nothing, why (no mode found, a direction the modes and
+priors leave free).  What ties the unknowns to the channel (a calibration of the channel's volts) is the user's
+to read from the series: :func:`linear_in_channel` fits a straight line and says how well it holds.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from ebb_model.config import BeamConfig
+from ebb_model.errors import ConfigError, EbbError
+
+from .modes_only import ModalIdentification, identify_from_modes
+from .output_modes import OutputModes
+from .segments import Segment, segment_modes, stationary_segments
+
+__all__ = ["TrackedSegment", "track", "linear_in_channel"]
+
+
+@dataclass(frozen=True)
+class TrackedSegment:
+    """One still segment of a tracked record: samples ``[start, stop)`` and their times [s], the declared
+    channel's level and its standard uncertainty, the segment's modes, the unknowns fitted to them
+    (``None`` with ``why`` when the segment fixes none)."""
+
+    segment: Segment
+    start_s: float
+    stop_s: float
+    modes: OutputModes
+    identified: ModalIdentification | None
+    why: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready (a row of ``tracked.json``)."""
+        ident = self.identified
+        return {"start_s": self.start_s, "stop_s": self.stop_s, "level": self.segment.level,
+                "level_std": self.segment.level_std, "modes": self.modes.to_dict(),
+                "parameters": None if ident is None else ident.parameters,
+                "std": None if ident is None else {n: (None if n in ident.held or not math.isfinite(s) else s)
+                                                   for n, s in ident.std.items()},
+                "held": None if ident is None else ident.held,
+                "modes_agree": None if ident is None else ident.agreement["agrees"], "why": self.why}
+
+
+def track(config: BeamConfig, outputs: np.ndarray, channel: np.ndarray, *, kind: str = "decay",
+          skip_seconds: float = 0.1) -> list[TrackedSegment]:
+    """The record ``outputs`` ``(n, n_sensors)`` of ``config``'s sensors cut where ``channel`` ``(n,)`` stands
+    still, each segment's modes read as ``kind`` (``"decay"`` or ``"ambient"``) and the config's unknowns fitted
+    to them (module docstring).
+
+    Raises
+    ------
+    DataError
+        The channel and the outputs differ in length; an unknown ``kind``; no still segment.
+    """
+    from ebb_model.errors import DataError
+
+    y = np.asarray(outputs, dtype=float)
+    y = y[:, None] if y.ndim == 1 else y
+    x = np.asarray(channel, dtype=float).reshape(-1)
+    if x.size != y.shape[0]:
+        raise DataError(f"the declared channel has {x.size} samples, the sensors {y.shape[0]}")
+    dt = config.time.dt
+    segments = stationary_segments(x, dt)
+    if not segments:
+        raise DataError("the declared channel never stands still: no segment to read")
+    found = segment_modes(y, dt, segments, kind=kind, skip_seconds=skip_seconds)
+    out = []
+    for seg, modes in zip(segments, found):
+        ident, why = None, ""
+        if modes.frequencies_hz.size == 0:
+            why = "the segment shows no mode"
+        else:
+            try:
+                ident = identify_from_modes(config, None, modes=modes.modal_data())
+            except (ConfigError, EbbError) as exc:        # e.g. a direction the modes and priors leave free
+                why = str(exc)
+        out.append(TrackedSegment(seg, seg.start * dt, seg.stop * dt, modes, ident, why))
+    return out
+
+
+def linear_in_channel(tracked: Sequence[TrackedSegment], name: str) -> dict[str, float] | None:
+    """Unknown ``name`` against the channel's level over the segments that fixed it: the weighted straight line
+    (``slope``, ``intercept``, each with its standard deviation), its ``r2`` and ``chi2`` per degree of freedom
+    (the scatter about the line in the unknown's own uncertainties: near 1 when the line holds); ``None`` with
+    fewer than three such segments."""
+    rows = [(t.segment.level, t.identified.parameters[name], t.identified.std[name]) for t in tracked
+            if t.identified is not None and name in t.identified.parameters
+            and name not in t.identified.held and math.isfinite(t.identified.std[name]) and t.identified.std[name] > 0]
+    if len(rows) < 3:
+        return None
+    lvl, val, sd = (np.array(c, dtype=float) for c in zip(*rows))
+    A = np.column_stack([lvl, np.ones_like(lvl)]) / sd[:, None]
+    coef, *_ = np.linalg.lstsq(A, val / sd, rcond=None)
+    cov = np.linalg.inv(A.T @ A)
+    resid = val - (coef[0] * lvl + coef[1])
+    w = 1.0 / sd ** 2
+    mean = float(np.sum(w * val) / np.sum(w))
+    r2 = 1.0 - float(np.sum(w * resid ** 2)) / float(np.sum(w * (val - mean) ** 2))
+    return {"slope": float(coef[0]), "slope_std": float(math.sqrt(cov[0, 0])), "intercept": float(coef[1]),
+            "intercept_std": float(math.sqrt(cov[1, 1])), "r2": r2,
+            "chi2_per_dof": float(np.sum((resid / sd) ** 2)) / (len(rows) - 2), "segments": float(len(rows))}

@@ -1,0 +1,111 @@
+"""A record that changes during acquisition, tracked (identification.tracking, ``ebb track``): a strip whose
+tension is stepped between dwells, read without its force, its tension per dwell against the load cell's volts.
+
+Truth: the Hermite FE strip of DROPBEAR's section (51 × 6.66 mm steel: EI 251 N m², ρA 2.666 kg/m), 0.5 m
+between clamps, under an axial tension stepped 0 → 1.5 → 3 kN (the Euler scale π²EI/L² is 9.9 kN), 64 elements
+exact in time, each dwell a stationary ambient record (a white force near the quarter point that the tool is not
+given, ζ₁ 1 %, two accelerometers through an 8th-order anti-alias filter at 0.4 fs, 1 % noise, 2 kHz, 16 s after
+a warm-up); a load cell's channel reads 1 V per kN with 2.5 mV of noise and ramps 90 ms between the dwells.  The
+config is a newcomer's: EI 40 % high and ρA 40 % low to start, N unknown from 0 in [−5, 20] kN, the documents as
+the geometry prior with the thickness 5 % off.
+"""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from ebb_model.acquisition.antialias import AntiAlias
+from ebb_model.io.tomlio import dumps as dumps_toml
+from ebb_model.reference.synthetic import synthesize
+
+from conftest import make_config
+
+L, EI, RHOA, DT = 0.5, 251.0, 2.666, 1 / 2000
+WIDTH, THICKNESS = 0.051, 0.00666
+C = 2 * 0.01 * (2 * math.pi * 120.0) * RHOA          # ζ_1 ≈ 1 % (mass-proportional)
+SENSORS = (0.3, 0.17)
+TENSIONS = (0.0, 1500.0, 3000.0)
+VOLTS_PER_N = 1e-3
+
+
+def _dwell(n_value: float, seed: int, seconds: float = 16.0) -> np.ndarray:
+    """The truth's stationary ambient response at tension ``n_value`` [N]."""
+    cfg = make_config("clamped", "clamped", length=L, dt=DT, EI=EI, rhoA=RHOA, c=C, N=n_value,
+                      actuators=[("F1", 0.12)],
+                      sensors=[("a1", SENSORS[0], "acceleration"), ("a2", SENSORS[1], "acceleration")])
+    cfg = replace(cfg, sensors=tuple(replace(s, antialias=AntiAlias(8, 0.4 / DT)) for s in cfg.sensors))
+    warm = int(3.0 / DT)
+    u = np.random.default_rng(200 + seed).standard_normal(warm + int(seconds / DT))
+    return synthesize(cfg, u, noise=0.01, seed=seed).outputs[warm:]
+
+
+def _record(folder: Path) -> Path:
+    """The whole record as a DAQ writes it: time, the two accelerometers and the load cell's volts."""
+    parts, volts = [], []
+    ramp = int(0.09 / DT)
+    for i, n_value in enumerate(TENSIONS):
+        y = _dwell(n_value, i)
+        if parts:
+            last = parts[-1][-1]
+            parts.append(last + np.outer(np.linspace(0, 1, ramp), y[0] - last))
+            volts.append(np.linspace(TENSIONS[i - 1], n_value, ramp) * VOLTS_PER_N)
+        parts.append(y)
+        volts.append(np.full(y.shape[0], n_value * VOLTS_PER_N))
+    y, v = np.vstack(parts), np.concatenate(volts)
+    v = v + 0.0025 * np.random.default_rng(9).standard_normal(v.size)
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "stepped.csv"
+    np.savetxt(path, np.column_stack([np.arange(v.size) * DT, y, v]), delimiter=",", header="time,a1,a2,load",
+               comments="", fmt="%.10g")
+    return path
+
+
+def _config(folder: Path) -> Path:
+    """A newcomer's config of the tensioned strip with the documents as its geometry prior."""
+    doc = {"beam": {"length": L, "nodes": 80, "left": "clamped", "right": "clamped"}, "time": {"dt": DT},
+           "parameters": {"EI": {"value": 1.4 * EI, "bounds": [0.25 * EI, 4 * EI], "identify": True},
+                          "rhoA": {"value": 0.6 * RHOA, "bounds": [0.25 * RHOA, 4 * RHOA], "identify": True},
+                          "c": {"value": 0.5}, "N": {"value": 0.0, "bounds": [-5000.0, 20000.0], "identify": True}},
+           "actuators": [{"name": "F1", "x": 0.12}],
+           "sensors": [{"name": "a1", "x": SENSORS[0], "kind": "acceleration"},
+                       {"name": "a2", "x": SENSORS[1], "kind": "acceleration"}],
+           "identification": {"geometry": {
+               "E": {"value": 200e9, "std": 10e9}, "density": {"value": 7850.0, "std": 50.0},
+               "width": {"value": WIDTH, "std": 0.0002}, "thickness": {"value": 1.05 * THICKNESS, "std": 0.0004}}}}
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "config.toml"
+    path.write_text(dumps_toml(doc), encoding="utf-8")
+    return path
+
+
+def test_a_stepped_tension_is_tracked_against_its_load_cell(tmp_path):
+    """``ebb track CONFIG RECORD --channel load --ambient --out DIR``: three segments at the load cell's three
+    levels; each dwell's tension within 4 of its stated σ of the truth; N against the volts a straight line (R² ≥
+    0.99) whose slope is the load cell's 1 kN/V within 4 of its σ; ``tracked.json`` and ``tracked.png`` written;
+    a channel the record does not have: one line, exit 2, nothing written."""
+    rec, cfg = _record(tmp_path), _config(tmp_path)
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "ebb_cli", "track", str(cfg), str(rec), "--channel", "load",
+                        "--ambient", "--out", str(out)], capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((out / "tracked.json").read_text())
+    segs = doc["segments"]
+    assert len(segs) == 3, r.stdout
+    for s, n_value in zip(segs, TENSIONS):
+        assert abs(s["level"] - n_value * VOLTS_PER_N) < 0.01, s["level"]
+        n_fit, n_sd = s["parameters"]["N"], s["std"]["N"]
+        assert abs(n_fit - n_value) < 4 * n_sd, (n_fit, n_sd, n_value, r.stdout)
+    line = doc["against_channel"]["N"]
+    assert line["r2"] >= 0.99 and abs(line["slope"] - 1 / VOLTS_PER_N) < 4 * line["slope_std"], (line, r.stdout)
+    assert (out / "tracked.png").stat().st_size > 0
+    assert "N against load: slope" in r.stdout, r.stdout
+    r = subprocess.run([sys.executable, "-m", "ebb_cli", "track", str(cfg), str(rec), "--channel", "volts",
+                        "--ambient", "--out", str(tmp_path / "o2")], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "volts" in r.stderr, r.stderr
+    assert not (tmp_path / "o2").exists()
