@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING, Any, cast
 
 from .messages import Subcommands, add_target_argument
 from .modes import add_modes_arguments, config_with_spectrum_modes
@@ -114,19 +114,26 @@ def _cmd_track(args: argparse.Namespace) -> int:
     channel = declared_channel(args.record, args.channel)
     kind = "ambient" if args.ambient else "decay"
     rows = track(cfg, outputs, channel, kind=kind)
+    judged: list[Any] = [None] * len(rows)
+    if not args.no_diagnosis:
+        from diagnosis.tracked import diagnose_segments, segment_verdict
+
+        judged = [segment_verdict(d) for d in diagnose_segments(cfg, rows)]
     fitted_rows = [r.identified for r in rows if r.identified is not None]
     names = list(fitted_rows[0].parameters) if fitted_rows else []
     lines = []
-    for i, r in enumerate(rows):
+    for i, (r, d) in enumerate(zip(rows, judged)):
         head = (f"segment {i + 1}: {r.start_s:.3f}–{r.stop_s:.3f} s, {args.channel} {r.segment.level:.5g} ± "
                 f"{r.segment.level_std:.2g}, {r.modes.frequencies_hz.size} mode(s)")
         if r.identified is None:
             lines.append(f"{head}: {r.why}")
-            continue
-        fitted = ", ".join(f"{n} {r.identified.parameters[n]:.5g} ± {r.identified.std[n]:.2g}" for n in names
-                           if n not in r.identified.held)
-        agree = "" if r.identified.agreement["agrees"] else " (the model does not reproduce the modes)"
-        lines.append(f"{head}: {fitted}{agree}")
+        else:
+            fitted = ", ".join(f"{n} {r.identified.parameters[n]:.5g} ± {r.identified.std[n]:.2g}" for n in names
+                               if n not in r.identified.held)
+            agree = "" if r.identified.agreement["agrees"] else " (the model does not reproduce the modes)"
+            lines.append(f"{head}: {fitted}{agree}")
+        if d is not None and d["verdict"]:
+            lines.append(f"  diagnosis: {d['verdict']} — {d['reason']}")
     lines_fit = {n: linear_in_channel(rows, n) for n in names}
     for n, fit in lines_fit.items():
         if fit is None:
@@ -141,7 +148,8 @@ def _cmd_track(args: argparse.Namespace) -> int:
     t = np.arange(channel.size) * cfg.time.dt
     with staged_dir(out) as tmp:
         write_json(tmp / "tracked.json", {"record": str(args.record), "channel": args.channel, "kind": kind,
-                                          "segments": [r.to_dict() for r in rows],
+                                          "segments": [r.to_dict() | {"diagnosis": d}
+                                                       for r, d in zip(rows, judged)],
                                           "against_channel": lines_fit})
         tracking_figure(t, channel, rows, args.channel, tmp / "tracked.png")
     for line in lines:
@@ -223,6 +231,8 @@ def add_parsers(sub: Subcommands) -> None:
     kind = p.add_mutually_exclusive_group(required=True)
     kind.add_argument("--decay", action="store_true", help="each segment rings down from the change before it")
     kind.add_argument("--ambient", action="store_true", help="each segment is stationary under an unmeasured force")
+    p.add_argument("--no-diagnosis", action="store_true",
+                   help="skip the diagnosis of each segment's modes (the effects weighed against them)")
     p.add_argument("--out", required=True, help="result directory (tracked.json, tracked.png)")
     p.set_defaults(func=_cmd_track)
     p = sub.add_parser("export", help="export Pareto points of a result directory (StateSpace, FMU)")

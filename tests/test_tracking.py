@@ -87,8 +87,9 @@ def _config(folder: Path) -> Path:
 def test_a_stepped_tension_is_tracked_against_its_load_cell(tmp_path):
     """``ebb track CONFIG RECORD --channel load --ambient --out DIR``: three segments at the load cell's three
     levels; each dwell's tension within 4 of its stated σ of the truth; N against the volts a straight line (R² ≥
-    0.99) whose slope is the load cell's 1 kN/V within 4 of its σ; ``tracked.json`` and ``tracked.png`` written;
-    a channel the record does not have: one line, exit 2, nothing written."""
+    0.99) whose slope is the load cell's 1 kN/V within 4 of its σ; each segment's diagnosis ``none`` (the truth has
+    nothing the model lacks); ``tracked.json`` and ``tracked.png`` written; a channel the record does not have: one
+    line, exit 2, nothing written."""
     rec, cfg = _record(tmp_path), _config(tmp_path)
     out = tmp_path / "out"
     r = subprocess.run([sys.executable, "-m", "ebb_cli", "track", str(cfg), str(rec), "--channel", "load",
@@ -101,6 +102,8 @@ def test_a_stepped_tension_is_tracked_against_its_load_cell(tmp_path):
         assert abs(s["level"] - n_value * VOLTS_PER_N) < 0.01, s["level"]
         n_fit, n_sd = s["parameters"]["N"], s["std"]["N"]
         assert abs(n_fit - n_value) < 4 * n_sd, (n_fit, n_sd, n_value, r.stdout)
+    # the truth has nothing the model lacks: each segment's diagnosis says so
+    assert [s["diagnosis"]["verdict"] for s in segs] == ["none"] * 3, r.stdout
     line = doc["against_channel"]["N"]
     assert line["r2"] >= 0.99 and abs(line["slope"] - 1 / VOLTS_PER_N) < 4 * line["slope_std"], (line, r.stdout)
     assert (out / "tracked.png").stat().st_size > 0
