@@ -94,9 +94,9 @@ def add_parsers(sub: Subcommands) -> None:
     """Register ``diagnose`` and ``demo`` on the ``ebb`` parser."""
     p = sub.add_parser("diagnose", help="where model and data disagree, which effect explains it, how far it closes")
     p.add_argument("config", help="TOML config (the baseline model; identify = true unknowns with bounds)")
-    p.add_argument("data", nargs="*", help="measured records to fit (.csv, .npz, .mat, .lvm, .uff); none: weigh the "
-                                           "effects against the measured natural frequencies alone (--modes FILE "
-                                           "or [identification.modes])")
+    p.add_argument("data", nargs="*", help="measured records to fit (.csv, .npz, .mat, .lvm, .uff, .txt); none: "
+                                           "weigh the effects against the measured natural frequencies alone "
+                                           "(--modes FILE, --decay FILE, --ambient FILE or [identification.modes])")
     p.add_argument("--holdout", nargs="+", default=None, metavar="FILE",
                    help="records held out entirely (default: hold out the tail of each record)")
     p.add_argument("--holdout-fraction", type=float, default=0.3,

@@ -185,9 +185,9 @@ def add_parsers(sub: Subcommands) -> None:
     """Register ``identify`` and ``export`` on the ``ebb`` parser."""
     p = sub.add_parser("identify", help="multi-objective identification of the config's unknowns from data")
     p.add_argument("config", help="TOML config with identify = true parameters")
-    p.add_argument("data", nargs="*", help="data files (.csv, .npz, .mat, .lvm, .uff); none: identify from the "
-                                           "measured natural frequencies alone (--modes FILE or "
-                                           "[identification.modes])")
+    p.add_argument("data", nargs="*", help="data files (.csv, .npz, .mat, .lvm, .uff, .txt); none: identify from the "
+                                           "measured natural frequencies alone (--modes FILE, --decay "
+                                           "FILE, --ambient FILE or [identification.modes])")
     p.add_argument("--out", required=True, help="result directory (checkpoint, pareto.json, plots, exports)")
     p.add_argument("--backend", default="auto", help="auto | native | fmu (default auto: the native model)")
     p.add_argument("--fmu", default=None, help="FMU to evaluate with --backend fmu (default: one built from CONFIG)")

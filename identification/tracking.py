@@ -92,12 +92,13 @@ def track(config: BeamConfig, outputs: np.ndarray, channel: np.ndarray, *, kind:
 
 
 def linear_in_channel(tracked: Sequence[TrackedSegment], name: str) -> dict[str, float] | None:
-    """Unknown ``name`` against the channel's level over the segments that fixed it: the weighted straight line
+    """Unknown ``name`` against the channel's level over the segments that fixed it (and whose model reproduces
+    their modes: a value from a fit that does not is no measurement): the weighted straight line
     (``slope``, ``intercept``, each with its standard deviation), its ``r2`` and ``chi2`` per degree of freedom
     (the scatter about the line in the unknown's own uncertainties: near 1 when the line holds); ``None`` with
     fewer than three such segments."""
     rows = [(t.segment.level, t.identified.parameters[name], t.identified.std[name]) for t in tracked
-            if t.identified is not None and name in t.identified.parameters
+            if t.identified is not None and t.identified.agreement["agrees"] and name in t.identified.parameters
             and name not in t.identified.held and math.isfinite(t.identified.std[name]) and t.identified.std[name] > 0]
     if len(rows) < 3:
         return None

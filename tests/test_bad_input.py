@@ -24,7 +24,7 @@ from identification.data import load_experiment
 from conftest import IDENTIFY_CFG as CFG
 from conftest import run_identify_signalled
 from test_data_loaders import cfg as loader_cfg
-from test_data_loaders import signals, write_csv, write_lvm, write_uff
+from test_data_loaders import UNITS, signals, write_csv, write_lvm, write_txt, write_uff
 
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
 SEED = Path(__file__).resolve().parents[1] / "examples" / "seed_clamped.toml"
@@ -322,6 +322,7 @@ def _valid_files(d: Path) -> dict[str, Path]:
         "lvm": write_lvm(d / "a.lvm", sig["time"], [sig["F1"], sig["y1"], sig["a2"]], ["F1", "y1", "a2"],
                          ["N", "m", "m/s2"]),
         "uff": write_uff(d / "a.uff", sig),
+        "txt": write_txt(d / "a.txt", sig, UNITS),
         "toml": SEED,
     }
     np.savez(d / "a.npz", **sig)
@@ -349,7 +350,7 @@ def _check_message(msg: str) -> None:
     assert "np.float64(" not in msg and "np.int64(" not in msg, msg
 
 
-@pytest.mark.parametrize("kind", ["toml", "csv", "npz", "mat", "lvm", "uff"])
+@pytest.mark.parametrize("kind", ["toml", "csv", "npz", "mat", "lvm", "uff", "txt"])
 def test_fuzz_readers_raise_only_the_projects_errors(tmp_path, kind):
     src = _valid_files(tmp_path)[kind]
     raw = src.read_bytes()
@@ -369,7 +370,7 @@ def test_fuzz_readers_raise_only_the_projects_errors(tmp_path, kind):
     assert n >= 60, n        # most variants are invalid (a few truncations or flips leave a valid file)
 
 
-@pytest.mark.parametrize("kind", ["toml", "csv", "npz", "mat", "lvm", "uff"])
+@pytest.mark.parametrize("kind", ["toml", "csv", "npz", "mat", "lvm", "uff", "txt"])
 def test_fuzz_command_line_exit_2_one_line_no_output(tmp_path, kind, capsys):
     files = _valid_files(tmp_path)
     (tmp_path / "cfg.toml").write_text(CFG.replace('name = "y2"\nx = 0.75', 'name = "a2"\nx = 0.75\n'

@@ -46,6 +46,7 @@ from .csv_format import read_csv
 from .experiment import Experiment
 from .filtering import condition
 from .lvm import read_lvm
+from .text_table import read_text_table
 from .table import RawTable
 from .timebase import regularise_time, resample_uniform
 from .units import to_si_factor
@@ -73,6 +74,7 @@ FORMATS: Mapping[str, DataFormat] = {
     "mat": DataFormat(read_mat, (".mat",)),
     "lvm": DataFormat(read_lvm, (".lvm",)),
     "uff58": DataFormat(_read_uff58, (".uff", ".unv")),
+    "txt": DataFormat(read_text_table, (".txt", ".tsv", ".dat")),
 }
 #: file extension -> format name
 EXTENSIONS: Mapping[str, str] = {ext: name for name, f in FORMATS.items() for ext in f.extensions}
