@@ -139,7 +139,8 @@ def _cmd_track(args: argparse.Namespace) -> int:
         if fit is None:
             continue
         if abs(fit["slope"]) <= TREND_DEVIATIONS * fit["slope_std"]:      # no line to speak of: say so, no R²
-            lines.append(f"{n}: no trend with {args.channel} (slope {fit['slope']:.3g} ± {fit['slope_std']:.2g})")
+            lines.append(f"{n}: no trend with {args.channel} beyond {TREND_DEVIATIONS:g} σ (slope {fit['slope']:.3g} ± "
+                         f"{fit['slope_std']:.2g})")
             continue
         lines.append(f"{n} against {args.channel}: slope {fit['slope']:.5g} ± {fit['slope_std']:.2g}, intercept "
                      f"{fit['intercept']:.5g} ± {fit['intercept_std']:.2g}, R² {fit['r2']:.4f}, χ²/dof "
