@@ -77,4 +77,8 @@ def _config_with_record_modes(args: argparse.Namespace, kind: str) -> BeamConfig
             found.frequencies_hz, found.frequency_std, found.damping, found.damping_std))
         what = "a free decay" if kind == "decay" else "an ambient record"
         print(f"measured modes from {path} ({what}): {picked}", file=sys.stderr)
+        if found.tones_hz.size:
+            lines = ", ".join(f"{f:.5g}" for f in found.tones_hz)
+            print(f"not modes: lines at {lines} Hz do not decay (a tone in the force, a machine's harmonic, mains "
+                  "pickup): left out", file=sys.stderr)
     return with_modes(cfg, modes)

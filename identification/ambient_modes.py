@@ -24,6 +24,9 @@ reference's node is seen from another — and each mode's shape ratios come from
   across columns, so the least-squares covariance that serves a free decay would misstate them; the segments'
   scatter does not assume anything of that structure.  With :data:`SEGMENTS` segments the uncertainty is itself
   known to about a quarter.
+- A line that does not decay in the correlations is a tone in the force or a machine's harmonic, not a mode: it
+  is fitted with the modes and reported apart (:data:`~identification.output_modes.HARMONIC_DAMPING`; the ARTS
+  bench's shaker record read as ambient holds its three tones and their harmonics, and no mode).
 - The record must be stationary: a structure left ringing, a force switched on or a change during the record
   (a moving support) is cut into stationary parts first (:mod:`identification.segments`).  A record whose start
   finds no significant mode shows none.
@@ -153,8 +156,9 @@ def ambient_modes(outputs: np.ndarray, dt: float, segments: int = SEGMENTS) -> O
     sd = np.sqrt(jack * np.sum((lp - lp.mean(axis=0)) ** 2, axis=0))
     sh = np.stack(est_shape)
     shape_std = np.sqrt(jack * np.sum((sh - sh.mean(axis=0)) ** 2, axis=0))
-    return OutputModes(f0, f0 * sd[:, 0], z0, z0 * sd[:, 1], shapes, shape_std, ref, signif,
-                       np.std(y, axis=0), 1.0, "ambient")
+    keep = ~fit.tones                           # lines that do not decay: tones in the force, not modes
+    return OutputModes(f0[keep], (f0 * sd[:, 0])[keep], z0[keep], (z0 * sd[:, 1])[keep], shapes[keep],
+                       shape_std[keep], ref[keep], signif[keep], np.std(y, axis=0), 1.0, "ambient", f0[fit.tones])
 
 
 def _ratios(amp: np.ndarray, k: int, ref: int) -> np.ndarray:

@@ -22,7 +22,7 @@ Mode shapes: each mode's complex amplitude at every sensor, as a ratio to the se
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -35,7 +35,8 @@ from .record_poles import EXP_WINDOW, record_modes
 if TYPE_CHECKING:
     from .modal_data import ModalData
 
-__all__ = ["OutputModes", "DecayFit", "free_decay_modes", "decay_fit", "fit_poles", "shape_ratios", "SIGNIFICANCE"]
+__all__ = ["OutputModes", "DecayFit", "free_decay_modes", "decay_fit", "fit_poles", "shape_ratios", "SIGNIFICANCE",
+           "HARMONIC_DAMPING"]
 
 #: A mode is kept when its amplitude at one sensor at least is this many standard uncertainties (a fitted pole
 #: on noise alone has an amplitude of about one).
@@ -47,6 +48,11 @@ MIN_START_DAMPING = 1e-4
 POLE_RANGE = 1.5
 MIN_DAMPING = 1e-6
 MAX_DAMPING = 0.5
+#: A fitted line whose damping ratio ends at or below this is no mode: it does not decay over the record (or its
+#: correlations) — a tone in the force, a machine's harmonic, mains pickup.  No beam in air is damped this little
+#: (a steel strip's modes: 1e-4 and up); the ARTS bench's three tones and their harmonics, read as an ambient
+#: record, end at the fit's floor :data:`MIN_DAMPING`.
+HARMONIC_DAMPING = 1e-5
 #: Lags of the residual's autocorrelation summed for the long-run variance (Bartlett weights).
 LONG_RUN_LAGS = 64
 
@@ -74,6 +80,9 @@ class OutputModes:
         The factor the Jacobian's covariance was multiplied by for the residual's correlation (1: white).
     kind : str
         ``"free decay"`` or ``"ambient"``.
+    tones_hz : numpy.ndarray
+        Lines the records hold that do not decay (:data:`HARMONIC_DAMPING`): a tone in the force, a machine's
+        harmonic, mains pickup — fitted with the modes, not reported as modes.
     """
 
     frequencies_hz: np.ndarray
@@ -87,6 +96,7 @@ class OutputModes:
     noise_std: np.ndarray
     inflation: float
     kind: str
+    tones_hz: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @classmethod
     def none(cls, n_sensors: int, noise_std: np.ndarray, kind: str = "free decay") -> "OutputModes":
@@ -107,7 +117,9 @@ class OutputModes:
         from .modal_data import ModalData
 
         if self.frequencies_hz.size == 0:
-            raise DataError("the record shows no mode: no natural frequency to identify from")
+            tones = (f" (lines at {', '.join(f'{f:.5g}' for f in self.tones_hz)} Hz do not decay: tones in the force "
+                     "or a machine's harmonics, not modes)" if self.tones_hz.size else "")
+            raise DataError(f"the record shows no mode{tones}: no natural frequency to identify from")
         return ModalData(self.frequencies_hz.copy(), self.frequency_std.copy())
 
     def to_dict(self) -> dict[str, object]:
@@ -117,7 +129,7 @@ class OutputModes:
                 "damping_std": self.damping_std.tolist(), "shapes": self.shapes.tolist(),
                 "shape_std": self.shape_std.tolist(), "reference_sensor": self.reference.tolist(),
                 "significance": self.significance.tolist(),
-                "noise_std": self.noise_std.tolist(), "inflation": self.inflation}
+                "noise_std": self.noise_std.tolist(), "inflation": self.inflation, "tones_hz": self.tones_hz.tolist()}
 
 
 def _as_record(outputs: np.ndarray, dt: float) -> np.ndarray:
@@ -291,6 +303,11 @@ class DecayFit:
         """The modes' damping ratios."""
         return np.exp(self.p[1::2])
 
+    @property
+    def tones(self) -> np.ndarray:
+        """Which of the fitted lines do not decay (:data:`HARMONIC_DAMPING`): not modes."""
+        return self.damping <= HARMONIC_DAMPING
+
 
 def decay_fit(y: np.ndarray, dt: float) -> DecayFit | None:
     """The significant modes (:data:`SIGNIFICANCE`) of records that are sums of damped oscillations from their
@@ -352,7 +369,8 @@ def free_decay_modes(outputs: np.ndarray, dt: float) -> OutputModes:
     fit = decay_fit(y, dt)
     if fit is None:
         return OutputModes.none(y.shape[1], np.std(y, axis=0))
-    f, z = fit.frequencies_hz, fit.damping
+    f, z, keep = fit.frequencies_hz, fit.damping, ~fit.tones
     sd = np.sqrt(np.maximum(np.diag(fit.cov_p), 0.0))
-    return OutputModes(f, f * sd[0::2], z, z * sd[1::2], fit.shapes, fit.shape_std, fit.reference,
-                       fit.significance, fit.noise, fit.inflation, "free decay")
+    return OutputModes(f[keep], (f * sd[0::2])[keep], z[keep], (z * sd[1::2])[keep], fit.shapes[keep],
+                       fit.shape_std[keep], fit.reference[keep], fit.significance[keep], fit.noise, fit.inflation,
+                       "free decay", f[fit.tones])

@@ -163,3 +163,35 @@ def test_an_ambient_record_that_changes_is_read_per_segment():
     assert np.all(np.abs(f - fa * np.array([1.0, 1.1])) < 4 * sd), (f, sd)
     ratio_sd = f[1] / f[0] * math.hypot(sd[0] / f[0], sd[1] / f[1])
     assert abs(f[1] / f[0] - 1.1) < 4 * ratio_sd, (f, sd)
+
+
+ARTS = Path(__file__).resolve().parents[2] / "shared" / "data" / "arts-lab-cantilever" / "test_1_3200Hz.lvm"
+
+
+def test_a_tone_in_the_force_is_not_a_mode():
+    """The truth under the white force plus a strong 60 Hz tone (a machine nearby): the same four modes, and the
+    tone apart as a line that does not decay, not a fifth mode."""
+    cfg = make_config("clamped", "free", length=L, dt=DT, EI=EI, rhoA=RHOA, c=C, actuators=[("F1", 0.48)],
+                      sensors=[("a1", SENSORS[0], "acceleration"), ("a2", SENSORS[1], "acceleration")])
+    cfg = replace(cfg, sensors=tuple(replace(s, antialias=AntiAlias(8, 0.4 / DT)) for s in cfg.sensors))
+    warm = int(WARM / DT)
+    n = warm + int(SECONDS / DT)
+    u = np.random.default_rng(100).standard_normal(n) + 3.0 * np.sin(2 * np.pi * 60.0 * np.arange(n) * DT)
+    m = ambient_modes(synthesize(cfg, u, noise=0.01, seed=0).outputs[warm:], DT)
+    fa = _truth(4)[0]
+    assert m.frequencies_hz.size == 4 and np.all(np.abs(m.frequencies_hz - fa) < 5 * m.frequency_std), m
+    assert m.tones_hz.size == 1 and abs(m.tones_hz[0] - 60.0) < 0.01, m.tones_hz
+
+
+@pytest.mark.skipif(not ARTS.is_file(), reason="../shared/data/arts-lab-cantilever is not available")
+def test_the_arts_shaker_record_read_as_ambient_holds_tones_and_no_mode(tmp_path):
+    """The real bench's three-tone shaker record (CC BY-SA 4.0, read in place) through ``--ambient``: its lines at
+    100, 120 and 150 Hz (and their sums) do not decay — tones, not modes — so no mode: one line saying so, exit 2,
+    nothing written.  (Read as an ambient record before, the six lines were taken for six modes.)"""
+    cfg = Path(__file__).resolve().parents[1] / "examples" / "arts_identify.toml"
+    r = subprocess.run([sys.executable, "-m", "ebb_cli", "identify", str(cfg), "--ambient", str(ARTS), "--out",
+                        str(tmp_path / "o")], capture_output=True, text=True, timeout=300)
+    errors = [ln for ln in r.stderr.splitlines() if ": warning: " not in ln]
+    assert r.returncode == 2 and len(errors) == 1, r.stderr
+    assert "the record shows no mode (lines at 100, 120, 150," in errors[0] and "not modes" in errors[0], errors
+    assert not (tmp_path / "o").exists()
