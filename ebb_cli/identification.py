@@ -103,6 +103,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
     from ebb_model.io.output import staged_dir
     from identification.config_file import load_identification_config
     from identification.output_record import declared_channel, sensor_record
+    from identification.parameters import parameter_space
     from identification.plots import tracking_figure
     from identification.tracking import linear_in_channel, track
 
@@ -121,6 +122,12 @@ def _cmd_track(args: argparse.Namespace) -> int:
         judged = [segment_verdict(d) for d in diagnose_segments(cfg, rows)]
     fitted_rows = [r.identified for r in rows if r.identified is not None]
     names = list(fitted_rows[0].parameters) if fitted_rows else []
+    space = parameter_space(cfg)
+    bounds = dict(zip(space.names, zip(space.lower, space.upper)))
+
+    def on_bound(name: str, value: float) -> str:
+        lo, hi = bounds.get(name, (-np.inf, np.inf))
+        return " (on its bound)" if min(abs(value - lo), abs(value - hi)) <= 1e-6 * (hi - lo) else ""
     lines = []
     for i, (r, d) in enumerate(zip(rows, judged)):
         head = (f"segment {i + 1}: {r.start_s:.3f}–{r.stop_s:.3f} s, {args.channel} {r.segment.level:.5g} ± "
@@ -128,8 +135,8 @@ def _cmd_track(args: argparse.Namespace) -> int:
         if r.identified is None:
             lines.append(f"{head}: {r.why}")
         else:
-            fitted = ", ".join(f"{n} {r.identified.parameters[n]:.5g} ± {r.identified.std[n]:.2g}" for n in names
-                               if n not in r.identified.held)
+            fitted = ", ".join(f"{n} {r.identified.parameters[n]:.5g} ± {r.identified.std[n]:.2g}"
+                               + on_bound(n, r.identified.parameters[n]) for n in names if n not in r.identified.held)
             agree = "" if r.identified.agreement["agrees"] else " (the model does not reproduce the modes)"
             lines.append(f"{head}: {fitted}{agree}")
         if d is not None and d["verdict"]:

@@ -246,9 +246,9 @@ def plot_results(res: Any, evaluator: Any) -> list[str]:
 
 def tracking_figure(t: np.ndarray, channel: np.ndarray, tracked: Sequence[Any], channel_name: str, path: Any) -> None:
     """``tracked.png``: the declared channel over the record (its envelope when long) with each segment's level,
-    and below it every unknown a segment fixed, at the segment's middle with its 1σ bar — the tracked parameters
-    as a time series beside the channel that says when the set-up changed
-    (:func:`identification.tracking.track`)."""
+    and below it every unknown a segment fixed, at the segment's middle with its 1σ bar (hollow and grey where the
+    segment's model does not reproduce its modes: no measurement) — the tracked parameters as a time series beside
+    the channel that says when the set-up changed (:func:`identification.tracking.track`)."""
     plt = _pyplot()
     names: list[str] = []
     for row in tracked:
@@ -262,17 +262,27 @@ def tracking_figure(t: np.ndarray, channel: np.ndarray, tracked: Sequence[Any], 
         ax.plot([row.start_s, row.stop_s], [row.segment.level] * 2, color="C0", lw=2.0)
     ax.set_ylabel(channel_name)
     plain_ticks(ax)
+    misfit = False
     for ax, name in zip(axes[1:, 0], names):
-        mid, val, sd = [], [], []
+        points: dict[bool, tuple[list[float], list[float], list[float]]] = {True: ([], [], []), False: ([], [], [])}
         for row in tracked:
             ident = row.identified
             if ident is not None and name in ident.parameters and name not in ident.held:
+                mid, val, sd = points[bool(ident.agreement["agrees"])]
                 mid.append(0.5 * (row.start_s + row.stop_s))
                 val.append(ident.parameters[name])
                 sd.append(ident.std[name])
-        ax.errorbar(mid, val, yerr=sd, fmt="o", color="C1", ms=4, capsize=3)
+        ax.errorbar(*points[True][:2], yerr=points[True][2], fmt="o", color="C1", ms=4, capsize=3)
+        if points[False][0]:        # a value whose model does not reproduce its segment's modes: no measurement
+            misfit = True
+            ax.errorbar(*points[False][:2], yerr=points[False][2], fmt="o", mfc="none", color="0.55", ms=4,
+                        capsize=3)
         ax.set_ylabel(_parameter_label(name))
         plain_ticks(ax)
+    if misfit:
+        hollow = axes[-1, 0].plot([], [], "o", mfc="none", color="0.55")[0]
+        fig.legend([hollow], ["the model does not reproduce the segment's modes"], loc="upper center",
+                   bbox_to_anchor=(0.5, 0.0), fontsize="small", frameon=False)
     axes[-1, 0].set_xlabel("time [s]")
     fig.suptitle("tracked per still segment (1σ bars)")
     _save(fig, path)

@@ -19,6 +19,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from ebb_model.acquisition.antialias import AntiAlias
 from ebb_model.io.tomlio import dumps as dumps_toml
@@ -112,3 +113,37 @@ def test_a_stepped_tension_is_tracked_against_its_load_cell(tmp_path):
                         "--ambient", "--out", str(tmp_path / "o2")], capture_output=True, text=True, timeout=300)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "volts" in r.stderr, r.stderr
     assert not (tmp_path / "o2").exists()
+
+
+DROPBEAR = Path(__file__).resolve().parents[2] / "shared" / "data" / "dropbear-roller" / "slow10_test0.txt"
+
+
+@pytest.mark.skipif(not DROPBEAR.is_file(), reason="../shared/data/dropbear-roller is not available")
+def test_dropbear_tracked_with_a_plain_cantilever_says_the_model_misses_the_roller(tmp_path):
+    """The real bench (CC BY-SA 4.0, read in place) tracked with a config that has no roller — a plain clamped–free
+    strip with the documents as its geometry prior, the low-g channel's unscaled volts taken as they are: eleven
+    segments at the position sensor's plateaus, the first without a mode (the beam at rest); the model reproduces
+    the modes of at most one dwell and says so for the rest, values on a bound are said to be, and no line against
+    the position sensor is drawn through fits that do not reproduce their modes."""
+    doc = {"beam": {"length": 0.501, "nodes": 80, "left": "clamped", "right": "free"}, "time": {"dt": 2e-4},
+           "parameters": {"EI": {"value": 300.0, "bounds": [50.0, 1000.0], "identify": True},
+                          "rhoA": {"value": 2.0, "bounds": [0.5, 10.0], "identify": True},
+                          "c": {"value": 0.5}, "N": {"value": 0.0}},
+           "actuators": [{"name": "F1", "x": 0.45}], "sensors": [{"name": "lowg", "x": 0.47, "kind": "acceleration"}],
+           "identification": {"data": {"mapping": {"lowg": "Low G Accel"}, "units": {"lowg": "m/s2"}},
+                              "geometry": {"E": {"value": 200e9, "std": 10e9},
+                                           "density": {"value": 7850.0, "std": 50.0},
+                                           "width": {"value": 0.051, "std": 0.0002},
+                                           "thickness": {"value": 0.00666, "std": 0.0001}}}}
+    cfg = tmp_path / "dropbear.toml"
+    cfg.write_text(dumps_toml(doc), encoding="utf-8")
+    r = subprocess.run([sys.executable, "-m", "ebb_cli", "track", str(cfg), str(DROPBEAR), "--channel", "PinLoc",
+                        "--decay", "--no-diagnosis", "--out", str(tmp_path / "o")], capture_output=True, text=True,
+                       timeout=900)
+    assert r.returncode == 0, r.stderr
+    segs = json.loads((tmp_path / "o" / "tracked.json").read_text())["segments"]
+    assert len(segs) == 11 and segs[0]["why"] == "the segment shows no mode", r.stdout
+    agree = [s["modes_agree"] for s in segs[1:]]
+    assert sum(bool(a) for a in agree) <= 1, r.stdout
+    assert r.stdout.count("(the model does not reproduce the modes)") == sum(a is False for a in agree), r.stdout
+    assert "(on its bound)" in r.stdout and "against PinLoc" not in r.stdout, r.stdout
