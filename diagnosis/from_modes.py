@@ -27,21 +27,23 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from ebb_model.config import BeamConfig
+from ebb_model.errors import EbbError
 from identification.modal_data import ModalData
 from identification.modes_only import Extension, ModesFit, fit_modes, modes_input
 from identification.parameters import parameter_space
 from identification.prior import Prior
+from identification.tracking import TrackedSegment
 
 from .candidates.score import trial_values
 from .effects import Catalogue, Effect, Scales
 from .settings import thresholds_from_config
 
-__all__ = ["EffectFromModes", "ModalDiagnosis", "diagnose_from_modes"]
+__all__ = ["EffectFromModes", "ModalDiagnosis", "diagnose_from_modes", "diagnose_segments", "segment_verdict"]
 
 
 @dataclass(frozen=True)
@@ -207,3 +209,30 @@ def diagnose_from_modes(config: BeamConfig | str | Path, out_dir: str | Path | N
         out.mkdir(parents=True, exist_ok=True)
         (out / "gap.json").write_text(json.dumps(result.to_dict(), indent=2) + "\n", encoding="utf-8")
     return result
+
+
+def diagnose_segments(config: BeamConfig, tracked: Sequence[TrackedSegment]) -> list[ModalDiagnosis | str]:
+    """Per still segment of a tracked record (:func:`identification.tracking.track`), the diagnosis of its modes —
+    ``none``, the effect with its sizes, ``ambiguous`` or ``unexplained``, so a series says whether some segment
+    shows what the model lacks (a support come loose in one dwell, a mass added in another) — or why there is none
+    (no mode; the modes and priors leave the baseline's scale free)."""
+    out: list[ModalDiagnosis | str] = []
+    for row in tracked:
+        if row.modes.frequencies_hz.size == 0:
+            out.append("the segment shows no mode")
+            continue
+        try:
+            out.append(diagnose_from_modes(config, None, modes=row.modes.modal_data()))
+        except EbbError as exc:
+            out.append(str(exc))
+    return out
+
+
+def segment_verdict(result: ModalDiagnosis | str) -> dict[str, Any]:
+    """A segment's diagnosis as a row of ``tracked.json``: the verdict, its reason, the named effect's sizes with
+    their standard deviations (or ``verdict`` None and why)."""
+    if isinstance(result, str):
+        return {"verdict": None, "why": result}
+    named = result.named
+    return {"verdict": result.verdict, "reason": result.reason, "tied": list(result.tied),
+            "sizes": None if named is None else named.sizes, "size_std": None if named is None else named.size_std}

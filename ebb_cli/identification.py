@@ -117,7 +117,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
     rows = track(cfg, outputs, channel, kind=kind)
     judged: list[Any] = [None] * len(rows)
     if not args.no_diagnosis:
-        from diagnosis.tracked import diagnose_segments, segment_verdict
+        from diagnosis.from_modes import diagnose_segments, segment_verdict
 
         judged = [segment_verdict(d) for d in diagnose_segments(cfg, rows)]
     fitted_rows = [r.identified for r in rows if r.identified is not None]
