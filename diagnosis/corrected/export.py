@@ -77,7 +77,11 @@ def _parts(model: AugmentedModel, beam: DiscreteStateSpace | None = None, *, del
         if beam is None:
             return True
         joined = part.in_series(beam)
-        return joined is not beam and (delays or joined is None or joined.A is not beam.A or joined.C is not beam.C)
+        if joined is beam:
+            return False
+        return delays or joined is None or not (joined.nstates == beam.nstates and np.array_equal(joined.A, beam.A)
+                                                and np.array_equal(joined.C, beam.C)
+                                                and np.array_equal(joined.D, beam.D))
 
     return "; ".join(dict.fromkeys(part.description for part in model.signals if carried(part)))
 
