@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 from pathlib import Path
 
 import numpy as np
@@ -142,3 +143,12 @@ def write_hint_case(case: HintBench, folder: Path) -> tuple[Path, Path]:
     rec_path = folder / "record.csv"
     np.savetxt(rec_path, data, delimiter=",", header=header, comments="", fmt="%.12g")
     return cfg_path, rec_path
+
+
+def diagnosed(case: HintBench, folder: Path) -> Any:
+    """The default diagnosis (one process, no plots, no export) of record ``case`` written in ``folder``/bench,
+    its outputs in ``folder``/gap: a :class:`diagnosis.run.Diagnosis`."""
+    from diagnosis.run import diagnose
+
+    cfg, rec = write_hint_case(case, folder / "bench")
+    return diagnose(cfg, [rec], folder / "gap", plots=False, workers=1, export=False)

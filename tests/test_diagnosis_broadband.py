@@ -173,13 +173,11 @@ def test_a_correct_record_of_the_hint_family_at_the_floor_on_coarse_numerics_is_
     band-limited model started at the record's first sample took its 16th for the first 15, a force step whose
     lowest mode rang through the record (:func:`ebb_model.acquisition.bandlimited.lead_in`).  Of the family's 16 correct
     records, 16 are ``none`` now (measured; 14 before both)."""
-    from diagnosis.run import diagnose
-    from hint_family import first_draw, write_hint_case
+    from hint_family import diagnosed, first_draw
 
     case = first_draw(index, elements=128)
     assert case.kind == "correct"
-    cfg, rec = write_hint_case(case, tmp_path / "bench")
-    d = diagnose(cfg, [rec], tmp_path / "gap", plots=False, workers=1, export=False)
+    d = diagnosed(case, tmp_path)
     doc = d.document
     assert doc["verdict"] == "none", doc["reason"]
     # at the noise floor held out: within the gap threshold (measured 0.99)
@@ -257,13 +255,11 @@ def test_the_measured_modes_gate_the_modal_stages_by_the_share_of_the_gap_they_l
     out).  The gate is now the verdict's own (:func:`diagnosis.search.modal_stage.linear_records`: what the
     oscillators leave against the baseline's gap): the spring's pattern matches at χ² 1.8 for 4 modes and its
     refit is held out at the floor."""
-    from diagnosis.run import diagnose
-    from hint_family import hint_bench, write_hint_case
+    from hint_family import diagnosed, hint_bench
 
     case = hint_bench(49, elements=128)
     assert case.kind == "withheld effect" and case.effect is not None and case.effect.name == "grounded_spring"
-    cfg, rec = write_hint_case(case, tmp_path / "bench")
-    d = diagnose(cfg, [rec], tmp_path / "gap", plots=False, workers=1, export=False)
+    d = diagnosed(case, tmp_path)
     doc = d.document
     assert doc["verdict"] == "grounded_spring", doc["reason"]
     named = next(e for e in doc["effects"] if e["label"] == "grounded_spring")["refit"]

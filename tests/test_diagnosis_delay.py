@@ -24,7 +24,7 @@ from ebb_model.reference.excitation import band_limited_input
 from identification.export_statespace import load_statespace
 
 from conftest import make_config
-from hint_family import hint_bench, write_hint_case
+from hint_family import diagnosed, hint_bench
 
 
 def _bench(hold: str = "cubic"):
@@ -87,12 +87,9 @@ RECORDS = [2, 18, 34]
 
 @pytest.mark.parametrize("i", RECORDS)
 def test_an_undeclared_delay_is_named(tmp_path, i):
-    from diagnosis.run import diagnose
-
     case = hint_bench(i, elements=128)
     assert case.kind == "undeclared delay"
-    cfg, rec = write_hint_case(case, tmp_path / "bench")
-    d = diagnose(cfg, [rec], tmp_path / "gap", plots=False, workers=1, export=False)
+    d = diagnosed(case, tmp_path)
     doc = d.document
     assert doc["verdict"] == "channel_delay", doc["reason"]
     named = next(e for e in doc["effects"] if e["label"] == "channel_delay")["refit"]
