@@ -30,7 +30,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ebb_model import DiscreteStateSpace, assemble, simulate
-from ebb_model.acquisition.delay_line import delay_line, exported_config
+from ebb_model.acquisition.delay_line import exported_config, realised_line
 from ebb_model.io.output import atomic_path, make_dir
 from ebb_model.io.jsonio import write_json
 from ebb_model.modal.truncation import design_model, design_resolution
@@ -69,11 +69,21 @@ class StateSpaceForm:
     reason: str | None = None
 
 
-def _parts(model: AugmentedModel, beam: DiscreteStateSpace | None = None) -> str:
+def _parts(model: AugmentedModel, beam: DiscreteStateSpace | None = None, *, delays: bool = True) -> str:
     """The signal parts' descriptions, joined; with ``beam``, only those that put states or terms in series with
-    it (a part whose ``in_series`` leaves the system as it is — a constant offset — is not in the StateSpace)."""
-    return "; ".join(dict.fromkeys(part.description for part in model.signals
-                                   if beam is None or part.in_series(beam) is not beam))
+    it (a part whose ``in_series`` leaves the system as it is — a constant offset — is not in the StateSpace), and
+    without ``delays`` none that only delays its outputs (a delay the exported StateSpace leaves out)."""
+    def carried(part: Any) -> bool:
+        if beam is None:
+            return True
+        joined = part.in_series(beam)
+        if joined is beam:
+            return False
+        return delays or joined is None or not (joined.nstates == beam.nstates and np.array_equal(joined.A, beam.A)
+                                                and np.array_equal(joined.C, beam.C)
+                                                and np.array_equal(joined.D, beam.D))
+
+    return "; ".join(dict.fromkeys(part.description for part in model.signals if carried(part)))
 
 
 def _constant_terms(model: AugmentedModel) -> tuple[np.ndarray, np.ndarray]:
@@ -184,10 +194,11 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
     # a static correction
     resolution = design_resolution(model.config, model.params)
     form = statespace_form(model, design_model(model.config, model.params, resolution=resolution), full=beam)
-    system = None if form.system is None else delay_line(form.system)
+    system, line_left_out = (None, "") if form.system is None else realised_line(form.system)
     item = ExportItem("corrected", "corrected", exported.with_parameters(**model.params), model.params, system,
                       beam_system=beam,
-                      parts=_parts(model, beam), modes=None if resolution is None else resolution.to_dict(),
+                      parts=_parts(model, beam, delays=not line_left_out),
+                      modes=None if resolution is None else resolution.to_dict(),
                       no_system=form.reason or "")
     for name in targets:
         files = export_target(name)(item, out)
@@ -202,7 +213,7 @@ def export_corrected(model: AugmentedModel, out_dir: str | Path, summary: Mappin
         extra["output_offsets"] = {k: {"value": v, "unit": units.get(k, "")} for k, v in form.output_offsets.items()}
         carries["note"] = ("a sensor reads the model's output plus a constant (output_offsets, in neither the "
                            "StateSpace nor the FMU): the model is time-invariant and affine")
-    if left_out:
-        carries["channel delays"] = left_out
+    if left_out or line_left_out:
+        carries["channel delays"] = "; ".join(m for m in (left_out, line_left_out) if m)
     written.append(write_json(out / "corrected.json", dict(summary) | extra | {"files": carries}))
     return written

@@ -34,6 +34,7 @@ rotary_inertia                 rhoI [kg m]          r² = rhoI/(ρA L²) (0)
 foundation                     kf [N/m²]            κ = kf L⁴/EI (0)
 actuator_lag                   tau [s]              tau (0)
 sensor_lag[<sensor>]           tau [s]              tau (0)
+channel_delay                  delay [s]            delay in sample periods (0, two-sided)
 actuator_gain                  gain [1]             gain (1)
 sensor_gain[<sensor>]          gain [1]             gain (1)
 axial_drift                    rate [N/s]           rate (0, two-sided)
@@ -57,7 +58,7 @@ from typing import Any
 
 from ebb_model.config import BeamConfig
 
-from . import axial, beam_terms, boundary, chain, lag, local_stiffness, point_mass, shaker, supports
+from . import axial, beam_terms, boundary, chain, delay, lag, local_stiffness, point_mass, shaker, supports
 from .base import (
     PAIR_SEPARATOR,
     AugmentedModel,
@@ -88,6 +89,7 @@ FAMILIES: tuple[Family, ...] = (
     local_stiffness.FAMILY,
     beam_terms.FAMILY,
     lag.FAMILY,
+    delay.FAMILY,
     chain.FAMILY,
     axial.FAMILY,
 )

@@ -232,6 +232,10 @@ class Effect:
     #: leaves the modes alone and divides the response by λ (:mod:`diagnosis.search.modal_pattern` sets that scale from
     #: the amplitudes)
     scaled: tuple[int, ...] = ()
+    #: the refit's trial starts in place of the coarse grid around "off"
+    #: (:func:`diagnosis.candidates.score.trial_values`) — for a variable whose χ² is not unimodal between the grid's
+    #: points (a delay: periodic along each dominant mode's period, :mod:`.delay`); empty: that grid
+    trials: tuple[np.ndarray, ...] = field(default=(), repr=False)
 
     @property
     def label(self) -> str:

@@ -40,7 +40,7 @@ from ..problem.fitting import Fit, GapProblem
 from ..problem.ties import tie_ordered
 from ..settings import Thresholds
 from .modal_pattern import PatternFit
-from ..candidates.score import EffectScore, trial_values
+from ..candidates.score import EffectScore, effect_trials
 from .workers import side_by_side
 
 __all__ = ["EffectRefit", "explains", "summarise", "map_refits", "refit_from_match", "pair_refit",
@@ -74,8 +74,8 @@ class EffectRefit:
 
 def _best_start(problem: GapProblem, baseline: Fit, effect: Effect, score: EffectScore) -> np.ndarray:
     """The start of a refit with the lowest RSS among the score's Gauss–Newton step(s) and a coarse grid of the
-    effect (:func:`~diagnosis.candidates.score.trial_values`), the baseline unknowns held at their fitted values."""
-    candidates = [score.start, *score.alternatives, *trial_values(effect.lower, effect.upper, effect.off)]
+    effect (:func:`~diagnosis.candidates.score.effect_trials`), the baseline unknowns held at their fitted values."""
+    candidates = [score.start, *score.alternatives, *effect_trials(effect)]
 
     def rss(s: np.ndarray) -> float:
         r = problem.residuals(baseline.beta, effect, s)
@@ -238,12 +238,12 @@ def map_refits(executor: Executor | None, problem: GapProblem, catalogue: Catalo
 
 def _pair_start(problem: GapProblem, first: Fit, pair: Effect, k: int) -> np.ndarray:
     """Start of a pair's refit: the first effect's refit, the partner's variables the best of a coarse grid
-    (:func:`~diagnosis.candidates.score.trial_values`) with everything else held."""
+    (:func:`~diagnosis.candidates.score.effect_trials`) with everything else held."""
     def rss(s2: np.ndarray) -> float:
         r = problem.residuals(first.beta, pair, np.concatenate([first.s, s2]))
         return float(r @ r)
 
-    return np.concatenate([first.s, min(trial_values(pair.lower[k:], pair.upper[k:], pair.off[k:]), key=rss)])
+    return np.concatenate([first.s, min(effect_trials(pair.members[1]), key=rss)])
 
 
 def pair_refit(problem: GapProblem, catalogue: Catalogue, label: str, first: Fit, max_evaluations: int) -> Fit:

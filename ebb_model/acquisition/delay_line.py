@@ -27,6 +27,7 @@ the force as its channel recorded it, as for the anti-alias filters.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
@@ -39,7 +40,7 @@ from .channel_delay import effective_delays, without_delays
 if TYPE_CHECKING:
     from ..config import BeamConfig
 
-__all__ = ["MIN_FRACTIONAL", "delay_taps", "delay_line", "line_problems", "exported_config"]
+__all__ = ["MIN_FRACTIONAL", "delay_taps", "delay_line", "line_problems", "exported_config", "realised_line"]
 
 #: The shortest delay [samples] whose fraction a causal delay line realises: the kernel reads ``M − 1`` samples
 #: after the one it delays.
@@ -125,6 +126,17 @@ def delay_line(system: DiscreteStateSpace) -> DiscreteStateSpace:
         start += length
     return DiscreteStateSpace(Af, Bf, Cf, Df, system.dt, system.input_names, system.output_names, tuple(names),
                               hf, system.advance)
+
+
+def realised_line(system: DiscreteStateSpace) -> tuple[DiscreteStateSpace, str]:
+    """``system`` with its ``output_delays`` as a delay line (:func:`delay_line`) and ``""`` where that line is
+    causal, else ``system`` without them and the sentence that says they are left out and why (the delays a
+    system carries of its own, not from a config: a diagnosed delay between the channels)."""
+    problems = [p for p in (_refusal(n, d) for n, d in zip(system.output_names, system.output_delays)) if p]
+    if not problems:
+        return delay_line(system), ""
+    return replace(system, output_delays=()), ("the exported models leave the channels' delay out (a model driven "
+                                               "sample by sample cannot carry it): " + "; ".join(problems))
 
 
 def exported_config(config: BeamConfig) -> tuple[BeamConfig, str]:
