@@ -169,7 +169,8 @@ def by_evidence(verdict: Verdict, probabilities: Mapping[str, float], decisive_o
     The most probable of them (posterior ``probabilities``, :mod:`diagnosis.problem.evidence`) is named, with
     the sentence after the verdict's reasons, when its odds against the next reach ``decisive_odds``
     (:attr:`~diagnosis.settings.Thresholds.decisive_odds`); otherwise the verdict is
-    :attr:`Kind.INDISTINGUISHABLE` with the candidates, the most probable first, as its ties and the sentence
+    :attr:`Kind.INDISTINGUISHABLE` with the candidates the evidence does not put decisively below the most
+    probable, the most probable first, as its ties and the sentence
     before its reasons (an actuator's lag and a sensor's lag on a record with one force and one sensor: the two
     commute, and no record of that pair can tell them apart).
 
@@ -192,6 +193,10 @@ def by_evidence(verdict: Verdict, probabilities: Mapping[str, float], decisive_o
         return named(candidates[0], (), verdict.reasons).said(rule, (
             f"the evidence decides between them: {candidates[0]} (posterior probability {p[0]:.3g}) over "
             f"{candidates[1]} ({p[1]:.2g}), odds {ratio}"))
+    # a tie the evidence puts decisively below the most probable is no rival of it (a delay beside two lags that
+    # commute: ln odds 30 against either)
+    kept = [k for k, v in enumerate(p) if v > 0.0 and p[0] < decisive_odds * v]
+    candidates, p = [candidates[k] for k in kept], [p[k] for k in kept]
     listed = ("" if remains is not None else
               "posterior probabilities " + ", ".join(f"{lab} {v:.2g}" for lab, v in zip(candidates, p)) + "; ")
     sentence = Reason(rule, (
