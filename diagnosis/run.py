@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
-from typing import Any, Callable, Sequence, cast
+from typing import Any, Callable, Mapping, Sequence, cast
 
 import numpy as np
 
@@ -50,6 +50,7 @@ from .judgement.rules import Case, Judgement, judge
 from .judgement.verdict import Kind, settled
 from .judgement.weigh import Weighed, weigh
 from .localise import Localisation, localise
+from .problem.evidence import earlier_evidence
 from .problem.fitting import Fit, GapProblem
 from .problem.records import ordered_record, split_records
 from .report.assemble import effect_rows, gap_report
@@ -101,7 +102,8 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
              holdout: Sequence[str | Path] = (), result: IdentificationResult | str | Path | None = None,
              holdout_fraction: float = 0.3, shortlist: int | None = None, noise_std: Sequence[float] | None = None,
              plots: bool = True, export: bool = True, targets: Sequence[str] = DEFAULT_TARGETS, workers: int = 2,
-             dask: Any = None, progress: Callable[[str], None] | None = None) -> Diagnosis:
+             dask: Any = None, earlier: str | Path | None = None,
+             progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Locate the sim-to-real gap, name the effect that explains it, and measure how far it closes.
 
     Parameters
@@ -141,6 +143,11 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
         Refit on a Dask cluster instead: a scheduler address, ``"local:K"``
         (a local cluster of K workers, started and closed here) or a connected
         ``distributed.Client``.  The result does not depend on it either.
+    earlier
+        The ``gap.json`` (or its directory) of an earlier diagnosis of the same bench on other records — the
+        record a next experiment (:mod:`diagnosis.design`) asked for is weighed with the records that asked for
+        it: the posterior odds between the models start from the earlier ones
+        (:func:`~diagnosis.problem.evidence.log_posteriors`).
 
     Returns
     -------
@@ -160,6 +167,7 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
     settings = thresholds_from_config(cfg, shortlist=shortlist)
     setups = setups_from_config(cfg)
     targets = check_targets(targets, cfg)
+    prior_odds = earlier_evidence(earlier, GAP_FILE) if earlier is not None else None
     out = Path(out_dir) if out_dir is not None else None
     if out is not None:
         check_new_output_dir(out)
@@ -186,10 +194,10 @@ def diagnose(config: BeamConfig | str | Path, data: Sequence[str | Path], out_di
                          parallel=executor.workers if isinstance(executor, DaskExecutor) else workers, clock=clock,
                          say=say, memo=memo)
         found = _signed(problem, search, executor, clock, say)
-        case = _case(found, clock, say)
+        case = _case(found, clock, say, prior_odds)
         judgement = judge(case)
         say(f"verdict: {judgement.verdict.name}")
-        case, setups, tried = _apart(case, judgement, found, setups, executor, clock, say, memo)
+        case, setups, tried = _apart(case, judgement, found, setups, executor, clock, say, memo, prior_odds)
         case = _readings(case, tried, found, executor, clock, say)
         judgement = judge(case)                 # every change of the verdict goes through the rules
         problem, ranking = case.problem, case.ranking
@@ -237,7 +245,8 @@ def _signed(problem: GapProblem, search: Callable[..., _Found], executor: Any, c
     return replace(found, polarity=replace(found.polarity, with_refits=resign))
 
 
-def _case(found: _Found, clock: StageClock, say: Callable[[str], None]) -> Case:
+def _case(found: _Found, clock: StageClock, say: Callable[[str], None], earlier: Mapping[str, float] | None
+          ) -> Case:
     """What the rules judge: the grid's share of the gap (a gap that refining the grid changes is not blamed on
     physics), where the baseline's residual lies, and the evidence measured once."""
     problem, ranking = found.problem, found.ranking
@@ -261,14 +270,16 @@ def _case(found: _Found, clock: StageClock, say: Callable[[str], None]) -> Case:
                               input_names=cfg.input_names) for r, y in zip(records, base_all))
     where = tuple(f"{r.name}: {s}" for r, loc in zip(records, locs) for s in loc.summary[:2])
     with clock.stage("plausibility and evidence"):
-        weighed = _weighed(problem, ranking, f_hi, say)
+        weighed = _weighed(problem, ranking, f_hi, say, earlier)
     return Case(problem, ranking, weighed, adequacy.share_of_the_gap, grid_line(advice, adequacy),
                 found.polarity, where, adequacy=adequacy, advice=advice, locs=locs)
 
 
-def _weighed(problem: GapProblem, ranking: Ranking, band_hz: float, say: Callable[[str], None]) -> Weighed:
-    """The evidence on ``ranking`` (:func:`~diagnosis.judgement.weigh.weigh`), what is implausible said."""
-    weighed = weigh(problem, ranking, band_hz)
+def _weighed(problem: GapProblem, ranking: Ranking, band_hz: float, say: Callable[[str], None],
+             earlier: Mapping[str, float] | None) -> Weighed:
+    """The evidence on ``ranking`` (:func:`~diagnosis.judgement.weigh.weigh`, from an ``earlier`` diagnosis'
+    posteriors when given), what is implausible said."""
+    weighed = weigh(problem, ranking, band_hz, earlier)
     for lab, lines in weighed.implausible.items():
         say(f"{lab} needs implausible values: " + "; ".join(lines))
     return weighed
@@ -278,7 +289,7 @@ Reading = tuple[str, GapProblem, Ranking, dict[str, list[str]]]
 
 
 def _apart(case: Case, judgement: Judgement, found: _Found, setups: Setups | None, executor: Any,
-           clock: StageClock, say: Callable[[str], None], memo: RefitMemo
+           clock: StageClock, say: Callable[[str], None], memo: RefitMemo, earlier: Mapping[str, float] | None
            ) -> tuple[Case, Setups | None, list[Reading]]:
     """When the records and the measured modes disagree more than one structure explains (and no set-ups were
     declared): ranked again with the measured modes taken without the rig parts; the two-set-up case is the one
@@ -297,7 +308,7 @@ def _apart(case: Case, judgement: Judgement, found: _Found, setups: Setups | Non
         ranking_two = against_the_best_baseline(two, _rank(two, found.baseline, found.catalogue, found.modes, executor,
                                                            clock, say, memo), say)
         case_two = replace(case, problem=two, ranking=ranking_two,
-                           weighed=_weighed(two, ranking_two, found.modes.band[1], say), _chain={})
+                           weighed=_weighed(two, ranking_two, found.modes.band[1], say, earlier), _chain={})
         verdict_two = judge(case_two).verdict
     adopted = verdict_two.kind is Kind.EFFECT
     apart = SetupsApart(why, parts, verdict_two.name, adopted, verdict_two.text())

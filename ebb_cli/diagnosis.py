@@ -31,7 +31,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     d = diagnose(config_with_spectrum_modes(args), args.data, args.out, holdout=args.holdout or (), result=args.result,
                  holdout_fraction=args.holdout_fraction, shortlist=args.shortlist, plots=not args.no_plots,
                  export=not args.no_export, targets=args.target, workers=args.workers, dask=args.dask,
-                 progress=say)
+                 earlier=args.earlier, progress=say)
     from diagnosis.report.html import text_report
 
     print(text_report(d.report))
@@ -47,8 +47,8 @@ def _from_modes(args: argparse.Namespace) -> int:
     from diagnosis.from_modes import diagnose_from_modes
     from ebb_model.errors import ConfigError
 
-    if args.each or args.resume or args.holdout or args.result:
-        raise ConfigError("without records: --each, --resume, --holdout and --result do not apply")
+    if args.each or args.resume or args.holdout or args.result or args.earlier:
+        raise ConfigError("without records: --each, --resume, --holdout, --result and --earlier do not apply")
     d = diagnose_from_modes(config_with_spectrum_modes(args), args.out)
     print("no record: the effects weighed against the measured natural frequencies alone")
     for line in d.lines():
@@ -72,8 +72,9 @@ def _each(args: argparse.Namespace, say: Callable[[str], None]) -> int:
     from diagnosis.batch import diagnose_each
     from ebb_model.errors import ConfigError
 
-    if args.holdout or args.result:
-        raise ConfigError("--each: each record holds out its own tail; --holdout and --result do not apply")
+    if args.holdout or args.result or args.earlier:
+        raise ConfigError("--each: each record holds out its own tail; --holdout, --result and --earlier do not "
+                          "apply")
     docs = diagnose_each(config_with_spectrum_modes(args), args.data, args.out, workers=args.workers,
                          dask=args.dask, progress=say, holdout_fraction=args.holdout_fraction,
                          shortlist=args.shortlist, plots=not args.no_plots, export=not args.no_export,
@@ -103,6 +104,10 @@ def add_parsers(sub: Subcommands) -> None:
                    help="fraction of each record held out when --holdout is not given (default 0.3)")
     p.add_argument("--result", default=None, metavar="DIR", help="an `ebb identify` result to start from")
     p.add_argument("--out", required=True, help="output directory (gap.json, plots); must not exist or be empty")
+    p.add_argument("--earlier", default=None, metavar="GAP_JSON",
+                   help="an earlier diagnosis of the same bench (its gap.json or directory): the models' odds "
+                        "start from its posterior (the record its next experiment asked for, weighed with the "
+                        "records that asked for it)")
     add_modes_arguments(p)
     p.add_argument("--shortlist", type=int, default=None,
                    help="effects refitted after the score test (default: [diagnosis] shortlist, else 4)")

@@ -89,6 +89,27 @@ def test_bad_settings_exit_2_and_write_nothing(bench, tmp_path, capsys, extra, p
     assert not out.exists()
 
 
+@pytest.mark.parametrize("content, said", [
+    (None, "no such file"),
+    (b"\x00\x9f\xffjunk", "not a readable gap.json"),
+    (b'{"verdict": "none"}', "no 'log_posterior'"),
+    (b'{"log_posterior": {"none": 0.5}}', "not a log probability"),
+    (b'{"log_posterior": {"none": NaN}}', "not a log probability"),
+])
+def test_a_bad_earlier_diagnosis_exits_2_and_writes_nothing(bench, tmp_path, capsys, content, said):
+    """``--earlier`` a missing file, binary junk, a JSON document that is no diagnosis' ``gap.json``, a log
+    probability above 0 or not a number: one line naming it, exit 2, nothing written."""
+    d, (fit, _) = bench
+    earlier = tmp_path / "earlier.json"
+    if content is not None:
+        earlier.write_bytes(content)
+    out = tmp_path / "gap"
+    rc = main(["diagnose", str(d / "bench.toml"), str(fit), "--out", str(out), "--quiet", "--earlier", str(earlier)])
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert rc == 2 and len(err) == 1 and said in err[0] and str(earlier) in err[0], err
+    assert not out.exists()
+
+
 def test_bad_data_exit_2_and_write_nothing(bench, tmp_path, capsys):
     d, (fit, _) = bench
     text = fit.read_text().splitlines()

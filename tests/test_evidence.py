@@ -16,7 +16,7 @@ from scipy import special, stats
 
 from diagnosis.effects import signal_effect
 from diagnosis.effects.lag import ActuatorLag
-from diagnosis.problem.evidence import laplace_log_evidence, posterior_probabilities
+from diagnosis.problem.evidence import laplace_log_evidence, log_posteriors, posterior_probabilities
 from diagnosis.problem.fitting import GapProblem
 from diagnosis.problem.records import split_records
 from diagnosis.problem.ties import TIE_RTOL, tie_ordered
@@ -31,12 +31,12 @@ N_SAMPLES = 600
 DRAWS = 4000
 
 
-def _problem(tau: float) -> tuple[GapProblem, object]:
+def _problem(tau: float, seed: int = 4) -> tuple[GapProblem, object]:
     d = make_identification_config(nodes=12, N=50.0).to_dict()
     d["parameters"]["EI"]["prior_std"] = 1.0
     cfg = config_from_dict(d, extra_sections=("identification",))
     space = parameter_space(cfg)
-    rng = np.random.default_rng(4)
+    rng = np.random.default_rng(seed)
     u = rng.standard_normal((N_SAMPLES, 1))
     x0 = np.asarray(space.nominal, dtype=float)
     drive = ActuatorLag(tau).inputs(u, cfg.time.dt) if tau > 0 else u
@@ -104,6 +104,32 @@ def test_posterior_probabilities_weigh_fit_against_complexity():
     base = problem.fit(np.asarray(problem.space.nominal, dtype=float))
     probs = posterior_probabilities(problem, base, {"actuator_lag": problem.fit(base.beta, lag, np.array([3e-4]))})
     assert next(iter(probs)) == "none" and probs["none"] > 0.5
+
+
+def test_an_earlier_diagnosis_posterior_is_the_prior_of_a_later_one():
+    """Two independent records of the same bench: the posterior from the first, taken as the prior of the second
+    (``earlier``), is the posterior of both — the product of the two records' evidence, with equal priors at the
+    start — to round-off; a model the earlier diagnosis did not weigh takes its largest log posterior (neither
+    favoured nor ruled out); kept as logarithms, a model ruled out far beyond a float's range still weighs."""
+    first, lag = _problem(6e-4)
+    second, _ = _problem(6e-4, seed=12)
+    z = {}
+    for k, problem in enumerate((first, second)):
+        base = problem.fit(np.asarray(problem.space.nominal, dtype=float))
+        refit = problem.fit(base.beta, lag, np.array([3e-4]))
+        z[k] = ({"none": laplace_log_evidence(problem, base), "actuator_lag": laplace_log_evidence(problem, refit)},
+                base, refit)
+    earlier = log_posteriors(first, z[0][1], {"actuator_lag": z[0][2]})
+    later = log_posteriors(second, z[1][1], {"actuator_lag": z[1][2]}, earlier=earlier)
+    both = {lab: z[0][0][lab] + z[1][0][lab] for lab in ("none", "actuator_lag")}
+    top = max(both.values())
+    norm = top + math.log(sum(math.exp(v - top) for v in both.values()))
+    for lab in both:
+        assert later[lab] == pytest.approx(both[lab] - norm, abs=1e-9)
+    assert earlier["none"] < -700.0          # exp() of it is 0.0 as a float: the logarithm keeps it
+    unweighed = log_posteriors(second, z[1][1], {"actuator_lag": z[1][2]}, earlier={"none": earlier["none"]})
+    alone = log_posteriors(second, z[1][1], {"actuator_lag": z[1][2]})
+    assert unweighed["actuator_lag"] == pytest.approx(alone["actuator_lag"], abs=1e-9)
 
 
 def siso_lag_record(tmp_path):

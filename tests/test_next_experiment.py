@@ -88,12 +88,18 @@ def test_the_linearised_discrimination_agrees_with_a_refit(tied):
 
 def test_the_designed_record_separates_the_tie(tied, tmp_path):
     """Done-when (d): the best design made — the independent truth (the withheld 0.5 ms actuator lag), the design's
-    band at the records' force RMS, the designed sensor added, the sensors' noise as measured — and diagnosed:
-    the actuator's lag is named, and its log Bayes factor over the sensor's lag on that record (both refitted,
-    Laplace evidence) is beyond the decisive odds.  Measured: predicted 2.11e5 for the 2.1 s fit window, realised
-    1.67e5 (0.79 of it).  The figure is an expectation at the first record's refits and noise; the new record's
-    diagnosis refits the beam and estimates its own noise model — a factor 2 is allowed for that, far more than
-    the log Bayes factor's own scatter (its standard deviation √(2E) ≈ 650 nats, 0.3 %)."""
+    band at the records' force RMS, the designed sensor added, the sensors' noise as measured — and diagnosed.
+
+    Alone, the designed record separates the lags and nothing else: its band is mode 1's (6.9–9.3 Hz, ωτ 0.03),
+    where a lag and a delay of the sensors' channels are one (a lag's level falls by (ωτ)²/2 = 4e-4): measured,
+    the delay and the lag tie at odds 3.6 (χ² 8163.8 and 8165.4), the sensor's lag is not among them.  The first
+    record had ruled the delay out (χ² 33 above the lags, ln odds about 18); weighed with it (``earlier``, the
+    first diagnosis' posterior as the prior) the actuator's lag is named, and its log Bayes factor over the
+    sensor's lag on the designed record (both refitted, Laplace evidence) is beyond the decisive odds.
+    Measured: predicted 2.11e5 for the 2.1 s fit window, realised 1.67e5 (0.79 of it).  The figure is an
+    expectation at the first record's refits and noise; the new record's diagnosis refits the beam and estimates
+    its own noise model — a factor 2 is allowed for that, far more than the log Bayes factor's own scatter (its
+    standard deviation √(2E) ≈ 650 nats, 0.3 %)."""
     cfg, rec, d = tied
     nxt = d.report.next_experiment
     design = nxt.best.design
@@ -107,7 +113,11 @@ def test_the_designed_record_separates_the_tie(tied, tmp_path):
     sigma = d.report.noise_std["y2"]
     y = truth.outputs + sigma * np.random.default_rng(7).standard_normal(truth.outputs.shape)
     np.savez(tmp_path / "designed.npz", time=truth.time, F1=truth.inputs[:, 0], y2=y[:, 0], y_new=y[:, 1])
-    d2 = diagnose(cfg2, [tmp_path / "designed.npz"], None, plots=False, export=False, workers=2)
+    alone = diagnose(cfg2, [tmp_path / "designed.npz"], None, plots=False, export=False, workers=2)
+    assert alone.verdict == Kind.INDISTINGUISHABLE.value, alone.report.reason
+    assert set(alone.report.indistinguishable) == {"actuator_lag", "channel_delay"}, alone.report.reason
+    d2 = diagnose(cfg2, [tmp_path / "designed.npz"], None, plots=False, export=False, workers=2,
+                  earlier=d.out_dir / "gap.json")
     assert d2.verdict == "actuator_lag", d2.report.reason
     rival = d2.ranking.effects["sensor_lag[y2]"]
     named = d2.ranking.refits["actuator_lag"].fit

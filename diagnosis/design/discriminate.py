@@ -112,7 +112,7 @@ class NextExperiment:
             which += " (the plausible readings, held within the limits)"
         return (f"next experiment to separate {which}: {b.design.describe()} — expected "
                 f"ln Bayes factor {b.rate * self.seconds:.3g} in {self.seconds:.3g} s (decisive {self.decisive:.3g}, "
-                f"{reach}){now}")
+                f"{reach}){now}; its diagnosis weighed with these records: --earlier this gap.json")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON values (``gap.json``'s ``next_experiment``)."""

@@ -4,14 +4,15 @@ degenerate with the baseline unknowns, and each model against the measured modes
 rules of :mod:`diagnosis.judgement.rules` do."""
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping
 
 from identification.prior import PriorCheck
 
 from ..problem.fitting import GapProblem
 from ..search.rank import Ranking
-from ..problem.evidence import numerics_shift, posterior_probabilities
+from ..problem.evidence import log_posteriors, numerics_shift
 from ..problem.plausibility import confounded, implausibilities, prior_checks
 
 __all__ = ["Weighed", "weigh", "chain_degeneracies"]
@@ -30,6 +31,8 @@ class Weighed:
         priors); :attr:`conflicts` are those in conflict.
     evidence
         Posterior probabilities of the baseline (``"none"``) and the refits (:mod:`diagnosis.problem.evidence`).
+    log_posterior
+        Their natural logarithms (what a later diagnosis of the same bench weighs its records against).
     confounded
         Per refit degenerate with the baseline unknowns, the line saying with which combination.
     modal_data
@@ -41,6 +44,7 @@ class Weighed:
     evidence: dict[str, float]
     confounded: dict[str, str]
     modal_data: dict[str, dict[str, Any]]
+    log_posterior: dict[str, float] = field(default_factory=dict)
 
     @property
     def conflicts(self) -> list[PriorCheck]:
@@ -48,15 +52,18 @@ class Weighed:
         return [c for c in self.priors if c.status == "conflict"]
 
 
-def weigh(problem: GapProblem, ranking: Ranking, band_hz: float) -> Weighed:
+def weigh(problem: GapProblem, ranking: Ranking, band_hz: float,
+          earlier: Mapping[str, float] | None = None) -> Weighed:
     """Measure the evidence on every refit of ``ranking`` (the effects it carries, :attr:`Ranking.effects`); the
     posterior probabilities on the finer numerics for the excited band's top ``band_hz``
-    (:func:`~diagnosis.problem.evidence.numerics_shift`)."""
+    (:func:`~diagnosis.problem.evidence.numerics_shift`), from the prior ``earlier`` (an earlier diagnosis' log
+    posteriors, :func:`~diagnosis.problem.evidence.log_posteriors`) when given."""
     effects = ranking.effects
     issues = {lab: implausibilities(problem, effects[lab], rf.fit) for lab, rf in ranking.refits.items()}
     priors = prior_checks(problem, ranking.baseline)
-    probs = posterior_probabilities(problem, ranking.baseline, {lab: rf.fit for lab, rf in ranking.refits.items()},
-                                    effects=effects, shift=numerics_shift(problem, ranking.baseline, band_hz))
+    logp = log_posteriors(problem, ranking.baseline, {lab: rf.fit for lab, rf in ranking.refits.items()},
+                          effects=effects, shift=numerics_shift(problem, ranking.baseline, band_hz), earlier=earlier)
+    probs = {lab: math.exp(v) for lab, v in logp.items()}
     tangled = {lab: line for lab, rf in ranking.refits.items()
                if (line := confounded(problem, effects[lab], rf.fit)) is not None}
     agreement: dict[str, dict[str, Any]] = {}
@@ -66,7 +73,7 @@ def weigh(problem: GapProblem, ranking: Ranking, band_hz: float) -> Weighed:
         for lab, rf in ranking.refits.items():
             m = problem.modes_model(rf.fit.beta, effects[lab], rf.fit.s)
             agreement[lab] = problem.modes.agreement(m.config, m.params)
-    return Weighed({lab: v for lab, v in issues.items() if v}, priors, probs, tangled, agreement)
+    return Weighed({lab: v for lab, v in issues.items() if v}, priors, probs, tangled, agreement, logp)
 
 
 def chain_degeneracies(problem: GapProblem, ranking: Ranking, weighed: Weighed) -> dict[str, str]:

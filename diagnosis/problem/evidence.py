@@ -23,7 +23,9 @@ Gaussian; the approximation keeps the full one (an error of ``ln 2`` at most, fa
 decide a verdict).
 
 Posterior probabilities across the candidates take equal prior probabilities per model (the baseline included:
-``"none"``).  :func:`laplace_log_evidence` is checked against importance sampling on a small case in the tests.
+``"none"``), or an earlier diagnosis' posteriors of the same bench (:func:`log_posteriors`: the records a design
+of :mod:`diagnosis.design` asked for, weighed with those that asked for it).  :func:`laplace_log_evidence` is
+checked against importance sampling on a small case in the tests.
 
 **On the finer numerics.**  The evidence assumes the model exact; a grid's discretisation error is not, and an
 effect's extra freedom absorbs part of it: on the clamped strip in tension under a broadband force (three sensors,
@@ -38,21 +40,24 @@ refit on the finer grid.
 """
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import replace
+from pathlib import Path
 from typing import Mapping
 
 import numpy as np
 from scipy.optimize import lsq_linear
 
+from ebb_model.errors import DataError
 from identification.objectives import PENALTY
 from identification.numerics import refinements
 
 from ..effects import Effect
 from .fitting import Fit, GapProblem
 
-__all__ = ["FLAT_EIGENVALUE", "chi2_on_finer", "laplace_log_evidence", "numerics_shift", "posterior_probabilities",
-           "prior_log_normaliser"]
+__all__ = ["FLAT_EIGENVALUE", "chi2_on_finer", "earlier_evidence", "earlier_log_posteriors", "laplace_log_evidence",
+           "log_posteriors", "numerics_shift", "posterior_probabilities", "prior_log_normaliser"]
 
 #: Floor of the Hessian's eigenvalues in box units: a Gaussian of this precision has the uniform box's normaliser.
 FLAT_EIGENVALUE = 2.0 * math.pi
@@ -114,12 +119,29 @@ def chi2_on_finer(problem: GapProblem, fit: Fit, effect: Effect | None, shift: n
 
 
 def posterior_probabilities(problem: GapProblem, baseline: Fit, refits: Mapping[str, Fit], *,
-                            effects: Mapping[str, Effect] | None = None, shift: np.ndarray | None = None
-                            ) -> dict[str, float]:
-    """Posterior probability of the baseline (``"none"``) and of each refitted candidate (equal prior
-    probabilities), from :func:`laplace_log_evidence`; ordered from the most probable.  With ``shift``
-    (:func:`numerics_shift`) and the refits' ``effects``, each model's χ² is taken on the finer numerics
-    (:func:`chi2_on_finer`)."""
+                            effects: Mapping[str, Effect] | None = None, shift: np.ndarray | None = None,
+                            earlier: Mapping[str, float] | None = None) -> dict[str, float]:
+    """Posterior probability of the baseline (``"none"``) and of each refitted candidate, ordered from the most
+    probable: ``exp`` of :func:`log_posteriors` (the same arguments)."""
+    logp = log_posteriors(problem, baseline, refits, effects=effects, shift=shift, earlier=earlier)
+    return {lab: math.exp(v) for lab, v in logp.items()}
+
+
+def log_posteriors(problem: GapProblem, baseline: Fit, refits: Mapping[str, Fit], *,
+                   effects: Mapping[str, Effect] | None = None, shift: np.ndarray | None = None,
+                   earlier: Mapping[str, float] | None = None) -> dict[str, float]:
+    """The natural logarithm of the posterior probability of the baseline (``"none"``) and of each refitted
+    candidate, from :func:`laplace_log_evidence`, ordered from the most probable (kept as logarithms: a model
+    the records rule out decisively underflows as a probability, and a later record is weighed against it).
+
+    The prior probabilities are equal, or with ``earlier`` — the log posteriors of an earlier diagnosis of the
+    same bench on other records (:func:`earlier_log_posteriors`) — that diagnosis' posterior: the evidence of
+    independent records multiplies.  A model the earlier diagnosis did not weigh (not refitted there) takes the
+    earlier's largest, so it is neither favoured nor ruled out by records that said nothing of it.  Each record's
+    evidence integrates its own fit of the beam's unknowns (their sharing across records is not used: the
+    product is the evidence of records whose set-ups may differ, e.g. a sensor added by the design of
+    :mod:`diagnosis.design`).  With ``shift`` (:func:`numerics_shift`) and the refits' ``effects``, each model's
+    χ² is taken on the finer numerics (:func:`chi2_on_finer`)."""
     def chi2(fit: Fit, effect: Effect | None) -> float | None:
         return None if shift is None else chi2_on_finer(problem, fit, effect, shift)
 
@@ -128,7 +150,49 @@ def posterior_probabilities(problem: GapProblem, baseline: Fit, refits: Mapping[
     logz = {"none": laplace_log_evidence(problem, baseline, chi2(baseline, None))}
     logz |= {lab: laplace_log_evidence(problem, fit, chi2(fit, None if effects is None else effects[lab]))
              for lab, fit in refits.items()}
+    if earlier:
+        unweighed = max(earlier.values())
+        logz = {lab: v + earlier.get(lab, unweighed) for lab, v in logz.items()}
     top = max(logz.values())
-    w = {lab: math.exp(v - top) for lab, v in logz.items()}
-    total = sum(w.values())
-    return dict(sorted(((lab, v / total) for lab, v in w.items()), key=lambda kv: -kv[1]))
+    norm = top + math.log(sum(math.exp(v - top) for v in logz.values()))
+    return dict(sorted(((lab, v - norm) for lab, v in logz.items()), key=lambda kv: -kv[1]))
+
+
+def earlier_evidence(path: str | Path, file_name: str) -> dict[str, float]:
+    """The log posteriors of an earlier diagnosis (:func:`earlier_log_posteriors`), read from its document
+    ``file_name`` (``gap.json``) or the directory holding it.
+
+    Raises
+    ------
+    DataError
+        No such file, not JSON, or not a diagnosis' document with its log posteriors.
+    """
+    where = Path(path)
+    where = where / file_name if where.is_dir() else where
+    try:
+        document = json.loads(where.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise DataError(f"earlier: no such file {where}") from None
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise DataError(f"earlier: {where} is not a readable {file_name} ({type(exc).__name__})") from None
+    return earlier_log_posteriors(document, f"earlier: {where}")
+
+
+def earlier_log_posteriors(document: Mapping[str, object], where: str) -> dict[str, float]:
+    """The log posteriors of an earlier diagnosis from its ``gap.json`` document (``log_posterior``), checked.
+
+    Raises
+    ------
+    DataError
+        The document holds no log posteriors (not a diagnosis' ``gap.json``, or one that weighed no model), or a
+        value that is not a number below or at 0.
+    """
+    got = document.get("log_posterior") if isinstance(document, Mapping) else None
+    if not isinstance(got, Mapping) or not got:
+        raise DataError(f"{where}: no 'log_posterior' — not the gap.json of a diagnosis that weighed its models")
+    out: dict[str, float] = {}
+    for lab, v in got.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v > 1e-9:
+            raise DataError(f"{where}: log_posterior of {lab!r} is {v!r}, not a log probability (a number <= 0)")
+        out[str(lab)] = float(v)
+    return out

@@ -96,5 +96,6 @@ def gap_report(problem: GapProblem, ranking: Ranking, judgement: Judgement, band
         ranking.patterns["baseline"].chi2 if ranking.patterns else None,
         {r.name: loc for r, loc in zip(problem.records, locs)}, tuple(s for loc in locs for s in loc.summary),
         tuple(effect_rows), settings, implausible={k: tuple(v) for k, v in weighed.implausible.items()},
-        priors=tuple(weighed.priors), evidence=weighed.evidence, confounded=judgement.confounded,
+        priors=tuple(weighed.priors), evidence=weighed.evidence, log_posterior=weighed.log_posterior,
+        confounded=judgement.confounded,
         modal_data=weighed.modal_data, polarity=polarity)

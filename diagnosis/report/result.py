@@ -176,6 +176,9 @@ class GapReport:
         The baseline's unknowns against the user's priors (:class:`identification.prior.PriorCheck`).
     evidence
         Posterior probability of the baseline (``"none"``) and of each refit (:mod:`diagnosis.problem.evidence`).
+    log_posterior
+        Their natural logarithms (``log_posterior`` in ``gap.json``: a later diagnosis of the same bench starts
+        from them, ``diagnose(..., earlier=)``).
     confounded
         The refits degenerate with the baseline unknowns, and with which (only a prior separates them).
     modal_data
@@ -214,6 +217,7 @@ class GapReport:
     implausible: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
     priors: tuple[PriorCheck, ...] = ()
     evidence: Mapping[str, float] = field(default_factory=dict)
+    log_posterior: Mapping[str, float] = field(default_factory=dict)
     confounded: Mapping[str, str] = field(default_factory=dict)
     modal_data: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     polarity: PolarityCheck | None = None
@@ -259,6 +263,8 @@ class GapReport:
             "settings": self.settings.to_dict(), "judgement": self.judged.to_dict()}
         if self.evidence:
             doc["posterior_probability"] = {k: float(v) for k, v in self.evidence.items()}
+        if self.log_posterior:
+            doc["log_posterior"] = {k: float(v) for k, v in self.log_posterior.items()}
         if self.confounded:
             doc["confounded"] = dict(self.confounded)
         if self.modal_data:
