@@ -4,7 +4,8 @@ The case: one force and one sensor with an actuator lag withheld (the independen
 and a sensor's commute on the one path, so the records cannot separate them (``indistinguishable``, 0.500 /
 0.500).  The design must find what can (a second sensor: the sensor's lag stays on its own sensor, the actuator's
 reaches every one), promise a decisive log Bayes factor, and keep it when the designed record is made — simulated
-from the independent truth with the same sensor noise — and diagnosed.
+from the independent truth with the same sensor noise — and diagnosed, weighed with the first record (what the
+first record ruled out, the designed one need not).
 """
 from __future__ import annotations
 
