@@ -12,6 +12,8 @@ from ebb_model.simulate import fast_model, simulate
 
 from ..problem.axial_terms import stretch_of_nodes
 from ..effects import Catalogue, Scales
+from ..effects.delay import read_delay
+from ..problem.augmented import simulate_effects
 from ..problem.fitting import GapProblem
 from ..problem.records import Record
 
@@ -30,7 +32,10 @@ def catalogue_of(problem: GapProblem, base_cfg: BeamConfig, base_params: Mapping
                     duration=max(r.fit_end for r in fit_records) * base_cfg.time.dt,
                     stretch_max=stretch_max(base_cfg, base_params, fit_records),
                     output_rms=tuple(float(v) for v in np.sqrt(np.mean(np.concatenate(
-                        [r.outputs[:r.fit_end] for r in fit_records]) ** 2, axis=0))))
+                        [r.outputs[:r.fit_end] for r in fit_records]) ** 2, axis=0))),
+                    read_delay=read_delay([(r.outputs[:r.fit_end], simulate_effects(base_cfg, base_params,
+                                                                                   r.inputs[:r.fit_end]))
+                                           for r in fit_records]))
     return Catalogue(base_cfg, scales, tuple(problem.space.names), absent=absent)
 
 

@@ -43,6 +43,10 @@ class Scales:
     output_rms
         Root-mean-square reading of each sensor over the fitted records, in the config's sensor order (what an
         output-level effect — an offset, a drift of a reading — sizes its bounds from); empty when unknown.
+    read_delay
+        The sensors' delay after the force [samples] and its concentration, read from the phase of the fitted
+        records against the baseline's prediction (:func:`diagnosis.effects.delay.read_delay`); ``None`` when
+        unread.
     """
 
     EI: float
@@ -54,6 +58,7 @@ class Scales:
     duration: float
     stretch_max: float = 0.0
     output_rms: tuple[float, ...] = ()
+    read_delay: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -236,6 +241,12 @@ class Effect:
     #: (:func:`diagnosis.candidates.score.trial_values`) — for a variable whose χ² is not unimodal between the grid's
     #: points (a delay: periodic along each dominant mode's period, :mod:`.delay`); empty: that grid
     trials: tuple[np.ndarray, ...] = field(default=(), repr=False)
+    #: boxes ``(lower, upper)`` of the effect's variables read from the records themselves, within the reading's
+    #: error (a delay from the phase of the records against the baseline's prediction: :func:`.delay.read_delay`):
+    #: where the refit from the best trial leaves a gap, the effect is refitted held in each box, then freed
+    #: (:mod:`diagnosis.search.refits`) — a trial is judged with the baseline's unknowns held, which the effect
+    #: left out had bent; empty: none
+    read: tuple[tuple[tuple[float, ...], tuple[float, ...]], ...] = ()
 
     @property
     def label(self) -> str:
