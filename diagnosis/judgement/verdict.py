@@ -15,6 +15,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..effects import PAIR_SEPARATOR
+from ..problem.ties import tie_ordered
 from ..search.refits import EffectRefit
 from ..settings import Thresholds
 
@@ -180,7 +181,8 @@ def by_evidence(verdict: Verdict, probabilities: Mapping[str, float], decisive_o
     fits — the sentence then says so and quotes no probability (measured: "posterior probability 1, odds inf" was
     printed beside 161 noise variances left).
     """
-    candidates = sorted([verdict.name, *verdict.ties], key=lambda lab: -probabilities.get(lab, 0.0))
+    # exact ties (one model under two names: their probabilities apart by round-off) by the tie rule, not the rounding
+    candidates = tie_ordered([verdict.name, *verdict.ties], lambda lab: -probabilities.get(lab, 0.0))
     p = [probabilities.get(lab, 0.0) for lab in candidates]
     odds = p[0] / p[1] if p[1] > 0.0 else float("inf")
     ratio = f"{odds:.3g}" if odds < _LARGEST_RATIO else f"above {_LARGEST_RATIO:.0e}"
