@@ -10,7 +10,8 @@ processor.  A host extracts an FMU afresh, so an FMU without that cache compiled
 * hash-checked byte code (``.pyc``) of every Python module in ``resources/`` — valid wherever the archive is
   extracted, unlike Python's default timestamped byte code (an extraction sets new times);
 * the model at the FMU's own parameter values (``resources/`` + the slave's ``MODEL_FILE``: the matrices its
-  first assembly would make, made by the same core here): a host that starts it at those values steps it without
+  first assembly would make, made by the same core here — bit for bit when the host's BLAS runs as many
+  threads as the build's, to round-off otherwise: a thread count changes the order of a product's sums): a host that starts it at those values steps it without
   assembling, so without numba's start-up nor scipy's import (0.25 s of the seed config's 0.5 s start).  Other
   values assemble as before.
 
