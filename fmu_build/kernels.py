@@ -11,9 +11,9 @@ processor.  A host extracts an FMU afresh, so an FMU without that cache compiled
   extracted, unlike Python's default timestamped byte code (an extraction sets new times);
 * the model at the FMU's own parameter values (``resources/`` + the slave's ``MODEL_FILE``: the matrices its
   first assembly would make, made by the same core here — bit for bit when the host's BLAS runs as many
-  threads as the build's, to round-off otherwise: a thread count changes the order of a product's sums): a host that starts it at those values steps it without
-  assembling, so without numba's start-up nor scipy's import (0.25 s of the seed config's 0.5 s start).  Other
-  values assemble as before.
+  threads as the build's, to round-off otherwise, as a thread count orders a product's sums): a host that
+  starts it at those values steps it without assembling, so without numba's start-up nor scipy's import
+  (0.25 s of the seed config's 0.5 s start).  Other values assemble as before.
 
 Numba's cached code imports its module by name when it loads, so the bundled core's name must be the same in
 every FMU that shares the cache: it is a hash of the core's sources (:func:`core_package_name`), the same for
