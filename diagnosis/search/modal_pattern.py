@@ -31,9 +31,8 @@ more than it).  The last term only settles the directions the modes cannot see
 (EI and ρA move the frequencies only through their ratio).  The fit starts
 from the best of a coarse grid of the effect, with the baseline unknowns at the
 baseline's values and at the config's nominal ones
-(:func:`diagnosis.candidates.score.trial_values`; each start polished for :data:`HEAT`
-evaluations, the best :data:`FINALISTS` of them for :data:`RACE` more, the best one to convergence; only the
-compared modes are
+(:func:`diagnosis.candidates.score.trial_values`; the starts raced in heats,
+:func:`diagnosis.search.pattern_polish.raced`; only the compared modes are
 computed, :func:`ebb_model.modal.modal.discrete_frequencies` with ``n_modes``).  Its
 optimum is a start of the effect's time-domain refit that lies in the right
 basin even when the baseline had compensated the effect — a one-sided score
@@ -45,7 +44,8 @@ from __future__ import annotations
 
 from concurrent.futures import Executor
 from dataclasses import dataclass, replace
-from typing import Callable, Mapping
+from functools import partial
+from typing import Mapping
 
 import numpy as np
 from scipy import optimize
@@ -61,6 +61,7 @@ from ..problem.fitting import GapProblem
 from .modal_estimate import MeasuredModes
 from .mode_match import ModalEvidence, compared, mode_cost
 from ..candidates.score import MASS_GRID, trial_values
+from .pattern_polish import least_squares_polish, raced
 from .pattern_starts import (ALIGNED, aligned, amplitude_scale, at_nominal_density, best_per_place,
                              fixed_place_fits, jacobian, place_profiled, profiled, room, within)
 from .workers import side_by_side
@@ -74,30 +75,6 @@ DAMPING_FLOOR = 0.005
 #: How many of the grid's best starts are polished when the effect has a position (the pattern's cost is
 #: sharp: a point mass 4 cm off its position on the grid's best start can end in another basin); two otherwise.
 STARTS = 4
-#: Function evaluations (the difference Jacobians' not counted: about as many iterations) each start's polish
-#: gets first, a heat.  The starts' polishes ran 40 evaluations (median) to their race's end, and the race was
-#: three quarters of a pattern fit's time; measured on a two-set-up shaker bench and a broadband strip (64
-#: matches, 8–23 starts each), ordered by their cost after 20 residuals (Jacobians' included, some four
-#: iterations), a start whose race ended in the best basin (within 1e-3 of the best cost) was first in every
-#: match whose best is within 1e6 of the records' scatter, and at most twelfth in matches of χ² 6e7 and more.
-HEAT = 10
-#: How many of a match's starts continue after their heat (the best by cost).
-FINALISTS = 4
-#: Function evaluations each finalist's polish gets before only the best one continues to convergence.
-RACE = 60
-#: Relative step of the polish's difference Jacobian.  The modes carry round-off of ~1e-13 relative (eigen
-#: solvers, the Richardson difference), which the standard step (√eps ≈ 1.5e-8) turns into ~1e-5 errors of
-#: derivatives that the uncertainties scale by up to 1e5: the polish then stalled in the valley where EI, N
-#: and a clamp's compliance trade off (χ² 7.8e3 where 0.89 is reachable).  At 1e-6 the truncation error is
-#: ~1e-6 and the round-off's share ~1e-7.
-DIFF_STEP = 1e-6
-#: Relative decrease of χ² per iteration below which a polish stops (``least_squares``' ``ftol``; its default
-#: ``1e-8`` let the polishes crawl along the valleys where the baseline and an effect trade off: on the rig
-#: family's pair, 400 evaluations of the final polish moved χ² from 1.0905 to 1.0863).  What is decided from a
-#: match is by margins of the BIC margin (10, :attr:`~diagnosis.settings.Thresholds.bic_margin`) and factors of
-#: 10 in χ², and its optimum is only a start of the time-domain refit; measured on that record's 14 fits: χ²
-#: within 0.015 of the default's, the same order of the matches, the same basins, 64 → 18 s.
-FTOL = 1e-3
 #: Value of χ² for a model that cannot be evaluated.
 FAILED = 1e12
 #: Model modes beyond the measured ones that a match may pass over (:func:`matched`): a mode weakly excited or
@@ -220,13 +197,6 @@ def _free(problem: GapProblem, effect: Effect | None) -> np.ndarray:
     return np.concatenate([free, np.ones(0 if effect is None else effect.dim, dtype=bool)])
 
 
-def _least_squares(res: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                   budget: int) -> optimize.OptimizeResult:
-    """A pattern fit's polish: bounded least squares of ``res`` from ``x0`` for at most ``budget`` evaluations."""
-    return optimize.least_squares(res, np.clip(x0, lo, hi), bounds=(lo, hi), x_scale=hi - lo, diff_step=DIFF_STEP,
-                                  ftol=FTOL, max_nfev=budget)
-
-
 def _place(effect: Effect | None, free: np.ndarray, p: int) -> int | None:
     """Index among the free variables (``free``, ``p`` baseline unknowns first) of ``effect``'s place ``x``."""
     if effect is None or "x" not in effect.variables:
@@ -338,22 +308,16 @@ def _match(problem: GapProblem, evidence: ModalEvidence, beta0: np.ndarray, effe
             starts += [a[0][free] for a in sorted(at_scale, key=lambda a: a[1])[:ALIGNED]]
 
     def polish(x0: np.ndarray, budget: int = max_evaluations) -> optimize.OptimizeResult:
-        return _least_squares(res, x0, lo[free], hi[free], budget)
+        return least_squares_polish(res, x0, lo[free], hi[free], budget)
 
-    # every start for a few iterations, the best few for more, then the best one to convergence (a heat that
-    # converged is not polished again: its polish would start where it stopped)
-    heats = sorted((polish(x0, min(HEAT, max_evaluations)) for x0 in starts), key=lambda sol: sol.cost)
-    best = min((polish(h.x, min(RACE, max_evaluations)) if h.status == 0 else h for h in heats[:FINALISTS]),
-               key=lambda sol: sol.cost)
-    if best.status == 0:       # stopped by the budget, not converged
-        best = polish(best.x)
+    best = raced(res, starts, lo[free], hi[free], max_evaluations)
     place = _place(effect, free, p)
     if place is not None and start is None and 2.0 * best.cost > stats.chi2.isf(SCATTER, 2 * evidence.n_modes):
         # a match beyond the records' scatter at a place can be a basin of the place: profiled over one grid
         # step either side, then polished from the profile's other minima (a match polished from ``start`` was
         # profiled where it was found)
         for x1 in place_profiled(res, best.x, place, (hi - lo)[free][place] / (MASS_GRID - 1), lo[free], hi[free],
-                                 _least_squares):
+                                 partial(least_squares_polish, secant=True)):
             other = polish(x1)
             best = other if other.cost < best.cost else best
     if not np.all(free[:p]):
@@ -415,7 +379,7 @@ def amplitude_screened(problem: GapProblem, evidence: ModalEvidence, effect: Eff
     scaled[[p + i for i in effect.scaled]] = True
     k = p + effect.variables.index("x")
     points, costs = fixed_place_fits(res, held[free], place, np.linspace(lo[k], hi[k], MASS_GRID), lo[free],
-                                     hi[free], _least_squares)
+                                     hi[free], least_squares_polish)
     best, best_rss, best_chi2 = held, _records_rss(problem, effect, match), match.chi2
     for x, chi2 in zip(points, costs):
         if chi2 <= limit:
