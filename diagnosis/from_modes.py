@@ -222,7 +222,7 @@ def diagnose_segments(config: BeamConfig, tracked: Sequence[TrackedSegment]) -> 
             out.append("the segment shows no mode")
             continue
         try:
-            out.append(diagnose_from_modes(config, None, modes=row.modes.modal_data()))
+            out.append(diagnose_from_modes(config, None, modes=row.evidence.modal_data()))
         except EbbError as exc:
             out.append(str(exc))
     return out

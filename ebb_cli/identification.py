@@ -111,6 +111,10 @@ def _cmd_track(args: argparse.Namespace) -> int:
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise ConfigError(f"{out}: the output directory must not exist or be empty")
     cfg = load_identification_config(args.config)
+    space = parameter_space(cfg)
+    unknown = [v for v in (args.varies or ()) if v not in space.names]
+    if unknown:
+        raise ConfigError(f"--varies {', '.join(unknown)}: not among the config's unknowns ({', '.join(space.names)})")
     outputs = sensor_record(cfg, args.record)
     channel = declared_channel(args.record, args.channel)
     kind = "ambient" if args.ambient else "decay"
@@ -122,7 +126,6 @@ def _cmd_track(args: argparse.Namespace) -> int:
         judged = [segment_verdict(d) for d in diagnose_segments(cfg, rows)]
     fitted_rows = [r.identified for r in rows if r.identified is not None]
     names = list(fitted_rows[0].parameters) if fitted_rows else []
-    space = parameter_space(cfg)
     bounds = dict(zip(space.names, zip(space.lower, space.upper)))
 
     def on_bound(name: str, value: float) -> str:
@@ -138,7 +141,9 @@ def _cmd_track(args: argparse.Namespace) -> int:
             fitted = ", ".join(f"{n} {r.identified.parameters[n]:.5g} ± {r.identified.std[n]:.2g}"
                                + on_bound(n, r.identified.parameters[n]) for n in names if n not in r.identified.held)
             agree = "" if r.identified.agreement["agrees"] else " (the model does not reproduce the modes)"
-            lines.append(f"{head}: {fitted}{agree}")
+            left = ("" if not r.left_out_hz else " (left out: " + ", ".join(f"{f:.4g}" for f in r.left_out_hz)
+                    + " Hz, heavily damped beside a better-shown mode: the model matches the rest better without it)")
+            lines.append(f"{head}: {fitted}{agree}{left}")
         if d is not None and d["verdict"]:
             lines.append(f"  diagnosis: {d['verdict']} — {d['reason']}")
     lines_fit = {n: linear_in_channel(rows, n) for n in names}
@@ -153,13 +158,19 @@ def _cmd_track(args: argparse.Namespace) -> int:
                      f"{fit['intercept']:.5g} ± {fit['intercept_std']:.2g}, R² {fit['r2']:.4f}, χ²/dof "
                      f"{fit['chi2_per_dof']:.3g} over {int(fit['segments'])} segments (the segments' σ share the "
                      "priors' part; the line takes them as independent)")
+    together: dict[str, Any] | None = None
+    if args.varies:
+        from identification.tracking import together_lines
+
+        together, more = together_lines(cfg, rows, list(args.varies), args.channel)
+        lines += more
     t = np.arange(channel.size) * cfg.time.dt
     with staged_dir(out) as tmp:
         write_json(tmp / "tracked.json", {"record": str(args.record), "channel": args.channel, "kind": kind,
                                           "segments": [r.to_dict() | {"diagnosis": d}
                                                        for r, d in zip(rows, judged)],
-                                          "against_channel": lines_fit})
-        tracking_figure(t, channel, rows, args.channel, tmp / "tracked.png")
+                                          "against_channel": lines_fit, "together": together})
+        tracking_figure(t, channel, rows, args.channel, tmp / "tracked.png", together)
     for line in lines:
         print(line)
     print(f"wrote {out / 'tracked.json'} and {out / 'tracked.png'}")
@@ -241,6 +252,9 @@ def add_parsers(sub: Subcommands) -> None:
     kind.add_argument("--ambient", action="store_true", help="each segment is stationary under an unmeasured force")
     p.add_argument("--no-diagnosis", action="store_true",
                    help="skip the diagnosis of each segment's modes (the effects weighed against them)")
+    p.add_argument("--varies", nargs="+", default=None, metavar="NAME",
+                   help="also fit every segment together: one beam, only these unknowns (a support's place "
+                        "x_NAME, an axial load N) one value per segment")
     p.add_argument("--out", required=True, help="result directory (tracked.json, tracked.png)")
     p.set_defaults(func=_cmd_track)
     p = sub.add_parser("export", help="export Pareto points of a result directory (StateSpace, FMU)")

@@ -22,7 +22,7 @@ Mode shapes: each mode's complex amplitude at every sensor, as a ratio to the se
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -104,6 +104,13 @@ class OutputModes:
         z = np.zeros(0)
         return cls(z, z, z, z, np.zeros((0, n_sensors)), np.zeros((0, n_sensors)), np.zeros(0, int), z,
                    np.asarray(noise_std, dtype=float), 1.0, kind)
+
+    def subset(self, keep: np.ndarray) -> "OutputModes":
+        """The modes where the mask ``keep`` ``(m,)`` is true (the rest's frequencies left out of every array)."""
+        k = np.asarray(keep, dtype=bool)
+        return replace(self, frequencies_hz=self.frequencies_hz[k], frequency_std=self.frequency_std[k],
+                       damping=self.damping[k], damping_std=self.damping_std[k], shapes=self.shapes[k],
+                       shape_std=self.shape_std[k], reference=self.reference[k], significance=self.significance[k])
 
     def modal_data(self) -> "ModalData":
         """The frequencies as measured modes (:class:`identification.modal_data.ModalData`: the model's lowest in

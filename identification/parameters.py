@@ -1,14 +1,16 @@
 """The unknowns of an identification: physical parameters and uncertain positions.
 
 Physical parameters are those of the config's ``[parameters]`` table with
-``identify = true`` (bounds required).  Positions of actuators and sensors can
-be unknowns too (real test benches rarely give them exactly), declared in the
-config's ``[identification]`` table::
+``identify = true`` (bounds required).  Positions of actuators, sensors, point
+masses and springs can be unknowns too (real test benches rarely give them
+exactly; a support a motor moves has one per set-up), declared in the config's
+``[identification]`` table::
 
     [identification]
-    positions = { force = [0.65, 0.75], accel = [0.55, 0.70] }   # name = [lo, hi] in m
+    positions = { force = [0.65, 0.75], accel = [0.55, 0.70], roller = [0.02, 0.45] }   # name = [lo, hi] in m
 
-They are named ``x_<name>``.  A candidate vector ``X`` (in the order of
+They are named ``x_<name>`` (the config's names are unique).
+A candidate vector ``X`` (in the order of
 :attr:`ParameterSpace.names`) maps to a config with the positions moved and a
 dict of physical parameter values (:meth:`ParameterSpace.apply`).
 """
@@ -80,6 +82,8 @@ class ParameterSpace:
                 config,
                 actuators=tuple(replace(a, x=moves.get(a.name, a.x)) for a in config.actuators),
                 sensors=tuple(replace(s, x=moves.get(s.name, s.x)) for s in config.sensors),
+                masses=tuple(replace(m, x=moves.get(m.name, m.x)) for m in config.masses),
+                springs=tuple(replace(k, x=moves.get(k.name, k.x)) for k in config.springs),
             )
         return config, resolve_parameters(config, params)
 
@@ -111,12 +115,13 @@ def parameter_space(config: BeamConfig, *, extra_positions: Mapping[str, tuple[f
             nom.append(spec.value)
     positions = dict(identification_settings(config).positions)
     positions.update(extra_positions or {})
-    points = {a.name: a.x for a in config.actuators} | {s.name: s.x for s in config.sensors}
+    points = ({a.name: a.x for a in config.actuators} | {s.name: s.x for s in config.sensors}
+              | {m.name: m.x for m in config.masses} | {k.name: k.x for k in config.springs})
     problems = []
     for name, b in positions.items():
         where = f"identification.positions.{name}"
         if name not in points:
-            problems.append(f"{where}: no actuator or sensor of that name")
+            problems.append(f"{where}: no actuator, sensor, point mass or spring of that name")
             continue
         if not isinstance(b, (list, tuple)) or len(b) != 2:
             problems.append(f"{where}: must be [lo, hi] in m")

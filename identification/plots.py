@@ -244,11 +244,27 @@ def plot_results(res: Any, evaluator: Any) -> list[str]:
     return files
 
 
-def tracking_figure(t: np.ndarray, channel: np.ndarray, tracked: Sequence[Any], channel_name: str, path: Any) -> None:
+def _together(ax: Any, name: str, tracked: Sequence[Any], together: Mapping[str, Any]) -> None:
+    """The joint fit's value of ``name`` on its axis: per segment when it varies, a band when shared."""
+    label = "segments together" + ("" if together.get("agrees") else " (no one beam reproduces them)")
+    if name in together["varies"]:
+        mid = [0.5 * (tracked[i - 1].start_s + tracked[i - 1].stop_s) for i in together["segments"]]
+        ax.errorbar(mid, [v[name] for v in together["varying"]], yerr=[s[name] for s in together["varying_std"]],
+                    fmt="s", color="k", ms=4, capsize=3, label=label)
+    elif name in together["shared"]:
+        v, sd = together["shared"][name], together["shared_std"][name]
+        ax.axhline(v, color="k", lw=1.0, label=label)
+        ax.axhspan(v - sd, v + sd, color="k", alpha=0.15, lw=0)
+
+
+def tracking_figure(t: np.ndarray, channel: np.ndarray, tracked: Sequence[Any], channel_name: str, path: Any,
+                    together: Mapping[str, Any] | None = None) -> None:
     """``tracked.png``: the declared channel over the record (its envelope when long) with each segment's level,
     and below it every unknown a segment fixed, at the segment's middle with its 1σ bar (hollow and grey where the
     segment's model does not reproduce its modes: no measurement) — the tracked parameters as a time series beside
-    the channel that says when the set-up changed (:func:`identification.tracking.track`)."""
+    the channel that says when the set-up changed (:func:`identification.tracking.track`).  With ``together``
+    (:func:`identification.tracking.together_lines`' record) the segments' joint fit beside: each varying unknown
+    per segment (black squares), each shared one as its band (value ± σ)."""
     plt = _pyplot()
     names: list[str] = []
     for row in tracked:
@@ -277,8 +293,12 @@ def tracking_figure(t: np.ndarray, channel: np.ndarray, tracked: Sequence[Any], 
             misfit = True
             ax.errorbar(*points[False][:2], yerr=points[False][2], fmt="o", mfc="none", color="0.55", ms=4,
                         capsize=3)
+        if together is not None and "varying" in together:
+            _together(ax, name, tracked, together)
         ax.set_ylabel(_parameter_label(name))
         plain_ticks(ax)
+    if together is not None and "varying" in together:
+        axes[1 if names else 0, 0].legend(fontsize="small", loc="best")
     if misfit:
         hollow = axes[-1, 0].plot([], [], "o", mfc="none", color="0.55")[0]
         fig.legend([hollow], ["the model does not reproduce the segment's modes"], loc="upper center",

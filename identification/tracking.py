@@ -5,7 +5,10 @@ model of the whole record fits none of its parts.  A channel that follows the ch
 sensor) says where the set-up stood still (:func:`identification.segments.stationary_segments`); each still
 segment is read without a force — as a free decay or as an ambient record
 (:func:`identification.segments.segment_modes`) — and the config's unknowns are fitted to that segment's modes
-and the config's priors (:func:`identification.modes_only.identify_from_modes`).  The result is a time series:
+and the config's priors (:func:`identification.modes_only.identify_from_modes`) — when the model cannot
+reproduce them, again without the segment's heavily damped companions of better-shown modes
+(:func:`identification.segments.companions`: a rattling support's), which are left out when it then can.
+The result is a time series:
 per segment its time span, the channel's level with its uncertainty, the modes, and every unknown with its
 posterior standard deviation — or, where a segment fixes nothing, why (no mode found, a direction the modes and
 priors leave free).  What ties the unknowns to the channel (a calibration of the channel's volts) is the user's
@@ -14,7 +17,7 @@ to read from the series: :func:`linear_in_channel` fits a straight line and says
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np
@@ -24,9 +27,9 @@ from ebb_model.errors import ConfigError, EbbError
 
 from .modes_only import ModalIdentification, identify_from_modes
 from .output_modes import OutputModes
-from .segments import Segment, segment_modes, stationary_segments
+from .segments import Segment, companions, segment_modes, stationary_segments
 
-__all__ = ["TrackedSegment", "track", "linear_in_channel"]
+__all__ = ["TrackedSegment", "track", "linear_in_channel", "straight_line"]
 
 
 @dataclass(frozen=True)
@@ -41,6 +44,20 @@ class TrackedSegment:
     modes: OutputModes
     identified: ModalIdentification | None
     why: str = ""
+    #: ``(m,)`` the modes left out of the fit as companions (:func:`identification.segments.companions`)
+    left_out: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+
+    @property
+    def evidence(self) -> OutputModes:
+        """The modes the fit took: every mode but those :attr:`left_out`."""
+        if not np.any(self.left_out):
+            return self.modes
+        return self.modes.subset(~self.left_out)
+
+    @property
+    def left_out_hz(self) -> list[float]:
+        """The frequencies [Hz] of the modes left out."""
+        return self.modes.frequencies_hz[self.left_out].tolist() if np.any(self.left_out) else []
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready (a row of ``tracked.json``)."""
@@ -51,7 +68,8 @@ class TrackedSegment:
                 "std": None if ident is None else {n: (None if n in ident.held or not math.isfinite(s) else s)
                                                    for n, s in ident.std.items()},
                 "held": None if ident is None else ident.held,
-                "modes_agree": None if ident is None else ident.agreement["agrees"], "why": self.why}
+                "modes_agree": None if ident is None else ident.agreement["agrees"], "why": self.why,
+                "left_out_hz": self.left_out_hz}
 
 
 def track(config: BeamConfig, outputs: np.ndarray, channel: np.ndarray, *, kind: str = "decay",
@@ -79,16 +97,33 @@ def track(config: BeamConfig, outputs: np.ndarray, channel: np.ndarray, *, kind:
     found = segment_modes(y, dt, segments, kind=kind, skip_seconds=skip_seconds)
     out = []
     for seg, modes in zip(segments, found):
-        ident, why = None, ""
+        ident, why, left = None, "", np.zeros(modes.frequencies_hz.size, dtype=bool)
         if modes.frequencies_hz.size == 0:
             why = "the segment shows no mode"
         else:
-            try:
-                ident = identify_from_modes(config, None, modes=modes.modal_data())
-            except (ConfigError, EbbError) as exc:        # e.g. a direction the modes and priors leave free
-                why = str(exc)
-        out.append(TrackedSegment(seg, seg.start * dt, seg.stop * dt, modes, ident, why))
+            ident, why = _identified(config, modes)
+            candidates = companions(modes)
+            if np.any(candidates) and not np.all(candidates) and (ident is None or not ident.agreement["agrees"]):
+                # the model cannot reproduce the modes with the candidates: without them, does it, or better?
+                other, _ = _identified(config, modes.subset(~candidates))
+                if other is not None and (other.agreement["agrees"] or ident is None
+                                          or _per_mode(other) < _per_mode(ident)):
+                    ident, why, left = other, "", candidates
+        out.append(TrackedSegment(seg, seg.start * dt, seg.stop * dt, modes, ident, why, left))
     return out
+
+
+def _per_mode(ident: ModalIdentification) -> float:
+    """A fit's χ² per measured mode."""
+    return float(ident.agreement["chi2"]) / max(int(ident.agreement["modes"]), 1)
+
+
+def _identified(config: BeamConfig, modes: OutputModes) -> tuple[ModalIdentification | None, str]:
+    """The config's unknowns fitted to ``modes``, or ``None`` and why not."""
+    try:
+        return identify_from_modes(config, None, modes=modes.modal_data()), ""
+    except (ConfigError, EbbError) as exc:        # e.g. a direction the modes and priors leave free
+        return None, str(exc)
 
 
 def linear_in_channel(tracked: Sequence[TrackedSegment], name: str) -> dict[str, float] | None:
@@ -100,6 +135,13 @@ def linear_in_channel(tracked: Sequence[TrackedSegment], name: str) -> dict[str,
     rows = [(t.segment.level, t.identified.parameters[name], t.identified.std[name]) for t in tracked
             if t.identified is not None and t.identified.agreement["agrees"] and name in t.identified.parameters
             and name not in t.identified.held and math.isfinite(t.identified.std[name]) and t.identified.std[name] > 0]
+    return straight_line(rows)
+
+
+def straight_line(rows: Sequence[tuple[float, float, float]]) -> dict[str, float] | None:
+    """The weighted straight line through ``(level, value, std)`` rows (:func:`linear_in_channel`'s numbers);
+    ``None`` with fewer than three rows."""
+    rows = [r for r in rows if math.isfinite(r[2]) and r[2] > 0]
     if len(rows) < 3:
         return None
     lvl, val, sd = (np.array(c, dtype=float) for c in zip(*rows))
@@ -113,3 +155,46 @@ def linear_in_channel(tracked: Sequence[TrackedSegment], name: str) -> dict[str,
     return {"slope": float(coef[0]), "slope_std": float(math.sqrt(cov[0, 0])), "intercept": float(coef[1]),
             "intercept_std": float(math.sqrt(cov[1, 1])), "r2": r2,
             "chi2_per_dof": float(np.sum((resid / sd) ** 2)) / (len(rows) - 2), "segments": float(len(rows))}
+
+
+def together_lines(config: BeamConfig, tracked: Sequence[TrackedSegment], varying: list[str], channel: str
+                   ) -> tuple[dict[str, Any], list[str]]:
+    """The tracked segments that show modes fitted together (:func:`identification.joint_segments.fit_together`,
+    ``varying`` per segment, started from the segments' own fits when every one has one): ``tracked.json``'s
+    ``together`` and the lines a user reads — the shared unknowns, each segment's own, χ² against its degrees of
+    freedom, and each varying unknown's straight line against the channel's level.
+
+    Raises
+    ------
+    ConfigError
+        A ``varying`` name that is not an unknown of ``config``.
+    """
+    from .joint_segments import fit_together
+    from .parameters import parameter_space
+
+    use = [i for i, t in enumerate(tracked) if t.evidence.frequencies_hz.size]
+    if not use:
+        return {"why": "no segment shows a mode"}, ["together: no segment shows a mode"]
+    names = parameter_space(config).names
+    starts = ([np.array([tracked[i].identified.parameters[n] for n in names]) for i in use]   # type: ignore[union-attr]
+              if all(tracked[i].identified is not None for i in use) else [])
+    joint = fit_together(config, [tracked[i].evidence.modal_data() for i in use], varying, starts)
+    shared = ", ".join(f"{n} {v:.5g} ± {joint.shared_std[n]:.2g}" for n, v in joint.shared.items())
+    verdict = ("one beam reproduces every segment" if joint.agrees else
+               f"beyond its 99.9 % point {joint.chi2_limit:.3g}: one beam of the config's model does not reproduce "
+               "every segment, and the σ are the frequencies' alone")
+    out = [f"together ({', '.join(varying)} per segment, the rest shared by {len(use)} segments): {shared}; "
+           f"chi2 {joint.chi2:.4g} for {joint.dof} degrees of freedom ({verdict})"]
+    for i, v, sd, c in zip(use, joint.varying, joint.varying_std, joint.segment_chi2):
+        own = ", ".join(f"{n} {x:.5g} ± {sd[n]:.2g}" for n, x in v.items())
+        out.append(f"  segment {i + 1}: {own} (chi2 {c:.3g} for {tracked[i].evidence.frequencies_hz.size} modes)")
+    fits = {}
+    for n in varying:
+        fit = straight_line([(tracked[i].segment.level, v[n], sd[n])
+                             for i, v, sd in zip(use, joint.varying, joint.varying_std)])
+        fits[n] = fit
+        if fit is not None:
+            out.append(f"{n} (together) against {channel}: slope {fit['slope']:.5g} ± {fit['slope_std']:.2g}, "
+                       f"intercept {fit['intercept']:.5g} ± {fit['intercept_std']:.2g}, R² {fit['r2']:.4f}, "
+                       f"χ²/dof {fit['chi2_per_dof']:.3g} over {int(fit['segments'])} segments")
+    return joint.to_dict() | {"segments": [i + 1 for i in use], "varies": varying, "against_channel": fits}, out

@@ -44,7 +44,6 @@ from __future__ import annotations
 
 from concurrent.futures import Executor
 from dataclasses import dataclass, replace
-from functools import partial
 from typing import Mapping
 
 import numpy as np
@@ -317,7 +316,7 @@ def _match(problem: GapProblem, evidence: ModalEvidence, beta0: np.ndarray, effe
         # step either side, then polished from the profile's other minima (a match polished from ``start`` was
         # profiled where it was found)
         for x1 in place_profiled(res, best.x, place, (hi - lo)[free][place] / (MASS_GRID - 1), lo[free], hi[free],
-                                 partial(least_squares_polish, secant=True)):
+                                 least_squares_polish):
             other = polish(x1)
             best = other if other.cost < best.cost else best
     if not np.all(free[:p]):
