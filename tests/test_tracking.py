@@ -118,6 +118,29 @@ def test_a_stepped_tension_is_tracked_against_its_load_cell(tmp_path):
 DROPBEAR = Path(__file__).resolve().parents[2] / "shared" / "data" / "dropbear-roller" / "slow10_test0.txt"
 
 
+def _dropbear_config(folder: Path, roller: bool) -> Path:
+    """A plain clamped–free strip of DROPBEAR's documents (their geometry as the prior, the low-g channel's volts
+    as they are) — with ``roller``, its roller a stiff spring to ground (1e7 N/m, some 5e3 times the strip's
+    EI/L³) whose place is an unknown."""
+    doc: dict = {"beam": {"length": 0.501, "nodes": 80, "left": "clamped", "right": "free"}, "time": {"dt": 2e-4},
+                 "parameters": {"EI": {"value": 300.0, "bounds": [50.0, 1000.0], "identify": True},
+                                "rhoA": {"value": 2.0, "bounds": [0.5, 10.0], "identify": True},
+                                "c": {"value": 0.5}, "N": {"value": 0.0}},
+                 "actuators": [{"name": "F1", "x": 0.45}],
+                 "sensors": [{"name": "lowg", "x": 0.47, "kind": "acceleration"}],
+                 "identification": {"data": {"mapping": {"lowg": "Low G Accel"}, "units": {"lowg": "m/s2"}},
+                                    "geometry": {"E": {"value": 200e9, "std": 10e9},
+                                                 "density": {"value": 7850.0, "std": 50.0},
+                                                 "width": {"value": 0.051, "std": 0.0002},
+                                                 "thickness": {"value": 0.00666, "std": 0.0001}}}}
+    if roller:
+        doc["springs"] = [{"name": "roller", "x": 0.25, "k": 1e7}]
+        doc["identification"]["positions"] = {"roller": [0.01, 0.49]}
+    path = folder / "dropbear.toml"
+    path.write_text(dumps_toml(doc), encoding="utf-8")
+    return path
+
+
 @pytest.mark.skipif(not DROPBEAR.is_file(), reason="../shared/data/dropbear-roller is not available")
 def test_dropbear_tracked_with_a_plain_cantilever_says_the_model_misses_the_roller(tmp_path):
     """The real bench (CC BY-SA 4.0, read in place) tracked with a config that has no roller — a plain clamped–free
@@ -125,18 +148,7 @@ def test_dropbear_tracked_with_a_plain_cantilever_says_the_model_misses_the_roll
     segments at the position sensor's plateaus, the first without a mode (the beam at rest); the model reproduces
     the modes of at most one dwell and says so for the rest, and no line against the position sensor is drawn
     through fits that do not reproduce their modes."""
-    doc = {"beam": {"length": 0.501, "nodes": 80, "left": "clamped", "right": "free"}, "time": {"dt": 2e-4},
-           "parameters": {"EI": {"value": 300.0, "bounds": [50.0, 1000.0], "identify": True},
-                          "rhoA": {"value": 2.0, "bounds": [0.5, 10.0], "identify": True},
-                          "c": {"value": 0.5}, "N": {"value": 0.0}},
-           "actuators": [{"name": "F1", "x": 0.45}], "sensors": [{"name": "lowg", "x": 0.47, "kind": "acceleration"}],
-           "identification": {"data": {"mapping": {"lowg": "Low G Accel"}, "units": {"lowg": "m/s2"}},
-                              "geometry": {"E": {"value": 200e9, "std": 10e9},
-                                           "density": {"value": 7850.0, "std": 50.0},
-                                           "width": {"value": 0.051, "std": 0.0002},
-                                           "thickness": {"value": 0.00666, "std": 0.0001}}}}
-    cfg = tmp_path / "dropbear.toml"
-    cfg.write_text(dumps_toml(doc), encoding="utf-8")
+    cfg = _dropbear_config(tmp_path, roller=False)
     r = subprocess.run([sys.executable, "-m", "ebb_cli", "track", str(cfg), str(DROPBEAR), "--channel", "PinLoc",
                         "--decay", "--no-diagnosis", "--out", str(tmp_path / "o")], capture_output=True, text=True,
                        timeout=900)
@@ -159,20 +171,7 @@ def test_dropbears_dwells_together_put_the_roller_on_a_line_in_the_position_sens
     the same place out and back (measured within 1.4 mm; allowed 2 mm), and the tool says that one beam with a
     rigid roller does not reproduce the dwells (measured χ² 6e4 for 7 degrees of freedom: the second modes
     0.1–2.5 % off, what the issue's rigid pin leaves)."""
-    doc = {"beam": {"length": 0.501, "nodes": 80, "left": "clamped", "right": "free"}, "time": {"dt": 2e-4},
-           "parameters": {"EI": {"value": 300.0, "bounds": [50.0, 1000.0], "identify": True},
-                          "rhoA": {"value": 2.0, "bounds": [0.5, 10.0], "identify": True},
-                          "c": {"value": 0.5}, "N": {"value": 0.0}},
-           "actuators": [{"name": "F1", "x": 0.45}], "sensors": [{"name": "lowg", "x": 0.47, "kind": "acceleration"}],
-           "springs": [{"name": "roller", "x": 0.25, "k": 1e7}],
-           "identification": {"data": {"mapping": {"lowg": "Low G Accel"}, "units": {"lowg": "m/s2"}},
-                              "positions": {"roller": [0.01, 0.49]},
-                              "geometry": {"E": {"value": 200e9, "std": 10e9},
-                                           "density": {"value": 7850.0, "std": 50.0},
-                                           "width": {"value": 0.051, "std": 0.0002},
-                                           "thickness": {"value": 0.00666, "std": 0.0001}}}}
-    cfg = tmp_path / "dropbear.toml"
-    cfg.write_text(dumps_toml(doc), encoding="utf-8")
+    cfg = _dropbear_config(tmp_path, roller=True)
     r = subprocess.run([sys.executable, "-m", "ebb_cli", "track", str(cfg), str(DROPBEAR), "--channel", "PinLoc",
                         "--decay", "--no-diagnosis", "--varies", "x_roller", "--out", str(tmp_path / "o")],
                        capture_output=True, text=True, timeout=900)
