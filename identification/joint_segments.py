@@ -12,7 +12,8 @@ every segment's frequencies, and only the unknowns ``varying`` (a support's plac
 (``θ`` shared, ``v_i`` segment ``i``'s own; ``σ_i`` each frequency's standard error combined with the model grid's
 own error of the mode at the start).  Then ``χ²`` against its degrees of freedom says whether one beam explains
 every segment — where the segments alone each agree trivially.  Started from the segments' own fits (the shared
-unknowns at their median, the varying ones as each segment had them) and from the config's nominal values; the
+unknowns at their median, the varying ones as each segment had them), from the config's nominal values with a
+single varying unknown scanned over its bounds in each segment, and from the nominal values alone; the
 Jacobian's columns of different segments are differenced together (each segment's frequencies depend on its own
 varying unknowns only).
 """
@@ -29,7 +30,6 @@ from ebb_model.errors import ConfigError, EbbError
 from ebb_model.space.adequacy import refined_grid
 
 from .modal_data import ModalData
-from .modes_only import SCALE_LIKE
 from .parameters import parameter_space
 from .prior import Prior
 
@@ -87,31 +87,6 @@ def _with_grid_error(config: BeamConfig, space: Any, x: np.ndarray, modes: Modal
     if f.size < modes.count or fine.size < modes.count:
         return modes
     return ModalData(modes.frequencies_hz, np.hypot(modes.std_hz, np.abs(fine - f)))
-
-
-def _along_the_common_scale(z: np.ndarray, shared: np.ndarray, names: Sequence[str], prior: Prior, lo: np.ndarray,
-                            hi: np.ndarray, n_sh: int) -> np.ndarray:
-    """``z`` with its shared mass- and stiffness-like unknowns scaled together to where the priors are best: the
-    frequencies barely see that scale (not at all without springs and masses of fixed size), and a trust region
-    polishing frequencies that the model misses by thousands of their σ stops long before the priors' few units
-    along it are settled (DROPBEAR's dwells: EI 469 and ρA 5.5 where the documents say 251 and 2.67, their ratio
-    within 9 %)."""
-    like = np.array([n in SCALE_LIKE for n, s in zip(names, shared) if s])
-    if not like.any() or prior.count == 0:
-        return z
-
-    def full(zz: np.ndarray) -> np.ndarray:       # the prior's unknowns in the config's order (shared ones only)
-        x = np.zeros(len(names))
-        x[shared] = zz[:n_sh]
-        return x
-
-    d = np.zeros_like(z)
-    d[:n_sh][like] = z[:n_sh][like]
-    r0 = prior.residuals(full(z))
-    a = prior.residuals(full(z + d)) - r0
-    if float(a @ a) == 0.0:
-        return z
-    return np.clip(z - float(a @ r0) / float(a @ a) * d, lo, hi)
 
 
 def fit_together(config: BeamConfig, modes: Sequence[ModalData], varying: Sequence[str],
@@ -202,20 +177,19 @@ def fit_together(config: BeamConfig, modes: Sequence[ModalData], varying: Sequen
 
     best = min((solve(z, modes) for z in candidates), key=lambda s: s.cost)
     compared = [_with_grid_error(config, space, point(best.x * zscale, i), m) for i, m in enumerate(modes)]
-    best = solve(_along_the_common_scale(best.x * zscale, ~vary, names, prior, lo, hi, n_sh), compared)
+    best = solve(best.x * zscale, compared)
     z = best.x * zscale
     J = best.jac.toarray() if sparse.issparse(best.jac) else np.asarray(best.jac)
     cov = np.linalg.pinv(J.T @ J) * np.outer(zscale, zscale)
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     m_rows = sum(rows)
     r = best.fun
-    seg_chi2, model_hz, x_each = [], [], []
+    seg_chi2, model_hz = [], []
     r0 = 0
     for i, m in enumerate(compared):
         seg_chi2.append(float(r[r0:r0 + m.count] @ r[r0:r0 + m.count]))
         r0 += m.count
         x = point(z, i)
-        x_each.append(x)
         try:
             model_hz.append([float(v) for v in m.model_frequencies(*space.apply(config, x))])
         except (EbbError, ValueError, np.linalg.LinAlgError):

@@ -80,7 +80,7 @@ def test_the_places_of_a_moving_support_and_the_beam_they_share():
     beside the model grid's bias (its 80 nodes interpolate a point attachment between two of them: allowed 1e-3 of
     their spacing, as ``tests/test_diagnosis_from_modes.py`` measured), √(EI/ρA) within 0.1 %, χ² within its
     99.9 % point (the frequencies' uncertainty combined with the grid's own error); an unknown that is not the
-    config's is refused.  Measured: every place within 5 µm (0.1 of its σ), √(EI/ρA) 3.5e-6 off, χ² 0.009 for 6
+    config's is refused.  Measured: every place within 5 µm (0.1 of its σ), √(EI/ρA) 3.6e-6 off, χ² 0.009 for 6
     degrees of freedom."""
     import tempfile
     from pathlib import Path

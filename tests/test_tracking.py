@@ -167,9 +167,9 @@ def test_dropbears_dwells_together_put_the_roller_on_a_line_in_the_position_sens
     ground (1e7 N/m, some 5e3 times the strip's EI/L³) whose place is an unknown per dwell (``--varies x_roller``),
     EI and ρA shared under the documents' geometry prior.  Each dwell's heavily damped companion of its first mode
     (24–25 Hz at 1–2 %) is left out where the model reproduces the modes better without it; fitted together, the
-    dwells' places rise with the position sensor's volts on a straight line (R² ≥ 0.99; measured 0.9990, 51 mm/V),
-    the same place out and back (measured within 1.4 mm; allowed 2 mm), and the tool says that one beam with a
-    rigid roller does not reproduce the dwells (measured χ² 6e4 for 7 degrees of freedom: the second modes
+    dwells' places rise with the position sensor's volts on a straight line (R² ≥ 0.99; measured 0.9992, 49 mm/V),
+    the same place out and back (measured within 1.5 mm; allowed 2 mm), and the tool says that one beam with a
+    rigid roller does not reproduce the dwells (measured χ² 5.0e4 for 7 degrees of freedom: the second modes
     0.1–2.5 % off, what the issue's rigid pin leaves)."""
     cfg = _dropbear_config(tmp_path, roller=True)
     r = subprocess.run([sys.executable, "-m", "ebb_cli", "track", str(cfg), str(DROPBEAR), "--channel", "PinLoc",
