@@ -144,7 +144,7 @@ def companions(modes: OutputModes) -> np.ndarray:
     show better (its significance).  A support that rattles while the beam rings hard adds such a component
     beside a mode (DROPBEAR's 24–25 Hz at 1.1–2 % beside a first mode of 26–34 Hz at 0.1–0.7 %, at every place of
     the roller; 37.4 Hz at 2.1 % beside 37.6 Hz at 0.07 %).  A candidate only: the fit leaves it out only when
-    the model cannot reproduce the modes with it (:func:`identification.tracking.track`)."""
+    the model cannot reproduce the modes with it and matches the rest better (:func:`identification.tracking.track`)."""
     f, z, sig = modes.frequencies_hz, modes.damping, modes.significance
     out = np.zeros(f.size, dtype=bool)
     for i in range(f.size):

@@ -7,8 +7,8 @@ segment is read without a force — as a free decay or as an ambient record
 (:func:`identification.segments.segment_modes`) — and the config's unknowns are fitted to that segment's modes
 and the config's priors (:func:`identification.modes_only.identify_from_modes`) — when the model cannot
 reproduce them, again without the segment's heavily damped companions of better-shown modes
-(:func:`identification.segments.companions`: a rattling support's), which are left out when it then can.
-The result is a time series:
+(:func:`identification.segments.companions`: a rattling support's), which are left out when the model then
+reproduces the rest, or matches them better.  The result is a time series:
 per segment its time span, the channel's level with its uncertainty, the modes, and every unknown with its
 posterior standard deviation — or, where a segment fixes nothing, why (no mode found, a direction the modes and
 priors leave free).  What ties the unknowns to the channel (a calibration of the channel's volts) is the user's
