@@ -27,9 +27,9 @@ from scipy import optimize, sparse, stats
 
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError, EbbError
-from ebb_model.space.adequacy import refined_grid
 
 from .modal_data import ModalData
+from .modes_only import with_grid_error
 from .parameters import parameter_space
 from .prior import Prior
 
@@ -74,19 +74,6 @@ class JointFit:
                 "varying_std": self.varying_std, "chi2": self.chi2, "chi2_with_priors": self.chi2_total,
                 "dof": self.dof, "chi2_limit": self.chi2_limit, "agrees": self.agrees,
                 "segment_chi2": self.segment_chi2, "model_hz": self.model_hz, "measured_hz": self.measured_hz}
-
-
-def _with_grid_error(config: BeamConfig, space: Any, x: np.ndarray, modes: ModalData) -> ModalData:
-    """``modes`` with each uncertainty combined with the model grid's own error of the mode at ``x``."""
-    cfg, params = space.apply(config, x)
-    try:
-        f = modes.model_frequencies(cfg, params)
-        fine = modes.model_frequencies(refined_grid(cfg), params)
-    except (EbbError, ValueError, np.linalg.LinAlgError):
-        return modes
-    if f.size < modes.count or fine.size < modes.count:
-        return modes
-    return ModalData(modes.frequencies_hz, np.hypot(modes.std_hz, np.abs(fine - f)))
 
 
 def fit_together(config: BeamConfig, modes: Sequence[ModalData], varying: Sequence[str],
@@ -176,7 +163,7 @@ def fit_together(config: BeamConfig, modes: Sequence[ModalData], varying: Sequen
                                       hi / zscale), jac_sparsity=pattern, diff_step=STEP, x_scale=1.0)
 
     best = min((solve(z, modes) for z in candidates), key=lambda s: s.cost)
-    compared = [_with_grid_error(config, space, point(best.x * zscale, i), m) for i, m in enumerate(modes)]
+    compared = [with_grid_error(*space.apply(config, point(best.x * zscale, i)), m) for i, m in enumerate(modes)]
     best = solve(best.x * zscale, compared)
     z = best.x * zscale
     J = best.jac.toarray() if sparse.issparse(best.jac) else np.asarray(best.jac)

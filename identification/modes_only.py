@@ -43,7 +43,7 @@ from .parameters import ParameterSpace, parameter_space
 from .prior import Prior, PriorCheck
 
 __all__ = ["HELD_WIDTH", "Extension", "ModesFit", "ModesOnlyError", "ModalIdentification", "fit_modes",
-           "identify_from_modes", "modes_input"]
+           "identify_from_modes", "modes_input", "with_grid_error"]
 
 #: An unknown whose conditional standard deviation from the frequencies alone exceeds this share of its bounds'
 #: width is held at its nominal value (the frequencies cannot place it within its bounds).
@@ -226,7 +226,7 @@ class ModesFit:
     agreement: dict[str, Any]
     n_evaluations: int
     #: the frequencies as compared: the measured ones, each uncertainty combined with the model grid's own error
-    #: of the mode at the fit (:func:`_grid_error`)
+    #: of the mode at the fit (:func:`with_grid_error`)
     compared: ModalData | None = None
     #: how many directions of the free unknowns the frequencies alone place within their own size (the rank of
     #: their whitened Jacobian at the fit, :data:`FREE_STD`): a fit with as many as there are frequencies
@@ -349,11 +349,11 @@ def _solve(problem: _Problem, free: np.ndarray, starts: np.ndarray, polished: in
                     int(np.sum(sv * FREE_STD > 1.0)))
 
 
-def _grid_error(problem: _Problem, x: np.ndarray, measured: ModalData) -> ModalData:
-    """``measured`` with each uncertainty combined with the model grid's own error of the mode at ``x``: the
-    change of its frequency on the refined grid (:func:`ebb_model.space.adequacy.refined_grid`), so that a model
-    is not asked to be nearer the measured frequencies than its discretisation is to its own continuum."""
-    cfg, params = problem.model(x)
+def with_grid_error(cfg: BeamConfig, params: Mapping[str, float], measured: ModalData) -> ModalData:
+    """``measured`` with each uncertainty combined with the model grid's own error of the mode of ``cfg`` at
+    ``params``: the change of its frequency on the refined grid (:func:`ebb_model.space.adequacy.refined_grid`), so
+    that a model is not asked to be nearer the measured frequencies than its discretisation is to its own
+    continuum; ``measured`` itself when the model cannot be evaluated."""
     m = measured.count
     try:
         f = measured.model_frequencies(cfg, params)
@@ -392,7 +392,7 @@ def fit_modes(cfg: BeamConfig, modes: ModalData, *, extension: Extension | None 
 
     Without an extension: the checks of the module docstring (a free direction refused, unknowns the frequencies
     barely move held), then the nominal values and :data:`STARTS` Sobol starts; the fit is polished again with
-    each frequency's uncertainty combined with the model grid's own error of the mode there (:func:`_grid_error`).
+    each frequency's uncertainty combined with the model grid's own error of the mode there (:func:`with_grid_error`).
     With one: ``baseline``'s fit (required) with each value of the extension's grid, its common scale aligned to
     the measured frequencies, the :data:`POLISHED` best polished against the baseline's compared frequencies; the
     baseline's held unknowns stay held; its χ² is then taken against the uncertainties with its own grid error.
@@ -411,7 +411,7 @@ def fit_modes(cfg: BeamConfig, modes: ModalData, *, extension: Extension | None 
         free = np.concatenate([baseline.free, np.ones(len(extension.names), dtype=bool)])
         starts = np.array([_aligned(problem, np.concatenate([baseline.x, g]), free) for g in extension.grid])
         fit = _solve(problem, free, starts, POLISHED)
-        own = _grid_error(problem, fit.x, modes)
+        own = with_grid_error(*problem.model(fit.x), modes)
         r = own.residuals(*problem.model(fit.x))
         return replace(fit, chi2=float(r @ r), chi2_total=float(r @ r) + fit.chi2_total - fit.chi2,
                        agreement=own.agreement(*problem.model(fit.x)), compared=own)
@@ -430,7 +430,7 @@ def fit_modes(cfg: BeamConfig, modes: ModalData, *, extension: Extension | None 
                              f"not the common scale of masses and stiffnesses): give [identification.geometry], a "
                              f"prior_std, or a record with its force")
     first = _solve(problem, free, _starts(space, free, seed), STARTS + 1)
-    compared = _grid_error(problem, first.x, modes)
+    compared = with_grid_error(*problem.model(first.x), modes)
     fit = _solve(_Problem(cfg, space, compared, prior, None), free, first.x[None, :], 1)
     return replace(fit, n_evaluations=fit.n_evaluations + first.n_evaluations, compared=compared)
 
