@@ -96,17 +96,21 @@ def stop_time(config: BeamConfig, params: dict[str, float]) -> float:
 
 
 def check_ssp(result: IdentificationResult) -> None:
-    """Refuse a result one FMU cannot carry: its positions were identified (each point has its own grid).
+    """Refuse a result one FMU cannot carry: its positions or a point's size were identified (each point has its
+    own grid; a point's size is no FMU parameter).
 
     Raises
     ------
     ConfigError
-        Naming the identified positions.
+        Naming the identified positions and sizes.
     """
-    moved = [n[2:] for n in result.space.names if result.space.is_position(n)]
-    if moved:
-        raise ConfigError(f"`export_ssp`: the positions of {', '.join(moved)} were identified; one FMU cannot take "
-                          "them as parameters (export an FMU per point)")
+    space = result.space
+    parts = [f"the {what} of {', '.join(n[2:] for n in space.names if test(n))}"
+             for what, test in (("positions", space.is_position), ("sizes", space.is_size))
+             if any(test(n) for n in space.names)]
+    if parts:
+        raise ConfigError(f"`export_ssp`: {' and '.join(parts)} were identified; one FMU cannot take them as "
+                          "parameters (export an FMU per point)")
 
 
 def export_ssp(result: IdentificationResult, points: Sequence[int] | str | None = None, *,

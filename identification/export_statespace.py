@@ -22,9 +22,9 @@ import scipy.linalg as sla
 
 from ebb_model import DiscreteStateSpace
 from ebb_model.io.output import atomic_path
-from ebb_model.beam import PARAMETER_UNITS
 from ebb_model.errors import ConfigError, StabilityError
 from ebb_model.io.jsonio import jsonable
+from .parameters import unit
 
 __all__ = ["save_statespace", "load_statespace", "load_metadata", "rest_state", "BalancedModel",
            "balanced_truncation", "continuous_equivalent"]
@@ -39,7 +39,7 @@ def save_statespace(sys: DiscreteStateSpace, path: str | Path, *, name: str = ""
     path = Path(path)
     meta = {"name": name or path.stem,
             "parameters": {k: float(v) for k, v in (parameters or {}).items()},
-            "units": {k: PARAMETER_UNITS.get(k, "m" if k.startswith("x_") else "")
+            "units": {k: unit(k)
                       for k in (parameters or {})},
             "signal_units": {**{u: "N" for u in sys.input_names},
                              **({s.name: s.unit for s in _sensors(config)} if config else {})},

@@ -181,9 +181,9 @@ class FmuEvaluator(ObjectiveFunction):
     token: str = field(default_factory=_new_token, repr=False)
 
     def __post_init__(self) -> None:
-        if any(self.space.is_position(n) for n in self.space.names):
-            raise ConfigError("`backend` fmu: positions are fixed inside an FMU; identify them with the native "
-                              "backend")
+        if any(self.space.moves_points(n) for n in self.space.names):
+            raise ConfigError("`backend` fmu: positions and point sizes are fixed inside an FMU; identify them "
+                              "with the native backend")
         self.parameter_names = tuple(self.parameter_names or self.space.names)
         self.input_names = tuple(self.input_names or self.config.input_names)
         self.output_names = tuple(self.output_names or self.config.output_names)

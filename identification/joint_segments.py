@@ -45,7 +45,8 @@ SCAN = 49
 class JointFit:
     """The segments' joint fit: the shared unknowns with their standard deviations, each segment's varying
     unknowns with theirs, χ² (frequencies only, and with the priors) against the frequencies' count less the
-    unknowns the frequencies fix, and per segment its χ² and the model's frequencies."""
+    unknowns the frequencies fix, and per segment its χ², the model's frequencies and the measured ones compared
+    with them (a doublet's nearer member, :class:`identification.modal_data.ModalData`)."""
 
     shared: dict[str, float]
     shared_std: dict[str, float]
@@ -171,21 +172,23 @@ def fit_together(config: BeamConfig, modes: Sequence[ModalData], varying: Sequen
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     m_rows = sum(rows)
     r = best.fun
-    seg_chi2, model_hz = [], []
+    seg_chi2, model_hz, measured_hz = [], [], []
     r0 = 0
     for i, m in enumerate(compared):
         seg_chi2.append(float(r[r0:r0 + m.count] @ r[r0:r0 + m.count]))
         r0 += m.count
         x = point(z, i)
         try:
-            model_hz.append([float(v) for v in m.model_frequencies(*space.apply(config, x))])
+            f = m.model_frequencies(*space.apply(config, x))
         except (EbbError, ValueError, np.linalg.LinAlgError):
-            model_hz.append([])
+            f = None
+        model_hz.append([] if f is None else [float(v) for v in f])
+        measured_hz.append(m.frequencies_hz[m.compared_with(f) if f is not None and f.size == m.count
+                                            else np.arange(m.frequencies_hz.size)].tolist())
     sh_names = [n for n, v in zip(names, vary) if not v]
     v_names = [n for n, v in zip(names, vary) if v]
     fixed = int(np.sum(np.linalg.svd(J[:m_rows], compute_uv=False) > 1e-6 * np.linalg.norm(J[:m_rows])))
     return JointFit(dict(zip(sh_names, map(float, z[:n_sh]))), dict(zip(sh_names, map(float, sd[:n_sh]))),
                     [dict(zip(v_names, map(float, z[n_sh + i * n_v:n_sh + (i + 1) * n_v]))) for i in range(n_seg)],
                     [dict(zip(v_names, map(float, sd[n_sh + i * n_v:n_sh + (i + 1) * n_v]))) for i in range(n_seg)],
-                    float(r[:m_rows] @ r[:m_rows]), float(r @ r), m_rows - fixed, seg_chi2, model_hz,
-                    [m.frequencies_hz.tolist() for m in modes])
+                    float(r[:m_rows] @ r[:m_rows]), float(r @ r), m_rows - fixed, seg_chi2, model_hz, measured_hz)

@@ -54,7 +54,8 @@ FREE_STD = 1.0
 #: Starts of the search besides the nominal values.
 STARTS = 16
 #: The config's unknowns the common scale of masses and stiffnesses multiplies: the beam's frequencies are the
-#: same when every one of them (and every point mass and spring) is multiplied by one factor.
+#: same when every one of them (and every point mass and spring, ``k_``/``m_`` unknowns among them) is multiplied
+#: by one factor.
 SCALE_LIKE = ("EI", "rhoA", "c", "N", "rhoI", "kf")
 #: Starts polished when an extension joins the fit (the best of its grid's).
 POLISHED = 4
@@ -67,6 +68,9 @@ RESTARTS = 3
 JACOBIAN_STEP = 1e-4
 #: Relative step of the least-squares polish's forward differences.
 STEP = 1e-6
+#: Ways to take one member of each doublet (:meth:`identification.modal_data.ModalData.choices`) fitted each at
+#: most; with more, the member nearest the model's mode decides at every evaluation.
+CHOICES = 16
 
 
 class ModesOnlyError(ConfigError):
@@ -140,7 +144,9 @@ class ModalIdentification:
             else:
                 out.append(p.line())
         a = self.agreement
-        out.append(f"measured modes {np.round(a['measured_hz'], 4).tolist()} Hz, the model's "
+        aside = (f" ({', '.join(f'{v:.5g}' for v in a['aside_hz'])} Hz set aside: a doublet's other member)"
+                 if a.get("aside_hz") else "")
+        out.append(f"measured modes {np.round(a['measured_hz'], 4).tolist()} Hz{aside}, the model's "
                    f"{np.round(a['model_hz'], 4).tolist()} Hz: chi2 {a['chi2']:.3g} for {a['modes']} modes "
                    + ("(agree)" if a["agrees"] else f"(beyond its 99.9 % point {a['chi2_limit']:.3g}: the model "
                                                     f"does not reproduce them)"))
@@ -254,7 +260,7 @@ class _Problem:
         self.scale = np.maximum(np.abs(self.nominal), 1e-3 * (self.upper - self.lower))
         self.p = p
         #: the unknowns the common scale of masses and stiffnesses multiplies (the frequencies do not see it)
-        self.scale_like = np.array([n in SCALE_LIKE for n in space.names]
+        self.scale_like = np.array([n in SCALE_LIKE or space.is_size(n) for n in space.names]
                                    + [k in (() if e is None else e.scaled) for k in range(len(self.names) - p)])
         self.calls = 0
 
@@ -362,7 +368,7 @@ def with_grid_error(cfg: BeamConfig, params: Mapping[str, float], measured: Moda
         return measured
     if f.size < m or fine.size < m:
         return measured
-    return ModalData(measured.frequencies_hz, np.hypot(measured.std_hz, np.abs(fine - f)))
+    return measured.widened(fine - f)
 
 
 def _aligned(problem: _Problem, x: np.ndarray, free: np.ndarray) -> np.ndarray:
@@ -378,8 +384,9 @@ def _aligned(problem: _Problem, x: np.ndarray, free: np.ndarray) -> np.ndarray:
         return x
     if f.size < modes.count:
         return x
-    w = 1.0 / modes.std_hz ** 2
-    alpha = float(np.sum(w * modes.frequencies_hz * f) / np.sum(w * f * f))
+    k = modes.compared_with(f)
+    w = 1.0 / modes.std_hz[k] ** 2
+    alpha = float(np.sum(w * modes.frequencies_hz[k] * f) / np.sum(w * f * f))
     out = x.copy()
     i = problem.names.index("EI")
     out[i] = float(np.clip(x[i] * alpha ** 2, problem.lower[i], problem.upper[i]))
@@ -429,7 +436,13 @@ def fit_modes(cfg: BeamConfig, modes: ModalData, *, extension: Extension | None 
         raise ModesOnlyError(f"the measured frequencies and the priors leave {loose[1]} free (frequencies fix ratios, "
                              f"not the common scale of masses and stiffnesses): give [identification.geometry], a "
                              f"prior_std, or a record with its force")
-    first = _solve(problem, free, _starts(space, free, seed), STARTS + 1)
+    # a doublet's members (``modes.groups``): each way to take one of each fitted from the starts, the best kept —
+    # the member nearest the model's mode at every evaluation let a start far off (a newcomer's 50 %) settle on
+    # the wrong member for good; up to :data:`CHOICES` ways, beyond that the nearest member decides alone
+    options = modes.choices()
+    options = options if len(options) <= CHOICES else [modes]
+    first = min((_solve(_Problem(cfg, space, m, prior, None), free, _starts(space, free, seed), STARTS + 1)
+                 for m in options), key=lambda fit: fit.chi2_total)
     compared = with_grid_error(*problem.model(first.x), modes)
     fit = _solve(_Problem(cfg, space, compared, prior, None), free, first.x[None, :], 1)
     return replace(fit, n_evaluations=fit.n_evaluations + first.n_evaluations, compared=compared)

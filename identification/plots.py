@@ -11,8 +11,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ebb_model.beam import PARAMETER_UNITS
 from ebb_model.io.figureio import save_figure
+from .parameters import unit
 
 __all__ = ["plot_results", "fit_figure", "spread_figure", "front_figure", "zoom_window", "dominant_hz",
            "plain_ticks", "trace", "LINE_SAMPLES"]
@@ -43,8 +43,8 @@ def _objective_label(name: str) -> str:
 
 
 def _parameter_label(name: str) -> str:
-    unit = PARAMETER_UNITS.get(name, "m" if name.startswith("x_") else "")
-    return f"{name} [{unit}]" if unit else name
+    u = unit(name)
+    return f"{name} [{u}]" if u else name
 
 
 def plain_ticks(ax: Any) -> None:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import json
 from typing import TYPE_CHECKING
 
-from ebb_model.beam import PARAMETER_UNITS
 from ebb_model.io.htmlio import Section, Table, figures_in
+from .parameters import unit
 
 if TYPE_CHECKING:  # pragma: no cover
     from .result import IdentificationResult
@@ -30,8 +30,8 @@ def identified_lines(res: IdentificationResult) -> list[str]:
     ident = res.identified
     lines = [f"identified model ({ident['from']}):"]
     for k, v in ident["parameters"].items():
-        unit = PARAMETER_UNITS.get(k, "m" if k.startswith("x_") else "")
-        lines.append(f"  {k:<6} = {v:.6g} ± {ident['cramer_rao_std'][k]:.2g} {unit}  (Cramér–Rao std)")
+        u = unit(k)
+        lines.append(f"  {k:<6} = {v:.6g} ± {ident['cramer_rao_std'][k]:.2g} {u}  (Cramér–Rao std)")
     for k, b in (ident.get("on_bounds") or {}).items():
         lines.append(f"  caution: {k} ended on its {b['bound']} bound {b['value']:.6g}: the value is the search "
                      "range's, not the data's (widen the bound, or check the model and the records)")
@@ -76,7 +76,7 @@ def html_sections(res: IdentificationResult) -> list[Section]:
     ident = res.identified
     names = list(ident["parameters"])
     rows = [(k, f"{v:.6g}", f"{ident['cramer_rao_std'][k]:.2g}",
-             PARAMETER_UNITS.get(k, "m" if k.startswith("x_") else "")) for k, v in ident["parameters"].items()]
+             unit(k)) for k, v in ident["parameters"].items()]
     lines = identified_lines(res)[1 + len(names):]
     sections = [Section("Identified model", lead=f"identified model ({ident['from']})",
                         tables=(Table(("parameter", "value", "Cramér–Rao std", "unit"), rows),),

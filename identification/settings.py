@@ -7,6 +7,7 @@
     stabilising = false       # add the seed's stabilising objective (default: with the theta scheme only)
     noise_std = [1e-6, 1e-6]  # one per sensor; default estimated from the data
     positions = { F1 = [0.2, 0.4] }   # identify an actuator/sensor position within bounds [m]
+    sizes = { roller = [1e5, 1e9] }   # identify a spring's stiffness [N/m] or a point mass's mass [kg]
 
     [identification.modes]    # measured natural frequencies (identification.modal_data)
     frequencies_hz = [6.64, 41.35]
@@ -35,7 +36,7 @@ __all__ = ["CONFIG_SECTIONS", "SECTION", "IdentificationSettings", "identificati
 SECTION = "identification"
 #: The config tables kept beside the model's: this layer's and the diagnosis' (checked by each).
 CONFIG_SECTIONS = (SECTION, "diagnosis", "setups")
-_KEYS = ("positions", "data", "noise_std", "per", "stabilising", "modes", "geometry")
+_KEYS = ("positions", "sizes", "data", "noise_std", "per", "stabilising", "modes", "geometry")
 _DATA_KEYS = ("mapping", "units", "gains", "remove_offset", "pre_trigger", "band", "resample", "format")
 
 
@@ -46,7 +47,10 @@ class IdentificationSettings:
     Attributes
     ----------
     positions
-        ``{actuator or sensor name: [lo, hi]}``, checked by :func:`identification.parameters.parameter_space`.
+        ``{actuator, sensor, point mass or spring name: [lo, hi]}``, checked by
+        :func:`identification.parameters.parameter_space`.
+    sizes
+        ``{spring or point mass name: [lo, hi]}`` (its stiffness [N/m] or mass [kg]), checked there too.
     data
         Keyword options of :func:`identification.data.load_experiments`.
     noise_std
@@ -58,6 +62,7 @@ class IdentificationSettings:
     """
 
     positions: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    sizes: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     data: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     noise_std: Any = None
     per: str | None = None
@@ -98,9 +103,10 @@ def identification_settings(config: BeamConfig) -> IdentificationSettings:
     else:
         bad += [f"{SECTION}.data.{k}: unknown key; allowed: {', '.join(_DATA_KEYS)}"
                 for k in data if k not in _DATA_KEYS]
-    positions = ident.get("positions", {})
-    if not isinstance(positions, Mapping):
-        bad.append(f"{SECTION}.positions: must be a table {{name = [lo, hi]}}, got {positions!r}")
+    positions, sizes = ident.get("positions", {}), ident.get("sizes", {})
+    for key, table in (("positions", positions), ("sizes", sizes)):
+        if not isinstance(table, Mapping):
+            bad.append(f"{SECTION}.{key}: must be a table {{name = [lo, hi]}}, got {table!r}")
     if not isinstance(ident.get("stabilising", False), bool):
         bad.append(f"{SECTION}.stabilising: must be true or false, got {ident['stabilising']!r}")
     if not isinstance(ident.get("per", ""), str):
@@ -108,6 +114,6 @@ def identification_settings(config: BeamConfig) -> IdentificationSettings:
     if bad:
         raise ConfigError(bad)
     return IdentificationSettings(
-        positions=MappingProxyType(dict(positions)),
+        positions=MappingProxyType(dict(positions)), sizes=MappingProxyType(dict(sizes)),
         data=MappingProxyType(dict(data)), noise_std=ident.get("noise_std"), per=ident.get("per"),
         stabilising=ident.get("stabilising"))

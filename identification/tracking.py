@@ -185,9 +185,12 @@ def together_lines(config: BeamConfig, tracked: Sequence[TrackedSegment], varyin
                "every segment, and the σ are the frequencies' alone")
     out = [f"together ({', '.join(varying)} per segment, the rest shared by {len(use)} segments): {shared}; "
            f"chi2 {joint.chi2:.4g} for {joint.dof} degrees of freedom ({verdict})"]
-    for i, v, sd, c in zip(use, joint.varying, joint.varying_std, joint.segment_chi2):
+    for i, v, sd, c, hz in zip(use, joint.varying, joint.varying_std, joint.segment_chi2, joint.measured_hz):
         own = ", ".join(f"{n} {x:.5g} ± {sd[n]:.2g}" for n, x in v.items())
-        out.append(f"  segment {i + 1}: {own} (chi2 {c:.3g} for {tracked[i].evidence.frequencies_hz.size} modes)")
+        aside = sorted(set(tracked[i].evidence.frequencies_hz.tolist()) - set(hz))
+        out.append(f"  segment {i + 1}: {own} (chi2 {c:.3g} for {len(hz)} modes"
+                   + (f"; {', '.join(f'{f:.5g}' for f in aside)} Hz set aside: a doublet's other member)"
+                      if aside else ")"))
     fits = {}
     for n in varying:
         fit = straight_line([(tracked[i].segment.level, v[n], sd[n])

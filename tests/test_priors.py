@@ -219,3 +219,17 @@ def test_measured_modes_in_the_config_are_checked():
         modal_data(cfg_with({"frequencies_hz": [float("nan")], "std_hz": [0.1]}))
     table = modal_data(cfg_with({"frequencies_hz": [5.0, 30.0], "std_hz": [0.1, 0.3]}))
     assert table is not None and table.count == 2 and modal_data(bench_config()) is None
+    for groups in ([0, 2], [1, 1], [0], [0, 0.5], "01", [0, -1]):
+        with pytest.raises(ConfigError, match="identification.modes.groups: one integer per frequency"):
+            modal_data(cfg_with({"frequencies_hz": [5.0, 30.0], "std_hz": [0.1, 0.3], "groups": groups}))
+    # a doublet: 30 and 31 Hz one mode's candidates, the model's second mode compared with the nearer; the table
+    # goes into a config and back unchanged
+    from identification.modal_data import with_modes
+
+    table = modal_data(cfg_with({"frequencies_hz": [5.0, 30.0, 31.0], "std_hz": [0.1, 0.3, 0.3], "groups": [0, 1, 1]}))
+    assert table is not None and table.count == 2
+    assert table.compared_with(np.array([5.0, 30.9])).tolist() == [0, 2]
+    assert table.compared_with(np.array([5.0, 30.2])).tolist() == [0, 1]
+    assert [c.frequencies_hz.tolist() for c in table.choices()] == [[5.0, 30.0], [5.0, 31.0]]
+    again = modal_data(with_modes(bench_config(), table))
+    assert again is not None and again.groups.tolist() == [0, 1, 1]

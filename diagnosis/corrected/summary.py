@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-from ebb_model.beam import PARAMETER_UNITS
 from ebb_model.config import BeamConfig
+from identification.parameters import unit
 
 from ..effects import Effect
 from ..report.result import EffectRow
@@ -27,10 +27,6 @@ def corrected_summary(config: BeamConfig, baseline: Mapping[str, float], row: Ef
     if row is None or rf is None:
         raise ValueError(f"{effect.label}: only a refitted effect is exported")
     units = effect.units
-
-    def unit(k: str) -> str:
-        return PARAMETER_UNITS.get(k, "m" if k.startswith("x_") else "")
-
     return {"effect": row.label, "description": row.description,
             "effect_parameters": {k: {"value": v, "unit": units.get(k, "")} for k, v in rf.effect_parameters.items()},
             "parameters": {k: {"value": v, "unit": unit(k)} for k, v in rf.baseline_parameters.items()},
