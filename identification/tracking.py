@@ -25,7 +25,8 @@ import numpy as np
 from ebb_model.config import BeamConfig
 from ebb_model.errors import ConfigError, EbbError
 
-from .modes_only import ModalIdentification, identify_from_modes
+from .modes_only import identify_from_modes
+from .modes_result import ModalIdentification
 from .output_modes import OutputModes
 from .segments import Segment, companions, segment_modes, stationary_segments
 
