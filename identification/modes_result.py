@@ -16,7 +16,7 @@ __all__ = ["ModalIdentification"]
 
 @dataclass(frozen=True)
 class ModalIdentification:
-    """What :func:`identify_from_modes` found.
+    """What :func:`identification.modes_only.identify_from_modes` found.
 
     Attributes
     ----------
