@@ -151,7 +151,8 @@ def modal_data(config: BeamConfig) -> ModalData | None:
     if groups is not None:
         g = np.array(groups, dtype=float) if isinstance(groups, (list, tuple)) and all(
             isinstance(x, int) and not isinstance(x, bool) for x in groups) else None
-        if (g is None or g.size != len(table.get("frequencies_hz") or ()) or g.size == 0 or g[0] != 0
+        n = values["frequencies_hz"].size if "frequencies_hz" in values else None
+        if (g is None or (n is not None and g.size != n) or g.size == 0 or g[0] != 0
                 or np.any((np.diff(g) != 0) & (np.diff(g) != 1))):
             bad.append(f"{where}.groups: one integer per frequency, from 0, each the one before or one more "
                        f"(modes sharing a number: candidates for one mode of the beam), got {groups!r}")

@@ -222,6 +222,9 @@ def test_measured_modes_in_the_config_are_checked():
     for groups in ([0, 2], [1, 1], [0], [0, 0.5], "01", [0, -1]):
         with pytest.raises(ConfigError, match="identification.modes.groups: one integer per frequency"):
             modal_data(cfg_with({"frequencies_hz": [5.0, 30.0], "std_hz": [0.1, 0.3], "groups": groups}))
+    with pytest.raises(ConfigError) as err:       # a bad frequency list beside groups: both named, no crash
+        modal_data(cfg_with({"frequencies_hz": 5.0, "std_hz": [0.1], "groups": [0]}))
+    assert "frequencies_hz: must be a non-empty list" in str(err.value), err.value
     # a doublet: 30 and 31 Hz one mode's candidates, the model's second mode compared with the nearer; the table
     # goes into a config and back unchanged
     from identification.modal_data import with_modes
