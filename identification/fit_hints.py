@@ -54,8 +54,9 @@ def fit_hints(sensor_names: Sequence[str], measured: Sequence[np.ndarray], simul
     gap
         The fit's residual per sensor in noise variances (1: the floor).
     level_free
-        Whether EI and ρA are both unknowns (a common scale of the model is then a change of the unknowns,
-        named as such when all sensors want the same gain).
+        Whether a common scale of EI, ρA, c and N is a change of the unknowns that moves no frequency (both EI and
+        ρA unknown, no declared mass or spring the scale leaves alone), named as such when all sensors want the
+        same gain.
     start
         The records' start (:class:`~identification.data_start.DataStart`) or ``None``: its note of a level beyond
         the bounds comes first when this fit bears it out (some sensor wants a gain that removes most of its misfit

@@ -44,6 +44,7 @@ from ebb_model.io.output import check_new_output_dir, check_writable_dir, make_d
 
 from .data import Experiment, load_experiments
 from .data_start import DataStart, data_start
+from .start_modes import scale_moves_modes
 from .export_targets import DEFAULT_TARGETS, check_targets
 from .fisher import fisher_information, nominal_fisher
 from .basins import better_of, noise_at, polish_basins
@@ -390,8 +391,9 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
     if best.stable:
         whitened = np.concatenate([noise.whiten(i, y - e.outputs) for i, (e, y) in enumerate(zip(exps, best.outputs))])
         fit_gap = dict(zip(cfg.output_names, map(float, np.mean(whitened ** 2, axis=0))))
-        hints += fit_hints(cfg.output_names, [e.outputs for e in exps], best.outputs, fit_gap,
-                           "EI" in space.names and "rhoA" in space.names, start)
+        # the common scale of EI, ρA, c and N leaves the frequencies alone unless a declared mass or spring is there
+        level_free = "EI" in space.names and "rhoA" in space.names and not scale_moves_modes(evaluator, best_x)
+        hints += fit_hints(cfg.output_names, [e.outputs for e in exps], best.outputs, fit_gap, level_free, start)
     best_crb = polished[0].cramer_rao_std if polished else props[pareto.knee][0]
     return IdentificationResult(
         config=cfg, space=space, pareto=pareto, cramer_rao_std=np.array([p[0] for p in props]),

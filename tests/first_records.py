@@ -22,7 +22,7 @@ from ebb_model.config import BeamConfig, config_from_dict
 from ebb_model.reference import band_limited_input, synthesize
 from ebb_model.io.tomlio import dumps as dumps_toml
 
-__all__ = ["CASES", "FirstRecord", "write_case"]
+__all__ = ["BROADBAND", "CASES", "DECLARED", "FirstRecord", "write_case"]
 
 
 @dataclass(frozen=True)
@@ -54,6 +54,10 @@ class FirstRecord:
         Sample time and record length [s].
     band
         A ``broadband`` force's band edge as a fraction of the sampling rate (the modal-test convention 1/2.56).
+    masses, springs
+        Point masses ``(name, x, kg)`` and springs ``(name, x, N/m)`` on the beam, declared in the config as the
+        newcomer knows them (an accelerometer on its clamp block, a support): parts a common scale of EI, ρA, c
+        and N leaves alone, so the records' level moves their modes.
     elements
         The truth's finite elements: 64 suffice for a force within a tenth of the sampling rate; a broadband force
         through an accelerometer needs 128 (the strip: 64 elements 0.46 noise variances off 256, 128 0.004; the
@@ -78,6 +82,8 @@ class FirstRecord:
     duration: float = 4.0
     band: float = 1.0 / 2.56
     elements: int = 64
+    masses: tuple[tuple[str, float, float], ...] = ()
+    springs: tuple[tuple[str, float, float], ...] = ()
 
     @property
     def interpolation(self) -> str:
@@ -108,10 +114,15 @@ class FirstRecord:
                 params[k] = {"value": v, "bounds": [lo, hi], "identify": True}
             else:
                 params[k] = {"value": true}
-        return {"beam": {"length": self.length, "nodes": nodes, "left": self.left, "right": self.right},
-                "time": {"dt": self.dt}, "parameters": params,
-                "actuators": [{"name": "F1", "x": self.actuator}],
-                "sensors": [{"name": n, "x": x, "kind": k} for n, x, k in self.sensors]}
+        out = {"beam": {"length": self.length, "nodes": nodes, "left": self.left, "right": self.right},
+               "time": {"dt": self.dt}, "parameters": params,
+               "actuators": [{"name": "F1", "x": self.actuator}],
+               "sensors": [{"name": n, "x": x, "kind": k} for n, x, k in self.sensors]}
+        if self.masses:
+            out["masses"] = [{"name": n, "x": x, "mass": m} for n, x, m in self.masses]
+        if self.springs:
+            out["springs"] = [{"name": n, "x": x, "k": k} for n, x, k in self.springs]
+        return out
 
     def truth_config(self) -> BeamConfig:
         """The bench with the truth's values (what the generator reads)."""
@@ -225,4 +236,20 @@ BROADBAND = (
                 {"EI": 8.0, "rhoA": 0.8, "c": 1.0, "N": 50.0}, _g(0.6, 1.45, 0.6, 1.4), 0.35,
                 (("d1", 0.3, "displacement"), ("v1", 0.5, "velocity"), ("a1", 0.7, "acceleration")), "broadband",
                 0.02, dt=5e-4, duration=4.0, elements=256),
+)
+
+
+#: Benches with parts the newcomer declares (``masses``, ``springs``): an accelerometer on its clamp block at the
+#: strip's tip (6 % of the strip's mass), a beam on a spring support with a sensor's mass.  A common scale of EI, ρA,
+#: c and N moves their modes, so the records' level is read from the modes' pattern as well as their amplitude
+#: (:mod:`identification.data_start`; from the amplitude alone the strip's start was 11 % high in ρA and the run
+#: ended at EI 80, 5,750 noise variances, on the project's own record of such a bench).
+DECLARED = (
+    FirstRecord("strip-tip-mass-accelerometer", "clamped", "free", 0.6,
+                {"EI": 210e9 * 0.04 * 0.004 ** 3 / 12, "rhoA": 7850 * 0.04 * 0.004, "c": 0.5}, _g(0.6, 1.4, 1.5), 0.5,
+                (("a1", 0.6, "acceleration"),), "broadband", 0.01, dt=5e-4, duration=3.0, elements=128,
+                masses=(("accelerometer", 0.6, 0.045),)),
+    FirstRecord("cantilever-spring-support-velocity", "clamped", "free", 1.0, {"EI": 10.0, "rhoA": 1.0, "c": 0.8},
+                _g(1.5, 0.6, 1.4), 0.9, (("v1", 0.7, "velocity"),), "broadband", 0.02, dt=5e-4, duration=4.0,
+                band=0.3, elements=128, masses=(("sensor", 0.7, 0.03),), springs=(("support", 0.45, 300.0),)),
 )

@@ -12,7 +12,7 @@ from ebb_model.space.adequacy import NOISE_FLOOR_EXCESS, modes_top
 from ebb_model.acquisition.channel_delay import effective_delays
 from ebb_model.errors import ConfigError
 from ebb_model.modal.modal import discrete_frequencies
-from identification.data_start import alignment_miss
+from identification.start_modes import alignment_miss
 from identification.record_poles import record_modes
 from identification.result import IdentificationResult
 
@@ -97,7 +97,7 @@ def floor_from_the_records(problem: GapProblem, baseline: Fit, band_hz: float, s
 
 def _places_more(problem: GapProblem, fit: Fit, baseline: Fit, band_hz: float) -> bool:
     """Whether ``fit``'s modes place the records' own modes (:func:`identification.record_poles.record_modes` of
-    the fit windows) better than ``baseline``'s (:func:`identification.data_start.alignment_miss`), counting the
+    the fit windows) better than ``baseline``'s (:func:`identification.start_modes.alignment_miss`), counting the
     modes a record of the excited band's top ``band_hz`` shows (:func:`ebb_model.space.adequacy.modes_top`)."""
     records = [r for r in problem.records if r.has_fit]
     dt = problem.config.time.dt

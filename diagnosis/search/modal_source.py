@@ -8,7 +8,7 @@ from typing import Callable
 import numpy as np
 
 from ebb_model.acquisition.channel_delay import effective_delays
-from identification.data_start import alignment_miss
+from identification.start_modes import alignment_miss
 from identification.record_poles import record_modes
 
 from ..problem.fitting import GapProblem
@@ -27,7 +27,7 @@ def _recorded_start(rec_hz: np.ndarray, rec_zeta: np.ndarray, support: np.ndarra
     """Where a scan starts from the records' stable poles ``rec_hz`` (their damping ``rec_zeta`` and
     stability-chart ``support``): those poles, and the model's modes ``model_hz`` above the highest of them,
     scaled by the common ratio that best places the records' poles on the model's modes
-    (:func:`identification.data_start.alignment_miss`, over :data:`SCALES`).  The model's modes above the records'
+    (:func:`identification.start_modes.alignment_miss`, over :data:`SCALES`).  The model's modes above the records'
     are fitted, not held: the first mode above a band's edge is excited by the filter's skirt, and held at a
     baseline's frequency 17 % off it left 2.2 noise variances on a velocity sensor where fitted leaves 0.99."""
     misses = [alignment_miss(rec_hz, support, r * model_hz) for r in SCALES]
