@@ -47,7 +47,6 @@ PATTERN_SIGMA = 0.1
 LEVEL_MOVES = 2e-4
 
 
-
 @dataclass(frozen=True, eq=False)
 class Directions:
     """How a trial ``(k, ζ, N)`` at unit level becomes a candidate of the unknowns."""
