@@ -132,7 +132,6 @@ class ProjectedCost:
 
 def _head(evaluator: Any) -> Any:
     """``evaluator`` on the first :data:`MAX_SAMPLES` samples of every experiment."""
-
     exps = tuple(replace(e, inputs=e.inputs[:MAX_SAMPLES], outputs=e.outputs[:MAX_SAMPLES])
                  for e in evaluator.experiments)
     return replace(evaluator, experiments=exps)

@@ -25,7 +25,7 @@ import numpy as np
 from ebb_model.errors import EbbError
 
 __all__ = ["CANDIDATES", "LEVEL_MOVES", "MATCH_TOLERANCE", "N_GRID", "PATTERN_GAIN", "PATTERN_SIGMA", "Directions",
-           "alignment_miss", "alignments", "family", "pattern_level", "scale_moves_modes"]
+           "alignment_miss", "alignments", "family", "pattern_level", "scale_moves_modes", "undamped_hz"]
 
 #: A peak within this relative distance of a model mode is explained by it.
 MATCH_TOLERANCE = 0.04
@@ -119,6 +119,21 @@ class Directions:
         return 1.0, 1.0
 
 
+def undamped_hz(evaluator: Any, x: np.ndarray) -> np.ndarray:
+    """The undamped natural frequencies [Hz] of candidate ``x`` (at most 40 modes).
+
+    Raises
+    ------
+    EbbError, ValueError, numpy.linalg.LinAlgError
+        The candidate's model cannot be built or solved.
+    """
+    from ebb_model.modal.modal import discrete_frequencies
+
+    cfg = evaluator.config
+    c, p = evaluator.space.apply(cfg, np.asarray(x, dtype=float))
+    return np.asarray(discrete_frequencies(c, {**dict(p), "c": 0.0, "eta": 0.0}, min(40, cfg.beam.nodes))[0], float)
+
+
 def family(evaluator: Any, d: Directions) -> list[tuple[float | None, np.ndarray]]:
     """The model's undamped frequencies [Hz] at the nominal EI and ρA, per value of N tried (``None``: N is not
     unknown), the values of N that buckle the beam left out: their "frequencies" are those of an unstable model
@@ -127,10 +142,8 @@ def family(evaluator: Any, d: Directions) -> list[tuple[float | None, np.ndarray
     bound's end, EI 0.96 and N −32 for 3.79 and −11.8).  A candidate scales N with EI, so a value that buckles
     the beam at the nominal EI buckles it at every frequency scale."""
     from ebb_model.assemble import buckling_load
-    from ebb_model.modal.modal import discrete_frequencies
 
     cfg = evaluator.config
-    n_modes = min(40, cfg.beam.nodes)
     if d.has("N"):
         i = d.names.index("N")
         values: list[float | None] = [float(v) for v in np.linspace(d.lower[i], d.upper[i], N_GRID)]
@@ -146,13 +159,10 @@ def family(evaluator: Any, d: Directions) -> list[tuple[float | None, np.ndarray
         values = [None]
     out = []
     for nv in values:
-        x = d.candidate(1.0, 0.0, nv)
         try:
-            c, p = evaluator.space.apply(cfg, x)
-            f, _ = discrete_frequencies(c, {**dict(p), "c": 0.0, "eta": 0.0}, n_modes)
+            out.append((nv, undamped_hz(evaluator, d.candidate(1.0, 0.0, nv))))
         except (EbbError, ValueError, np.linalg.LinAlgError):
             continue
-        out.append((nv, np.asarray(f, float)))
     return out
 
 
@@ -160,15 +170,10 @@ def scale_moves_modes(evaluator: Any, x: np.ndarray, scale: float = 2.0) -> bool
     """Whether a common scale ``scale`` of EI, ρA, c and N (those among the unknowns) moves the modes of candidate
     ``x`` by more than :data:`LEVEL_MOVES` — it does where the model has parts the scale leaves alone (a declared
     point mass, a spring, a fixed axial force); unknown when the model cannot be evaluated (``False``)."""
-    from ebb_model.modal.modal import discrete_frequencies
-
-    cfg, sp = evaluator.config, evaluator.space
     x = np.asarray(x, dtype=float)
-    scaled = x * np.array([scale if n in ("EI", "rhoA", "c", "N") else 1.0 for n in sp.names])
-    n_modes = min(40, cfg.beam.nodes)
+    scaled = x * np.array([scale if n in ("EI", "rhoA", "c", "N") else 1.0 for n in evaluator.space.names])
     try:
-        f = [np.asarray(discrete_frequencies(c, {**dict(p), "c": 0.0, "eta": 0.0}, n_modes)[0], float)
-             for c, p in (sp.apply(cfg, v) for v in (x, scaled))]
+        f = [undamped_hz(evaluator, v) for v in (x, scaled)]
     except (EbbError, ValueError, np.linalg.LinAlgError):
         return False
     ok = (f[0] > 0) & (f[1] > 0)
@@ -187,21 +192,16 @@ def pattern_level(evaluator: Any, d: Directions, k: float, n_value: float | None
     share of its half-power bandwidth)."""
     from scipy.optimize import least_squares
 
-    from ebb_model.modal.modal import discrete_frequencies
-
     peaks = recorded.frequencies_hz
     if peaks.size < 3 or not scale_moves_modes(evaluator, d.candidate(k, 0.0, n_value, clip=False)):
         return None
-    cfg = evaluator.config
-    n_modes = min(40, cfg.beam.nodes)
     has_n = d.has("N") and n_value is not None
     i_n = d.names.index("N") if has_n else -1
     n_span = float(d.upper[i_n] - d.lower[i_n]) if has_n else 1.0
 
     def freqs(theta: np.ndarray) -> np.ndarray:
         nv = n_value + theta[2] * n_span if has_n and n_value is not None else n_value
-        c, p = evaluator.space.apply(cfg, d.candidate(math.exp(theta[0]), 0.0, nv, math.exp(theta[1]), clip=False))
-        return np.asarray(discrete_frequencies(c, {**dict(p), "c": 0.0, "eta": 0.0}, n_modes)[0], float)
+        return undamped_hz(evaluator, d.candidate(math.exp(theta[0]), 0.0, nv, math.exp(theta[1]), clip=False))
 
     theta0 = np.zeros(3 if has_n else 2)
     theta0[0] = math.log(k)
