@@ -391,7 +391,8 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
     if best.stable:
         whitened = np.concatenate([noise.whiten(i, y - e.outputs) for i, (e, y) in enumerate(zip(exps, best.outputs))])
         fit_gap = dict(zip(cfg.output_names, map(float, np.mean(whitened ** 2, axis=0))))
-        # the common scale of EI, ρA, c and N leaves the frequencies alone unless a declared mass or spring is there
+        # a common scale of EI, ρA, c and N leaves the frequencies alone unless a declared mass, spring or fixed
+        # axial force is there
         level_free = "EI" in space.names and "rhoA" in space.names and not scale_moves_modes(evaluator, best_x)
         hints += fit_hints(cfg.output_names, [e.outputs for e in exps], best.outputs, fit_gap, level_free, start)
     best_crb = polished[0].cramer_rao_std if polished else props[pareto.knee][0]
