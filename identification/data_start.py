@@ -10,15 +10,16 @@ answer.  The records themselves fix both, before any search:
    estimator and its stability chart — not the peaks of a noisy spectrum) are matched to the model's modes
    (:mod:`identification.start_modes`): the frequency scale ``k = √((EI/ρA)/(EI₀/ρA₀))`` and N that place them,
    and — where the model has parts a common scale leaves alone (a declared mass, a spring) — the level their
-   pattern asks for.
+   pattern asks for, or where the pattern cannot say it (an unmodelled part zigzags the modes), the level at which
+   the model's FRF magnitude meets the records'.
 2. **Refinement in time.**  Around each, the output error is scanned along the frequency scale (and N, when it
    is unknown) with the damping lowered stage by stage (:data:`STAGES`: each stage's window is the previous
    one's resolution; a heavily damped model's cost is smooth where a lightly damped one's is a comb), and the
    level projected out in closed form: with EI, ρA, c and N scaled by ``s`` together the outputs scale by
    ``1/s`` exactly, so the best level of every trial is one inner product.
-3. **Level.**  The best trial's level gives ρA (and EI, c, N with it) — unless the modes' pattern gave it in
-   step 1: then the amplitude would move the modes off the frequency scale found, and it is the less accurate of
-   the two on a config's numerics.  A level outside the bounds is kept as a note that the run prints only where
+3. **Level.**  The best trial's level gives ρA (and EI, c, N with it) — unless step 1 gave it: then the
+   amplitude would move the modes off the frequency scale found, and it is the less accurate of the two on a
+   config's numerics.  A level outside the bounds is kept as a note that the run prints only where
    its final fit bears it out (:class:`DataStart`); the start's sign is no claim (an undeclared delay turns it
    as readily as a reversed force).
 
@@ -39,9 +40,10 @@ from ebb_model.acquisition.channel_delay import effective_delays
 from ebb_model.errors import EbbError
 
 from .polish import residual_scale
-from .record_poles import record_modes
+from .record_poles import frequency_response_estimate, record_modes
 from .runners import Runner, SerialRunner
-from .start_modes import MATCH_TOLERANCE, Directions, alignments, family, pattern_level
+from .start_modes import (MATCH_TOLERANCE, Directions, alignments, family, pattern_level, scale_moves_modes,
+                          spectrum_level)
 
 __all__ = ["DataStart", "STAGES", "data_start"]
 
@@ -172,7 +174,9 @@ def data_start(evaluator: Any, runner: Runner | None = None) -> DataStart | None
     if not starts:
         starts = [(min(max(1.0, k_lo), k_hi), nominal_n)]
     # the damping's reference: the lowest mode the peaks show (else the model's first)
-    cost_ev = ProjectedCost(_head(evaluator), d0.level_free)
+    head = _head(evaluator)
+    cost_ev = ProjectedCost(head, d0.level_free)
+    record_frf: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
     count = 0
 
     def trial_costs(trials: list[tuple[float, float, float | None]], d: Directions) -> np.ndarray:
@@ -226,6 +230,15 @@ def data_start(evaluator: Any, runner: Runner | None = None) -> DataStart | None
         d = Directions(names, sp.lower, sp.upper, sp.nominal, fixed,
                         2 * math.pi * float(seen[0] if seen.size else f_model[0]))
         pattern = pattern_level(evaluator, d, k0, nv0, recorded, (k_lo, k_hi)) if d.level_free else None
+        if pattern is None and d.level_free and scale_moves_modes(evaluator, d.candidate(k0, 0.0, nv0, clip=False)):
+            # the pattern undecided where the level moves the modes: the spectrum's magnitude gives it
+            if record_frf is None:
+                record_frf = frequency_response_estimate([e.inputs for e in head.experiments],
+                                                         [e.outputs for e in head.experiments], dt)
+            zeta0 = float(np.median(recorded.damping)) if peaks.size else STAGES[-1][1]
+            level0, used = spectrum_level(head, d, k0, nv0, zeta0, record_frf)
+            count += used
+            pattern = None if level0 is None else (k0, level0, nv0)
         if pattern is not None:
             k0, level0, nv0 = pattern
             d = d.rebased(level0)
@@ -239,9 +252,10 @@ def data_start(evaluator: Any, runner: Runner | None = None) -> DataStart | None
     cost, k, zeta, nv, level, d, from_pattern = best
     note: str | None = None
     if from_pattern:
-        # the level is the modes' pattern's: the amplitude's would move the modes off the frequency scale found,
-        # and on a config's numerics it is the less accurate of the two (the strip with a tip mass on 80 nodes and
-        # the cubic: the pattern's ρA 0.6 % low, the amplitude's 4.4 % high)
+        # the level is the modes' pattern's (or the spectrum's): the amplitude's would move the modes off the
+        # frequency scale found, and on a config's numerics it is the less accurate (the strip with a tip mass on
+        # 80 nodes and the cubic: the pattern's ρA 0.6 % low, the amplitude's 4.4 % high; with an unmodelled 10 g
+        # mass besides, the spectrum's 11.7 % high, the amplitude's 2.45 times the truth)
         x = d.candidate(k, zeta, nv)
     elif d.level_free and math.isfinite(level):
         scale = 1.0 / abs(level) if level != 0 else 1.0

@@ -20,6 +20,7 @@ from scipy import signal
 
 from ebb_model.config import BeamConfig, config_from_dict
 from ebb_model.reference import band_limited_input, synthesize
+from ebb_model.reference.synthetic import WithheldEffect
 from ebb_model.io.tomlio import dumps as dumps_toml
 
 __all__ = ["BROADBAND", "CASES", "DECLARED", "FirstRecord", "write_case"]
@@ -162,14 +163,15 @@ class FirstRecord:
         return band_limited_input(n, self.dt, 1.0, 0.1 * fs, kind=self.excitation, seed=3)[:, 0]
 
 
-def write_case(case: FirstRecord, folder: Path) -> tuple[Path, Path]:
-    """The newcomer's ``config.toml`` and the truth's ``record.csv`` in ``folder``."""
+def write_case(case: FirstRecord, folder: Path, effect: WithheldEffect | None = None) -> tuple[Path, Path]:
+    """The newcomer's ``config.toml`` and the truth's ``record.csv`` in ``folder`` (with ``effect`` in the truth
+    and not in the config, when given)."""
     folder.mkdir(parents=True, exist_ok=True)
     cfg_path = folder / "config.toml"
     cfg_path.write_text(dumps_toml(case.config_dict()), encoding="utf-8")
     u = case.force()
     rec = synthesize(case.truth_config(), u[:, None], noise=case.noise, seed=11, interpolation=case.interpolation,
-                     n_elements=case.elements)
+                     n_elements=case.elements, effect=effect)
     data = np.column_stack([rec.time, rec.inputs, rec.outputs])
     header = ",".join(["time", *rec.input_names, *rec.output_names])
     rec_path = folder / "record.csv"
