@@ -263,8 +263,9 @@ def spectrum_level(evaluator: Any, d: Directions, k: float, n_value: float | Non
                    record_frf: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[float | None, int]:
     """The level at which the model's FRF magnitude meets the records' — the median over the excited band of the
     log ratio — where the modes' pattern cannot say it (:func:`pattern_level`: an unmodelled mass zigzags the modes
-    by more than the level moves them), ``None`` where the model cannot be evaluated; and the model evaluations
-    used.
+    by more than the level moves them), ``None`` where the model cannot be evaluated or the magnitudes meet
+    outside the bounds of ρA (the amplitude's level then says it, with its note on the records' units); and the
+    model evaluations used.
 
     A projection of the outputs in time (the refinement's) needs the modes aligned to a share of a half-power
     bandwidth: with an unmodelled 10 g mass on a strip carrying a declared 45 g accelerometer, the modes miss by up
@@ -314,6 +315,8 @@ def spectrum_level(evaluator: Any, d: Directions, k: float, n_value: float | Non
             s0, g0, s1 = s1, g1, min(max(s1 + step, lo), hi)
     except (EbbError, ValueError, np.linalg.LinAlgError):
         return None, used
+    if abs(g1) >= SPECTRUM_TOLERANCE and s1 in (lo, hi):
+        return None, used        # on a bound and still off: the amplitude's level and its note say the rest
     return math.exp(s1), used
 
 
