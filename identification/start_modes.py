@@ -179,7 +179,9 @@ def family(evaluator: Any, d: Directions) -> list[tuple[float | None, np.ndarray
 def scale_moves_modes(evaluator: Any, x: np.ndarray, scale: float = 2.0) -> bool:
     """Whether a common scale ``scale`` of EI, ρA, c and N (those among the unknowns) moves the modes of candidate
     ``x`` by more than :data:`LEVEL_MOVES` — it does where the model has parts the scale leaves alone (a declared
-    point mass, a spring, a fixed axial force); unknown when the model cannot be evaluated (``False``)."""
+    point mass, a spring, a fixed axial force); unknown when the model cannot be evaluated (``False``).
+    ``evaluator`` is anything with the ``config`` and the ``space`` of the unknowns (an identification's
+    evaluator, a diagnosis' problem)."""
     x = np.asarray(x, dtype=float)
     scaled = x * np.array([scale if n in ("EI", "rhoA", "c", "N") else 1.0 for n in evaluator.space.names])
     try:

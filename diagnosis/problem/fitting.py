@@ -22,13 +22,12 @@ import numpy as np
 
 from ebb_model.config import BeamConfig
 from ebb_model.errors import EbbError
-from ebb_model.modal.modal import discrete_frequencies
 
 from identification.least_squares import Box, distinct_members, evolve, fit_least_squares, penalised
 from identification.noise_model import NoiseModel
 from identification.modal_data import ModalData
 from identification.prior import Prior
-from identification.start_modes import LEVEL_MOVES
+from identification.start_modes import scale_moves_modes
 from identification.parameters import ParameterSpace
 
 from .augmented import simulate_effects
@@ -131,18 +130,10 @@ class GapProblem:
     @cached_property
     def level_seen(self) -> bool:
         """Whether a common scale of EI, ρA, c and N (those among the unknowns) moves the modes at the config's
-        nominal point by more than :data:`~identification.start_modes.LEVEL_MOVES`: it does where the config
-        declares parts the scale leaves alone (a point mass, a spring, a fixed axial force) — the modes then see
-        ρA, not only EI/ρA (:func:`identification.start_modes.scale_moves_modes` for an identification)."""
-        beta = np.asarray(self.space.nominal, dtype=float)
-        scaled = beta * np.array([2.0 if n in ("EI", "rhoA", "c", "N") else 1.0 for n in self.space.names])
-        try:
-            f0, f1 = (discrete_frequencies(*self.space.apply(self.config, b), 3)[0] for b in (beta, scaled))
-        except (EbbError, ValueError, np.linalg.LinAlgError):
-            return False
-        k = min(f0.size, f1.size)
-        ok = (f0[:k] > 0) & (f1[:k] > 0)
-        return bool(np.any(np.abs(np.log(f1[:k][ok] / f0[:k][ok])) > LEVEL_MOVES))
+        nominal point (:func:`identification.start_modes.scale_moves_modes`, the records' start's criterion): it
+        does where the config declares parts the scale leaves alone (a point mass, a spring, a fixed axial force)
+        — the modes then see ρA, not only EI/ρA."""
+        return scale_moves_modes(self, self.space.nominal)
 
     @property
     def has_prior(self) -> bool:
