@@ -343,6 +343,42 @@ def test_a_place_profile_returns_the_other_minima_of_the_place_best_first():
         assert abs(z[0] - 3.0 * z[1]) < 1e-6      # the other unknown re-fitted at the fixed place
 
 
+def _problem_of(cfg_path, rec_path):
+    """The diagnosis's problem of a written record (a third held out, the noise level from the records alone)."""
+    from diagnosis.problem.fitting import GapProblem
+    from diagnosis.problem.records import ordered_record, split_records
+    from ebb_model.config import load_config
+    from identification.noise import records_noise_std
+    from identification.parameters import parameter_space
+    from identification.run import read_data
+
+    cfg = load_config(cfg_path)
+    records = split_records([ordered_record(cfg, e) for e in read_data(cfg, [rec_path])], holdout_fraction=0.3)
+    sigma = records_noise_std([r.inputs for r in records], [r.outputs for r in records], cfg.time.dt)
+    return GapProblem(cfg, parameter_space(cfg), records, sigma)
+
+
+def _mass_match(problem, baseline: dict[str, float], n_modes: int, duration: float):
+    """The point mass's modal-pattern fit at the diagnosis's ``baseline``: the measured modes' evidence (the
+    model's first ``n_modes`` as the guess, the band fs/2.56), the effect and the match."""
+    from diagnosis.effects import Catalogue, Scales
+    from diagnosis.search.modal_pattern import pattern_fit
+    from diagnosis.search.modal_source import modal_source
+    from ebb_model.modal.modal import discrete_frequencies
+
+    cfg, space = problem.config, problem.space
+    beta = np.array([baseline[k] for k in space.names])
+    f0, z0 = discrete_frequencies(*space.apply(cfg, beta), n_modes)
+    band = 0.390625 / cfg.time.dt
+    inside = f0 <= band
+    evidence = modal_source(problem, f0[inside], z0[inside], f0[~inside][:1], band)(beta)
+    nominal = dict(zip(space.names, space.nominal))
+    scales = Scales(EI=nominal["EI"], rhoA=nominal["rhoA"], N=nominal.get("N", 0.0), length=cfg.beam.length,
+                    omega_low=2 * np.pi * f0[0], omega_high=2 * np.pi * band, duration=duration)
+    effect = Catalogue(cfg, scales, tuple(space.names)).effect("point_mass")
+    return evidence, effect, pattern_fit(problem, evidence, beta, effect)
+
+
 def test_a_pattern_beyond_the_box_at_the_baselines_density_is_matched_at_the_configs(tmp_path):
     """The hint family's record 45 as drawn now (``tests/hint_family.py``: a compressed clamped–clamped beam, one
     accelerometer, noise to fs/2.56, a newcomer's config; a 0.253 kg mass at 0.572 m withheld).  The diagnosis's
@@ -360,40 +396,18 @@ def test_a_pattern_beyond_the_box_at_the_baselines_density_is_matched_at_the_con
     within a hundredth of a grid step, the mass over the match's scale of ρA within 2 %."""
     from scipy import stats
 
-    from diagnosis.effects import Catalogue, Scales
-    from diagnosis.problem.fitting import GapProblem
-    from diagnosis.problem.records import ordered_record, split_records
-    from diagnosis.search.modal_pattern import SCATTER, pattern_fit
-    from diagnosis.search.modal_source import modal_source
-    from ebb_model.config import load_config
-    from ebb_model.modal.modal import discrete_frequencies
+    from diagnosis.search.modal_pattern import SCATTER
     from hint_family import hint_bench, write_hint_case
-    from identification.noise import records_noise_std
-    from identification.parameters import parameter_space
-    from identification.run import read_data
 
     case = hint_bench(45, elements=128)
     assert case.effect is not None and case.effect.name == "point_mass"
-    cfg_path, rec_path = write_hint_case(case, tmp_path / "bench")
-    cfg = load_config(cfg_path)
-    records = split_records([ordered_record(cfg, e) for e in read_data(cfg, [rec_path])], holdout_fraction=0.3)
-    space = parameter_space(cfg)
-    sigma = records_noise_std([r.inputs for r in records], [r.outputs for r in records], cfg.time.dt)
-    problem = GapProblem(cfg, space, records, sigma)
+    problem = _problem_of(*write_hint_case(case, tmp_path / "bench"))
+    cfg, space = problem.config, problem.space
     # the diagnosis's baseline on this record (ebb diagnose, measured before the change; its held-out gap 107)
     baseline = {"EI": 13.9406, "rhoA": 3.77930, "c": 1.77870, "N": 22.7368}
-    beta = np.array([baseline[k] for k in space.names])
-    f0, z0 = discrete_frequencies(*space.apply(cfg, beta), 40)
-    band = 0.390625 / cfg.time.dt
-    inside = f0 <= band
-    evidence = modal_source(problem, f0[inside], z0[inside], f0[~inside][:1], band)(beta)
+    evidence, effect, match = _mass_match(problem, baseline, 40, 1.4)
     assert evidence.n_modes >= 10
     L = cfg.beam.length
-    nominal = dict(zip(space.names, space.nominal))
-    scales = Scales(EI=nominal["EI"], rhoA=nominal["rhoA"], N=nominal["N"], length=L,
-                    omega_low=2 * np.pi * f0[0], omega_high=2 * np.pi * band, duration=1.4)
-    effect = Catalogue(cfg, scales, tuple(space.names)).effect("point_mass")
-    match = pattern_fit(problem, evidence, beta, effect)
     found = effect.physical(match.s)
     truth = case.effect.values
     scale = match.beta[list(space.names).index("rhoA")] / case.bench.truth["rhoA"]
@@ -448,45 +462,19 @@ def test_a_declared_part_lets_the_modes_see_the_density_and_the_pattern_places_t
     within 2 %, ρA within 1 %.  A beam without declared parts keeps ρA held (its modes see only EI/ρA)."""
     from scipy import stats
 
-    from diagnosis.effects import Catalogue, Scales
-    from diagnosis.problem.fitting import GapProblem
-    from diagnosis.problem.records import ordered_record, split_records
-    from diagnosis.search.modal_pattern import SCATTER, pattern_fit
-    from diagnosis.search.modal_source import modal_source
-    from ebb_model.config import load_config
-    from ebb_model.modal.modal import discrete_frequencies
+    from diagnosis.search.modal_pattern import SCATTER
     from first_records import CASES, DECLARED, write_case
-    from identification.noise import records_noise_std
-    from identification.parameters import parameter_space
-    from identification.run import read_data
 
-    def problem_of(case, folder, effect=None):
-        cfg_path, rec_path = write_case(case, folder, effect)
-        cfg = load_config(cfg_path)
-        records = split_records([ordered_record(cfg, e) for e in read_data(cfg, [rec_path])], holdout_fraction=0.3)
-        sigma = records_noise_std([r.inputs for r in records], [r.outputs for r in records], cfg.time.dt)
-        return GapProblem(cfg, parameter_space(cfg), records, sigma)
-
-    assert not problem_of(CASES[0], tmp_path / "plain").level_seen
+    assert not _problem_of(*write_case(CASES[0], tmp_path / "plain")).level_seen
     case = DECLARED[0]
     withheld = WithheldEffect("point_mass", {"mass": 0.010, "x": 0.3})
-    problem = problem_of(case, tmp_path / "strip", withheld)
+    problem = _problem_of(*write_case(case, tmp_path / "strip", withheld))
     assert problem.level_seen
     cfg, space = problem.config, problem.space
     # the diagnosis's baseline on this record (ebb diagnose, measured before the change)
-    baseline = {"EI": 47.045, "rhoA": 1.3245, "c": 0.53172}
-    beta = np.array([baseline[k] for k in space.names])
-    f0, z0 = discrete_frequencies(*space.apply(cfg, beta), 20)
-    band = 0.390625 / cfg.time.dt
-    inside = f0 <= band
-    evidence = modal_source(problem, f0[inside], z0[inside], f0[~inside][:1], band)(beta)
+    evidence, effect, match = _mass_match(problem, {"EI": 47.045, "rhoA": 1.3245, "c": 0.53172}, 20, 2.1)
     assert evidence.n_modes >= 5
     L = cfg.beam.length
-    nominal = dict(zip(space.names, space.nominal))
-    scales = Scales(EI=nominal["EI"], rhoA=nominal["rhoA"], N=0.0, length=L, omega_low=2 * np.pi * f0[0],
-                    omega_high=2 * np.pi * band, duration=2.1)
-    effect = Catalogue(cfg, scales, tuple(space.names)).effect("point_mass")
-    match = pattern_fit(problem, evidence, beta, effect)
     found = effect.physical(match.s)
     rho = match.beta[list(space.names).index("rhoA")]
     print(f"\nχ² {match.chi2:.3g} for {evidence.n_modes} modes; mass {found['mass']:.5f} at {found['x']:.5f}; "
