@@ -9,7 +9,7 @@ measured figure, or when a source types a time or a speed-up instead of quoting 
 
 Usage (from the repository's root, alone on the machine: the figures are timings)::
 
-    python -m benchmarks.report                      # every benchmark (about 40 min on 2 cores), then render
+    python -m benchmarks.report                      # every benchmark (about an hour on 2 cores), then render
     python -m benchmarks.report --only bench_core    # re-run some, keep the others' figures, then render
     python -m benchmarks.report --render             # render the pages from docs/figures.json only
     python -m benchmarks.report --check              # exit 1 when a page is not its rendered source
@@ -65,6 +65,7 @@ BENCHMARKS: dict[str, tuple[str, tuple[str, ...]]] = {
     "bench_rig": ("benchmarks/bench_diagnosis.py", ("--family", "rig")),
     "bench_broadband": ("benchmarks/bench_diagnosis.py", ("--family", "broadband")),
     "bench_hint_diagnosis": ("benchmarks/bench_diagnosis.py", ("--family", "hint")),
+    "bench_declared_diagnosis": ("benchmarks/bench_diagnosis.py", ("--family", "declared")),
     "arts_identify": ("examples/arts_identify.py", ()),
     "arts_diagnose": ("examples/arts_diagnose.py", ()),
 }
