@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ebb_model.space.adequacy import DECISIVE_EVIDENCE, GRID_SHIFT, NOISE_FLOOR_EXCESS
+from ebb_model.space.adequacy import DECISIVE_EVIDENCE, GRID_SHIFT, NOISE_FLOOR_EXCESS, at_the_floor
 from first_records import BROADBAND, CASES, DECLARED, write_case
 from identification.run import identify
 
@@ -73,7 +73,8 @@ def test_broadband_record_reaches_the_truth(case, tmp_path):
     shift, line = res.adequacy.shift, res.grid_advice["summary"]
     assert shift is not None, case.name
     moves = shift.largest > GRID_SHIFT
-    better_here = shift.gain < -DECISIVE_EVIDENCE and float(np.max(res.adequacy.change)) > NOISE_FLOOR_EXCESS
+    better_here = (shift.gain < -DECISIVE_EVIDENCE and float(np.max(res.adequacy.change)) > NOISE_FLOOR_EXCESS
+                   and at_the_floor(res.adequacy.gap))
     said = ("too coarse" if moves and shift.gain > DECISIVE_EVIDENCE else "these records fit it better" if better_here
             else "undecided" if moves else "adequate")
     assert line.startswith(f"grid: {said}") or line.startswith("grid: too coarse"), (case.name, line, shift)

@@ -15,7 +15,7 @@ import pytest
 
 from first_records import BROADBAND
 from ebb_model.reference import synthesize
-from ebb_model.space.adequacy import (DECISIVE_EVIDENCE, GRID_SHIFT, NOISE_FLOOR_EXCESS, grid_line,
+from ebb_model.space.adequacy import (DECISIVE_EVIDENCE, GRID_SHIFT, NOISE_FLOOR_EXCESS, at_the_floor, grid_line,
                                       numerical_adequacy)
 from ebb_model.space.grid_advice import grid_advice
 from identification.grid_shift import shift_between
@@ -117,9 +117,10 @@ def test_the_undecided_line_says_which_way_the_refit_moved(strip):
 def test_a_record_the_model_made_on_its_own_grid_is_not_called_too_coarse_for_it(strip):
     """A record ``ebb simulate`` would make: the model itself on the config's 80 nodes at the truth's values, 1 %
     white noise.  Refining the grid changes its outputs by 3 noise variances and moves ρA by 30 deviations, but the
-    refined grid's refit fits these records worse (χ² 2.3e3 higher): the line once said "too coarse for these
-    records" — true of a beam's records, not of these — and says now that they fit this grid better, with the
-    grid a beam's would ask for."""
+    refined grid's refit fits these records worse (χ² 2.3e3 higher) where the model's grid fits them to the noise:
+    the line once said "too coarse for these records" — true of a beam's records, not of these — and says now that
+    they fit this grid better, with the grid a beam's would ask for.  (Away from the floor the line is unchanged:
+    ``tests/test_diagnosis_grid.py``'s coarse θ-scheme record, whose gap is the grid's.)"""
     cfg, u, _, _, _ = strip
     made = _on(cfg, 80, u, np.zeros((u.shape[0], 1)))
     truth = np.array([STRIP.truth[k] for k in made.space.names])
@@ -136,7 +137,7 @@ def test_a_record_the_model_made_on_its_own_grid_is_not_called_too_coarse_for_it
     shift = shift_between(coarse.space, x, ResidualEvaluator(coarse, noise).residuals,
                           ResidualEvaluator(fine, noise).residuals, 80, 323)
     assert shift is not None and float(np.max(adequacy.change)) > NOISE_FLOOR_EXCESS
-    assert shift.gain < -DECISIVE_EVIDENCE, shift
+    assert shift.gain < -DECISIVE_EVIDENCE and at_the_floor(adequacy.gap), (shift, adequacy.gap)
     line = grid_line(advice, replace(adequacy, shift=shift))
     assert line.startswith("grid: these records fit it better than a finer one") and "too coarse" not in line, line
     assert f"raises χ² by {-shift.gain:.2g}, decisively" in line and "nodes >= 323" in line, line

@@ -193,10 +193,13 @@ def grid_line(advice: GridAdvice, adequacy: NumericalAdequacy) -> str:
     shape at the sensors and actuators, and the modes above the band (a strip's tip accelerometer under a broadband
     force: modes 1-6 within 5 % of a half-power bandwidth on 80 nodes, the outputs 3.5 noise variances off), and
     the shift counts what the records resolve (module docstring: 0.25 noise variances, 6.7 deviations).  Where the
-    outputs change by more than the noise hides but the refined grid's refit raises χ² decisively, the records fit
-    the model's grid better, and the line says that instead of "too coarse for these records": a record made by
-    the model itself on the config's 80 nodes (the strip, a tip accelerometer, 1 % noise) moves ρA by 30 deviations
-    and raises χ² by 2.3e3 on 323 nodes — "too coarse" is true of a beam's records there, not of these."""
+    outputs change by more than the noise hides but the model's grid fits the records to the noise
+    (:func:`at_the_floor`) and the refined grid's refit raises χ² decisively, the records fit the model's grid
+    better, and the line says that instead of "too coarse for these records": a record made by the model itself on
+    the config's 80 nodes (the strip, a tip accelerometer, 1 % noise) moves ρA by 30 deviations and raises χ² by
+    2.3e3 on 323 nodes — "too coarse" is true of a beam's records there, not of these.  Away from the floor the
+    Gauss–Newton step's χ² says nothing of the kind (the seed's θ-scheme on a coarse grid, its gap 252 % the
+    grid's, the step's χ² higher by more than decisive: "too coarse", as the grid verdict says)."""
     from .grid_advice import BANDWIDTH_FRACTION
 
     change = float(np.max(adequacy.change, initial=0.0))
@@ -222,7 +225,7 @@ def grid_line(advice: GridAdvice, adequacy: NumericalAdequacy) -> str:
                 f"prefer the refined grid: its refit {refit}; {modes})")
     if change <= NOISE_FLOOR_EXCESS and not coarse_shift:
         return f"grid: adequate for these records ({moved}; {modes})"
-    if shift is not None and shift.gain < -DECISIVE_EVIDENCE:
+    if shift is not None and shift.gain < -DECISIVE_EVIDENCE and at_the_floor(adequacy.gap):
         return (f"grid: these records fit it better than a finer one ({moved}, but its refit raises χ² by "
                 f"{-shift.gain:.2g}, decisively: records a model made on this grid, or another error of the model's "
                 f"that this grid's makes up for; a beam's records would ask for [beam] nodes >= "
