@@ -16,7 +16,7 @@ from .modal_data import ModalData
 from .native import NativeEvaluator
 from .noise_model import NoiseModel, estimate_noise_model
 from .optimise import ParetoSet, knee_order
-from .polish import ResidualEvaluator, polish as polish_point
+from .polish import ResidualEvaluator, polish as polish_point, settle
 from .prior import Prior
 from .progress import Progress
 from .runners import Runner
@@ -61,7 +61,8 @@ def polish_basins(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, bud
     front's point that fits the records best (by the polish's own χ²) when it is not among the ``k``: whichever
     polished point reaches the lowest χ² comes first.  The identified model is the best of local fits from
     different basins, never a silent local optimum of one — and what a longer search finds is polished, so more
-    effort cannot give a worse answer than the default's stages do."""
+    effort cannot give a worse answer than the default's stages do.  The best is polished again until it settles
+    (:func:`identification.polish.settle`)."""
     out: list[tuple[int, np.ndarray, np.ndarray, int, Any]] = []
     n_done = pareto.n_evaluations
     todo = [(int(i), pareto.X[i]) for i in knee_order(pareto.F, pareto.objective_names)[:k]]
@@ -86,4 +87,10 @@ def polish_basins(pareto: ParetoSet, evaluator: Any, runner: Runner, k: int, bud
     if len(out) >= 2:
         first = int(np.argmin([o[4].cost for o in out]))
         out.insert(0, out.pop(first))
+    if out:
+        # the identified point is where the polish settles (identification.polish.settle)
+        i, _x, _f, n_ev, r = out[0]
+        r = settle(evaluator, r, runner=runner, max_evaluations=budget, noise=noise, prior=prior, modes=modes)
+        f = np.asarray(runner(evaluator, r.x[None, :]))[0]
+        out[0] = (i, r.x, f, r.n_evaluations + 1 + n_ev - out[0][4].n_evaluations, r)
     return out

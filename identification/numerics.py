@@ -35,14 +35,16 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from ebb_model.space.adequacy import DECISIVE_EVIDENCE, GRID_SHIFT, NOISE_FLOOR_EXCESS, adequacy_grid, excited_band
+from ebb_model.space.adequacy import (DECISIVE_EVIDENCE, GRID_SHIFT, NOISE_FLOOR_EXCESS, NumericalAdequacy,
+                                     adequacy_grid, excited_band, numerical_adequacy)
+from ebb_model.space.grid_advice import GridAdvice, grid_advice
 from ebb_model.acquisition.bandlimited import hold_hint
 from ebb_model.config import BeamConfig
 
 from .modal_data import ModalData, modal_data
 from .native import NativeEvaluator
 from .noise_model import NoiseModel
-from .grid_shift import shift_between
+from .grid_shift import on_the_grid_of, shift_between
 from .polish import PolishResult, ResidualEvaluator, polish
 from .prior import Prior
 from .runners import Runner
@@ -262,3 +264,25 @@ def refine_numerics(evaluator: NativeEvaluator, polished: list[Polished], runner
     r = choice.polished
     f = np.asarray(runner(choice.evaluator, r.x[None, :]))[0]
     return choice.evaluator, [(polished[0][0], r.x, f, r.n_evaluations + 1, r), *polished[1:]], choice.note
+
+
+def grid_adequacy(evaluator: NativeEvaluator, x: np.ndarray, noise: NoiseModel, stable: bool = True
+                  ) -> tuple[GridAdvice, NumericalAdequacy]:
+    """What ``identify`` says of the grid at its answer ``x`` (:func:`ebb_model.space.adequacy.grid_line` of the
+    two): the grid advice for the records' band, and the numerical adequacy at the noise's white level with — for
+    a ``stable`` model — the refined grid's shift of the answer (:func:`shift_between`, the residuals whitened by
+    ``noise`` with the config's priors and measured modes).  The same advice ``diagnose`` gives at its baseline."""
+    cfg, space, exps = evaluator.config, evaluator.space, evaluator.experiments
+    band_hz = excited_band([e.inputs for e in exps], cfg.time.dt)[1]
+    at = space.apply(cfg, x)
+    advice = grid_advice(*at, band_hz=band_hz)
+    adequacy = numerical_adequacy(*at, [(e.inputs, e.outputs) for e in exps], np.median(noise.std, axis=0),
+                                  band_hz=band_hz, advice=advice)
+    if not stable:
+        return advice, adequacy
+    fine = on_the_grid_of(cfg, adequacy_grid(*at, band_hz, advice))
+    on_fine = NativeEvaluator(fine, space, exps, per=evaluator.per, stabilising=evaluator.stabilising)
+    prior, modes = Prior.of(cfg, space.names), modal_data(cfg)
+    shift = shift_between(space, x, ResidualEvaluator(evaluator, noise, prior, modes).residuals,
+                          ResidualEvaluator(on_fine, noise, prior, modes).residuals, cfg.beam.nodes, fine.beam.nodes)
+    return advice, replace(adequacy, shift=shift)

@@ -32,8 +32,7 @@ from numpy.typing import ArrayLike
 
 from ebb_model import max_growth_factor
 from ebb_model.acquisition.bandlimited import hold_hint
-from ebb_model.space.adequacy import adequacy_grid, excited_band, grid_line, numerical_adequacy
-from ebb_model.space.grid_advice import grid_advice
+from ebb_model.space.adequacy import grid_line
 from ebb_model.io.output import atomic_path
 from ebb_model.config import BeamConfig
 from ebb_model.threads import one_blas_thread
@@ -49,9 +48,8 @@ from .export_targets import DEFAULT_TARGETS, check_targets
 from .fisher import fisher_information, nominal_fisher
 from .basins import better_of, noise_at, polish_basins
 from .fit_hints import fit_hints
-from .grid_shift import on_the_grid_of, shift_between
 from .progress import Progress
-from .numerics import refine_numerics
+from .numerics import grid_adequacy, refine_numerics
 from .noise_model import NoiseModel, estimate_noise_model
 from .modal_data import modal_data
 from .prior import Prior, PriorCheck
@@ -65,7 +63,6 @@ from .resume import RunRecord
 from .result import RESULT_FILE, IdentificationResult, PolishedPoint
 from .runners import make_runner
 from .noise import given_noise_std
-from .polish import ResidualEvaluator
 from .config_file import load_identification_config
 from .settings import identification_settings
 from .uncertainty import uncertainty_model, write_uncertainty
@@ -366,20 +363,8 @@ def _result(evaluator: NativeEvaluator, pareto: ParetoSet,
     props = [_point_properties(cfg, space, evaluator, x, noise) for x in pareto.X]
     polished = tuple(PolishedPoint(i, x, f, *_point_properties(cfg, space, evaluator, x, noise), n_ev, r.cost,
                                    r.success, r.message) for i, x, f, n_ev, r in polished_raw)
-    sigma = np.median(noise.std, axis=0)
-    band_hz = excited_band([e.inputs for e in exps], cfg.time.dt)[1]
-    # the same advice `diagnose` gives at its baseline (one function, the same band); the adequacy check reads it
-    advice = grid_advice(*space.apply(cfg, best_x), band_hz=band_hz)
-    adequacy = numerical_adequacy(*space.apply(cfg, best_x), [(e.inputs, e.outputs) for e in exps], sigma,
-                                  band_hz=band_hz, advice=advice)
+    advice, adequacy = grid_adequacy(evaluator, best_x, noise, best.stable)
     prior, modes = Prior.of(cfg, space.names), modal_data(cfg)
-    if best.stable:
-        # what the refined grid would do to the answer, in its Cramér–Rao deviations (identification.grid_shift)
-        fine = on_the_grid_of(cfg, adequacy_grid(*space.apply(cfg, best_x), band_hz, advice))
-        on_fine = NativeEvaluator(fine, space, exps, per=evaluator.per, stabilising=evaluator.stabilising)
-        adequacy = replace(adequacy, shift=shift_between(
-            space, best_x, ResidualEvaluator(evaluator, noise, prior, modes).residuals,
-            ResidualEvaluator(on_fine, noise, prior, modes).residuals, cfg.beam.nodes, fine.beam.nodes))
     grid = {**advice.to_dict(), "summary": grid_line(advice, adequacy)}
     priors: tuple[PriorCheck, ...] = ()
     if prior.count and best.stable:

@@ -1,4 +1,4 @@
-"""How often the identification's sign, level and units hints fire where they are false (issue 71: under 1 %).
+"""How often the identification's sign, level, units and grid hints fire where they are false (issue 71: under 1 %).
 
 The family (``tests/hint_family.py``): 64 broadband records, a quarter each correct, with a withheld effect, with an
 undeclared delay and with an undeclared anti-alias filter on the sensor channels — every one read with its true
@@ -7,7 +7,9 @@ false.  Each record is taken to where a successful default ``identify`` ends: th
 from the truth's parameters with the noise model estimated there, the numerics the records ask for
 (:func:`identification.numerics.refine_numerics`) — the search's own failures are the first-records tests'
 (``tests/test_first_records.py``) — and the hints are what ``identify`` prints there
-(:func:`identification.fit_hints.fit_hints`, the start's level note included where the fit bears it out).  The
+(:func:`identification.fit_hints.fit_hints`, the start's level note included where the fit bears it out; the grid's
+line and the numerical share's, :func:`identification.numerics.grid_adequacy`, checked by refits on the model's grid
+and a finer one, ``tests/grid_truth.py``).  The
 records with a withheld effect or a mangled channel end far above the floor (30–7,500 noise variances on some
 sensor), which is where a gain that removes half the misfit could be mistaken for units.
 
@@ -25,12 +27,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ebb_model.space.adequacy import grid_line
+from grid_truth import false_grid_claims, grid_claims, grid_truth
 from hint_family import KINDS, hint_bench, write_hint_case
 from identification.basins import noise_at
 from identification.data_start import data_start
 from identification.fit_hints import fit_hints
 from identification.native import NativeEvaluator
-from identification.numerics import refine_numerics
+from identification.numerics import grid_adequacy, refine_numerics
 from identification.parameters import parameter_space
 from identification.polish import polish
 from identification.run import _arrays, load_identification_config, read_data
@@ -41,8 +45,9 @@ CHUNKS = 4
 
 
 def _hints_at_the_optimum(i: int, folder) -> tuple[list[str], dict[str, float]]:
-    """The hints ``identify`` prints on record ``i`` at the end of a successful search (module docstring), and the
-    fit's gap per sensor in noise variances."""
+    """The hints ``identify`` prints on record ``i`` at the end of a successful search (module docstring) — its
+    grid claims among them where refits contradict them (``tests/grid_truth.py``) — and the fit's gap per sensor
+    in noise variances."""
     case = hint_bench(i)
     cfg_path, rec_path = write_hint_case(case, folder)
     cfg = load_identification_config(cfg_path)
@@ -66,11 +71,14 @@ def _hints_at_the_optimum(i: int, folder) -> tuple[list[str], dict[str, float]]:
     whitened = np.concatenate([noise.whiten(k, e.outputs - s) for k, (e, s) in enumerate(zip(exps, simulated))])
     gap = dict(zip(cfg.output_names, map(float, np.mean(whitened ** 2, axis=0))))
     hints = fit_hints(cfg.output_names, [e.outputs for e in exps], simulated, gap, True, start)
-    return hints, gap
+    advice, adequacy = grid_adequacy(evaluator, polished[0][1], noise)
+    claim, refine = grid_claims(grid_line(advice, adequacy), adequacy.summary())
+    false = false_grid_claims(claim, refine, grid_truth(evaluator, polished[0][1], noise, adequacy.shift))
+    return hints + false, gap
 
 
 @pytest.mark.parametrize("chunk", range(CHUNKS))
-def test_no_sign_level_or_units_hint_on_records_read_right(chunk, tmp_path):
+def test_no_false_sign_level_units_or_grid_hint_on_records_read_right(chunk, tmp_path):
     fired, far = [], 0
     size = FAMILY // CHUNKS
     for i in range(chunk * size, (chunk + 1) * size):
