@@ -78,10 +78,11 @@ class JointFit:
 
 
 def fit_together(config: BeamConfig, modes: Sequence[ModalData], varying: Sequence[str],
-                 starts: Sequence[np.ndarray] = ()) -> JointFit:
+                 starts: Sequence[np.ndarray] = (), *, search: bool = True) -> JointFit:
     """The config's unknowns fitted to every segment's ``modes`` at once, the unknowns ``varying`` one value per
     segment (module docstring); ``starts``: each segment's own fit of every unknown (in the config's order), when
-    there are.
+    there are; ``search=False`` polishes from ``starts`` alone (a fit of fewer segments started at a fit of
+    all, :mod:`identification.hold_out`).
 
     Raises
     ------
@@ -137,8 +138,8 @@ def fit_together(config: BeamConfig, modes: Sequence[ModalData], varying: Sequen
         shared = np.median(np.array([x[~vary] for x in x_each]), axis=0)
         return np.concatenate([shared] + [x[vary] for x in x_each])
 
-    candidates = [as_z([space.nominal] * n_seg)]
-    if n_v == 1:       # each segment's own value scanned over its bounds at the shared nominal values
+    candidates = [as_z([space.nominal] * n_seg)] if search or len(starts) != n_seg else []
+    if n_v == 1 and search:       # each segment's own value scanned over its bounds at the shared nominal values
         k = int(np.flatnonzero(vary)[0])
         grid = np.linspace(space.lower[k], space.upper[k], SCAN)
         scanned = []

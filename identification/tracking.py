@@ -163,13 +163,15 @@ def together_lines(config: BeamConfig, tracked: Sequence[TrackedSegment], varyin
     """The tracked segments that show modes fitted together (:func:`identification.joint_segments.fit_together`,
     ``varying`` per segment, started from the segments' own fits when every one has one): ``tracked.json``'s
     ``together`` and the lines a user reads — the shared unknowns, each segment's own, χ² against its degrees of
-    freedom, and each varying unknown's straight line against the channel's level.
+    freedom, each segment's modes predicted with the segment held out (:func:`identification.hold_out.hold_out`),
+    and each varying unknown's straight line against the channel's level.
 
     Raises
     ------
     ConfigError
         A ``varying`` name that is not an unknown of ``config``.
     """
+    from .hold_out import hold_out
     from .joint_segments import fit_together
     from .parameters import parameter_space
 
@@ -179,7 +181,8 @@ def together_lines(config: BeamConfig, tracked: Sequence[TrackedSegment], varyin
     names = parameter_space(config).names
     starts = ([np.array([tracked[i].identified.parameters[n] for n in names]) for i in use]   # type: ignore[union-attr]
               if all(tracked[i].identified is not None for i in use) else [])
-    joint = fit_together(config, [tracked[i].evidence.modal_data() for i in use], varying, starts)
+    data = [tracked[i].evidence.modal_data() for i in use]
+    joint = fit_together(config, data, varying, starts)
     shared = ", ".join(f"{n} {v:.5g} ± {joint.shared_std[n]:.2g}" for n, v in joint.shared.items())
     verdict = ("one beam reproduces every segment" if joint.agrees else
                f"beyond its 99.9 % point {joint.chi2_limit:.3g}: one beam of the config's model does not reproduce "
@@ -192,6 +195,19 @@ def together_lines(config: BeamConfig, tracked: Sequence[TrackedSegment], varyin
         out.append(f"  segment {i + 1}: {own} (chi2 {c:.3g} for {len(hz)} modes"
                    + (f"; {', '.join(f'{f:.5g}' for f in aside)} Hz set aside: a doublet's other member)"
                       if aside else ")"))
+    held = hold_out(config, data, varying, joint)
+    if held:
+        worst = max(held, key=lambda h: h.largest)
+        k = int(np.nanargmax(np.abs(worst.error)))
+        out.append(f"held out (each segment's {', '.join(varying)} from one of its modes, the shared unknowns from "
+                   f"the other segments): its other modes predicted within {100 * worst.largest:.2g} % (segment "
+                   f"{use[worst.segment] + 1}'s mode {k + 1} from its mode {worst.used + 1}: "
+                   f"{worst.model_hz[k]:.5g} Hz against {worst.measured_hz[k]:.5g} Hz)")
+        for i in sorted({h.segment for h in held}):
+            each = "; ".join(f"from mode {h.used + 1}: " + ", ".join(
+                f"mode {k + 1} {100 * e:+.2f} %" for k, e in enumerate(h.error) if np.isfinite(e))
+                for h in held if h.segment == i)
+            out.append(f"  segment {use[i] + 1} held out: {each}")
     fits = {}
     for n in varying:
         fit = straight_line([(tracked[i].segment.level, v[n], sd[n])
@@ -201,4 +217,5 @@ def together_lines(config: BeamConfig, tracked: Sequence[TrackedSegment], varyin
             out.append(f"{n} (together) against {channel}: slope {fit['slope']:.5g} ± {fit['slope_std']:.2g}, "
                        f"intercept {fit['intercept']:.5g} ± {fit['intercept_std']:.2g}, R² {fit['r2']:.4f}, "
                        f"χ²/dof {fit['chi2_per_dof']:.3g} over {int(fit['segments'])} segments")
-    return joint.to_dict() | {"segments": [i + 1 for i in use], "varies": varying, "against_channel": fits}, out
+    return joint.to_dict() | {"segments": [i + 1 for i in use], "varies": varying, "against_channel": fits,
+                              "held_out": [h.to_dict() | {"segment": use[h.segment] + 1} for h in held]}, out

@@ -172,7 +172,8 @@ def test_dropbears_dwells_together_put_the_roller_on_a_line_in_the_position_sens
     is one mode's candidates, the other member set aside.  Fitted together, the dwells' places rise with the
     position sensor's volts on a straight line (R² ≥ 0.99; measured 0.9992 and 0.9988, 50 and 52 mm/V), the same
     place out and back (measured within 0.3 and 1.1 mm; allowed 2 mm), and the tool says that one beam with a rigid
-    roller does not reproduce the dwells (measured χ² 3.3e4 for 7 and 4.9e4 for 8 degrees of freedom).  The second
+    roller does not reproduce the dwells (measured χ² 3.3e4 for 7 and 4.9e4 for 8 degrees of freedom), nor
+    predicts a dwell's modes it held out within 1 %.  The second
     run was not tuned against: before the doublets were candidates of one mode its lowest-modes-in-order fit put ρA
     on its bound, χ² 7.3e6, R² 0.980."""
     cfg = _dropbear_config(tmp_path, roller=True)
@@ -191,6 +192,14 @@ def test_dropbears_dwells_together_put_the_roller_on_a_line_in_the_position_sens
     for out, back in ((2, 10), (3, 9), (4, 8), (5, 7)):        # the same step of the motor out and back
         assert abs(place[out] - place[back]) < 2e-3, place
     assert not joint["agrees"] and "does not reproduce every segment" in r.stdout, r.stdout
+    # held out — the beam from the other dwells, a dwell's place from one of its modes — a rigid roller at its best
+    # place misses the dwell's other modes by more than 1 % (measured: 1.8 % in the first run, the second mode of
+    # the dwell at 2.93 V from its first; 2.6 % among the first two modes of the second run, 9.6 % for the one
+    # dwell with a third mode).  The same hold-out predicts a converged truth's held-out modes within 1.8e-4
+    # (tests/test_joint_segments.py): what is missed here is the bench's, not the method's.
+    held = joint["held_out"]
+    assert len(held) >= 16 and "held out (each segment's x_roller from one of its modes" in r.stdout, r.stdout
+    assert max(abs(e) for h in held for e in h["relative_error"] if e is not None) > 0.01, held
     # a segment's own fit on its bound is said to be (measured in both runs: the last dwell's two frequencies
     # alone put EI on its lower bound, 50 N m², with the roller at 0.255 m)
     assert "(on its bound)" in r.stdout, r.stdout
