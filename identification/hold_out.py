@@ -28,7 +28,7 @@ from ebb_model.errors import EbbError
 
 from .joint_segments import JointFit, fit_together
 from .modal_data import ModalData
-from .parameters import parameter_space
+from .parameters import ParameterSpace, parameter_space
 
 __all__ = ["HeldOut", "hold_out"]
 
@@ -89,7 +89,7 @@ def hold_out(config: BeamConfig, modes: Sequence[ModalData], varying: Sequence[s
     return out
 
 
-def _predict(config: BeamConfig, space: Any, m: ModalData, x0: np.ndarray, k_vary: np.ndarray, j: int
+def _predict(config: BeamConfig, space: ParameterSpace, m: ModalData, x0: np.ndarray, k_vary: np.ndarray, j: int
              ) -> tuple[np.ndarray, np.ndarray] | None:
     """The model's frequencies of ``m``'s modes and the measured ones compared with them, the varying unknowns
     (indices ``k_vary`` of ``x0``) fitted to mode ``j`` alone at ``x0``'s shared values; ``None`` when they
